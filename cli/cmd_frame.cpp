@@ -1,0 +1,336 @@
+// mbscope frame: decode one ADU (or a file of them) field by field, or encode one.
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "cli/commands.hpp"
+#include "cli/frame_text.hpp"
+#include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
+
+namespace mbscope::cli {
+namespace {
+
+using namespace mbscope::modbus;
+
+struct FrameOptions {
+    bool rtu = false, ascii = false, tcp = false;
+    bool encode = false;
+    bool json = false;
+    std::string direction = "auto";
+    std::string file;
+    int unit = 1;
+    int transaction_id = 1;
+    std::vector<std::string> args;
+};
+
+constexpr const char* encode_help =
+    "Verbs for --encode (numbers in decimal or 0x hex; addresses are 0-based protocol addresses):\n"
+    "  read-coils ADDR QTY | read-discrete ADDR QTY | read-holding ADDR QTY | read-input ADDR QTY\n"
+    "  write-coil ADDR on|off | write-register ADDR VALUE\n"
+    "  write-coils ADDR BIT... | write-registers ADDR VALUE...\n"
+    "  read-write RADDR RQTY WADDR VALUE... | mask-write ADDR AND OR | read-fifo ADDR\n"
+    "  diagnostics SUB [HEXDATA] | read-device-id CODE OBJECT | read-exception-status\n"
+    "  comm-event-counter | comm-event-log | report-server-id\n"
+    "  exception FC CODE | raw FC [HEXDATA]";
+
+std::optional<long> number(const std::string& s) {
+    try {
+        std::size_t used = 0;
+        long v = std::stol(s, &used, 0);
+        if (used != s.size()) return std::nullopt;
+        return v;
+    } catch (...) {
+        return std::nullopt;
+    }
+}
+
+// Build a request PDU from a verb and its arguments; error says what is wrong.
+std::optional<Pdu> build_pdu(const std::vector<std::string>& a, std::string& error) {
+    if (a.empty()) {
+        error = "--encode needs a verb";
+        return std::nullopt;
+    }
+    const std::string& verb = a[0];
+    std::vector<long> n;
+    for (std::size_t i = 1; i < a.size(); ++i) {
+        if (verb == "write-coil" && i == 2 && (a[i] == "on" || a[i] == "off")) {
+            n.push_back(a[i] == "on" ? 1 : 0);
+            continue;
+        }
+        if ((verb == "diagnostics" || verb == "raw") && i == 2) break;  // hex data handled below
+        auto v = number(a[i]);
+        if (!v || *v < 0 || *v > 0xFFFF) {
+            error = "not a number from 0 to 65535: '" + a[i] + "'";
+            return std::nullopt;
+        }
+        n.push_back(*v);
+    }
+    auto need = [&](std::size_t count, bool at_least = false) {
+        if (at_least ? n.size() >= count : n.size() == count) return true;
+        error = verb + " takes " + (at_least ? "at least " : "") + std::to_string(count) + " numbers";
+        return false;
+    };
+    auto u16 = [](long v) { return static_cast<std::uint16_t>(v); };
+    auto words_from = [&](std::size_t from) {
+        std::vector<std::uint16_t> w;
+        for (std::size_t i = from; i < n.size(); ++i)
+            w.push_back(u16(n[i]));
+        return w;
+    };
+    auto hex_data = [&](std::size_t from) -> std::optional<std::vector<std::uint8_t>> {
+        std::vector<std::string> tokens(a.begin() + static_cast<std::ptrdiff_t>(std::min(from, a.size())),
+                                        a.end());
+        return parse_hex(tokens, error);
+    };
+    const std::pair<const char*, FunctionCode> reads[] = {
+        {"read-coils", FunctionCode::ReadCoils},
+        {"read-discrete", FunctionCode::ReadDiscreteInputs},
+        {"read-holding", FunctionCode::ReadHoldingRegisters},
+        {"read-input", FunctionCode::ReadInputRegisters}};
+    for (const auto& [name, fc] : reads)
+        if (verb == name)
+            return need(2) ? std::optional(make_read_request(fc, u16(n[0]), u16(n[1]))) : std::nullopt;
+    if (verb == "write-coil")
+        return need(2) ? std::optional(make_write_single_coil(u16(n[0]), n[1] != 0)) : std::nullopt;
+    if (verb == "write-register")
+        return need(2) ? std::optional(make_write_single_register(u16(n[0]), u16(n[1]))) : std::nullopt;
+    if (verb == "write-coils") {
+        if (!need(2, true)) return std::nullopt;
+        std::vector<bool> bits;
+        for (std::size_t i = 1; i < n.size(); ++i)
+            bits.push_back(n[i] != 0);
+        std::unique_ptr<bool[]> arr(new bool[bits.size()]);
+        for (std::size_t i = 0; i < bits.size(); ++i)
+            arr[i] = bits[i];
+        return make_write_multiple_coils(u16(n[0]), {arr.get(), bits.size()});
+    }
+    if (verb == "write-registers") {
+        if (!need(2, true)) return std::nullopt;
+        auto w = words_from(1);
+        return make_write_multiple_registers(u16(n[0]), w);
+    }
+    if (verb == "read-write") {
+        if (!need(4, true)) return std::nullopt;
+        auto w = words_from(3);
+        return make_read_write_multiple(u16(n[0]), u16(n[1]), u16(n[2]), w);
+    }
+    if (verb == "mask-write")
+        return need(3) ? std::optional(make_mask_write_register(u16(n[0]), u16(n[1]), u16(n[2])))
+                       : std::nullopt;
+    if (verb == "read-fifo") return need(1) ? std::optional(make_read_fifo_queue(u16(n[0]))) : std::nullopt;
+    if (verb == "read-device-id")
+        return need(2) ? std::optional(make_read_device_id(static_cast<std::uint8_t>(n[0]),
+                                                           static_cast<std::uint8_t>(n[1])))
+                       : std::nullopt;
+    if (verb == "diagnostics") {
+        if (!need(1)) return std::nullopt;
+        auto data = hex_data(2);
+        if (!data) return std::nullopt;
+        if (data->empty()) data = std::vector<std::uint8_t>{0x00, 0x00};
+        return make_diagnostics(u16(n[0]), *data);
+    }
+    const std::pair<const char*, FunctionCode> no_data[] = {
+        {"read-exception-status", FunctionCode::ReadExceptionStatus},
+        {"comm-event-counter", FunctionCode::GetCommEventCounter},
+        {"comm-event-log", FunctionCode::GetCommEventLog},
+        {"report-server-id", FunctionCode::ReportServerId}};
+    for (const auto& [name, fc] : no_data)
+        if (verb == name) return need(0) ? std::optional(make_no_data_request(fc)) : std::nullopt;
+    if (verb == "exception") {
+        if (!need(2)) return std::nullopt;
+        return make_exception(static_cast<std::uint8_t>(n[0]), static_cast<std::uint8_t>(n[1]));
+    }
+    if (verb == "raw") {
+        if (!need(1)) return std::nullopt;
+        auto data = hex_data(2);
+        if (!data) return std::nullopt;
+        Pdu p;
+        p.function_raw = static_cast<std::uint8_t>(n[0]);
+        p.body = RawPdu{*data};
+        return p;
+    }
+    error = "unknown verb '" + verb + "'";
+    return std::nullopt;
+}
+
+Framing chosen_framing(const FrameOptions& o) {
+    if (o.ascii) return Framing::Ascii;
+    if (o.tcp) return Framing::Tcp;
+    return Framing::Rtu;
+}
+
+Direction chosen_direction(const std::string& d) {
+    if (d == "request") return Direction::Request;
+    if (d == "response") return Direction::Response;
+    return Direction::Unknown;
+}
+
+std::optional<std::vector<std::uint8_t>> wire_from_tokens(Framing framing,
+                                                          const std::vector<std::string>& tokens,
+                                                          std::string& error) {
+    if (framing == Framing::Ascii && !tokens.empty() && !tokens[0].empty() && tokens[0][0] == ':') {
+        std::string text;
+        for (const auto& t : tokens)
+            text += t;
+        for (std::size_t pos = 0; (pos = text.find("\\r\\n")) != std::string::npos;)
+            text.replace(pos, 4, "\r\n");
+        if (text.size() < 2 || text.substr(text.size() - 2) != "\r\n") text += "\r\n";
+        return std::vector<std::uint8_t>(text.begin(), text.end());
+    }
+    return parse_hex(tokens, error);
+}
+
+int emit(const std::vector<DecodedFrame>& frames, bool json) {
+    int rc = exit_ok;
+    nlohmann::json all = nlohmann::json::array();
+    for (const auto& d : frames) {
+        if (json)
+            all.push_back(render_json(d));
+        else
+            std::cout << render_text(d) << (frames.size() > 1 ? "\n" : "");
+        if (!d.error.empty())
+            rc = exit_failure;
+        else if (!d.clean() && rc == exit_ok)
+            rc = exit_findings;
+    }
+    if (json) std::cout << (frames.size() == 1 ? all[0].dump(2) : all.dump(2)) << '\n';
+    return rc;
+}
+
+int run_file(const FrameOptions& o) {
+    std::ifstream in(o.file);
+    if (!in) {
+        std::cerr << "mbscope frame: cannot open " << o.file << '\n';
+        return exit_failure;
+    }
+    std::vector<DecodedFrame> frames;
+    std::string line;
+    int number = 0;
+    int errors = 0;
+    while (std::getline(in, line)) {
+        ++number;
+        std::string comment;
+        if (auto hash = line.find('#'); hash != std::string::npos) {
+            comment = line.substr(hash + 1);
+            line.resize(hash);
+            while (!comment.empty() && comment.front() == ' ')
+                comment.erase(0, 1);
+        }
+        std::istringstream words(line);
+        std::string kind;
+        if (!(words >> kind)) continue;
+        std::vector<std::string> tokens;
+        for (std::string t; words >> t;)
+            tokens.push_back(t);
+        Framing framing;
+        if (kind == "rtu")
+            framing = Framing::Rtu;
+        else if (kind == "ascii")
+            framing = Framing::Ascii;
+        else if (kind == "tcp")
+            framing = Framing::Tcp;
+        else {
+            std::cerr << o.file << ":" << number << ": unknown framing '" << kind
+                      << "' (rtu, ascii or tcp)\n";
+            ++errors;
+            continue;
+        }
+        std::string error;
+        auto wire = wire_from_tokens(framing, tokens, error);
+        if (!wire) {
+            std::cerr << o.file << ":" << number << ": " << error << '\n';
+            ++errors;
+            continue;
+        }
+        auto d = decode_frame(framing, std::move(*wire), chosen_direction(o.direction));
+        d.source = o.file + ":" + std::to_string(number) + (comment.empty() ? "" : " " + comment);
+        frames.push_back(std::move(d));
+    }
+    int rc = emit(frames, o.json);
+    return errors ? exit_failure : rc;
+}
+
+int run_frame(const FrameOptions& o) {
+    const int framings = int(o.rtu) + int(o.ascii) + int(o.tcp);
+    if (framings > 1) {
+        std::cerr << "mbscope frame: choose one of --rtu, --ascii, --tcp\n";
+        return exit_failure;
+    }
+    if (!o.file.empty()) return run_file(o);
+    if (framings == 0) {
+        std::cerr << "mbscope frame: choose one of --rtu, --ascii, --tcp (or --file)\n";
+        return exit_failure;
+    }
+    const Framing framing = chosen_framing(o);
+    std::string error;
+    if (o.encode) {
+        if (o.unit < 0 || o.unit > 255 || o.transaction_id < 0 || o.transaction_id > 0xFFFF) {
+            std::cerr << "mbscope frame: --unit is 0..255 and --tid 0..65535\n";
+            return exit_failure;
+        }
+        auto pdu = build_pdu(o.args, error);
+        if (!pdu) {
+            std::cerr << "mbscope frame: " << error << "\n" << encode_help << '\n';
+            return exit_failure;
+        }
+        const auto pdu_bytes = encode_pdu(*pdu);
+        std::vector<std::uint8_t> wire;
+        const auto unit = static_cast<std::uint8_t>(o.unit);
+        switch (framing) {
+            case Framing::Rtu:
+                wire = encode_rtu(unit, pdu_bytes);
+                break;
+            case Framing::Ascii: {
+                auto s = encode_ascii(unit, pdu_bytes);
+                wire.assign(s.begin(), s.end());
+                break;
+            }
+            case Framing::Tcp:
+                wire = encode_tcp(static_cast<std::uint16_t>(o.transaction_id), unit, pdu_bytes);
+                break;
+        }
+        return emit({decode_frame(framing, std::move(wire), pdu->direction)}, o.json);
+    }
+    auto wire = wire_from_tokens(framing, o.args, error);
+    if (!wire) {
+        std::cerr << "mbscope frame: " << error << '\n';
+        return exit_failure;
+    }
+    if (wire->empty()) {
+        std::cerr << "mbscope frame: no bytes given\n";
+        return exit_failure;
+    }
+    return emit({decode_frame(framing, std::move(*wire), chosen_direction(o.direction))}, o.json);
+}
+
+}  // namespace
+
+void register_frame(CLI::App& app, int& exit_code) {
+    auto o = std::make_shared<FrameOptions>();
+    auto* cmd = app.add_subcommand("frame", "Decode one Modbus ADU field by field, or encode one");
+    cmd->footer(std::string("Examples:\n"
+                            "  mbscope frame --rtu 11 03 00 60 00 03 07 45\n"
+                            "  mbscope frame --ascii ':11100060000204000A01026C'\n"
+                            "  mbscope frame --tcp 00 01 00 00 00 06 11 03 00 6B 00 03 --json\n"
+                            "  mbscope frame --encode --rtu --unit 17 read-holding 96 3\n"
+                            "  mbscope frame --file captures/manual-examples.txt\n\n") +
+                encode_help +
+                "\n\nExit codes: 0 decoded and clean, 1 decoded but a rule is broken (checksum, limits),"
+                " 2 could not decode.");
+    cmd->add_flag("--rtu", o->rtu, "Modbus RTU: unit, PDU, CRC (low byte first)");
+    cmd->add_flag("--ascii", o->ascii, "Modbus ASCII: ':' hex LRC CR LF (give the text or its bytes in hex)");
+    cmd->add_flag("--tcp", o->tcp, "Modbus/TCP: MBAP header and PDU");
+    cmd->add_flag("--encode", o->encode, "Build a frame from a verb and its arguments instead of decoding");
+    cmd->add_option("--unit", o->unit, "Unit id for --encode")->capture_default_str();
+    cmd->add_option("--tid", o->transaction_id, "Transaction id for --encode --tcp")->capture_default_str();
+    cmd->add_option("--direction", o->direction, "request, response or auto (try both)")
+        ->check(CLI::IsMember({"auto", "request", "response"}))
+        ->capture_default_str();
+    cmd->add_option("--file", o->file, "Decode every line 'rtu|ascii|tcp HEX... [# comment]' of a file");
+    cmd->add_flag("--json", o->json, "Machine-readable output");
+    cmd->add_option("bytes", o->args, "Hex bytes of the frame (or the verb and arguments with --encode)");
+    cmd->callback([o, &exit_code] { exit_code = run_frame(*o); });
+}
+
+}  // namespace mbscope::cli

@@ -1,0 +1,136 @@
+#include "modbus/adu.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+#include "modbus/checksum.hpp"
+
+namespace mbscope::modbus {
+
+std::vector<std::uint8_t> encode_rtu(std::uint8_t unit_id, std::span<const std::uint8_t> pdu) {
+    std::vector<std::uint8_t> out;
+    out.reserve(pdu.size() + 3);
+    out.push_back(unit_id);
+    out.insert(out.end(), pdu.begin(), pdu.end());
+    const std::uint16_t crc = crc16(out);
+    out.push_back(static_cast<std::uint8_t>(crc & 0xFF));  // low byte first (SL §2.5.1.2)
+    out.push_back(static_cast<std::uint8_t>(crc >> 8));
+    return out;
+}
+
+std::string encode_ascii(std::uint8_t unit_id, std::span<const std::uint8_t> pdu) {
+    static constexpr char hex[] = "0123456789ABCDEF";
+    std::vector<std::uint8_t> binary;
+    binary.reserve(pdu.size() + 1);
+    binary.push_back(unit_id);
+    binary.insert(binary.end(), pdu.begin(), pdu.end());
+    binary.push_back(lrc(binary));
+    std::string out;
+    out.reserve(binary.size() * 2 + 3);
+    out.push_back(':');
+    for (auto b : binary) {
+        out.push_back(hex[b >> 4]);
+        out.push_back(hex[b & 0x0F]);
+    }
+    out += "\r\n";
+    return out;
+}
+
+std::vector<std::uint8_t> encode_tcp(std::uint16_t transaction_id, std::uint8_t unit_id,
+                                     std::span<const std::uint8_t> pdu, std::uint16_t protocol_id) {
+    std::vector<std::uint8_t> out;
+    out.reserve(pdu.size() + 7);
+    const auto length = static_cast<std::uint16_t>(pdu.size() + 1);
+    for (std::uint16_t v : {transaction_id, protocol_id, length}) {
+        out.push_back(static_cast<std::uint8_t>(v >> 8));
+        out.push_back(static_cast<std::uint8_t>(v & 0xFF));
+    }
+    out.push_back(unit_id);
+    out.insert(out.end(), pdu.begin(), pdu.end());
+    return out;
+}
+
+namespace detail {
+
+void fill_rtu_frame(std::span<const std::uint8_t> adu, Frame& frame) noexcept {
+    frame.framing = Framing::Rtu;
+    frame.length = static_cast<std::uint16_t>(adu.size());
+    std::memcpy(frame.bytes.data(), adu.data(), adu.size());
+    frame.wire_length = static_cast<std::uint32_t>(adu.size());
+    const std::uint16_t computed = crc16(adu.first(adu.size() - 2));
+    const std::uint16_t received =
+        static_cast<std::uint16_t>(adu[adu.size() - 2] | (adu[adu.size() - 1] << 8));
+    frame.checksum_ok = computed == received;
+    if (!frame.checksum_ok) frame.findings.add(FindingCode::RtuCrcMismatch);
+    if (adu[0] >= 248) frame.findings.add(FindingCode::RtuUnitIdReserved);
+}
+
+namespace {
+int hex_value(std::uint8_t c, bool& lower) noexcept {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    if (c >= 'a' && c <= 'f') {
+        lower = true;
+        return c - 'a' + 10;
+    }
+    return -1;
+}
+}  // namespace
+
+Result<void> ascii_hex_to_frame(std::span<const std::uint8_t> hex, Frame& frame) noexcept {
+    frame.framing = Framing::Ascii;
+    bool lower = false;
+    for (std::size_t i = 0; i < hex.size(); ++i)
+        if (hex_value(hex[i], lower) < 0) return make_error(ErrorCode::BadHexDigit, i + 1);
+    if (hex.size() % 2 != 0) return make_error(ErrorCode::OddHexLength, hex.size());
+    const std::size_t n = hex.size() / 2;
+    if (n < 3) return make_error(ErrorCode::Truncated, hex.size());
+    if (n > max_rtu_adu_length - 1) return make_error(ErrorCode::TooLong, hex.size());
+    for (std::size_t i = 0; i < n; ++i)
+        frame.bytes[i] =
+            static_cast<std::uint8_t>((hex_value(hex[2 * i], lower) << 4) | hex_value(hex[2 * i + 1], lower));
+    frame.length = static_cast<std::uint16_t>(n);
+    frame.checksum_ok = lrc({frame.bytes.data(), n - 1}) == frame.bytes[n - 1];
+    if (!frame.checksum_ok) frame.findings.add(FindingCode::AsciiLrcMismatch);
+    if (lower) frame.findings.add(FindingCode::AsciiLowercaseHex);
+    return {};
+}
+
+}  // namespace detail
+
+Result<Frame> decode_rtu(std::span<const std::uint8_t> adu) noexcept {
+    if (adu.size() < 4) return make_error(ErrorCode::Truncated, adu.size());
+    if (adu.size() > max_rtu_adu_length) return make_error(ErrorCode::TooLong, max_rtu_adu_length);
+    Frame frame;
+    detail::fill_rtu_frame(adu, frame);
+    return frame;
+}
+
+Result<Frame> decode_ascii(std::span<const std::uint8_t> chars) noexcept {
+    if (chars.empty() || chars[0] != ':') return make_error(ErrorCode::BadStartCharacter, 0);
+    if (chars.size() > max_ascii_frame_length) return make_error(ErrorCode::TooLong, max_ascii_frame_length);
+    if (chars.size() < 3 || chars[chars.size() - 2] != '\r' || chars[chars.size() - 1] != '\n')
+        return make_error(ErrorCode::BadEndCharacters, chars.size() < 2 ? chars.size() : chars.size() - 2);
+    Frame frame;
+    frame.wire_length = static_cast<std::uint32_t>(chars.size());
+    auto r = detail::ascii_hex_to_frame(chars.subspan(1, chars.size() - 3), frame);
+    if (!r) return r.error();
+    return frame;
+}
+
+Result<Frame> decode_tcp(std::span<const std::uint8_t> adu) noexcept {
+    if (adu.size() < 8) return make_error(ErrorCode::Truncated, adu.size());
+    const std::size_t length = static_cast<std::size_t>((adu[4] << 8) | adu[5]);
+    if (length < 2 || length > max_pdu_length + 1) return make_error(ErrorCode::LengthFieldInvalid, 4);
+    if (adu.size() < 6 + length) return make_error(ErrorCode::Truncated, adu.size());
+    if (adu.size() > 6 + length) return make_error(ErrorCode::LengthFieldInvalid, 4);
+    Frame frame;
+    frame.framing = Framing::Tcp;
+    frame.length = static_cast<std::uint16_t>(adu.size());
+    frame.wire_length = frame.length;
+    std::memcpy(frame.bytes.data(), adu.data(), adu.size());
+    if (frame.protocol_id() != 0) frame.findings.add(FindingCode::TcpProtocolIdNonzero);
+    return frame;
+}
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,46 @@
+#pragma once
+// ASCII deframing (SL §2.5.2; MK manual 000:304-309): a frame starts at ':' and ends at CR LF; a pause of
+// more than the inter-character timeout (1 s, 000:304) inside a frame abandons it. Characters outside
+// ':' ... CR LF, an unfinished frame cut by a new ':', bad characters and odd lengths become Unparsed
+// records; lower-case hex and a wrong LRC still give a Frame, with findings.
+
+#include <chrono>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "modbus/frame.hpp"
+#include "modbus/serial_line.hpp"
+
+namespace mbscope::modbus {
+
+class AsciiDeframer {
+  public:
+    struct Options {
+        std::chrono::nanoseconds inter_char_timeout = std::chrono::seconds(1);
+    };
+    AsciiDeframer() noexcept = default;
+    explicit AsciiDeframer(Options options) noexcept : options_(options) {}
+
+    // `received` is the time of the chunk's last character; zero means untimed (no timeout check).
+    void feed(std::span<const std::uint8_t> chars, Timestamp received, DeframeEvents& out);
+    void feed(std::span<const std::uint8_t> chars, DeframeEvents& out) { feed(chars, Timestamp{0}, out); }
+    void finish(DeframeEvents& out);
+
+  private:
+    void abandon(UnparsedReason reason, DeframeEvents& out);
+    void complete(DeframeEvents& out);
+    void add_noise(std::uint64_t offset, DeframeEvents& out);
+    void flush_noise(DeframeEvents& out);
+
+    Options options_{};
+    std::vector<std::uint8_t> frame_;  // ':' onwards
+    std::uint64_t frame_offset_ = 0;
+    Timestamp frame_start_{0};
+    std::uint64_t offset_ = 0;  // stream offset of the next character
+    Timestamp last_{0};
+    bool has_last_ = false;
+    Unparsed noise_{};  // characters outside frames, merged
+};
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,108 @@
+#include "modbus/finding_codes.hpp"
+
+#include <array>
+
+namespace mbscope::modbus {
+namespace {
+
+using enum FindingCode;
+using S = Severity;
+
+constexpr std::array findings{
+    FindingInfo{PduQuantityOutOfRange, "pdu.quantity_out_of_range", S::Error,
+                "quantity is 0 or above the function's maximum", "AP §6.1-6.4, §6.11, §6.12, §6.17"},
+    FindingInfo{PduByteCountMismatch, "pdu.byte_count_mismatch", S::Error,
+                "byte count disagrees with the quantity or with the bytes present",
+                "AP §6.1-6.4, §6.11, §6.12"},
+    FindingInfo{PduCoilValueInvalid, "pdu.coil_value_invalid", S::Error,
+                "single coil value is neither 0xFF00 nor 0x0000", "AP §6.5"},
+    FindingInfo{PduAddressOverflow, "pdu.address_overflow", S::Error,
+                "starting address plus quantity runs past address 65535", "AP §6.1"},
+    FindingInfo{PduPaddingBitsSet, "pdu.padding_bits_set", S::Warning,
+                "unused high bits of the last coil byte are not zero", "AP §6.1"},
+    FindingInfo{PduUnknownExceptionCode, "pdu.unknown_exception_code", S::Warning,
+                "exception code is not one the specification defines", "AP §7"},
+    FindingInfo{PduUnknownFunction, "pdu.unknown_function", S::Note,
+                "function code is not a public one (user-defined, reserved or unassigned)", "AP §5.1"},
+    FindingInfo{PduReservedSubFunction, "pdu.reserved_sub_function", S::Warning,
+                "diagnostics sub-function is reserved", "AP §6.8.1"},
+    FindingInfo{PduFileRecordInvalid, "pdu.file_record_invalid", S::Error,
+                "file record reference type is not 6, or record number above 9999", "AP §6.14, §6.15"},
+    FindingInfo{PduMeiTypeUnknown, "pdu.mei_type_unknown", S::Warning,
+                "encapsulated interface MEI type is neither 13 nor 14", "AP §6.19"},
+    FindingInfo{PduDeviceIdCodeInvalid, "pdu.device_id_code_invalid", S::Error,
+                "read device identification code is not 1..4", "AP §6.21"},
+    FindingInfo{PduFifoCountTooLarge, "pdu.fifo_count_too_large", S::Error, "FIFO count above 31",
+                "AP §6.18"},
+    FindingInfo{RtuCrcMismatch, "rtu.crc_mismatch", S::Error, "CRC does not match the frame's bytes",
+                "SL §2.5.1.2"},
+    FindingInfo{RtuGapInsideFrame, "rtu.gap_inside_frame", S::Error,
+                "silence longer than 1.5 character times inside a frame", "SL §2.5.1.1"},
+    FindingInfo{RtuFrameTooShort, "rtu.frame_too_short", S::Error,
+                "frame shorter than address, function code and CRC", "SL §2.5.1"},
+    FindingInfo{RtuFrameTooLong, "rtu.frame_too_long", S::Error, "frame longer than 256 bytes", "SL §2.5.1"},
+    FindingInfo{RtuBroadcastResponse, "rtu.broadcast_response", S::Error,
+                "a response carries unit 0 (broadcast): slaves never answer a broadcast", "SL §2.1"},
+    FindingInfo{RtuUnitIdReserved, "rtu.unit_id_reserved", S::Warning, "unit id 248..255 is reserved",
+                "SL §2.2"},
+    FindingInfo{AsciiLrcMismatch, "ascii.lrc_mismatch", S::Error, "LRC does not match the frame's bytes",
+                "SL §2.5.2.2"},
+    FindingInfo{AsciiLowercaseHex, "ascii.lowercase_hex", S::Warning,
+                "frame uses lower-case hex digits; the specification and the manuals use upper case",
+                "SL §2.5.2.1; 000:258-264"},
+    FindingInfo{AsciiBadCharacter, "ascii.bad_character", S::Error,
+                "frame holds a character that is not a hex digit", "SL §2.5.2.1"},
+    FindingInfo{AsciiOddLength, "ascii.odd_length", S::Error, "odd number of hex digits", "SL §2.5.2.1"},
+    FindingInfo{AsciiMissingEnd, "ascii.missing_end", S::Error,
+                "frame not ended by CR LF before the next ':'", "SL §2.5.2.1"},
+    FindingInfo{AsciiInterCharTimeout, "ascii.inter_char_timeout", S::Error,
+                "pause between characters longer than the inter-character timeout (1 s)",
+                "SL §2.5.2.1; 000:304"},
+    FindingInfo{AsciiFrameTooShort, "ascii.frame_too_short", S::Error,
+                "frame shorter than address, function code and LRC", "SL §2.5.2"},
+    FindingInfo{AsciiFrameTooLong, "ascii.frame_too_long", S::Error, "frame longer than 513 characters",
+                "SL §2.5.2.1"},
+    FindingInfo{TcpProtocolIdNonzero, "tcp.protocol_id_nonzero", S::Error,
+                "MBAP protocol identifier is not 0 (not Modbus)", "TCP §3.1.3"},
+    FindingInfo{TcpLengthInvalid, "tcp.length_invalid", S::Error, "MBAP length field outside 2..254",
+                "TCP §3.1.3; AP §4.1"},
+    FindingInfo{StreamUnparsedBytes, "stream.unparsed_bytes", S::Warning,
+                "bytes that formed no frame (garbage, noise or a truncated frame)", "SL §2.5"},
+    FindingInfo{StreamGap, "stream.gap", S::Warning, "bytes missing from a captured stream", "capture"},
+};
+
+}  // namespace
+
+std::string_view to_string(Severity s) noexcept {
+    switch (s) {
+        case Severity::Note:
+            return "note";
+        case Severity::Warning:
+            return "warning";
+        case Severity::Error:
+            return "error";
+    }
+    return "?";
+}
+
+std::span<const FindingInfo> all_findings() noexcept {
+    return findings;
+}
+
+const FindingInfo& info(FindingCode code) noexcept {
+    for (const auto& f : findings)
+        if (f.code == code) return f;
+    return findings[0];  // unreachable for codes of the enum; every enumerator is in the table (tested)
+}
+
+std::string_view to_string(FindingCode code) noexcept {
+    return info(code).name;
+}
+
+std::optional<FindingCode> finding_from_name(std::string_view name) noexcept {
+    for (const auto& f : findings)
+        if (f.name == name) return f.code;
+    return std::nullopt;
+}
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,93 @@
+#pragma once
+// What a deframer produces: a Frame (one ADU found on a link) or an Unparsed record (bytes that formed no
+// frame). Every byte a deframer is given ends up in exactly one of the two; tests and fuzzers check that.
+// A Frame holds the ADU in binary form inside a fixed buffer (no allocation per frame):
+//   RTU:   unit | PDU | CRC lo | CRC hi
+//   ASCII: unit | PDU | LRC            (decoded from the hex characters; wire offsets index the characters)
+//   TCP:   transaction id (2) | protocol id (2) | length (2) | unit | PDU
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <span>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "modbus/finding_codes.hpp"
+#include "modbus/function_code.hpp"
+
+namespace mbscope::modbus {
+
+enum class Framing : std::uint8_t { Rtu = 0, Ascii = 1, Tcp = 2 };
+std::string_view to_string(Framing f) noexcept;
+
+// Time since an arbitrary epoch (capture time, or steady clock for live input). Zero means "no timing".
+using Timestamp = std::chrono::nanoseconds;
+
+struct Frame {
+    Framing framing = Framing::Rtu;
+    std::uint64_t offset = 0;       // stream offset of the first byte on the wire
+    std::uint32_t wire_length = 0;  // bytes on the wire (ASCII: characters, ':' to LF)
+    std::uint16_t length = 0;       // binary ADU length held in bytes
+    std::array<std::uint8_t, max_tcp_adu_length> bytes{};
+    bool checksum_ok = true;  // RTU CRC / ASCII LRC; always true for TCP
+    FindingList findings;     // framing-level rule breaks (rtu.*, ascii.*, tcp.*)
+    Timestamp start{0};       // end of the first byte on the wire (timed input only)
+    Timestamp end{0};         // end of the last byte (timed input only)
+    float max_gap_chars = 0;  // longest silence inside the frame, in character times (timed RTU only)
+    std::uint16_t gap_before_byte = 0;  // index of the byte that followed that silence
+
+    std::span<const std::uint8_t> adu() const noexcept { return {bytes.data(), length}; }
+    std::uint8_t unit_id() const noexcept;
+    std::span<const std::uint8_t> pdu() const noexcept;  // function code onwards, checksum excluded
+    // TCP only
+    std::uint16_t transaction_id() const noexcept {
+        return static_cast<std::uint16_t>((bytes[0] << 8) | bytes[1]);
+    }
+    std::uint16_t protocol_id() const noexcept {
+        return static_cast<std::uint16_t>((bytes[2] << 8) | bytes[3]);
+    }
+    std::uint16_t length_field() const noexcept {
+        return static_cast<std::uint16_t>((bytes[4] << 8) | bytes[5]);
+    }
+    // RTU: the CRC as received (low byte first on the wire); ASCII: the LRC
+    std::uint16_t checksum_received() const noexcept;
+    std::uint16_t checksum_computed() const noexcept;
+};
+
+enum class UnparsedReason : std::uint8_t {
+    Garbage = 0,          // no frame could start here
+    TooShort = 1,         // a silence-delimited run too short to be a frame
+    Truncated = 2,        // the input ended inside a frame
+    UnknownFunction = 3,  // RTU without timing: unknown function code, length cannot be predicted
+    NoStart = 4,          // ASCII: characters outside ':' ... CR LF
+    MissingEnd = 5,       // ASCII: a new ':' or a bad character before CR LF
+    Timeout = 6,          // ASCII: inter-character timeout inside a frame
+    BadCharacter = 7,     // ASCII: a character that is not a hex digit
+    OddLength = 8,        // ASCII: odd number of hex digits
+    TooLong = 9,          // longer than the framing's maximum
+    BadHeader = 10,       // TCP: MBAP length field impossible, stream resynchronised
+};
+std::string_view to_string(UnparsedReason r) noexcept;
+
+struct Unparsed {
+    std::uint64_t offset = 0;
+    std::uint32_t length = 0;
+    UnparsedReason reason = UnparsedReason::Garbage;
+    Timestamp time{0};
+};
+
+using DeframeEvent = std::variant<Frame, Unparsed>;
+using DeframeEvents = std::vector<DeframeEvent>;
+
+// One step of a stateless deframer over a buffer (the sawp shape): a complete frame of `length` bytes at
+// the front, or "need at least N bytes in total", or "skip `length` bytes: they start no frame".
+struct DeframeStep {
+    enum class Kind : std::uint8_t { Complete, NeedMore, Skip } kind = Kind::NeedMore;
+    std::size_t length = 0;  // Complete: frame bytes; NeedMore: total bytes needed; Skip: bytes to drop
+    bool checksum_ok = true;
+    UnparsedReason reason = UnparsedReason::Garbage;  // Skip only
+};
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,141 @@
+#include "modbus/function_code.hpp"
+
+namespace mbscope::modbus {
+
+std::optional<std::string_view> function_name(std::uint8_t function_code) noexcept {
+    switch (function_code) {
+        case 0x01:
+            return "Read Coils";
+        case 0x02:
+            return "Read Discrete Inputs";
+        case 0x03:
+            return "Read Holding Registers";
+        case 0x04:
+            return "Read Input Registers";
+        case 0x05:
+            return "Write Single Coil";
+        case 0x06:
+            return "Write Single Register";
+        case 0x07:
+            return "Read Exception Status";
+        case 0x08:
+            return "Diagnostics";
+        case 0x0B:
+            return "Get Comm Event Counter";
+        case 0x0C:
+            return "Get Comm Event Log";
+        case 0x0F:
+            return "Write Multiple Coils";
+        case 0x10:
+            return "Write Multiple Registers";
+        case 0x11:
+            return "Report Server ID";
+        case 0x14:
+            return "Read File Record";
+        case 0x15:
+            return "Write File Record";
+        case 0x16:
+            return "Mask Write Register";
+        case 0x17:
+            return "Read/Write Multiple Registers";
+        case 0x18:
+            return "Read FIFO Queue";
+        case 0x2B:
+            return "Encapsulated Interface Transport";
+        default:
+            return std::nullopt;
+    }
+}
+
+bool is_public_function(std::uint8_t function_code) noexcept {
+    return function_name(function_code).has_value();
+}
+
+bool is_user_defined_function(std::uint8_t fc) noexcept {
+    return (fc >= 65 && fc <= 72) || (fc >= 100 && fc <= 110);
+}
+
+bool is_reserved_function(std::uint8_t fc) noexcept {
+    switch (fc) {
+        case 9:
+        case 10:
+        case 13:
+        case 14:
+        case 41:
+        case 42:
+        case 90:
+        case 91:
+        case 125:
+        case 126:
+        case 127:
+            return true;
+        default:
+            return false;
+    }
+}
+
+std::optional<std::string_view> exception_name(std::uint8_t exception_code) noexcept {
+    switch (exception_code) {
+        case 0x01:
+            return "Illegal Function";
+        case 0x02:
+            return "Illegal Data Address";
+        case 0x03:
+            return "Illegal Data Value";
+        case 0x04:
+            return "Server Device Failure";
+        case 0x05:
+            return "Acknowledge";
+        case 0x06:
+            return "Server Device Busy";
+        case 0x07:
+            return "Negative Acknowledge";
+        case 0x08:
+            return "Memory Parity Error";
+        case 0x0A:
+            return "Gateway Path Unavailable";
+        case 0x0B:
+            return "Gateway Target Device Failed to Respond";
+        default:
+            return std::nullopt;
+    }
+}
+
+std::optional<std::string_view> diagnostic_name(std::uint16_t sub_function) noexcept {
+    switch (sub_function) {
+        case 0x00:
+            return "Return Query Data";
+        case 0x01:
+            return "Restart Communications Option";
+        case 0x02:
+            return "Return Diagnostic Register";
+        case 0x03:
+            return "Change ASCII Input Delimiter";
+        case 0x04:
+            return "Force Listen Only Mode";
+        case 0x0A:
+            return "Clear Counters and Diagnostic Register";
+        case 0x0B:
+            return "Return Bus Message Count";
+        case 0x0C:
+            return "Return Bus Communication Error Count";
+        case 0x0D:
+            return "Return Bus Exception Error Count";
+        case 0x0E:
+            return "Return Server Message Count";
+        case 0x0F:
+            return "Return Server No Response Count";
+        case 0x10:
+            return "Return Server NAK Count";
+        case 0x11:
+            return "Return Server Busy Count";
+        case 0x12:
+            return "Return Bus Character Overrun Count";
+        case 0x14:
+            return "Clear Overrun Counter and Flag";
+        default:
+            return std::nullopt;
+    }
+}
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,312 @@
+#include "modbus/rtu_deframer.hpp"
+
+#include <algorithm>
+
+#include "modbus/adu.hpp"
+#include "modbus/checksum.hpp"
+#include "modbus/pdu.hpp"
+
+namespace mbscope::modbus {
+namespace {
+
+using Kind = DeframeStep::Kind;
+
+struct Candidates {
+    std::size_t length[2] = {0, 0};  // ADU lengths, ascending
+    std::size_t count = 0;
+    std::size_t need = 0;  // >0: a direction needs this many ADU bytes before its length is known
+};
+
+Candidates candidates(std::span<const std::uint8_t> buf) noexcept {
+    Candidates c;
+    const auto pdu = buf.subspan(1);
+    for (Direction d : {Direction::Request, Direction::Response}) {
+        const auto p = predict_pdu_length(pdu, d);
+        if (p.kind == LengthPrediction::Kind::Known) {
+            const std::size_t adu = 1 + p.length + 2;
+            if (p.length < 1 || adu > max_rtu_adu_length) continue;
+            if (c.count == 1 && c.length[0] == adu) continue;
+            c.length[c.count++] = adu;
+        } else if (p.kind == LengthPrediction::Kind::NeedMore) {
+            c.need = std::max(c.need, 1 + p.length);
+        }
+    }
+    if (c.count == 2 && c.length[0] > c.length[1]) std::swap(c.length[0], c.length[1]);
+    return c;
+}
+
+bool crc_ok(std::span<const std::uint8_t> adu) noexcept {
+    const std::size_t n = adu.size();
+    return crc16(adu.first(n - 2)) == static_cast<std::uint16_t>(adu[n - 2] | (adu[n - 1] << 8));
+}
+
+enum class Probe { Yes, No, NeedMore };
+
+// Does a CRC-valid frame start at the front of buf? (no recursion: used to confirm a bad-CRC frame)
+Probe probe_valid(std::span<const std::uint8_t> buf, bool at_end, std::size_t& need) noexcept {
+    if (buf.size() < 4) {
+        need = 4;
+        return at_end ? Probe::No : Probe::NeedMore;
+    }
+    const Candidates c = candidates(buf);
+    bool pending = c.need > buf.size();
+    for (std::size_t i = 0; i < c.count; ++i) {
+        if (buf.size() < c.length[i]) {
+            pending = true;
+            need = std::max(need, c.length[i]);
+            continue;
+        }
+        if (crc_ok(buf.first(c.length[i]))) return Probe::Yes;
+    }
+    if (pending && !at_end) {
+        need = std::max(need, c.need);
+        return Probe::NeedMore;
+    }
+    return Probe::No;
+}
+
+bool plausible_start(std::span<const std::uint8_t> buf) noexcept {
+    return buf[0] <= 247 && is_public_function(buf[1] & 0x7F);
+}
+
+}  // namespace
+
+DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept {
+    if (buf.size() < 4) {
+        if (!at_end) return {Kind::NeedMore, 4};
+        return {Kind::Skip, buf.size(), true, UnparsedReason::Truncated};
+    }
+    const Candidates c = candidates(buf);
+    if (c.count == 0 && c.need == 0) return {Kind::Skip, 1, true, UnparsedReason::UnknownFunction};
+    for (std::size_t i = 0; i < c.count; ++i) {
+        const std::size_t len = c.length[i];
+        if (buf.size() < len) {
+            if (!at_end) return {Kind::NeedMore, len};
+            continue;
+        }
+        if (crc_ok(buf.first(len))) return {Kind::Complete, len, true};
+    }
+    if (c.need > buf.size() && !at_end) return {Kind::NeedMore, c.need};
+
+    // No candidate verifies: a frame with a corrupted CRC is recognised when a valid frame follows it
+    // immediately, or when it fills the input exactly.
+    if (plausible_start(buf)) {
+        for (std::size_t i = 0; i < c.count; ++i) {
+            const std::size_t len = c.length[i];
+            if (buf.size() < len) continue;
+            if (len == buf.size() && at_end) return {Kind::Complete, len, false};
+            std::size_t need = 0;
+            switch (probe_valid(buf.subspan(len), at_end, need)) {
+                case Probe::Yes:
+                    return {Kind::Complete, len, false};
+                case Probe::NeedMore:
+                    return {Kind::NeedMore, len + need};
+                case Probe::No:
+                    break;
+            }
+        }
+    }
+    // At the end of the input, a plausible start whose predicted length runs past the end is a truncated
+    // frame, unless a valid frame starts inside it (then only the bytes before that one are lost).
+    if (at_end && plausible_start(buf)) {
+        bool runs_past_end = c.need > buf.size();
+        for (std::size_t i = 0; i < c.count; ++i)
+            runs_past_end |= c.length[i] > buf.size();
+        if (runs_past_end) {
+            std::size_t valid_at = buf.size();
+            for (std::size_t j = 1; j + 4 <= buf.size() && valid_at == buf.size(); ++j) {
+                std::size_t need = 0;
+                if (probe_valid(buf.subspan(j), true, need) == Probe::Yes) valid_at = j;
+            }
+            return {Kind::Skip, valid_at, true, UnparsedReason::Truncated};
+        }
+    }
+    return {Kind::Skip, 1, true, UnparsedReason::Garbage};
+}
+
+// ---------------------------------------------------------------- untimed
+
+void RtuDeframer::flush_unparsed(DeframeEvents& out) {
+    if (pending_.length == 0) return;
+    out.emplace_back(pending_);
+    pending_ = Unparsed{};
+}
+
+void RtuDeframer::run(bool at_end, DeframeEvents& out) {
+    while (head_ < buf_.size()) {
+        const std::span<const std::uint8_t> rest(buf_.data() + head_, buf_.size() - head_);
+        const DeframeStep step = rtu_step(rest, at_end);
+        if (step.kind == Kind::NeedMore) break;
+        if (step.kind == Kind::Skip) {
+            if (pending_.length != 0 && pending_.reason != step.reason) flush_unparsed(out);
+            if (pending_.length == 0) {
+                pending_.offset = base_;
+                pending_.reason = step.reason;
+            }
+            pending_.length += static_cast<std::uint32_t>(step.length);
+        } else {
+            flush_unparsed(out);
+            Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>));
+            detail::fill_rtu_frame(rest.first(step.length), frame);
+            frame.offset = base_;
+        }
+        head_ += step.length;
+        base_ += step.length;
+    }
+    if (at_end) flush_unparsed(out);
+    // Compact: keep the buffer small without moving bytes on every call.
+    if (head_ > 4096 && head_ * 2 > buf_.size()) {
+        buf_.erase(buf_.begin(), buf_.begin() + static_cast<std::ptrdiff_t>(head_));
+        head_ = 0;
+    }
+}
+
+void RtuDeframer::feed(std::span<const std::uint8_t> bytes, DeframeEvents& out) {
+    if (head_ == buf_.size()) {
+        buf_.clear();
+        head_ = 0;
+    }
+    buf_.insert(buf_.end(), bytes.begin(), bytes.end());
+    run(false, out);
+}
+
+void RtuDeframer::finish(DeframeEvents& out) {
+    run(true, out);
+    buf_.clear();
+    head_ = 0;
+}
+
+// ---------------------------------------------------------------- timed
+
+void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, bool checksum_ok,
+                                  DeframeEvents& out) {
+    Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>));
+    detail::fill_rtu_frame({seg_.data() + begin, length}, frame);
+    (void)checksum_ok;  // fill_rtu_frame recomputes it from the bytes
+    frame.offset = seg_offset_ + begin;
+    frame.start = times_[begin];
+    frame.end = times_[begin + length - 1];
+    for (const Gap& g : gaps_) {
+        if (g.before_offset <= frame.offset || g.before_offset >= frame.offset + length) continue;
+        if (g.chars > frame.max_gap_chars) {
+            frame.max_gap_chars = g.chars;
+            frame.gap_before_byte = static_cast<std::uint16_t>(g.before_offset - frame.offset);
+        }
+    }
+    if (frame.max_gap_chars > 0) frame.findings.add(FindingCode::RtuGapInsideFrame);
+}
+
+void RtuTimedDeframer::emit_unparsed(std::size_t begin, std::size_t length, UnparsedReason reason,
+                                     DeframeEvents& out) {
+    out.emplace_back(
+        Unparsed{seg_offset_ + begin, static_cast<std::uint32_t>(length), reason, times_[begin]});
+}
+
+void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
+    const std::size_t n = seg_.size();
+    std::size_t consumed = 0;
+    if (at_end && n >= 4 && n <= max_rtu_adu_length && crc_ok(seg_)) {
+        emit_frame(0, n, true, out);
+        consumed = n;
+    } else if (at_end && n > 0) {
+        // Split by content. Keep the result only if it finds at least one frame; otherwise the
+        // silence-delimited run is one frame with a bad CRC (or too short to be one).
+        DeframeEvents split;
+        std::size_t pos = 0;
+        bool any_frame = false;
+        Unparsed run{};
+        auto flush_run = [&] {
+            if (run.length) split.emplace_back(run);
+            run = Unparsed{};
+        };
+        while (pos < n) {
+            const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, true);
+            if (step.kind == Kind::Complete) {
+                flush_run();
+                Frame f;
+                f.offset = pos;  // relative; emitted below
+                f.wire_length = static_cast<std::uint32_t>(step.length);
+                split.emplace_back(f);
+                any_frame = true;
+                pos += step.length;
+            } else {
+                const std::size_t len = std::max<std::size_t>(step.length, 1);
+                if (run.length && run.reason != step.reason) flush_run();
+                if (!run.length) {
+                    run.offset = pos;
+                    run.reason = step.reason;
+                }
+                run.length += static_cast<std::uint32_t>(len);
+                pos += len;
+            }
+        }
+        flush_run();
+        if (any_frame) {
+            for (const auto& e : split) {
+                if (const auto* f = std::get_if<Frame>(&e))
+                    emit_frame(f->offset, f->wire_length, true, out);
+                else {
+                    const auto& u = std::get<Unparsed>(e);
+                    emit_unparsed(u.offset, u.length, u.reason, out);
+                }
+            }
+        } else if (n >= 4 && n <= max_rtu_adu_length) {
+            emit_frame(0, n, false, out);
+        } else {
+            emit_unparsed(0, n, n < 4 ? UnparsedReason::TooShort : UnparsedReason::TooLong, out);
+        }
+        consumed = n;
+    } else {
+        // A long run without silence: frame its front by content, keep the tail for more bytes.
+        std::size_t pos = 0;
+        while (n - pos > 2 * max_rtu_adu_length) {
+            const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, false);
+            if (step.kind == Kind::NeedMore) break;
+            if (step.kind == Kind::Complete)
+                emit_frame(pos, step.length, step.checksum_ok, out);
+            else
+                emit_unparsed(pos, step.length, step.reason, out);
+            pos += step.length;
+        }
+        consumed = pos;
+    }
+    if (consumed == 0) return;
+    seg_.erase(seg_.begin(), seg_.begin() + static_cast<std::ptrdiff_t>(consumed));
+    times_.erase(times_.begin(), times_.begin() + static_cast<std::ptrdiff_t>(consumed));
+    seg_offset_ += consumed;
+    std::erase_if(gaps_, [&](const Gap& g) { return g.before_offset < seg_offset_; });
+}
+
+void RtuTimedDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp received, DeframeEvents& out) {
+    if (bytes.empty()) return;
+    const auto ct = line_.character_time();
+    const std::size_t n = bytes.size();
+    Timestamp first_end = received - ct * static_cast<std::int64_t>(n - 1);
+    if (has_last_) {
+        if (first_end < last_end_ + ct) first_end = last_end_ + ct;  // coarse timestamps: no overlap
+        const auto silence = first_end - ct - last_end_;
+        if (silence >= line_.t3_5()) {
+            close_segment(true, out);
+        } else if (silence > line_.t1_5() && !seg_.empty()) {
+            gaps_.push_back({seg_offset_ + seg_.size(),
+                             static_cast<float>(static_cast<double>(silence.count()) / ct.count())});
+        }
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+        seg_.push_back(bytes[i]);
+        times_.push_back(first_end + ct * static_cast<std::int64_t>(i));
+    }
+    last_end_ = times_.back();
+    has_last_ = true;
+    if (seg_.size() > 4 * max_rtu_adu_length) close_segment(false, out);
+}
+
+void RtuTimedDeframer::advance(Timestamp now, DeframeEvents& out) {
+    if (has_last_ && !seg_.empty() && now - last_end_ >= line_.t3_5()) close_segment(true, out);
+}
+
+void RtuTimedDeframer::finish(DeframeEvents& out) {
+    close_segment(true, out);
+}
+
+}  // namespace mbscope::modbus

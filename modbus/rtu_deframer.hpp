@@ -1,0 +1,74 @@
+#pragma once
+// RTU deframing, with and without timing (SL §2.5.1.1).
+//
+// Without timing (raw dumps), a frame's end is predicted from its content: function code and byte count
+// give the candidate lengths for a request and for a response, and the CRC confirms one. When no candidate
+// verifies, the stepper checks whether a valid frame starts right after a candidate; if so the candidate is
+// a frame whose CRC is wrong (reported as such), otherwise it slides by one byte. Every position costs a
+// bounded amount of work (at most four CRCs over at most 256 bytes), so long garbage is linear in its size.
+//
+// With timing, a silence of t3.5 ends a frame and a silence above t1.5 inside a frame is recorded. A run of
+// bytes between two t3.5 silences whose CRC fails is split by content (USB adapters deliver several frames
+// glued in one chunk, timestamps are then unreliable); if no split verifies it is one frame with a bad CRC.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "modbus/frame.hpp"
+#include "modbus/serial_line.hpp"
+
+namespace mbscope::modbus {
+
+// One step over the front of buf (see DeframeStep). at_end: no more bytes will come.
+DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept;
+
+class RtuDeframer {
+  public:
+    // Feed bytes in any chunking; complete frames and unparsed runs are appended to out.
+    void feed(std::span<const std::uint8_t> bytes, DeframeEvents& out);
+    // End of input: whatever is buffered becomes frames or unparsed records.
+    void finish(DeframeEvents& out);
+    std::uint64_t bytes_in() const noexcept { return base_ + (buf_.size() - head_); }
+
+  private:
+    void run(bool at_end, DeframeEvents& out);
+    void flush_unparsed(DeframeEvents& out);
+
+    std::vector<std::uint8_t> buf_;
+    std::size_t head_ = 0;
+    std::uint64_t base_ = 0;  // stream offset of buf_[head_]
+    Unparsed pending_{};      // consecutive skipped bytes are reported as one record
+};
+
+class RtuTimedDeframer {
+  public:
+    explicit RtuTimedDeframer(SerialLine line) noexcept : line_(line) {}
+
+    // `received` is the time at which the last byte of the chunk ended; the bytes before it are taken
+    // to have arrived back to back, one character time apart.
+    void feed(std::span<const std::uint8_t> bytes, Timestamp received, DeframeEvents& out);
+    // Time has passed with no byte: closes the current frame once t3.5 of silence has elapsed.
+    void advance(Timestamp now, DeframeEvents& out);
+    void finish(DeframeEvents& out);
+    const SerialLine& line() const noexcept { return line_; }
+
+  private:
+    struct Gap {
+        std::uint64_t before_offset;  // stream offset of the byte after the silence
+        float chars;
+    };
+    void close_segment(bool at_end, DeframeEvents& out);
+    void emit_frame(std::size_t begin, std::size_t length, bool checksum_ok, DeframeEvents& out);
+    void emit_unparsed(std::size_t begin, std::size_t length, UnparsedReason reason, DeframeEvents& out);
+
+    SerialLine line_;
+    std::vector<std::uint8_t> seg_;  // bytes since the last t3.5 silence
+    std::vector<Timestamp> times_;   // end time of each byte in seg_
+    std::vector<Gap> gaps_;          // silences above t1.5 inside seg_
+    std::uint64_t seg_offset_ = 0;   // stream offset of seg_[0]
+    Timestamp last_end_{0};
+    bool has_last_ = false;
+};
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,40 @@
+#pragma once
+// Character timing of a serial line (SL §2.5.1.1): a character is start + data + parity + stop bits.
+// Inside an RTU frame the silence between characters must not exceed 1.5 character times (t1.5); a frame
+// ends after a silence of at least 3.5 character times (t3.5). Above 19200 baud the specification fixes
+// t1.5 = 750 µs and t3.5 = 1750 µs.
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string_view>
+
+namespace mbscope::modbus {
+
+enum class Parity : std::uint8_t { None = 0, Even = 1, Odd = 2 };
+std::string_view to_string(Parity p) noexcept;
+std::optional<Parity> parse_parity(std::string_view text) noexcept;  // "N"/"E"/"O", "none"/"even"/"odd"
+
+struct SerialLine {
+    std::uint32_t baud = 9600;
+    std::uint8_t data_bits = 8;
+    Parity parity = Parity::None;
+    std::uint8_t stop_bits = 1;
+
+    std::uint32_t bits_per_character() const noexcept {
+        return 1u + data_bits + (parity == Parity::None ? 0u : 1u) + stop_bits;
+    }
+    std::chrono::nanoseconds character_time() const noexcept {
+        return std::chrono::nanoseconds(1'000'000'000ull * bits_per_character() / (baud ? baud : 1));
+    }
+    std::chrono::nanoseconds t1_5() const noexcept {
+        if (baud > 19200) return std::chrono::microseconds(750);
+        return character_time() * 3 / 2;
+    }
+    std::chrono::nanoseconds t3_5() const noexcept {
+        if (baud > 19200) return std::chrono::microseconds(1750);
+        return character_time() * 7 / 2;
+    }
+};
+
+}  // namespace mbscope::modbus

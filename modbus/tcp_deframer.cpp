@@ -1,0 +1,153 @@
+#include "modbus/tcp_deframer.hpp"
+
+#include <cstring>
+
+#include "modbus/adu.hpp"
+#include "modbus/pdu.hpp"
+
+namespace mbscope::modbus {
+namespace {
+
+using Kind = DeframeStep::Kind;
+
+constexpr std::size_t mbap_length = 7;
+
+std::size_t length_field(std::span<const std::uint8_t> b) noexcept {
+    return static_cast<std::size_t>((b[4] << 8) | b[5]);
+}
+
+bool length_ok(std::size_t len) noexcept {
+    return len >= 2 && len <= max_pdu_length + 1;
+}
+
+// A header plausible enough to resynchronise on, looked at with the bytes available.
+bool plausible_header(std::span<const std::uint8_t> b) noexcept {
+    if (b.size() < 6) return false;
+    if (b[2] != 0 || b[3] != 0 || !length_ok(length_field(b))) return false;
+    if (b.size() >= 8) {
+        const std::uint8_t fc = b[7] & 0x7F;
+        if (fc == 0) return false;
+    }
+    return true;
+}
+
+bool plausible_pdu(std::span<const std::uint8_t> pdu) noexcept {
+    auto request = decode_request(pdu);
+    if (request && request->violations.empty()) return true;
+    auto response = decode_response(pdu);
+    return response && response->violations.empty();
+}
+
+}  // namespace
+
+DeframeStep tcp_step(std::span<const std::uint8_t> buf, bool at_end, bool in_sync) noexcept {
+    if (buf.size() < 6) {
+        if (!at_end) return {Kind::NeedMore, 6};
+        return {Kind::Skip, buf.size(), true, UnparsedReason::Truncated};
+    }
+    if (in_sync && length_ok(length_field(buf))) {
+        const std::size_t total = 6 + length_field(buf);
+        if (buf.size() >= total) return {Kind::Complete, total};
+        if (!at_end) return {Kind::NeedMore, total};
+        return {Kind::Skip, buf.size(), true, UnparsedReason::Truncated};
+    }
+    // Out of sync (or an impossible length): find the next offset where a header is plausible and, once
+    // its ADU is complete, the PDU decodes cleanly in one direction. Garbage that merely looks like a
+    // header is skipped like any other garbage.
+    for (std::size_t j = in_sync ? 1 : 0; j + 6 <= buf.size(); ++j) {
+        const auto at = buf.subspan(j);
+        if (!plausible_header(at)) continue;
+        const std::size_t total = 6 + length_field(at);
+        if (at.size() < total) {
+            if (at_end) continue;
+            if (j == 0) return {Kind::NeedMore, total};
+            return {Kind::Skip, j, true, UnparsedReason::BadHeader};
+        }
+        if (!plausible_pdu(at.subspan(7, total - 7))) continue;
+        if (j == 0) return {Kind::Complete, total};
+        return {Kind::Skip, j, true, UnparsedReason::BadHeader};
+    }
+    if (at_end) return {Kind::Skip, buf.size(), true, UnparsedReason::BadHeader};
+    // Keep the last 5 bytes: a header may start there.
+    const std::size_t keep = 5;
+    if (buf.size() > keep) return {Kind::Skip, buf.size() - keep, true, UnparsedReason::BadHeader};
+    return {Kind::NeedMore, buf.size() + 1};
+}
+
+void TcpStreamDeframer::flush_unparsed(DeframeEvents& out) {
+    if (pending_.length == 0) return;
+    out.emplace_back(pending_);
+    pending_ = Unparsed{};
+}
+
+void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
+    while (head_ < buf_.size()) {
+        const std::span<const std::uint8_t> rest(buf_.data() + head_, buf_.size() - head_);
+        const DeframeStep step = tcp_step(rest, at_end, in_sync_);
+        if (step.kind == Kind::NeedMore) break;
+        if (step.kind == Kind::Skip) {
+            if (pending_.length != 0 && pending_.reason != step.reason) flush_unparsed(out);
+            if (pending_.length == 0) {
+                pending_.offset = base_;
+                pending_.reason = step.reason;
+                pending_.time = first_;
+            }
+            pending_.length += static_cast<std::uint32_t>(step.length);
+            in_sync_ = false;
+        } else {
+            flush_unparsed(out);
+            Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>));
+            frame.framing = Framing::Tcp;
+            frame.offset = base_;
+            frame.length = static_cast<std::uint16_t>(step.length);
+            frame.wire_length = frame.length;
+            std::memcpy(frame.bytes.data(), rest.data(), step.length);
+            frame.start = first_;
+            frame.end = last_;
+            if (frame.protocol_id() != 0) frame.findings.add(FindingCode::TcpProtocolIdNonzero);
+            in_sync_ = true;
+        }
+        head_ += step.length;
+        base_ += step.length;
+        first_ = last_;
+    }
+    if (at_end) flush_unparsed(out);
+    if (head_ > 4096 && head_ * 2 > buf_.size()) {
+        buf_.erase(buf_.begin(), buf_.begin() + static_cast<std::ptrdiff_t>(head_));
+        head_ = 0;
+    }
+}
+
+void TcpStreamDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp received, DeframeEvents& out) {
+    if (head_ == buf_.size()) {
+        buf_.clear();
+        head_ = 0;
+        first_ = received;
+    }
+    last_ = received;
+    buf_.insert(buf_.end(), bytes.begin(), bytes.end());
+    run(false, out);
+}
+
+void TcpStreamDeframer::gap(std::uint64_t missing, DeframeEvents& out) {
+    // What is buffered can never complete: report it, then skip the hole.
+    if (head_ < buf_.size()) {
+        flush_unparsed(out);
+        out.emplace_back(Unparsed{base_, static_cast<std::uint32_t>(buf_.size() - head_),
+                                  UnparsedReason::Truncated, first_});
+        base_ += buf_.size() - head_;
+    }
+    flush_unparsed(out);
+    buf_.clear();
+    head_ = 0;
+    base_ += missing;
+    in_sync_ = false;
+}
+
+void TcpStreamDeframer::finish(DeframeEvents& out) {
+    run(true, out);
+    buf_.clear();
+    head_ = 0;
+}
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,41 @@
+#pragma once
+// Modbus/TCP over a byte stream (one direction of one connection): several ADUs in one chunk, one ADU over
+// many chunks. The MBAP length field delimits each ADU (TCP §3.1.3). A length outside 2..254 cannot be
+// trusted: the bytes are reported as unparsed and the deframer resynchronises on the next plausible MBAP
+// header (protocol id 0, length 2..254, function code 1..127). While in sync, a header with a non-zero
+// protocol id is still a frame (flagged tcp.protocol_id_nonzero) so the analyzer can say what it was.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "modbus/frame.hpp"
+
+namespace mbscope::modbus {
+
+// One step over the front of buf. in_sync: the previous bytes ended a frame (or this is the stream start).
+DeframeStep tcp_step(std::span<const std::uint8_t> buf, bool at_end, bool in_sync) noexcept;
+
+class TcpStreamDeframer {
+  public:
+    void feed(std::span<const std::uint8_t> bytes, Timestamp received, DeframeEvents& out);
+    void feed(std::span<const std::uint8_t> bytes, DeframeEvents& out) { feed(bytes, Timestamp{0}, out); }
+    // `missing` bytes of the stream were never captured: the frame in progress is lost, resynchronise.
+    void gap(std::uint64_t missing, DeframeEvents& out);
+    void finish(DeframeEvents& out);
+    std::uint64_t offset() const noexcept { return base_ + (buf_.size() - head_); }
+
+  private:
+    void run(bool at_end, DeframeEvents& out);
+    void flush_unparsed(DeframeEvents& out);
+
+    std::vector<std::uint8_t> buf_;
+    std::size_t head_ = 0;
+    std::uint64_t base_ = 0;
+    bool in_sync_ = true;
+    Timestamp last_{0};
+    Timestamp first_{0};  // time of the chunk that held the first buffered byte
+    Unparsed pending_{};
+};
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,113 @@
+// `mbscope frame` end to end: the real binary, its output and its exit codes.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "cli/frame_text.hpp"
+
+namespace {
+
+struct Run {
+    int exit_code;
+    std::string out;
+};
+
+Run run(const std::string& args) {
+    const std::string cmd = std::string(MBSCOPE_BINARY) + " " + args + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    std::string out;
+    std::array<char, 4096> buf{};
+    while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p))
+        out.append(buf.data(), n);
+    const int status = pclose(p);
+    return {WEXITSTATUS(status), out};
+}
+
+}  // namespace
+
+TEST(FrameCommand, DecodesTheManualsFc3Request) {
+    auto r = run("frame --rtu 11 03 00 60 00 03 07 45");
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("Read Holding Registers"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("starting_address"), std::string::npos);
+    EXPECT_NE(r.out.find("40097"), std::string::npos);
+    EXPECT_NE(r.out.find("ok (sent low byte first)"), std::string::npos);
+}
+
+TEST(FrameCommand, BadCrcExitsOneAndSaysWhat) {
+    auto r = run("frame --rtu 11 03 00 60 00 03 07 46");
+    EXPECT_EQ(r.exit_code, 1);
+    EXPECT_NE(r.out.find("rtu.crc_mismatch"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("computed 0x4507"), std::string::npos) << r.out;
+}
+
+TEST(FrameCommand, UndecodableExitsTwo) {
+    EXPECT_EQ(run("frame --rtu 11 03").exit_code, 2);
+    EXPECT_EQ(run("frame --rtu 11 0G").exit_code, 2);
+    EXPECT_EQ(run("frame --tcp 00 01 00 00 00 01 11 03").exit_code, 2);
+    EXPECT_EQ(run("frame 11 03").exit_code, 2);
+}
+
+TEST(FrameCommand, AsciiTextAndJson) {
+    auto r = run("frame --ascii :11100060000204000A01026C --json");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["framing"], "ascii");
+    EXPECT_EQ(j["function_code"], 16);
+    EXPECT_EQ(j["checksum_ok"], true);
+    bool found = false;
+    for (const auto& f : j["fields"])
+        if (f["name"] == "registers_value") {
+            EXPECT_EQ(f["value"], nlohmann::json::array({10, 258}));
+            found = true;
+        }
+    EXPECT_TRUE(found) << r.out;
+}
+
+TEST(FrameCommand, EncodeReadHoldingGivesTheManualsFrame) {
+    auto r = run("frame --encode --rtu --unit 17 read-holding 96 3 --json");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["wire"], "11 03 00 60 00 03 07 45");
+    auto w = run("frame --encode --rtu --unit 17 write-registers 96 10 258 --json");
+    EXPECT_EQ(nlohmann::json::parse(w.out)["wire"], "11 10 00 60 00 02 04 00 0A 01 02 01 14");
+    auto a = run("frame --encode --ascii --unit 17 write-registers 0x60 0x0A 0x0102 --json");
+    EXPECT_EQ(nlohmann::json::parse(a.out)["wire"], ":11100060000204000A01026C\r\n");
+    auto t = run("frame --encode --tcp --tid 1 --unit 17 read-holding 107 3 --json");
+    EXPECT_EQ(nlohmann::json::parse(t.out)["wire"], "00 01 00 00 00 06 11 03 00 6B 00 03");
+}
+
+TEST(FrameCommand, EchoIsNamedAsSuch) {
+    auto r = run("frame --rtu 11 06 00 54 03 9E 4B D2");
+    EXPECT_NE(r.out.find("echo response"), std::string::npos) << r.out;
+}
+
+TEST(FrameCommand, FileOfManualExamplesDecodesClean) {
+    auto r = run(std::string("frame --file ") + MBSCOPE_SOURCE_DIR + "/captures/manual-examples.txt --json");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    auto j = nlohmann::json::parse(r.out);
+    ASSERT_EQ(j.size(), 13u);
+    for (const auto& f : j) {
+        EXPECT_TRUE(f["checksum_ok"].get<bool>()) << f.dump();
+        EXPECT_TRUE(f["findings"].empty()) << f.dump();
+    }
+}
+
+TEST(FrameCommand, HelpOnTheSubcommand) {
+    auto r = run("frame --help");
+    EXPECT_EQ(r.exit_code, 0);
+    EXPECT_NE(r.out.find("--encode"), std::string::npos);
+    EXPECT_NE(r.out.find("Exit codes"), std::string::npos);
+    EXPECT_EQ(run("--help").exit_code, 0);
+    EXPECT_EQ(run("nosuchcommand").exit_code, 2);
+}
+
+TEST(FrameText, ParseHexAcceptsCommonSpellings) {
+    std::string error;
+    auto b = mbscope::cli::parse_hex({"0x11,0x03", "0060", "00-03"}, error);
+    ASSERT_TRUE(b.has_value());
+    EXPECT_EQ(*b, (std::vector<std::uint8_t>{0x11, 0x03, 0x00, 0x60, 0x00, 0x03}));
+    EXPECT_FALSE(mbscope::cli::parse_hex({"123"}, error).has_value());
+}

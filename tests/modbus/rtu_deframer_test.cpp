@@ -1,0 +1,285 @@
+#include "modbus/rtu_deframer.hpp"
+
+#include <gtest/gtest.h>
+
+#include "deframer_util.hpp"
+#include "modbus/adu.hpp"
+#include "test_util.hpp"
+
+using namespace mbscope::test;
+namespace mb = mbscope::modbus;
+using namespace std::chrono_literals;
+
+namespace {
+
+// The MK manual's worked exchange (000:330-484), requests and responses back to back.
+const std::vector<const char*> mk_stream = {
+    "11 01 00 13 00 15 0E 90",
+    "11 01 03 B2 0E 1B DA 92",
+    "11 03 00 60 00 03 07 45",
+    "11 03 06 02 2B 00 00 00 64 C8 BA",
+    "11 05 00 54 FF 00 CF 7A",
+    "11 05 00 54 FF 00 CF 7A",
+    "11 06 00 54 03 9E 4B D2",
+    "11 06 00 54 03 9E 4B D2",
+    "11 08 00 00 A5 37 D8 1D",
+    "11 08 00 00 A5 37 D8 1D",
+    "11 0F 00 13 00 0A 02 CD 00 7E CB",
+    "11 0F 00 13 00 0A 26 99",
+    "11 10 00 60 00 02 04 00 0A 01 02 01 14",
+    "11 10 00 60 00 02 43 46",
+    "11 81 02 C0 54",
+};
+
+std::vector<std::uint8_t> concat(const std::vector<std::vector<std::uint8_t>>& parts) {
+    std::vector<std::uint8_t> out;
+    for (const auto& p : parts)
+        out.insert(out.end(), p.begin(), p.end());
+    return out;
+}
+
+std::vector<std::vector<std::uint8_t>> mk_frames() {
+    std::vector<std::vector<std::uint8_t>> frames;
+    for (auto h : mk_stream)
+        frames.push_back(hex(h));
+    return frames;
+}
+
+mb::DeframeEvents run_untimed(const std::vector<std::uint8_t>& data, const std::vector<std::size_t>& sizes) {
+    mb::RtuDeframer d;
+    mb::DeframeEvents out;
+    std::size_t pos = 0;
+    for (auto n : sizes) {
+        d.feed({data.data() + pos, n}, out);
+        pos += n;
+    }
+    d.finish(out);
+    return out;
+}
+
+}  // namespace
+
+TEST(RtuStep, ThreeWayOutcome) {
+    using K = mb::DeframeStep::Kind;
+    auto full = hex("11 03 00 60 00 03 07 45");
+    EXPECT_EQ(mb::rtu_step(full, false).kind, K::Complete);
+    EXPECT_EQ(mb::rtu_step(full, false).length, 8u);
+    EXPECT_EQ(mb::rtu_step(std::span(full).first(3), false).kind, K::NeedMore);
+    auto garbage = hex("FF FF FF FF FF FF FF FF FF FF");
+    EXPECT_EQ(mb::rtu_step(garbage, false).kind, K::Skip);
+}
+
+TEST(RtuStep, FrameNeedsTheCrcCandidateNotJustFourBytes) {
+    // A response whose byte count promises more: the stepper waits instead of guessing.
+    auto prefix = hex("11 03 06 02 2B 00");
+    const auto step = mb::rtu_step(prefix, false);
+    EXPECT_EQ(step.kind, mb::DeframeStep::Kind::NeedMore);
+}
+
+TEST(RtuDeframer, ManualStreamInEveryChunking) {
+    // Issue: every chunking (1 byte at a time, random splits) gives the same frames.
+    const auto frames = mk_frames();
+    const auto data = concat(frames);
+    for (const auto& sizes : chunkings(data.size(), 50, 42)) {
+        auto events = run_untimed(data, sizes);
+        expect_every_byte_accounted(events, data.size());
+        ASSERT_EQ(frames_bytes(events), frames);
+        for (const auto& e : events)
+            EXPECT_TRUE(std::get<mb::Frame>(e).checksum_ok);
+    }
+}
+
+TEST(RtuDeframer, GarbageBeforeBetweenAndAfterIsReportedNeverLost) {
+    const auto frames = mk_frames();
+    std::vector<std::vector<std::uint8_t>> parts = {
+        hex("FF FE 00 13"), frames[2],   hex("AA"), frames[3], hex("00 00 00 00 00 00 00 00 00"),
+        frames[12],         hex("47 11")};
+    const auto data = concat(parts);
+    for (const auto& sizes : chunkings(data.size(), 30, 7)) {
+        auto events = run_untimed(data, sizes);
+        expect_every_byte_accounted(events, data.size());
+        EXPECT_EQ(frames_bytes(events), (std::vector{frames[2], frames[3], frames[12]}));
+        std::uint64_t unparsed = 0;
+        for (const auto& e : events)
+            if (auto* u = std::get_if<mb::Unparsed>(&e)) unparsed += u->length;
+        EXPECT_EQ(unparsed, 4u + 1u + 9u + 2u);
+    }
+}
+
+TEST(RtuDeframer, FrameWithCorruptedCrcIsFoundBetweenGoodFrames) {
+    // MK-ERR-01's corrupted frame 11 03 00 60 00 03 07 46 between two good ones: reported as a frame
+    // with a bad CRC (the next frame starts right after its predicted length), not as garbage.
+    const auto data = concat(
+        {hex("11 03 00 60 00 03 07 45"), hex("11 03 00 60 00 03 07 46"), hex("11 06 00 54 03 9E 4B D2")});
+    auto events = run_untimed(data, {data.size()});
+    expect_every_byte_accounted(events, data.size());
+    ASSERT_EQ(events.size(), 3u);
+    const auto& bad = std::get<mb::Frame>(events[1]);
+    EXPECT_FALSE(bad.checksum_ok);
+    EXPECT_TRUE(bad.findings.contains(mb::FindingCode::RtuCrcMismatch));
+    EXPECT_EQ(bad.offset, 8u);
+}
+
+TEST(RtuDeframer, TruncatedFrameAtEndIsUnparsed) {
+    const auto data = concat({hex("11 03 00 60 00 03 07 45"), hex("11 03 06 02 2B")});
+    auto events = run_untimed(data, {data.size()});
+    expect_every_byte_accounted(events, data.size());
+    ASSERT_EQ(events.size(), 2u);
+    EXPECT_EQ(std::get<mb::Unparsed>(events[1]).reason, mb::UnparsedReason::Truncated);
+}
+
+TEST(RtuDeframer, LongGarbageIsLinearAndAccounted) {
+    std::vector<std::uint8_t> data(200000);
+    std::mt19937 rng(99);
+    for (auto& b : data)
+        b = static_cast<std::uint8_t>(rng());
+    auto tail = hex("11 03 00 60 00 03 07 45");
+    data.insert(data.end(), tail.begin(), tail.end());
+    auto events = run_untimed(data, {data.size()});
+    expect_every_byte_accounted(events, data.size());
+    ASSERT_FALSE(events.empty());
+    const auto* last = std::get_if<mb::Frame>(&events.back());
+    ASSERT_NE(last, nullptr);
+    EXPECT_EQ(std::vector<std::uint8_t>(last->adu().begin(), last->adu().end()), tail);
+}
+
+// ---------------------------------------------------------------- timed
+
+namespace {
+
+struct TimedChunk {
+    std::vector<std::uint8_t> bytes;
+    std::chrono::nanoseconds
+        silence_before;  // silence between the previous chunk's end and this chunk's start
+};
+
+// Builds chunk timestamps for a 9600 8N1 line (character time 1.0417 ms).
+mb::DeframeEvents run_timed(const std::vector<TimedChunk>& chunks, mb::SerialLine line = {}) {
+    mb::RtuTimedDeframer d(line);
+    mb::DeframeEvents out;
+    mb::Timestamp t = 1s;
+    const auto ct = line.character_time();
+    for (const auto& c : chunks) {
+        t += c.silence_before + ct * static_cast<std::int64_t>(c.bytes.size());
+        d.advance(t - ct * static_cast<std::int64_t>(c.bytes.size()), out);
+        d.feed(c.bytes, t, out);
+    }
+    d.advance(t + 1s, out);
+    d.finish(out);
+    return out;
+}
+
+}  // namespace
+
+TEST(SerialLine, CharacterTimes) {
+    mb::SerialLine l{9600, 8, mb::Parity::None, 1};
+    EXPECT_EQ(l.bits_per_character(), 10u);
+    EXPECT_EQ(l.character_time(), 1041666ns);
+    EXPECT_EQ(l.t3_5(), 3645831ns);
+    mb::SerialLine even{9600, 8, mb::Parity::Even, 1};
+    EXPECT_EQ(even.bits_per_character(), 11u);  // the 4.01 ms t3.5 of manual-rules.md §0
+    const double t35_ms = std::chrono::duration<double, std::milli>(even.t3_5()).count();
+    EXPECT_NEAR(t35_ms, 4.01, 0.01);
+    mb::SerialLine fast{38400, 8, mb::Parity::Even, 1};
+    EXPECT_EQ(fast.t1_5(), 750us);  // SL §2.5.1.1: fixed above 19200 baud
+    EXPECT_EQ(fast.t3_5(), 1750us);
+}
+
+TEST(RtuTimedDeframer, SilenceSeparatesFrames) {
+    auto events =
+        run_timed({{hex("11 03 00 60 00 03 07 45"), 0ms}, {hex("11 03 06 02 2B 00 00 00 64 C8 BA"), 10ms}});
+    ASSERT_EQ(events.size(), 2u);
+    for (const auto& e : events) {
+        const auto& f = std::get<mb::Frame>(e);
+        EXPECT_TRUE(f.checksum_ok);
+        EXPECT_TRUE(f.findings.empty());
+        EXPECT_GT(f.end, f.start);
+    }
+}
+
+TEST(RtuTimedDeframer, GapAboveT15InsideFrameIsFlaggedWithItsSize) {
+    // A 3-character gap (3.1 ms at 9600 8N1) inside the FC3 request: shorter than t3.5, so still one frame,
+    // and its CRC verifies, but SL §2.5.1.1 says the receiver must discard it.
+    auto events = run_timed({{hex("11 03 00 60"), 0ms}, {hex("00 03 07 45"), 3125us}});
+    ASSERT_EQ(events.size(), 1u);
+    const auto& f = std::get<mb::Frame>(events[0]);
+    EXPECT_TRUE(f.checksum_ok);
+    EXPECT_TRUE(f.findings.contains(mb::FindingCode::RtuGapInsideFrame));
+    EXPECT_NEAR(f.max_gap_chars, 3.0, 0.05);
+    EXPECT_EQ(f.gap_before_byte, 4);
+}
+
+TEST(RtuTimedDeframer, GapOfOneCharacterIsNotFlagged) {
+    auto events = run_timed({{hex("11 03 00 60"), 0ms}, {hex("00 03 07 45"), 1ms}});
+    ASSERT_EQ(events.size(), 1u);
+    EXPECT_TRUE(std::get<mb::Frame>(events[0]).findings.empty());
+}
+
+TEST(RtuTimedDeframer, GapAboveT35SplitsAFrameIntoTwoBadOnes) {
+    // MK-RTU-01 (a): the FC3 request split by a 5-character gap → two fragments, neither a valid frame.
+    auto events = run_timed({{hex("11 03 00 60"), 0ms}, {hex("00 03 07 45"), 5208us}});
+    expect_every_byte_accounted(events, 8);
+    for (const auto& e : events) {
+        if (auto* f = std::get_if<mb::Frame>(&e)) {
+            EXPECT_FALSE(f->checksum_ok);
+        }
+    }
+}
+
+TEST(RtuTimedDeframer, FramesGluedInOneChunkAreSplitByContent) {
+    // A USB adapter delivered request and response in one read: no silence visible between them.
+    auto glued = hex("11 03 00 60 00 03 07 45 11 03 06 02 2B 00 00 00 64 C8 BA");
+    auto events = run_timed({{glued, 0ms}});
+    ASSERT_EQ(events.size(), 2u);
+    EXPECT_TRUE(std::get<mb::Frame>(events[0]).checksum_ok);
+    EXPECT_TRUE(std::get<mb::Frame>(events[1]).checksum_ok);
+    EXPECT_EQ(std::get<mb::Frame>(events[1]).offset, 8u);
+}
+
+TEST(RtuTimedDeframer, SilenceDelimitedRunWithBadCrcIsOneBadFrame) {
+    auto events = run_timed({{hex("11 03 00 60 00 03 07 46"), 0ms}, {hex("11 06 00 54 03 9E 4B D2"), 10ms}});
+    ASSERT_EQ(events.size(), 2u);
+    const auto& bad = std::get<mb::Frame>(events[0]);
+    EXPECT_FALSE(bad.checksum_ok);
+    EXPECT_EQ(bad.length, 8);
+}
+
+TEST(RtuTimedDeframer, ShortNoiseIsUnparsed) {
+    auto events = run_timed({{hex("00 FF"), 0ms}, {hex("11 06 00 54 03 9E 4B D2"), 10ms}});
+    ASSERT_EQ(events.size(), 2u);
+    EXPECT_EQ(std::get<mb::Unparsed>(events[0]).reason, mb::UnparsedReason::TooShort);
+}
+
+TEST(RtuTimedDeframer, ChunkingDoesNotChangeFramesWhenSilencesAreKept) {
+    const auto frames = mk_frames();
+    for (unsigned seed = 1; seed <= 20; ++seed) {
+        std::mt19937 rng(seed);
+        std::vector<TimedChunk> chunks;
+        for (const auto& f : frames) {
+            std::size_t pos = 0;
+            bool first = true;
+            while (pos < f.size()) {
+                const std::size_t n = std::min<std::size_t>(f.size() - pos, 1 + rng() % 5);
+                chunks.push_back({{f.begin() + static_cast<std::ptrdiff_t>(pos),
+                                   f.begin() + static_cast<std::ptrdiff_t>(pos + n)},
+                                  first ? 20ms : 0ms});
+                pos += n;
+                first = false;
+            }
+        }
+        auto events = run_timed(chunks);
+        expect_every_byte_accounted(events, concat(frames).size());
+        ASSERT_EQ(frames_bytes(events), frames) << "seed " << seed;
+    }
+}
+
+TEST(RtuTimedDeframer, LongRunWithoutSilenceIsFramedByContent) {
+    std::vector<std::uint8_t> data;
+    for (int i = 0; i < 200; ++i) {
+        auto f = hex("11 03 00 60 00 03 07 45");
+        data.insert(data.end(), f.begin(), f.end());
+    }
+    auto events = run_timed({{data, 0ms}});
+    expect_every_byte_accounted(events, data.size());
+    EXPECT_EQ(events.size(), 200u);
+}

@@ -1,0 +1,113 @@
+#include "modbus/tcp_deframer.hpp"
+
+#include <gtest/gtest.h>
+
+#include "deframer_util.hpp"
+#include "modbus/adu.hpp"
+#include "test_util.hpp"
+
+using namespace mbscope::test;
+namespace mb = mbscope::modbus;
+
+namespace {
+
+std::vector<std::vector<std::uint8_t>> sample_adus() {
+    return {hex("00 01 00 00 00 06 11 03 00 6B 00 03"), hex("00 01 00 00 00 09 11 03 06 02 2B 00 00 00 64"),
+            hex("FF FF 00 00 00 06 01 05 00 AC FF 00"), hex("00 00 00 00 00 03 01 81 02"),
+            hex("12 34 00 00 00 0B 01 10 00 01 00 02 04 00 0A 01 02")};
+}
+
+mb::DeframeEvents run(const std::vector<std::uint8_t>& data, const std::vector<std::size_t>& sizes) {
+    mb::TcpStreamDeframer d;
+    mb::DeframeEvents out;
+    std::size_t pos = 0;
+    for (auto n : sizes) {
+        d.feed({data.data() + pos, n}, out);
+        pos += n;
+    }
+    d.finish(out);
+    return out;
+}
+
+std::vector<std::uint8_t> concat(const std::vector<std::vector<std::uint8_t>>& parts) {
+    std::vector<std::uint8_t> out;
+    for (const auto& p : parts)
+        out.insert(out.end(), p.begin(), p.end());
+    return out;
+}
+
+}  // namespace
+
+TEST(TcpStreamDeframer, SeveralAdusPerChunkAndOneAduOverManyChunks) {
+    const auto adus = sample_adus();
+    const auto data = concat(adus);
+    for (const auto& sizes : chunkings(data.size(), 50, 11)) {
+        auto events = run(data, sizes);
+        expect_every_byte_accounted(events, data.size());
+        ASSERT_EQ(frames_bytes(events), adus);
+    }
+}
+
+TEST(TcpStreamDeframer, FirstSegmentShorterThanEightBytes) {
+    // The ADU starts in a 3-byte segment (tshark's entry check needs 8 bytes and misses it).
+    const auto adu = hex("00 01 00 00 00 06 11 03 00 6B 00 03");
+    auto events = run(adu, {3, 9});
+    ASSERT_EQ(events.size(), 1u);
+    EXPECT_EQ(std::get<mb::Frame>(events[0]).transaction_id(), 1);
+}
+
+TEST(TcpStreamDeframer, ImpossibleLengthResynchronisesOnTheNextHeader) {
+    const auto good = sample_adus();
+    const auto data =
+        concat({good[0], hex("00 02 00 00 00 00 11"), good[1], hex("00 03 00 00 01 2C 11 03"), good[2]});
+    auto events = run(data, {data.size()});
+    expect_every_byte_accounted(events, data.size());
+    EXPECT_EQ(frames_bytes(events), (std::vector{good[0], good[1], good[2]}));
+    int bad_headers = 0;
+    for (const auto& e : events)
+        if (auto* u = std::get_if<mb::Unparsed>(&e))
+            bad_headers += u->reason == mb::UnparsedReason::BadHeader;
+    EXPECT_EQ(bad_headers, 2);
+}
+
+TEST(TcpStreamDeframer, ProtocolIdNonZeroInSyncIsAFlaggedFrame) {
+    const auto data = hex("00 01 00 01 00 06 11 03 00 6B 00 03");
+    auto events = run(data, {data.size()});
+    ASSERT_EQ(events.size(), 1u);
+    EXPECT_TRUE(std::get<mb::Frame>(events[0]).findings.contains(mb::FindingCode::TcpProtocolIdNonzero));
+}
+
+TEST(TcpStreamDeframer, GapLosesTheFrameInProgressAndResyncs) {
+    const auto adus = sample_adus();
+    mb::TcpStreamDeframer d;
+    mb::DeframeEvents out;
+    d.feed(adus[0], out);
+    d.feed(std::span(adus[1]).first(5), out);  // the rest of this ADU was never captured
+    d.gap(10, out);
+    d.feed(adus[2], out);
+    d.finish(out);
+    ASSERT_EQ(out.size(), 3u);
+    EXPECT_EQ(std::get<mb::Unparsed>(out[1]).reason, mb::UnparsedReason::Truncated);
+    EXPECT_EQ(std::get<mb::Unparsed>(out[1]).length, 5u);
+    const auto& last = std::get<mb::Frame>(out[2]);
+    EXPECT_EQ(last.offset, adus[0].size() + 5 + 10);
+}
+
+TEST(TcpStreamDeframer, TruncatedAtEnd) {
+    const auto adu = hex("00 01 00 00 00 06 11 03 00");
+    auto events = run(adu, {adu.size()});
+    expect_every_byte_accounted(events, adu.size());
+    EXPECT_EQ(std::get<mb::Unparsed>(events[0]).reason, mb::UnparsedReason::Truncated);
+}
+
+TEST(TcpStreamDeframer, LongGarbageKeepsEveryByte) {
+    std::vector<std::uint8_t> data(100000, 0xEE);
+    const auto adu = sample_adus()[0];
+    data.insert(data.end(), adu.begin(), adu.end());
+    for (const auto& sizes : chunkings(data.size(), 3, 5)) {
+        if (sizes.size() > 20000) continue;  // 1-byte chunks of 100 kB: covered by the short streams
+        auto events = run(data, sizes);
+        expect_every_byte_accounted(events, data.size());
+        ASSERT_EQ(frames_bytes(events).back(), adu);
+    }
+}
