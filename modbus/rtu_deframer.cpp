@@ -178,11 +178,9 @@ void RtuDeframer::finish(DeframeEvents& out) {
 
 // ---------------------------------------------------------------- timed
 
-void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, bool checksum_ok,
-                                  DeframeEvents& out) {
+void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, DeframeEvents& out) {
     Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>));
     detail::fill_rtu_frame({seg_.data() + begin, length}, frame);
-    (void)checksum_ok;  // fill_rtu_frame recomputes it from the bytes
     frame.offset = seg_offset_ + begin;
     frame.start = times_[begin];
     frame.end = times_[begin + length - 1];
@@ -206,7 +204,7 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
     const std::size_t n = seg_.size();
     std::size_t consumed = 0;
     if (at_end && n >= 4 && n <= max_rtu_adu_length && crc_ok(seg_)) {
-        emit_frame(0, n, true, out);
+        emit_frame(0, n, out);
         consumed = n;
     } else if (at_end && n > 0) {
         // Split by content. Keep the result only if it finds at least one frame; otherwise the
@@ -244,14 +242,14 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
         if (any_frame) {
             for (const auto& e : split) {
                 if (const auto* f = std::get_if<Frame>(&e))
-                    emit_frame(f->offset, f->wire_length, true, out);
+                    emit_frame(f->offset, f->wire_length, out);
                 else {
                     const auto& u = std::get<Unparsed>(e);
                     emit_unparsed(u.offset, u.length, u.reason, out);
                 }
             }
         } else if (n >= 4 && n <= max_rtu_adu_length) {
-            emit_frame(0, n, false, out);
+            emit_frame(0, n, out);
         } else {
             emit_unparsed(0, n, n < 4 ? UnparsedReason::TooShort : UnparsedReason::TooLong, out);
         }
@@ -263,7 +261,7 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
             const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, false);
             if (step.kind == Kind::NeedMore) break;
             if (step.kind == Kind::Complete)
-                emit_frame(pos, step.length, step.checksum_ok, out);
+                emit_frame(pos, step.length, out);
             else
                 emit_unparsed(pos, step.length, step.reason, out);
             pos += step.length;

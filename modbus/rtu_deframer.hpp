@@ -59,7 +59,7 @@ class RtuTimedDeframer {
         float chars;
     };
     void close_segment(bool at_end, DeframeEvents& out);
-    void emit_frame(std::size_t begin, std::size_t length, bool checksum_ok, DeframeEvents& out);
+    void emit_frame(std::size_t begin, std::size_t length, DeframeEvents& out);  // CRC status from the bytes
     void emit_unparsed(std::size_t begin, std::size_t length, UnparsedReason reason, DeframeEvents& out);
 
     SerialLine line_;

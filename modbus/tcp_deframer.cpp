@@ -10,8 +10,6 @@ namespace {
 
 using Kind = DeframeStep::Kind;
 
-constexpr std::size_t mbap_length = 7;
-
 std::size_t length_field(std::span<const std::uint8_t> b) noexcept {
     return static_cast<std::size_t>((b[4] << 8) | b[5]);
 }
