@@ -11,5 +11,6 @@ inline constexpr int exit_findings = 1;
 inline constexpr int exit_failure = 2;
 
 void register_frame(CLI::App& app, int& exit_code);
+void register_profile(CLI::App& app, int& exit_code);
 
 }  // namespace mbscope::cli

@@ -10,6 +10,7 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", std::string("mbscope ") + MBSCOPE_VERSION);
     int exit_code = mbscope::cli::exit_ok;
     mbscope::cli::register_frame(app, exit_code);
+    mbscope::cli::register_profile(app, exit_code);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -1,0 +1,336 @@
+// mbscope profile: list, show, validate, look up and decode with device profiles.
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "cli/commands.hpp"
+#include "cli/profile_json.hpp"
+#include "modbus/describe.hpp"
+#include "modbus/storage/profile_store.hpp"
+
+namespace mbscope::cli {
+namespace {
+
+using namespace mbscope::modbus;
+using storage::ProfileStore;
+
+struct ProfileOptions {
+    std::vector<std::string> dirs;
+    std::vector<std::string> config;
+    std::string config_file;
+    bool json = false;
+    std::string id;
+    std::string table;
+    std::string address;
+    std::vector<std::string> words;
+    std::vector<std::string> files;
+};
+
+void print_errors(const std::vector<ProfileError>& errors) {
+    for (const auto& e : errors)
+        std::cerr << "mbscope profile: " << to_string(e) << '\n';
+}
+
+std::optional<ProfileConfig> parse_config(const ProfileOptions& o) {
+    ProfileConfig config;
+    if (!o.config_file.empty()) {
+        std::ifstream in(o.config_file);
+        try {
+            auto j = nlohmann::json::parse(in);
+            for (auto it = j.begin(); it != j.end(); ++it)
+                config[it.key()] = it->get<std::string>();
+        } catch (const std::exception& e) {
+            std::cerr << "mbscope profile: " << o.config_file << ": " << e.what() << '\n';
+            return std::nullopt;
+        }
+    }
+    for (const auto& kv : o.config) {
+        const auto eq = kv.find('=');
+        if (eq == std::string::npos) {
+            std::cerr << "mbscope profile: --config takes CHANNEL=MAP, not '" << kv << "'\n";
+            return std::nullopt;
+        }
+        config[kv.substr(0, eq)] = kv.substr(eq + 1);
+    }
+    return config;
+}
+
+std::optional<Profile> load(const ProfileOptions& o) {
+    ProfileStore store(profile_directories(o.dirs));
+    auto config = parse_config(o);
+    if (!config) return std::nullopt;
+    auto p = store.load(o.id, *config);
+    if (!p) {
+        print_errors(p.error());
+        return std::nullopt;
+    }
+    return std::move(p.value());
+}
+
+int run_list(const ProfileOptions& o) {
+    ProfileStore store(profile_directories(o.dirs));
+    if (o.json) {
+        auto a = nlohmann::json::array();
+        for (const auto& e : store.entries())
+            a.push_back({{"id", e.id},
+                         {"name", e.name},
+                         {"aliases", e.aliases},
+                         {"vendor", e.vendor},
+                         {"family", e.family},
+                         {"file", e.file},
+                         {"transports", e.transports},
+                         {"points",
+                          {{"coils", e.coils},
+                           {"discrete_inputs", e.discrete_inputs},
+                           {"input_registers", e.input_registers},
+                           {"holding_registers", e.holding_registers}}}});
+        std::cout << a.dump(2) << '\n';
+    } else {
+        std::printf("%-22s %-14s %-11s %6s %6s  %s\n", "id", "vendor", "transports", "coils", "regs",
+                    "aliases");
+        for (const auto& e : store.entries()) {
+            std::string t, aliases;
+            for (const auto& x : e.transports)
+                t += (t.empty() ? "" : ",") + x;
+            for (const auto& x : e.aliases)
+                aliases += (aliases.empty() ? "" : ", ") + x;
+            std::printf("%-22s %-14s %-11s %6zu %6zu  %s\n", e.id.c_str(), e.vendor.substr(0, 14).c_str(),
+                        t.c_str(), e.coils, e.holding_registers, aliases.c_str());
+        }
+        std::printf("%zu profiles from %zu directories\n", store.entries().size(),
+                    store.directories().size());
+    }
+    print_errors(store.errors());
+    return store.errors().empty() ? exit_ok : exit_findings;
+}
+
+std::string range_of(const Point& p) {
+    if (!p.range_text.empty()) return p.range_text;
+    if (p.min || p.max)
+        return (p.min ? std::to_string(*p.min) : "") + ".." + (p.max ? std::to_string(*p.max) : "");
+    return "";
+}
+
+int run_show(const ProfileOptions& o) {
+    auto p = load(o);
+    if (!p) return exit_failure;
+    if (o.json) {
+        std::cout << profile_to_json(*p).dump(2) << '\n';
+        return exit_ok;
+    }
+    std::cout << p->id << " — " << p->vendor << " " << p->name << "  (" << p->file << ")\n";
+    if (!p->title.empty()) std::cout << "  " << p->title << '\n';
+    std::cout << "  source: " << p->source << '\n';
+    std::string t;
+    for (const auto& x : p->line.transports)
+        t += (t.empty() ? "" : ", ") + x;
+    std::cout << "  transports: " << t << "; unit ids " << p->line.unit_min << ".." << p->line.unit_max
+              << '\n';
+    std::string fcs;
+    for (auto fc : p->functions.supported)
+        fcs += (fcs.empty() ? "" : " ") + std::to_string(fc);
+    std::cout << "  functions: " << fcs << "; max quantity";
+    for (const auto& [fc, q] : p->functions.max_quantity)
+        std::cout << " FC" << fc << "=" << q;
+    std::cout << "; address check: "
+              << (p->functions.address_check == AddressCheck::First ? "first address only" : "every address")
+              << '\n';
+    for (const auto& [ch, map] : p->configuration)
+        std::cout << "  config " << ch << " = " << map << '\n';
+    for (Table table :
+         {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters}) {
+        if (!p->implements(table)) continue;
+        std::cout << '\n' << to_string(table);
+        if (p->same_as[static_cast<int>(table)]) {
+            std::cout << ": same map as " << to_string(*p->same_as[static_cast<int>(table)]) << '\n';
+            continue;
+        }
+        std::cout << " (" << p->point_count(table) << " points)\n";
+        std::printf("  %5s %-3s %-10s %-44s %s\n", "addr", "acc", "encoding", "name", "range / values");
+        for (const auto& pt : p->table(table)) {
+            std::string name = pt.name_en.empty() ? pt.name : pt.name_en;
+            if (name.size() > 44) name = name.substr(0, 43) + "…";
+            std::string enc(to_string(pt.encoding.type));
+            if (pt.encoding.type == EncodingType::Fixed) enc += "/" + std::to_string(pt.encoding.decimals);
+            if (pt.encoding.words == 2) enc += " " + std::string(to_string(pt.encoding.word_order));
+            std::string range = range_of(pt);
+            if (pt.fixed_value) range += " reads " + hex16(*pt.fixed_value);
+            if (!pt.unit.empty()) range += " [" + pt.unit + "]";
+            if (pt.reconstructed) range += " (reconstructed)";
+            if (pt.reserved) range += " (reserved)";
+            std::printf("  %5u %-3s %-10s %-44s %s\n", pt.address, std::string(to_string(pt.access)).c_str(),
+                        enc.c_str(), name.c_str(), range.c_str());
+        }
+    }
+    if (!p->notes.empty()) {
+        std::cout << "\nnotes:\n";
+        for (const auto& n : p->notes)
+            std::cout << "  - " << (n.kind.empty() ? "" : "[" + n.kind + "] ") << n.text
+                      << (n.source.empty() ? "" : " (" + n.source + ")") << '\n';
+    }
+    return exit_ok;
+}
+
+int run_validate(const ProfileOptions& o) {
+    int rc = exit_ok;
+    for (const auto& f : o.files) {
+        auto loaded = storage::load_profile_file(f, parse_config(o).value_or(ProfileConfig{}));
+        if (!loaded.is_profile && loaded.errors.empty()) {
+            std::cout << f << ": not a profile document (no \"format\": \"mbscope-profile/1\")\n";
+            rc = std::max(rc, exit_findings);
+            continue;
+        }
+        print_errors(loaded.errors);
+        if (!loaded.errors.empty()) {
+            rc = std::max(rc, exit_findings);
+            std::cout << f << ": " << loaded.errors.size() << " error(s)\n";
+            continue;
+        }
+        for (const auto& p : loaded.profiles)
+            std::cout << f << ": " << p.id << " ok (" << p.point_count(Table::Coils) << " coils, "
+                      << p.point_count(Table::HoldingRegisters) << " holding registers)\n";
+    }
+    return rc;
+}
+
+std::optional<Table> table_arg(const std::string& t) {
+    auto table = parse_table(t);
+    if (!table)
+        std::cerr << "mbscope profile: unknown table '" << t << "' (coils, discrete, input, holding)\n";
+    return table;
+}
+
+std::optional<std::uint16_t> address_arg(const std::string& text) {
+    try {
+        std::size_t used = 0;
+        long v = std::stol(text, &used, 0);
+        if (used == text.size() && v >= 0 && v <= 65535) return static_cast<std::uint16_t>(v);
+    } catch (...) {
+    }
+    std::cerr << "mbscope profile: not an address 0..65535: '" << text << "'\n";
+    return std::nullopt;
+}
+
+int run_lookup(const ProfileOptions& o) {
+    auto table = table_arg(o.table);
+    auto address = address_arg(o.address);
+    if (!table || !address) return exit_failure;
+    auto p = load(o);
+    if (!p) return exit_failure;
+    const Point* pt = p->find(*table, *address);
+    if (!pt) {
+        if (o.json)
+            std::cout << nlohmann::json{{"found", false}}.dump() << '\n';
+        else
+            std::cout << p->id << " " << to_string(*table) << " " << *address << ": not in the device map\n";
+        return exit_findings;
+    }
+    if (o.json) {
+        std::cout << point_to_json(*pt).dump(2) << '\n';
+        return exit_ok;
+    }
+    std::cout << p->id << " " << to_string(*table) << " " << pt->address
+              << (pt->address != *address ? " (second register of)" : "") << '\n'
+              << "  name      " << pt->name << '\n';
+    if (!pt->name_en.empty()) std::cout << "  english   " << pt->name_en << '\n';
+    std::cout << "  access    " << to_string(pt->access) << '\n'
+              << "  encoding  " << to_string(pt->encoding.type) << '\n';
+    if (auto r = range_of(*pt); !r.empty()) std::cout << "  range     " << r << '\n';
+    for (const auto& v : pt->encoding.values)
+        std::cout << "    " << v.value << " = " << v.text << '\n';
+    if (!pt->unit.empty()) std::cout << "  unit      " << pt->unit << '\n';
+    std::cout << "  source    " << pt->source << '\n';
+    for (const auto& n : pt->notes)
+        std::cout << "  note      " << n << '\n';
+    return exit_ok;
+}
+
+int run_decode(const ProfileOptions& o) {
+    auto table = table_arg(o.table);
+    auto start = address_arg(o.address);
+    if (!table || !start) return exit_failure;
+    std::vector<std::uint16_t> words;
+    for (const auto& w : o.words) {
+        try {
+            std::size_t used = 0;
+            unsigned long v = std::stoul(w, &used, 16);
+            if (used != w.size() || v > 0xFFFF) throw std::out_of_range(w);
+            words.push_back(static_cast<std::uint16_t>(v));
+        } catch (...) {
+            std::cerr << "mbscope profile: not a 16-bit hex word: '" << w << "'\n";
+            return exit_failure;
+        }
+    }
+    auto p = load(o);
+    if (!p) return exit_failure;
+    auto values = decode_registers(*p, *table, *start, words);
+    if (o.json) {
+        auto a = nlohmann::json::array();
+        for (const auto& v : values)
+            a.push_back(named_value_to_json(v));
+        std::cout << a.dump(2) << '\n';
+    } else {
+        for (const auto& v : values) {
+            std::string name =
+                v.point ? (v.point->name_en.empty() ? v.point->name : v.point->name_en) : "(not in map)";
+            std::printf("  %5u  %-44s %s%s%s\n", v.address, name.c_str(), v.text.c_str(),
+                        v.point && !v.point->unit.empty() ? (" " + v.point->unit).c_str() : "",
+                        v.partial ? "  (partial: other half or scale outside the block)" : "");
+        }
+    }
+    bool unknown = false;
+    for (const auto& v : values)
+        unknown |= v.point == nullptr && !p->open_address_space;
+    return unknown ? exit_findings : exit_ok;
+}
+
+}  // namespace
+
+void register_profile(CLI::App& app, int& exit_code) {
+    auto o = std::make_shared<ProfileOptions>();
+    auto* cmd = app.add_subcommand("profile", "Device profiles: list, show, validate, look up, decode");
+    cmd->require_subcommand(1);
+    cmd->add_option("--profile-dir", o->dirs,
+                    "Extra directory of profile files, searched first (repeatable)");
+    cmd->footer(
+        "Profiles are searched in --profile-dir, then $MBSCOPE_PROFILE_PATH (colon-separated), then the\n"
+        "installed profiles. Ids and aliases are matched case-insensitively.\n"
+        "Exit codes: 0 ok, 1 something is missing or invalid, 2 could not run.");
+    auto common = [&](CLI::App* sub) {
+        sub->add_flag("--json", o->json, "Machine-readable output");
+        sub->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");
+        sub->add_option("--config-file", o->config_file, "Modular devices: JSON object {channel: map}");
+    };
+    auto* list = cmd->add_subcommand("list", "Every known profile: id, vendor, transports, point counts");
+    list->add_flag("--json", o->json, "Machine-readable output");
+    list->callback([o, &exit_code] { exit_code = run_list(*o); });
+    auto* show = cmd->add_subcommand("show", "The resolved map of one device, table by table");
+    show->add_option("id", o->id, "Device id or alias (e.g. ty-2090, walchem-w900, cth2265i)")->required();
+    common(show);
+    show->callback([o, &exit_code] { exit_code = run_show(*o); });
+    auto* validate =
+        cmd->add_subcommand("validate", "Check profile files, reporting every error with its JSON pointer");
+    validate->add_option("files", o->files, "Profile files")->required();
+    common(validate);
+    validate->callback([o, &exit_code] { exit_code = run_validate(*o); });
+    auto* lookup =
+        cmd->add_subcommand("lookup", "What a point is: ID TABLE ADDRESS (0-based protocol address)");
+    lookup->add_option("id", o->id)->required();
+    lookup->add_option("table", o->table, "coils, discrete, input or holding")->required();
+    lookup->add_option("address", o->address)->required();
+    common(lookup);
+    lookup->callback([o, &exit_code] { exit_code = run_lookup(*o); });
+    auto* decode = cmd->add_subcommand("decode", "What raw register values mean: ID TABLE START HEXWORDS...");
+    decode->add_option("id", o->id)->required();
+    decode->add_option("table", o->table)->required();
+    decode->add_option("start", o->address)->required();
+    decode->add_option("words", o->words, "Register values in hex, e.g. 022B 0000 0064")->required();
+    common(decode);
+    decode->callback([o, &exit_code] { exit_code = run_decode(*o); });
+}
+
+}  // namespace mbscope::cli

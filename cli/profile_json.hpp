@@ -1,0 +1,20 @@
+#pragma once
+// JSON views of resolved profiles (profile show --json, lookup, decode) and the profile search path.
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "modbus/profile.hpp"
+
+namespace mbscope::cli {
+
+nlohmann::json point_to_json(const modbus::Point& p);
+nlohmann::json profile_to_json(const modbus::Profile& p);
+nlohmann::json named_value_to_json(const modbus::NamedValue& v);
+
+// --profile-dir entries, then $MBSCOPE_PROFILE_PATH, then the installed profiles (next to the binary:
+// ../share/mbscope/profiles), else the source tree's profiles/ (running from a build directory).
+std::vector<std::string> profile_directories(const std::vector<std::string>& extra);
+
+}  // namespace mbscope::cli

@@ -1,0 +1,300 @@
+#include "modbus/profile.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "modbus/function_code.hpp"
+
+namespace mbscope::modbus {
+
+std::string_view to_string(Access a) noexcept {
+    switch (a) {
+        case Access::Read:
+            return "r";
+        case Access::Write:
+            return "w";
+        case Access::ReadWrite:
+            return "rw";
+    }
+    return "?";
+}
+
+namespace {
+constexpr std::pair<std::string_view, EncodingType> encoding_names[] = {
+    {"u16", EncodingType::U16},
+    {"s16", EncodingType::S16},
+    {"fixed", EncodingType::Fixed},
+    {"scaled", EncodingType::Scaled},
+    {"enum", EncodingType::Enum},
+    {"ascii_char", EncodingType::AsciiChar},
+    {"digits4_high", EncodingType::Digits4High},
+    {"digits4_low", EncodingType::Digits4Low},
+    {"u32", EncodingType::U32},
+    {"s32", EncodingType::S32},
+    {"f32", EncodingType::F32},
+    {"u32_low", EncodingType::U32Low},
+    {"u32_high", EncodingType::U32High},
+    {"bytes2", EncodingType::Bytes2},
+    {"bits", EncodingType::Bits},
+    {"status", EncodingType::Status},
+    {"bool", EncodingType::Bool},
+    {"formula", EncodingType::Formula},
+};
+constexpr std::pair<std::string_view, WordOrder> word_orders[] = {{"abcd", WordOrder::Abcd},
+                                                                  {"badc", WordOrder::Badc},
+                                                                  {"cdab", WordOrder::Cdab},
+                                                                  {"dcba", WordOrder::Dcba}};
+}  // namespace
+
+std::string_view to_string(EncodingType t) noexcept {
+    for (const auto& [n, v] : encoding_names)
+        if (v == t) return n;
+    return "?";
+}
+std::optional<EncodingType> parse_encoding_type(std::string_view name) noexcept {
+    for (const auto& [n, v] : encoding_names)
+        if (n == name) return v;
+    return std::nullopt;
+}
+std::string_view to_string(WordOrder w) noexcept {
+    for (const auto& [n, v] : word_orders)
+        if (v == w) return n;
+    return "?";
+}
+std::optional<WordOrder> parse_word_order(std::string_view name) noexcept {
+    for (const auto& [n, v] : word_orders)
+        if (n == name) return v;
+    return std::nullopt;
+}
+
+bool FunctionRules::supports(std::uint8_t fc) const {
+    return std::find(supported.begin(), supported.end(), fc) != supported.end();
+}
+
+int FunctionRules::max_for(std::uint8_t fc, bool write_part) const {
+    const std::string key = std::to_string(fc) + (write_part ? "w" : "");
+    if (auto it = max_quantity.find(key); it != max_quantity.end()) return it->second;
+    switch (fc) {
+        case 1:
+        case 2:
+            return max_read_bits;
+        case 3:
+        case 4:
+            return max_read_registers;
+        case 15:
+            return max_write_bits;
+        case 16:
+            return max_write_registers;
+        case 23:
+            return write_part ? max_rw_write_registers : max_rw_read_registers;
+        default:
+            return 0;
+    }
+}
+
+Table Profile::resolve(Table t) const noexcept {
+    const auto& s = same_as[static_cast<int>(t)];
+    return s ? *s : t;
+}
+
+const Point* Profile::find(Table t, std::uint16_t address) const noexcept {
+    const auto& pts = table(t);
+    auto it = std::lower_bound(pts.begin(), pts.end(), address,
+                               [](const Point& p, std::uint16_t a) { return p.address < a; });
+    if (it != pts.end() && it->address == address) return &*it;
+    if (it != pts.begin()) {  // the second register of a 32-bit point
+        const Point& prev = *(it - 1);
+        if (prev.encoding.words == 2 && prev.address + 1 == address) return &prev;
+    }
+    return nullptr;
+}
+
+namespace {
+
+std::string format_number(double v, int decimals) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+    return buf;
+}
+
+std::uint32_t join32(std::uint16_t first, std::uint16_t second, WordOrder order) {
+    // first/second are the registers at address and address+1; ABCD = big-endian, first register high.
+    auto swap_bytes = [](std::uint16_t w) { return static_cast<std::uint16_t>((w << 8) | (w >> 8)); };
+    switch (order) {
+        case WordOrder::Abcd:
+            return (std::uint32_t{first} << 16) | second;
+        case WordOrder::Cdab:
+            return (std::uint32_t{second} << 16) | first;
+        case WordOrder::Badc:
+            return (std::uint32_t{swap_bytes(first)} << 16) | swap_bytes(second);
+        case WordOrder::Dcba:
+            return (std::uint32_t{swap_bytes(second)} << 16) | swap_bytes(first);
+    }
+    return 0;
+}
+
+std::optional<std::uint16_t> word_at(std::uint16_t address, std::uint16_t start,
+                                     const std::vector<std::uint16_t>& words,
+                                     const std::map<std::uint16_t, std::uint16_t>& context) {
+    if (address >= start && address - start < static_cast<int>(words.size())) return words[address - start];
+    if (auto it = context.find(address); it != context.end()) return it->second;
+    return std::nullopt;
+}
+
+}  // namespace
+
+std::vector<NamedValue> decode_registers(const Profile& profile, Table table, std::uint16_t start,
+                                         const std::vector<std::uint16_t>& words,
+                                         const std::map<std::uint16_t, std::uint16_t>& context) {
+    std::vector<NamedValue> out;
+    for (std::size_t i = 0; i < words.size(); ++i) {
+        const auto address = static_cast<std::uint16_t>(start + i);
+        NamedValue v;
+        v.address = address;
+        v.point = profile.find(table, address);
+        const std::uint16_t w = words[i];
+        v.raw = {w};
+        if (!v.point) {
+            v.number = w;
+            v.text = std::to_string(w);
+            out.push_back(std::move(v));
+            continue;
+        }
+        const Point& p = *v.point;
+        const Encoding& e = p.encoding;
+        if (e.words == 2 && p.address != address) continue;  // second half, consumed with the first
+        switch (e.type) {
+            case EncodingType::U16:
+                v.number = w;
+                break;
+            case EncodingType::S16:
+                v.number = static_cast<std::int16_t>(w);
+                break;
+            case EncodingType::Fixed:
+                v.number = (e.is_signed ? static_cast<std::int16_t>(w) : w) / std::pow(10.0, e.decimals);
+                v.text = format_number(*v.number, e.decimals);
+                break;
+            case EncodingType::Scaled: {
+                const double raw = e.is_signed ? static_cast<std::int16_t>(w) : w;
+                int decimals = 0;
+                if (e.decimals_from) {
+                    auto d = word_at(e.decimals_from->address, start, words, context);
+                    if (d && *d <= 9)
+                        decimals = *d;
+                    else
+                        v.partial = true;  // decimal point register not known: shown unscaled
+                }
+                v.number = raw / std::pow(10.0, decimals);
+                v.text = format_number(*v.number, decimals);
+                break;
+            }
+            case EncodingType::Enum:
+            case EncodingType::Status: {
+                v.number = w;
+                v.text = std::to_string(w);
+                for (const auto& ev : e.values)
+                    if (ev.value == w)
+                        v.text = ev.text_en.empty() ? ev.text : ev.text + " (" + ev.text_en + ")";
+                break;
+            }
+            case EncodingType::AsciiChar:
+                v.number = w;
+                v.text = (w >= 0x20 && w < 0x7F) ? std::string("'") + static_cast<char>(w) + "'"
+                                                 : std::to_string(w);
+                break;
+            case EncodingType::Digits4High:
+            case EncodingType::Digits4Low:
+            case EncodingType::U32Low:
+            case EncodingType::U32High: {
+                const bool high_first =
+                    e.type == EncodingType::Digits4High || e.type == EncodingType::U32High;
+                auto other = e.pair ? word_at(*e.pair, start, words, context) : std::nullopt;
+                const bool digits = e.type == EncodingType::Digits4High || e.type == EncodingType::Digits4Low;
+                if (!other) {
+                    v.partial = true;
+                    v.number = w;
+                } else {
+                    const std::uint16_t hi = high_first ? w : *other, lo = high_first ? *other : w;
+                    const double whole =
+                        digits ? hi * 10000.0 + lo : static_cast<double>((std::uint32_t{hi} << 16) | lo);
+                    v.number = whole / std::pow(10.0, e.decimals);
+                    v.raw = {hi, lo};
+                }
+                v.text = format_number(*v.number, v.partial ? 0 : e.decimals);
+                break;
+            }
+            case EncodingType::U32:
+            case EncodingType::S32:
+            case EncodingType::F32: {
+                auto second = word_at(static_cast<std::uint16_t>(address + 1), start, words, context);
+                if (!second) {
+                    v.partial = true;
+                    v.number = w;
+                    v.text = std::to_string(w) + " (first half only)";
+                    break;
+                }
+                v.raw = {w, *second};
+                const std::uint32_t u = join32(w, *second, e.word_order);
+                if (e.type == EncodingType::U32) v.number = u;
+                if (e.type == EncodingType::S32) v.number = static_cast<std::int32_t>(u);
+                if (e.type == EncodingType::F32) {
+                    float f;
+                    std::memcpy(&f, &u, sizeof f);
+                    v.number = f;
+                }
+                break;
+            }
+            case EncodingType::Bits: {
+                v.number = w;
+                std::string names;
+                for (const auto& b : e.bits)
+                    if ((w >> b.bit) & 1u)
+                        names += (names.empty() ? "" : ", ") + (b.name_en.empty() ? b.name : b.name_en);
+                v.text = names.empty() ? "none" : names;
+                break;
+            }
+            case EncodingType::Bool:
+                v.number = w ? 1 : 0;
+                break;
+            case EncodingType::Bytes2:
+            case EncodingType::Formula:
+                v.number = w;
+                break;
+        }
+        if (v.text.empty() && v.number)
+            v.text = format_number(*v.number, std::floor(*v.number) == *v.number ? 0 : 3);
+        out.push_back(std::move(v));
+    }
+    return out;
+}
+
+std::optional<std::uint8_t> check_write(const Profile& profile, Table table, std::uint16_t address,
+                                        std::uint16_t value) {
+    auto code_for = [&](const char* condition, std::uint8_t fallback) -> std::uint8_t {
+        auto it = profile.functions.exceptions.find(condition);
+        if (it != profile.functions.exceptions.end() && it->second)
+            return static_cast<std::uint8_t>(*it->second);
+        return fallback;
+    };
+    if (profile.open_address_space) return std::nullopt;
+    const Point* p = profile.find(table, address);
+    if (!p || p->reserved) return code_for("bad_address", 2);
+    if (p->access == Access::Read) return code_for("write_read_only", 2);
+    const Encoding& e = p->encoding;
+    const bool is_signed = e.type == EncodingType::S16 || e.is_signed;
+    const std::int64_t v = is_signed ? static_cast<std::int16_t>(value) : value;
+    if (e.type == EncodingType::Enum && !e.values.empty()) {
+        bool listed = false;
+        for (const auto& ev : e.values)
+            listed |= ev.value == v;
+        if (!listed) return code_for("bad_value", 3);
+    }
+    if (e.type == EncodingType::AsciiChar && !e.allowed.empty() &&
+        (value > 0x7F || e.allowed.find(static_cast<char>(value)) == std::string::npos))
+        return code_for("bad_value", 3);
+    if ((p->min && v < *p->min) || (p->max && v > *p->max)) return code_for("bad_value", 3);
+    return std::nullopt;
+}
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,186 @@
+#pragma once
+// Device profiles, resolved: one Profile per device id (model), with the base map of its manual section, the
+// model's exclusions and overrides applied and, for modular devices, the configuration's maps expanded.
+// The data format is documented in profiles/README.md; this is its in-memory model and the queries every
+// part of mbscope asks of it: what is at (table, address), what do these raw words mean, would the device
+// accept this write.
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "modbus/addressing.hpp"
+
+namespace mbscope::modbus {
+
+enum class Access : std::uint8_t { Read = 1, Write = 2, ReadWrite = 3 };
+std::string_view to_string(Access a) noexcept;
+
+enum class EncodingType : std::uint8_t {
+    U16,
+    S16,
+    Fixed,
+    Scaled,
+    Enum,
+    AsciiChar,
+    Digits4High,
+    Digits4Low,
+    U32,
+    S32,
+    F32,
+    U32Low,
+    U32High,
+    Bytes2,
+    Bits,
+    Status,
+    Bool,
+    Formula,
+};
+std::string_view to_string(EncodingType t) noexcept;
+std::optional<EncodingType> parse_encoding_type(std::string_view name) noexcept;
+
+enum class WordOrder : std::uint8_t { Abcd, Badc, Cdab, Dcba };
+std::string_view to_string(WordOrder w) noexcept;
+std::optional<WordOrder> parse_word_order(std::string_view name) noexcept;
+
+struct PointRef {
+    Table table = Table::HoldingRegisters;
+    std::uint16_t address = 0;
+};
+
+struct EnumValue {
+    std::int64_t value = 0;
+    std::string text;
+    std::string text_en;
+};
+
+struct BitName {
+    std::uint8_t bit = 0;
+    std::string name;
+    std::string name_en;
+};
+
+struct Encoding {
+    EncodingType type = EncodingType::U16;
+    int decimals = 0;
+    bool is_signed = false;
+    std::optional<PointRef> decimals_from;  // Scaled
+    std::vector<EnumValue> values;          // Enum, Status
+    std::string allowed;                    // AsciiChar
+    std::optional<std::uint16_t> pair;      // Digits4*, U32Low/High: address of the other half
+    WordOrder word_order = WordOrder::Abcd;
+    int words = 1;              // 2 for 32-bit values held in this and the next register
+    std::vector<BitName> bits;  // Bits
+    std::string expr;           // Formula, as the manual gives it
+};
+
+struct Point {
+    Table table = Table::HoldingRegisters;
+    std::uint16_t address = 0;
+    std::string name;     // the manual's words
+    std::string name_en;  // short English name
+    std::string mnemonic;
+    Access access = Access::Read;
+    Encoding encoding;
+    std::optional<std::int64_t> min, max;  // raw units (two's complement values as signed numbers)
+    std::optional<PointRef> min_from, max_from;
+    std::string range_text;
+    std::string unit;
+    std::optional<std::uint16_t> fixed_value;
+    bool reserved = false;
+    bool reconstructed = false;
+    std::string source;  // "000:493"
+    std::vector<std::string> notes;
+    std::string ref;  // the manual's printed reference when it differs from the address
+};
+
+struct ProfileNote {
+    std::string text;
+    std::string source;
+    std::string kind;  // contradiction, typo, damage, implied, info
+};
+
+struct LineRules {
+    std::vector<std::string> transports;  // rtu, ascii, tcp
+    std::vector<std::uint32_t> baud_rates;
+    std::vector<std::string> parity;
+    int unit_min = 1;
+    int unit_max = 247;
+    std::vector<int> unit_disabled;
+    int tcp_port = 502;
+    std::optional<int> min_poll_interval_ms;
+    std::optional<int> response_timeout_ms;
+    int ascii_inter_char_timeout_ms = 1000;
+};
+
+enum class AddressCheck : std::uint8_t { Every, First };
+
+struct FunctionRules {
+    std::vector<std::uint8_t> supported;
+    std::map<std::string, int> max_quantity;  // "3" → 15, "23w" → 121
+    std::vector<std::uint8_t> broadcast;
+    std::vector<std::uint16_t> diagnostics;
+    AddressCheck address_check = AddressCheck::Every;
+    std::map<std::string, std::optional<int>> exceptions;  // condition → code (nullopt: the manual is silent)
+
+    bool supports(std::uint8_t fc) const;
+    // The manual's limit, else the specification's (AP §6.x); 0 when the function has no quantity.
+    int max_for(std::uint8_t fc, bool write_part = false) const;
+};
+
+struct Profile {
+    std::string id;  // model id, lower case
+    std::string name;
+    std::vector<std::string> aliases;
+    std::string family;
+    std::string vendor;
+    std::string title;
+    std::string file;    // where it was loaded from
+    std::string source;  // manual and section
+    LineRules line;
+    FunctionRules functions;
+    bool open_address_space = false;  // generic profile: every address exists
+    std::vector<ProfileNote> notes;
+    std::map<std::string, std::string> configuration;  // modular devices: channel → map
+
+    // Points per table, sorted by address. A table that serves another one's map (MK FC3/FC4, Walchem
+    // FC1/FC2 and FC3/FC4) holds no points of its own and names it in same_as.
+    std::array<std::vector<Point>, 5> points;  // indexed by Table's value (0, 1, 3, 4)
+    std::array<std::optional<Table>, 5> same_as;
+    std::array<bool, 5> has_table{};
+
+    Table resolve(Table t) const noexcept;
+    const std::vector<Point>& table(Table t) const noexcept { return points[static_cast<int>(resolve(t))]; }
+    bool implements(Table t) const noexcept { return has_table[static_cast<int>(t)]; }
+    // The point holding `address` (a 32-bit point holds two addresses); nullptr when the map has none.
+    const Point* find(Table t, std::uint16_t address) const noexcept;
+    std::size_t point_count(Table t) const noexcept { return points[static_cast<int>(t)].size(); }
+};
+
+// ---- queries
+
+struct NamedValue {
+    const Point* point = nullptr;  // nullptr: address not in the map
+    std::uint16_t address = 0;
+    std::vector<std::uint16_t> raw;  // the register(s) the value was built from
+    std::optional<double> number;    // scaled numeric value
+    std::string text;                // enumeration text, characters, bits, or the number formatted
+    bool partial = false;            // a 32-bit or paired value whose other half is outside the block
+};
+
+// Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.
+// `context` supplies registers outside the block (decimal-point registers), may be empty.
+std::vector<NamedValue> decode_registers(const Profile& profile, Table table, std::uint16_t start,
+                                         const std::vector<std::uint16_t>& words,
+                                         const std::map<std::uint16_t, std::uint16_t>& context = {});
+
+// Would the device accept writing `value` at `address`? nullopt: yes; otherwise the exception code the
+// profile says it answers (02 for an address the map lacks or a read-only point where the manual gives
+// none, 03 for a value outside the documented range or enumeration).
+std::optional<std::uint8_t> check_write(const Profile& profile, Table table, std::uint16_t address,
+                                        std::uint16_t value);
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,695 @@
+#include "modbus/profile_loader.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <nlohmann/json.hpp>
+
+namespace mbscope::modbus {
+
+std::string to_string(const ProfileError& e) {
+    return e.file + (e.pointer.empty() ? "" : ": " + e.pointer) + ": " + e.message;
+}
+
+namespace {
+
+using json = nlohmann::json;
+
+std::string lower(std::string s) {
+    for (auto& c : s)
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+}
+
+// Reads fields with type checks; every problem is recorded with its JSON pointer, reading goes on.
+class Reader {
+  public:
+    Reader(std::string file, std::vector<ProfileError>& errors) : file_(std::move(file)), errors_(errors) {}
+
+    void error(const std::string& pointer, std::string message) {
+        errors_.push_back({file_, pointer, std::move(message)});
+    }
+
+    const json* child(const json& j, const std::string& key) {
+        if (!j.is_object()) return nullptr;
+        auto it = j.find(key);
+        return it == j.end() ? nullptr : &*it;
+    }
+    std::optional<std::string> string(const json& j, const std::string& key, const std::string& ptr,
+                                      bool required) {
+        const json* c = child(j, key);
+        if (!c) {
+            if (required) error(ptr, "missing required field \"" + key + "\"");
+            return std::nullopt;
+        }
+        if (!c->is_string()) {
+            error(ptr + "/" + key, "must be a string");
+            return std::nullopt;
+        }
+        return c->get<std::string>();
+    }
+    std::optional<std::int64_t> integer(const json& j, const std::string& key, const std::string& ptr,
+                                        bool required, std::int64_t lo = INT64_MIN,
+                                        std::int64_t hi = INT64_MAX) {
+        const json* c = child(j, key);
+        if (!c || c->is_null()) {
+            if (required) error(ptr, "missing required field \"" + key + "\"");
+            return std::nullopt;
+        }
+        if (!c->is_number_integer()) {
+            error(ptr + "/" + key, "must be an integer");
+            return std::nullopt;
+        }
+        const auto v = c->get<std::int64_t>();
+        if (v < lo || v > hi) {
+            error(ptr + "/" + key, "must be between " + std::to_string(lo) + " and " + std::to_string(hi));
+            return std::nullopt;
+        }
+        return v;
+    }
+    std::string source_of(const json& j) {
+        const json* c = child(j, "source");
+        if (!c) return {};
+        if (c->is_string()) return c->get<std::string>();
+        if (c->is_object()) {
+            std::string s;
+            for (const char* k : {"lines", "manual", "section"})
+                if (c->contains(k) && (*c)[k].is_string()) return (*c)[k].get<std::string>();
+            return s;
+        }
+        return {};
+    }
+
+  private:
+    std::string file_;
+    std::vector<ProfileError>& errors_;
+};
+
+std::optional<Table> table_named(const std::string& name) {
+    if (name == "coils") return Table::Coils;
+    if (name == "discrete_inputs") return Table::DiscreteInputs;
+    if (name == "input_registers") return Table::InputRegisters;
+    if (name == "holding_registers") return Table::HoldingRegisters;
+    return std::nullopt;
+}
+
+std::optional<PointRef> point_ref(Reader& r, const json& j, const std::string& ptr, Table default_table) {
+    if (j.is_number_integer()) return PointRef{default_table, static_cast<std::uint16_t>(j.get<int>())};
+    if (!j.is_object()) {
+        r.error(ptr, "must be {\"table\", \"address\"} or an address");
+        return std::nullopt;
+    }
+    PointRef ref{default_table, 0};
+    if (auto t = r.string(j, "table", ptr, false)) {
+        auto table = table_named(*t);
+        if (!table)
+            r.error(ptr + "/table", "unknown table \"" + *t + "\"");
+        else
+            ref.table = *table;
+    }
+    auto a = r.integer(j, "address", ptr, true, 0, 65535);
+    if (!a) return std::nullopt;
+    ref.address = static_cast<std::uint16_t>(*a);
+    return ref;
+}
+
+std::vector<std::string> notes_of(const json& j) {
+    std::vector<std::string> out;
+    auto it = j.find("notes");
+    if (it == j.end() || !it->is_array()) return out;
+    for (const auto& n : *it) {
+        if (n.is_string())
+            out.push_back(n.get<std::string>());
+        else if (n.is_object() && n.contains("text") && n["text"].is_string()) {
+            std::string text = n["text"].get<std::string>();
+            if (n.contains("source") && n["source"].is_string())
+                text += " [" + n["source"].get<std::string>() + "]";
+            out.push_back(text);
+        }
+    }
+    return out;
+}
+
+Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table table) {
+    Encoding e;
+    if (j.is_string()) {  // shorthand "u16"
+        auto t = parse_encoding_type(j.get<std::string>());
+        if (!t)
+            r.error(ptr, "unknown encoding \"" + j.get<std::string>() + "\"");
+        else
+            e.type = *t;
+        return e;
+    }
+    if (!j.is_object()) {
+        r.error(ptr, "must be an object with a \"type\"");
+        return e;
+    }
+    auto type = r.string(j, "type", ptr, true);
+    if (type) {
+        auto t = parse_encoding_type(*type);
+        if (!t)
+            r.error(ptr + "/type", "unknown encoding type \"" + *type + "\"");
+        else
+            e.type = *t;
+    }
+    if (auto d = r.integer(j, "decimals", ptr, false, 0, 9)) e.decimals = static_cast<int>(*d);
+    if (auto s = r.child(j, "signed"); s && s->is_boolean()) e.is_signed = s->get<bool>();
+    if (auto d = r.child(j, "decimals_from"))
+        e.decimals_from = point_ref(r, *d, ptr + "/decimals_from", table);
+    if (e.type == EncodingType::Scaled && !e.decimals_from)
+        r.error(ptr, "\"scaled\" needs \"decimals_from\"");
+    if (auto v = r.child(j, "values")) {
+        if (!v->is_array())
+            r.error(ptr + "/values", "must be an array");
+        else
+            for (std::size_t i = 0; i < v->size(); ++i) {
+                const auto& item = (*v)[i];
+                const std::string p = ptr + "/values/" + std::to_string(i);
+                EnumValue ev;
+                if (auto val = r.integer(item, "value", p, true)) ev.value = *val;
+                ev.text = r.string(item, "text", p, false).value_or("");
+                ev.text_en = r.string(item, "text_en", p, false).value_or("");
+                e.values.push_back(std::move(ev));
+            }
+    }
+    if (e.type == EncodingType::Enum && e.values.empty()) r.error(ptr, "\"enum\" needs \"values\"");
+    e.allowed = r.string(j, "allowed", ptr, false).value_or("");
+    if (auto p = r.integer(j, "pair", ptr, false, 0, 65535)) e.pair = static_cast<std::uint16_t>(*p);
+    const bool paired = e.type == EncodingType::Digits4High || e.type == EncodingType::Digits4Low ||
+                        e.type == EncodingType::U32Low || e.type == EncodingType::U32High;
+    if (paired && !e.pair) r.error(ptr, "\"" + std::string(to_string(e.type)) + "\" needs \"pair\"");
+    if (auto w = r.string(j, "word_order", ptr, false)) {
+        auto order = parse_word_order(*w);
+        if (!order)
+            r.error(ptr + "/word_order", "must be abcd, badc, cdab or dcba");
+        else
+            e.word_order = *order;
+    }
+    const bool wide =
+        e.type == EncodingType::U32 || e.type == EncodingType::S32 || e.type == EncodingType::F32;
+    e.words = static_cast<int>(r.integer(j, "words", ptr, false, 1, 2).value_or(wide ? 2 : 1));
+    if (auto b = r.child(j, "bits"); b && b->is_array()) {
+        for (std::size_t i = 0; i < b->size(); ++i) {
+            const auto& item = (*b)[i];
+            const std::string p = ptr + "/bits/" + std::to_string(i);
+            BitName bn;
+            if (auto bit = r.integer(item, "bit", p, true, 0, 15)) bn.bit = static_cast<std::uint8_t>(*bit);
+            bn.name = r.string(item, "name", p, false).value_or("");
+            bn.name_en = r.string(item, "name_en", p, false).value_or("");
+            e.bits.push_back(std::move(bn));
+        }
+    }
+    e.expr = r.string(j, "expr", ptr, false).value_or("");
+    return e;
+}
+
+std::optional<Access> parse_access(const std::string& a) {
+    if (a == "r") return Access::Read;
+    if (a == "w") return Access::Write;
+    if (a == "rw") return Access::ReadWrite;
+    return std::nullopt;
+}
+
+void apply_range(Reader& r, const json& j, const std::string& ptr, Point& p) {
+    if (auto rg = r.child(j, "range"); rg && !rg->is_null()) {
+        if (!rg->is_object())
+            r.error(ptr + "/range", "must be {\"min\", \"max\"}");
+        else {
+            if (auto mn = r.integer(*rg, "min", ptr + "/range", false)) p.min = *mn;
+            if (auto mx = r.integer(*rg, "max", ptr + "/range", false)) p.max = *mx;
+            if (p.min && p.max && *p.min > *p.max) r.error(ptr + "/range", "min is above max");
+        }
+    }
+    if (auto rf = r.child(j, "range_from"); rf && rf->is_object()) {
+        if (auto mn = r.child(*rf, "min")) p.min_from = point_ref(r, *mn, ptr + "/range_from/min", p.table);
+        if (auto mx = r.child(*rf, "max")) p.max_from = point_ref(r, *mx, ptr + "/range_from/max", p.table);
+    }
+    if (auto t = r.string(j, "range_text", ptr, false)) p.range_text = *t;
+}
+
+struct RawPoint {
+    Point point;
+    std::vector<std::string> models;  // restricted to these model ids (lower case); empty = all
+};
+
+std::optional<RawPoint> parse_point(Reader& r, const json& j, const std::string& ptr, Table table) {
+    if (!j.is_object()) {
+        r.error(ptr, "a point must be an object");
+        return std::nullopt;
+    }
+    RawPoint rp;
+    Point& p = rp.point;
+    p.table = table;
+    auto address = r.integer(j, "address", ptr, true, 0, 65535);
+    if (!address) return std::nullopt;
+    p.address = static_cast<std::uint16_t>(*address);
+    p.name = r.string(j, "name", ptr, true).value_or("");
+    p.name_en = r.string(j, "name_en", ptr, false).value_or("");
+    p.mnemonic = r.string(j, "mnemonic", ptr, false).value_or("");
+    if (auto a = r.string(j, "access", ptr, true)) {
+        auto access = parse_access(*a);
+        if (!access)
+            r.error(ptr + "/access", "must be r, w or rw");
+        else
+            p.access = *access;
+    }
+    if (auto e = r.child(j, "encoding"))
+        p.encoding = parse_encoding(r, *e, ptr + "/encoding", table);
+    else if (is_bit_table(table))
+        p.encoding.type = EncodingType::Bool;
+    apply_range(r, j, ptr, p);
+    p.unit = r.string(j, "unit", ptr, false).value_or("");
+    if (auto f = r.integer(j, "fixed_value", ptr, false, 0, 65535))
+        p.fixed_value = static_cast<std::uint16_t>(*f);
+    if (auto res = r.child(j, "reserved"); res && res->is_boolean()) p.reserved = res->get<bool>();
+    p.reconstructed = r.child(j, "reconstructed") != nullptr;
+    p.source = r.source_of(j);
+    if (p.source.empty()) r.error(ptr, "missing \"source\" (the manual line it comes from)");
+    p.notes = notes_of(j);
+    p.ref = r.string(j, "ref", ptr, false).value_or("");
+    if (auto m = r.child(j, "models"); m && m->is_array())
+        for (const auto& id : *m)
+            if (id.is_string()) rp.models.push_back(lower(id.get<std::string>()));
+    return rp;
+}
+
+struct TableSpec {
+    std::vector<RawPoint> points;
+    std::optional<Table> same_as;
+    bool present = false;
+};
+
+using Tables = std::array<TableSpec, 5>;
+constexpr Table all_tables[] = {Table::Coils, Table::DiscreteInputs, Table::InputRegisters,
+                                Table::HoldingRegisters};
+int idx(Table t) {
+    return static_cast<int>(t);
+}
+
+void parse_tables(Reader& r, const json& j, Tables& tables) {
+    const json* t = r.child(j, "tables");
+    if (!t) return;
+    if (!t->is_object()) {
+        r.error("/tables", "must be an object");
+        return;
+    }
+    for (auto it = t->begin(); it != t->end(); ++it) {
+        const std::string ptr = "/tables/" + it.key();
+        auto table = table_named(it.key());
+        if (!table) {
+            r.error(ptr, "unknown table (coils, discrete_inputs, input_registers, holding_registers)");
+            continue;
+        }
+        TableSpec& spec = tables[idx(*table)];
+        spec.present = true;
+        if (it->is_object()) {
+            auto same = r.string(*it, "same_as", ptr, true);
+            if (same) {
+                spec.same_as = table_named(*same);
+                if (!spec.same_as) r.error(ptr + "/same_as", "unknown table \"" + *same + "\"");
+            }
+            continue;
+        }
+        if (!it->is_array()) {
+            r.error(ptr, "must be a list of points or {\"same_as\": table}");
+            continue;
+        }
+        for (std::size_t i = 0; i < it->size(); ++i)
+            if (auto p = parse_point(r, (*it)[i], ptr + "/" + std::to_string(i), *table))
+                spec.points.push_back(std::move(*p));
+        // duplicates are an error: two rows cannot describe one address
+        std::vector<std::uint16_t> seen;
+        for (const auto& p : spec.points)
+            seen.push_back(p.point.address);
+        std::sort(seen.begin(), seen.end());
+        for (std::size_t i = 1; i < seen.size(); ++i)
+            if (seen[i] == seen[i - 1])
+                r.error(ptr, "address " + std::to_string(seen[i]) + " is described more than once");
+    }
+}
+
+LineRules parse_line(Reader& r, const json& j) {
+    LineRules l;
+    const json* line = r.child(j, "line");
+    if (!line) {
+        r.error("", "missing required field \"line\"");
+        return l;
+    }
+    if (auto t = r.child(*line, "transports"); t && t->is_array())
+        for (const auto& x : *t)
+            if (x.is_string()) {
+                const auto s = x.get<std::string>();
+                if (s != "rtu" && s != "ascii" && s != "tcp")
+                    r.error("/line/transports", "unknown transport \"" + s + "\"");
+                l.transports.push_back(s);
+            }
+    if (l.transports.empty()) r.error("/line", "\"transports\" must list rtu, ascii and/or tcp");
+    if (auto b = r.child(*line, "baud_rates"); b && b->is_array())
+        for (const auto& x : *b)
+            if (x.is_number_unsigned()) l.baud_rates.push_back(x.get<std::uint32_t>());
+    if (auto p = r.child(*line, "parity"); p && p->is_array())
+        for (const auto& x : *p)
+            if (x.is_string()) l.parity.push_back(x.get<std::string>());
+    if (auto u = r.child(*line, "unit_id"); u && u->is_object()) {
+        l.unit_min = static_cast<int>(r.integer(*u, "min", "/line/unit_id", false, 0, 255).value_or(1));
+        l.unit_max = static_cast<int>(r.integer(*u, "max", "/line/unit_id", false, 0, 255).value_or(247));
+        if (auto d = r.child(*u, "disabled"); d && d->is_array())
+            for (const auto& x : *d)
+                if (x.is_number_integer()) l.unit_disabled.push_back(x.get<int>());
+    }
+    l.tcp_port = static_cast<int>(r.integer(*line, "tcp_port", "/line", false, 1, 65535).value_or(502));
+    if (auto m = r.integer(*line, "min_poll_interval_ms", "/line", false, 0))
+        l.min_poll_interval_ms = static_cast<int>(*m);
+    if (auto m = r.integer(*line, "response_timeout_ms", "/line", false, 0))
+        l.response_timeout_ms = static_cast<int>(*m);
+    l.ascii_inter_char_timeout_ms =
+        static_cast<int>(r.integer(*line, "ascii_inter_char_timeout_ms", "/line", false, 0).value_or(1000));
+    return l;
+}
+
+FunctionRules parse_functions(Reader& r, const json& j) {
+    FunctionRules f;
+    const json* fn = r.child(j, "functions");
+    if (!fn) {
+        r.error("", "missing required field \"functions\"");
+        return f;
+    }
+    auto codes = [&](const char* key, auto& out, int hi) {
+        if (auto c = r.child(*fn, key)) {
+            if (!c->is_array()) {
+                r.error(std::string("/functions/") + key, "must be a list of numbers");
+                return;
+            }
+            for (const auto& x : *c) {
+                if (!x.is_number_integer() || x.get<int>() < 0 || x.get<int>() > hi)
+                    r.error(std::string("/functions/") + key,
+                            "holds a value that is not a number from 0 to " + std::to_string(hi));
+                else
+                    out.push_back(
+                        static_cast<typename std::decay_t<decltype(out)>::value_type>(x.get<int>()));
+            }
+        }
+    };
+    codes("supported", f.supported, 127);
+    if (f.supported.empty()) r.error("/functions", "\"supported\" must list the function codes");
+    codes("broadcast", f.broadcast, 127);
+    codes("diagnostics", f.diagnostics, 65535);
+    if (auto m = r.child(*fn, "max_quantity"); m && m->is_object())
+        for (auto it = m->begin(); it != m->end(); ++it) {
+            if (!it->is_number_integer() || it->get<int>() < 1)
+                r.error("/functions/max_quantity/" + it.key(), "must be a positive integer");
+            else
+                f.max_quantity[it.key()] = it->get<int>();
+        }
+    if (auto a = r.string(*fn, "address_check", "/functions", false)) {
+        if (*a == "first")
+            f.address_check = AddressCheck::First;
+        else if (*a != "every")
+            r.error("/functions/address_check", "must be \"every\" or \"first\"");
+    }
+    if (auto e = r.child(*fn, "exceptions"); e && e->is_object())
+        for (auto it = e->begin(); it != e->end(); ++it) {
+            if (it->is_number_integer())
+                f.exceptions[it.key()] = it->get<int>();
+            else if (it->is_null())
+                f.exceptions[it.key()] = std::nullopt;
+            else if (it->is_object() && it->contains("code") && (*it)["code"].is_number_integer())
+                f.exceptions[it.key()] = (*it)["code"].get<int>();
+            else if (it->is_object() && it->contains("code") && (*it)["code"].is_null())
+                f.exceptions[it.key()] = std::nullopt;
+        }
+    return f;
+}
+
+bool in_ranges(const json& ranges, std::uint16_t address) {
+    if (!ranges.is_array()) return false;
+    for (const auto& r : ranges) {
+        if (r.is_number_integer() && r.get<int>() == address) return true;
+        if (r.is_array() && r.size() == 2 && r[0].is_number_integer() && r[1].is_number_integer() &&
+            address >= r[0].get<int>() && address <= r[1].get<int>())
+            return true;
+    }
+    return false;
+}
+
+void apply_override(Reader& r, const json& o, const std::string& ptr, std::vector<Point>& points,
+                    Table table) {
+    json ranges = json::array();
+    if (o.contains("addresses")) ranges = o["addresses"];
+    if (o.contains("address")) ranges.push_back(o["address"]);
+    if (ranges.empty()) r.error(ptr, "an override needs \"address\" or \"addresses\"");
+    int matched = 0;
+    for (auto& p : points) {
+        if (!in_ranges(ranges, p.address)) continue;
+        ++matched;
+        if (o.contains("range") || o.contains("range_text") || o.contains("range_from")) {
+            if (o.contains("range")) p.min.reset(), p.max.reset();
+            apply_range(r, o, ptr, p);
+        }
+        if (o.contains("encoding")) p.encoding = parse_encoding(r, o["encoding"], ptr + "/encoding", table);
+        if (auto a = r.string(o, "access", ptr, false)) {
+            if (auto access = parse_access(*a))
+                p.access = *access;
+            else
+                r.error(ptr + "/access", "must be r, w or rw");
+        }
+        if (auto u = r.string(o, "unit", ptr, false)) p.unit = *u;
+        for (auto& n : notes_of(o))
+            p.notes.push_back(n);
+        if (auto s = r.string(o, "source", ptr, false)) p.notes.push_back("model override [" + *s + "]");
+    }
+    if (matched == 0) r.error(ptr, "override matches no point of the table");
+}
+
+struct ModularMaps {
+    json maps;  // map id → map
+    json status_codes;
+    json alarm_bits;
+};
+
+void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, const std::string& model_id,
+                    const ProfileConfig& config, Tables& tables, Profile& profile) {
+    const int block =
+        static_cast<int>(r.integer(modular, "block_size", "/modular", false, 1, 1000).value_or(36));
+    const json* channels = r.child(modular, "channels");
+    if (!channels || !channels->is_array()) {
+        r.error("/modular", "missing \"channels\" list");
+        return;
+    }
+    const json* defaults = r.child(modular, "default_config");
+    std::vector<std::string> known_channels;
+    for (std::size_t i = 0; i < channels->size(); ++i) {
+        const json& ch = (*channels)[i];
+        const std::string ptr = "/modular/channels/" + std::to_string(i);
+        auto id = r.string(ch, "id", ptr, true);
+        auto start = r.integer(ch, "start", ptr, true, 0, 65535);
+        if (!id || !start) continue;
+        if (auto m = r.child(ch, "models"); m && m->is_array()) {
+            bool listed = false;
+            for (const auto& x : *m)
+                listed |= x.is_string() && lower(x.get<std::string>()) == model_id;
+            if (!listed) continue;
+        }
+        known_channels.push_back(*id);
+        std::string map_id;
+        if (auto c = config.find(*id); c != config.end())
+            map_id = c->second;
+        else if (defaults && defaults->contains(*id) && (*defaults)[*id].is_string())
+            map_id = (*defaults)[*id].get<std::string>();
+        else
+            map_id = r.string(ch, "default_map", ptr, false).value_or("");
+        if (map_id.empty() || map_id == "none") continue;
+        if (auto allowed = r.child(ch, "maps"); allowed && allowed->is_array() && !allowed->empty()) {
+            bool ok = false;
+            for (const auto& x : *allowed)
+                ok |= x.is_string() && x.get<std::string>() == map_id;
+            if (!ok) {
+                r.error(ptr, "channel \"" + *id + "\" cannot take map \"" + map_id + "\"");
+                continue;
+            }
+        }
+        if (!maps.maps.is_object() || !maps.maps.contains(map_id)) {
+            r.error(ptr, "map \"" + map_id + "\" is not defined in the maps file");
+            continue;
+        }
+        profile.configuration[*id] = map_id;
+        const json& map = maps.maps[map_id];
+        if (auto only = map.find("only"); only != map.end() && only->is_array() && !only->empty()) {
+            bool ok = false;
+            for (const auto& x : *only)
+                ok |= x.is_string() && lower(x.get<std::string>()) == model_id;
+            if (!ok) r.error(ptr, "map \"" + map_id + "\" does not exist on " + model_id);
+        }
+        const json* fields = r.child(map, "fields");
+        if (!fields || !fields->is_array()) continue;
+        for (std::size_t k = 0; k < fields->size(); ++k) {
+            json f = (*fields)[k];
+            const std::string fptr = "maps/" + map_id + "/fields/" + std::to_string(k);
+            auto index = r.integer(f, "index", fptr, true, 0, block - 1);
+            if (!index) continue;
+            f["address"] = *start + *index;
+            if (f.contains("value_text") && !f.contains("range_text")) f["range_text"] = f["value_text"];
+            if (auto e = f.find("encoding");
+                e != f.end() && e->is_object() && e->contains("bits_ref") && (*e)["bits_ref"].is_string()) {
+                const auto ref = (*e)["bits_ref"].get<std::string>();
+                if (maps.alarm_bits.contains(ref)) (*e)["bits"] = maps.alarm_bits[ref];
+            }
+            if (auto e = f.find("encoding"); e != f.end() && e->is_object() && (*e)["type"] == "status" &&
+                                             maps.status_codes.is_object() && !e->contains("values")) {
+                json values = json::array();
+                for (auto it = maps.status_codes.begin(); it != maps.status_codes.end(); ++it) {
+                    json v = it->is_object() ? *it : json{{"text", *it}};
+                    v["value"] = std::stoi(it.key());
+                    values.push_back(v);
+                }
+                (*e)["values"] = values;
+            }
+            auto rp = parse_point(r, f, fptr, Table::HoldingRegisters);
+            if (!rp) continue;
+            rp->point.name = *id + ": " + rp->point.name;
+            if (!rp->point.name_en.empty()) rp->point.name_en = *id + " " + rp->point.name_en;
+            if (f.contains("coil") && f["coil"].is_boolean() && f["coil"].get<bool>()) {
+                RawPoint coil = *rp;
+                coil.point.table = Table::Coils;
+                coil.point.encoding = Encoding{};
+                coil.point.encoding.type = EncodingType::Bool;
+                tables[idx(Table::Coils)].points.push_back(std::move(coil));
+            }
+            tables[idx(Table::HoldingRegisters)].points.push_back(std::move(*rp));
+        }
+    }
+    for (const auto& [channel, map] : config)
+        if (std::find(known_channels.begin(), known_channels.end(), channel) == known_channels.end())
+            r.error("/modular", "configuration names unknown channel \"" + channel + "\"");
+    (void)block;
+}
+
+Profile resolve_model(Reader& r, const json& doc, const json& model, const std::string& mptr,
+                      const Tables& base, const Profile& common, const ModularMaps* maps,
+                      const ProfileConfig& config) {
+    Profile p = common;
+    p.id = lower(r.string(model, "id", mptr, true).value_or(""));
+    p.name = r.string(model, "name", mptr, false).value_or(p.id);
+    if (auto a = r.child(model, "aliases"); a && a->is_array())
+        for (const auto& x : *a)
+            if (x.is_string()) p.aliases.push_back(lower(x.get<std::string>()));
+    Tables tables = base;
+    if (maps) {
+        if (auto modular = r.child(doc, "modular"))
+            expand_modular(r, *modular, *maps, p.id, config, tables, p);
+        tables[idx(Table::Coils)].present = tables[idx(Table::HoldingRegisters)].present = true;
+    }
+    for (Table t : all_tables) {
+        const TableSpec& spec = tables[idx(t)];
+        p.has_table[idx(t)] = spec.present;
+        p.same_as[idx(t)] = spec.same_as;
+        const json* exclude = nullptr;
+        if (auto ex = r.child(model, "exclude");
+            ex && ex->is_object() && ex->contains(std::string(to_string(t))))
+            exclude = &(*ex)[std::string(to_string(t))];
+        for (const auto& rp : spec.points) {
+            if (!rp.models.empty() && std::find(rp.models.begin(), rp.models.end(), p.id) == rp.models.end())
+                continue;
+            if (exclude && in_ranges(*exclude, rp.point.address)) continue;
+            p.points[idx(t)].push_back(rp.point);
+        }
+        std::sort(p.points[idx(t)].begin(), p.points[idx(t)].end(),
+                  [](const Point& a, const Point& b) { return a.address < b.address; });
+    }
+    if (auto ov = r.child(model, "overrides"); ov && ov->is_array())
+        for (std::size_t i = 0; i < ov->size(); ++i) {
+            const json& o = (*ov)[i];
+            const std::string ptr = mptr + "/overrides/" + std::to_string(i);
+            auto t = table_named(r.string(o, "table", ptr, true).value_or(""));
+            if (!t) {
+                r.error(ptr + "/table", "unknown table");
+                continue;
+            }
+            apply_override(r, o, ptr, p.points[idx(*t)], *t);
+        }
+    // references to other points must exist in this model
+    for (Table t : all_tables)
+        for (const auto& pt : p.points[idx(t)]) {
+            for (const auto* ref :
+                 {pt.encoding.decimals_from ? &*pt.encoding.decimals_from : nullptr,
+                  pt.min_from ? &*pt.min_from : nullptr, pt.max_from ? &*pt.max_from : nullptr})
+                if (ref && !p.find(ref->table, ref->address) && !p.open_address_space)
+                    r.error(mptr, p.id + ": " + std::string(to_string(t)) + " " + std::to_string(pt.address) +
+                                      " refers to " + std::string(to_string(ref->table)) + " " +
+                                      std::to_string(ref->address) + ", which this model does not have");
+        }
+    return p;
+}
+
+}  // namespace
+
+LoadedProfiles parse_profiles(std::string_view text, const std::string& file, const IncludeFn& include,
+                              const ProfileConfig& config) {
+    LoadedProfiles out;
+    Reader r(file, out.errors);
+    json doc;
+    try {
+        doc = json::parse(text.begin(), text.end());
+    } catch (const json::parse_error& e) {
+        r.error("", std::string("not valid JSON: ") + e.what());
+        return out;
+    }
+    if (!doc.is_object()) {
+        r.error("", "a profile is a JSON object");
+        return out;
+    }
+    const auto format = r.string(doc, "format", "", false);
+    if (!format || *format != profile_format) {
+        out.is_profile = false;
+        if (format && format->rfind("mbscope-profile/", 0) == 0)
+            r.error("/format", "unsupported format version \"" + *format + "\" (this mbscope reads " +
+                                   std::string(profile_format) + ")");
+        return out;
+    }
+    Profile common;
+    common.file = file;
+    common.family = r.string(doc, "family", "", true).value_or("");
+    common.vendor = r.string(doc, "vendor", "", true).value_or("");
+    common.title = r.string(doc, "title", "", false).value_or("");
+    common.source = r.source_of(doc);
+    common.line = parse_line(r, doc);
+    common.functions = parse_functions(r, doc);
+    common.open_address_space = r.string(doc, "address_space", "", false).value_or("") == "open";
+    if (auto n = r.child(doc, "notes"); n && n->is_array())
+        for (const auto& x : *n)
+            if (x.is_object())
+                common.notes.push_back({x.value("text", ""), x.value("source", ""), x.value("kind", "")});
+    Tables base;
+    parse_tables(r, doc, base);
+
+    std::optional<ModularMaps> maps;
+    if (r.child(doc, "modular")) {
+        auto name = r.string(doc, "maps_file", "", true);
+        if (name) {
+            std::optional<std::string> maps_text = include ? include(*name) : std::nullopt;
+            if (!maps_text) {
+                r.error("/maps_file", "cannot read \"" + *name + "\"");
+            } else {
+                try {
+                    json m = json::parse(*maps_text);
+                    maps =
+                        ModularMaps{m.value("maps", json::object()), m.value("status_codes", json::object()),
+                                    m.value("alarm_bits", json::object())};
+                } catch (const json::exception& e) {
+                    r.error("/maps_file", *name + " is not valid JSON: " + e.what());
+                }
+            }
+        }
+    }
+
+    const json* models = r.child(doc, "models");
+    if (!models || !models->is_array() || models->empty()) {
+        r.error("", "\"models\" must list at least one model (the device ids this file resolves to)");
+        return out;
+    }
+    for (std::size_t i = 0; i < models->size(); ++i)
+        out.profiles.push_back(resolve_model(r, doc, (*models)[i], "/models/" + std::to_string(i), base,
+                                             common, maps ? &*maps : nullptr, config));
+    return out;
+}
+
+}  // namespace mbscope::modbus

@@ -1,0 +1,53 @@
+#pragma once
+// Finds and loads profile files from directories (the installed profiles, the source tree's profiles/, a
+// user's --profile-dir or $MBSCOPE_PROFILE_PATH). This is the only place that reads profile files from disk;
+// the codec parses text (modbus/profile_loader.hpp). Directories are searched in order: a device id found in
+// an earlier directory shadows the same id in a later one, so a user's file replaces a bundled one.
+
+#include <string>
+#include <vector>
+
+#include "modbus/profile_loader.hpp"
+
+namespace mbscope::modbus::storage {
+
+struct ProfileEntry {
+    std::string id;  // lower case
+    std::string name;
+    std::vector<std::string> aliases;
+    std::string vendor;
+    std::string family;
+    std::string file;
+    std::vector<std::string> transports;
+    std::size_t coils = 0, discrete_inputs = 0, input_registers = 0, holding_registers = 0;
+};
+
+class ProfileStore {
+  public:
+    // Loads every *.json below each directory (recursively). Files of another kind (schemas, shared map
+    // files) are skipped; broken profile files are reported in errors() and the rest still load.
+    explicit ProfileStore(std::vector<std::string> directories);
+
+    const std::vector<ProfileEntry>& entries() const noexcept { return entries_; }
+    const std::vector<ProfileError>& errors() const noexcept { return errors_; }
+    const std::vector<std::string>& directories() const noexcept { return directories_; }
+
+    // Case-insensitive id or alias; nullptr when unknown.
+    const ProfileEntry* find(std::string_view id_or_alias) const;
+    // The resolved profile, with a configuration for modular devices; errors name file and JSON pointer.
+    Result<Profile, std::vector<ProfileError>> load(std::string_view id_or_alias,
+                                                    const ProfileConfig& config = {}) const;
+
+  private:
+    std::vector<std::string> directories_;
+    std::vector<ProfileEntry> entries_;
+    std::vector<ProfileError> errors_;
+};
+
+// Loads a single file (for `mbscope profile validate`): every profile it defines, every error it has.
+LoadedProfiles load_profile_file(const std::string& path, const ProfileConfig& config = {});
+
+// Directories from a colon-separated list such as $MBSCOPE_PROFILE_PATH.
+std::vector<std::string> split_path_list(const std::string& list);
+
+}  // namespace mbscope::modbus::storage

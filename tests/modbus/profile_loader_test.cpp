@@ -1,0 +1,227 @@
+// The profile loader on small documents written for the test: structure, model variants, overrides, queries
+// and error reporting with JSON pointers. The real device profiles have their own coverage tests.
+#include "modbus/profile_loader.hpp"
+
+#include <gtest/gtest.h>
+
+namespace mb = mbscope::modbus;
+
+namespace {
+
+// A cut-down MK-style section: two models, a per-model exclusion, a range override, FC4 = FC3's map.
+const char* mk_like = R"({
+  "format": "mbscope-profile/1", "family": "test-3.8", "vendor": "MK Controle",
+  "source": {"manual": "000", "section": "3.8", "lines": "000:486-721"},
+  "line": {"transports": ["rtu", "ascii"], "baud_rates": [9600], "unit_id": {"min": 0, "max": 99, "disabled": [0]}},
+  "functions": {"supported": [1, 3, 4, 5, 6, 8, 15, 16], "max_quantity": {"1": 30, "3": 15, "4": 15, "15": 30, "16": 15},
+                "broadcast": [5, 6, 15, 16], "exceptions": {"bad_value": 3, "write_read_only": null}},
+  "tables": {
+    "holding_registers": [
+      {"address": 0, "name": "Variável de Processo do canal 1", "name_en": "channel 1 PV", "access": "r",
+       "encoding": {"type": "scaled", "decimals_from": {"table": "holding_registers", "address": 17}, "signed": true},
+       "source": "000:493"},
+      {"address": 2, "name": "Primeiro caracter do TAG", "access": "rw",
+       "encoding": {"type": "ascii_char", "allowed": "-._ 0123456789abcdefghijklnopqrstuy"}, "source": "000:495"},
+      {"address": 8, "name": "Modo de Transmissão", "access": "rw",
+       "encoding": {"type": "enum", "values": [{"value": 0, "text": "ASCII"}, {"value": 1, "text": "RTU"}]},
+       "source": "000:501"},
+      {"address": 17, "name": "Número de casas decimais", "access": "rw", "range": {"min": 0, "max": 4},
+       "source": "000:510"},
+      {"address": 23, "name": "Filtro do canal 1", "access": "rw", "encoding": {"type": "fixed", "decimals": 1},
+       "range": {"min": 0, "max": 250}, "range_text": "0.0 a 25.0 segundos", "unit": "s", "source": "000:516"},
+      {"address": 45, "name": "Histerese led 1", "access": "rw", "range": {"min": 0, "max": 250}, "source": "000:538"},
+      {"address": 57, "name": "Setpoint", "access": "rw", "encoding": "s16", "range": {"min": -1009, "max": 20019},
+       "source": "000:550"},
+      {"address": 60, "name": "Total alto", "access": "r", "encoding": {"type": "digits4_high", "pair": 61}, "source": "x:1"},
+      {"address": 61, "name": "Total baixo", "access": "r", "encoding": {"type": "digits4_low", "pair": 60}, "source": "x:2"},
+      {"address": 70, "name": "Vazão", "access": "r", "encoding": {"type": "f32", "word_order": "cdab"}, "source": "x:3"}
+    ],
+    "input_registers": {"same_as": "holding_registers"},
+    "coils": [{"address": 1, "name": "Habilita senha", "access": "rw", "source": "000:640"}]
+  },
+  "models": [
+    {"id": "MMK-2030", "name": "MMK-2030", "aliases": ["dmy-2030"], "source": "000:486"},
+    {"id": "ty-2090", "name": "TY-2090", "exclude": {"holding_registers": [[45, 56]]},
+     "overrides": [{"table": "holding_registers", "addresses": [[57, 57]], "range": {"min": -9999, "max": 30000},
+                    "range_text": "-9999 a 30000 U.E.", "source": "000:621"}]}
+  ]
+})";
+
+mb::LoadedProfiles load(const char* text, const mb::IncludeFn& include = {},
+                        const mb::ProfileConfig& config = {}) {
+    return mb::parse_profiles(text, "test.json", include, config);
+}
+
+}  // namespace
+
+TEST(ProfileLoader, ModelsResolveWithExclusionsAndOverrides) {
+    auto l = load(mk_like);
+    ASSERT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
+    ASSERT_EQ(l.profiles.size(), 2u);
+    const auto& mmk = l.profiles[0];
+    const auto& ty = l.profiles[1];
+    EXPECT_EQ(mmk.id, "mmk-2030");  // ids are lower case
+    EXPECT_EQ(mmk.aliases, std::vector<std::string>{"dmy-2030"});
+    EXPECT_NE(mmk.find(mb::Table::HoldingRegisters, 45), nullptr);
+    EXPECT_EQ(ty.find(mb::Table::HoldingRegisters, 45), nullptr);
+    EXPECT_EQ(*mmk.find(mb::Table::HoldingRegisters, 57)->min, -1009);
+    EXPECT_EQ(*ty.find(mb::Table::HoldingRegisters, 57)->min, -9999);
+    EXPECT_EQ(ty.find(mb::Table::HoldingRegisters, 57)->range_text, "-9999 a 30000 U.E.");
+    EXPECT_EQ(mmk.point_count(mb::Table::HoldingRegisters), 10u);
+    EXPECT_EQ(ty.point_count(mb::Table::HoldingRegisters), 9u);
+}
+
+TEST(ProfileLoader, SameAsTablesServeTheOtherMap) {
+    auto l = load(mk_like);
+    const auto& p = l.profiles[0];
+    EXPECT_TRUE(p.implements(mb::Table::InputRegisters));
+    EXPECT_FALSE(p.implements(mb::Table::DiscreteInputs));
+    EXPECT_EQ(p.find(mb::Table::InputRegisters, 23), p.find(mb::Table::HoldingRegisters, 23));
+    EXPECT_EQ(p.functions.max_for(3), 15);
+    EXPECT_EQ(p.functions.max_for(2), 2000);  // not in the manual: the specification's limit
+    EXPECT_TRUE(p.functions.supports(8));
+    EXPECT_FALSE(p.functions.supports(2));
+}
+
+TEST(ProfileLoader, DecodesNamedScaledValues) {
+    auto l = load(mk_like);
+    const auto& p = l.profiles[0];
+    // PV 1234 with PT.DEC 2 given as context, filter 10 → 1.0 s, setpoint 0xFC19 = -999.
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 0, {1234}, {{17, 2}});
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_DOUBLE_EQ(*v[0].number, 12.34);
+    EXPECT_EQ(v[0].text, "12.34");
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 23, {10});
+    EXPECT_EQ(v[0].text, "1.0");
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 57, {0xFC19});
+    EXPECT_EQ(*v[0].number, -999);
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 8, {1});
+    EXPECT_EQ(v[0].text, "RTU");
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 2, {0x61});
+    EXPECT_EQ(v[0].text, "'a'");
+}
+
+TEST(ProfileLoader, DecodesSplitAndWideValues) {
+    auto l = load(mk_like);
+    const auto& p = l.profiles[0];
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 60, {1234, 5678});
+    ASSERT_EQ(v.size(), 2u);
+    EXPECT_DOUBLE_EQ(*v[0].number, 12345678.0);  // MK-ENC-04: a decimal split, high*10^4 + low
+    // f32 1.5 = 0x3FC00000; word order cdab puts the low word first.
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 70, {0x0000, 0x3FC0});
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_DOUBLE_EQ(*v[0].number, 1.5);
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 70, {0x0000});
+    EXPECT_TRUE(v[0].partial);
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 100, {7});
+    EXPECT_EQ(v[0].point, nullptr);
+}
+
+TEST(ProfileLoader, WriteChecksGiveTheManualsExceptions) {
+    auto l = load(mk_like);
+    const auto& p = l.profiles[0];
+    using T = mb::Table;
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 23, 250), std::nullopt);
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 23, 251), 3);
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 57, static_cast<std::uint16_t>(-1009)), std::nullopt);
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 57, static_cast<std::uint16_t>(-1010)), 3);
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 8, 2), 3);
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 2, 'm'), 3);  // MK-ENC-03: 'm' is not allowed
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 2, 'a'), std::nullopt);
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 0, 1), 2);   // read-only; the manual is silent → 02
+    EXPECT_EQ(mb::check_write(p, T::HoldingRegisters, 99, 1), 2);  // not in the map
+}
+
+TEST(ProfileLoader, ReportsEveryErrorWithItsPointer) {
+    const char* broken = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y",
+      "line": {"transports": ["rtu", "carrier-pigeon"]},
+      "functions": {"supported": [3, 300]},
+      "tables": {
+        "holding_registers": [
+          {"address": 1, "name": "a", "access": "rx", "source": "000:1"},
+          {"address": 70000, "name": "b", "access": "r", "source": "000:2"},
+          {"address": 2, "name": "c", "access": "r", "encoding": {"type": "float"}, "source": "000:3"},
+          {"address": 3, "name": "d", "access": "r"},
+          {"address": 1, "name": "e", "access": "r", "source": "000:5"}
+        ],
+        "registers": []
+      },
+      "models": [{"id": "m"}]
+    })";
+    auto l = load(broken);
+    std::vector<std::string> pointers;
+    for (const auto& e : l.errors)
+        pointers.push_back(e.pointer);
+    auto has = [&](const std::string& p) {
+        return std::find(pointers.begin(), pointers.end(), p) != pointers.end();
+    };
+    EXPECT_TRUE(has("/line/transports"));
+    EXPECT_TRUE(has("/functions/supported"));
+    EXPECT_TRUE(has("/tables/holding_registers/0/access"));
+    EXPECT_TRUE(has("/tables/holding_registers/1/address"));
+    EXPECT_TRUE(has("/tables/holding_registers/2/encoding/type"));
+    EXPECT_TRUE(has("/tables/holding_registers/3"));  // missing source
+    EXPECT_TRUE(has("/tables/holding_registers"));    // address 1 twice
+    EXPECT_TRUE(has("/tables/registers"));
+    for (const auto& e : l.errors)
+        EXPECT_EQ(e.file, "test.json");
+    EXPECT_GE(l.errors.size(), 8u);
+}
+
+TEST(ProfileLoader, InvalidJsonAndOtherDocuments) {
+    auto bad = load("{ \"format\": ");
+    ASSERT_EQ(bad.errors.size(), 1u);
+    EXPECT_NE(bad.errors[0].message.find("not valid JSON"), std::string::npos);
+    auto schema = load(R"({"$schema": "https://json-schema.org/draft/2020-12/schema"})");
+    EXPECT_FALSE(schema.is_profile);
+    EXPECT_TRUE(schema.errors.empty());
+    auto future = load(R"({"format": "mbscope-profile/9"})");
+    ASSERT_EQ(future.errors.size(), 1u);
+    EXPECT_EQ(future.errors[0].pointer, "/format");
+}
+
+TEST(ProfileLoader, ModularDeviceExpandsItsConfiguration) {
+    const char* device = R"({
+      "format": "mbscope-profile/1", "family": "wal", "vendor": "Walchem", "maps_file": "maps.json",
+      "line": {"transports": ["tcp"]},
+      "functions": {"supported": [1, 2, 3, 4, 5, 6, 16], "address_check": "first"},
+      "tables": {"input_registers": {"same_as": "holding_registers"}, "discrete_inputs": {"same_as": "coils"}},
+      "modular": {"block_size": 36,
+        "channels": [{"id": "sensor-1-1", "start": 576, "maps": ["sensor", "flow"], "default_map": "sensor", "source": "002:509"},
+                     {"id": "relay-1", "start": 8928, "maps": ["onoff"], "source": "002:523"}],
+        "default_config": {"relay-1": "onoff"}},
+      "models": [{"id": "w"}]
+    })";
+    const char* maps = R"({"format": "mbscope-walchem-maps/1",
+      "maps": {
+        "sensor": {"fields": [{"index": 0, "name": "Valor primário", "access": "r", "encoding": {"type": "f32", "word_order": "abcd"}, "source": "002:870"},
+                              {"index": 28, "name": "Alarme Baixa", "access": "r", "encoding": {"type": "bool"}, "coil": true, "source": "002:898"},
+                              {"index": 34, "name": "Status", "access": "r", "encoding": {"type": "status"}, "source": "002:906"}]},
+        "flow": {"fields": [{"index": 0, "name": "Vazão", "access": "r", "encoding": {"type": "f32"}, "source": "002:915"}]},
+        "onoff": {"fields": [{"index": 6, "name": "Setpoint", "access": "rw", "encoding": {"type": "f32"}, "source": "002:1480"}]}},
+      "status_codes": {"0": {"text": "Normal"}, "1": {"text": "Alarme"}}})";
+    auto include = [&](const std::string& name) -> std::optional<std::string> {
+        if (name == "maps.json") return std::string(maps);
+        return std::nullopt;
+    };
+    auto l = load(device, include);
+    ASSERT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
+    const auto& p = l.profiles[0];
+    EXPECT_EQ(p.functions.address_check, mb::AddressCheck::First);
+    ASSERT_NE(p.find(mb::Table::HoldingRegisters, 576), nullptr);
+    EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 577),
+              p.find(mb::Table::HoldingRegisters, 576));  // f32 second word
+    EXPECT_NE(p.find(mb::Table::Coils, 604), nullptr);
+    EXPECT_NE(p.find(mb::Table::DiscreteInputs, 604), nullptr);
+    EXPECT_EQ(p.find(mb::Table::Coils, 576), nullptr);  // floats are not coil-accessible
+    EXPECT_NE(p.find(mb::Table::HoldingRegisters, 8934), nullptr);
+    auto status = mb::decode_registers(p, mb::Table::InputRegisters, 610, {1});
+    EXPECT_EQ(status[0].text, "Alarme");
+    auto flow = load(device, include, {{"sensor-1-1", "flow"}});
+    ASSERT_TRUE(flow.errors.empty());
+    EXPECT_EQ(flow.profiles[0].find(mb::Table::Coils, 604), nullptr);
+    EXPECT_EQ(flow.profiles[0].configuration.at("sensor-1-1"), "flow");
+    auto wrong = load(device, include, {{"relay-1", "sensor"}, {"nosuch", "x"}});
+    EXPECT_EQ(wrong.errors.size(), 2u);
+}
