@@ -1,0 +1,88 @@
+// `mbscope profile` end to end on a profile directory written for the test.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace {
+
+struct Run {
+    int exit_code;
+    std::string out;
+};
+
+Run run(const std::string& args, const std::string& env = "") {
+    const std::string cmd = env + " " + std::string(MBSCOPE_BINARY) + " " + args + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    std::string out;
+    std::array<char, 4096> buf{};
+    while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p))
+        out.append(buf.data(), n);
+    return {WEXITSTATUS(pclose(p)), out};
+}
+
+const std::string fixtures = std::string(MBSCOPE_SOURCE_DIR) + "/tests/fixtures";
+const std::string dir = " --profile-dir " + fixtures + "/profiles ";
+
+}  // namespace
+
+TEST(ProfileCommand, ListShowsTheUsersProfile) {
+    auto r = run("profile" + dir + "list --json");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    auto j = nlohmann::json::parse(r.out);
+    bool found = false;
+    for (const auto& e : j)
+        if (e["id"] == "test-device") {
+            found = true;
+            EXPECT_EQ(e["points"]["holding_registers"], 3);
+            EXPECT_EQ(e["aliases"], nlohmann::json::array({"td-1"}));
+        }
+    EXPECT_TRUE(found) << r.out;
+}
+
+TEST(ProfileCommand, EnvironmentPathWorksLikeProfileDir) {
+    auto r = run("profile list", "MBSCOPE_PROFILE_PATH=" + fixtures + "/profiles");
+    EXPECT_NE(r.out.find("test-device"), std::string::npos) << r.out;
+}
+
+TEST(ProfileCommand, ShowByAliasAnyCase) {
+    auto r = run("profile" + dir + "show TD-1");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("holding_registers (3 points)"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("input_registers: same map as holding_registers"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("0.0 a 25.0 segundos"), std::string::npos) << r.out;
+    auto j = nlohmann::json::parse(run("profile" + dir + "show test-device --json").out);
+    EXPECT_EQ(j["tables"]["holding_registers"][2]["encoding"]["decimals"], 1);
+}
+
+TEST(ProfileCommand, LookupAndDecode) {
+    auto r = run("profile" + dir + "lookup test-device holding 23");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("Filtro"), std::string::npos);
+    EXPECT_EQ(run("profile" + dir + "lookup test-device holding 99").exit_code, 1);
+    auto d = run("profile" + dir + "decode test-device holding 17 0002 04D2 --json");
+    ASSERT_EQ(d.exit_code, 0) << d.out;
+    auto j = nlohmann::json::parse(d.out);
+    EXPECT_EQ(j[1]["text"], "12.34");  // 0x04D2 = 1234 with 2 decimal places from register 17
+    EXPECT_EQ(j[1]["unit"], "m3/h");
+    EXPECT_EQ(run("profile" + dir + "decode test-device holding 17 XYZ").exit_code, 2);
+    EXPECT_EQ(run("profile" + dir + "decode nosuch holding 0 0000").exit_code, 2);
+}
+
+TEST(ProfileCommand, ValidateReportsEveryErrorWithPointer) {
+    auto r = run("profile validate " + fixtures + "/broken/broken.json");
+    EXPECT_EQ(r.exit_code, 1);
+    EXPECT_NE(r.out.find("broken.json: /tables/holding_registers/1/access: must be r, w or rw"),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("/tables/holding_registers/2: missing \"source\""), std::string::npos) << r.out;
+    auto ok = run("profile validate " + fixtures + "/profiles/test-device.json");
+    EXPECT_EQ(ok.exit_code, 0) << ok.out;
+}
+
+TEST(ProfileCommand, HelpOnEverySubcommand) {
+    for (const char* sub : {"", " list", " show", " validate", " lookup", " decode"})
+        EXPECT_EQ(run(std::string("profile") + sub + " --help").exit_code, 0) << sub;
+}
