@@ -88,6 +88,7 @@ struct Point {
     std::optional<std::int64_t> min, max;  // raw units (two's complement values as signed numbers)
     std::optional<PointRef> min_from, max_from;
     std::string range_text;
+    std::string range_source;  // where range_text comes from when a model override replaced it (a footnote)
     std::string unit;
     std::optional<std::uint16_t> fixed_value;
     bool reserved = false;

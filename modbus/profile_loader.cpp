@@ -444,6 +444,7 @@ void apply_override(Reader& r, const json& o, const std::string& ptr, std::vecto
         if (o.contains("range") || o.contains("range_text") || o.contains("range_from")) {
             if (o.contains("range")) p.min.reset(), p.max.reset();
             apply_range(r, o, ptr, p);
+            if (o.contains("range_text")) p.range_source = r.source_of(o);
         }
         if (o.contains("encoding")) p.encoding = parse_encoding(r, o["encoding"], ptr + "/encoding", table);
         if (auto a = r.string(o, "access", ptr, false)) {
