@@ -10,6 +10,7 @@ inline constexpr int exit_ok = 0;
 inline constexpr int exit_findings = 1;
 inline constexpr int exit_failure = 2;
 
+void register_decode(CLI::App& app, int& exit_code);
 void register_frame(CLI::App& app, int& exit_code);
 void register_profile(CLI::App& app, int& exit_code);
 

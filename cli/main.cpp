@@ -9,6 +9,7 @@ int main(int argc, char** argv) {
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("mbscope ") + MBSCOPE_VERSION);
     int exit_code = mbscope::cli::exit_ok;
+    mbscope::cli::register_decode(app, exit_code);
     mbscope::cli::register_frame(app, exit_code);
     mbscope::cli::register_profile(app, exit_code);
     try {

@@ -121,7 +121,7 @@ Result<Frame> decode_ascii(std::span<const std::uint8_t> chars) noexcept {
 Result<Frame> decode_tcp(std::span<const std::uint8_t> adu) noexcept {
     if (adu.size() < 8) return make_error(ErrorCode::Truncated, adu.size());
     const std::size_t length = static_cast<std::size_t>((adu[4] << 8) | adu[5]);
-    if (length < 2 || length > max_pdu_length + 1) return make_error(ErrorCode::LengthFieldInvalid, 4);
+    if (length < 2 || length > max_frame_bytes - 6) return make_error(ErrorCode::LengthFieldInvalid, 4);
     if (adu.size() < 6 + length) return make_error(ErrorCode::Truncated, adu.size());
     if (adu.size() > 6 + length) return make_error(ErrorCode::LengthFieldInvalid, 4);
     Frame frame;
@@ -130,6 +130,8 @@ Result<Frame> decode_tcp(std::span<const std::uint8_t> adu) noexcept {
     frame.wire_length = frame.length;
     std::memcpy(frame.bytes.data(), adu.data(), adu.size());
     if (frame.protocol_id() != 0) frame.findings.add(FindingCode::TcpProtocolIdNonzero);
+    if (length > max_pdu_length + 1)
+        frame.findings.add(FindingCode::TcpLengthInvalid);  // kept: see frame.hpp
     return frame;
 }
 

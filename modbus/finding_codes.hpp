@@ -28,6 +28,7 @@ enum class FindingCode : std::uint16_t {
     PduMeiTypeUnknown = 109,
     PduDeviceIdCodeInvalid = 110,
     PduFifoCountTooLarge = 111,
+    PduMalformed = 112,
     // rtu: serial line RTU framing (SL §2.5.1)
     RtuCrcMismatch = 200,
     RtuGapInsideFrame = 201,
@@ -50,6 +51,19 @@ enum class FindingCode : std::uint16_t {
     // stream: bytes that formed no frame
     StreamUnparsedBytes = 500,
     StreamGap = 501,
+    // pair: a request and its response, judged together
+    PairNoResponse = 600,
+    PairNoResponseAtEnd = 601,
+    PairUnsolicitedResponse = 602,
+    PairTransactionIdMismatch = 603,
+    PairTransactionIdDuplicate = 604,
+    PairFunctionMismatch = 605,
+    PairUnitMismatch = 606,
+    PairResponseSizeMismatch = 607,
+    PairEchoMismatch = 608,
+    PairExceptionResponse = 609,
+    PairPendingOverflow = 610,
+    PairBroadcastResponse = 611,
 };
 
 struct FindingInfo {

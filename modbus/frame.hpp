@@ -20,6 +20,11 @@
 namespace mbscope::modbus {
 
 enum class Framing : std::uint8_t { Rtu = 0, Ascii = 1, Tcp = 2 };
+
+// Largest ADU a Frame holds. The specification caps Modbus/TCP at 260 bytes (MBAP length 254), but real
+// devices exceed it: the Walchem manual allows FC16 of 125 registers, a 263-byte ADU (002:362-381), and
+// Schneider UMAS traffic carries MBAP length 255. Such frames are kept, flagged tcp.length_invalid.
+inline constexpr std::size_t max_frame_bytes = 263;
 std::string_view to_string(Framing f) noexcept;
 
 // Time since an arbitrary epoch (capture time, or steady clock for live input). Zero means "no timing".
@@ -30,7 +35,7 @@ struct Frame {
     std::uint64_t offset = 0;       // stream offset of the first byte on the wire
     std::uint32_t wire_length = 0;  // bytes on the wire (ASCII: characters, ':' to LF)
     std::uint16_t length = 0;       // binary ADU length held in bytes
-    std::array<std::uint8_t, max_tcp_adu_length> bytes{};
+    std::array<std::uint8_t, max_frame_bytes> bytes{};
     bool checksum_ok = true;  // RTU CRC / ASCII LRC; always true for TCP
     FindingList findings;     // framing-level rule breaks (rtu.*, ascii.*, tcp.*)
     Timestamp start{0};       // end of the first byte on the wire (timed input only)

@@ -14,8 +14,9 @@ std::size_t length_field(std::span<const std::uint8_t> b) noexcept {
     return static_cast<std::size_t>((b[4] << 8) | b[5]);
 }
 
+// Lengths the deframer follows: the specification's 2..254, and up to 257 as real devices send (frame.hpp).
 bool length_ok(std::size_t len) noexcept {
-    return len >= 2 && len <= max_pdu_length + 1;
+    return len >= 2 && len <= max_frame_bytes - 6;
 }
 
 // A header plausible enough to resynchronise on, looked at with the bytes available.
@@ -103,6 +104,7 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
             frame.start = first_;
             frame.end = last_;
             if (frame.protocol_id() != 0) frame.findings.add(FindingCode::TcpProtocolIdNonzero);
+            if (frame.length_field() > max_pdu_length + 1) frame.findings.add(FindingCode::TcpLengthInvalid);
             in_sync_ = true;
         }
         head_ += step.length;

@@ -44,7 +44,17 @@ TEST(TcpAdu, LengthFieldErrors) {
     EXPECT_EQ(mb::decode_tcp(hex("00 01 00 00 00 05 11 03 00 6B 00 03")).error().code,
               mb::ErrorCode::LengthFieldInvalid);
     EXPECT_EQ(mb::decode_tcp(hex("00 01 00 00 00")).error().code, mb::ErrorCode::Truncated);
-    EXPECT_EQ(mb::decode_tcp(hex("00 01 00 00 00 FF 11 03")).error().code, mb::ErrorCode::LengthFieldInvalid);
+    EXPECT_EQ(mb::decode_tcp(hex("00 01 00 00 01 02 11 03")).error().code, mb::ErrorCode::LengthFieldInvalid);
+}
+
+TEST(TcpAdu, OverlongAduOfRealDevicesIsKeptAndFlagged) {
+    // MBAP length 255 (UMAS traffic; Walchem's FC16 of 125 registers reaches 257): above TCP §3.1.3's 254.
+    std::vector<std::uint8_t> adu = hex("00 07 00 00 00 FF 00 5A");
+    adu.resize(6 + 255, 0x00);
+    auto f = mb::decode_tcp(adu);
+    ASSERT_TRUE(f.has_value());
+    EXPECT_TRUE(f->findings.contains(mb::FindingCode::TcpLengthInvalid));
+    EXPECT_EQ(f->length, 261);
 }
 
 TEST(RtuAdu, LimitsAndCrcOrder) {

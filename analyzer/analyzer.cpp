@@ -1,0 +1,439 @@
+#include "analyzer/analyzer.hpp"
+
+#include <algorithm>
+
+#include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
+
+namespace mbscope::analyzer {
+
+using namespace mbscope::modbus;
+
+struct Analyzer::Flow {
+    std::uint64_t id = 0;
+    std::string link;    // "client -> server"
+    std::string server;  // "server"
+    Transport transport = Transport::Tcp;
+    std::unique_ptr<TcpReassembler> reassembler[2];  // [0] client → server, [1] server → client
+    TcpStreamDeframer deframer[2];
+    std::size_t pending = 0;
+    std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
+};
+
+Analyzer::Analyzer(AnalyzerOptions options, Sink& sink) : options_(std::move(options)), sink_(sink) {}
+Analyzer::~Analyzer() = default;
+
+void Analyzer::count_finding(FindingCode code) {
+    ++summary_.findings[std::string(to_string(code))];
+    if (info(code).severity == Severity::Error) ++summary_.errors;
+}
+
+void Analyzer::report(FindingCode code, const FrameRecord& about, std::string message,
+                      std::vector<std::uint64_t> frames) {
+    count_finding(code);
+    if (frames.empty() && about.index) frames.push_back(about.index);
+    sink_.finding(FindingRecord{code, about.time, about.source, about.link, about.device, std::move(frames),
+                                about.packet, std::move(message)});
+}
+
+Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
+    const auto& ports = l4.transport == Transport::Tcp ? options_.tcp_ports : options_.udp_ports;
+    auto is_server = [&](std::uint16_t p) { return std::find(ports.begin(), ports.end(), p) != ports.end(); };
+    to_server = is_server(l4.destination.port);
+    const Endpoint& client = to_server ? l4.source : l4.destination;
+    const Endpoint& server = to_server ? l4.destination : l4.source;
+    std::string key =
+        (l4.transport == Transport::Tcp ? "tcp " : "udp ") + client.to_string() + " -> " + server.to_string();
+    auto& slot = flows_[key];
+    if (!slot) {
+        slot = std::make_unique<Flow>();
+        Flow& f = *slot;
+        f.id = ++next_flow_;
+        f.link = client.to_string() + " -> " + server.to_string();
+        f.server = server.to_string();
+        f.transport = l4.transport;
+        if (l4.transport == Transport::Tcp) {
+            for (int dir = 0; dir < 2; ++dir) {
+                f.reassembler[dir] = std::make_unique<TcpReassembler>(
+                    [this, &f, dir](std::span<const std::uint8_t> bytes, Timestamp t) {
+                        DeframeEvents events;
+                        f.deframer[dir].feed(bytes, t, events);
+                        deframed(f, dir == 0, events, t);
+                    },
+                    [this, &f, dir](std::uint64_t missing, Timestamp t) {
+                        DeframeEvents events;
+                        f.deframer[dir].gap(missing, events);
+                        FrameRecord about;
+                        about.time = t;
+                        about.source = source_;
+                        about.link = f.link;
+                        about.packet = packet_number_;
+                        report(FindingCode::StreamGap, about,
+                               std::to_string(missing) + " bytes of the " +
+                                   (dir == 0 ? "request" : "response") +
+                                   " stream were not captured; decoding resumes at the next plausible MBAP "
+                                   "header");
+                        deframed(f, dir == 0, events, t);
+                    });
+            }
+        }
+    }
+    return *slot;
+}
+
+void Analyzer::packet(const std::string& source, const Packet& p) {
+    source_ = source;
+    packet_number_ = p.number;
+    ++summary_.packets;
+    if (p.time > now_) now_ = p.time;
+    expire(now_, false);
+    L4Packet l4;
+    if (parse_packet(p.linktype, p.data, l4) != ParseStatus::Ok) return;
+    const auto& ports = l4.transport == Transport::Tcp ? options_.tcp_ports : options_.udp_ports;
+    const bool ours = std::find(ports.begin(), ports.end(), l4.destination.port) != ports.end() ||
+                      std::find(ports.begin(), ports.end(), l4.source.port) != ports.end();
+    if (!ours) return;
+    bool to_server = false;
+    Flow& flow = flow_for(l4, to_server);
+    if (l4.transport == Transport::Tcp) {
+        flow.reassembler[to_server ? 0 : 1]->segment(l4.seq, l4.syn, l4.payload, p.time);
+        return;
+    }
+    // Modbus/UDP: one ADU per datagram (no stream to resynchronise). Serial gateways send RTU frames in
+    // datagrams instead. A valid CRC proves RTU (an RTU FC3 request can also parse as a well-formed MBAP
+    // ADU: 01 03 00 00 00 02 C4 0B); once a link is known to carry RTU, its datagrams stay RTU, bad CRCs
+    // included, rather than being misread as MBAP (the mistake tshark makes without -d ...,mbrtu).
+    if (l4.payload.empty()) return;
+    DeframeEvents events;
+    const bool rtu_size = l4.payload.size() >= 4 && l4.payload.size() <= max_rtu_adu_length;
+    auto rtu = rtu_size ? decode_rtu(l4.payload) : Result<Frame>(make_error(ErrorCode::Truncated, 0));
+    if (rtu && (rtu->checksum_ok || flow.udp_framing == Framing::Rtu)) {
+        flow.udp_framing = Framing::Rtu;
+        events.emplace_back(std::move(rtu.value()));
+        deframed(flow, to_server, events, p.time);
+        return;
+    }
+    if (auto mbap = decode_tcp(l4.payload); mbap && mbap->protocol_id() == 0) flow.udp_framing = Framing::Tcp;
+    TcpStreamDeframer datagram;
+    datagram.feed(l4.payload, p.time, events);
+    datagram.finish(events);
+    deframed(flow, to_server, events, p.time);
+}
+
+void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Timestamp t) {
+    for (auto& e : events) {
+        if (auto* u = std::get_if<Unparsed>(&e)) {
+            summary_.unparsed_bytes += u->length;
+            UnparsedRecord rec{
+                source_,   flow.link,      to_server ? Direction::Request : Direction::Response,
+                t,         packet_number_, u->offset,
+                u->length, u->reason};
+            sink_.unparsed(rec);
+            FrameRecord about;
+            about.time = t;
+            about.source = source_;
+            about.link = flow.link;
+            about.packet = packet_number_;
+            const FindingCode code = u->reason == UnparsedReason::BadHeader
+                                         ? FindingCode::TcpLengthInvalid
+                                         : FindingCode::StreamUnparsedBytes;
+            report(code, about,
+                   std::to_string(u->length) + " bytes at stream offset " + std::to_string(u->offset) +
+                       " of the " + (to_server ? "request" : "response") + " stream formed no frame (" +
+                       std::string(to_string(u->reason)) + ")");
+            continue;
+        }
+        FrameRecord r;
+        r.index = ++next_frame_;
+        r.packet = packet_number_;
+        r.time = t;
+        r.source = source_;
+        r.link = flow.link;
+        r.direction = to_server ? Direction::Request : Direction::Response;
+        r.frame = std::get<Frame>(e);
+        r.device = flow.server + " unit " + std::to_string(r.frame.unit_id());
+        auto pdu = decode_pdu(r.frame.pdu(), r.direction);
+        if (pdu)
+            r.pdu = std::move(pdu.value());
+        else
+            r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
+                      std::to_string(pdu.error().offset);
+        on_frame(flow, std::move(r));
+    }
+    events.clear();
+}
+
+void Analyzer::on_frame(Flow& flow, FrameRecord r) {
+    ++summary_.frames;
+    sink_.frame(r);
+    for (auto code : r.frame.findings) {
+        std::string message(info(code).summary);
+        if (code == FindingCode::TcpProtocolIdNonzero)
+            message = "MBAP protocol id is " + std::to_string(r.frame.protocol_id()) + ", not 0 (Modbus)";
+        if (code == FindingCode::TcpLengthInvalid)
+            message =
+                "MBAP length " + std::to_string(r.frame.length_field()) + " is above the 254 of TCP §3.1.3";
+        if (code == FindingCode::RtuCrcMismatch || code == FindingCode::AsciiLrcMismatch)
+            message = std::string(code == FindingCode::RtuCrcMismatch ? "CRC " : "LRC ") +
+                      hex16(r.frame.checksum_received()) + " received, " +
+                      hex16(r.frame.checksum_computed()) + " computed";
+        report(code, r, message);
+    }
+    if (r.pdu)
+        for (auto code : r.pdu->violations)
+            report(code, r, std::string(info(code).summary));
+    if (!r.error.empty()) report(FindingCode::PduMalformed, r, "PDU could not be decoded: " + r.error);
+    if (r.direction == Direction::Request)
+        on_request(flow, std::move(r));
+    else
+        on_response(flow, std::move(r));
+}
+
+namespace {
+// Serial framings carry no transaction id: a link has one outstanding request at a time (key 0).
+std::uint16_t pairing_id(const Frame& f) {
+    return f.framing == Framing::Tcp ? f.transaction_id() : 0;
+}
+}  // namespace
+
+void Analyzer::on_request(Flow& flow, FrameRecord r) {
+    auto& stats = summary_.devices[r.device];
+    ++stats.requests;
+    if (r.pdu) ++stats.functions[r.pdu->function_code()];
+    const PendingKey key{flow.id, pairing_id(r.frame)};
+    if (auto it = pending_.find(key); it != pending_.end() && r.frame.framing != Framing::Tcp) {
+        // The master moved on: the previous request was never answered.
+        Pending old = std::move(it->second);
+        pending_.erase(it);
+        --flow.pending;
+        report(FindingCode::PairNoResponse, old.request,
+               "request to " + old.request.device + " got no response before the next request",
+               {old.request.index});
+        complete(std::move(old), std::nullopt, true);
+    }
+    if (auto it = pending_.find(key); it != pending_.end()) {
+        report(FindingCode::PairTransactionIdDuplicate, r,
+               "transaction id " + std::to_string(key.tid) + " reused while frame " +
+                   std::to_string(it->second.request.index) + " is still unanswered",
+               {it->second.request.index, r.index});
+        Pending old = std::move(it->second);
+        pending_.erase(it);
+        --flow.pending;
+        complete(std::move(old), std::nullopt, true);
+    }
+    if (flow.pending >= options_.max_pending_per_flow) {
+        report(FindingCode::PairPendingOverflow, r,
+               std::to_string(flow.pending) + " requests unanswered on this link; the oldest is given up");
+        for (const Expiry& e : expiries_) {  // oldest first
+            if (e.key.flow != flow.id) continue;
+            auto old = pending_.find(e.key);
+            if (old == pending_.end() || old->second.serial != e.serial) continue;
+            Pending given_up = std::move(old->second);
+            pending_.erase(old);
+            --flow.pending;
+            complete(std::move(given_up), std::nullopt, true);
+            break;
+        }
+    }
+    const std::uint64_t serial = ++next_serial_;
+    expiries_.push_back({r.time + options_.timeout, key, serial});
+    pending_[key] = Pending{std::move(r), serial};
+    ++flow.pending;
+}
+
+namespace {
+
+std::optional<std::size_t> expected_response_data(const Pdu& request) {
+    const auto* read = std::get_if<ReadRequest>(&request.body);
+    if (read) return request.function_code() <= 2 ? (read->quantity + 7u) / 8u : 2u * read->quantity;
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&request.body))
+        return 2u * rw->quantity_to_read;
+    return std::nullopt;
+}
+
+bool echo_matches(const Pdu& request, const Pdu& response) {
+    switch (request.function_code()) {
+        case 5:
+        case 6:
+        case 8:
+        case 22:
+            return encode_pdu(request) == encode_pdu(response);
+        case 15:
+        case 16: {
+            const auto* rsp = std::get_if<WriteMultipleResponse>(&response.body);
+            if (!rsp) return false;
+            if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&request.body))
+                return rsp->starting_address == c->starting_address && rsp->quantity == c->quantity;
+            if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&request.body))
+                return rsp->starting_address == w->starting_address && rsp->quantity == w->quantity;
+            return false;
+        }
+        default:
+            return true;
+    }
+}
+
+std::string describe_request(const Pdu& p) {
+    std::string s = "FC" + std::to_string(p.function_code());
+    if (auto n = function_name(p.function_code())) s += " " + std::string(*n);
+    if (const auto* r = std::get_if<ReadRequest>(&p.body))
+        s += " " + std::to_string(r->starting_address) + "+" + std::to_string(r->quantity);
+    return s;
+}
+
+}  // namespace
+
+void Analyzer::on_response(Flow& flow, FrameRecord r) {
+    const PendingKey key{flow.id, pairing_id(r.frame)};
+    auto it = pending_.find(key);
+    if (it == pending_.end()) {
+        // One request outstanding on this link and the reply carries another id: a transaction-id mismatch,
+        // not an unsolicited reply.
+        std::optional<PendingKey> only;
+        if (flow.pending == 1)
+            for (const auto& [k, v] : pending_)
+                if (k.flow == flow.id) only = k;
+        if (only) {
+            it = pending_.find(*only);
+            report(FindingCode::PairTransactionIdMismatch, r,
+                   "response transaction id " + std::to_string(key.tid) + " answers the request with id " +
+                       std::to_string(only->tid),
+                   {it->second.request.index, r.index});
+        } else {
+            report(FindingCode::PairUnsolicitedResponse, r,
+                   "no outstanding request with transaction id " + std::to_string(key.tid) + " on this link");
+            return;
+        }
+    }
+    Pending pending = std::move(it->second);
+    pending_.erase(it);
+    --flow.pending;
+    complete(std::move(pending), std::move(r), false);
+}
+
+void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bool timed_out) {
+    TransactionRecord t;
+    t.request = std::move(pending.request);
+    auto& stats = summary_.devices[t.request.device];
+    if (response) {
+        const FrameRecord& rsp = *response;
+        ++stats.responses;
+        t.latency = rsp.time - t.request.time;
+        stats.latency.add(*t.latency);
+        const std::vector<std::uint64_t> both{t.request.index, rsp.index};
+        if (rsp.frame.unit_id() != t.request.frame.unit_id()) {
+            report(FindingCode::PairUnitMismatch, rsp,
+                   "request to unit " + std::to_string(t.request.frame.unit_id()) + ", response from unit " +
+                       std::to_string(rsp.frame.unit_id()),
+                   both);
+            t.findings.push_back(FindingCode::PairUnitMismatch);
+        }
+        if (t.request.pdu && rsp.pdu) {
+            const Pdu& q = *t.request.pdu;
+            const Pdu& a = *rsp.pdu;
+            if (a.function_code() != q.function_code()) {
+                report(FindingCode::PairFunctionMismatch, rsp,
+                       "request FC" + std::to_string(q.function_code()) + ", response FC" +
+                           std::to_string(a.function_code()),
+                       both);
+                t.findings.push_back(FindingCode::PairFunctionMismatch);
+            } else if (a.is_exception()) {
+                ++stats.exceptions;
+                const auto code = std::get<ExceptionResponse>(a.body).exception_code;
+                const auto name = exception_name(code);
+                report(FindingCode::PairExceptionResponse, rsp,
+                       "exception " + std::to_string(code) + " (" +
+                           (name ? std::string(*name) : "undefined") + ") to " + describe_request(q),
+                       both);
+                t.findings.push_back(FindingCode::PairExceptionResponse);
+            } else {
+                auto expected = expected_response_data(q);
+                std::optional<std::size_t> got;
+                if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) got = bits->values.size();
+                if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
+                    got = regs->values.size() * 2;
+                if (expected && got && *expected != *got) {
+                    report(FindingCode::PairResponseSizeMismatch, rsp,
+                           describe_request(q) + " needs " + std::to_string(*expected) +
+                               " data bytes, the response has " + std::to_string(*got),
+                           both);
+                    t.findings.push_back(FindingCode::PairResponseSizeMismatch);
+                }
+                if (!echo_matches(q, a)) {
+                    report(FindingCode::PairEchoMismatch, rsp,
+                           describe_request(q) + ": the response does not echo the request", both);
+                    t.findings.push_back(FindingCode::PairEchoMismatch);
+                }
+            }
+        }
+        t.response = std::move(response);
+    } else {
+        t.timed_out = timed_out;
+        ++stats.timeouts;
+    }
+    ++summary_.transactions;
+    sink_.transaction(t);
+}
+
+void Analyzer::expire(Timestamp now, bool at_end) {
+    while (!expiries_.empty()) {
+        const Expiry e = expiries_.front();
+        if (!at_end && e.deadline > now) break;
+        expiries_.pop_front();
+        auto it = pending_.find(e.key);
+        if (it == pending_.end() || it->second.serial != e.serial) continue;  // answered meanwhile
+        Pending p = std::move(it->second);
+        pending_.erase(it);
+        for (auto& [k, f] : flows_)
+            if (f->id == e.key.flow) --f->pending;
+        const bool ended = at_end && e.deadline > now_;
+        if (ended)
+            report(FindingCode::PairNoResponseAtEnd, p.request,
+                   (p.request.pdu ? describe_request(*p.request.pdu) : std::string("request")) +
+                       " unanswered when the capture ended");
+        else
+            report(FindingCode::PairNoResponse, p.request,
+                   (p.request.pdu ? describe_request(*p.request.pdu) : std::string("request")) + " to " +
+                       p.request.device + " got no response within " +
+                       std::to_string(
+                           std::chrono::duration_cast<std::chrono::milliseconds>(options_.timeout).count()) +
+                       " ms");
+        complete(std::move(p), std::nullopt, !ended);
+    }
+}
+
+bool Analyzer::read_capture(CaptureSource& capture) {
+    while (auto p = capture.next())
+        packet(capture.name(), *p);
+    if (!capture.error().empty()) {
+        input_error(capture.error());
+        return false;
+    }
+    return true;
+}
+
+bool Analyzer::read_capture(const std::string& path) {
+    std::string error;
+    auto capture = CaptureSource::open_file(path, error);
+    if (!capture) {
+        input_error(error);
+        return false;
+    }
+    return read_capture(*capture);
+}
+
+void Analyzer::finish() {
+    for (auto& [key, f] : flows_) {
+        if (f->transport != Transport::Tcp) continue;
+        for (int dir = 0; dir < 2; ++dir) {
+            f->reassembler[dir]->flush(now_);
+            DeframeEvents events;
+            f->deframer[dir].finish(events);
+            deframed(*f, dir == 0, events, now_);
+        }
+    }
+    expire(now_, true);
+    sink_.end(summary_);
+}
+
+}  // namespace mbscope::analyzer

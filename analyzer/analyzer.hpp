@@ -1,0 +1,88 @@
+#pragma once
+// The analyzer pipeline for network captures: packet → flow → TCP reassembly (or UDP datagram) → deframer →
+// frame records → pairing → transactions and findings → sink. Requests are the bytes sent to a server port
+// (502 and any --tcp-port); pairing uses a hashed table keyed by (flow, transaction id), bounded and expired
+// by capture time, so memory stays flat however long the capture is.
+
+#include <deque>
+#include <map>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "analyzer/capture_source.hpp"
+#include "analyzer/packet_parser.hpp"
+#include "analyzer/records.hpp"
+#include "analyzer/tcp_reassembler.hpp"
+#include "modbus/tcp_deframer.hpp"
+
+namespace mbscope::analyzer {
+
+struct AnalyzerOptions {
+    std::vector<std::uint16_t> tcp_ports{502};
+    std::vector<std::uint16_t> udp_ports{502};
+    modbus::Timestamp timeout = std::chrono::seconds(3);  // TCP default (issue 4; profile may override)
+    std::size_t max_pending_per_flow = 1024;
+};
+
+class Analyzer {
+  public:
+    Analyzer(AnalyzerOptions options, Sink& sink);
+    ~Analyzer();
+
+    void packet(const std::string& source, const Packet& packet);
+    // Reads a whole capture file; returns false (and records the error in the summary) if it could not be
+    // read to its end. Everything before the damage is still analysed.
+    bool read_capture(const std::string& path);
+    bool read_capture(CaptureSource& capture);
+    void input_error(const std::string& message) { summary_.input_errors.push_back(message); }
+    void finish();
+    const Summary& summary() const noexcept { return summary_; }
+
+  private:
+    struct Flow;
+    struct Pending {
+        FrameRecord request;
+        std::uint64_t serial = 0;
+    };
+    struct PendingKey {
+        std::uint64_t flow;
+        std::uint16_t tid;
+        bool operator==(const PendingKey&) const = default;
+    };
+    struct PendingHash {
+        std::size_t operator()(const PendingKey& k) const noexcept {
+            return std::hash<std::uint64_t>()(k.flow * 65536 + k.tid);
+        }
+    };
+    struct Expiry {
+        modbus::Timestamp deadline;
+        PendingKey key;
+        std::uint64_t serial;
+    };
+
+    Flow& flow_for(const L4Packet& l4, bool& to_server);
+    void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);
+    void on_frame(Flow& flow, FrameRecord record);
+    void on_request(Flow& flow, FrameRecord record);
+    void on_response(Flow& flow, FrameRecord record);
+    void complete(Pending pending, std::optional<FrameRecord> response, bool timed_out);
+    void expire(modbus::Timestamp now, bool at_end);
+    void report(modbus::FindingCode code, const FrameRecord& about, std::string message,
+                std::vector<std::uint64_t> frames = {});
+    void count_finding(modbus::FindingCode code);
+
+    AnalyzerOptions options_;
+    Sink& sink_;
+    Summary summary_;
+    std::map<std::string, std::unique_ptr<Flow>> flows_;
+    std::unordered_map<PendingKey, Pending, PendingHash> pending_;
+    std::deque<Expiry> expiries_;
+    std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;
+    std::string source_;
+    std::uint64_t packet_number_ = 0;
+    modbus::Timestamp now_{0};
+};
+
+}  // namespace mbscope::analyzer

@@ -1,0 +1,50 @@
+#pragma once
+// Captured packets from pcap and pcapng files (or memory), read through libpcap. A damaged file yields every
+// packet before the damage and then an error naming the file, the packet number and the byte offset.
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "modbus/frame.hpp"
+
+namespace mbscope::analyzer {
+
+struct Packet {
+    std::uint64_t number = 0;  // 1-based, as tshark counts
+    modbus::Timestamp time{0};
+    int linktype = 0;
+    std::span<const std::uint8_t> data;  // valid until the next call to next()
+    std::uint32_t original_length = 0;
+};
+
+class CaptureSource {
+  public:
+    // Errors (unreadable file, not a capture) are returned in `error`; nullptr then.
+    static std::unique_ptr<CaptureSource> open_file(const std::string& path, std::string& error);
+    static std::unique_ptr<CaptureSource> open_memory(std::span<const std::uint8_t> bytes,
+                                                      std::string& error);
+    ~CaptureSource();
+    CaptureSource(const CaptureSource&) = delete;
+    CaptureSource& operator=(const CaptureSource&) = delete;
+
+    // The next packet; nullopt at the end or on damage (then error() says what and where).
+    std::optional<Packet> next();
+    const std::string& error() const noexcept { return error_; }
+    int linktype() const noexcept;
+    const std::string& name() const noexcept { return name_; }
+
+  private:
+    CaptureSource() = default;
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+    std::string error_;
+    std::string name_;
+    std::uint64_t count_ = 0;
+};
+
+}  // namespace mbscope::analyzer

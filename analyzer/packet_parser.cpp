@@ -1,0 +1,144 @@
+#include "analyzer/packet_parser.hpp"
+
+#include <cstdio>
+#include <cstring>
+
+namespace mbscope::analyzer {
+namespace {
+
+// libpcap link types (pcap/dlt.h values, kept here to keep the parser independent of libpcap)
+constexpr int link_null = 0, link_ethernet = 1, link_raw = 101, link_loop = 108, link_sll = 113,
+              link_ipv4 = 228, link_ipv6 = 229, link_sll2 = 276;
+
+std::uint16_t be16(const std::uint8_t* p) {
+    return static_cast<std::uint16_t>((p[0] << 8) | p[1]);
+}
+std::uint32_t be32(const std::uint8_t* p) {
+    return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
+}
+
+ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4Packet& out) {
+    if (protocol == 6) {
+        if (d.size() < 20) return ParseStatus::Malformed;
+        const std::size_t header = (d[12] >> 4) * 4u;
+        if (header < 20 || header > d.size()) return ParseStatus::Malformed;
+        out.transport = Transport::Tcp;
+        out.source.port = be16(d.data());
+        out.destination.port = be16(d.data() + 2);
+        out.seq = be32(d.data() + 4);
+        out.fin = d[13] & 0x01;
+        out.syn = d[13] & 0x02;
+        out.rst = d[13] & 0x04;
+        out.payload = d.subspan(header);
+        return ParseStatus::Ok;
+    }
+    if (protocol == 17) {
+        if (d.size() < 8) return ParseStatus::Malformed;
+        out.transport = Transport::Udp;
+        out.source.port = be16(d.data());
+        out.destination.port = be16(d.data() + 2);
+        const std::size_t length = be16(d.data() + 4);
+        if (length < 8) return ParseStatus::Malformed;
+        out.payload = d.subspan(8, std::min(d.size(), length) - 8);
+        out.truncated |= length > d.size();
+        return ParseStatus::Ok;
+    }
+    return ParseStatus::NotTcpUdp;
+}
+
+ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out) {
+    if (d.empty()) return ParseStatus::Malformed;
+    const int version = d[0] >> 4;
+    if (version == 4) {
+        if (d.size() < 20) return ParseStatus::Malformed;
+        const std::size_t header = (d[0] & 0x0F) * 4u;
+        const std::size_t total = be16(d.data() + 2);
+        if (header < 20 || header > d.size() || total < header) return ParseStatus::Malformed;
+        if ((be16(d.data() + 6) & 0x3FFF) != 0) return ParseStatus::Fragment;  // MF or offset set
+        out.source = Endpoint{};
+        out.destination = Endpoint{};
+        std::memcpy(out.source.address.data(), d.data() + 12, 4);
+        std::memcpy(out.destination.address.data(), d.data() + 16, 4);
+        out.truncated = total > d.size();
+        return parse_l4(d[9], d.subspan(header, std::min(d.size(), total) - header), out);
+    }
+    if (version == 6) {
+        if (d.size() < 40) return ParseStatus::Malformed;
+        out.source = Endpoint{};
+        out.destination = Endpoint{};
+        out.source.v6 = out.destination.v6 = true;
+        std::memcpy(out.source.address.data(), d.data() + 8, 16);
+        std::memcpy(out.destination.address.data(), d.data() + 24, 16);
+        const std::size_t payload = be16(d.data() + 4);
+        out.truncated = 40 + payload > d.size();
+        std::uint8_t next = d[6];
+        std::size_t pos = 40;
+        // skip hop-by-hop, routing and destination options headers; fragments are not followed
+        while (next == 0 || next == 43 || next == 60) {
+            if (pos + 8 > d.size()) return ParseStatus::Malformed;
+            next = d[pos];
+            pos += (d[pos + 1] + 1u) * 8u;
+        }
+        if (next == 44) return ParseStatus::Fragment;
+        if (pos > d.size()) return ParseStatus::Malformed;
+        return parse_l4(next, d.subspan(pos, std::min(d.size(), 40 + payload) - pos), out);
+    }
+    return ParseStatus::NotIp;
+}
+
+ParseStatus by_ethertype(std::uint16_t type, std::span<const std::uint8_t> d, L4Packet& out) {
+    if (type == 0x0800 || type == 0x86DD) return parse_ip(d, out);
+    return ParseStatus::NotIp;
+}
+
+}  // namespace
+
+std::string Endpoint::to_string() const {
+    char buf[64];
+    if (!v6) {
+        std::snprintf(buf, sizeof buf, "%u.%u.%u.%u:%u", address[0], address[1], address[2], address[3],
+                      port);
+        return buf;
+    }
+    std::string s = "[";
+    for (int i = 0; i < 16; i += 2) {
+        std::snprintf(buf, sizeof buf, "%s%x", i ? ":" : "", (address[i] << 8) | address[i + 1]);
+        s += buf;
+    }
+    return s + "]:" + std::to_string(port);
+}
+
+ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> d, L4Packet& out) noexcept {
+    switch (linktype) {
+        case link_ethernet: {
+            if (d.size() < 14) return ParseStatus::Malformed;
+            std::size_t pos = 12;
+            std::uint16_t type = be16(d.data() + pos);
+            while (type == 0x8100 || type == 0x88A8 || type == 0x9100) {  // VLAN tags, possibly stacked
+                pos += 4;
+                if (pos + 2 > d.size()) return ParseStatus::Malformed;
+                type = be16(d.data() + pos);
+            }
+            return by_ethertype(type, d.subspan(pos + 2), out);
+        }
+        case link_sll:
+            if (d.size() < 16) return ParseStatus::Malformed;
+            return by_ethertype(be16(d.data() + 14), d.subspan(16), out);
+        case link_sll2:
+            if (d.size() < 20) return ParseStatus::Malformed;
+            return by_ethertype(be16(d.data()), d.subspan(20), out);
+        case link_raw:
+        case link_ipv4:
+        case link_ipv6:
+            return parse_ip(d, out);
+        case link_null:
+        case link_loop:
+            if (d.size() < 4) return ParseStatus::Malformed;
+            return parse_ip(d.subspan(4),
+                            out);  // the family word's byte order varies; the IP version decides
+        default:
+            return ParseStatus::UnsupportedLink;
+    }
+}
+
+}  // namespace mbscope::analyzer

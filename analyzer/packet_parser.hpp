@@ -1,0 +1,37 @@
+#pragma once
+// Link, network and transport layers of a captured packet, down to the TCP or UDP payload. Link types:
+// Ethernet (with 802.1Q / 802.1ad tags), Linux cooked v1 and v2, raw IPv4/IPv6, BSD null/loopback.
+// Parsing never reads outside the packet; a packet it cannot follow says why.
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+
+namespace mbscope::analyzer {
+
+struct Endpoint {
+    std::array<std::uint8_t, 16> address{};  // IPv4 in the first 4 bytes
+    bool v6 = false;
+    std::uint16_t port = 0;
+    bool operator==(const Endpoint&) const = default;
+    std::string to_string() const;
+};
+
+enum class Transport : std::uint8_t { Tcp, Udp };
+
+struct L4Packet {
+    Transport transport = Transport::Tcp;
+    Endpoint source;
+    Endpoint destination;
+    std::uint32_t seq = 0;  // TCP only
+    bool syn = false, fin = false, rst = false;
+    std::span<const std::uint8_t> payload;
+    bool truncated = false;  // the capture holds less than the IP header says (snap length)
+};
+
+enum class ParseStatus : std::uint8_t { Ok, UnsupportedLink, NotIp, NotTcpUdp, Fragment, Malformed };
+
+ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> data, L4Packet& out) noexcept;
+
+}  // namespace mbscope::analyzer

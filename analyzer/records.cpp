@@ -1,0 +1,44 @@
+#include "analyzer/records.hpp"
+
+#include <algorithm>
+#include <bit>
+
+namespace mbscope::analyzer {
+
+namespace {
+int bucket_of(std::uint64_t ns) {
+    if (ns < 32) return static_cast<int>(ns);
+    const int e = std::bit_width(ns) - 6;  // ns >> e is in [32, 64)
+    return 32 * e + static_cast<int>(ns >> e);
+}
+std::uint64_t bucket_low(int b) {
+    if (b < 32) return static_cast<std::uint64_t>(b);
+    const int e = b / 32 - 1;
+    return static_cast<std::uint64_t>(b % 32 + 32) << e;
+}
+}  // namespace
+
+void LatencyHistogram::add(modbus::Timestamp latency) {
+    const std::uint64_t ns = latency.count() < 0 ? 0 : static_cast<std::uint64_t>(latency.count());
+    const int b = std::min<int>(bucket_of(ns), static_cast<int>(buckets_.size()) - 1);
+    ++buckets_[static_cast<std::size_t>(b)];
+    if (count_ == 0 || latency < min_) min_ = latency;
+    if (count_ == 0 || latency > max_) max_ = latency;
+    ++count_;
+}
+
+modbus::Timestamp LatencyHistogram::quantile(double q) const {
+    if (count_ == 0) return modbus::Timestamp{0};
+    const auto target = static_cast<std::uint64_t>(q * static_cast<double>(count_ - 1)) + 1;
+    std::uint64_t seen = 0;
+    for (std::size_t b = 0; b < buckets_.size(); ++b) {
+        seen += buckets_[b];
+        if (seen >= target) {
+            const auto v = modbus::Timestamp(static_cast<std::int64_t>(bucket_low(static_cast<int>(b))));
+            return std::clamp(v, min_, max_);
+        }
+    }
+    return max_;
+}
+
+}  // namespace mbscope::analyzer

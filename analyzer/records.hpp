@@ -1,0 +1,102 @@
+#pragma once
+// What the analyzer reports: frames, transactions (a request with its response, exception or timeout),
+// findings and unparsed bytes, then a summary. Stages produce these records; sinks format them. No stage
+// prints.
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "modbus/frame.hpp"
+#include "modbus/pdu.hpp"
+
+namespace mbscope::analyzer {
+
+struct FrameRecord {
+    std::uint64_t index = 0;   // 1-based frame number in this analysis
+    std::uint64_t packet = 0;  // capture packet in which the frame ended
+    modbus::Timestamp time{0};
+    std::string source;  // input file
+    std::string link;    // "client -> server" (TCP/UDP) or the serial port
+    std::string device;  // "server unit N": what a finding is about
+    modbus::Direction direction = modbus::Direction::Unknown;
+    modbus::Frame frame;
+    std::optional<modbus::Pdu> pdu;
+    std::string error;  // why the PDU could not be decoded
+};
+
+struct TransactionRecord {
+    FrameRecord request;
+    std::optional<FrameRecord> response;
+    std::optional<modbus::Timestamp> latency;
+    bool timed_out = false;
+    std::vector<modbus::FindingCode> findings;
+};
+
+struct FindingRecord {
+    modbus::FindingCode code{};
+    modbus::Timestamp time{0};
+    std::string source;
+    std::string link;
+    std::string device;
+    std::vector<std::uint64_t> frames;
+    std::uint64_t packet = 0;
+    std::string message;
+};
+
+struct UnparsedRecord {
+    std::string source;
+    std::string link;
+    modbus::Direction direction = modbus::Direction::Unknown;
+    modbus::Timestamp time{0};
+    std::uint64_t packet = 0;
+    std::uint64_t offset = 0;  // stream offset
+    std::uint64_t length = 0;
+    modbus::UnparsedReason reason = modbus::UnparsedReason::Garbage;
+};
+
+// Latencies kept in a fixed log-scale histogram (32 buckets per power of two, ~3 % resolution) so memory
+// does not grow with the capture; min and max are exact.
+class LatencyHistogram {
+  public:
+    void add(modbus::Timestamp latency);
+    std::uint64_t count() const noexcept { return count_; }
+    modbus::Timestamp min() const noexcept { return min_; }
+    modbus::Timestamp max() const noexcept { return max_; }
+    modbus::Timestamp quantile(double q) const;
+
+  private:
+    static constexpr int sub = 32;
+    std::array<std::uint64_t, 64 * sub> buckets_{};
+    std::uint64_t count_ = 0;
+    modbus::Timestamp min_{0}, max_{0};
+};
+
+struct DeviceStats {
+    std::uint64_t requests = 0, responses = 0, exceptions = 0, timeouts = 0, checksum_errors = 0;
+    LatencyHistogram latency;
+    std::map<int, std::uint64_t> functions;  // function code → requests
+};
+
+struct Summary {
+    std::uint64_t packets = 0, frames = 0, transactions = 0, unparsed_bytes = 0;
+    std::map<std::string, DeviceStats> devices;
+    std::map<std::string, std::uint64_t> findings;  // code name → count
+    std::uint64_t errors = 0;                       // error-severity findings
+    std::vector<std::string> input_errors;          // files that could not be read (fully)
+};
+
+class Sink {
+  public:
+    virtual ~Sink() = default;
+    virtual void frame(const FrameRecord&) {}
+    virtual void transaction(const TransactionRecord&) {}
+    virtual void finding(const FindingRecord&) {}
+    virtual void unparsed(const UnparsedRecord&) {}
+    virtual void end(const Summary&) {}
+};
+
+}  // namespace mbscope::analyzer

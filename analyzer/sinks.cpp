@@ -1,0 +1,252 @@
+#include "analyzer/sinks.hpp"
+
+#include <cstdio>
+
+#include "modbus/describe.hpp"
+
+namespace mbscope::analyzer {
+
+using namespace mbscope::modbus;
+using json = nlohmann::json;
+
+double seconds(Timestamp t) {
+    return std::chrono::duration<double>(t).count();
+}
+
+namespace {
+
+std::string ms(Timestamp t) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3f ms", std::chrono::duration<double, std::milli>(t).count());
+    return buf;
+}
+
+std::string pdu_brief(const FrameRecord& f) {
+    if (!f.pdu) return "undecodable PDU (" + f.error + ")";
+    const Pdu& p = *f.pdu;
+    std::string s = "FC" + std::to_string(p.function_code());
+    if (p.is_exception()) {
+        const auto code = std::get<ExceptionResponse>(p.body).exception_code;
+        const auto name = exception_name(code);
+        return s + " exception " + std::to_string(code) + (name ? " " + std::string(*name) : "");
+    }
+    if (const auto* r = std::get_if<ReadRequest>(&p.body))
+        return s + " read " + std::to_string(r->starting_address) + "+" + std::to_string(r->quantity);
+    if (const auto* w = std::get_if<WriteSingle>(&p.body))
+        return s + " write " + std::to_string(w->address) + " = " + std::to_string(w->value);
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&p.body))
+        return s + " write " + std::to_string(w->starting_address) + "+" + std::to_string(w->quantity);
+    if (const auto* w = std::get_if<WriteMultipleCoilsRequest>(&p.body))
+        return s + " write coils " + std::to_string(w->starting_address) + "+" + std::to_string(w->quantity);
+    if (const auto* r = std::get_if<ReadRegistersResponse>(&p.body)) {
+        std::string v = s + " [";
+        for (std::size_t i = 0; i < r->values.size() && i < 8; ++i)
+            v += (i ? ", " : "") + std::to_string(r->values[i]);
+        return v + (r->values.size() > 8 ? ", …]" : "]");
+    }
+    if (const auto* b = std::get_if<ReadBitsResponse>(&p.body)) return s + " bits " + hex_bytes(b->values);
+    if (auto name = function_name(p.function_code())) return s + " " + std::string(*name);
+    return s;
+}
+
+json direction_json(Direction d) {
+    return std::string(to_string(d));
+}
+
+}  // namespace
+
+std::string TextSink::time_of(Timestamp t) {
+    if (!first_) first_ = t;
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%12.6f", seconds(t - *first_));
+    return buf;
+}
+
+void TextSink::transaction(const TransactionRecord& t) {
+    if (summary_only_) return;
+    out_ << time_of(t.request.time) << "  " << t.request.link << "  unit " << int(t.request.frame.unit_id());
+    if (t.request.frame.framing == Framing::Tcp)
+        out_ << "  tid " << t.request.frame.transaction_id();
+    else
+        out_ << "  " << to_string(t.request.frame.framing);
+    out_ << "  " << pdu_brief(t.request);
+    if (t.response)
+        out_ << "  -> " << pdu_brief(*t.response) << "  " << ms(*t.latency);
+    else
+        out_ << "  -> " << (t.timed_out ? "no response" : "no response before the capture ended");
+    out_ << '\n';
+}
+
+void TextSink::finding(const FindingRecord& f) {
+    if (summary_only_) return;
+    const auto& i = info(f.code);
+    out_ << time_of(f.time) << "  ! " << i.name << " (" << to_string(i.severity) << ") " << f.link << ": "
+         << f.message;
+    if (!f.frames.empty()) {
+        out_ << " [frame";
+        for (auto n : f.frames)
+            out_ << ' ' << n;
+        out_ << ']';
+    }
+    out_ << '\n';
+}
+
+void TextSink::unparsed(const UnparsedRecord&) {}  // reported through its finding
+
+void TextSink::end(const Summary& s) {
+    out_ << "\nsummary: " << s.packets << " packets, " << s.frames << " frames, " << s.transactions
+         << " transactions, " << s.unparsed_bytes << " unparsed bytes\n";
+    for (const auto& [device, d] : s.devices) {
+        out_ << "  " << device << ": " << d.requests << " requests, " << d.responses << " responses, "
+             << d.exceptions << " exceptions, " << d.timeouts << " timeouts";
+        if (d.latency.count())
+            out_ << "; latency min " << ms(d.latency.min()) << " / median " << ms(d.latency.quantile(0.5))
+                 << " / p99 " << ms(d.latency.quantile(0.99)) << " / max " << ms(d.latency.max());
+        out_ << "\n    functions:";
+        for (const auto& [fc, n] : d.functions)
+            out_ << " FC" << fc << "×" << n;
+        out_ << '\n';
+    }
+    if (!s.findings.empty()) {
+        out_ << "  findings:";
+        for (const auto& [code, n] : s.findings)
+            out_ << ' ' << code << "×" << n;
+        out_ << '\n';
+    }
+    for (const auto& e : s.input_errors)
+        out_ << "  input error: " << e << '\n';
+}
+
+// ---------------------------------------------------------------- JSON
+
+json frame_to_json(const FrameRecord& f) {
+    json j{{"type", "frame"},
+           {"ts", seconds(f.time)},
+           {"source", f.source},
+           {"link", f.link},
+           {"frame", f.index},
+           {"packet", f.packet},
+           {"direction", direction_json(f.direction)},
+           {"framing", std::string(to_string(f.frame.framing))},
+           {"unit_id", f.frame.unit_id()},
+           {"raw", hex_bytes(f.frame.adu())},
+           {"checksum_ok", f.frame.checksum_ok}};
+    if (f.frame.framing == Framing::Tcp) {
+        j["transaction_id"] = f.frame.transaction_id();
+        j["protocol_id"] = f.frame.protocol_id();
+    }
+    if (f.pdu) {
+        j["function_raw"] = f.pdu->function_raw;
+        j["function"] = f.pdu->function_code();
+        if (auto n = function_name(f.pdu->function_code())) j["function_name"] = std::string(*n);
+        j["exception"] = f.pdu->is_exception();
+        json fields = json::object();
+        for (const auto& field : describe_pdu(*f.pdu))
+            if (field.name != "function_code") fields[field.name] = field.value;
+        j["fields"] = fields;
+    } else {
+        j["error"] = f.error;
+        if (!f.frame.pdu().empty()) {  // the function byte is known even when the rest is not
+            j["function_raw"] = f.frame.pdu()[0];
+            j["function"] = f.frame.pdu()[0] & 0x7F;
+            j["exception"] = (f.frame.pdu()[0] & 0x80) != 0;
+        }
+    }
+    return j;
+}
+
+void JsonSink::emit(json j) {
+    if (lines_)
+        out_ << j.dump() << '\n';
+    else
+        document_.push_back(std::move(j));
+}
+
+void JsonSink::frame(const FrameRecord& f) {
+    emit(frame_to_json(f));
+}
+
+void JsonSink::transaction(const TransactionRecord& t) {
+    json j{
+        {"type", "transaction"},  {"ts", seconds(t.request.time)},    {"source", t.request.source},
+        {"link", t.request.link}, {"request_frame", t.request.index}, {"unit_id", t.request.frame.unit_id()}};
+    if (t.request.pdu) j["function"] = t.request.pdu->function_code();
+    if (t.request.frame.framing == Framing::Tcp) j["transaction_id"] = t.request.frame.transaction_id();
+    if (t.response) {
+        j["response_frame"] = t.response->index;
+        j["latency_ms"] = std::chrono::duration<double, std::milli>(*t.latency).count();
+        if (t.response->pdu && t.response->pdu->is_exception())
+            j["exception_code"] = std::get<ExceptionResponse>(t.response->pdu->body).exception_code;
+    } else {
+        j["timeout"] = t.timed_out;
+    }
+    if (!t.findings.empty()) {
+        for (auto c : t.findings)
+            j["findings"].push_back(std::string(to_string(c)));
+    }
+    emit(std::move(j));
+}
+
+void JsonSink::finding(const FindingRecord& f) {
+    const auto& i = info(f.code);
+    json j{{"type", "finding"},           {"ts", seconds(f.time)},
+           {"source", f.source},          {"link", f.link},
+           {"code", std::string(i.name)}, {"severity", std::string(to_string(i.severity))},
+           {"message", f.message},        {"rule", std::string(i.rule)},
+           {"packet", f.packet}};
+    if (!f.device.empty()) j["device"] = f.device;
+    if (!f.frames.empty()) j["frames"] = f.frames;
+    emit(std::move(j));
+}
+
+void JsonSink::unparsed(const UnparsedRecord& u) {
+    emit(json{{"type", "unparsed"},
+              {"ts", seconds(u.time)},
+              {"source", u.source},
+              {"link", u.link},
+              {"direction", direction_json(u.direction)},
+              {"offset", u.offset},
+              {"length", u.length},
+              {"reason", std::string(to_string(u.reason))},
+              {"packet", u.packet}});
+}
+
+json summary_to_json(const Summary& s) {
+    json j{{"type", "summary"},
+           {"schema_version", jsonl_schema_version},
+           {"packets", s.packets},
+           {"frames", s.frames},
+           {"transactions", s.transactions},
+           {"unparsed_bytes", s.unparsed_bytes},
+           {"errors", s.errors},
+           {"findings", s.findings}};
+    json devices = json::object();
+    for (const auto& [name, d] : s.devices) {
+        json dev{{"requests", d.requests},
+                 {"responses", d.responses},
+                 {"exceptions", d.exceptions},
+                 {"timeouts", d.timeouts}};
+        json fcs = json::object();
+        for (const auto& [fc, n] : d.functions)
+            fcs[std::to_string(fc)] = n;
+        dev["functions"] = fcs;
+        if (d.latency.count()) {
+            auto m = [](Timestamp t) { return std::chrono::duration<double, std::milli>(t).count(); };
+            dev["latency_ms"] = {{"min", m(d.latency.min())},
+                                 {"median", m(d.latency.quantile(0.5))},
+                                 {"p99", m(d.latency.quantile(0.99))},
+                                 {"max", m(d.latency.max())}};
+        }
+        devices[name] = dev;
+    }
+    j["devices"] = devices;
+    if (!s.input_errors.empty()) j["input_errors"] = s.input_errors;
+    return j;
+}
+
+void JsonSink::end(const Summary& s) {
+    emit(summary_to_json(s));
+    if (!lines_) out_ << document_.dump(2) << '\n';
+}
+
+}  // namespace mbscope::analyzer

@@ -1,0 +1,51 @@
+#pragma once
+// Output formats, each a Sink over the same records: text for people, JSON lines / one JSON document for
+// machines (schema in analyzer/README.md), and the summary alone (the fast path).
+
+#include <nlohmann/json.hpp>
+#include <ostream>
+
+#include "analyzer/records.hpp"
+
+namespace mbscope::analyzer {
+
+inline constexpr int jsonl_schema_version = 1;
+
+class TextSink : public Sink {
+  public:
+    explicit TextSink(std::ostream& out, bool summary_only = false)
+        : out_(out), summary_only_(summary_only) {}
+    void transaction(const TransactionRecord& t) override;
+    void finding(const FindingRecord& f) override;
+    void unparsed(const UnparsedRecord& u) override;
+    void end(const Summary& s) override;
+
+  private:
+    std::string time_of(modbus::Timestamp t);
+    std::ostream& out_;
+    bool summary_only_;
+    std::optional<modbus::Timestamp> first_;
+};
+
+class JsonSink : public Sink {
+  public:
+    // lines: one object per line as records come (JSONL); otherwise one document written at the end.
+    JsonSink(std::ostream& out, bool lines) : out_(out), lines_(lines) {}
+    void frame(const FrameRecord& f) override;
+    void transaction(const TransactionRecord& t) override;
+    void finding(const FindingRecord& f) override;
+    void unparsed(const UnparsedRecord& u) override;
+    void end(const Summary& s) override;
+
+  private:
+    void emit(nlohmann::json j);
+    std::ostream& out_;
+    bool lines_;
+    nlohmann::json document_ = nlohmann::json::array();
+};
+
+nlohmann::json summary_to_json(const Summary& s);
+nlohmann::json frame_to_json(const FrameRecord& f);
+double seconds(modbus::Timestamp t);
+
+}  // namespace mbscope::analyzer

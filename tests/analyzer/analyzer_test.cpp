@@ -1,0 +1,308 @@
+// The analyzer on packets built by the test (raw IPv4 link type): reassembly, pairing and every pairing
+// finding, each with a trigger and with its silence on clean traffic.
+#include "analyzer/analyzer.hpp"
+
+#include <gtest/gtest.h>
+
+#include "analyzer/packet_parser.hpp"
+#include "modbus/adu.hpp"
+#include "modbus/pdu.hpp"
+
+namespace an = mbscope::analyzer;
+namespace mb = mbscope::modbus;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr int link_raw = 101;
+
+struct Collect : an::Sink {
+    std::vector<an::FrameRecord> frames;
+    std::vector<an::TransactionRecord> transactions;
+    std::vector<an::FindingRecord> findings;
+    std::vector<an::UnparsedRecord> unparsed_records;
+    void frame(const an::FrameRecord& f) override { frames.push_back(f); }
+    void transaction(const an::TransactionRecord& t) override { transactions.push_back(t); }
+    void finding(const an::FindingRecord& f) override { findings.push_back(f); }
+    void unparsed(const an::UnparsedRecord& u) override { unparsed_records.push_back(u); }
+    int count(mb::FindingCode c) const {
+        int n = 0;
+        for (const auto& f : findings)
+            n += f.code == c;
+        return n;
+    }
+};
+
+// IPv4 + TCP (or UDP) packet from client 10.0.0.1:40000 to server 10.0.0.2:502, or back.
+std::vector<std::uint8_t> packet(bool to_server, std::uint32_t seq, const std::vector<std::uint8_t>& payload,
+                                 bool udp = false, std::uint8_t flags = 0x18) {
+    std::vector<std::uint8_t> p;
+    const std::size_t l4 = udp ? 8 : 20;
+    const std::size_t total = 20 + l4 + payload.size();
+    const std::uint8_t a[4] = {10, 0, 0, 1}, b[4] = {10, 0, 0, 2};
+    const std::uint8_t* src = to_server ? a : b;
+    const std::uint8_t* dst = to_server ? b : a;
+    p.insert(p.end(), {0x45, 0, static_cast<std::uint8_t>(total >> 8), static_cast<std::uint8_t>(total), 0, 1,
+                       0x40, 0, 64, static_cast<std::uint8_t>(udp ? 17 : 6), 0, 0});
+    p.insert(p.end(), src, src + 4);
+    p.insert(p.end(), dst, dst + 4);
+    const std::uint16_t sport = to_server ? 40000 : 502, dport = to_server ? 502 : 40000;
+    p.insert(p.end(), {static_cast<std::uint8_t>(sport >> 8), static_cast<std::uint8_t>(sport),
+                       static_cast<std::uint8_t>(dport >> 8), static_cast<std::uint8_t>(dport)});
+    if (udp) {
+        const std::size_t len = 8 + payload.size();
+        p.insert(p.end(), {static_cast<std::uint8_t>(len >> 8), static_cast<std::uint8_t>(len), 0, 0});
+    } else {
+        p.insert(p.end(), {static_cast<std::uint8_t>(seq >> 24), static_cast<std::uint8_t>(seq >> 16),
+                           static_cast<std::uint8_t>(seq >> 8), static_cast<std::uint8_t>(seq), 0, 0, 0, 0,
+                           0x50, flags, 0xFF, 0xFF, 0, 0, 0, 0});
+    }
+    p.insert(p.end(), payload.begin(), payload.end());
+    return p;
+}
+
+std::vector<std::uint8_t> read_request(std::uint16_t tid, std::uint16_t start = 96, std::uint16_t qty = 3) {
+    return mb::encode_tcp(
+        tid, 17, mb::encode_pdu(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, start, qty)));
+}
+std::vector<std::uint8_t> read_response(std::uint16_t tid, std::vector<std::uint16_t> values = {555, 0, 100},
+                                        std::uint8_t unit = 17) {
+    return mb::encode_tcp(
+        tid, unit,
+        mb::encode_pdu(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, values)));
+}
+
+struct Harness {
+    Collect sink;
+    an::Analyzer analyzer;
+    std::uint64_t number = 0;
+    std::uint32_t seq[2] = {1000, 5000};
+    Harness(an::AnalyzerOptions o = {}) : analyzer(o, sink) {}
+    void send(bool to_server, const std::vector<std::uint8_t>& payload, mb::Timestamp t) {
+        auto bytes = packet(to_server, seq[to_server ? 0 : 1], payload);
+        seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
+        raw(bytes, t);
+    }
+    void raw(const std::vector<std::uint8_t>& bytes, mb::Timestamp t) {
+        an::Packet p;
+        p.number = ++number;
+        p.time = t;
+        p.linktype = link_raw;
+        p.data = bytes;
+        p.original_length = static_cast<std::uint32_t>(bytes.size());
+        analyzer.packet("test", p);
+    }
+};
+
+}  // namespace
+
+TEST(PacketParser, EthernetVlanAndTcp) {
+    auto ip = packet(true, 7, {1, 2, 3});
+    std::vector<std::uint8_t> eth(12, 0xAA);
+    eth.insert(eth.end(), {0x81, 0x00, 0x00, 0x05, 0x08, 0x00});  // one 802.1Q tag
+    eth.insert(eth.end(), ip.begin(), ip.end());
+    an::L4Packet l4;
+    ASSERT_EQ(an::parse_packet(1, eth, l4), an::ParseStatus::Ok);
+    EXPECT_EQ(l4.destination.port, 502);
+    EXPECT_EQ(l4.seq, 7u);
+    EXPECT_EQ(l4.payload.size(), 3u);
+    EXPECT_EQ(l4.source.to_string(), "10.0.0.1:40000");
+    EXPECT_EQ(an::parse_packet(1, std::span(eth).first(20), l4), an::ParseStatus::Malformed);
+    EXPECT_EQ(an::parse_packet(147, eth, l4), an::ParseStatus::UnsupportedLink);
+}
+
+TEST(Analyzer, CleanExchangeIsPairedWithLatencyAndNoFinding) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(false, read_response(1), 1s + 2ms);
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.transactions.size(), 1u);
+    EXPECT_EQ(*h.sink.transactions[0].latency, 2ms);
+    EXPECT_TRUE(h.sink.findings.empty());
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").responses, 1u);
+}
+
+TEST(Analyzer, AduSplitOverSegmentsAndSeveralPerSegment) {
+    Harness h;
+    auto a = read_request(1), b = read_request(2);
+    std::vector<std::uint8_t> both = a;
+    both.insert(both.end(), b.begin(), b.end());
+    h.send(true, {both.begin(), both.begin() + 3}, 1s);  // first segment under 8 bytes
+    h.send(true, {both.begin() + 3, both.end()}, 1s);
+    h.send(false, read_response(1), 1s + 1ms);
+    h.send(false, read_response(2), 1s + 2ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.transactions.size(), 2u);
+    EXPECT_TRUE(h.sink.findings.empty());
+}
+
+TEST(Analyzer, OutOfOrderAndRetransmittedSegmentsAreReassembled) {
+    Harness h;
+    auto a = read_request(1);
+    h.raw(packet(true, 999, {}, false, 0x02), 1s);                // SYN: the stream starts at 1000
+    h.raw(packet(true, 1000 + 5, {a.begin() + 5, a.end()}), 1s);  // second half first
+    h.raw(packet(true, 1000, {a.begin(), a.begin() + 5}), 1s);
+    h.raw(packet(true, 1000, a), 1s);  // retransmission of everything
+    h.seq[0] += static_cast<std::uint32_t>(a.size());
+    h.send(false, read_response(1), 1s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.frames.size(), 2u);
+    EXPECT_EQ(h.sink.transactions.size(), 1u);
+    EXPECT_TRUE(h.sink.findings.empty());
+}
+
+TEST(Analyzer, MissingSegmentIsAGapOfKnownSize) {
+    Harness h;
+    auto a = read_request(1), b = read_request(2), c = read_request(3);
+    h.send(true, a, 1s);
+    h.seq[0] += static_cast<std::uint32_t>(b.size());  // b never captured
+    h.send(true, c, 1s + 1ms);
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.count(mb::FindingCode::StreamGap), 1);
+    for (const auto& f : h.sink.findings) {
+        if (f.code == mb::FindingCode::StreamGap) {
+            EXPECT_NE(f.message.find("12 bytes"), std::string::npos) << f.message;
+        }
+    }
+    EXPECT_EQ(h.sink.frames.size(), 2u);
+}
+
+TEST(Analyzer, NoResponseWithinTimeout) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(true, read_request(2), 5s);  // 4 s later: the first has timed out (3 s)
+    h.send(false, read_response(2), 5s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").timeouts, 1u);
+}
+
+TEST(Analyzer, UnansweredAtTheEndOfTheCaptureIsANoteNotATimeout) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 1);
+}
+
+TEST(Analyzer, UnsolicitedResponse) {
+    Harness h;
+    h.send(false, read_response(9), 1s);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+}
+
+TEST(Analyzer, TransactionIdMismatch) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(false, read_response(2), 1s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdMismatch), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    EXPECT_EQ(h.sink.transactions.size(), 1u);
+}
+
+TEST(Analyzer, TransactionIdDuplicate) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(true, read_request(1), 1s + 1ms);
+    h.send(false, read_response(1), 1s + 2ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdDuplicate), 1);
+}
+
+TEST(Analyzer, ExceptionIsLinkedToItsRequest) {
+    Harness h;
+    h.send(true, read_request(1, 200, 1), 1s);
+    h.send(false, mb::encode_tcp(1, 17, mb::encode_pdu(mb::make_exception(3, 2))), 1s + 1ms);
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.count(mb::FindingCode::PairExceptionResponse), 1);
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::PairExceptionResponse) {
+            EXPECT_NE(f.message.find("Illegal Data Address"), std::string::npos);
+            EXPECT_EQ(f.frames.size(), 2u);
+        }
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").exceptions, 1u);
+}
+
+TEST(Analyzer, ResponseSizeFunctionAndUnitMismatches) {
+    Harness h;
+    h.send(true, read_request(1, 96, 3), 1s);
+    h.send(false, read_response(1, {1, 2}), 1s + 1ms);  // two registers for three asked
+    h.send(true, read_request(2), 2s);
+    h.send(false,
+           mb::encode_tcp(2, 17,
+                          mb::encode_pdu(mb::make_read_registers_response(
+                              mb::FunctionCode::ReadInputRegisters, std::vector<std::uint16_t>{1, 2, 3}))),
+           2s + 1ms);
+    h.send(true, read_request(3), 3s);
+    h.send(false, read_response(3, {1, 2, 3}, 18), 3s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairResponseSizeMismatch), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairFunctionMismatch), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnitMismatch), 1);
+}
+
+TEST(Analyzer, EchoMismatch) {
+    Harness h;
+    h.send(true, mb::encode_tcp(1, 17, mb::encode_pdu(mb::make_write_single_register(84, 926))), 1s);
+    auto wrong = mb::make_write_single_register(84, 925);
+    wrong.direction = mb::Direction::Response;
+    h.send(false, mb::encode_tcp(1, 17, mb::encode_pdu(wrong)), 1s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairEchoMismatch), 1);
+}
+
+TEST(Analyzer, ProtocolIdAndGarbageBetweenAdus) {
+    Harness h;
+    auto bad = read_request(1);
+    bad[3] = 1;  // protocol id 1
+    h.send(true, bad, 1s);
+    std::vector<std::uint8_t> junk = {0x00, 0x05, 0x00, 0x00, 0x00, 0x00, 0x11};  // length 0: impossible
+    auto good = read_request(2);
+    junk.insert(junk.end(), good.begin(), good.end());
+    h.send(true, junk, 2s);
+    h.send(false, read_response(2), 2s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::TcpProtocolIdNonzero), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::TcpLengthInvalid), 1);
+    ASSERT_EQ(h.sink.unparsed_records.size(), 1u);
+    EXPECT_EQ(h.sink.unparsed_records[0].length, 7u);
+}
+
+TEST(Analyzer, RtuOverUdpIsRecognisedByItsCrc) {
+    Collect sink;
+    an::Analyzer a({}, sink);
+    // MK manual frames (000:356, 000:365) carried in UDP datagrams by a serial gateway.
+    const std::vector<std::uint8_t> req = {0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45};
+    const std::vector<std::uint8_t> rsp = {0x11, 0x03, 0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA};
+    auto p1 = packet(true, 0, req, true), p2 = packet(false, 0, rsp, true);
+    an::Packet p;
+    p.linktype = link_raw;
+    p.number = 1;
+    p.time = 1s;
+    p.data = p1;
+    a.packet("test", p);
+    p.number = 2;
+    p.time = 1s + 5ms;
+    p.data = p2;
+    a.packet("test", p);
+    a.finish();
+    ASSERT_EQ(sink.frames.size(), 2u);
+    EXPECT_EQ(sink.frames[0].frame.framing, mb::Framing::Rtu);
+    EXPECT_EQ(sink.transactions.size(), 1u);
+    EXPECT_TRUE(sink.findings.empty());
+}
+
+TEST(LatencyHistogram, QuantilesWithinThreePercent) {
+    an::LatencyHistogram h;
+    for (int i = 1; i <= 1000; ++i)
+        h.add(std::chrono::microseconds(i));
+    EXPECT_EQ(h.min(), 1us);
+    EXPECT_EQ(h.max(), 1000us);
+    const double median = std::chrono::duration<double, std::micro>(h.quantile(0.5)).count();
+    const double p99 = std::chrono::duration<double, std::micro>(h.quantile(0.99)).count();
+    EXPECT_NEAR(median, 500, 500 * 0.04);
+    EXPECT_NEAR(p99, 990, 990 * 0.04);
+}
