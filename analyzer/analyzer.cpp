@@ -314,37 +314,47 @@ void Analyzer::on_response(Flow& flow, FrameRecord r) {
 void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bool timed_out) {
     TransactionRecord t;
     t.request = std::move(pending.request);
+    // The transaction is written first, then what was found in it.
+    struct Deferred {
+        FindingCode code;
+        const FrameRecord* about;
+        std::string message;
+        std::vector<std::uint64_t> frames;
+    };
+    std::vector<Deferred> found;
     auto& stats = summary_.devices[t.request.device];
     if (response) {
-        const FrameRecord& rsp = *response;
+        t.response = std::move(response);
+        const FrameRecord& rsp = *t.response;
         ++stats.responses;
         t.latency = rsp.time - t.request.time;
         stats.latency.add(*t.latency);
         const std::vector<std::uint64_t> both{t.request.index, rsp.index};
         if (rsp.frame.unit_id() != t.request.frame.unit_id()) {
-            report(FindingCode::PairUnitMismatch, rsp,
-                   "request to unit " + std::to_string(t.request.frame.unit_id()) + ", response from unit " +
-                       std::to_string(rsp.frame.unit_id()),
-                   both);
+            found.push_back({FindingCode::PairUnitMismatch, &*t.response,
+                             "request to unit " + std::to_string(t.request.frame.unit_id()) +
+                                 ", response from unit " + std::to_string(rsp.frame.unit_id()),
+                             both});
             t.findings.push_back(FindingCode::PairUnitMismatch);
         }
         if (t.request.pdu && rsp.pdu) {
             const Pdu& q = *t.request.pdu;
             const Pdu& a = *rsp.pdu;
             if (a.function_code() != q.function_code()) {
-                report(FindingCode::PairFunctionMismatch, rsp,
-                       "request FC" + std::to_string(q.function_code()) + ", response FC" +
-                           std::to_string(a.function_code()),
-                       both);
+                found.push_back({FindingCode::PairFunctionMismatch, &*t.response,
+                                 "request FC" + std::to_string(q.function_code()) + ", response FC" +
+                                     std::to_string(a.function_code()),
+                                 both});
                 t.findings.push_back(FindingCode::PairFunctionMismatch);
             } else if (a.is_exception()) {
                 ++stats.exceptions;
                 const auto code = std::get<ExceptionResponse>(a.body).exception_code;
                 const auto name = exception_name(code);
-                report(FindingCode::PairExceptionResponse, rsp,
-                       "exception " + std::to_string(code) + " (" +
-                           (name ? std::string(*name) : "undefined") + ") to " + describe_request(q),
-                       both);
+                found.push_back({FindingCode::PairExceptionResponse, &*t.response,
+                                 "exception " + std::to_string(code) + " (" +
+                                     (name ? std::string(*name) : "undefined") + ") to " +
+                                     describe_request(q),
+                                 both});
                 t.findings.push_back(FindingCode::PairExceptionResponse);
             } else {
                 auto expected = expected_response_data(q);
@@ -353,26 +363,27 @@ void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bo
                 if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
                     got = regs->values.size() * 2;
                 if (expected && got && *expected != *got) {
-                    report(FindingCode::PairResponseSizeMismatch, rsp,
-                           describe_request(q) + " needs " + std::to_string(*expected) +
-                               " data bytes, the response has " + std::to_string(*got),
-                           both);
+                    found.push_back({FindingCode::PairResponseSizeMismatch, &*t.response,
+                                     describe_request(q) + " needs " + std::to_string(*expected) +
+                                         " data bytes, the response has " + std::to_string(*got),
+                                     both});
                     t.findings.push_back(FindingCode::PairResponseSizeMismatch);
                 }
                 if (!echo_matches(q, a)) {
-                    report(FindingCode::PairEchoMismatch, rsp,
-                           describe_request(q) + ": the response does not echo the request", both);
+                    found.push_back({FindingCode::PairEchoMismatch, &*t.response,
+                                     describe_request(q) + ": the response does not echo the request", both});
                     t.findings.push_back(FindingCode::PairEchoMismatch);
                 }
             }
         }
-        t.response = std::move(response);
     } else {
         t.timed_out = timed_out;
         ++stats.timeouts;
     }
     ++summary_.transactions;
     sink_.transaction(t);
+    for (auto& f : found)
+        report(f.code, *f.about, std::move(f.message), std::move(f.frames));
 }
 
 void Analyzer::expire(Timestamp now, bool at_end) {

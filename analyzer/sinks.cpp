@@ -56,9 +56,12 @@ json direction_json(Direction d) {
 }  // namespace
 
 std::string TextSink::time_of(Timestamp t) {
-    if (!first_) first_ = t;
+    // UTC time of day with microseconds: what a technician matches against other logs.
+    const auto us = std::chrono::duration_cast<std::chrono::microseconds>(t).count();
+    const long long day_us = ((us % 86'400'000'000LL) + 86'400'000'000LL) % 86'400'000'000LL;
     char buf[32];
-    std::snprintf(buf, sizeof buf, "%12.6f", seconds(t - *first_));
+    std::snprintf(buf, sizeof buf, "%02lld:%02lld:%02lld.%06lld", day_us / 3'600'000'000LL,
+                  day_us / 60'000'000 % 60, day_us / 1'000'000 % 60, day_us % 1'000'000);
     return buf;
 }
 

@@ -24,7 +24,6 @@ class TextSink : public Sink {
     std::string time_of(modbus::Timestamp t);
     std::ostream& out_;
     bool summary_only_;
-    std::optional<modbus::Timestamp> first_;
 };
 
 class JsonSink : public Sink {

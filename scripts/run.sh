@@ -18,6 +18,11 @@ case "${1:-demo}" in
     build release >/dev/null
     echo "== mbscope frame: the manuals' worked example frames, decoded field by field"
     ./build/release/cli/mbscope frame --file captures/manual-examples.txt
+    echo
+    echo "== mbscope decode: a public Modbus/TCP capture (captures/SOURCES.md), every transaction and fault"
+    rc=0
+    ./build/release/cli/mbscope decode captures/suricata-modbus.pcap || rc=$?
+    [ "$rc" -le 1 ]  # 1 means "faults found", which is what this capture is for
     ;;
   test)
     build release
