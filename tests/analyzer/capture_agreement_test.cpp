@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdio>
+#include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -96,6 +97,7 @@ class TsharkAgreement : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(TsharkAgreement, SameFramesAsTshark) {
     const std::string file = GetParam();
+    ASSERT_TRUE(std::ifstream(captures + file).good()) << captures + file << " is missing (../shared beside the checkout)";
     expect_same(file, ours(file), theirs(file, "", false));
 }
 
