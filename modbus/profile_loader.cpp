@@ -301,6 +301,11 @@ void parse_tables(Reader& r, const json& j, Tables& tables) {
         }
         TableSpec& spec = tables[idx(*table)];
         spec.present = true;
+        if (it->is_object() && it->contains("from")) {  // filled by the modular maps (Walchem)
+            if (r.string(*it, "from", ptr, true).value_or("") != "modular")
+                r.error(ptr + "/from", "the only source of a table's points is \"modular\"");
+            continue;
+        }
         if (it->is_object()) {
             auto same = r.string(*it, "same_as", ptr, true);
             if (same) {
