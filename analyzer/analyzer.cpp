@@ -200,6 +200,10 @@ void Analyzer::on_request(Flow& flow, FrameRecord r) {
     auto& stats = summary_.devices[r.device];
     ++stats.requests;
     if (r.pdu) ++stats.functions[r.pdu->function_code()];
+    if (options_.semantics && r.pdu)
+        if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id()))
+            for (auto& rule : options_.semantics->check_request(*profile, *r.pdu))
+                report(rule.code, r, rule.message);
     const PendingKey key{flow.id, pairing_id(r.frame)};
     if (auto it = pending_.find(key); it != pending_.end() && r.frame.framing != Framing::Tcp) {
         // The master moved on: the previous request was never answered.
@@ -379,6 +383,17 @@ void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bo
     } else {
         t.timed_out = timed_out;
         ++stats.timeouts;
+    }
+    if (options_.semantics && t.response && t.request.pdu && t.response->pdu) {
+        const std::string server = t.request.link.substr(t.request.link.find(" -> ") + 4);
+        if (const Profile* profile = options_.semantics->profile_for(server, t.request.frame.unit_id())) {
+            t.profile = profile;
+            t.values =
+                options_.semantics->values(*profile, t.request.device, *t.request.pdu, *t.response->pdu);
+            for (auto& rule : options_.semantics->check_response(*profile, *t.request.pdu, *t.response->pdu))
+                found.push_back(
+                    {rule.code, &*t.response, std::move(rule.message), {t.request.index, t.response->index}});
+        }
     }
     ++summary_.transactions;
     sink_.transaction(t);

@@ -14,6 +14,7 @@
 #include "analyzer/capture_source.hpp"
 #include "analyzer/packet_parser.hpp"
 #include "analyzer/records.hpp"
+#include "analyzer/semantics.hpp"
 #include "analyzer/tcp_reassembler.hpp"
 #include "modbus/tcp_deframer.hpp"
 
@@ -24,6 +25,7 @@ struct AnalyzerOptions {
     std::vector<std::uint16_t> udp_ports{502};
     modbus::Timestamp timeout = std::chrono::seconds(3);  // TCP default (issue 4; profile may override)
     std::size_t max_pending_per_flow = 1024;
+    std::shared_ptr<Semantics> semantics;  // device profiles; null: values stay raw
 };
 
 class Analyzer {

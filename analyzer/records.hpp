@@ -12,6 +12,7 @@
 
 #include "modbus/frame.hpp"
 #include "modbus/pdu.hpp"
+#include "modbus/profile.hpp"
 
 namespace mbscope::analyzer {
 
@@ -34,6 +35,8 @@ struct TransactionRecord {
     std::optional<modbus::Timestamp> latency;
     bool timed_out = false;
     std::vector<modbus::FindingCode> findings;
+    std::vector<modbus::NamedValue> values;  // with a profile: the values named in the device's terms
+    const modbus::Profile* profile = nullptr;
 };
 
 struct FindingRecord {

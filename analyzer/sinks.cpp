@@ -78,6 +78,17 @@ void TextSink::transaction(const TransactionRecord& t) {
     else
         out_ << "  -> " << (t.timed_out ? "no response" : "no response before the capture ended");
     out_ << '\n';
+    for (const auto& v : t.values) {
+        out_ << "                   " << v.address << "  ";
+        if (v.point)
+            out_ << (v.point->name_en.empty() ? v.point->name : v.point->name_en);
+        else
+            out_ << "(not in the map)";
+        out_ << " = " << v.text;
+        if (v.point && !v.point->unit.empty()) out_ << ' ' << v.point->unit;
+        if (v.partial) out_ << "  (partial)";
+        out_ << '\n';
+    }
 }
 
 void TextSink::finding(const FindingRecord& f) {
@@ -186,6 +197,20 @@ void JsonSink::transaction(const TransactionRecord& t) {
     if (!t.findings.empty()) {
         for (auto c : t.findings)
             j["findings"].push_back(std::string(to_string(c)));
+    }
+    if (t.profile) j["profile"] = t.profile->id;
+    for (const auto& v : t.values) {
+        json x{{"address", v.address}, {"raw", v.raw}, {"text", v.text}};
+        if (v.number) x["value"] = *v.number;
+        if (v.point) {
+            x["name"] = v.point->name;
+            if (!v.point->name_en.empty()) x["name_en"] = v.point->name_en;
+            if (!v.point->unit.empty()) x["unit"] = v.point->unit;
+        } else {
+            x["in_map"] = false;
+        }
+        if (v.partial) x["partial"] = true;
+        j["values"].push_back(std::move(x));
     }
     emit(std::move(j));
 }

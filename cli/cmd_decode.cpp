@@ -8,6 +8,8 @@
 #include "analyzer/analyzer.hpp"
 #include "analyzer/sinks.hpp"
 #include "cli/commands.hpp"
+#include "cli/profile_json.hpp"
+#include "modbus/storage/profile_store.hpp"
 
 namespace mbscope::cli {
 namespace {
@@ -18,8 +20,49 @@ struct DecodeOptions {
     std::vector<std::uint16_t> udp_ports;
     bool json = false, jsonl = false, summary = false;
     double timeout_s = 3.0;
-    std::string format = "auto";
+    std::string profile;
+    std::vector<std::string> maps;
+    std::vector<std::string> profile_dirs;
+    std::vector<std::string> config;
 };
+
+// --profile ID for every device, --map SELECTOR=ID per device (SELECTOR: UNIT, IP or IP:UNIT).
+bool load_semantics(const DecodeOptions& o, analyzer::AnalyzerOptions& options) {
+    if (o.profile.empty() && o.maps.empty()) return true;
+    modbus::storage::ProfileStore store(profile_directories(o.profile_dirs));
+    modbus::ProfileConfig config;
+    for (const auto& kv : o.config) {
+        const auto eq = kv.find('=');
+        if (eq == std::string::npos) {
+            std::cerr << "mbscope decode: --config takes CHANNEL=MAP, not '" << kv << "'\n";
+            return false;
+        }
+        config[kv.substr(0, eq)] = kv.substr(eq + 1);
+    }
+    auto semantics = std::make_shared<analyzer::Semantics>();
+    auto add = [&](const analyzer::DeviceSelector& selector, const std::string& id) {
+        auto p = store.load(id, config);
+        if (!p) {
+            for (const auto& e : p.error())
+                std::cerr << "mbscope decode: " << modbus::to_string(e) << '\n';
+            return false;
+        }
+        semantics->add(selector, std::make_shared<const modbus::Profile>(std::move(p.value())));
+        return true;
+    };
+    if (!o.profile.empty() && !add({}, o.profile)) return false;
+    for (const auto& m : o.maps) {
+        const auto eq = m.find('=');
+        auto selector = eq == std::string::npos ? std::nullopt : analyzer::parse_selector(m.substr(0, eq));
+        if (!selector) {
+            std::cerr << "mbscope decode: --map takes UNIT=ID, IP=ID or IP:UNIT=ID, not '" << m << "'\n";
+            return false;
+        }
+        if (!add(*selector, m.substr(eq + 1))) return false;
+    }
+    options.semantics = std::move(semantics);
+    return true;
+}
 
 int run_decode(const DecodeOptions& o) {
     analyzer::AnalyzerOptions options;
@@ -29,6 +72,7 @@ int run_decode(const DecodeOptions& o) {
         options.udp_ports.push_back(p);
     options.timeout =
         std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(o.timeout_s));
+    if (!load_semantics(o, options)) return exit_failure;
     std::unique_ptr<analyzer::Sink> sink;
     if (o.json || o.jsonl)
         sink = std::make_unique<analyzer::JsonSink>(std::cout, o.jsonl);
@@ -64,6 +108,10 @@ void register_decode(CLI::App& app, int& exit_code) {
     auto* jsonl = cmd->add_flag("--jsonl", o->jsonl,
                                 "One JSON object per line (frame, transaction, finding, unparsed, summary)");
     cmd->add_flag("--summary", o->summary, "Only the summary (the fastest path)");
+    cmd->add_option("--profile", o->profile, "Device profile for every device (see mbscope profile list)");
+    cmd->add_option("--map", o->maps, "Profile per device: UNIT=ID, IP=ID or IP:UNIT=ID (repeatable)");
+    cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");
+    cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");
     json->excludes(jsonl);
     cmd->footer(
         "Exit codes: 0 decoded with no error-severity finding, 1 faults found, 2 an input could not be "

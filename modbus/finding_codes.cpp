@@ -96,6 +96,20 @@ constexpr std::array findings{
                 "too many unanswered requests on one link: the oldest were given up", "capture"},
     FindingInfo{PairBroadcastResponse, "pair.broadcast_response", S::Error,
                 "a slave answered a broadcast (unit 0) request", "SL §2.1; 000:248, 285"},
+    FindingInfo{ProfileFunctionUnsupported, "profile.function_unsupported", S::Warning,
+                "request uses a function code the device's manual does not list", "device manual"},
+    FindingInfo{
+        ProfileQuantityAboveLimit, "profile.quantity_above_limit", S::Error,
+        "request asks for more than the device's manual allows (e.g. 16 registers where it allows 15)",
+        "device manual"},
+    FindingInfo{ProfileAddressUnknown, "profile.address_unknown", S::Warning,
+                "request addresses a point the device map does not have", "device manual"},
+    FindingInfo{ProfileValueOutOfRange, "profile.value_out_of_range", S::Error,
+                "write of a value outside the point's documented range or enumeration", "device manual"},
+    FindingInfo{ProfileWriteReadOnly, "profile.write_read_only", S::Error,
+                "write to a point the device's manual marks read-only", "device manual"},
+    FindingInfo{ProfileExceptionUnexpected, "profile.exception_unexpected", S::Warning,
+                "the device answered a request its map says is valid with an exception", "device manual"},
 };
 
 }  // namespace

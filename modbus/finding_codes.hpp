@@ -64,6 +64,13 @@ enum class FindingCode : std::uint16_t {
     PairExceptionResponse = 609,
     PairPendingOverflow = 610,
     PairBroadcastResponse = 611,
+    // profile: what the device's manual says, applied to traffic
+    ProfileFunctionUnsupported = 700,
+    ProfileQuantityAboveLimit = 701,
+    ProfileAddressUnknown = 702,
+    ProfileValueOutOfRange = 703,
+    ProfileWriteReadOnly = 704,
+    ProfileExceptionUnexpected = 705,
 };
 
 struct FindingInfo {

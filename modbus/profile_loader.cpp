@@ -7,7 +7,9 @@
 namespace mbscope::modbus {
 
 std::string to_string(const ProfileError& e) {
-    return e.file + (e.pointer.empty() ? "" : ": " + e.pointer) + ": " + e.message;
+    std::string where = e.file;
+    if (!e.pointer.empty()) where += (where.empty() ? "" : ": ") + e.pointer;
+    return where.empty() ? e.message : where + ": " + e.message;
 }
 
 namespace {

@@ -97,7 +97,8 @@ class TsharkAgreement : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(TsharkAgreement, SameFramesAsTshark) {
     const std::string file = GetParam();
-    ASSERT_TRUE(std::ifstream(captures + file).good()) << captures + file << " is missing (../shared beside the checkout)";
+    ASSERT_TRUE(std::ifstream(captures + file).good())
+        << captures + file << " is missing (../shared beside the checkout)";
     expect_same(file, ours(file), theirs(file, "", false));
 }
 

@@ -1,0 +1,212 @@
+#include "analyzer/semantics.hpp"
+
+#include <charconv>
+
+#include "modbus/addressing.hpp"
+
+namespace mbscope::analyzer {
+
+using namespace mbscope::modbus;
+
+std::optional<DeviceSelector> parse_selector(const std::string& text) {
+    DeviceSelector s;
+    auto number = [](std::string_view v) -> std::optional<int> {
+        int n = 0;
+        auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+        if (ec != std::errc() || p != v.data() + v.size() || n < 0 || n > 255) return std::nullopt;
+        return n;
+    };
+    if (text.find('.') == std::string::npos) {  // a unit id alone
+        auto u = number(text);
+        if (!u) return std::nullopt;
+        s.unit = *u;
+        return s;
+    }
+    const auto colon = text.rfind(':');
+    s.host = text.substr(0, colon);
+    if (colon != std::string::npos) {
+        auto u = number(std::string_view(text).substr(colon + 1));
+        if (!u) return std::nullopt;
+        s.unit = *u;
+    }
+    return s;
+}
+
+void Semantics::add(DeviceSelector selector, std::shared_ptr<const Profile> profile) {
+    maps_.emplace_back(std::move(selector), std::move(profile));
+}
+
+const Profile* Semantics::profile_for(const std::string& server, std::uint8_t unit) const {
+    const std::string host = server.substr(0, server.rfind(':'));
+    const Profile* best = nullptr;
+    int best_score = -1;
+    for (const auto& [sel, profile] : maps_) {
+        if (sel.host && *sel.host != host) continue;
+        if (sel.unit && *sel.unit != unit) continue;
+        const int score = (sel.host ? 1 : 0) + (sel.unit ? 2 : 0);
+        if (score > best_score) {
+            best = profile.get();
+            best_score = score;
+        }
+    }
+    return best;
+}
+
+namespace {
+
+struct Span {
+    Table table;
+    std::uint16_t start;
+    std::uint16_t quantity;
+};
+
+std::optional<Span> read_span(const Pdu& p) {
+    auto table = table_of_function(p.function_code());
+    if (!table) return std::nullopt;
+    if (const auto* r = std::get_if<ReadRequest>(&p.body))
+        return Span{*table, r->starting_address, r->quantity};
+    if (const auto* r = std::get_if<ReadWriteMultipleRequest>(&p.body))
+        return Span{Table::HoldingRegisters, r->read_starting_address, r->quantity_to_read};
+    return std::nullopt;
+}
+
+std::string point_name(const Point& p) {
+    return p.name_en.empty() ? p.name : p.name_en;
+}
+
+void check_write_value(const Profile& profile, Table table, std::uint16_t address, std::uint16_t value,
+                       std::vector<RuleBreak>& out) {
+    const Point* p = profile.find(table, address);
+    if (!p) {
+        out.push_back({FindingCode::ProfileAddressUnknown, std::string(to_string(table)) + " " +
+                                                               std::to_string(address) +
+                                                               " is not in the map of " + profile.id});
+        return;
+    }
+    if (p->access == Access::Read) {
+        out.push_back({FindingCode::ProfileWriteReadOnly, std::to_string(address) + " (" + point_name(*p) +
+                                                              ") is read-only [" + p->source + "]"});
+        return;
+    }
+    if (check_write(profile, table, address, value) == 3) {
+        const bool is_signed = p->encoding.type == EncodingType::S16 || p->encoding.is_signed;
+        const long long v = is_signed ? static_cast<std::int16_t>(value) : value;
+        out.push_back({FindingCode::ProfileValueOutOfRange,
+                       "writes " + std::to_string(v) + " to " + std::to_string(address) + " (" +
+                           point_name(*p) + "); the manual allows " +
+                           (p->range_text.empty() ? std::string("other values") : p->range_text) + " [" +
+                           p->source + "]"});
+    }
+}
+
+}  // namespace
+
+std::vector<RuleBreak> Semantics::check_request(const Profile& profile, const Pdu& q) const {
+    std::vector<RuleBreak> out;
+    const std::uint8_t fc = q.function_code();
+    if (!profile.functions.supports(fc)) {
+        out.push_back({FindingCode::ProfileFunctionUnsupported,
+                       "FC" + std::to_string(fc) + " is not among the functions of " + profile.id});
+        return out;
+    }
+    std::optional<std::uint16_t> quantity;
+    if (auto s = read_span(q)) quantity = s->quantity;
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body)) quantity = w->quantity;
+    if (const auto* w = std::get_if<WriteMultipleCoilsRequest>(&q.body)) quantity = w->quantity;
+    const int limit = profile.functions.max_for(fc);
+    if (quantity && limit > 0 && *quantity > limit)
+        out.push_back({FindingCode::ProfileQuantityAboveLimit,
+                       "FC" + std::to_string(fc) + " asks for " + std::to_string(*quantity) + "; " +
+                           profile.id + " allows at most " + std::to_string(limit)});
+    if (profile.open_address_space) return out;
+    if (auto s = read_span(q)) {
+        const std::uint32_t last = profile.functions.address_check == AddressCheck::First
+                                       ? s->start + 1u
+                                       : s->start + std::uint32_t{s->quantity};
+        for (std::uint32_t a = s->start; a < last && a <= 0xFFFF; ++a) {
+            const Point* p = profile.find(s->table, static_cast<std::uint16_t>(a));
+            if (!p || p->access == Access::Write) {
+                out.push_back({FindingCode::ProfileAddressUnknown,
+                               std::string(to_string(s->table)) + " " + std::to_string(a) +
+                                   (p ? " is write-only in the map of " : " is not in the map of ") +
+                                   profile.id});
+                break;
+            }
+        }
+    }
+    if (const auto* w = std::get_if<WriteSingle>(&q.body)) {
+        if (fc == 5)
+            check_write_value(profile, Table::Coils, w->address, w->value == 0xFF00 ? 1 : 0, out);
+        else
+            check_write_value(profile, Table::HoldingRegisters, w->address, w->value, out);
+    }
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body))
+        for (std::size_t i = 0; i < w->values.size(); ++i)
+            check_write_value(profile, Table::HoldingRegisters,
+                              static_cast<std::uint16_t>(w->starting_address + i), w->values[i], out);
+    if (const auto* w = std::get_if<WriteMultipleCoilsRequest>(&q.body))
+        for (std::size_t i = 0; i < w->quantity && i / 8 < w->values.size(); ++i)
+            check_write_value(profile, Table::Coils, static_cast<std::uint16_t>(w->starting_address + i),
+                              bit_at(w->values, i) ? 1 : 0, out);
+    return out;
+}
+
+std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const Pdu& q, const Pdu& a) const {
+    std::vector<RuleBreak> out;
+    if (!a.is_exception() || profile.open_address_space) return out;
+    const auto code = std::get<ExceptionResponse>(a.body).exception_code;
+    if (code == 1 && profile.functions.supports(q.function_code()))
+        out.push_back({FindingCode::ProfileExceptionUnexpected,
+                       "exception 1 (illegal function) to FC" + std::to_string(q.function_code()) +
+                           ", which " + profile.id + "'s manual lists as supported"});
+    if (code == 2 && check_request(profile, q).empty())
+        out.push_back(
+            {FindingCode::ProfileExceptionUnexpected,
+             "exception 2 (illegal data address) to a request whose addresses are all in the map of " +
+                 profile.id});
+    return out;
+}
+
+std::vector<NamedValue> Semantics::values(const Profile& profile, const std::string& device, const Pdu& q,
+                                          const Pdu& a) {
+    if (a.is_exception()) return {};
+    auto& seen = registers_[device];
+    auto remember = [&](std::uint16_t start, const std::vector<std::uint16_t>& words) {
+        for (std::size_t i = 0; i < words.size(); ++i)
+            seen[static_cast<std::uint16_t>(start + i)] = words[i];
+    };
+    if (auto s = read_span(q)) {
+        if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body)) {
+            remember(s->start, regs->values);
+            return decode_registers(profile, s->table, s->start, regs->values, seen);
+        }
+        if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) {
+            std::vector<NamedValue> out;
+            for (std::uint16_t i = 0; i < s->quantity && i / 8 < bits->values.size(); ++i) {
+                NamedValue v;
+                v.address = static_cast<std::uint16_t>(s->start + i);
+                v.point = profile.find(s->table, v.address);
+                const bool on = bit_at(bits->values, i);
+                v.raw = {static_cast<std::uint16_t>(on)};
+                v.number = on;
+                v.text = on ? "1" : "0";
+                if (v.point)
+                    for (const auto& ev : v.point->encoding.values)
+                        if (ev.value == on) v.text = ev.text_en.empty() ? ev.text : ev.text_en;
+                out.push_back(std::move(v));
+            }
+            return out;
+        }
+    }
+    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6) {
+        remember(w->address, {w->value});
+        return decode_registers(profile, Table::HoldingRegisters, w->address, {w->value}, seen);
+    }
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body)) {
+        remember(w->starting_address, w->values);
+        return decode_registers(profile, Table::HoldingRegisters, w->starting_address, w->values, seen);
+    }
+    return {};
+}
+
+}  // namespace mbscope::analyzer

@@ -1,0 +1,52 @@
+#pragma once
+// Device meaning for traffic: which profile describes which device (--profile for all, --map per unit or
+// address), the manual's rules applied to each request, and raw registers turned into named, scaled values.
+// Decimal-point registers seen in earlier replies are remembered per device so later values scale right.
+
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "modbus/finding_codes.hpp"
+#include "modbus/pdu.hpp"
+#include "modbus/profile.hpp"
+
+namespace mbscope::analyzer {
+
+struct DeviceSelector {
+    std::optional<std::string> host;  // IP address as printed ("10.0.0.3"); nullopt = any
+    std::optional<int> unit;          // nullopt = any
+};
+
+struct RuleBreak {
+    modbus::FindingCode code;
+    std::string message;
+};
+
+class Semantics {
+  public:
+    void add(DeviceSelector selector, std::shared_ptr<const modbus::Profile> profile);
+    bool empty() const noexcept { return maps_.empty(); }
+    // The most specific match: host and unit, then unit, then host, then the default.
+    const modbus::Profile* profile_for(const std::string& server, std::uint8_t unit) const;
+
+    // The manual's rules on a request: supported function, quantity limit, addresses, written values.
+    std::vector<RuleBreak> check_request(const modbus::Profile& profile, const modbus::Pdu& request) const;
+    // The response judged against the map (an exception where the map says the request is valid).
+    std::vector<RuleBreak> check_response(const modbus::Profile& profile, const modbus::Pdu& request,
+                                          const modbus::Pdu& response) const;
+    // Named values of a completed transaction (reads: the reply's values; writes: the values written).
+    std::vector<modbus::NamedValue> values(const modbus::Profile& profile, const std::string& device,
+                                           const modbus::Pdu& request, const modbus::Pdu& response);
+
+  private:
+    std::vector<std::pair<DeviceSelector, std::shared_ptr<const modbus::Profile>>> maps_;
+    std::map<std::string, std::map<std::uint16_t, std::uint16_t>> registers_;  // device → last values seen
+};
+
+// Parses "--map" keys: "17", "10.0.0.3", "10.0.0.3:17". nullopt when malformed.
+std::optional<DeviceSelector> parse_selector(const std::string& text);
+
+}  // namespace mbscope::analyzer

@@ -1,0 +1,190 @@
+// Device semantics in the analyzer, on the fixture profile tests/fixtures/profiles/test-device.json
+// (FC3/4/6/16, at most 15 registers; 17 decimal places 0..4, 18 flow scaled by 17 (read-only, m3/h),
+// 23 filter 0.0..25.0 s): each profile.* finding triggered, and silent on clean traffic.
+#include <gtest/gtest.h>
+
+#include "analyzer/analyzer.hpp"
+#include "modbus/adu.hpp"
+#include "modbus/storage/profile_store.hpp"
+
+namespace an = mbscope::analyzer;
+namespace mb = mbscope::modbus;
+using namespace std::chrono_literals;
+
+namespace {
+
+struct Collect : an::Sink {
+    std::vector<an::TransactionRecord> transactions;
+    std::vector<an::FindingRecord> findings;
+    void transaction(const an::TransactionRecord& t) override { transactions.push_back(t); }
+    void finding(const an::FindingRecord& f) override { findings.push_back(f); }
+    int count(mb::FindingCode c) const {
+        int n = 0;
+        for (const auto& f : findings)
+            n += f.code == c;
+        return n;
+    }
+};
+
+std::vector<std::uint8_t> ip_tcp(bool to_server, std::uint32_t seq,
+                                 const std::vector<std::uint8_t>& payload) {
+    std::vector<std::uint8_t> p;
+    const std::size_t total = 40 + payload.size();
+    p.insert(p.end(), {0x45, 0, static_cast<std::uint8_t>(total >> 8), static_cast<std::uint8_t>(total), 0, 1,
+                       0x40, 0, 64, 6, 0, 0});
+    const std::vector<std::uint8_t> a = {10, 0, 0, 1}, b = {10, 0, 0, 2};
+    const auto& src = to_server ? a : b;
+    const auto& dst = to_server ? b : a;
+    p.insert(p.end(), src.begin(), src.end());
+    p.insert(p.end(), dst.begin(), dst.end());
+    const std::uint16_t sp = to_server ? 40000 : 502, dp = to_server ? 502 : 40000;
+    p.insert(p.end(), {static_cast<std::uint8_t>(sp >> 8),
+                       static_cast<std::uint8_t>(sp),
+                       static_cast<std::uint8_t>(dp >> 8),
+                       static_cast<std::uint8_t>(dp),
+                       static_cast<std::uint8_t>(seq >> 24),
+                       static_cast<std::uint8_t>(seq >> 16),
+                       static_cast<std::uint8_t>(seq >> 8),
+                       static_cast<std::uint8_t>(seq),
+                       0,
+                       0,
+                       0,
+                       0,
+                       0x50,
+                       0x18,
+                       0xFF,
+                       0xFF,
+                       0,
+                       0,
+                       0,
+                       0});
+    p.insert(p.end(), payload.begin(), payload.end());
+    return p;
+}
+
+struct Harness {
+    Collect sink;
+    std::unique_ptr<an::Analyzer> analyzer;
+    std::uint32_t seq[2] = {1, 1};
+    std::uint64_t number = 0;
+    mb::Timestamp t = 1s;
+    std::uint16_t tid = 0;
+    Harness() {
+        mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/tests/fixtures/profiles"});
+        auto p = store.load("test-device");
+        EXPECT_TRUE(p.has_value());
+        an::AnalyzerOptions o;
+        o.semantics = std::make_shared<an::Semantics>();
+        o.semantics->add({}, std::make_shared<const mb::Profile>(std::move(p.value())));
+        analyzer = std::make_unique<an::Analyzer>(o, sink);
+    }
+    void send(bool to_server, const mb::Pdu& pdu) {
+        auto payload = mb::encode_tcp(tid, 1, mb::encode_pdu(pdu));
+        auto bytes = ip_tcp(to_server, seq[to_server ? 0 : 1], payload);
+        seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
+        an::Packet p;
+        p.number = ++number;
+        p.time = t += 1ms;
+        p.linktype = 101;
+        p.data = bytes;
+        analyzer->packet("test", p);
+    }
+    void exchange(const mb::Pdu& request, mb::Pdu response) {
+        ++tid;
+        response.direction = mb::Direction::Response;
+        send(true, request);
+        send(false, response);
+    }
+};
+
+const std::uint16_t fixture_values[] = {2, 1234};  // 17: two decimal places; 18: 12.34 m3/h
+
+}  // namespace
+
+TEST(Semantics, NamesAndScalesValuesWithNoFindingOnCleanTraffic) {
+    Harness h;
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 17, 2),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, fixture_values));
+    h.exchange(mb::make_write_single_register(23, 250), mb::make_write_single_register(23, 250));
+    h.analyzer->finish();
+    EXPECT_TRUE(h.sink.findings.empty()) << h.sink.findings[0].message;
+    ASSERT_EQ(h.sink.transactions.size(), 2u);
+    const auto& v = h.sink.transactions[0].values;
+    ASSERT_EQ(v.size(), 2u);
+    EXPECT_EQ(v[1].text, "12.34");
+    EXPECT_EQ(v[1].point->unit, "m3/h");
+    EXPECT_EQ(h.sink.transactions[1].values[0].text, "25.0");
+}
+
+TEST(Semantics, ScaleRegisterRememberedFromAnEarlierRead) {
+    Harness h;
+    const std::uint16_t scale[] = {3};
+    const std::uint16_t flow[] = {1234};
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 17, 1),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, scale));
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 18, 1),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, flow));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.transactions[1].values[0].text, "1.234");
+}
+
+TEST(Semantics, QuantityAboveTheManualsLimit) {
+    Harness h;
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 17, 16),
+               mb::make_exception(3, 3));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileQuantityAboveLimit), 1);
+}
+
+TEST(Semantics, FunctionTheManualDoesNotList) {
+    Harness h;
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadCoils, 0, 1), mb::make_exception(1, 1));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileFunctionUnsupported), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileExceptionUnexpected), 0);  // exception 1 is right here
+}
+
+TEST(Semantics, AddressTheMapDoesNotHave) {
+    Harness h;
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 30, 1),
+               mb::make_exception(3, 2));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileAddressUnknown), 1);
+}
+
+TEST(Semantics, ValueOutOfRangeAndReadOnlyWrites) {
+    Harness h;
+    h.exchange(mb::make_write_single_register(23, 251), mb::make_exception(6, 3));
+    h.exchange(mb::make_write_single_register(18, 1), mb::make_exception(6, 2));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileValueOutOfRange), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 1);
+    for (const auto& f : h.sink.findings) {
+        if (f.code == mb::FindingCode::ProfileValueOutOfRange) {
+            EXPECT_NE(f.message.find("0.0 a 25.0 segundos"), std::string::npos) << f.message;
+        }
+    }
+}
+
+TEST(Semantics, ExceptionToARequestTheMapSaysIsValid) {
+    Harness h;
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 17, 2),
+               mb::make_exception(3, 2));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileExceptionUnexpected), 1);
+}
+
+TEST(Semantics, SelectorsPickTheMostSpecificProfile) {
+    an::Semantics s;
+    auto a = std::make_shared<const mb::Profile>();
+    auto b = std::make_shared<const mb::Profile>();
+    auto c = std::make_shared<const mb::Profile>();
+    s.add({}, a);
+    s.add(*an::parse_selector("17"), b);
+    s.add(*an::parse_selector("10.0.0.3:17"), c);
+    EXPECT_EQ(s.profile_for("10.0.0.9:502", 1), a.get());
+    EXPECT_EQ(s.profile_for("10.0.0.9:502", 17), b.get());
+    EXPECT_EQ(s.profile_for("10.0.0.3:502", 17), c.get());
+    EXPECT_FALSE(an::parse_selector("x:y").has_value());
+    EXPECT_FALSE(an::parse_selector("300").has_value());
+}
