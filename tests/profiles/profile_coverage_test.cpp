@@ -1,0 +1,279 @@
+// The bundled device profiles against the manuals they were transcribed from (../shared/seeds):
+//  - every profile file loads without error, every model id resolves;
+//  - the number of points per section and table equals the rows the manual lists (inventory in
+//    ../shared/spec/manual-rules.md §7, recounted from the text), lost rows only as "reconstructed";
+//  - every transcribed point's name (and range text) stands on the manual line it cites.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "modbus/storage/profile_store.hpp"
+
+namespace fs = std::filesystem;
+namespace mb = mbscope::modbus;
+
+namespace {
+
+const fs::path profiles_dir = fs::path(MBSCOPE_SOURCE_DIR) / "profiles";
+const fs::path seeds_dir = fs::path(MBSCOPE_SOURCE_DIR) / ".." / "shared" / "seeds";
+
+const mb::storage::ProfileStore& store() {
+    static const mb::storage::ProfileStore s({profiles_dir.string()});
+    return s;
+}
+
+// All resolved models of one profile file, loaded once.
+const std::vector<mb::Profile>& file_profiles(const std::string& file) {
+    static std::map<std::string, std::vector<mb::Profile>> cache;
+    auto it = cache.find(file);
+    if (it == cache.end()) it = cache.emplace(file, mb::storage::load_profile_file(file).profiles).first;
+    return it->second;
+}
+
+std::string file_with_prefix(const std::string& dir, const std::string& prefix) {
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(profiles_dir / dir, ec))
+        if (e.path().filename().string().rfind(prefix, 0) == 0) return e.path().string();
+    return {};
+}
+
+struct Union {
+    std::set<std::uint16_t> listed, reconstructed, reserved;
+};
+
+Union union_of(const std::vector<mb::Profile>& models, mb::Table table) {
+    Union u;
+    for (const auto& p : models) {
+        if (p.same_as[static_cast<int>(table)]) continue;
+        for (const auto& pt : p.table(table)) {
+            if (pt.reconstructed)
+                u.reconstructed.insert(pt.address);
+            else if (pt.reserved)
+                u.reserved.insert(pt.address);
+            else
+                u.listed.insert(pt.address);
+        }
+    }
+    return u;
+}
+
+std::vector<std::string> seed_lines(const std::string& prefix) {
+    static std::map<std::string, std::vector<std::string>> cache;
+    auto it = cache.find(prefix);
+    if (it != cache.end()) return it->second;
+    std::vector<std::string> lines;
+    for (const auto& e : fs::directory_iterator(seeds_dir))
+        if (e.path().filename().string().rfind(prefix + "_", 0) == 0) {
+            std::ifstream in(e.path());
+            for (std::string l; std::getline(in, l);)
+                lines.push_back(l);
+        }
+    return cache[prefix] = lines;
+}
+
+// Text as compared: HTML tags, Markdown escapes and all white space removed, lower case (the manual's
+// "( <i>i</i> )" and the profile's "(i)" are the same text).
+std::string normal(const std::string& s) {
+    std::string out;
+    bool tag = false;
+    for (char c : s) {
+        if (c == '<') tag = true;
+        if (tag) {
+            if (c == '>') tag = false;
+            continue;
+        }
+        if (c == '\\' || c == '*') continue;
+        if (c == ' ' || c == '\t') continue;
+        out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    }
+    return out;
+}
+
+// "000:612" → 612; "000:612-615" → 612 and 615 (the end of the span).
+int line_of(const std::string& source) {
+    if (source.size() < 5) return 0;
+    return std::atoi(source.c_str() + 4);
+}
+int line_of_end(const std::string& source) {
+    const int first = line_of(source);
+    const auto dash = source.find('-', 4);
+    if (dash == std::string::npos) return first;
+    const int last = std::atoi(source.c_str() + dash + 1);
+    return last >= first && last - first < 40 ? last : first;
+}
+
+}  // namespace
+
+TEST(BundledProfiles, LoadWithoutErrors) {
+    for (const auto& e : store().errors())
+        ADD_FAILURE() << mb::to_string(e);
+    EXPECT_FALSE(store().entries().empty());
+}
+
+struct MkSection {
+    const char* prefix;
+    std::size_t registers, registers_lost, coils, coils_blank, coils_lost;
+};
+
+// manual-rules.md §7.1, checked against the text: rows with a description, lost rows, blank numbered coil
+// rows.
+constexpr MkSection mk_sections[] = {
+    {"3.08", 111, 0, 74, 5, 0},   {"3.09", 149, 1, 26, 0, 0},   {"3.10", 42, 0, 6, 0, 0},
+    {"3.11", 23, 0, 10, 0, 0},    {"3.12", 95, 0, 9, 0, 0},     {"3.13", 124, 0, 84, 4, 0},
+    {"3.14", 108, 0, 74, 7, 0},   {"3.15", 107, 0, 71, 5, 0},   {"3.16", 125, 54, 112, 0, 0},
+    {"3.17", 123, 0, 79, 0, 0},   {"3.18", 179, 54, 135, 0, 1}, {"3.19", 151, 0, 96, 0, 0},
+    {"3.20", 217, 54, 145, 0, 0}, {"3.21", 205, 0, 119, 0, 0},  {"3.22", 124, 0, 64, 5, 0},
+    {"3.23", 76, 0, 64, 5, 0},
+};
+
+class MkSectionCoverage : public ::testing::TestWithParam<MkSection> {};
+
+TEST_P(MkSectionCoverage, PointCountsMatchTheManualsRows) {
+    const auto& s = GetParam();
+    const auto file = file_with_prefix("mk", s.prefix);
+    ASSERT_FALSE(file.empty()) << "no profile file for MK section " << s.prefix;
+    const auto& models = file_profiles(file);
+    ASSERT_FALSE(models.empty()) << file;
+    const auto regs = union_of(models, mb::Table::HoldingRegisters);
+    const auto coils = union_of(models, mb::Table::Coils);
+    EXPECT_EQ(regs.listed.size(), s.registers) << file;
+    EXPECT_LE(regs.reconstructed.size(), s.registers_lost) << file;
+    EXPECT_EQ(coils.listed.size(), s.coils) << file;
+    EXPECT_EQ(coils.reserved.size(), s.coils_blank) << file;
+    EXPECT_LE(coils.reconstructed.size(), s.coils_lost) << file;
+}
+
+INSTANTIATE_TEST_SUITE_P(Manual000, MkSectionCoverage, ::testing::ValuesIn(mk_sections),
+                         [](const auto& info) {
+                             const std::string prefix = info.param.prefix;  // "3.08" → "Section3_08"
+                             return "Section" + prefix.substr(0, 1) + "_" + prefix.substr(2);
+                         });
+
+TEST(MkCoverage, TotalsOfTheManual) {
+    std::size_t regs = 0, coils = 0, blank = 0;
+    for (const auto& s : mk_sections) {
+        const auto file = file_with_prefix("mk", s.prefix);
+        if (file.empty()) continue;
+        regs += union_of(file_profiles(file), mb::Table::HoldingRegisters).listed.size();
+        const auto c = union_of(file_profiles(file), mb::Table::Coils);
+        coils += c.listed.size();
+        blank += c.reserved.size();
+    }
+    EXPECT_EQ(regs, 1959u);  // manual-rules.md §7.1 Σ
+    EXPECT_EQ(coils, 1168u);
+    EXPECT_EQ(blank, 31u);
+}
+
+TEST(MkCoverage, EveryModelNameResolves) {
+    // The 35 model names of file 000 (index 000:25-53 and the section headings).
+    for (const char* id :
+         {"mmk-2030",     "ty-2090",  "mmk-2030-f", "ty-2090-f",      "mmk-2032",     "dcy-2050",
+          "dcy-2051",     "dcy-2058", "dcy-2059",   "mmk-2030-light", "mmk-2030-tot", "mmk-2030-tot-f",
+          "dmy-2017",     "dmy-2011", "dmy-2011-f", "dmy-2035",       "dmy-2036",     "mmk-2030-tot-fcs",
+          "dmy-2031-fcs", "dmy-2030", "dmy-2032"})
+        EXPECT_NE(store().find(id), nullptr) << id;
+}
+
+TEST(CthCoverage, RegistersOfTheManual) {
+    // manual-rules.md §7.4: 123 holding registers 3999-4121, no coils, five reserved reading 0x55AA.
+    auto p = store().load("cth2265i");
+    ASSERT_TRUE(p.has_value());
+    const auto& regs = p->table(mb::Table::HoldingRegisters);
+    EXPECT_EQ(regs.size(), 123u);
+    EXPECT_TRUE(p->table(mb::Table::Coils).empty());
+    int fixed = 0;
+    for (const auto& pt : regs)
+        fixed += pt.fixed_value == 0x55AA;
+    EXPECT_EQ(fixed, 5);
+}
+
+TEST(WalchemCoverage, ControllersLoadWithTheirDefaultConfiguration) {
+    for (const char* id : {"walchem-w600", "walchem-w900", "walchem-intuition9"}) {
+        auto p = store().load(id);
+        ASSERT_TRUE(p.has_value()) << id << ": " << mb::to_string(p.error().front());
+        EXPECT_FALSE(p->configuration.empty()) << id;
+        EXPECT_GT(p->point_count(mb::Table::HoldingRegisters), 100u) << id;
+        EXPECT_EQ(p->functions.address_check, mb::AddressCheck::First) << id;
+    }
+}
+
+TEST(WalchemCoverage, TypeMapsMatchTheManualsFieldCounts) {
+    // manual-rules.md §7.3: 53 type-specific maps, 821 defined fields, 402 read-only and 419 read/write.
+    std::ifstream in(profiles_dir / "walchem" / "type-maps.json");
+    ASSERT_TRUE(in) << "profiles/walchem/type-maps.json";
+    auto j = nlohmann::json::parse(in);
+    std::size_t fields = 0, ro = 0, rw = 0;
+    std::map<std::string, std::size_t> by_type;
+    for (auto it = j["maps"].begin(); it != j["maps"].end(); ++it) {
+        if (it->value("alternative", false)) continue;
+        for (const auto& f : (*it)["fields"]) {
+            ++fields;
+            (f["access"] == "r" ? ro : rw)++;
+        }
+    }
+    EXPECT_EQ(fields, 821u);
+    EXPECT_EQ(ro, 402u);
+    EXPECT_EQ(rw, 419u);
+}
+
+TEST(BundledProfiles, EveryPointStandsOnTheLineItCites) {
+    // Field-by-field check of every transcribed point against the manual: the cited line holds the point's
+    // name and, where the profile quotes it, its range text. Reconstructed points cite no row of their own.
+    std::size_t checked = 0;
+    std::vector<std::string> mismatches;
+    std::set<std::string> files;
+    for (const auto& e : store().entries())
+        files.insert(e.file);
+    for (const auto& file : files) {
+        for (const auto& p : file_profiles(file)) {
+            for (auto table : {mb::Table::Coils, mb::Table::HoldingRegisters}) {
+                if (p.same_as[static_cast<int>(table)]) continue;
+                for (const auto& pt : p.table(table)) {
+                    if (pt.reconstructed || pt.source.size() < 5 || pt.source[3] != ':') continue;
+                    const std::string prefix = pt.source.substr(0, 3);
+                    const auto dash = pt.source.find_first_of("-,; ", 4);
+                    const int line = std::atoi(
+                        pt.source.substr(4, dash == std::string::npos ? std::string::npos : dash - 4)
+                            .c_str());
+                    const auto lines = seed_lines(prefix);
+                    ASSERT_FALSE(lines.empty()) << "seed " << prefix << " not found in " << seeds_dir;
+                    if (line < 1 || line > static_cast<int>(lines.size())) {
+                        mismatches.push_back(file + ": " + pt.source + " is not a line of the manual");
+                        continue;
+                    }
+                    const std::string text = normal(lines[static_cast<std::size_t>(line - 1)]);
+                    std::string name = pt.name;
+                    if (auto colon = name.find(": ");
+                        colon != std::string::npos && p.family.find("walchem") != std::string::npos)
+                        name = name.substr(colon + 2);  // modular maps prefix the channel id
+                    ++checked;
+                    if (text.find(normal(name)) == std::string::npos)
+                        mismatches.push_back(file + " " + p.id + " " + std::string(mb::to_string(table)) +
+                                             " " + std::to_string(pt.address) + ": name \"" + pt.name +
+                                             "\" not on " + pt.source);
+                    else if (!pt.range_text.empty() && prefix != "002") {
+                        // a model override's range text stands on the footnote it cites
+                        const std::string where = pt.range_source.empty() ? pt.source : pt.range_source;
+                        std::string lines_text;
+                        for (int l = line_of(where);
+                             l > 0 && l <= line_of_end(where) && l <= static_cast<int>(lines.size()); ++l)
+                            lines_text += normal(lines[static_cast<std::size_t>(l - 1)]);
+                        if (lines_text.find(normal(pt.range_text)) == std::string::npos)
+                            mismatches.push_back(file + " " + p.id + " " + std::string(mb::to_string(table)) +
+                                                 " " + std::to_string(pt.address) + ": range \"" +
+                                                 pt.range_text + "\" not on " + where);
+                    }
+                }
+            }
+        }
+    }
+    EXPECT_GT(checked, 3000u);
+    for (std::size_t i = 0; i < std::min<std::size_t>(mismatches.size(), 40); ++i)
+        ADD_FAILURE() << mismatches[i];
+    EXPECT_TRUE(mismatches.empty()) << mismatches.size() << " points do not match their cited line";
+}
