@@ -277,3 +277,89 @@ TEST(BundledProfiles, EveryPointStandsOnTheLineItCites) {
         ADD_FAILURE() << mismatches[i];
     EXPECT_TRUE(mismatches.empty()) << mismatches.size() << " points do not match their cited line";
 }
+
+// Field by field against the cited line, for every transcribed point: what the line says about access and
+// encoding must be what the profile says.
+//  - MK (000): "Somente leitura" → read-only (unless conditional); a range with a decimal point (0.0 a 25.0)
+//  → fixed with that
+//    many decimals; a negative lower bound → signed.
+//  - CTH2265I (003): the Função column "Leitura" → read-only, "Leitura / Escrita" → read/write.
+//  - Walchem (002): "Leitura" → read-only, "Leitura/ Gravação" → read/write; "Flutuante de 32 bits" → f32,
+//    "Inteiro de 32 bits" → a 32-bit integer.
+TEST(BundledProfiles, AccessAndEncodingAgreeWithTheCitedLine) {
+    std::size_t checked = 0;
+    std::vector<std::string> mismatches;
+    std::set<std::string> files;
+    for (const auto& e : store().entries())
+        files.insert(e.file);
+    for (const auto& file : files) {
+        const auto& models = file_profiles(file);
+        if (models.empty()) continue;
+        const auto& p = models.front();
+        for (auto table : {mb::Table::Coils, mb::Table::HoldingRegisters}) {
+            if (p.same_as[static_cast<int>(table)]) continue;
+            for (const auto& pt : p.table(table)) {
+                if (pt.reconstructed || pt.source.size() < 5 || pt.source[3] != ':') continue;
+                const std::string prefix = pt.source.substr(0, 3);
+                const auto lines = seed_lines(prefix);
+                const int n = line_of(pt.source);
+                if (n < 1 || n > static_cast<int>(lines.size())) continue;
+                const std::string& raw = lines[static_cast<std::size_t>(n - 1)];
+                auto bad = [&](const std::string& what) {
+                    mismatches.push_back(file + " " + std::string(mb::to_string(table)) + " " +
+                                         std::to_string(pt.address) + ": " + what + " (" + pt.source + ")");
+                };
+                ++checked;
+                using A = mb::Access;
+                using E = mb::EncodingType;
+                if (prefix == "000" && table == mb::Table::HoldingRegisters) {
+                    // "Somente leitura para modo …" / "… se …" is conditional (MK-RO-02): read/write with a
+                    // note
+                    const auto ro = raw.find("Somente leitura");
+                    const bool conditional =
+                        ro != std::string::npos &&
+                        (raw.compare(ro + 15, 5, " para") == 0 || raw.compare(ro + 15, 4, " se ") == 0);
+                    if (ro != std::string::npos && !conditional && pt.access != A::Read)
+                        bad("line says read-only");
+                    // "0.0 a 25.0": the number of decimals after the point in the range text
+                    const auto& rt = pt.range_text;
+                    const auto dot = rt.find('.');
+                    if (dot != std::string::npos && dot > 0 &&
+                        std::isdigit(static_cast<unsigned char>(rt[dot - 1])) && dot + 1 < rt.size() &&
+                        std::isdigit(static_cast<unsigned char>(rt[dot + 1]))) {
+                        int decimals = 0;
+                        for (std::size_t k = dot + 1;
+                             k < rt.size() && std::isdigit(static_cast<unsigned char>(rt[k])); ++k)
+                            ++decimals;
+                        const bool fixed = pt.encoding.type == E::Fixed ||
+                                           pt.encoding.type == E::Digits4High ||
+                                           pt.encoding.type == E::Digits4Low;
+                        if (!fixed || pt.encoding.decimals != decimals)
+                            bad("range \"" + rt + "\" has " + std::to_string(decimals) + " fixed decimals");
+                    }
+                    if (!rt.empty() && rt[0] == '-' && pt.min && *pt.min >= 0)
+                        bad("range \"" + rt + "\" is signed");
+                }
+                if (prefix == "003") {
+                    const bool rw = raw.find("Leitura / Escrita") != std::string::npos;
+                    if (rw != (pt.access == A::ReadWrite))
+                        bad(rw ? "line says read/write" : "line says read-only");
+                }
+                if (prefix == "002") {
+                    const bool rw = raw.find("Grava") != std::string::npos;
+                    if (raw.find("Leitura") != std::string::npos && rw != (pt.access != A::Read))
+                        bad(rw ? "line says read/write" : "line says read-only");
+                    if (raw.find("Flutuante de 32 bits") != std::string::npos && pt.encoding.type != E::F32)
+                        bad("line says float32");
+                    if (raw.find("Inteiro de 32 bits") != std::string::npos && pt.encoding.type != E::S32 &&
+                        pt.encoding.type != E::U32)
+                        bad("line says 32-bit integer");
+                }
+            }
+        }
+    }
+    EXPECT_GT(checked, 4000u);
+    for (std::size_t i = 0; i < std::min<std::size_t>(mismatches.size(), 30); ++i)
+        ADD_FAILURE() << mismatches[i];
+    EXPECT_TRUE(mismatches.empty()) << mismatches.size() << " points disagree with their line";
+}
