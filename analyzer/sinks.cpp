@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "modbus/describe.hpp"
+#include "modbus/profile_json.hpp"
 
 namespace mbscope::analyzer {
 
@@ -199,19 +200,8 @@ void JsonSink::transaction(const TransactionRecord& t) {
             j["findings"].push_back(std::string(to_string(c)));
     }
     if (t.profile) j["profile"] = t.profile->id;
-    for (const auto& v : t.values) {
-        json x{{"address", v.address}, {"raw", v.raw}, {"text", v.text}};
-        if (v.number) x["value"] = *v.number;
-        if (v.point) {
-            x["name"] = v.point->name;
-            if (!v.point->name_en.empty()) x["name_en"] = v.point->name_en;
-            if (!v.point->unit.empty()) x["unit"] = v.point->unit;
-        } else {
-            x["in_map"] = false;
-        }
-        if (v.partial) x["partial"] = true;
-        j["values"].push_back(std::move(x));
-    }
+    for (const auto& v : t.values)
+        j["values"].push_back(named_value_to_json(v));
     emit(std::move(j));
 }
 

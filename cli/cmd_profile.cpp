@@ -230,7 +230,7 @@ int run_lookup(const ProfileOptions& o) {
         return exit_findings;
     }
     if (o.json) {
-        std::cout << point_to_json(*pt).dump(2) << '\n';
+        std::cout << modbus::point_to_json(*pt).dump(2) << '\n';
         return exit_ok;
     }
     std::cout << p->id << " " << to_string(*table) << " " << pt->address
@@ -271,7 +271,7 @@ int run_decode(const ProfileOptions& o) {
     if (o.json) {
         auto a = nlohmann::json::array();
         for (const auto& v : values)
-            a.push_back(named_value_to_json(v));
+            a.push_back(modbus::named_value_to_json(v));
         std::cout << a.dump(2) << '\n';
     } else {
         for (const auto& v : values) {

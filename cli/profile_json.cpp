@@ -12,47 +12,6 @@ namespace mbscope::cli {
 using namespace mbscope::modbus;
 using json = nlohmann::json;
 
-json point_to_json(const Point& p) {
-    json j{{"table", std::string(to_string(p.table))},
-           {"address", p.address},
-           {"name", p.name},
-           {"access", std::string(to_string(p.access))},
-           {"source", p.source}};
-    if (!p.name_en.empty()) j["name_en"] = p.name_en;
-    if (!p.mnemonic.empty()) j["mnemonic"] = p.mnemonic;
-    json e{{"type", std::string(to_string(p.encoding.type))}};
-    if (p.encoding.decimals) e["decimals"] = p.encoding.decimals;
-    if (p.encoding.is_signed) e["signed"] = true;
-    if (p.encoding.words == 2) {
-        e["words"] = 2;
-        e["word_order"] = std::string(to_string(p.encoding.word_order));
-    }
-    if (p.encoding.decimals_from)
-        e["decimals_from"] = {{"table", std::string(to_string(p.encoding.decimals_from->table))},
-                              {"address", p.encoding.decimals_from->address}};
-    if (p.encoding.pair) e["pair"] = *p.encoding.pair;
-    for (const auto& v : p.encoding.values) {
-        json x{{"value", v.value}, {"text", v.text}};
-        if (!v.text_en.empty()) x["text_en"] = v.text_en;
-        e["values"].push_back(x);
-    }
-    for (const auto& b : p.encoding.bits)
-        e["bits"].push_back({{"bit", b.bit}, {"name", b.name}, {"name_en", b.name_en}});
-    if (!p.encoding.allowed.empty()) e["allowed"] = p.encoding.allowed;
-    if (!p.encoding.expr.empty()) e["expr"] = p.encoding.expr;
-    j["encoding"] = e;
-    if (p.min) j["range"]["min"] = *p.min;
-    if (p.max) j["range"]["max"] = *p.max;
-    if (!p.range_text.empty()) j["range_text"] = p.range_text;
-    if (!p.unit.empty()) j["unit"] = p.unit;
-    if (p.fixed_value) j["fixed_value"] = *p.fixed_value;
-    if (p.reserved) j["reserved"] = true;
-    if (p.reconstructed) j["reconstructed"] = true;
-    if (!p.notes.empty()) j["notes"] = p.notes;
-    if (!p.ref.empty()) j["ref"] = p.ref;
-    return j;
-}
-
 json profile_to_json(const Profile& p) {
     json j{{"id", p.id},         {"name", p.name},   {"aliases", p.aliases}, {"family", p.family},
            {"vendor", p.vendor}, {"title", p.title}, {"file", p.file},       {"source", p.source}};
@@ -77,24 +36,10 @@ json profile_to_json(const Profile& p) {
         }
         j["tables"][name] = json::array();
         for (const auto& pt : p.table(t))
-            j["tables"][name].push_back(point_to_json(pt));
+            j["tables"][name].push_back(modbus::point_to_json(pt));
     }
     for (const auto& n : p.notes)
         j["notes"].push_back({{"text", n.text}, {"source", n.source}, {"kind", n.kind}});
-    return j;
-}
-
-json named_value_to_json(const NamedValue& v) {
-    json j{{"address", v.address}, {"raw", v.raw}, {"text", v.text}};
-    if (v.number) j["value"] = *v.number;
-    if (v.point) {
-        j["name"] = v.point->name;
-        if (!v.point->name_en.empty()) j["name_en"] = v.point->name_en;
-        if (!v.point->unit.empty()) j["unit"] = v.point->unit;
-    } else {
-        j["in_map"] = false;
-    }
-    if (v.partial) j["partial"] = true;
     return j;
 }
 

@@ -6,12 +6,11 @@
 #include <vector>
 
 #include "modbus/profile.hpp"
+#include "modbus/profile_json.hpp"
 
 namespace mbscope::cli {
 
-nlohmann::json point_to_json(const modbus::Point& p);
 nlohmann::json profile_to_json(const modbus::Profile& p);
-nlohmann::json named_value_to_json(const modbus::NamedValue& v);
 
 // --profile-dir entries, then $MBSCOPE_PROFILE_PATH, then the installed profiles (next to the binary:
 // ../share/mbscope/profiles), else the source tree's profiles/ (running from a build directory).

@@ -6,61 +6,15 @@
 #include "analyzer/analyzer.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/storage/profile_store.hpp"
+#include "test_packets.hpp"
 
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
 
+using mbscope::test::Collect;
+
 namespace {
-
-struct Collect : an::Sink {
-    std::vector<an::TransactionRecord> transactions;
-    std::vector<an::FindingRecord> findings;
-    void transaction(const an::TransactionRecord& t) override { transactions.push_back(t); }
-    void finding(const an::FindingRecord& f) override { findings.push_back(f); }
-    int count(mb::FindingCode c) const {
-        int n = 0;
-        for (const auto& f : findings)
-            n += f.code == c;
-        return n;
-    }
-};
-
-std::vector<std::uint8_t> ip_tcp(bool to_server, std::uint32_t seq,
-                                 const std::vector<std::uint8_t>& payload) {
-    std::vector<std::uint8_t> p;
-    const std::size_t total = 40 + payload.size();
-    p.insert(p.end(), {0x45, 0, static_cast<std::uint8_t>(total >> 8), static_cast<std::uint8_t>(total), 0, 1,
-                       0x40, 0, 64, 6, 0, 0});
-    const std::vector<std::uint8_t> a = {10, 0, 0, 1}, b = {10, 0, 0, 2};
-    const auto& src = to_server ? a : b;
-    const auto& dst = to_server ? b : a;
-    p.insert(p.end(), src.begin(), src.end());
-    p.insert(p.end(), dst.begin(), dst.end());
-    const std::uint16_t sp = to_server ? 40000 : 502, dp = to_server ? 502 : 40000;
-    p.insert(p.end(), {static_cast<std::uint8_t>(sp >> 8),
-                       static_cast<std::uint8_t>(sp),
-                       static_cast<std::uint8_t>(dp >> 8),
-                       static_cast<std::uint8_t>(dp),
-                       static_cast<std::uint8_t>(seq >> 24),
-                       static_cast<std::uint8_t>(seq >> 16),
-                       static_cast<std::uint8_t>(seq >> 8),
-                       static_cast<std::uint8_t>(seq),
-                       0,
-                       0,
-                       0,
-                       0,
-                       0x50,
-                       0x18,
-                       0xFF,
-                       0xFF,
-                       0,
-                       0,
-                       0,
-                       0});
-    p.insert(p.end(), payload.begin(), payload.end());
-    return p;
-}
 
 struct Harness {
     Collect sink;
@@ -80,7 +34,7 @@ struct Harness {
     }
     void send(bool to_server, const mb::Pdu& pdu) {
         auto payload = mb::encode_tcp(tid, 1, mb::encode_pdu(pdu));
-        auto bytes = ip_tcp(to_server, seq[to_server ? 0 : 1], payload);
+        auto bytes = mbscope::test::packet(to_server, seq[to_server ? 0 : 1], payload);
         seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
         an::Packet p;
         p.number = ++number;
