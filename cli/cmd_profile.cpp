@@ -155,7 +155,7 @@ int run_show(const ProfileOptions& o) {
             std::string name = pt.name_en.empty() ? pt.name : pt.name_en;
             if (name.size() > 44) name = name.substr(0, 43) + "…";
             std::string enc(to_string(pt.encoding.type));
-            if (pt.encoding.type == EncodingType::Fixed) enc += "/" + std::to_string(pt.encoding.decimals);
+            if (pt.encoding.decimals) enc += "/" + std::to_string(pt.encoding.decimals);
             if (pt.encoding.words == 2) enc += " " + std::string(to_string(pt.encoding.word_order));
             std::string range = range_of(pt);
             if (pt.fixed_value) range += " reads " + hex16(*pt.fixed_value);
