@@ -204,6 +204,14 @@ void Analyzer::on_request(Flow& flow, FrameRecord r) {
         if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id()))
             for (auto& rule : options_.semantics->check_request(*profile, *r.pdu))
                 report(rule.code, r, rule.message);
+    if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
+        ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
+        TransactionRecord t;
+        t.request = std::move(r);
+        t.broadcast = true;
+        sink_.transaction(t);
+        return;
+    }
     const PendingKey key{flow.id, pairing_id(r.frame)};
     if (auto it = pending_.find(key); it != pending_.end() && r.frame.framing != Framing::Tcp) {
         // The master moved on: the previous request was never answered.
@@ -240,7 +248,9 @@ void Analyzer::on_request(Flow& flow, FrameRecord r) {
         }
     }
     const std::uint64_t serial = ++next_serial_;
-    expiries_.push_back({r.time + options_.timeout, key, serial});
+    const Timestamp timeout = r.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
+    // an untimed capture (raw dump) has no clock: its requests expire only when the master moves on
+    expiries_.push_back({r.time.count() ? r.time + timeout : Timestamp::max(), key, serial});
     pending_[key] = Pending{std::move(r), serial};
     ++flow.pending;
 }
@@ -288,6 +298,11 @@ std::string describe_request(const Pdu& p) {
 }  // namespace
 
 void Analyzer::on_response(Flow& flow, FrameRecord r) {
+    if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
+        report(FindingCode::PairBroadcastResponse, r,
+               "a response carries unit 0: no slave may answer a broadcast");
+        return;
+    }
     const PendingKey key{flow.id, pairing_id(r.frame)};
     auto it = pending_.find(key);
     if (it == pending_.end()) {
@@ -331,8 +346,10 @@ void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bo
         t.response = std::move(response);
         const FrameRecord& rsp = *t.response;
         ++stats.responses;
-        t.latency = rsp.time - t.request.time;
-        stats.latency.add(*t.latency);
+        if (rsp.time.count() && t.request.time.count()) {  // raw dumps carry no time: no latency either
+            t.latency = rsp.time - t.request.time;
+            stats.latency.add(*t.latency);
+        }
         const std::vector<std::uint64_t> both{t.request.index, rsp.index};
         if (rsp.frame.unit_id() != t.request.frame.unit_id()) {
             found.push_back({FindingCode::PairUnitMismatch, &*t.response,
@@ -421,11 +438,129 @@ void Analyzer::expire(Timestamp now, bool at_end) {
             report(FindingCode::PairNoResponse, p.request,
                    (p.request.pdu ? describe_request(*p.request.pdu) : std::string("request")) + " to " +
                        p.request.device + " got no response within " +
-                       std::to_string(
-                           std::chrono::duration_cast<std::chrono::milliseconds>(options_.timeout).count()) +
+                       std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                          p.request.frame.framing == Framing::Tcp ? options_.timeout
+                                                                                  : options_.serial_timeout)
+                                          .count()) +
                        " ms");
         complete(std::move(p), std::nullopt, !ended);
     }
+}
+
+// ---------------------------------------------------------------- serial lines
+
+struct Analyzer::SerialLink {
+    Flow* flow = nullptr;
+    std::unique_ptr<RtuDeframer> untimed;
+    std::unique_ptr<RtuTimedDeframer> timed;
+    std::unique_ptr<AsciiDeframer> ascii;
+    Direction hint = Direction::Unknown;
+};
+
+Analyzer::SerialLink& Analyzer::serial_link(const std::string& source) {
+    auto& slot = serial_links_[source];
+    if (!slot) {
+        slot = std::make_unique<SerialLink>();
+        auto& flow = flows_["serial " + source];
+        flow = std::make_unique<Flow>();
+        flow->id = ++next_flow_;
+        flow->link = "serial " + source;
+        flow->server = "serial";
+        flow->transport = Transport::Udp;  // no TCP reassembly
+        slot->flow = flow.get();
+    }
+    return *slot;
+}
+
+Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
+    const auto pdu = frame.pdu();
+    auto request = decode_request(pdu);
+    auto response = decode_response(pdu);
+    const bool req_clean = request && request->violations.empty();
+    const bool rsp_ok = response.has_value();
+    if (auto it = pending_.find({flow.id, 0}); it != pending_.end()) {
+        // A request is outstanding: this is its response if it comes from that unit with that function
+        // (or its exception); otherwise the master has moved on.
+        const FrameRecord& q = it->second.request;
+        if (rsp_ok && frame.unit_id() == q.frame.unit_id() && q.pdu &&
+            response->function_code() == q.pdu->function_code())
+            return Direction::Response;
+        return req_clean ? Direction::Request : (rsp_ok ? Direction::Response : Direction::Request);
+    }
+    if (req_clean) return Direction::Request;
+    if (rsp_ok && response->violations.empty()) return Direction::Response;
+    return Direction::Request;
+}
+
+void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp t) {
+    Flow& flow = *link.flow;
+    for (auto& e : events) {
+        if (auto* u = std::get_if<Unparsed>(&e)) {
+            summary_.unparsed_bytes += u->length;
+            const Timestamp when = u->time.count() ? u->time : t;
+            sink_.unparsed(
+                UnparsedRecord{source_, flow.link, link.hint, when, 0, u->offset, u->length, u->reason});
+            FrameRecord about;
+            about.time = when;
+            about.source = source_;
+            about.link = flow.link;
+            report(FindingCode::StreamUnparsedBytes, about,
+                   std::to_string(u->length) + " bytes at offset " + std::to_string(u->offset) +
+                       " formed no frame (" + std::string(to_string(u->reason)) + ")");
+            continue;
+        }
+        Frame& frame = std::get<Frame>(e);
+        FrameRecord r;
+        r.index = ++next_frame_;
+        r.time = frame.end.count() ? frame.end : t;
+        if (r.time > now_) now_ = r.time;
+        r.source = source_;
+        r.link = flow.link;
+        r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
+        r.frame = frame;
+        r.device = flow.link + " unit " + std::to_string(frame.unit_id());
+        auto pdu = decode_pdu(r.frame.pdu(), r.direction);
+        if (pdu)
+            r.pdu = std::move(pdu.value());
+        else
+            r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
+                      std::to_string(pdu.error().offset);
+        if (frame.framing == Framing::Rtu && !frame.checksum_ok) ++summary_.devices[r.device].checksum_errors;
+        expire(now_, false);
+        on_frame(flow, std::move(r));
+    }
+    events.clear();
+}
+
+void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> bytes, Timestamp received,
+                      Direction hint) {
+    source_ = source;
+    SerialLink& link = serial_link(source);
+    DeframeEvents events;
+    if (hint != link.hint) {
+        // The other side is talking now: whatever the line held before is complete, and belongs to the
+        // direction it was captured in.
+        if (link.timed) link.timed->advance(Timestamp::max(), events);
+        if (link.untimed) link.untimed->finish(events);
+        if (link.ascii) link.ascii->finish(events);
+        serial_events(link, events, received);
+        link.hint = hint;
+    }
+    if (options_.serial_framing == Framing::Ascii) {
+        if (!link.ascii) link.ascii = std::make_unique<AsciiDeframer>();
+        link.ascii->feed(bytes, received, events);
+    } else if (received.count()) {
+        if (!link.timed) link.timed = std::make_unique<RtuTimedDeframer>(options_.serial_line);
+        // a direction change ends the frame in progress: close it before these bytes
+        link.timed->advance(
+            received - options_.serial_line.character_time() * static_cast<std::int64_t>(bytes.size()),
+            events);
+        link.timed->feed(bytes, received, events);
+    } else {
+        if (!link.untimed) link.untimed = std::make_unique<RtuDeframer>();
+        link.untimed->feed(bytes, events);
+    }
+    serial_events(link, events, received);
 }
 
 bool Analyzer::read_capture(CaptureSource& capture) {
@@ -457,6 +592,14 @@ void Analyzer::finish() {
             f->deframer[dir].finish(events);
             deframed(*f, dir == 0, events, now_);
         }
+    }
+    for (auto& [name, link] : serial_links_) {
+        source_ = name;
+        DeframeEvents events;
+        if (link->untimed) link->untimed->finish(events);
+        if (link->timed) link->timed->finish(events);
+        if (link->ascii) link->ascii->finish(events);
+        serial_events(*link, events, now_);
     }
     expire(now_, true);
     sink_.end(summary_);

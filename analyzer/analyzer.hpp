@@ -16,6 +16,8 @@
 #include "analyzer/records.hpp"
 #include "analyzer/semantics.hpp"
 #include "analyzer/tcp_reassembler.hpp"
+#include "modbus/ascii_deframer.hpp"
+#include "modbus/rtu_deframer.hpp"
 #include "modbus/tcp_deframer.hpp"
 
 namespace mbscope::analyzer {
@@ -26,6 +28,10 @@ struct AnalyzerOptions {
     modbus::Timestamp timeout = std::chrono::seconds(3);  // TCP default (issue 4; profile may override)
     std::size_t max_pending_per_flow = 1024;
     std::shared_ptr<Semantics> semantics;  // device profiles; null: values stay raw
+    // Serial lines: framing, character format (t1.5/t3.5 when timestamps are known) and response timeout.
+    modbus::Framing serial_framing = modbus::Framing::Rtu;
+    modbus::SerialLine serial_line{};
+    modbus::Timestamp serial_timeout = std::chrono::seconds(1);  // issue 4: 1 s serial default
 };
 
 class Analyzer {
@@ -34,11 +40,17 @@ class Analyzer {
     ~Analyzer();
 
     void packet(const std::string& source, const Packet& packet);
+    // Bytes seen on a half-duplex serial line, in order. `received`: when the chunk's last byte ended (zero
+    // when the capture has no timing); `hint`: the direction when the capture knows it (two ports, a
+    // direction column), else Unknown and the request → expected-response state machine decides.
+    void serial(const std::string& source, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
+                modbus::Direction hint = modbus::Direction::Unknown);
     // Reads a whole capture file; returns false (and records the error in the summary) if it could not be
     // read to its end. Everything before the damage is still analysed.
     bool read_capture(const std::string& path);
     bool read_capture(CaptureSource& capture);
     void input_error(const std::string& message) { summary_.input_errors.push_back(message); }
+    void set_serial_framing(modbus::Framing framing) noexcept { options_.serial_framing = framing; }
     void finish();
     const Summary& summary() const noexcept { return summary_; }
 
@@ -67,6 +79,10 @@ class Analyzer {
     Flow& flow_for(const L4Packet& l4, bool& to_server);
     void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);
     void on_frame(Flow& flow, FrameRecord record);
+    struct SerialLink;
+    SerialLink& serial_link(const std::string& source);
+    void serial_events(SerialLink& link, modbus::DeframeEvents& events, modbus::Timestamp t);
+    modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
     void on_request(Flow& flow, FrameRecord record);
     void on_response(Flow& flow, FrameRecord record);
     void complete(Pending pending, std::optional<FrameRecord> response, bool timed_out);
@@ -79,6 +95,7 @@ class Analyzer {
     Sink& sink_;
     Summary summary_;
     std::map<std::string, std::unique_ptr<Flow>> flows_;
+    std::map<std::string, std::unique_ptr<SerialLink>> serial_links_;
     std::unordered_map<PendingKey, Pending, PendingHash> pending_;
     std::deque<Expiry> expiries_;
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;

@@ -34,6 +34,7 @@ struct TransactionRecord {
     std::optional<FrameRecord> response;
     std::optional<modbus::Timestamp> latency;
     bool timed_out = false;
+    bool broadcast = false;  // serial unit 0: executed by every slave, answered by none
     std::vector<modbus::FindingCode> findings;
     std::vector<modbus::NamedValue> values;  // with a profile: the values named in the device's terms
     const modbus::Profile* profile = nullptr;

@@ -57,6 +57,7 @@ json direction_json(Direction d) {
 }  // namespace
 
 std::string TextSink::time_of(Timestamp t) {
+    if (t.count() == 0) return "       (untimed)";
     // UTC time of day with microseconds: what a technician matches against other logs.
     const auto us = std::chrono::duration_cast<std::chrono::microseconds>(t).count();
     const long long day_us = ((us % 86'400'000'000LL) + 86'400'000'000LL) % 86'400'000'000LL;
@@ -75,9 +76,12 @@ void TextSink::transaction(const TransactionRecord& t) {
         out_ << "  " << to_string(t.request.frame.framing);
     out_ << "  " << pdu_brief(t.request);
     if (t.response)
-        out_ << "  -> " << pdu_brief(*t.response) << "  " << ms(*t.latency);
+        out_ << "  -> " << pdu_brief(*t.response) << (t.latency ? "  " + ms(*t.latency) : std::string());
     else
-        out_ << "  -> " << (t.timed_out ? "no response" : "no response before the capture ended");
+        out_ << "  -> "
+             << (t.broadcast   ? "broadcast, no response expected"
+                 : t.timed_out ? "no response"
+                               : "no response before the capture ended");
     out_ << '\n';
     for (const auto& v : t.values) {
         out_ << "                   " << v.address << "  ";
@@ -189,9 +193,11 @@ void JsonSink::transaction(const TransactionRecord& t) {
     if (t.request.frame.framing == Framing::Tcp) j["transaction_id"] = t.request.frame.transaction_id();
     if (t.response) {
         j["response_frame"] = t.response->index;
-        j["latency_ms"] = std::chrono::duration<double, std::milli>(*t.latency).count();
+        if (t.latency) j["latency_ms"] = std::chrono::duration<double, std::milli>(*t.latency).count();
         if (t.response->pdu && t.response->pdu->is_exception())
             j["exception_code"] = std::get<ExceptionResponse>(t.response->pdu->body).exception_code;
+    } else if (t.broadcast) {
+        j["broadcast"] = true;
     } else {
         j["timeout"] = t.timed_out;
     }

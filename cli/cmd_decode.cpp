@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "analyzer/analyzer.hpp"
+#include "analyzer/serial_input.hpp"
 #include "analyzer/sinks.hpp"
 #include "cli/commands.hpp"
 #include "cli/profile_json.hpp"
@@ -20,10 +21,14 @@ struct DecodeOptions {
     std::vector<std::uint16_t> udp_ports;
     bool json = false, jsonl = false, summary = false;
     double timeout_s = 3.0;
+    std::string format = "auto";
     std::string profile;
     std::vector<std::string> maps;
     std::vector<std::string> profile_dirs;
     std::vector<std::string> config;
+    std::uint32_t baud = 9600;
+    std::string parity = "N";
+    int data_bits = 8, stop_bits = 1;
 };
 
 // --profile ID for every device, --map SELECTOR=ID per device (SELECTOR: UNIT, IP or IP:UNIT).
@@ -73,6 +78,8 @@ int run_decode(const DecodeOptions& o) {
     options.timeout =
         std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(o.timeout_s));
     if (!load_semantics(o, options)) return exit_failure;
+    options.serial_line = {o.baud, static_cast<std::uint8_t>(o.data_bits), *modbus::parse_parity(o.parity),
+                           static_cast<std::uint8_t>(o.stop_bits)};
     std::unique_ptr<analyzer::Sink> sink;
     if (o.json || o.jsonl)
         sink = std::make_unique<analyzer::JsonSink>(std::cout, o.jsonl);
@@ -80,8 +87,9 @@ int run_decode(const DecodeOptions& o) {
         sink = std::make_unique<analyzer::TextSink>(std::cout, o.summary);
     analyzer::Analyzer a(options, *sink);
     bool all_read = true, any_read = false;
+    const auto format = analyzer::parse_input_format(o.format);
     for (const auto& f : o.files) {
-        const bool ok = a.read_capture(f);
+        const bool ok = analyzer::read_input(a, f, *format);
         all_read &= ok;
         any_read |= ok || a.summary().packets > 0;
     }
@@ -98,7 +106,24 @@ int run_decode(const DecodeOptions& o) {
 void register_decode(CLI::App& app, int& exit_code) {
     auto o = std::make_shared<DecodeOptions>();
     auto* cmd = app.add_subcommand("decode", "Decode captures: every frame, every transaction, every fault");
-    cmd->add_option("files", o->files, "pcap or pcapng files")->required()->check(CLI::ExistingFile);
+    cmd->add_option("files", o->files,
+                    "Captures: pcap, pcapng, raw serial dumps, the text format (analyzer/README.md)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--format", o->format,
+                    "auto, pcap, rtu (raw dump), ascii (raw dump), text (TIME [DIR] HEX...)")
+        ->check(CLI::IsMember({"auto", "pcap", "pcapng", "rtu", "raw", "ascii", "text"}))
+        ->capture_default_str();
+    cmd->add_option("--baud", o->baud, "Serial line: baud rate (for t1.5/t3.5)")->capture_default_str();
+    cmd->add_option("--parity", o->parity, "Serial line: N, E or O")
+        ->check(CLI::IsMember({"N", "E", "O", "n", "e", "o", "none", "even", "odd"}))
+        ->capture_default_str();
+    cmd->add_option("--data-bits", o->data_bits, "Serial line: data bits")
+        ->check(CLI::Range(5, 8))
+        ->capture_default_str();
+    cmd->add_option("--stop-bits", o->stop_bits, "Serial line: stop bits")
+        ->check(CLI::Range(1, 2))
+        ->capture_default_str();
     cmd->add_option("--tcp-port", o->tcp_ports, "Modbus/TCP server port besides 502 (repeatable)");
     cmd->add_option("--udp-port", o->udp_ports, "Modbus/UDP server port besides 502 (repeatable)");
     cmd->add_option("--timeout", o->timeout_s,

@@ -1,0 +1,162 @@
+#include "analyzer/serial_input.hpp"
+
+#include <cctype>
+#include <charconv>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+namespace mbscope::analyzer {
+
+using modbus::Direction;
+
+std::optional<InputFormat> parse_input_format(std::string_view n) {
+    if (n == "auto") return InputFormat::Auto;
+    if (n == "pcap" || n == "pcapng") return InputFormat::Pcap;
+    if (n == "rtu" || n == "raw") return InputFormat::RtuRaw;
+    if (n == "ascii") return InputFormat::AsciiRaw;
+    if (n == "text") return InputFormat::Text;
+    return std::nullopt;
+}
+
+namespace {
+
+std::optional<Direction> direction_token(std::string t) {
+    for (auto& c : t)
+        c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (t == ">" || t == "M" || t == "TX" || t == "REQ" || t == "MASTER") return Direction::Request;
+    if (t == "<" || t == "S" || t == "RX" || t == "RSP" || t == "SLAVE") return Direction::Response;
+    return std::nullopt;
+}
+
+bool parse_hex_tokens(std::istringstream& words, std::vector<std::uint8_t>& out, std::string first = {}) {
+    std::string digits;
+    auto take = [&](const std::string& token) {
+        for (char c : token) {
+            if (std::isxdigit(static_cast<unsigned char>(c)))
+                digits.push_back(c);
+            else if (c != ',' && c != ':' && c != '-')
+                return false;
+        }
+        return true;
+    };
+    if (!first.empty() && !take(first)) return false;
+    for (std::string t; words >> t;)
+        if (!take(t)) return false;
+    if (digits.size() % 2) return false;
+    for (std::size_t i = 0; i < digits.size(); i += 2)
+        out.push_back(static_cast<std::uint8_t>(std::stoi(digits.substr(i, 2), nullptr, 16)));
+    return true;
+}
+
+bool parse_time(const std::string& token, modbus::Timestamp& t) {
+    double seconds = 0;
+    auto [p, ec] = std::from_chars(token.data(), token.data() + token.size(), seconds);
+    if (ec != std::errc() || p != token.data() + token.size() || seconds < 0) return false;
+    t = std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(seconds));
+    return t.count() > 0 || seconds == 0;
+}
+
+bool read_text(Analyzer& a, const std::string& path) {
+    std::ifstream in(path);
+    if (!in) {
+        a.input_error(path + ": cannot open");
+        return false;
+    }
+    bool ok = true;
+    int number = 0;
+    for (std::string line; std::getline(in, line);) {
+        ++number;
+        std::istringstream words(line);
+        std::string time_token;
+        if (!(words >> time_token) || time_token[0] == '#') continue;
+        modbus::Timestamp t{0};
+        if (!parse_time(time_token, t)) {
+            a.input_error(path + ":" + std::to_string(number) + ": not a time in seconds: '" + time_token +
+                          "'");
+            ok = false;
+            continue;
+        }
+        std::string next;
+        words >> next;
+        auto dir = direction_token(next);
+        std::vector<std::uint8_t> bytes;
+        if (!parse_hex_tokens(words, bytes, dir ? std::string() : next)) {
+            a.input_error(path + ":" + std::to_string(number) + ": not hex bytes");
+            ok = false;
+            continue;
+        }
+        if (t.count() == 0) t = modbus::Timestamp(1);  // zero means "untimed" to the analyzer
+        a.serial(path, bytes, t, dir.value_or(Direction::Unknown));
+    }
+    return ok;
+}
+
+bool read_raw(Analyzer& a, const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+        a.input_error(path + ": cannot open");
+        return false;
+    }
+    std::vector<char> buf(1 << 16);
+    while (in) {
+        in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+        const auto n = static_cast<std::size_t>(in.gcount());
+        if (n) a.serial(path, {reinterpret_cast<const std::uint8_t*>(buf.data()), n}, modbus::Timestamp{0});
+    }
+    return true;
+}
+
+}  // namespace
+
+InputFormat detect_input_format(std::span<const std::uint8_t> h) {
+    if (h.size() >= 4) {
+        const std::uint32_t m = (std::uint32_t{h[0]} << 24) | (h[1] << 16) | (h[2] << 8) | h[3];
+        if (m == 0xD4C3B2A1 || m == 0xA1B2C3D4 || m == 0x4D3CB2A1 || m == 0xA1B23C4D || m == 0x0A0D0D0A)
+            return InputFormat::Pcap;
+    }
+    if (!h.empty() && h[0] == ':') return InputFormat::AsciiRaw;
+    // text: printable first line that starts with a number
+    std::size_t i = 0;
+    while (i < h.size() && (h[i] == ' ' || h[i] == '\t'))
+        ++i;
+    if (i < h.size() && (std::isdigit(h[i]) || h[i] == '#')) {
+        bool printable = true;
+        for (std::size_t k = 0; k < h.size() && h[k] != '\n'; ++k)
+            printable &= h[k] == '\t' || h[k] == '\r' || (h[k] >= 0x20 && h[k] < 0x7F);
+        if (printable) return InputFormat::Text;
+    }
+    return InputFormat::RtuRaw;
+}
+
+bool read_input(Analyzer& a, const std::string& path, InputFormat format) {
+    if (format == InputFormat::Auto) {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) {
+            a.input_error(path + ": cannot open");
+            return false;
+        }
+        std::vector<char> head(256);
+        in.read(head.data(), static_cast<std::streamsize>(head.size()));
+        head.resize(static_cast<std::size_t>(in.gcount()));
+        format = detect_input_format({reinterpret_cast<const std::uint8_t*>(head.data()), head.size()});
+    }
+    switch (format) {
+        case InputFormat::Pcap:
+            return a.read_capture(path);
+        case InputFormat::Text:
+            a.set_serial_framing(modbus::Framing::Rtu);
+            return read_text(a, path);
+        case InputFormat::RtuRaw:
+            a.set_serial_framing(modbus::Framing::Rtu);
+            return read_raw(a, path);
+        case InputFormat::AsciiRaw:
+            a.set_serial_framing(modbus::Framing::Ascii);
+            return read_raw(a, path);
+        case InputFormat::Auto:
+            break;
+    }
+    return false;
+}
+
+}  // namespace mbscope::analyzer

@@ -1,0 +1,29 @@
+#pragma once
+// Serial captures without a pcap wrapper:
+//  - raw dumps: the bytes of the line as a logger wrote them, no timing (RTU or ASCII);
+//  - the text format any logger can produce, one chunk per line:
+//        TIME [DIR] HEX...
+//    TIME in seconds (decimal fraction allowed) when the chunk's last byte arrived; DIR optional: ">", "M",
+//    "TX", "REQ" for master → slave, "<", "S", "RX", "RSP" for slave → master; HEX the bytes ("11 03 00 60",
+//    "110300600003"). Lines starting with '#' and blank lines are skipped.
+// A malformed line is reported with file and line number; the lines around it are still decoded.
+
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+
+#include "analyzer/analyzer.hpp"
+
+namespace mbscope::analyzer {
+
+enum class InputFormat { Auto, Pcap, RtuRaw, AsciiRaw, Text };
+std::optional<InputFormat> parse_input_format(std::string_view name);  // auto, pcap, rtu, ascii, text
+// pcap/pcapng magic → Pcap; ':' → AsciiRaw; a first line "NUMBER [DIR] HEX" → Text; otherwise RtuRaw.
+InputFormat detect_input_format(std::span<const std::uint8_t> head);
+
+// Read a file in the given format into the analyzer; false when it could not be read completely (the
+// analyzer's summary names what went wrong).
+bool read_input(Analyzer& analyzer, const std::string& path, InputFormat format);
+
+}  // namespace mbscope::analyzer
