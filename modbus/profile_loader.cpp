@@ -474,8 +474,50 @@ struct ModularMaps {
     json alarm_bits;
 };
 
+struct MapField {
+    RawPoint point;  // address = index inside the 36-address block
+    bool coil = false;
+};
+
+// The fields of one type map as points at their index; status codes and alarm bit names filled in.
+std::vector<MapField> parse_map_fields(Reader& r, const json& map, const std::string& map_id, int block,
+                                       const ModularMaps& maps) {
+    std::vector<MapField> out;
+    const json* fields = r.child(map, "fields");
+    if (!fields || !fields->is_array()) return out;
+    for (std::size_t k = 0; k < fields->size(); ++k) {
+        json f = (*fields)[k];
+        const std::string fptr = "maps/" + map_id + "/fields/" + std::to_string(k);
+        auto index = r.integer(f, "index", fptr, true, 0, block - 1);
+        if (!index) continue;
+        f["address"] = *index;
+        if (f.contains("value_text") && !f.contains("range_text")) f["range_text"] = f["value_text"];
+        if (auto e = f.find("encoding");
+            e != f.end() && e->is_object() && e->contains("bits_ref") && (*e)["bits_ref"].is_string()) {
+            const auto ref = (*e)["bits_ref"].get<std::string>();
+            if (maps.alarm_bits.contains(ref)) (*e)["bits"] = maps.alarm_bits[ref];
+        }
+        if (auto e = f.find("encoding"); e != f.end() && e->is_object() && (*e)["type"] == "status" &&
+                                         maps.status_codes.is_object() && !e->contains("values")) {
+            json values = json::array();
+            for (auto it = maps.status_codes.begin(); it != maps.status_codes.end(); ++it) {
+                json v = it->is_object() ? *it : json{{"text", *it}};
+                v["value"] = std::stoi(it.key());
+                values.push_back(v);
+            }
+            (*e)["values"] = values;
+        }
+        auto rp = parse_point(r, f, fptr, Table::HoldingRegisters);
+        if (!rp) continue;
+        out.push_back(
+            {std::move(*rp), f.contains("coil") && f["coil"].is_boolean() && f["coil"].get<bool>()});
+    }
+    return out;
+}
+
 void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, const std::string& model_id,
                     const ProfileConfig& config, Tables& tables, Profile& profile) {
+    std::map<std::string, std::vector<MapField>> templates;
     const int block =
         static_cast<int>(r.integer(modular, "block_size", "/modular", false, 1, 1000).value_or(36));
     const json* channels = r.child(modular, "channels");
@@ -527,42 +569,23 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
                 ok |= x.is_string() && lower(x.get<std::string>()) == model_id;
             if (!ok) r.error(ptr, "map \"" + map_id + "\" does not exist on " + model_id);
         }
-        const json* fields = r.child(map, "fields");
-        if (!fields || !fields->is_array()) continue;
-        for (std::size_t k = 0; k < fields->size(); ++k) {
-            json f = (*fields)[k];
-            const std::string fptr = "maps/" + map_id + "/fields/" + std::to_string(k);
-            auto index = r.integer(f, "index", fptr, true, 0, block - 1);
-            if (!index) continue;
-            f["address"] = *start + *index;
-            if (f.contains("value_text") && !f.contains("range_text")) f["range_text"] = f["value_text"];
-            if (auto e = f.find("encoding");
-                e != f.end() && e->is_object() && e->contains("bits_ref") && (*e)["bits_ref"].is_string()) {
-                const auto ref = (*e)["bits_ref"].get<std::string>();
-                if (maps.alarm_bits.contains(ref)) (*e)["bits"] = maps.alarm_bits[ref];
-            }
-            if (auto e = f.find("encoding"); e != f.end() && e->is_object() && (*e)["type"] == "status" &&
-                                             maps.status_codes.is_object() && !e->contains("values")) {
-                json values = json::array();
-                for (auto it = maps.status_codes.begin(); it != maps.status_codes.end(); ++it) {
-                    json v = it->is_object() ? *it : json{{"text", *it}};
-                    v["value"] = std::stoi(it.key());
-                    values.push_back(v);
-                }
-                (*e)["values"] = values;
-            }
-            auto rp = parse_point(r, f, fptr, Table::HoldingRegisters);
-            if (!rp) continue;
-            rp->point.name = *id + ": " + rp->point.name;
-            if (!rp->point.name_en.empty()) rp->point.name_en = *id + " " + rp->point.name_en;
-            if (f.contains("coil") && f["coil"].is_boolean() && f["coil"].get<bool>()) {
-                RawPoint coil = *rp;
+        // Each type map is parsed once (at index addresses) and then placed at every channel that uses it.
+        auto parsed = templates.find(map_id);
+        if (parsed == templates.end())
+            parsed = templates.emplace(map_id, parse_map_fields(r, map, map_id, block, maps)).first;
+        for (const MapField& field : parsed->second) {
+            RawPoint rp = field.point;
+            rp.point.address = static_cast<std::uint16_t>(*start + rp.point.address);
+            rp.point.name = *id + ": " + rp.point.name;
+            if (!rp.point.name_en.empty()) rp.point.name_en = *id + " " + rp.point.name_en;
+            if (field.coil) {
+                RawPoint coil = rp;
                 coil.point.table = Table::Coils;
                 coil.point.encoding = Encoding{};
                 coil.point.encoding.type = EncodingType::Bool;
                 tables[idx(Table::Coils)].points.push_back(std::move(coil));
             }
-            tables[idx(Table::HoldingRegisters)].points.push_back(std::move(*rp));
+            tables[idx(Table::HoldingRegisters)].points.push_back(std::move(rp));
         }
     }
     for (const auto& [channel, map] : config)
