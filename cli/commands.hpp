@@ -13,5 +13,6 @@ inline constexpr int exit_failure = 2;
 void register_decode(CLI::App& app, int& exit_code);
 void register_frame(CLI::App& app, int& exit_code);
 void register_profile(CLI::App& app, int& exit_code);
+void register_slave(CLI::App& app, int& exit_code);
 
 }  // namespace mbscope::cli

@@ -4,6 +4,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <iostream>
 
 #include "modbus/storage/profile_store.hpp"
 
@@ -57,6 +58,20 @@ std::vector<std::string> profile_directories(const std::vector<std::string>& ext
     else
         dirs.push_back(MBSCOPE_SOURCE_PROFILES);
     return dirs;
+}
+
+std::optional<modbus::ProfileConfig> parse_config_options(const std::vector<std::string>& options,
+                                                          const char* command) {
+    modbus::ProfileConfig config;
+    for (const auto& kv : options) {
+        const auto eq = kv.find('=');
+        if (eq == std::string::npos) {
+            std::cerr << "mbscope " << command << ": --config takes CHANNEL=MAP, not '" << kv << "'\n";
+            return std::nullopt;
+        }
+        config[kv.substr(0, eq)] = kv.substr(eq + 1);
+    }
+    return config;
 }
 
 }  // namespace mbscope::cli

@@ -2,11 +2,13 @@
 // JSON views of resolved profiles (profile show --json, lookup, decode) and the profile search path.
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "modbus/profile.hpp"
 #include "modbus/profile_json.hpp"
+#include "modbus/profile_loader.hpp"
 
 namespace mbscope::cli {
 
@@ -15,5 +17,10 @@ nlohmann::json profile_to_json(const modbus::Profile& p);
 // --profile-dir entries, then $MBSCOPE_PROFILE_PATH, then the installed profiles (next to the binary:
 // ../share/mbscope/profiles), else the source tree's profiles/ (running from a build directory).
 std::vector<std::string> profile_directories(const std::vector<std::string>& extra);
+
+// --config CHANNEL=MAP options as a configuration; nullopt (after a message naming `command`) when one is
+// not of that form.
+std::optional<modbus::ProfileConfig> parse_config_options(const std::vector<std::string>& options,
+                                                          const char* command);
 
 }  // namespace mbscope::cli

@@ -26,6 +26,7 @@ class AsciiDeframer {
     void feed(std::span<const std::uint8_t> chars, Timestamp received, DeframeEvents& out);
     void feed(std::span<const std::uint8_t> chars, DeframeEvents& out) { feed(chars, Timestamp{0}, out); }
     void finish(DeframeEvents& out);
+    std::size_t buffered() const noexcept { return frame_.size(); }  // characters of an incomplete frame
 
   private:
     void abandon(UnparsedReason reason, DeframeEvents& out);

@@ -98,6 +98,42 @@ Table Profile::resolve(Table t) const noexcept {
     return s ? *s : t;
 }
 
+namespace {
+std::uint16_t swap_bytes(std::uint16_t w) noexcept {
+    return static_cast<std::uint16_t>((w << 8) | (w >> 8));
+}
+}  // namespace
+
+std::uint32_t join_words(std::uint16_t first, std::uint16_t second, WordOrder order) noexcept {
+    // first/second are the registers at address and address+1; ABCD = big-endian, first register high.
+    switch (order) {
+        case WordOrder::Abcd:
+            return (std::uint32_t{first} << 16) | second;
+        case WordOrder::Cdab:
+            return (std::uint32_t{second} << 16) | first;
+        case WordOrder::Badc:
+            return (std::uint32_t{swap_bytes(first)} << 16) | swap_bytes(second);
+        case WordOrder::Dcba:
+            return (std::uint32_t{swap_bytes(second)} << 16) | swap_bytes(first);
+    }
+    return 0;
+}
+
+std::array<std::uint16_t, 2> split_words(std::uint32_t value, WordOrder order) noexcept {
+    const auto high = static_cast<std::uint16_t>(value >> 16), low = static_cast<std::uint16_t>(value);
+    switch (order) {
+        case WordOrder::Abcd:
+            return {high, low};
+        case WordOrder::Cdab:
+            return {low, high};
+        case WordOrder::Badc:
+            return {swap_bytes(high), swap_bytes(low)};
+        case WordOrder::Dcba:
+            return {swap_bytes(low), swap_bytes(high)};
+    }
+    return {high, low};
+}
+
 const Point* Profile::find(Table t, std::uint16_t address) const noexcept {
     const auto& pts = table(t);
     auto it = std::lower_bound(pts.begin(), pts.end(), address,
@@ -116,22 +152,6 @@ std::string format_number(double v, int decimals) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
     return buf;
-}
-
-std::uint32_t join32(std::uint16_t first, std::uint16_t second, WordOrder order) {
-    // first/second are the registers at address and address+1; ABCD = big-endian, first register high.
-    auto swap_bytes = [](std::uint16_t w) { return static_cast<std::uint16_t>((w << 8) | (w >> 8)); };
-    switch (order) {
-        case WordOrder::Abcd:
-            return (std::uint32_t{first} << 16) | second;
-        case WordOrder::Cdab:
-            return (std::uint32_t{second} << 16) | first;
-        case WordOrder::Badc:
-            return (std::uint32_t{swap_bytes(first)} << 16) | swap_bytes(second);
-        case WordOrder::Dcba:
-            return (std::uint32_t{swap_bytes(second)} << 16) | swap_bytes(first);
-    }
-    return 0;
 }
 
 std::optional<std::uint16_t> word_at(std::uint16_t address, std::uint16_t start,
@@ -235,7 +255,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                     break;
                 }
                 v.raw = {w, *second};
-                const std::uint32_t u = join32(w, *second, e.word_order);
+                const std::uint32_t u = join_words(w, *second, e.word_order);
                 if (e.type == EncodingType::U32) v.number = u;
                 if (e.type == EncodingType::S32) v.number = static_cast<std::int32_t>(u);
                 if (e.type == EncodingType::F32) {
@@ -269,31 +289,110 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
     return out;
 }
 
-std::optional<std::uint8_t> check_write(const Profile& profile, Table table, std::uint16_t address,
-                                        std::uint16_t value) {
-    auto code_for = [&](const char* condition, std::uint8_t fallback) -> std::uint8_t {
-        auto it = profile.functions.exceptions.find(condition);
-        if (it != profile.functions.exceptions.end() && it->second)
-            return static_cast<std::uint8_t>(*it->second);
-        return fallback;
+std::uint8_t exception_for(const Profile& profile, const char* condition,
+                           std::uint8_t specification_default) {
+    auto it = profile.functions.exceptions.find(condition);
+    if (it != profile.functions.exceptions.end() && it->second) return static_cast<std::uint8_t>(*it->second);
+    return specification_default;
+}
+
+namespace {
+
+// Is this point writable at all? nullopt: yes; otherwise why not.
+std::optional<WriteRejection> check_writable(const Profile& profile, const Point* p, std::uint16_t address) {
+    if (!p || p->reserved)
+        return WriteRejection{exception_for(profile, "bad_address", 2), address, "address not in the map"};
+    if (p->access == Access::Read)
+        return WriteRejection{exception_for(profile, "write_read_only", 2), address, "read-only point"};
+    return std::nullopt;
+}
+
+std::string format_limit(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+
+std::optional<WriteRejection> check_range(const Profile& profile, const Point& p, std::uint16_t address,
+                                          double v, const std::string& shown) {
+    const auto bad = [&](const std::string& why) {
+        return WriteRejection{exception_for(profile, "bad_value", 3), address, "value " + shown + " " + why};
     };
-    if (profile.open_address_space) return std::nullopt;
-    const Point* p = profile.find(table, address);
-    if (!p || p->reserved) return code_for("bad_address", 2);
-    if (p->access == Access::Read) return code_for("write_read_only", 2);
-    const Encoding& e = p->encoding;
+    if (p.min && v < static_cast<double>(*p.min))
+        return bad("below minimum " + format_limit(static_cast<double>(*p.min)));
+    if (p.max && v > static_cast<double>(*p.max))
+        return bad("above maximum " + format_limit(static_cast<double>(*p.max)));
+    return std::nullopt;
+}
+
+// A 16-bit value written to a one-register point (or one half of a 32-bit point, which is not range-checked).
+std::optional<WriteRejection> check_word(const Profile& profile, const Point& p, std::uint16_t address,
+                                         std::uint16_t value) {
+    const Encoding& e = p.encoding;
+    if (e.words == 2) return std::nullopt;
     const bool is_signed = e.type == EncodingType::S16 || e.is_signed;
     const std::int64_t v = is_signed ? static_cast<std::int16_t>(value) : value;
     if (e.type == EncodingType::Enum && !e.values.empty()) {
         bool listed = false;
         for (const auto& ev : e.values)
             listed |= ev.value == v;
-        if (!listed) return code_for("bad_value", 3);
+        if (!listed)
+            return WriteRejection{exception_for(profile, "bad_value", 3), address,
+                                  "value " + std::to_string(v) + " not among the enumeration's values"};
     }
     if (e.type == EncodingType::AsciiChar && !e.allowed.empty() &&
         (value > 0x7F || e.allowed.find(static_cast<char>(value)) == std::string::npos))
-        return code_for("bad_value", 3);
-    if ((p->min && v < *p->min) || (p->max && v > *p->max)) return code_for("bad_value", 3);
+        return WriteRejection{exception_for(profile, "bad_value", 3), address,
+                              "character " + std::to_string(value) + " not among the allowed ones"};
+    return check_range(profile, p, address, static_cast<double>(v), std::to_string(v));
+}
+
+}  // namespace
+
+std::optional<WriteRejection> check_writes(const Profile& profile, Table table, std::uint16_t start,
+                                           const std::vector<std::uint16_t>& values) {
+    if (profile.open_address_space || values.empty()) return std::nullopt;
+    const std::size_t checked_addresses =
+        profile.functions.address_check == AddressCheck::First ? 1 : values.size();
+    for (std::size_t i = 0; i < checked_addresses; ++i) {
+        const auto address = static_cast<std::uint16_t>(start + i);
+        if (auto r = check_writable(profile, profile.find(table, address), address)) return r;
+    }
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        const auto address = static_cast<std::uint16_t>(start + i);
+        const Point* p = profile.find(table, address);
+        if (!p || p->reserved || p->access == Access::Read)
+            continue;  // unchecked addresses (first-only devices)
+        const Encoding& e = p->encoding;
+        if (e.words == 2) {
+            if (p->address != address || i + 1 >= values.size()) continue;  // a lone half
+            const std::uint32_t u = join_words(values[i], values[i + 1], e.word_order);
+            double v = u;
+            std::string shown = std::to_string(u);
+            if (e.type == EncodingType::S32) {
+                v = static_cast<std::int32_t>(u);
+                shown = std::to_string(static_cast<std::int32_t>(u));
+            } else if (e.type == EncodingType::F32) {
+                float f;
+                std::memcpy(&f, &u, sizeof f);
+                if (!std::isfinite(f))
+                    return WriteRejection{exception_for(profile, "bad_value", 3), address,
+                                          "value is not a finite number"};
+                v = f;
+                shown = format_limit(f);
+            }
+            if (auto r = check_range(profile, *p, address, v, shown)) return r;
+            ++i;
+            continue;
+        }
+        if (auto r = check_word(profile, *p, address, values[i])) return r;
+    }
+    return std::nullopt;
+}
+
+std::optional<std::uint8_t> check_write(const Profile& profile, Table table, std::uint16_t address,
+                                        std::uint16_t value) {
+    if (auto r = check_writes(profile, table, address, {value})) return r->exception_code;
     return std::nullopt;
 }
 

@@ -46,6 +46,10 @@ enum class WordOrder : std::uint8_t { Abcd, Badc, Cdab, Dcba };
 std::string_view to_string(WordOrder w) noexcept;
 std::optional<WordOrder> parse_word_order(std::string_view name) noexcept;
 
+// The 32-bit value held in the registers at an address (first) and the next (second), and back.
+std::uint32_t join_words(std::uint16_t first, std::uint16_t second, WordOrder order) noexcept;
+std::array<std::uint16_t, 2> split_words(std::uint32_t value, WordOrder order) noexcept;
+
 struct PointRef {
     Table table = Table::HoldingRegisters;
     std::uint16_t address = 0;
@@ -111,6 +115,7 @@ struct LineRules {
     int unit_min = 1;
     int unit_max = 247;
     std::vector<int> unit_disabled;
+    bool any_unit_answered = false;  // Walchem: every non-zero unit id is answered (002:213-215)
     int tcp_port = 502;
     std::optional<int> min_poll_interval_ms;
     std::optional<int> response_timeout_ms;
@@ -144,6 +149,9 @@ struct Profile {
     LineRules line;
     FunctionRules functions;
     bool open_address_space = false;  // generic profile: every address exists
+    // Walchem: coil-accessible fields are holding registers seen as bits; a coil reads 1 when the register at
+    // its address is non-zero and FC5 writes 1 or 0 into that register (002:244, 493).
+    bool coils_view_registers = false;
     std::vector<ProfileNote> notes;
     std::map<std::string, std::string> configuration;  // modular devices: channel → map
 
@@ -183,5 +191,23 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
 // none, 03 for a value outside the documented range or enumeration).
 std::optional<std::uint8_t> check_write(const Profile& profile, Table table, std::uint16_t address,
                                         std::uint16_t value);
+
+struct WriteRejection {
+    std::uint8_t exception_code = 0;
+    std::uint16_t address = 0;  // the first offending address
+    std::string reason;  // "address not in the map", "read-only point", "value 1500 above maximum 1440"
+};
+
+// Would the device accept writing `values` from `start` (FC6, FC16, FC23's write part; FC5 and FC15 with one
+// value per coil, 0 or 1)? Applies the specification's order: every address first (exception 02, only the
+// first one when the profile says the device checks only that), then every value (exception 03). A 32-bit
+// point whose two registers are both in the block is checked as one value (floats against their range in
+// engineering units); a lone half of it can only be checked as a 16-bit word and is not range-checked.
+std::optional<WriteRejection> check_writes(const Profile& profile, Table table, std::uint16_t start,
+                                           const std::vector<std::uint16_t>& values);
+
+// The exception code the profile gives for a condition ("bad_address", "bad_value", "bad_quantity",
+// "unsupported_function", "write_read_only"), or the specification's when the manual is silent.
+std::uint8_t exception_for(const Profile& profile, const char* condition, std::uint8_t specification_default);
 
 }  // namespace mbscope::modbus

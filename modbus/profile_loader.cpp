@@ -362,6 +362,8 @@ LineRules parse_line(Reader& r, const json& j) {
         if (auto d = r.child(*u, "disabled"); d && d->is_array())
             for (const auto& x : *d)
                 if (x.is_number_integer()) l.unit_disabled.push_back(x.get<int>());
+        if (auto a = r.child(*u, "any_nonzero_answered"); a && a->is_boolean())
+            l.any_unit_answered = a->get<bool>();
     }
     l.tcp_port = static_cast<int>(r.integer(*line, "tcp_port", "/line", false, 1, 65535).value_or(502));
     if (auto m = r.integer(*line, "min_poll_interval_ms", "/line", false, 0))
@@ -579,6 +581,7 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
             rp.point.name = *id + ": " + rp.point.name;
             if (!rp.point.name_en.empty()) rp.point.name_en = *id + " " + rp.point.name_en;
             if (field.coil) {
+                profile.coils_view_registers = true;
                 RawPoint coil = rp;
                 coil.point.table = Table::Coils;
                 coil.point.encoding = Encoding{};

@@ -24,6 +24,7 @@ class TcpStreamDeframer {
     void gap(std::uint64_t missing, DeframeEvents& out);
     void finish(DeframeEvents& out);
     std::uint64_t offset() const noexcept { return base_ + (buf_.size() - head_); }
+    std::size_t buffered() const noexcept { return buf_.size() - head_; }  // bytes of an incomplete frame
 
   private:
     void run(bool at_end, DeframeEvents& out);

@@ -1,0 +1,179 @@
+// mbscope slave: serve device profiles over TCP, UDP, serial framing over TCP, a serial port or a
+// pseudo-terminal, with planted faults on demand.
+#include <csignal>
+#include <iostream>
+#include <memory>
+
+#include "cli/commands.hpp"
+#include "cli/profile_json.hpp"
+#include "modbus/storage/profile_store.hpp"
+#include "modbus/transport/endpoint.hpp"
+#include "slave/faults.hpp"
+#include "slave/process.hpp"
+#include "slave/server.hpp"
+#include "slave/state_file.hpp"
+
+namespace mbscope::cli {
+namespace {
+
+struct SlaveOptions {
+    std::string profile = "modbus";
+    std::string listen = "tcp://127.0.0.1:5020";
+    std::vector<std::string> units;
+    std::string state;
+    std::uint64_t seed = 1;
+    std::vector<std::string> faults;
+    std::vector<std::string> profile_dirs;
+    std::vector<std::string> config;
+    bool pty = false;
+    bool quiet = false;
+    double idle_timeout_s = 60;
+    std::size_t max_clients = 1024;
+};
+
+std::atomic<bool> stop_requested{false};
+extern "C" void on_signal(int) {
+    stop_requested.store(true);
+}
+
+int run_slave(const SlaveOptions& o) {
+    auto endpoint = modbus::transport::parse_endpoint(o.listen);
+    if (!endpoint) {
+        std::cerr << "mbscope slave: " << endpoint.error() << '\n';
+        return exit_failure;
+    }
+    std::vector<slave::FaultSpec> specs;
+    for (const auto& f : o.faults) {
+        auto spec = slave::parse_fault(f);
+        if (!spec) {
+            std::cerr << "mbscope slave: " << spec.error() << '\n';
+            return exit_failure;
+        }
+        specs.push_back(*spec);
+    }
+    const auto config = parse_config_options(o.config, "slave");
+    if (!config) return exit_failure;
+    modbus::storage::ProfileStore store(profile_directories(o.profile_dirs));
+    // --unit N or N=PROFILE; without --unit, unit 1 with --profile.
+    std::vector<std::pair<int, std::string>> wanted;
+    for (const auto& u : o.units) {
+        const auto eq = u.find('=');
+        const std::string number = u.substr(0, eq);
+        char* end = nullptr;
+        const long n = std::strtol(number.c_str(), &end, 10);
+        if (number.empty() || *end != '\0' || n < 1 || n > 247) {
+            std::cerr << "mbscope slave: --unit takes 1..247 or N=PROFILE, not '" << u << "'\n";
+            return exit_failure;
+        }
+        for (const auto& [m, id] : wanted)
+            if (m == n) {
+                std::cerr << "mbscope slave: unit " << n << " given twice\n";
+                return exit_failure;
+            }
+        wanted.emplace_back(static_cast<int>(n), eq == std::string::npos ? o.profile : u.substr(eq + 1));
+    }
+    if (wanted.empty()) wanted.emplace_back(1, o.profile);
+
+    std::vector<std::unique_ptr<modbus::Profile>> profiles;
+    std::vector<std::unique_ptr<slave::Device>> devices;
+    std::vector<slave::Process> processes;
+    slave::FaultSet faults(specs, o.seed);
+    for (const auto& [unit, id] : wanted) {
+        auto p = store.load(id, *config);
+        if (!p) {
+            for (const auto& e : p.error())
+                std::cerr << "mbscope slave: " << modbus::to_string(e) << '\n';
+            return exit_failure;
+        }
+        profiles.push_back(std::make_unique<modbus::Profile>(std::move(p.value())));
+        devices.push_back(
+            std::make_unique<slave::Device>(*profiles.back(), static_cast<std::uint8_t>(unit), &faults));
+    }
+    std::vector<slave::Device*> units;
+    for (auto& d : devices)
+        units.push_back(d.get());
+    for (std::size_t i = 0; i < devices.size(); ++i)
+        processes.emplace_back(*devices[i], o.seed + i);
+    if (!o.state.empty()) {
+        if (auto loaded = slave::load_state(o.state, units); !loaded) {
+            std::cerr << "mbscope slave: " << loaded.error() << '\n';
+            return exit_failure;
+        }
+    }
+    slave::ServerOptions options;
+    options.state_file = o.state;
+    options.create_pty = o.pty;
+    options.max_clients = o.max_clients;
+    options.idle_timeout = std::chrono::milliseconds(static_cast<long>(o.idle_timeout_s * 1000));
+    options.tick = [&processes](std::chrono::steady_clock::time_point now) {
+        for (auto& p : processes)
+            p.advance(now);
+    };
+    if (o.pty && !modbus::transport::is_serial(endpoint->scheme)) {
+        std::cerr << "mbscope slave: --pty needs a serial endpoint (rtu:pty or ascii:pty)\n";
+        return exit_failure;
+    }
+    slave::Server server(*endpoint, units, faults, options);
+    if (auto opened = server.open(); !opened) {
+        std::cerr << "mbscope slave: " << opened.error() << '\n';
+        return exit_failure;
+    }
+    // The address first and alone on stdout, so scripts and tests can read where to connect.
+    std::cout << server.address() << std::endl;
+    if (!o.quiet) {
+        for (const auto* d : units)
+            std::cerr << "mbscope slave: unit " << int(d->unit()) << " serves " << d->profile().id << '\n';
+        for (const auto& f : o.faults)
+            std::cerr << "mbscope slave: planted fault " << f << '\n';
+    }
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    std::signal(SIGPIPE, SIG_IGN);
+    auto ran = server.run(stop_requested);
+    if (!ran) {
+        std::cerr << "mbscope slave: " << ran.error() << '\n';
+        return exit_failure;
+    }
+    const auto& s = server.stats();
+    if (!o.quiet)
+        std::cerr << "mbscope slave: " << s.requests << " requests, " << s.responses << " responses, "
+                  << s.bad_frames << " bad frames, " << s.connections << " connections\n";
+    return exit_ok;
+}
+
+}  // namespace
+
+void register_slave(CLI::App& app, int& exit_code) {
+    auto o = std::make_shared<SlaveOptions>();
+    auto* cmd =
+        app.add_subcommand("slave", "Serve device profiles as a Modbus slave, faults planted on demand");
+    cmd->footer(
+        "Endpoints:\n"
+        "  tcp://HOST:PORT  udp://HOST:PORT  rtu-tcp://HOST:PORT  ascii-tcp://HOST:PORT\n"
+        "  rtu:DEVICE?baud=9600&parity=E&stop=1   ascii:DEVICE?...   (--pty: rtu:pty creates a "
+        "pseudo-terminal)\n"
+        "The address clients connect to is printed on stdout (the real port when PORT is 0, the pty's "
+        "path).\n\n"
+        "Faults (--fault NAME[=ARG], repeatable, deterministic under --seed):\n" +
+        slave::fault_help() +
+        "\nExit codes: 0 stopped by SIGINT/SIGTERM, 2 could not start (bad option, profile, endpoint or "
+        "state file).");
+    cmd->add_option("--profile", o->profile,
+                    "Device profile id or alias for the units (default: modbus, the generic one)");
+    cmd->add_option("--listen", o->listen, "Endpoint to serve (default tcp://127.0.0.1:5020)");
+    cmd->add_option("--unit", o->units, "Unit id to serve, N or N=PROFILE (repeatable; default 1)");
+    cmd->add_option("--state", o->state,
+                    "Keep the register image in FILE across restarts (saved atomically on every write)");
+    cmd->add_option("--seed", o->seed, "Seed of the simulated process and of fault rates (default 1)");
+    cmd->add_option("--fault", o->faults, "Plant a fault, NAME[=ARG] (repeatable; see below)");
+    cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");
+    cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");
+    cmd->add_flag("--pty", o->pty, "Serial endpoint: create a pseudo-terminal and print its path");
+    cmd->add_option("--idle-timeout", o->idle_timeout_s,
+                    "Seconds before a silent TCP client is disconnected (default 60)");
+    cmd->add_option("--max-clients", o->max_clients, "Concurrent TCP clients (default 1024)");
+    cmd->add_flag("--quiet,-q", o->quiet, "No messages on stderr");
+    cmd->callback([o, &exit_code] { exit_code = run_slave(*o); });
+}
+
+}  // namespace mbscope::cli

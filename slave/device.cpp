@@ -1,0 +1,458 @@
+#include "slave/device.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "modbus/addressing.hpp"
+#include "modbus/function_code.hpp"
+
+namespace mbscope::slave {
+
+using modbus::Pdu;
+using modbus::Table;
+
+namespace {
+
+constexpr std::uint8_t exc_illegal_function = 0x01;
+constexpr std::uint8_t exc_illegal_address = 0x02;
+constexpr std::uint8_t exc_illegal_value = 0x03;
+constexpr std::uint8_t exc_device_failure = 0x04;
+
+bool is_write(std::uint8_t fc) noexcept {
+    return fc == 5 || fc == 6 || fc == 15 || fc == 16 || fc == 21 || fc == 22 || fc == 23;
+}
+
+bool has_violation(const Pdu& pdu, modbus::FindingCode code) {
+    return pdu.violations.contains(code);
+}
+
+// The specification's own limit for a function (AP §6), the most any device may be asked to carry.
+int specification_max(std::uint8_t fc, bool write_part) {
+    return modbus::FunctionRules{}.max_for(fc, write_part);
+}
+
+std::vector<std::uint8_t> encode(const Pdu& pdu) {
+    return modbus::encode_pdu(pdu);
+}
+
+}  // namespace
+
+Device::Device(const modbus::Profile& profile, std::uint8_t unit, FaultSet* faults)
+    : profile_(&profile), unit_(unit), faults_(faults ? faults : &no_faults_), image_(profile) {}
+
+void Device::count_frame(bool checksum_ok) noexcept {
+    ++counters_.bus_messages;
+    if (!checksum_ok) ++counters_.bus_comm_errors;
+}
+
+bool Device::frozen(Table t, std::uint16_t address) const noexcept {
+    return faults_->enabled(Fault::StuckValue) && !modbus::is_bit_table(t) &&
+           static_cast<std::uint16_t>(faults_->arg(Fault::StuckValue)) == address;
+}
+
+std::uint16_t Device::served(std::uint16_t address) const noexcept {
+    return faults_->enabled(Fault::OffByOneAddress) ? static_cast<std::uint16_t>(address + 1) : address;
+}
+
+std::vector<std::uint8_t> Device::exception(std::uint8_t fc, std::uint8_t code) {
+    ++counters_.exceptions;
+    if (faults_->enabled(Fault::WrongException))
+        code = static_cast<std::uint8_t>(faults_->arg(Fault::WrongException));
+    return encode(modbus::make_exception(fc, code));
+}
+
+Reply Device::handle(const Request& request) {
+    Reply reply;
+    if (request.pdu.empty()) return reply;
+    ++counters_.server_messages;
+    const std::uint8_t fc = request.pdu[0];
+    const bool answer_broadcast = request.broadcast && faults_->fires(Fault::ReplyToBroadcast);
+
+    if (listen_only_) {  // AP §6.8.1 sub-function 04: only "restart communications" is acted upon
+        const bool restart = fc == 8 && request.pdu.size() >= 3 && request.pdu[1] == 0 && request.pdu[2] == 1;
+        if (!restart) {
+            ++counters_.no_response;
+            return reply;
+        }
+    }
+    // A broadcast runs only a write the profile allows in broadcast, and is never answered (SL §2.1).
+    if (request.broadcast && !answer_broadcast) {
+        const auto& allowed = profile_->functions.broadcast;
+        ++counters_.no_response;
+        if (!is_write(fc) || std::find(allowed.begin(), allowed.end(), fc) == allowed.end()) return reply;
+    }
+
+    std::vector<std::uint8_t> out;
+    if (!profile_->functions.supports(fc & 0x7F) || (fc & 0x80) != 0) {
+        out = exception(fc & 0x7F,
+                        modbus::exception_for(*profile_, "unsupported_function", exc_illegal_function));
+    } else {
+        auto decoded = modbus::decode_request(request.pdu);
+        if (!decoded) {
+            // The structure cannot be recovered (truncated or bytes left over): the request's data are
+            // inconsistent, which the specification answers with "illegal data value".
+            out = exception(fc, exc_illegal_value);
+        } else {
+            out = dispatch(*decoded, request.broadcast, reply.wrote);
+        }
+    }
+    if (!out.empty() && (out[0] & 0x80) == 0 && fc != 8 && fc != 11 && fc != 12) ++counters_.event_count;
+    if (!out.empty() && (out[0] & 0x80) == 0 && faults_->fires(Fault::ExceptionForValid)) {
+        out = exception(fc, exc_device_failure);
+    }
+    if (request.broadcast && !answer_broadcast) return reply;  // executed, not answered
+    reply.pdu = std::move(out);
+    return reply;
+}
+
+std::optional<std::uint8_t> Device::check_quantity(std::uint8_t fc, std::uint32_t quantity, bool write_part) {
+    int limit = profile_->functions.max_for(fc, write_part);
+    if (faults_->enabled(Fault::IgnoreMaxQuantity))
+        limit = std::max(limit, specification_max(fc, write_part));
+    if (quantity == 0 || (limit > 0 && quantity > static_cast<std::uint32_t>(limit)))
+        return modbus::exception_for(*profile_, "bad_quantity", exc_illegal_value);
+    return std::nullopt;
+}
+
+std::optional<std::uint8_t> Device::check_read_addresses(Table t, std::uint16_t start,
+                                                         std::uint32_t quantity) {
+    const auto bad = modbus::exception_for(*profile_, "bad_address", exc_illegal_address);
+    if (start + quantity > 65536u) return bad;
+    if (profile_->open_address_space) return std::nullopt;
+    if (!profile_->implements(t) && !profile_->implements(profile_->resolve(t))) return bad;
+    const std::uint32_t checked =
+        profile_->functions.address_check == modbus::AddressCheck::First ? 1 : quantity;
+    for (std::uint32_t i = 0; i < checked; ++i)
+        if (!profile_->find(t, static_cast<std::uint16_t>(start + i))) return bad;
+    return std::nullopt;
+}
+
+std::optional<std::uint8_t> Device::check_write_block(Table t, std::uint16_t start,
+                                                      const std::vector<std::uint16_t>& values) {
+    if (start + values.size() > 65536u)
+        return modbus::exception_for(*profile_, "bad_address", exc_illegal_address);
+    auto rejection = modbus::check_writes(*profile_, t, start, values);
+    if (!rejection) return std::nullopt;
+    const bool is_value_rule =
+        rejection->exception_code == modbus::exception_for(*profile_, "bad_value", exc_illegal_value) &&
+        rejection->reason.rfind("value", 0) == 0;
+    if (is_value_rule && faults_->enabled(Fault::AcceptOutOfRange)) {
+        // Only the address and access rules are still applied.
+        for (std::size_t i = 0; i < values.size(); ++i)
+            if (auto r = modbus::check_writes(*profile_, t, static_cast<std::uint16_t>(start + i), {}))
+                return r->exception_code;
+        return std::nullopt;
+    }
+    return rejection->exception_code;
+}
+
+std::uint16_t Device::read_word(Table t, std::uint16_t address) const noexcept {
+    const modbus::Point* p = profile_->open_address_space ? nullptr : profile_->find(t, address);
+    if (p && p->access == modbus::Access::Write)
+        return 0;  // write-only points read as zero (manuals are silent)
+    if (p && p->encoding.words == 2 && faults_->enabled(Fault::WordSwap)) {
+        const auto other = static_cast<std::uint16_t>(address == p->address ? address + 1 : address - 1);
+        return image_.reg(t, other);
+    }
+    return image_.reg(t, address);
+}
+
+void Device::write_words(Table t, std::uint16_t start, const std::vector<std::uint16_t>& values) {
+    if (faults_->fires(Fault::DropWrite)) return;
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        const auto address = static_cast<std::uint16_t>(start + i);
+        if (frozen(t, address)) continue;
+        if (!profile_->open_address_space) {
+            const modbus::Point* p = profile_->find(t, address);
+            if (!p || p->reserved || p->access == modbus::Access::Read)
+                continue;                  // unchecked tail (first-only)
+            if (p->fixed_value) continue;  // reads its fixed value always
+        }
+        image_.set_reg(t, address, values[i]);
+    }
+}
+
+std::vector<std::uint8_t> Device::dispatch(const Pdu& req, bool broadcast, bool& wrote) {
+    (void)broadcast;
+    switch (req.function_code()) {
+        case 1:
+        case 2:
+            return read_bits(req);
+        case 3:
+        case 4:
+            return read_registers(req);
+        case 5:
+            return write_single_coil(req, wrote);
+        case 6:
+            return write_single_register(req, wrote);
+        case 7: {
+            Pdu rsp{7, modbus::Direction::Response, modbus::ReadExceptionStatusResponse{0}, {}};
+            return encode(rsp);
+        }
+        case 8:
+            return diagnostics(req);
+        case 11: {
+            Pdu rsp{11,
+                    modbus::Direction::Response,
+                    modbus::CommEventCounterResponse{0, counters_.event_count},
+                    {}};
+            return encode(rsp);
+        }
+        case 12: {
+            modbus::CommEventLogResponse log{6, 0, counters_.event_count, counters_.bus_messages, {}};
+            return encode(Pdu{12, modbus::Direction::Response, log, {}});
+        }
+        case 15:
+            return write_multiple_coils(req, wrote);
+        case 16:
+            return write_multiple_registers(req, wrote);
+        case 17:
+            return report_server_id();
+        case 22:
+            return mask_write(req, wrote);
+        case 23:
+            return read_write_multiple(req, wrote);
+        case 24:
+            return read_fifo(req);
+        case 43:
+            return read_device_id(req);
+        default:
+            // Supported by the profile but not served by this slave (FC20/21 file records): the device says
+            // so.
+            return exception(req.function_code(), exc_illegal_function);
+    }
+}
+
+std::vector<std::uint8_t> Device::read_bits(const Pdu& req) {
+    const auto& r = std::get<modbus::ReadRequest>(req.body);
+    const std::uint8_t fc = req.function_code();
+    if (auto e = check_quantity(fc, r.quantity)) return exception(fc, *e);
+    const Table t = fc == 1 ? Table::Coils : Table::DiscreteInputs;
+    const std::uint16_t start = served(r.starting_address);
+    if (auto e = check_read_addresses(t, start, r.quantity)) return exception(fc, *e);
+    // AP §6.1: LSB of the first byte is the first bit; unused high bits stay zero.
+    modbus::ReadBitsResponse bits;
+    bits.values.assign((r.quantity + 7) / 8, 0);
+    for (std::uint32_t i = 0; i < r.quantity; ++i)
+        if (read_word(t, static_cast<std::uint16_t>(start + i)) != 0)
+            bits.values[i / 8] = static_cast<std::uint8_t>(bits.values[i / 8] | (1u << (i % 8)));
+    bits.byte_count = static_cast<std::uint8_t>(bits.values.size());
+    if (faults_->fires(Fault::WrongByteCount)) ++bits.byte_count;
+    return encode(Pdu{fc, modbus::Direction::Response, bits, {}});
+}
+
+std::vector<std::uint8_t> Device::read_registers(const Pdu& req) {
+    const auto& r = std::get<modbus::ReadRequest>(req.body);
+    const std::uint8_t fc = req.function_code();
+    if (auto e = check_quantity(fc, r.quantity)) return exception(fc, *e);
+    const Table t = fc == 3 ? Table::HoldingRegisters : Table::InputRegisters;
+    const std::uint16_t start = served(r.starting_address);
+    if (auto e = check_read_addresses(t, start, r.quantity)) return exception(fc, *e);
+    std::vector<std::uint16_t> words(r.quantity);
+    for (std::uint32_t i = 0; i < r.quantity; ++i)
+        words[i] = read_word(t, static_cast<std::uint16_t>(start + i));
+    Pdu rsp = modbus::make_read_registers_response(static_cast<modbus::FunctionCode>(fc), words);
+    if (faults_->fires(Fault::WrongByteCount)) ++std::get<modbus::ReadRegistersResponse>(rsp.body).byte_count;
+    return encode(rsp);
+}
+
+std::vector<std::uint8_t> Device::write_single_coil(const Pdu& req, bool& wrote) {
+    const auto& w = std::get<modbus::WriteSingle>(req.body);
+    // AP §6.5: the output value is checked (0xFF00 or 0x0000) before the address.
+    if (w.value != 0xFF00 && w.value != 0x0000) return exception(5, exc_illegal_value);
+    const std::uint16_t address = served(w.address);
+    if (auto e = check_write_block(Table::Coils, address, {static_cast<std::uint16_t>(w.value ? 1 : 0)}))
+        return exception(5, *e);
+    write_words(Table::Coils, address, {static_cast<std::uint16_t>(w.value ? 1 : 0)});
+    wrote = true;
+    modbus::WriteSingle echo = w;
+    if (faults_->fires(Fault::NoEcho)) echo.value = static_cast<std::uint16_t>(~echo.value);
+    return encode(Pdu{5, modbus::Direction::Response, echo, {}});
+}
+
+std::vector<std::uint8_t> Device::write_single_register(const Pdu& req, bool& wrote) {
+    const auto& w = std::get<modbus::WriteSingle>(req.body);
+    const std::uint16_t address = served(w.address);
+    if (auto e = check_write_block(Table::HoldingRegisters, address, {w.value})) return exception(6, *e);
+    write_words(Table::HoldingRegisters, address, {w.value});
+    wrote = true;
+    modbus::WriteSingle echo = w;
+    if (faults_->fires(Fault::NoEcho)) echo.value = static_cast<std::uint16_t>(~echo.value);
+    return encode(Pdu{6, modbus::Direction::Response, echo, {}});
+}
+
+std::vector<std::uint8_t> Device::write_multiple_coils(const Pdu& req, bool& wrote) {
+    const auto& w = std::get<modbus::WriteMultipleCoilsRequest>(req.body);
+    if (auto e = check_quantity(15, w.quantity)) return exception(15, *e);
+    if (has_violation(req, modbus::FindingCode::PduByteCountMismatch) || w.values.size() * 8 < w.quantity)
+        return exception(15, exc_illegal_value);
+    const std::uint16_t start = served(w.starting_address);
+    std::vector<std::uint16_t> values(w.quantity);
+    for (std::size_t i = 0; i < w.quantity; ++i)
+        values[i] = modbus::bit_at(w.values, i) ? 1 : 0;
+    if (auto e = check_write_block(Table::Coils, start, values)) return exception(15, *e);
+    write_words(Table::Coils, start, values);
+    wrote = true;
+    return encode(modbus::make_write_multiple_response(modbus::FunctionCode::WriteMultipleCoils,
+                                                       w.starting_address, w.quantity));
+}
+
+std::vector<std::uint8_t> Device::write_multiple_registers(const Pdu& req, bool& wrote) {
+    const auto& w = std::get<modbus::WriteMultipleRegistersRequest>(req.body);
+    if (auto e = check_quantity(16, w.quantity)) return exception(16, *e);
+    if (has_violation(req, modbus::FindingCode::PduByteCountMismatch) || w.values.size() != w.quantity)
+        return exception(16, exc_illegal_value);
+    const std::uint16_t start = served(w.starting_address);
+    if (auto e = check_write_block(Table::HoldingRegisters, start, w.values)) return exception(16, *e);
+    write_words(Table::HoldingRegisters, start, w.values);
+    wrote = true;
+    return encode(modbus::make_write_multiple_response(modbus::FunctionCode::WriteMultipleRegisters,
+                                                       w.starting_address, w.quantity));
+}
+
+std::vector<std::uint8_t> Device::mask_write(const Pdu& req, bool& wrote) {
+    const auto& m = std::get<modbus::MaskWriteRegister>(req.body);
+    const std::uint16_t address = served(m.reference_address);
+    const std::uint16_t current = image_.reg(Table::HoldingRegisters, address);
+    // AP §6.16: result = (current AND and_mask) OR (or_mask AND (NOT and_mask)).
+    const auto result = static_cast<std::uint16_t>((current & m.and_mask) | (m.or_mask & ~m.and_mask));
+    if (auto e = check_write_block(Table::HoldingRegisters, address, {result})) return exception(22, *e);
+    write_words(Table::HoldingRegisters, address, {result});
+    wrote = true;
+    return encode(Pdu{22, modbus::Direction::Response, m, {}});
+}
+
+std::vector<std::uint8_t> Device::read_write_multiple(const Pdu& req, bool& wrote) {
+    const auto& rw = std::get<modbus::ReadWriteMultipleRequest>(req.body);
+    if (auto e = check_quantity(23, rw.quantity_to_read)) return exception(23, *e);
+    if (auto e = check_quantity(23, rw.quantity_to_write, true)) return exception(23, *e);
+    if (has_violation(req, modbus::FindingCode::PduByteCountMismatch) ||
+        rw.write_values.size() != rw.quantity_to_write)
+        return exception(23, exc_illegal_value);
+    const std::uint16_t read_start = served(rw.read_starting_address);
+    const std::uint16_t write_start = served(rw.write_starting_address);
+    if (auto e = check_read_addresses(Table::HoldingRegisters, read_start, rw.quantity_to_read))
+        return exception(23, *e);
+    if (auto e = check_write_block(Table::HoldingRegisters, write_start, rw.write_values))
+        return exception(23, *e);
+    // AP §6.17: the write is performed before the read.
+    write_words(Table::HoldingRegisters, write_start, rw.write_values);
+    wrote = true;
+    std::vector<std::uint16_t> words(rw.quantity_to_read);
+    for (std::uint32_t i = 0; i < rw.quantity_to_read; ++i)
+        words[i] = read_word(Table::HoldingRegisters, static_cast<std::uint16_t>(read_start + i));
+    return encode(
+        modbus::make_read_registers_response(modbus::FunctionCode::ReadWriteMultipleRegisters, words));
+}
+
+std::vector<std::uint8_t> Device::diagnostics(const Pdu& req) {
+    const auto& d = std::get<modbus::Diagnostics>(req.body);
+    const auto& supported = profile_->functions.diagnostics;
+    if (std::find(supported.begin(), supported.end(), d.sub_function) == supported.end())
+        return exception(8,
+                         modbus::exception_for(*profile_, "fc8_unknown_sub_function", exc_illegal_function));
+    modbus::Diagnostics rsp = d;
+    const auto counter = [&](std::uint16_t v) {
+        rsp.data = {static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v)};
+    };
+    switch (d.sub_function) {
+        case 0x00:  // return query data: the echo
+            if (faults_->fires(Fault::NoEcho))
+                for (auto& b : rsp.data)
+                    b = static_cast<std::uint8_t>(~b);
+            break;
+        case 0x01:  // restart communications option: leave listen-only mode, clear the counters
+            if (d.data.size() != 2 || (d.data[0] != 0x00 && d.data[0] != 0xFF) || d.data[1] != 0x00)
+                return exception(8, exc_illegal_value);
+            listen_only_ = false;
+            counters_ = Counters{};
+            break;
+        case 0x02:
+            counter(counters_.diagnostic_register);
+            break;
+        case 0x04:  // force listen only mode: no response (AP §6.8.1)
+            listen_only_ = true;
+            ++counters_.no_response;
+            return {};
+        case 0x0A:
+            counters_ = Counters{};
+            break;
+        case 0x0B:
+            counter(counters_.bus_messages);
+            break;
+        case 0x0C:
+            counter(counters_.bus_comm_errors);
+            break;
+        case 0x0D:
+            counter(counters_.exceptions);
+            break;
+        case 0x0E:
+            counter(counters_.server_messages);
+            break;
+        case 0x0F:
+            counter(counters_.no_response);
+            break;
+        case 0x10:  // NAK, busy and character overrun counts: this server never naks, is never busy, never
+                    // overruns
+        case 0x11:
+        case 0x12:
+            counter(0);
+            break;
+        default:  // 0x03 change ASCII delimiter, 0x14 clear overrun counter: echo
+            break;
+    }
+    return encode(Pdu{8, modbus::Direction::Response, rsp, {}});
+}
+
+std::vector<std::uint8_t> Device::read_fifo(const Pdu& req) {
+    const auto& f = std::get<modbus::ReadFifoQueueRequest>(req.body);
+    const std::uint16_t pointer = served(f.fifo_pointer_address);
+    const std::uint16_t count = image_.reg(Table::HoldingRegisters, pointer);
+    if (count > 31 || pointer + count > 65535) return exception(24, exc_illegal_value);  // AP §6.18
+    modbus::ReadFifoQueueResponse rsp;
+    rsp.fifo_count = count;
+    for (std::uint16_t i = 0; i < count; ++i)
+        rsp.values.push_back(
+            image_.reg(Table::HoldingRegisters, static_cast<std::uint16_t>(pointer + 1 + i)));
+    rsp.byte_count = static_cast<std::uint16_t>(2 + 2 * count);
+    return encode(Pdu{24, modbus::Direction::Response, rsp, {}});
+}
+
+std::vector<std::uint8_t> Device::read_device_id(const Pdu& req) {
+    if (!std::holds_alternative<modbus::ReadDeviceIdRequest>(req.body))
+        return exception(43, exc_illegal_function);
+    const auto& r = std::get<modbus::ReadDeviceIdRequest>(req.body);
+    if (r.read_device_id_code < 1 || r.read_device_id_code > 4) return exception(43, exc_illegal_value);
+    const auto text = [](const std::string& s) { return std::vector<std::uint8_t>(s.begin(), s.end()); };
+    // The basic objects (AP §6.21): vendor name, product code, revision.
+    const std::vector<modbus::DeviceIdObject> objects = {
+        {0x00, text(profile_->vendor.empty() ? "mbscope" : profile_->vendor)},
+        {0x01, text(profile_->name.empty() ? profile_->id : profile_->name)},
+        {0x02, text(MBSCOPE_VERSION)},
+    };
+    modbus::ReadDeviceIdResponse rsp;
+    rsp.read_device_id_code = r.read_device_id_code;
+    rsp.conformity_level = 0x81;  // basic identification, stream and individual access
+    if (r.read_device_id_code == 4) {
+        if (r.object_id >= objects.size()) return exception(43, exc_illegal_address);
+        rsp.objects = {objects[r.object_id]};
+    } else {
+        // Stream access: an object id the device does not have restarts at the first (AP §6.21).
+        for (std::size_t i = r.object_id < objects.size() ? r.object_id : 0; i < objects.size(); ++i)
+            rsp.objects.push_back(objects[i]);
+    }
+    rsp.number_of_objects = static_cast<std::uint8_t>(rsp.objects.size());
+    return encode(Pdu{43, modbus::Direction::Response, rsp, {}});
+}
+
+std::vector<std::uint8_t> Device::report_server_id() {
+    modbus::ReportServerIdResponse rsp;
+    const std::string id = "mbscope " + profile_->id;
+    rsp.data.push_back(unit_);
+    rsp.data.push_back(0xFF);  // run indicator: ON
+    rsp.data.insert(rsp.data.end(), id.begin(), id.end());
+    rsp.byte_count = static_cast<std::uint8_t>(rsp.data.size());
+    return encode(Pdu{17, modbus::Direction::Response, rsp, {}});
+}
+
+}  // namespace mbscope::slave

@@ -1,0 +1,96 @@
+#pragma once
+// One Modbus server unit: a profile, its register image and the rules of its manual, applied in the order
+// the specification prescribes (AP V1.1b3 §6 state diagrams: function code → quantity → address → value →
+// execution). A Device sees PDUs only; framing, unit routing and wire-level faults are the server's.
+//
+// Where a manual is silent the specification decides; where the profile records a manual's deviation
+// (MK's 15-register and 30-coil limits, Walchem's first-address-only check and FC1/FC2, FC3/FC4 sameness,
+// CTH2265I's 0x55AA reserved registers) the profile wins.
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "modbus/pdu.hpp"
+#include "modbus/profile.hpp"
+#include "slave/faults.hpp"
+#include "slave/register_image.hpp"
+
+namespace mbscope::slave {
+
+// FC8 and FC11 counters (AP §6.8, SL §6.1). The server reports framing errors; the device counts the rest.
+struct Counters {
+    std::uint16_t bus_messages = 0;     // every frame seen on the line, CRC good or bad, any unit
+    std::uint16_t bus_comm_errors = 0;  // CRC/LRC errors
+    std::uint16_t exceptions = 0;       // exception responses sent
+    std::uint16_t server_messages = 0;  // requests addressed to this unit (or broadcast)
+    std::uint16_t no_response = 0;      // requests not answered (broadcasts, listen-only)
+    std::uint16_t event_count = 0;      // FC11: successful completions, polls and diagnostics excluded
+    std::uint16_t diagnostic_register = 0;
+};
+
+struct Request {
+    std::span<const std::uint8_t> pdu;
+    bool broadcast = false;
+};
+
+struct Reply {
+    std::vector<std::uint8_t> pdu;  // empty: no answer
+    bool wrote = false;             // the request changed the register image (the state file must be saved)
+};
+
+class Device {
+  public:
+    Device(const modbus::Profile& profile, std::uint8_t unit, FaultSet* faults = nullptr);
+
+    Reply handle(const Request& request);
+    void count_frame(bool checksum_ok) noexcept;  // the server saw a frame on the line (any unit)
+
+    RegisterImage& image() noexcept { return image_; }
+    const RegisterImage& image() const noexcept { return image_; }
+    const modbus::Profile& profile() const noexcept { return *profile_; }
+    std::uint8_t unit() const noexcept { return unit_; }
+    const Counters& counters() const noexcept { return counters_; }
+    bool listen_only() const noexcept { return listen_only_; }
+    // Addresses whose value the process must not move (stuck-value fault, or a user's pinned value).
+    bool frozen(modbus::Table t, std::uint16_t address) const noexcept;
+
+  private:
+    std::vector<std::uint8_t> exception(std::uint8_t fc, std::uint8_t code);
+    std::vector<std::uint8_t> dispatch(const modbus::Pdu& req, bool broadcast, bool& wrote);
+    // Rules: nullopt passes, otherwise the exception code.
+    std::optional<std::uint8_t> check_quantity(std::uint8_t fc, std::uint32_t quantity,
+                                               bool write_part = false);
+    std::optional<std::uint8_t> check_read_addresses(modbus::Table t, std::uint16_t start,
+                                                     std::uint32_t quantity);
+    std::optional<std::uint8_t> check_write_block(modbus::Table t, std::uint16_t start,
+                                                  const std::vector<std::uint16_t>& values);
+    std::uint16_t read_word(modbus::Table t, std::uint16_t address) const noexcept;
+    void write_words(modbus::Table t, std::uint16_t start, const std::vector<std::uint16_t>& values);
+    std::uint16_t served(std::uint16_t address) const noexcept;  // off-by-one-address fault
+
+    std::vector<std::uint8_t> read_bits(const modbus::Pdu& req);
+    std::vector<std::uint8_t> read_registers(const modbus::Pdu& req);
+    std::vector<std::uint8_t> write_single_coil(const modbus::Pdu& req, bool& wrote);
+    std::vector<std::uint8_t> write_single_register(const modbus::Pdu& req, bool& wrote);
+    std::vector<std::uint8_t> write_multiple_coils(const modbus::Pdu& req, bool& wrote);
+    std::vector<std::uint8_t> write_multiple_registers(const modbus::Pdu& req, bool& wrote);
+    std::vector<std::uint8_t> mask_write(const modbus::Pdu& req, bool& wrote);
+    std::vector<std::uint8_t> read_write_multiple(const modbus::Pdu& req, bool& wrote);
+    std::vector<std::uint8_t> diagnostics(const modbus::Pdu& req);
+    std::vector<std::uint8_t> read_fifo(const modbus::Pdu& req);
+    std::vector<std::uint8_t> read_device_id(const modbus::Pdu& req);
+    std::vector<std::uint8_t> report_server_id();
+
+    const modbus::Profile* profile_;
+    std::uint8_t unit_;
+    FaultSet* faults_;
+    FaultSet no_faults_;
+    RegisterImage image_;
+    Counters counters_;
+    bool listen_only_ = false;
+};
+
+}  // namespace mbscope::slave

@@ -1,0 +1,134 @@
+#include "slave/faults.hpp"
+
+#include <charconv>
+
+namespace mbscope::slave {
+
+namespace {
+
+enum class ArgKind : std::uint8_t { Rate, RequiredRate, Milliseconds, Characters, Code, Address, Count };
+
+struct FaultInfo {
+    Fault fault;
+    std::string_view name;
+    ArgKind arg;
+    std::string_view help;
+};
+
+constexpr FaultInfo faults[] = {
+    {Fault::BadCrc, "bad-crc", ArgKind::Rate, "RTU: the response's CRC is wrong"},
+    {Fault::BadLrc, "bad-lrc", ArgKind::Rate, "ASCII: the response's LRC is wrong"},
+    {Fault::WrongByteCount, "wrong-byte-count", ArgKind::Rate,
+     "read responses: byte count one more than the data"},
+    {Fault::ShortResponse, "short-response", ArgKind::Rate, "the response PDU loses its last byte"},
+    {Fault::ExtraBytes, "extra-bytes", ArgKind::Rate, "two bytes (0xDE 0xAD) appended to the response PDU"},
+    {Fault::WrongUnit, "wrong-unit", ArgKind::Rate, "the response carries unit id + 1"},
+    {Fault::WrongFunction, "wrong-function", ArgKind::Rate, "the response carries function code + 1"},
+    {Fault::WrongTid, "wrong-tid", ArgKind::Rate, "TCP: the response carries transaction id + 1"},
+    {Fault::BadProtocolId, "bad-protocol-id", ArgKind::Rate, "TCP: the response's protocol id is 1"},
+    {Fault::ReplyToBroadcast, "reply-to-broadcast", ArgKind::Rate,
+     "broadcasts (unit 0) are executed and answered"},
+    {Fault::IgnoreMaxQuantity, "ignore-max-quantity", ArgKind::Rate,
+     "the profile's quantity limits are not enforced (the specification's still are)"},
+    {Fault::WrongException, "wrong-exception", ArgKind::Code, "=CODE: every exception response carries CODE"},
+    {Fault::ExceptionForValid, "exception-for-valid", ArgKind::Rate,
+     "valid requests are answered with exception 04"},
+    {Fault::NoReply, "no-reply", ArgKind::RequiredRate,
+     "=RATE: that share of requests is not answered (0..1)"},
+    {Fault::SlowReply, "slow-reply", ArgKind::Milliseconds,
+     "=MS: every response is sent MS milliseconds late"},
+    {Fault::GapInsideFrame, "gap-inside-frame", ArgKind::Characters,
+     "=CHARS: RTU/ASCII: a silence of CHARS character times in the middle of each response"},
+    {Fault::WordSwap, "word-swap", ArgKind::Rate,
+     "32-bit points are served with their two registers swapped"},
+    {Fault::OffByOneAddress, "off-by-one-address", ArgKind::Rate, "every request is served at address + 1"},
+    {Fault::StuckValue, "stuck-value", ArgKind::Address,
+     "=ADDR: the register at ADDR never changes (writes acknowledged, process frozen)"},
+    {Fault::DropWrite, "drop-write", ArgKind::Rate, "writes are acknowledged and not kept"},
+    {Fault::AcceptOutOfRange, "accept-out-of-range", ArgKind::Rate,
+     "values outside the map's ranges and enumerations are accepted"},
+    {Fault::NoEcho, "no-echo", ArgKind::Rate,
+     "FC5, FC6 and FC8/00 answers carry the request's value inverted"},
+    {Fault::CrashAfter, "crash-after", ArgKind::Count,
+     "=N: after N answered requests the slave never answers again"},
+};
+
+const FaultInfo& info(Fault f) noexcept {
+    return faults[static_cast<std::size_t>(f)];
+}
+
+}  // namespace
+
+std::string_view to_string(Fault f) noexcept {
+    return info(f).name;
+}
+
+std::string fault_help() {
+    std::string out;
+    for (const auto& f : faults) {
+        std::string name(f.name);
+        name.resize(22, ' ');
+        out += "  " + name + std::string(f.help) + "\n";
+    }
+    out += "  Faults without =ARG take an optional =RATE (0..1, default 1: every response).\n";
+    return out;
+}
+
+modbus::Result<FaultSpec, std::string> parse_fault(std::string_view text) {
+    const auto eq = text.find('=');
+    const std::string_view name = text.substr(0, eq);
+    const std::string_view value = eq == std::string_view::npos ? std::string_view{} : text.substr(eq + 1);
+    for (const auto& f : faults) {
+        if (f.name != name) continue;
+        FaultSpec spec{f.fault, 1.0};
+        const bool needs_arg = f.arg != ArgKind::Rate;
+        if (value.empty()) {
+            if (needs_arg)
+                return "--fault " + std::string(text) + ": needs " +
+                       std::string(f.help.substr(0, f.help.find(':')));
+            return spec;
+        }
+        double v = 0;
+        auto [p, ec] = std::from_chars(value.data(), value.data() + value.size(), v);
+        if (ec != std::errc{} || p != value.data() + value.size())
+            return "--fault " + std::string(text) + ": '" + std::string(value) + "' is not a number";
+        const bool is_rate = f.arg == ArgKind::Rate || f.arg == ArgKind::RequiredRate;
+        if (is_rate && (v <= 0 || v > 1)) return "--fault " + std::string(text) + ": rate must be in (0, 1]";
+        if (f.arg == ArgKind::Code && (v < 1 || v > 255 || v != static_cast<int>(v)))
+            return "--fault " + std::string(text) + ": exception code must be 1..255";
+        if (f.arg == ArgKind::Address && (v < 0 || v > 65535 || v != static_cast<int>(v)))
+            return "--fault " + std::string(text) + ": address must be 0..65535";
+        if ((f.arg == ArgKind::Milliseconds || f.arg == ArgKind::Characters || f.arg == ArgKind::Count) &&
+            v < 0)
+            return "--fault " + std::string(text) + ": must not be negative";
+        spec.arg = v;
+        return spec;
+    }
+    return "--fault " + std::string(text) + ": unknown fault '" + std::string(name) +
+           "' (see mbscope slave --help)";
+}
+
+FaultSet::FaultSet(const std::vector<FaultSpec>& specs, std::uint64_t seed) : rng_(seed) {
+    for (const auto& s : specs) {
+        on_[static_cast<std::size_t>(s.fault)] = true;
+        arg_[static_cast<std::size_t>(s.fault)] = s.arg;
+    }
+}
+
+bool FaultSet::fires(Fault f) {
+    if (!enabled(f)) return false;
+    const FaultInfo& i = info(f);
+    if (i.arg != ArgKind::Rate && i.arg != ArgKind::RequiredRate) return true;
+    const double rate = arg(f);
+    if (rate >= 1.0) return true;
+    // 53 random bits as a fraction: the same sequence on every standard library, unlike the distributions.
+    return static_cast<double>(rng_() >> 11) * 0x1.0p-53 < rate;
+}
+
+bool FaultSet::any() const noexcept {
+    for (bool b : on_)
+        if (b) return true;
+    return false;
+}
+
+}  // namespace mbscope::slave

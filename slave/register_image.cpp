@@ -1,0 +1,110 @@
+#include "slave/register_image.hpp"
+
+#include <cstring>
+
+namespace mbscope::slave {
+
+namespace {
+int index_of(Table t) noexcept {
+    return static_cast<int>(t);
+}
+}  // namespace
+
+RegisterImage::RegisterImage(const modbus::Profile& profile) : profile_(&profile) {
+    for (Table t : {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters})
+        if (profile.resolve(t) == t) tables_[index_of(t)].assign(65536, 0);
+    initialise();
+    for (int i = 0; i < 5; ++i)
+        initial_[i] = tables_[i];
+}
+
+std::vector<std::uint16_t>& RegisterImage::words(Table t) noexcept {
+    if (t == Table::Coils && profile_->coils_view_registers) t = Table::HoldingRegisters;
+    if (t == Table::DiscreteInputs && profile_->coils_view_registers &&
+        profile_->resolve(Table::DiscreteInputs) == Table::Coils)
+        t = Table::HoldingRegisters;
+    return tables_[index_of(profile_->resolve(t))];
+}
+
+const std::vector<std::uint16_t>& RegisterImage::words(Table t) const noexcept {
+    return const_cast<RegisterImage*>(this)->words(t);
+}
+
+std::uint16_t RegisterImage::reg(Table t, std::uint16_t address) const noexcept {
+    return words(t)[address];
+}
+void RegisterImage::set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept {
+    words(t)[address] = value;
+}
+bool RegisterImage::bit(Table t, std::uint16_t address) const noexcept {
+    return words(t)[address] != 0;
+}
+void RegisterImage::set_bit(Table t, std::uint16_t address, bool value) noexcept {
+    words(t)[address] = value ? 1 : 0;
+}
+
+std::uint32_t RegisterImage::u32(Table t, std::uint16_t address, modbus::WordOrder order) const noexcept {
+    return modbus::join_words(reg(t, address), reg(t, static_cast<std::uint16_t>(address + 1)), order);
+}
+
+void RegisterImage::set_u32(Table t, std::uint16_t address, std::uint32_t value,
+                            modbus::WordOrder order) noexcept {
+    const auto w = modbus::split_words(value, order);
+    set_reg(t, address, w[0]);
+    set_reg(t, static_cast<std::uint16_t>(address + 1), w[1]);
+}
+
+void RegisterImage::set_f32(Table t, std::uint16_t address, float value, modbus::WordOrder order) noexcept {
+    std::uint32_t u;
+    std::memcpy(&u, &value, sizeof u);
+    set_u32(t, address, u, order);
+}
+
+float RegisterImage::f32(Table t, std::uint16_t address, modbus::WordOrder order) const noexcept {
+    const std::uint32_t u = u32(t, address, order);
+    float f;
+    std::memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+void RegisterImage::initialise() {
+    using modbus::EncodingType;
+    for (Table t : {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters}) {
+        if (profile_->resolve(t) != t) continue;
+        if (t == Table::Coils && profile_->coils_view_registers)
+            continue;  // the registers' values are the coils'
+        for (const modbus::Point& p : profile_->table(t)) {
+            const modbus::Encoding& e = p.encoding;
+            if (p.fixed_value) {
+                set_reg(t, p.address, *p.fixed_value);
+                continue;
+            }
+            std::int64_t v = 0;
+            if ((e.type == EncodingType::Enum || e.type == EncodingType::Status) && !e.values.empty())
+                v = e.values.front().value;
+            if (p.min && *p.min > 0) v = *p.min;
+            if (p.max && *p.max < 0) v = *p.max;
+            if (e.words == 2) {
+                if (e.type == EncodingType::F32)
+                    set_f32(t, p.address, static_cast<float>(v), e.word_order);
+                else
+                    set_u32(t, p.address, static_cast<std::uint32_t>(v), e.word_order);
+            } else {
+                set_reg(t, p.address, static_cast<std::uint16_t>(v));
+            }
+        }
+    }
+}
+
+std::map<Table, std::map<std::uint16_t, std::uint16_t>> RegisterImage::changes() const {
+    std::map<Table, std::map<std::uint16_t, std::uint16_t>> out;
+    for (Table t : {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters}) {
+        const auto& now = tables_[index_of(t)];
+        const auto& then = initial_[index_of(t)];
+        for (std::size_t a = 0; a < now.size(); ++a)
+            if (now[a] != then[a]) out[t][static_cast<std::uint16_t>(a)] = now[a];
+    }
+    return out;
+}
+
+}  // namespace mbscope::slave

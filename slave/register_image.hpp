@@ -1,0 +1,48 @@
+#pragma once
+// The data a slave serves: its four tables as the device holds them. Tables a profile declares the same as
+// another (MK FC3/FC4, Walchem FC1/FC2 and FC3/FC4) share storage, so a write through one is read through the
+// other; Walchem coils are views of the holding registers at the same address (profile.coils_view_registers).
+// Initial values follow the map: fixed read values (CTH2265I 0x55AA), an enumeration's first value, a
+// range's minimum when zero is outside it (floats encoded in the profile's word order).
+
+#include <cstdint>
+#include <map>
+#include <vector>
+
+#include "modbus/profile.hpp"
+
+namespace mbscope::slave {
+
+using modbus::Table;
+
+class RegisterImage {
+  public:
+    explicit RegisterImage(const modbus::Profile& profile);
+
+    std::uint16_t reg(Table t, std::uint16_t address) const noexcept;
+    void set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept;
+    bool bit(Table t, std::uint16_t address) const noexcept;
+    void set_bit(Table t, std::uint16_t address, bool value) noexcept;
+
+    // 32-bit values of two-register points, in the point's word order.
+    std::uint32_t u32(Table t, std::uint16_t address, modbus::WordOrder order) const noexcept;
+    void set_u32(Table t, std::uint16_t address, std::uint32_t value, modbus::WordOrder order) noexcept;
+    void set_f32(Table t, std::uint16_t address, float value, modbus::WordOrder order) noexcept;
+    float f32(Table t, std::uint16_t address, modbus::WordOrder order) const noexcept;
+
+    // Every address whose value differs from the initial image, per table: what a state file keeps.
+    std::map<Table, std::map<std::uint16_t, std::uint16_t>> changes() const;
+    const modbus::Profile& profile() const noexcept { return *profile_; }
+
+  private:
+    std::vector<std::uint16_t>& words(Table t) noexcept;
+    const std::vector<std::uint16_t>& words(Table t) const noexcept;
+    void initialise();
+
+    const modbus::Profile* profile_;
+    // Indexed by the resolved table's value; bits are kept one per word for simple, uniform storage.
+    std::vector<std::uint16_t> tables_[5];
+    std::vector<std::uint16_t> initial_[5];
+};
+
+}  // namespace mbscope::slave

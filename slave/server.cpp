@@ -1,0 +1,552 @@
+#include "slave/server.hpp"
+
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <optional>
+
+#include "modbus/adu.hpp"
+#include "modbus/ascii_deframer.hpp"
+#include "modbus/checksum.hpp"
+#include "modbus/rtu_deframer.hpp"
+#include "modbus/tcp_deframer.hpp"
+#include "modbus/transport/serial_port.hpp"
+#include "modbus/transport/socket.hpp"
+#include "slave/state_file.hpp"
+
+namespace mbscope::slave {
+
+namespace tp = modbus::transport;
+using Clock = std::chrono::steady_clock;
+using modbus::Framing;
+
+namespace {
+
+modbus::Timestamp stamp(Clock::time_point t) {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch());
+}
+
+struct Connection {
+    tp::UniqueFd fd;
+    bool serial = false;
+    modbus::TcpStreamDeframer mbap;
+    modbus::AsciiDeframer ascii;
+    std::vector<std::uint8_t> rtu;  // RTU bytes since the last frame (serial: since the last t3.5 silence)
+    Clock::time_point last_byte{};
+    bool rtu_gap = false;  // serial RTU: a silence above t1.5 inside the bytes in `rtu`
+    bool partial = false;  // some bytes of a frame are buffered
+    Clock::time_point last_activity{};
+    std::vector<std::uint8_t> out;  // bytes waiting for the socket to accept them
+};
+
+struct Scheduled {
+    Clock::time_point due;
+    std::uint64_t connection = 0;  // 0: the UDP socket
+    sockaddr_storage peer{};
+    socklen_t peer_len = 0;
+    std::vector<std::uint8_t> bytes;
+};
+
+// What a request frame carries, whatever its framing.
+struct Incoming {
+    std::uint8_t unit = 0;
+    std::span<const std::uint8_t> pdu;
+    std::uint16_t transaction_id = 0;
+};
+
+}  // namespace
+
+struct Server::Impl {
+    tp::Endpoint endpoint;
+    std::vector<Device*> units;
+    FaultSet& faults;
+    ServerOptions options;
+    ServerStats& stats;
+    Framing framing = Framing::Tcp;
+
+    tp::UniqueFd listener;
+    tp::UniqueFd udp;
+    tp::Pty pty;
+    std::uint64_t serial_id = 0;
+    std::map<std::uint64_t, Connection> connections;
+    std::uint64_t next_id = 1;
+    std::deque<Scheduled> scheduled;  // kept sorted by due time
+    std::uint64_t answered = 0;
+    Clock::time_point last_tick{};
+
+    Impl(tp::Endpoint e, std::vector<Device*> u, FaultSet& f, ServerOptions o, ServerStats& s)
+        : endpoint(std::move(e)),
+          units(std::move(u)),
+          faults(f),
+          options(std::move(o)),
+          stats(s),
+          framing(tp::framing_of(endpoint.scheme)) {}
+
+    // ---- request → response
+
+    Device* route(std::uint8_t unit) {
+        for (Device* d : units)
+            if (d->unit() == unit) return d;
+        // Modbus/TCP: a device reached by its IP address answers unit 0xFF (TCP §4.4.1.2); Walchem answers
+        // every non-zero unit id (002:213-215).
+        if (framing == Framing::Tcp && !tp::is_serial(endpoint.scheme) && units.size() == 1 &&
+            (unit == 0xFF || units.front()->profile().line.any_unit_answered))
+            return units.front();
+        return nullptr;
+    }
+
+    bool save() {
+        if (options.state_file.empty()) return true;
+        auto saved = save_state(options.state_file, units);
+        if (!saved) std::fprintf(stderr, "mbscope slave: cannot save state: %s\n", saved.error().c_str());
+        return bool(saved);
+    }
+
+    // The response PDU, or nothing when the request is not answered.
+    std::vector<std::uint8_t> answer(const Incoming& in) {
+        ++stats.requests;
+        if (faults.enabled(Fault::CrashAfter) &&
+            answered >= static_cast<std::uint64_t>(faults.arg(Fault::CrashAfter)))
+            return {};
+        std::vector<std::uint8_t> pdu;
+        if (in.unit == 0) {  // broadcast: every unit on the line executes it
+            bool wrote = false;
+            for (Device* d : units) {
+                Reply r = d->handle({in.pdu, true});
+                wrote |= r.wrote;
+                if (pdu.empty()) pdu = std::move(r.pdu);  // only with reply-to-broadcast
+            }
+            if (wrote) save();
+        } else {
+            Device* d = route(in.unit);
+            if (!d || (d->unit() == 0)) return {};
+            Reply r = d->handle({in.pdu, false});
+            // An acknowledgement promises the write is kept: when it cannot be saved, the device says it
+            // failed (exception 04) instead.
+            if (r.wrote && !r.pdu.empty() && !save())
+                r.pdu = modbus::encode_pdu(modbus::make_exception(in.pdu[0], 0x04));
+            pdu = std::move(r.pdu);
+        }
+        if (pdu.empty()) return {};
+        if (faults.fires(Fault::NoReply)) return {};
+        ++answered;
+        if (faults.fires(Fault::WrongFunction))
+            pdu[0] = static_cast<std::uint8_t>((((pdu[0] & 0x7F) + 1) & 0x7F) | (pdu[0] & 0x80));
+        if (faults.fires(Fault::ShortResponse) && pdu.size() > 1) pdu.pop_back();
+        if (faults.fires(Fault::ExtraBytes)) pdu.insert(pdu.end(), {0xDE, 0xAD});
+        return pdu;
+    }
+
+    std::vector<std::uint8_t> frame(const Incoming& in, const std::vector<std::uint8_t>& pdu) {
+        const auto unit = static_cast<std::uint8_t>(faults.fires(Fault::WrongUnit) ? in.unit + 1 : in.unit);
+        switch (framing) {
+            case Framing::Tcp: {
+                const auto tid =
+                    static_cast<std::uint16_t>(in.transaction_id + (faults.fires(Fault::WrongTid) ? 1 : 0));
+                return modbus::encode_tcp(tid, unit, pdu, faults.fires(Fault::BadProtocolId) ? 1 : 0);
+            }
+            case Framing::Rtu: {
+                auto adu = modbus::encode_rtu(unit, pdu);
+                if (faults.fires(Fault::BadCrc)) {
+                    adu[adu.size() - 1] ^= 0xFF;
+                    adu[adu.size() - 2] ^= 0xFF;
+                }
+                return adu;
+            }
+            case Framing::Ascii: {
+                std::string text = modbus::encode_ascii(unit, pdu);
+                if (faults.fires(Fault::BadLrc) && text.size() >= 5) {
+                    // The two hex digits before CR LF are the LRC: replace them with LRC + 1.
+                    const unsigned lrc =
+                        static_cast<unsigned>(std::stoul(text.substr(text.size() - 4, 2), nullptr, 16));
+                    char hex[3];
+                    std::snprintf(hex, sizeof hex, "%02X", (lrc + 1) & 0xFF);
+                    text[text.size() - 4] = hex[0];
+                    text[text.size() - 3] = hex[1];
+                }
+                return {text.begin(), text.end()};
+            }
+        }
+        return {};
+    }
+
+    std::chrono::nanoseconds character_time() const { return endpoint.line.character_time(); }
+
+    // Queue a response: now, later (slow-reply) or in two parts (gap-inside-frame).
+    void send(std::uint64_t connection, const sockaddr_storage* peer, socklen_t peer_len,
+              std::vector<std::uint8_t> bytes) {
+        auto due = Clock::now();
+        if (faults.enabled(Fault::SlowReply))
+            due += std::chrono::milliseconds(static_cast<long>(faults.arg(Fault::SlowReply)));
+        auto make = [&](Clock::time_point when, std::vector<std::uint8_t> b) {
+            Scheduled s{when, connection, {}, peer_len, std::move(b)};
+            if (peer) s.peer = *peer;
+            return s;
+        };
+        std::vector<Scheduled> parts;
+        if (faults.enabled(Fault::GapInsideFrame) && framing != Framing::Tcp && bytes.size() >= 2) {
+            const std::size_t half = bytes.size() / 2;
+            std::vector<std::uint8_t> second(bytes.begin() + static_cast<long>(half), bytes.end());
+            bytes.resize(half);
+            const auto gap = std::chrono::duration_cast<Clock::duration>(character_time() *
+                                                                         faults.arg(Fault::GapInsideFrame));
+            parts.push_back(make(due, std::move(bytes)));
+            parts.push_back(make(due + gap, std::move(second)));
+        } else {
+            parts.push_back(make(due, std::move(bytes)));
+        }
+        for (auto& s : parts) {
+            if (s.due <= Clock::now() && scheduled.empty()) {
+                deliver(s);
+                continue;
+            }
+            auto it = scheduled.end();
+            while (it != scheduled.begin() && (it - 1)->due > s.due)
+                --it;
+            scheduled.insert(it, std::move(s));
+        }
+    }
+
+    void deliver(const Scheduled& s) {
+        ++stats.responses;
+        if (s.connection == 0) {
+            ::sendto(udp.get(), s.bytes.data(), s.bytes.size(), MSG_NOSIGNAL,
+                     reinterpret_cast<const sockaddr*>(&s.peer), s.peer_len);
+            return;
+        }
+        auto it = connections.find(s.connection);
+        if (it == connections.end()) return;  // the client went away meanwhile
+        Connection& c = it->second;
+        c.out.insert(c.out.end(), s.bytes.begin(), s.bytes.end());
+        flush(c);
+    }
+
+    void flush(Connection& c) {
+        while (!c.out.empty()) {
+            const ssize_t n = c.serial ? ::write(c.fd.get(), c.out.data(), c.out.size())
+                                       : ::send(c.fd.get(), c.out.data(), c.out.size(), MSG_NOSIGNAL);
+            if (n < 0) {
+                if (errno == EINTR) continue;
+                if (errno != EAGAIN && errno != EWOULDBLOCK)
+                    c.out.clear();  // the peer is gone; close follows
+                return;
+            }
+            c.out.erase(c.out.begin(), c.out.begin() + n);
+        }
+    }
+
+    void on_frame(std::uint64_t id, const modbus::Frame& f) {
+        for (Device* d : units)
+            d->count_frame(f.checksum_ok);
+        if (!f.checksum_ok) {
+            ++stats.bad_frames;  // SL §2.5.1.2: a frame with a bad CRC/LRC is not answered
+            return;
+        }
+        if (f.framing == Framing::Tcp && f.protocol_id() != 0) return;  // not Modbus (TCP §3.1.3): discarded
+        Incoming in{f.unit_id(), f.pdu(), f.framing == Framing::Tcp ? f.transaction_id() : std::uint16_t{0}};
+        auto pdu = answer(in);
+        if (pdu.empty()) return;
+        send(id, nullptr, 0, frame(in, pdu));
+    }
+
+    // ---- endpoints
+
+    modbus::Result<void, std::string> open() {
+        using S = tp::Scheme;
+        switch (endpoint.scheme) {
+            case S::Tcp:
+            case S::RtuOverTcp:
+            case S::AsciiOverTcp: {
+                auto fd = tp::listen_tcp(endpoint.host, endpoint.port, 512);
+                if (!fd) return endpoint.text() + ": " + fd.error();
+                listener = std::move(fd).value();
+                return {};
+            }
+            case S::Udp: {
+                auto fd = tp::bind_udp(endpoint.host, endpoint.port);
+                if (!fd) return endpoint.text() + ": " + fd.error();
+                udp = std::move(fd).value();
+                return {};
+            }
+            case S::RtuSerial:
+            case S::AsciiSerial: {
+                Connection c;
+                c.serial = true;
+                if (options.create_pty) {
+                    auto p = tp::open_pty(endpoint.line);
+                    if (!p) return p.error();
+                    pty = std::move(p).value();
+                    c.fd = tp::UniqueFd(::dup(pty.master.get()));
+                    if (!c.fd) return std::string("pty: dup: ") + std::strerror(errno);
+                } else {
+                    auto fd = tp::open_serial(endpoint.device, endpoint.line);
+                    if (!fd) return fd.error();
+                    c.fd = std::move(fd).value();
+                }
+                c.ascii = modbus::AsciiDeframer({std::chrono::milliseconds(1000)});
+                serial_id = next_id++;
+                connections.emplace(serial_id, std::move(c));
+                return {};
+            }
+        }
+        return std::string("unsupported endpoint");
+    }
+
+    void accept_clients() {
+        for (;;) {
+            tp::UniqueFd fd(::accept4(listener.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
+            if (!fd) return;
+            if (connections.size() >= options.max_clients) {
+                ++stats.refused;
+                continue;  // closed at once: the others keep their service
+            }
+            const int one = 1;
+            ::setsockopt(fd.get(), IPPROTO_TCP, 1 /* TCP_NODELAY */, &one, sizeof one);
+            Connection c;
+            c.fd = std::move(fd);
+            c.last_activity = Clock::now();
+            ++stats.connections;
+            connections.emplace(next_id++, std::move(c));
+        }
+    }
+
+    // Returns false when the connection must be closed.
+    bool read_stream(std::uint64_t id, Connection& c) {
+        std::uint8_t buf[4096];
+        for (;;) {
+            const ssize_t n = ::read(c.fd.get(), buf, sizeof buf);
+            if (n == 0) return c.serial;  // EOF: a TCP client left; a pty just has no writer now
+            if (n < 0) {
+                if (errno == EINTR) continue;
+                if (errno == EAGAIN || errno == EWOULDBLOCK) return true;
+                return c.serial && errno == EIO;  // a pty whose client closed reads EIO until the next one
+            }
+            const auto now = Clock::now();
+            c.last_activity = now;
+            const std::span<const std::uint8_t> bytes(buf, static_cast<std::size_t>(n));
+            if (!consume(id, c, bytes, now)) return false;
+        }
+    }
+
+    bool consume(std::uint64_t id, Connection& c, std::span<const std::uint8_t> bytes,
+                 Clock::time_point now) {
+        modbus::DeframeEvents events;
+        switch (framing) {
+            case Framing::Tcp:
+                c.mbap.feed(bytes, events);
+                break;
+            case Framing::Ascii:
+                c.ascii.feed(bytes, c.serial ? stamp(now) : modbus::Timestamp{0}, events);
+                break;
+            case Framing::Rtu:
+                if (c.serial) {
+                    // SL §2.5.1.1: bytes after a silence above t1.5 (but below t3.5) spoil the frame.
+                    if (!c.rtu.empty() && now - c.last_byte > endpoint.line.t1_5()) c.rtu_gap = true;
+                    c.rtu.insert(c.rtu.end(), bytes.begin(), bytes.end());
+                    c.last_byte = now;
+                    if (c.rtu.size() > 4 * modbus::max_frame_bytes) {  // a runaway line: drop, resynchronise
+                        ++stats.bad_frames;
+                        c.rtu.clear();
+                    }
+                    return true;
+                }
+                c.rtu.insert(c.rtu.end(), bytes.begin(), bytes.end());
+                deframe_rtu_stream(id, c);
+                c.partial = !c.rtu.empty();
+                return true;
+        }
+        bool ok = true;
+        for (auto& e : events) {
+            if (const auto* f = std::get_if<modbus::Frame>(&e)) {
+                on_frame(id, *f);
+            } else {
+                ++stats.bad_frames;
+                if (framing == Framing::Tcp) ok = false;  // MBAP garbage: this client is lost, close it
+            }
+        }
+        c.partial = framing == Framing::Tcp ? c.mbap.buffered() > 0 : c.ascii.buffered() > 0;
+        return ok;
+    }
+
+    // RTU over TCP: frame ends come from the content (function code and byte counts, confirmed by the CRC).
+    void deframe_rtu_stream(std::uint64_t id, Connection& c) {
+        std::size_t head = 0;
+        while (head < c.rtu.size()) {
+            const std::span<const std::uint8_t> rest(c.rtu.data() + head, c.rtu.size() - head);
+            const auto step = modbus::rtu_step(rest, false);
+            if (step.kind == modbus::DeframeStep::Kind::NeedMore) break;
+            if (step.kind == modbus::DeframeStep::Kind::Complete) {
+                if (auto f = modbus::decode_rtu(rest.first(step.length)); f) on_frame(id, *f);
+                head += step.length;
+                continue;
+            }
+            // A function code the codec cannot size: a gateway delivers one frame per segment, so the rest
+            // of the buffer is that frame if its CRC says so (answered with exception 01).
+            if (step.reason == modbus::UnparsedReason::UnknownFunction && rest.size() >= 4 &&
+                rest.size() <= 256 && modbus::crc16(rest) == 0) {
+                if (auto f = modbus::decode_rtu(rest); f) on_frame(id, *f);
+                head = c.rtu.size();
+                break;
+            }
+            ++stats.bad_frames;
+            head += step.length ? step.length : 1;
+        }
+        c.rtu.erase(c.rtu.begin(), c.rtu.begin() + static_cast<long>(head));
+    }
+
+    // Serial RTU: a silence of t3.5 ends the frame.
+    void close_serial_frame(std::uint64_t id, Connection& c, Clock::time_point now) {
+        if (c.rtu.empty() || now - c.last_byte < endpoint.line.t3_5()) return;
+        std::vector<std::uint8_t> bytes;
+        bytes.swap(c.rtu);
+        const bool gap = std::exchange(c.rtu_gap, false);
+        auto f = modbus::decode_rtu(bytes);
+        if (!f) {
+            ++stats.bad_frames;
+            return;
+        }
+        if (gap) {
+            for (Device* d : units)
+                d->count_frame(false);
+            ++stats.bad_frames;  // a silence above t1.5 inside the frame: incomplete, not answered
+            return;
+        }
+        on_frame(id, *f);
+    }
+
+    void read_udp() {
+        std::uint8_t buf[2048];
+        for (;;) {
+            sockaddr_storage peer{};
+            socklen_t len = sizeof peer;
+            const ssize_t n =
+                ::recvfrom(udp.get(), buf, sizeof buf, 0, reinterpret_cast<sockaddr*>(&peer), &len);
+            if (n < 0) return;
+            auto f = modbus::decode_tcp(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)));
+            if (!f || f->protocol_id() != 0) {
+                ++stats.bad_frames;
+                continue;
+            }
+            for (Device* d : units)
+                d->count_frame(true);
+            Incoming in{f->unit_id(), f->pdu(), f->transaction_id()};
+            auto pdu = answer(in);
+            if (!pdu.empty()) send(0, &peer, len, frame(in, pdu));
+        }
+    }
+
+    modbus::Result<void, std::string> run(const std::atomic<bool>& stop) {
+        std::vector<pollfd> fds;
+        std::vector<std::uint64_t> ids;
+        while (!stop.load(std::memory_order_relaxed)) {
+            auto now = Clock::now();
+            if (options.tick && now - last_tick >= options.tick_interval) {
+                options.tick(now);
+                last_tick = now;
+            }
+            // Timers: scheduled sends, the serial t3.5 silence, the next tick; at most 100 ms.
+            auto wake = now + std::chrono::milliseconds(100);
+            if (!scheduled.empty()) wake = std::min(wake, scheduled.front().due);
+            if (options.tick) wake = std::min(wake, last_tick + options.tick_interval);
+            for (auto& [id, c] : connections)
+                if (c.serial && !c.rtu.empty()) wake = std::min(wake, c.last_byte + endpoint.line.t3_5());
+            fds.clear();
+            ids.clear();
+            if (listener) {
+                fds.push_back({listener.get(), POLLIN, 0});
+                ids.push_back(0);
+            }
+            if (udp) {
+                fds.push_back({udp.get(), POLLIN, 0});
+                ids.push_back(0);
+            }
+            for (auto& [id, c] : connections) {
+                fds.push_back({c.fd.get(), static_cast<short>(POLLIN | (c.out.empty() ? 0 : POLLOUT)), 0});
+                ids.push_back(id);
+            }
+            const auto wait = std::chrono::duration_cast<std::chrono::microseconds>(wake - now).count();
+            const int timeout_ms = wait <= 0 ? 0 : static_cast<int>((wait + 999) / 1000);
+            const int rc = ::poll(fds.data(), fds.size(), timeout_ms);
+            if (rc < 0 && errno != EINTR) return std::string("poll: ") + std::strerror(errno);
+            now = Clock::now();
+            std::vector<std::uint64_t> to_close;
+            for (std::size_t i = 0; rc > 0 && i < fds.size(); ++i) {
+                if (fds[i].revents == 0) continue;
+                if (fds[i].fd == listener.get()) {
+                    accept_clients();
+                    continue;
+                }
+                if (fds[i].fd == udp.get()) {
+                    read_udp();
+                    continue;
+                }
+                auto it = connections.find(ids[i]);
+                if (it == connections.end()) continue;
+                Connection& c = it->second;
+                if (fds[i].revents & POLLOUT) flush(c);
+                if (fds[i].revents & (POLLIN | POLLHUP | POLLERR)) {
+                    if (!read_stream(ids[i], c) || (!c.serial && (fds[i].revents & POLLERR)))
+                        to_close.push_back(ids[i]);
+                    // A pty whose client closed reports POLLHUP until one opens it again: do not spin.
+                    if (c.serial && (fds[i].revents & POLLHUP) && !(fds[i].revents & POLLIN))
+                        ::poll(nullptr, 0, 10);
+                }
+            }
+            for (auto& [id, c] : connections) {
+                if (c.serial) {
+                    if (framing == Framing::Rtu) close_serial_frame(id, c, now);
+                    continue;
+                }
+                const auto idle = now - c.last_activity;
+                if (idle > options.idle_timeout || (c.partial && idle > options.frame_timeout)) {
+                    ++stats.closed_idle;
+                    to_close.push_back(id);
+                }
+            }
+            while (!scheduled.empty() && scheduled.front().due <= now) {
+                Scheduled s = std::move(scheduled.front());
+                scheduled.pop_front();
+                deliver(s);
+            }
+            for (auto id : to_close)
+                connections.erase(id);
+        }
+        return {};
+    }
+};
+
+Server::Server(tp::Endpoint endpoint, std::vector<Device*> units, FaultSet& faults, ServerOptions options)
+    : impl_(std::make_unique<Impl>(std::move(endpoint), std::move(units), faults, std::move(options),
+                                   stats_)) {}
+
+Server::~Server() = default;
+
+modbus::Result<void, std::string> Server::open() {
+    return impl_->open();
+}
+
+modbus::Result<void, std::string> Server::run(const std::atomic<bool>& stop) {
+    return impl_->run(stop);
+}
+
+std::uint16_t Server::port() const noexcept {
+    if (impl_->listener) return tp::bound_port(impl_->listener.get());
+    if (impl_->udp) return tp::bound_port(impl_->udp.get());
+    return 0;
+}
+
+std::string Server::address() const {
+    if (!impl_->pty.slave_path.empty()) return impl_->pty.slave_path;
+    if (tp::is_serial(impl_->endpoint.scheme)) return impl_->endpoint.device;
+    tp::Endpoint e = impl_->endpoint;
+    e.port = port();
+    return e.text();
+}
+
+}  // namespace mbscope::slave
