@@ -331,6 +331,9 @@ struct Server::Impl {
             c.last_activity = now;
             const std::span<const std::uint8_t> bytes(buf, static_cast<std::size_t>(n));
             if (!consume(id, c, bytes, now)) return false;
+            // A short read drained the socket: skip the read that would only say EAGAIN (a system call per
+            // request saved; poll reports whatever arrives next).
+            if (static_cast<std::size_t>(n) < sizeof buf) return true;
         }
     }
 
