@@ -1,5 +1,6 @@
 // mbscope slave: serve device profiles over TCP, UDP, serial framing over TCP, a serial port or a
 // pseudo-terminal, with planted faults on demand.
+#include <algorithm>
 #include <csignal>
 #include <iostream>
 #include <memory>
@@ -61,8 +62,8 @@ int run_slave(const SlaveOptions& o) {
         const std::string number = u.substr(0, eq);
         char* end = nullptr;
         const long n = std::strtol(number.c_str(), &end, 10);
-        if (number.empty() || *end != '\0' || n < 1 || n > 247) {
-            std::cerr << "mbscope slave: --unit takes 1..247 or N=PROFILE, not '" << u << "'\n";
+        if (number.empty() || *end != '\0' || n < 0 || n > 255) {
+            std::cerr << "mbscope slave: --unit takes 0..255 or N=PROFILE, not '" << u << "'\n";
             return exit_failure;
         }
         for (const auto& [m, id] : wanted)
@@ -83,6 +84,22 @@ int run_slave(const SlaveOptions& o) {
         if (!p) {
             for (const auto& e : p.error())
                 std::cerr << "mbscope slave: " << modbus::to_string(e) << '\n';
+            return exit_failure;
+        }
+        // The manual's address range (MK: 1..99, 000:269; the specification: 1..247).
+        const auto& disabled = p->line.unit_disabled;
+        const bool disables = std::find(disabled.begin(), disabled.end(), unit) != disabled.end();
+        if (unit == 0 && !disables) {
+            std::cerr << "mbscope slave: unit 0 is the broadcast address; " << p->id
+                      << "'s manual gives it no other meaning\n";
+            return exit_failure;
+        }
+        if (disables && !o.quiet)
+            std::cerr << "mbscope slave: unit " << unit << " disables communication on " << p->id
+                      << " (its manual says so): the device will not answer\n";
+        if (unit < p->line.unit_min || unit > p->line.unit_max) {
+            std::cerr << "mbscope slave: unit " << unit << " is outside " << p->id << "'s address range "
+                      << p->line.unit_min << ".." << p->line.unit_max << '\n';
             return exit_failure;
         }
         profiles.push_back(std::make_unique<modbus::Profile>(std::move(p.value())));

@@ -118,6 +118,7 @@ struct Server::Impl {
         if (in.unit == 0) {  // broadcast: every unit on the line executes it
             bool wrote = false;
             for (Device* d : units) {
+                if (d->unit() == 0) continue;  // address 0 configured: communication disabled (MK 000:220)
                 Reply r = d->handle({in.pdu, true});
                 wrote |= r.wrote;
                 if (pdu.empty()) pdu = std::move(r.pdu);  // only with reply-to-broadcast
