@@ -99,6 +99,13 @@ Result<UniqueFd, std::string> connect_tcp(const std::string& host, std::uint16_t
     });
 }
 
+Result<UniqueFd, std::string> connect_udp(const std::string& host, std::uint16_t port) {
+    return first_working(host, port, SOCK_DGRAM, false, [](int fd, const addrinfo* a) -> std::string {
+        if (::connect(fd, a->ai_addr, a->ai_addrlen) != 0) return std::strerror(errno);
+        return {};
+    });
+}
+
 std::uint16_t bound_port(int fd) noexcept {
     sockaddr_storage ss{};
     socklen_t len = sizeof ss;

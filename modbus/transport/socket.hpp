@@ -17,6 +17,8 @@ Result<UniqueFd, std::string> bind_udp(const std::string& host, std::uint16_t po
 // A connected TCP socket, waiting at most `timeout` for the connection (TCP_NODELAY set).
 Result<UniqueFd, std::string> connect_tcp(const std::string& host, std::uint16_t port,
                                           std::chrono::milliseconds timeout);
+// A connected UDP socket: send() reaches the server, recv() returns only its datagrams.
+Result<UniqueFd, std::string> connect_udp(const std::string& host, std::uint16_t port);
 std::uint16_t bound_port(int fd) noexcept;
 
 }  // namespace mbscope::modbus::transport

@@ -1,0 +1,218 @@
+#include "modbus/transport/client.hpp"
+
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include "modbus/adu.hpp"
+#include "modbus/rtu_deframer.hpp"
+#include "modbus/transport/serial_port.hpp"
+#include "modbus/transport/socket.hpp"
+
+namespace mbscope::modbus::transport {
+
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct Span {
+    std::size_t begin = 0, end = 0;  // end == 0: no complete frame
+};
+
+Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silence, bool datagram) {
+    switch (framing) {
+        case Framing::Tcp: {
+            if (datagram) return {0, bytes.size()};
+            if (bytes.size() < 6) return {};
+            const std::size_t total = 6u + ((std::size_t{bytes[4]} << 8) | bytes[5]);
+            return bytes.size() >= total ? Span{0, total} : Span{};
+        }
+        case Framing::Ascii: {
+            for (std::size_t i = 0; i < bytes.size(); ++i) {
+                if (bytes[i] != ':') continue;
+                for (std::size_t j = i + 1; j + 1 < bytes.size(); ++j)
+                    if (bytes[j] == '\r' && bytes[j + 1] == '\n') return {i, j + 2};
+                return {};
+            }
+            return {};
+        }
+        case Framing::Rtu: {
+            std::size_t head = 0;
+            while (head < bytes.size()) {
+                const auto step = rtu_step(bytes.subspan(head), silence);
+                if (step.kind == DeframeStep::Kind::Complete) return {head, head + step.length};
+                if (step.kind == DeframeStep::Kind::NeedMore) break;
+                head += step.length ? step.length : 1;
+            }
+            // Ended by silence without a frame the content explains: all of it is the answer, as a receiver
+            // timing the line would take it.
+            if (silence && bytes.size() >= 4) return {0, bytes.size()};
+            return {};
+        }
+    }
+    return {};
+}
+
+std::optional<Frame> decode(Framing framing, std::span<const std::uint8_t> bytes) {
+    Result<Frame> f = framing == Framing::Tcp   ? decode_tcp(bytes)
+                      : framing == Framing::Rtu ? decode_rtu(bytes)
+                                                : decode_ascii(bytes);
+    if (!f) return std::nullopt;
+    return std::move(f).value();
+}
+
+}  // namespace
+
+Result<Client, std::string> Client::open(const Endpoint& endpoint, ClientOptions options) {
+    Client c(endpoint, options);
+    if (auto r = c.connect(); !r) return r.error();
+    return c;
+}
+
+Result<void, std::string> Client::connect() {
+    fd_.reset();
+    switch (endpoint_.scheme) {
+        case Scheme::Tcp:
+        case Scheme::RtuOverTcp:
+        case Scheme::AsciiOverTcp: {
+            auto fd = connect_tcp(endpoint_.host, endpoint_.port, options_.connect_timeout);
+            if (!fd) return endpoint_.text() + ": " + fd.error();
+            fd_ = std::move(fd).value();
+            return {};
+        }
+        case Scheme::Udp: {
+            auto fd = connect_udp(endpoint_.host, endpoint_.port);
+            if (!fd) return endpoint_.text() + ": " + fd.error();
+            fd_ = std::move(fd).value();
+            return {};
+        }
+        case Scheme::RtuSerial:
+        case Scheme::AsciiSerial: {
+            auto fd = open_serial(endpoint_.device, endpoint_.line);
+            if (!fd) return fd.error();
+            fd_ = std::move(fd).value();
+            return {};
+        }
+    }
+    return std::string("unsupported endpoint");
+}
+
+Result<void, std::string> Client::reconnect() {
+    return connect();
+}
+
+std::vector<std::uint8_t> Client::frame(std::uint8_t unit, std::span<const std::uint8_t> pdu) {
+    switch (framing()) {
+        case Framing::Tcp:
+            return encode_tcp(tid_++, unit, pdu);
+        case Framing::Rtu:
+            return encode_rtu(unit, pdu);
+        case Framing::Ascii: {
+            const std::string text = encode_ascii(unit, pdu);
+            return {text.begin(), text.end()};
+        }
+    }
+    return {};
+}
+
+Result<void, std::string> Client::write(std::span<const std::uint8_t> bytes) {
+    std::size_t done = 0;
+    while (done < bytes.size()) {
+        const ssize_t n = is_serial(endpoint_.scheme)
+                              ? ::write(fd_.get(), bytes.data() + done, bytes.size() - done)
+                              : ::send(fd_.get(), bytes.data() + done, bytes.size() - done, MSG_NOSIGNAL);
+        if (n < 0) {
+            if (errno == EINTR) continue;
+            if (errno == EAGAIN || errno == EWOULDBLOCK) {
+                pollfd p{fd_.get(), POLLOUT, 0};
+                ::poll(&p, 1, 1000);
+                continue;
+            }
+            return endpoint_.text() + ": write: " + std::strerror(errno);
+        }
+        done += static_cast<std::size_t>(n);
+    }
+    return {};
+}
+
+Exchange Client::transact(std::uint8_t unit, std::span<const std::uint8_t> pdu,
+                          std::chrono::milliseconds timeout) {
+    const auto adu = frame(unit, pdu);
+    return raw(adu, timeout, 1);
+}
+
+Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseconds timeout,
+                     std::size_t frames) {
+    Exchange ex;
+    ex.sent.assign(bytes.begin(), bytes.end());
+    if (auto w = write(bytes); !w) {
+        ex.closed = true;
+        ex.timed_out = true;
+        return ex;
+    }
+    const auto start = Clock::now();
+    const auto deadline = start + timeout;
+    const bool datagram = endpoint_.scheme == Scheme::Udp;
+    const auto silence_window =
+        is_serial(endpoint_.scheme)
+            ? std::chrono::duration_cast<std::chrono::milliseconds>(endpoint_.line.t3_5()) +
+                  std::chrono::milliseconds(1)
+            : options_.settle;
+    std::size_t found = 0, scan_from = 0;
+    std::uint8_t buf[2048];
+    for (;;) {
+        const auto now = Clock::now();
+        if (now >= deadline) break;
+        auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now);
+        const bool timing_silence = framing() == Framing::Rtu && !ex.received.empty();
+        if (timing_silence) wait = std::min(wait, silence_window);
+        pollfd p{fd_.get(), POLLIN, 0};
+        const int rc = ::poll(&p, 1, static_cast<int>(std::max<long>(1, wait.count())));
+        if (rc < 0 && errno == EINTR) continue;
+        bool silence = false;
+        if (rc == 0) {
+            if (!timing_silence) continue;
+            silence = true;
+        } else {
+            const ssize_t n = ::read(fd_.get(), buf, sizeof buf);
+            if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR && errno != EWOULDBLOCK)) {
+                ex.closed = !is_serial(endpoint_.scheme);
+                if (ex.closed) break;
+                continue;
+            }
+            if (n < 0) continue;
+            if (ex.received.empty()) ex.first_byte = Clock::now() - start;
+            ex.received.insert(ex.received.end(), buf, buf + n);
+        }
+        // Count complete frames from where the last one ended.
+        for (;;) {
+            const std::span<const std::uint8_t> rest(ex.received.data() + scan_from,
+                                                     ex.received.size() - scan_from);
+            const Span s = find_frame(framing(), rest, silence, datagram);
+            if (s.end == 0) break;
+            if (!ex.response) ex.response = decode(framing(), rest.subspan(s.begin, s.end - s.begin));
+            scan_from += s.end;
+            ++found;
+            ex.elapsed = Clock::now() - start;
+            if (datagram || silence) break;
+        }
+        if (frames != 0 && found >= frames) return ex;
+    }
+    ex.timed_out = found == 0;
+    if (found == 0) ex.elapsed = Clock::now() - start;
+    return ex;
+}
+
+void Client::drain(std::chrono::milliseconds quiet) {
+    std::uint8_t buf[2048];
+    for (;;) {
+        pollfd p{fd_.get(), POLLIN, 0};
+        if (::poll(&p, 1, static_cast<int>(quiet.count())) <= 0) return;
+        if (::read(fd_.get(), buf, sizeof buf) <= 0) return;
+    }
+}
+
+}  // namespace mbscope::modbus::transport

@@ -1,0 +1,79 @@
+#pragma once
+// The master side of every endpoint: send a request, collect what comes back, with the bytes and the time.
+// Shared by the conformance runner and the network fuzzer (one implementation of "what did the slave
+// answer"), and by tests that need a client which can also send malformed bytes.
+//
+// A response ends, per framing, where the framing says: Modbus/TCP at the MBAP length, a UDP datagram,
+// RTU when the bytes form a CRC-valid frame of the predicted length or, failing that, at a silence of
+// t3.5 (serial) or `settle` (serial over TCP), ASCII at CR LF. Whatever else arrives is kept as `extra`.
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "modbus/frame.hpp"
+#include "modbus/result.hpp"
+#include "modbus/transport/endpoint.hpp"
+#include "modbus/transport/unique_fd.hpp"
+
+namespace mbscope::modbus::transport {
+
+struct Exchange {
+    std::vector<std::uint8_t> sent;          // the bytes written, as on the wire
+    std::vector<std::uint8_t> received;      // every byte read before the exchange ended
+    std::optional<Frame> response;           // the first frame found in `received`
+    std::chrono::nanoseconds elapsed{0};     // from the last byte written to the end of the response
+    std::chrono::nanoseconds first_byte{0};  // from the last byte written to the first byte read
+    bool timed_out = false;                  // nothing complete arrived in time
+    bool closed = false;                     // the peer closed the connection
+};
+
+struct ClientOptions {
+    std::chrono::milliseconds connect_timeout{2000};
+    // Serial over TCP has no line timing: a pause this long after the last byte ends an RTU response
+    // whose length could not be predicted.
+    std::chrono::milliseconds settle{20};
+};
+
+class Client {
+  public:
+    // Connects (TCP schemes), binds a UDP socket, or opens the serial device with the endpoint's line.
+    static Result<Client, std::string> open(const Endpoint& endpoint, ClientOptions options = {});
+
+    // Frames `pdu` for the endpoint (a fresh transaction id on MBAP schemes) and waits up to `timeout`.
+    Exchange transact(std::uint8_t unit, std::span<const std::uint8_t> pdu,
+                      std::chrono::milliseconds timeout);
+    // Sends `bytes` exactly as given (malformed frames, split segments, pipelines) and collects replies for
+    // up to `timeout`; stops early after `frames` complete frames (0: wait the whole time).
+    Exchange raw(std::span<const std::uint8_t> bytes, std::chrono::milliseconds timeout,
+                 std::size_t frames = 1);
+    // Sends without waiting (the first part of a split request); errors when the peer is gone.
+    Result<void, std::string> write(std::span<const std::uint8_t> bytes);
+    // Reads and discards whatever is pending for `quiet` (resynchronise between tests).
+    void drain(std::chrono::milliseconds quiet);
+    // Closes and connects again (after the slave closed the connection).
+    Result<void, std::string> reconnect();
+
+    const Endpoint& endpoint() const noexcept { return endpoint_; }
+    Framing framing() const noexcept { return framing_of(endpoint_.scheme); }
+    std::uint16_t next_transaction_id() const noexcept { return tid_; }
+    void set_transaction_id(std::uint16_t tid) noexcept { tid_ = tid; }
+    // The ADU `transact` would send.
+    std::vector<std::uint8_t> frame(std::uint8_t unit, std::span<const std::uint8_t> pdu);
+
+  private:
+    Client(Endpoint endpoint, ClientOptions options) : endpoint_(std::move(endpoint)), options_(options) {}
+    Result<void, std::string> connect();
+    // Index just past the first complete frame in `bytes`, or 0.
+    std::size_t complete_frame(std::span<const std::uint8_t> bytes, bool silence) const;
+
+    Endpoint endpoint_;
+    ClientOptions options_;
+    UniqueFd fd_;
+    std::uint16_t tid_ = 1;
+};
+
+}  // namespace mbscope::modbus::transport
