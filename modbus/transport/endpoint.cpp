@@ -74,12 +74,18 @@ Result<Endpoint, std::string> parse_network(Scheme scheme, std::string_view rest
             return std::string("expected ':PORT' after ']' in ") + std::string(uri);
         port = rest.empty() ? std::string_view{} : rest.substr(1);
     } else {
-        const auto colon = rest.rfind(':');
+        const auto colon = rest.find(':');
         host = rest.substr(0, colon);
         if (colon != std::string_view::npos) port = rest.substr(colon + 1);
+        // "::1:502" cannot say where the address ends: an IPv6 literal goes in brackets (RFC 3986 §3.2.2).
+        if (port.find(':') != std::string_view::npos)
+            return std::string("an IPv6 address needs brackets, as in tcp://[::1]:502, in ") +
+                   std::string(uri);
     }
     if (host.empty()) return std::string("missing host in ") + std::string(uri);
     ep.host = std::string(host);
+    const bool colon_given = rest.find(':') != std::string_view::npos;
+    if (colon_given && port.empty()) return std::string("missing port after ':' in ") + std::string(uri);
     if (!port.empty()) {
         unsigned p = 0;
         if (!parse_number(port, p) || p > 65535)
