@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "analyzer/exported_pdu.hpp"
+#include "analyzer/word_order.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 
@@ -11,11 +13,16 @@ using namespace mbscope::modbus;
 
 struct Analyzer::Flow {
     std::uint64_t id = 0;
-    std::string link;    // "client -> server"
-    std::string server;  // "server"
-    Transport transport = Transport::Tcp;
+    std::string link;                                // "client -> server"
+    std::string server;                              // "server"
+    Carrier carrier = Carrier::Tcp;                  // Tcp: reassembled; the others come whole
     std::unique_ptr<TcpReassembler> reassembler[2];  // [0] client → server, [1] server → client
     TcpStreamDeframer deframer[2];
+    // A serial gateway's port: the stream holds raw RTU frames, delimited by content and CRC.
+    bool rtu_over_tcp = false;
+    RtuDeframer rtu_deframer[2];
+    std::uint64_t rtu_lost[2] = {0, 0};  // stream bytes lost in gaps, so that offsets stay stream offsets
+    Timestamp rtu_last[2] = {};          // when each side last sent: the time of a frame closed later
     std::size_t pending = 0;
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
 };
@@ -36,10 +43,19 @@ void Analyzer::report(FindingCode code, const FrameRecord& about, std::string me
                                 about.packet, std::move(message)});
 }
 
+namespace {
+bool contains(const std::vector<std::uint16_t>& ports, std::uint16_t port) {
+    return std::find(ports.begin(), ports.end(), port) != ports.end();
+}
+}  // namespace
+
+bool Analyzer::server_port(Transport transport, std::uint16_t port) const {
+    if (transport == Transport::Udp) return contains(options_.udp_ports, port);
+    return contains(options_.tcp_ports, port) || contains(options_.rtu_over_tcp_ports, port);
+}
+
 Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
-    const auto& ports = l4.transport == Transport::Tcp ? options_.tcp_ports : options_.udp_ports;
-    auto is_server = [&](std::uint16_t p) { return std::find(ports.begin(), ports.end(), p) != ports.end(); };
-    to_server = is_server(l4.destination.port);
+    to_server = server_port(l4.transport, l4.destination.port);
     const Endpoint& client = to_server ? l4.source : l4.destination;
     const Endpoint& server = to_server ? l4.destination : l4.source;
     std::string key =
@@ -51,34 +67,70 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
         f.id = ++next_flow_;
         f.link = client.to_string() + " -> " + server.to_string();
         f.server = server.to_string();
-        f.transport = l4.transport;
+        f.carrier = l4.transport == Transport::Tcp ? Carrier::Tcp : Carrier::Udp;
         if (l4.transport == Transport::Tcp) {
+            f.rtu_over_tcp = contains(options_.rtu_over_tcp_ports, server.port);
             for (int dir = 0; dir < 2; ++dir) {
                 f.reassembler[dir] = std::make_unique<TcpReassembler>(
                     [this, &f, dir](std::span<const std::uint8_t> bytes, Timestamp t) {
-                        DeframeEvents events;
-                        f.deframer[dir].feed(bytes, t, events);
-                        deframed(f, dir == 0, events, t);
+                        stream_bytes(f, dir, bytes, t);
                     },
-                    [this, &f, dir](std::uint64_t missing, Timestamp t) {
-                        DeframeEvents events;
-                        f.deframer[dir].gap(missing, events);
-                        FrameRecord about;
-                        about.time = t;
-                        about.source = source_;
-                        about.link = f.link;
-                        about.packet = packet_number_;
-                        report(FindingCode::StreamGap, about,
-                               std::to_string(missing) + " bytes of the " +
-                                   (dir == 0 ? "request" : "response") +
-                                   " stream were not captured; decoding resumes at the next plausible MBAP "
-                                   "header");
-                        deframed(f, dir == 0, events, t);
-                    });
+                    [this, &f, dir](std::uint64_t missing, Timestamp t) { stream_gap(f, dir, missing, t); });
             }
         }
     }
     return *slot;
+}
+
+namespace {
+// RTU deframers count the bytes they were given; a flow adds what its gaps lost.
+void shift_offsets(DeframeEvents& events, std::uint64_t by) {
+    for (auto& e : events) {
+        if (auto* f = std::get_if<Frame>(&e)) f->offset += by;
+        if (auto* u = std::get_if<Unparsed>(&e)) u->offset += by;
+    }
+}
+}  // namespace
+
+void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> bytes, Timestamp t) {
+    DeframeEvents events;
+    if (!f.rtu_over_tcp) {
+        f.deframer[dir].feed(bytes, t, events);
+        deframed(f, dir == 0, events, t);
+        return;
+    }
+    // A gateway carries one request and its response at a time: when one side speaks, what the other side
+    // sent is complete. Without this a frame with a bad CRC would wait for the next frame from its own side
+    // to confirm where it ends, and its response would be decoded before it.
+    const int other = 1 - dir;
+    f.rtu_deframer[other].finish(events);
+    shift_offsets(events, f.rtu_lost[other]);
+    deframed(f, other == 0, events, f.rtu_last[other]);
+    f.rtu_last[dir] = t;
+    f.rtu_deframer[dir].feed(bytes, events);
+    shift_offsets(events, f.rtu_lost[dir]);
+    deframed(f, dir == 0, events, t);
+}
+
+void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) {
+    DeframeEvents events;
+    if (f.rtu_over_tcp) {
+        f.rtu_deframer[dir].finish(events);  // the frame in progress ends at the hole
+        shift_offsets(events, f.rtu_lost[dir]);
+        f.rtu_lost[dir] += missing;
+    } else {
+        f.deframer[dir].gap(missing, events);
+    }
+    FrameRecord about;
+    about.time = t;
+    about.source = source_;
+    about.link = f.link;
+    about.packet = packet_number_;
+    report(FindingCode::StreamGap, about,
+           std::to_string(missing) + " bytes of the " + (dir == 0 ? "request" : "response") +
+               " stream were not captured; decoding resumes at the next " +
+               (f.rtu_over_tcp ? "RTU frame" : "plausible MBAP header"));
+    deframed(f, dir == 0, events, t);
 }
 
 void Analyzer::packet(const std::string& source, const Packet& p) {
@@ -87,12 +139,11 @@ void Analyzer::packet(const std::string& source, const Packet& p) {
     ++summary_.packets;
     if (p.time > now_) now_ = p.time;
     expire(now_, false);
+    if (p.linktype >= link_user0 && p.linktype <= link_user15) return user_dlt_packet(p);
+    if (p.linktype == link_upper_pdu) return exported_pdu(p);
     L4Packet l4;
     if (parse_packet(p.linktype, p.data, l4) != ParseStatus::Ok) return;
-    const auto& ports = l4.transport == Transport::Tcp ? options_.tcp_ports : options_.udp_ports;
-    const bool ours = std::find(ports.begin(), ports.end(), l4.destination.port) != ports.end() ||
-                      std::find(ports.begin(), ports.end(), l4.source.port) != ports.end();
-    if (!ours) return;
+    if (!server_port(l4.transport, l4.destination.port) && !server_port(l4.transport, l4.source.port)) return;
     bool to_server = false;
     Flow& flow = flow_for(l4, to_server);
     if (l4.transport == Transport::Tcp) {
@@ -150,6 +201,7 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
         r.source = source_;
         r.link = flow.link;
         r.direction = to_server ? Direction::Request : Direction::Response;
+        r.carrier = flow.carrier;
         r.frame = std::get<Frame>(e);
         r.device = flow.server + " unit " + std::to_string(r.frame.unit_id());
         auto pdu = decode_pdu(r.frame.pdu(), r.direction);
@@ -165,6 +217,7 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
 
 void Analyzer::on_frame(Flow& flow, FrameRecord r) {
     ++summary_.frames;
+    if (r.frame.framing == Framing::Rtu && !r.frame.checksum_ok) ++summary_.devices[r.device].checksum_errors;
     sink_.frame(r);
     for (auto code : r.frame.findings) {
         std::string message(info(code).summary);
@@ -412,6 +465,15 @@ void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bo
                     {rule.code, &*t.response, std::move(rule.message), {t.request.index, t.response->index}});
         }
     }
+    if (options_.word_order && !t.profile && t.response && t.request.pdu && t.response->pdu) {
+        const auto fc = t.request.pdu->function_code();
+        const auto* read = std::get_if<ReadRequest>(&t.request.pdu->body);
+        const auto* regs = std::get_if<ReadRegistersResponse>(&t.response->pdu->body);
+        if ((fc == 3 || fc == 4) && read && regs) {
+            t.word_order = options_.word_order;
+            t.registers32 = registers32(read->starting_address, regs->values, *options_.word_order);
+        }
+    }
     ++summary_.transactions;
     sink_.transaction(t);
     for (auto& f : found)
@@ -449,27 +511,37 @@ void Analyzer::expire(Timestamp now, bool at_end) {
 
 // ---------------------------------------------------------------- serial lines
 
+// A link whose frames come whole or from a serial deframer, never from TCP reassembly: serial lines, and
+// exported PDUs.
 struct Analyzer::SerialLink {
     Flow* flow = nullptr;
+    std::string source;  // input file
     std::unique_ptr<RtuDeframer> untimed;
     std::unique_ptr<RtuTimedDeframer> timed;
     std::unique_ptr<AsciiDeframer> ascii;
     Direction hint = Direction::Unknown;
+    std::uint64_t offset = 0;  // exported PDUs: bytes of the records before this one
 };
 
-Analyzer::SerialLink& Analyzer::serial_link(const std::string& source) {
-    auto& slot = serial_links_[source];
+Analyzer::SerialLink& Analyzer::serial_link(const std::string& key, const std::string& link,
+                                            const std::string& server, Carrier carrier) {
+    auto& slot = serial_links_[key];
     if (!slot) {
         slot = std::make_unique<SerialLink>();
-        auto& flow = flows_["serial " + source];
+        slot->source = source_;
+        auto& flow = flows_[key];
         flow = std::make_unique<Flow>();
         flow->id = ++next_flow_;
-        flow->link = "serial " + source;
-        flow->server = "serial";
-        flow->transport = Transport::Udp;  // no TCP reassembly
+        flow->link = link;
+        flow->server = server;
+        flow->carrier = carrier;
         slot->flow = flow.get();
     }
     return *slot;
+}
+
+Analyzer::SerialLink& Analyzer::serial_link(const std::string& source) {
+    return serial_link("serial " + source, "serial " + source, "serial " + source, Carrier::Serial);
 }
 
 Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
@@ -478,7 +550,7 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
     auto response = decode_response(pdu);
     const bool req_clean = request && request->violations.empty();
     const bool rsp_ok = response.has_value();
-    if (auto it = pending_.find({flow.id, 0}); it != pending_.end()) {
+    if (auto it = pending_.find({flow.id, pairing_id(frame)}); it != pending_.end()) {
         // A request is outstanding: this is its response if it comes from that unit with that function
         // (or its exception); otherwise the master has moved on.
         const FrameRecord& q = it->second.request;
@@ -492,18 +564,19 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
     return Direction::Request;
 }
 
-void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp t) {
+void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp t, std::uint64_t packet) {
     Flow& flow = *link.flow;
     for (auto& e : events) {
         if (auto* u = std::get_if<Unparsed>(&e)) {
             summary_.unparsed_bytes += u->length;
             const Timestamp when = u->time.count() ? u->time : t;
             sink_.unparsed(
-                UnparsedRecord{source_, flow.link, link.hint, when, 0, u->offset, u->length, u->reason});
+                UnparsedRecord{source_, flow.link, link.hint, when, packet, u->offset, u->length, u->reason});
             FrameRecord about;
             about.time = when;
             about.source = source_;
             about.link = flow.link;
+            about.packet = packet;
             report(FindingCode::StreamUnparsedBytes, about,
                    std::to_string(u->length) + " bytes at offset " + std::to_string(u->offset) +
                        " formed no frame (" + std::string(to_string(u->reason)) + ")");
@@ -512,20 +585,21 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         Frame& frame = std::get<Frame>(e);
         FrameRecord r;
         r.index = ++next_frame_;
+        r.packet = packet;
         r.time = frame.end.count() ? frame.end : t;
         if (r.time > now_) now_ = r.time;
         r.source = source_;
         r.link = flow.link;
         r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
+        r.carrier = flow.carrier;
         r.frame = frame;
-        r.device = flow.link + " unit " + std::to_string(frame.unit_id());
+        r.device = flow.server + " unit " + std::to_string(frame.unit_id());
         auto pdu = decode_pdu(r.frame.pdu(), r.direction);
         if (pdu)
             r.pdu = std::move(pdu.value());
         else
             r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
                       std::to_string(pdu.error().offset);
-        if (frame.framing == Framing::Rtu && !frame.checksum_ok) ++summary_.devices[r.device].checksum_errors;
         expire(now_, false);
         on_frame(flow, std::move(r));
     }
@@ -535,7 +609,11 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
 void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> bytes, Timestamp received,
                       Direction hint) {
     source_ = source;
-    SerialLink& link = serial_link(source);
+    serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint);
+}
+
+void Analyzer::serial_bytes(SerialLink& link, Framing framing, std::span<const std::uint8_t> bytes,
+                            Timestamp received, Direction hint) {
     DeframeEvents events;
     if (hint != link.hint) {
         // The other side is talking now: whatever the line held before is complete, and belongs to the
@@ -546,7 +624,7 @@ void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> b
         serial_events(link, events, received);
         link.hint = hint;
     }
-    if (options_.serial_framing == Framing::Ascii) {
+    if (framing == Framing::Ascii) {
         if (!link.ascii) link.ascii = std::make_unique<AsciiDeframer>();
         link.ascii->feed(bytes, received, events);
     } else if (received.count()) {
@@ -561,6 +639,73 @@ void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> b
         link.untimed->feed(bytes, events);
     }
     serial_events(link, events, received);
+}
+
+void Analyzer::user_dlt_packet(const Packet& p) {
+    if (!options_.user_dlt) {
+        // USER0..15 are private: without --user-dlt nothing says the bytes are Modbus. Said once a file.
+        if (std::find(told_user_dlt_.begin(), told_user_dlt_.end(), source_) == told_user_dlt_.end()) {
+            told_user_dlt_.push_back(source_);
+            input_error(source_ + ": link type " + std::to_string(p.linktype) + " (USER" +
+                        std::to_string(p.linktype - link_user0) +
+                        ") is private; --user-dlt rtu|ascii says what it carries");
+        }
+        return;
+    }
+    // Each record is a chunk of the line as the sniffer read it, stamped when its last byte arrived.
+    serial_bytes(serial_link(source_), *options_.user_dlt, p.data, p.time, Direction::Unknown);
+}
+
+void Analyzer::exported_pdu(const Packet& p) {
+    const auto record = parse_exported_pdu(p.data);
+    if (!record) return;  // not an exported PDU we can follow: nothing says it is Modbus either
+    std::optional<Framing> framing;
+    if (record->dissector == "mbrtu") framing = Framing::Rtu;
+    if (record->dissector == "mbtcp" || record->dissector == "mbudp") framing = Framing::Tcp;
+    if (!framing || record->pdu.empty()) return;  // another protocol's PDU
+
+    // Addresses and ports, when exported, give the link and the direction (as flows do); otherwise the
+    // file is one link and the request → response state machine decides.
+    Direction hint = Direction::Unknown;
+    std::string key = "exported " + source_, link = key, server = key;
+    if (record->source && record->destination) {
+        const Endpoint& src = *record->source;
+        const Endpoint& dst = *record->destination;
+        const bool to_server = server_port(Transport::Tcp, dst.port) || server_port(Transport::Udp, dst.port);
+        const bool from_server =
+            server_port(Transport::Tcp, src.port) || server_port(Transport::Udp, src.port);
+        if (to_server || from_server) {
+            hint = to_server ? Direction::Request : Direction::Response;
+            const Endpoint& client = to_server ? src : dst;
+            server = (to_server ? dst : src).to_string();
+            link = client.to_string() + " -> " + server;
+            key = "exported " + link;
+        }
+    }
+    SerialLink& l = serial_link(key, link, server, Carrier::ExportedPdu);
+    l.hint = hint;
+    DeframeEvents events;
+    if (*framing == Framing::Rtu) {
+        // One RTU frame a record: the exporter already knew where it ends.
+        auto frame = decode_rtu(record->pdu);
+        if (frame) {
+            frame->offset = l.offset;
+            frame->end = p.time;
+            events.emplace_back(std::move(frame.value()));
+        } else {
+            events.emplace_back(Unparsed{
+                l.offset, static_cast<std::uint32_t>(record->pdu.size()),
+                frame.error().code == ErrorCode::TooLong ? UnparsedReason::TooLong : UnparsedReason::TooShort,
+                p.time});
+        }
+    } else {
+        TcpStreamDeframer one;  // a record holds whole ADUs (Wireshark exports after reassembly)
+        one.feed(record->pdu, p.time, events);
+        one.finish(events);
+        shift_offsets(events, l.offset);
+    }
+    l.offset += record->pdu.size();
+    serial_events(l, events, p.time, p.number);
 }
 
 bool Analyzer::read_capture(CaptureSource& capture) {
@@ -585,16 +730,22 @@ bool Analyzer::read_capture(const std::string& path) {
 
 void Analyzer::finish() {
     for (auto& [key, f] : flows_) {
-        if (f->transport != Transport::Tcp) continue;
+        if (f->carrier != Carrier::Tcp) continue;
         for (int dir = 0; dir < 2; ++dir) {
             f->reassembler[dir]->flush(now_);
             DeframeEvents events;
+            if (f->rtu_over_tcp) {
+                f->rtu_deframer[dir].finish(events);
+                shift_offsets(events, f->rtu_lost[dir]);
+                deframed(*f, dir == 0, events, f->rtu_last[dir]);
+                continue;
+            }
             f->deframer[dir].finish(events);
             deframed(*f, dir == 0, events, now_);
         }
     }
     for (auto& [name, link] : serial_links_) {
-        source_ = name;
+        source_ = link->source;
         DeframeEvents events;
         if (link->untimed) link->untimed->finish(events);
         if (link->timed) link->timed->finish(events);

@@ -2,7 +2,9 @@
 // The analyzer pipeline for network captures: packet → flow → TCP reassembly (or UDP datagram) → deframer →
 // frame records → pairing → transactions and findings → sink. Requests are the bytes sent to a server port
 // (502 and any --tcp-port); pairing uses a hashed table keyed by (flow, transaction id), bounded and expired
-// by capture time, so memory stays flat however long the capture is.
+// by capture time, so memory stays flat however long the capture is. Serial gateways' ports
+// (--rtu-over-tcp) carry raw RTU frames in the TCP stream instead of MBAP. Serial bytes inside pcap files
+// (USER0..15 with --user-dlt, Wireshark exported PDUs) go the way of the serial captures.
 
 #include <deque>
 #include <map>
@@ -32,6 +34,13 @@ struct AnalyzerOptions {
     modbus::Framing serial_framing = modbus::Framing::Rtu;
     modbus::SerialLine serial_line{};
     modbus::Timestamp serial_timeout = std::chrono::seconds(1);  // issue 4: 1 s serial default
+    // TCP server ports of serial gateways whose streams carry raw RTU frames (no MBAP header).
+    std::vector<std::uint16_t> rtu_over_tcp_ports;
+    // What link types USER0..USER15 (147-162) carry: they are private by definition, so only the user can
+    // say. nullopt: such packets are not decoded (and the input says why once).
+    std::optional<modbus::Framing> user_dlt;
+    // FC3/FC4 replies of devices without a profile also read as 32-bit values in this order.
+    std::optional<modbus::WordOrder> word_order;
 };
 
 class Analyzer {
@@ -76,12 +85,22 @@ class Analyzer {
         std::uint64_t serial;
     };
 
+    bool server_port(Transport transport, std::uint16_t port) const;
     Flow& flow_for(const L4Packet& l4, bool& to_server);
+    void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
+    void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);
     void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);
     void on_frame(Flow& flow, FrameRecord record);
     struct SerialLink;
+    SerialLink& serial_link(const std::string& key, const std::string& link, const std::string& server,
+                            Carrier carrier);
     SerialLink& serial_link(const std::string& source);
-    void serial_events(SerialLink& link, modbus::DeframeEvents& events, modbus::Timestamp t);
+    void serial_bytes(SerialLink& link, modbus::Framing framing, std::span<const std::uint8_t> bytes,
+                      modbus::Timestamp received, modbus::Direction hint);
+    void serial_events(SerialLink& link, modbus::DeframeEvents& events, modbus::Timestamp t,
+                       std::uint64_t packet = 0);
+    void user_dlt_packet(const Packet& packet);
+    void exported_pdu(const Packet& packet);
     modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
     void on_request(Flow& flow, FrameRecord record);
     void on_response(Flow& flow, FrameRecord record);
@@ -102,6 +121,7 @@ class Analyzer {
     std::string source_;
     std::uint64_t packet_number_ = 0;
     modbus::Timestamp now_{0};
+    std::vector<std::string> told_user_dlt_;  // sources already told that USER link types need --user-dlt
 };
 
 }  // namespace mbscope::analyzer

@@ -6,9 +6,10 @@
 namespace mbscope::analyzer {
 namespace {
 
-// libpcap link types (pcap/dlt.h values, kept here to keep the parser independent of libpcap)
-constexpr int link_null = 0, link_ethernet = 1, link_raw = 101, link_loop = 108, link_sll = 113,
-              link_ipv4 = 228, link_ipv6 = 229, link_sll2 = 276;
+// libpcap link types (pcap/dlt.h values, kept here to keep the parser independent of libpcap). A file's
+// LINKTYPE_RAW (101) reaches us as pcap_datalink()'s DLT_RAW: 12 on most systems, 14 on OpenBSD.
+constexpr int link_null = 0, link_ethernet = 1, link_raw_dlt = 12, link_raw_dlt_openbsd = 14, link_raw = 101,
+              link_loop = 108, link_sll = 113, link_ipv4 = 228, link_ipv6 = 229, link_sll2 = 276;
 
 std::uint16_t be16(const std::uint8_t* p) {
     return static_cast<std::uint16_t>((p[0] << 8) | p[1]);
@@ -127,6 +128,8 @@ ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> d, L4Packet
         case link_sll2:
             if (d.size() < 20) return ParseStatus::Malformed;
             return by_ethertype(be16(d.data()), d.subspan(20), out);
+        case link_raw_dlt:
+        case link_raw_dlt_openbsd:
         case link_raw:
         case link_ipv4:
         case link_ipv6:

@@ -10,6 +10,10 @@
 
 namespace mbscope::analyzer {
 
+// Link types that carry no IP (pcap/dlt.h values): the analyzer takes them before parse_packet.
+inline constexpr int link_user0 = 147, link_user15 = 162;  // private use: serial bytes, if the user says so
+inline constexpr int link_upper_pdu = 252;                 // Wireshark exported PDUs (exported_pdu.hpp)
+
 struct Endpoint {
     std::array<std::uint8_t, 16> address{};  // IPv4 in the first 4 bytes
     bool v6 = false;

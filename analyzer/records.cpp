@@ -5,6 +5,20 @@
 
 namespace mbscope::analyzer {
 
+std::string_view to_string(Carrier c) noexcept {
+    switch (c) {
+        case Carrier::Tcp:
+            return "tcp";
+        case Carrier::Udp:
+            return "udp";
+        case Carrier::Serial:
+            return "serial";
+        case Carrier::ExportedPdu:
+            return "exported-pdu";
+    }
+    return "?";
+}
+
 namespace {
 int bucket_of(std::uint64_t ns) {
     if (ns < 32) return static_cast<int>(ns);

@@ -8,6 +8,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "modbus/frame.hpp"
@@ -15,6 +16,18 @@
 #include "modbus/profile.hpp"
 
 namespace mbscope::analyzer {
+
+// What brought a frame into the capture: a TCP stream (Modbus/TCP, or RTU from a serial gateway), UDP
+// datagrams, a serial line (raw dumps, the text format, USER link types), or Wireshark's exported PDUs.
+enum class Carrier : std::uint8_t { Tcp = 0, Udp = 1, Serial = 2, ExportedPdu = 3 };
+std::string_view to_string(Carrier c) noexcept;
+
+// Two registers read as one 32-bit value (--word-order, devices without a profile).
+struct Register32 {
+    std::uint16_t address = 0;  // the first of the two registers
+    std::uint32_t u32 = 0;
+    float f32 = 0;
+};
 
 struct FrameRecord {
     std::uint64_t index = 0;   // 1-based frame number in this analysis
@@ -24,6 +37,7 @@ struct FrameRecord {
     std::string link;    // "client -> server" (TCP/UDP) or the serial port
     std::string device;  // "server unit N": what a finding is about
     modbus::Direction direction = modbus::Direction::Unknown;
+    Carrier carrier = Carrier::Tcp;
     modbus::Frame frame;
     std::optional<modbus::Pdu> pdu;
     std::string error;  // why the PDU could not be decoded
@@ -38,6 +52,9 @@ struct TransactionRecord {
     std::vector<modbus::FindingCode> findings;
     std::vector<modbus::NamedValue> values;  // with a profile: the values named in the device's terms
     const modbus::Profile* profile = nullptr;
+    // --word-order without a profile: FC3/FC4 replies read two registers at a time, in that order.
+    std::optional<modbus::WordOrder> word_order;
+    std::vector<Register32> registers32;
 };
 
 struct FindingRecord {

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 
+#include "analyzer/word_order.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/profile_json.hpp"
 
@@ -94,6 +95,9 @@ void TextSink::transaction(const TransactionRecord& t) {
         if (v.partial) out_ << "  (partial)";
         out_ << '\n';
     }
+    for (const auto& r : t.registers32)
+        out_ << "                   " << r.address << "  " << to_string(*t.word_order) << "  u32 " << r.u32
+             << "  f32 " << float_text(r.f32) << '\n';
 }
 
 void TextSink::finding(const FindingRecord& f) {
@@ -146,6 +150,7 @@ json frame_to_json(const FrameRecord& f) {
            {"frame", f.index},
            {"packet", f.packet},
            {"direction", direction_json(f.direction)},
+           {"transport", std::string(to_string(f.carrier))},
            {"framing", std::string(to_string(f.frame.framing))},
            {"unit_id", f.frame.unit_id()},
            {"raw", hex_bytes(f.frame.adu())},
@@ -189,6 +194,7 @@ void JsonSink::transaction(const TransactionRecord& t) {
     json j{
         {"type", "transaction"},  {"ts", seconds(t.request.time)},    {"source", t.request.source},
         {"link", t.request.link}, {"request_frame", t.request.index}, {"unit_id", t.request.frame.unit_id()}};
+    j["transport"] = std::string(to_string(t.request.carrier));
     if (t.request.pdu) j["function"] = t.request.pdu->function_code();
     if (t.request.frame.framing == Framing::Tcp) j["transaction_id"] = t.request.frame.transaction_id();
     if (t.response) {
@@ -208,6 +214,12 @@ void JsonSink::transaction(const TransactionRecord& t) {
     if (t.profile) j["profile"] = t.profile->id;
     for (const auto& v : t.values)
         j["values"].push_back(named_value_to_json(v));
+    if (t.word_order) {
+        j["word_order"] = std::string(to_string(*t.word_order));
+        j["registers32"] = json::array();
+        for (const auto& r : t.registers32)  // a NaN or infinite f32 is written as null
+            j["registers32"].push_back({{"address", r.address}, {"u32", r.u32}, {"f32", r.f32}});
+    }
     emit(std::move(j));
 }
 
@@ -266,6 +278,27 @@ json summary_to_json(const Summary& s) {
     j["devices"] = devices;
     if (!s.input_errors.empty()) j["input_errors"] = s.input_errors;
     return j;
+}
+
+void TeeSink::frame(const FrameRecord& f) {
+    for (auto* s : sinks_)
+        s->frame(f);
+}
+void TeeSink::transaction(const TransactionRecord& t) {
+    for (auto* s : sinks_)
+        s->transaction(t);
+}
+void TeeSink::finding(const FindingRecord& f) {
+    for (auto* s : sinks_)
+        s->finding(f);
+}
+void TeeSink::unparsed(const UnparsedRecord& u) {
+    for (auto* s : sinks_)
+        s->unparsed(u);
+}
+void TeeSink::end(const Summary& summary) {
+    for (auto* s : sinks_)
+        s->end(summary);
 }
 
 void JsonSink::end(const Summary& s) {

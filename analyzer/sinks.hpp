@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 #include <ostream>
+#include <vector>
 
 #include "analyzer/records.hpp"
 
@@ -41,6 +42,20 @@ class JsonSink : public Sink {
     std::ostream& out_;
     bool lines_;
     nlohmann::json document_ = nlohmann::json::array();
+};
+
+// One pass, several outputs (--csv FILE beside the text or JSON on standard output).
+class TeeSink : public Sink {
+  public:
+    explicit TeeSink(std::vector<Sink*> sinks) : sinks_(std::move(sinks)) {}
+    void frame(const FrameRecord& f) override;
+    void transaction(const TransactionRecord& t) override;
+    void finding(const FindingRecord& f) override;
+    void unparsed(const UnparsedRecord& u) override;
+    void end(const Summary& s) override;
+
+  private:
+    std::vector<Sink*> sinks_;
 };
 
 nlohmann::json summary_to_json(const Summary& s);

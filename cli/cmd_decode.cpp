@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "analyzer/analyzer.hpp"
+#include "analyzer/csv_sink.hpp"
 #include "analyzer/serial_input.hpp"
 #include "analyzer/sinks.hpp"
 #include "cli/commands.hpp"
@@ -19,6 +20,10 @@ struct DecodeOptions {
     std::vector<std::string> files;
     std::vector<std::uint16_t> tcp_ports;
     std::vector<std::uint16_t> udp_ports;
+    std::vector<std::uint16_t> rtu_over_tcp_ports;
+    std::string user_dlt;
+    std::string csv;
+    std::string word_order;
     bool json = false, jsonl = false, summary = false;
     double timeout_s = 3.0;
     std::string format = "auto";
@@ -75,17 +80,42 @@ int run_decode(const DecodeOptions& o) {
         options.tcp_ports.push_back(p);
     for (auto p : o.udp_ports)
         options.udp_ports.push_back(p);
+    options.rtu_over_tcp_ports = o.rtu_over_tcp_ports;
+    if (!o.user_dlt.empty())
+        options.user_dlt = o.user_dlt == "ascii" ? modbus::Framing::Ascii : modbus::Framing::Rtu;
+    if (!o.word_order.empty()) options.word_order = modbus::parse_word_order(o.word_order);
     options.timeout =
         std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(o.timeout_s));
     if (!load_semantics(o, options)) return exit_failure;
     options.serial_line = {o.baud, static_cast<std::uint8_t>(o.data_bits), *modbus::parse_parity(o.parity),
                            static_cast<std::uint8_t>(o.stop_bits)};
-    std::unique_ptr<analyzer::Sink> sink;
-    if (o.json || o.jsonl)
-        sink = std::make_unique<analyzer::JsonSink>(std::cout, o.jsonl);
-    else
-        sink = std::make_unique<analyzer::TextSink>(std::cout, o.summary);
-    analyzer::Analyzer a(options, *sink);
+    // --csv - takes standard output for itself; --csv FILE goes beside the usual output.
+    if (o.csv == "-" && (o.json || o.jsonl || o.summary)) {
+        std::cerr << "mbscope decode: --csv - and --json, --jsonl or --summary all want standard output\n";
+        return exit_failure;
+    }
+    std::ofstream csv_file;
+    if (!o.csv.empty() && o.csv != "-") {
+        csv_file.open(o.csv, std::ios::binary);
+        if (!csv_file) {
+            std::cerr << "mbscope decode: cannot write " << o.csv << '\n';
+            return exit_failure;
+        }
+    }
+    std::vector<std::unique_ptr<analyzer::Sink>> sinks;
+    if (!o.csv.empty())
+        sinks.push_back(std::make_unique<analyzer::CsvSink>(o.csv == "-" ? std::cout : csv_file));
+    if (o.csv != "-") {
+        if (o.json || o.jsonl)
+            sinks.push_back(std::make_unique<analyzer::JsonSink>(std::cout, o.jsonl));
+        else
+            sinks.push_back(std::make_unique<analyzer::TextSink>(std::cout, o.summary));
+    }
+    std::vector<analyzer::Sink*> outputs;
+    for (auto& s : sinks)
+        outputs.push_back(s.get());
+    analyzer::TeeSink sink(outputs);
+    analyzer::Analyzer a(options, sink);
     bool all_read = true, any_read = false;
     const auto format = analyzer::parse_input_format(o.format);
     for (const auto& f : o.files) {
@@ -126,6 +156,13 @@ void register_decode(CLI::App& app, int& exit_code) {
         ->capture_default_str();
     cmd->add_option("--tcp-port", o->tcp_ports, "Modbus/TCP server port besides 502 (repeatable)");
     cmd->add_option("--udp-port", o->udp_ports, "Modbus/UDP server port besides 502 (repeatable)");
+    cmd->add_option("--rtu-over-tcp", o->rtu_over_tcp_ports,
+                    "TCP port of a serial gateway whose streams carry raw RTU frames, no MBAP (repeatable)");
+    cmd->add_option(
+           "--user-dlt", o->user_dlt,
+           "What pcap link types USER0..USER15 (147-162) carry: rtu or ascii serial bytes, one chunk "
+           "per record with its capture time")
+        ->check(CLI::IsMember({"rtu", "ascii"}));
     cmd->add_option("--timeout", o->timeout_s,
                     "Seconds without a response before a request is reported unanswered")
         ->capture_default_str();
@@ -133,12 +170,20 @@ void register_decode(CLI::App& app, int& exit_code) {
     auto* jsonl = cmd->add_flag("--jsonl", o->jsonl,
                                 "One JSON object per line (frame, transaction, finding, unparsed, summary)");
     cmd->add_flag("--summary", o->summary, "Only the summary (the fastest path)");
+    cmd->add_option("--csv", o->csv,
+                    "One CSV row per transaction (RFC 4180) to FILE, or to standard output with -");
+    cmd->add_option("--word-order", o->word_order,
+                    "Devices without a profile: read FC3/FC4 replies two registers at a time as u32 and "
+                    "float32 in this order (abcd = big-endian, cdab = registers swapped, badc, dcba)")
+        ->check(CLI::IsMember({"abcd", "badc", "cdab", "dcba"}));
     cmd->add_option("--profile", o->profile, "Device profile for every device (see mbscope profile list)");
     cmd->add_option("--map", o->maps, "Profile per device: UNIT=ID, IP=ID or IP:UNIT=ID (repeatable)");
     cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");
     cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");
     json->excludes(jsonl);
     cmd->footer(
+        "Link types: Ethernet, Linux cooked, raw IP, BSD loopback; USER0..15 with --user-dlt; Wireshark "
+        "exported PDUs (252, text2pcap -P mbrtu|mbtcp).\n"
         "Exit codes: 0 decoded with no error-severity finding, 1 faults found, 2 an input could not be "
         "read.\n"
         "Record types and fields: analyzer/README.md.");

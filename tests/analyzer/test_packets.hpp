@@ -1,10 +1,14 @@
 #pragma once
-// Shared by the analyzer tests: a sink that keeps every record, and IPv4 packets built by hand (link type
-// raw IP) between a client 10.0.0.1:40000 and a server 10.0.0.2:502.
+// Shared by the analyzer tests: a sink that keeps every record, IPv4 packets built by hand (link type raw
+// IP) between a client 10.0.0.1:40000 and a server 10.0.0.2:502 (or another server port), and classic pcap
+// files holding records of any link type.
 
 #include <cstdint>
+#include <initializer_list>
+#include <memory>
 #include <vector>
 
+#include "analyzer/analyzer.hpp"
 #include "analyzer/records.hpp"
 
 namespace mbscope::test {
@@ -34,7 +38,7 @@ struct Collect : an::Sink {
 // IPv4 + TCP (or UDP) packet from client 10.0.0.1:40000 to server 10.0.0.2:502, or back.
 inline std::vector<std::uint8_t> packet(bool to_server, std::uint32_t seq,
                                         const std::vector<std::uint8_t>& payload, bool udp = false,
-                                        std::uint8_t flags = 0x18) {
+                                        std::uint8_t flags = 0x18, std::uint16_t server_port = 502) {
     std::vector<std::uint8_t> p;
     const std::size_t l4 = udp ? 8 : 20;
     const std::size_t total = 20 + l4 + payload.size();
@@ -45,7 +49,7 @@ inline std::vector<std::uint8_t> packet(bool to_server, std::uint32_t seq,
                        0x40, 0, 64, static_cast<std::uint8_t>(udp ? 17 : 6), 0, 0});
     p.insert(p.end(), src, src + 4);
     p.insert(p.end(), dst, dst + 4);
-    const std::uint16_t sport = to_server ? 40000 : 502, dport = to_server ? 502 : 40000;
+    const std::uint16_t sport = to_server ? 40000 : server_port, dport = to_server ? server_port : 40000;
     p.insert(p.end(), {static_cast<std::uint8_t>(sport >> 8), static_cast<std::uint8_t>(sport),
                        static_cast<std::uint8_t>(dport >> 8), static_cast<std::uint8_t>(dport)});
     if (udp) {
@@ -58,6 +62,72 @@ inline std::vector<std::uint8_t> packet(bool to_server, std::uint32_t seq,
     }
     p.insert(p.end(), payload.begin(), payload.end());
     return p;
+}
+
+struct PcapRecord {
+    mb::Timestamp time{0};
+    std::vector<std::uint8_t> data;
+};
+
+// A classic pcap file, little-endian with nanosecond timestamps (magic A1B23C4D), as libpcap reads it.
+inline std::vector<std::uint8_t> pcap_file(std::uint32_t linktype, const std::vector<PcapRecord>& records) {
+    std::vector<std::uint8_t> f;
+    auto u32 = [&f](std::uint64_t v) {
+        for (int i = 0; i < 4; ++i)
+            f.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+    };
+    u32(0xA1B23C4D);
+    u32(0x00040002);  // version 2.4 (minor, major as 16-bit halves, little-endian)
+    u32(0);           // this zone
+    u32(0);           // sigfigs
+    u32(65535);       // snap length
+    u32(linktype);
+    for (const auto& r : records) {
+        const auto ns = static_cast<std::uint64_t>(r.time.count());
+        u32(ns / 1'000'000'000);
+        u32(ns % 1'000'000'000);
+        u32(r.data.size());
+        u32(r.data.size());
+        f.insert(f.end(), r.data.begin(), r.data.end());
+    }
+    return f;
+}
+
+// TCP segments between the client and a server port, sequence numbers kept per direction, as a pcap file.
+struct Conversation {
+    std::uint16_t server_port = 502;
+    std::vector<PcapRecord> records;
+    std::uint32_t seq[2] = {1000, 5000};
+    void send(bool to_server, const std::vector<std::uint8_t>& payload, mb::Timestamp t) {
+        records.push_back({t, packet(to_server, seq[to_server ? 0 : 1], payload, false, 0x18, server_port)});
+        seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
+    }
+    std::vector<std::uint8_t> file() const { return pcap_file(link_raw, records); }
+};
+
+// A pcap file run through the analyzer: every record and the summary.
+struct Decoded {
+    Collect sink;
+    an::Summary summary;
+};
+inline std::unique_ptr<Decoded> decode_pcap(const std::vector<std::uint8_t>& file,
+                                            an::AnalyzerOptions options = {}) {
+    auto d = std::make_unique<Decoded>();
+    an::Analyzer a(std::move(options), d->sink);
+    std::string error;
+    auto capture = an::CaptureSource::open_memory(file, error);
+    if (capture) a.read_capture(*capture);
+    if (!capture) a.input_error(error);
+    a.finish();
+    d->summary = a.summary();
+    return d;
+}
+
+inline std::vector<std::uint8_t> bytes(std::initializer_list<int> values) {
+    std::vector<std::uint8_t> b;
+    for (int v : values)
+        b.push_back(static_cast<std::uint8_t>(v));
+    return b;
 }
 
 }  // namespace mbscope::test

@@ -1,0 +1,28 @@
+#include "analyzer/word_order.hpp"
+
+#include <bit>
+#include <charconv>
+#include <cmath>
+
+namespace mbscope::analyzer {
+
+std::vector<Register32> registers32(std::uint16_t starting_address, std::span<const std::uint16_t> values,
+                                    modbus::WordOrder order) {
+    std::vector<Register32> out;
+    out.reserve(values.size() / 2);
+    for (std::size_t i = 0; i + 1 < values.size(); i += 2) {
+        const std::uint32_t u = modbus::join_words(values[i], values[i + 1], order);
+        out.push_back({static_cast<std::uint16_t>(starting_address + i), u, std::bit_cast<float>(u)});
+    }
+    return out;
+}
+
+std::string float_text(float f) {
+    if (std::isnan(f)) return "nan";
+    if (std::isinf(f)) return f < 0 ? "-inf" : "inf";
+    char buf[32];
+    auto [end, ec] = std::to_chars(buf, buf + sizeof buf, f);
+    return ec == std::errc() ? std::string(buf, end) : std::string("?");
+}
+
+}  // namespace mbscope::analyzer

@@ -1,0 +1,208 @@
+// --csv: one RFC 4180 row per transaction. The output is parsed back by a reader written here (quoted
+// fields, doubled quotes, CRLF) and every column checked against values written by hand.
+#include "analyzer/csv_sink.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "analyzer/sinks.hpp"
+#include "modbus/adu.hpp"
+#include "modbus/pdu.hpp"
+#include "modbus/storage/profile_store.hpp"
+#include "test_packets.hpp"
+
+namespace an = mbscope::analyzer;
+namespace mb = mbscope::modbus;
+using namespace std::chrono_literals;
+
+namespace {
+
+using Row = std::map<std::string, std::string>;
+
+// RFC 4180 §2: records end in CRLF, fields in double quotes may hold commas, CRLF and doubled quotes.
+std::vector<std::vector<std::string>> parse_csv(const std::string& text) {
+    std::vector<std::vector<std::string>> records(1);
+    std::string field;
+    bool quoted = false;
+    for (std::size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (quoted) {
+            if (c == '"' && i + 1 < text.size() && text[i + 1] == '"') {
+                field += '"';
+                ++i;
+            } else if (c == '"') {
+                quoted = false;
+            } else {
+                field += c;
+            }
+        } else if (c == '"') {
+            quoted = true;
+        } else if (c == ',') {
+            records.back().push_back(field);
+            field.clear();
+        } else if (c == '\r' && i + 1 < text.size() && text[i + 1] == '\n') {
+            records.back().push_back(field);
+            field.clear();
+            records.emplace_back();
+            ++i;
+        } else {
+            field += c;
+        }
+    }
+    if (records.back().empty()) records.pop_back();  // the text ends with CRLF
+    return records;
+}
+
+// Rows keyed by the header's column names; every row must have as many fields as the header.
+std::vector<Row> rows_of(const std::string& text) {
+    const auto records = parse_csv(text);
+    EXPECT_FALSE(records.empty());
+    std::vector<Row> rows;
+    for (std::size_t r = 1; r < records.size(); ++r) {
+        EXPECT_EQ(records[r].size(), records[0].size()) << "row " << r;
+        Row row;
+        for (std::size_t i = 0; i < records[0].size() && i < records[r].size(); ++i)
+            row[records[0][i]] = records[r][i];
+        rows.push_back(row);
+    }
+    return rows;
+}
+
+std::vector<std::uint8_t> adu(std::uint16_t tid, const mb::Pdu& pdu) {
+    return mb::encode_tcp(tid, 1, mb::encode_pdu(pdu));
+}
+
+mb::Pdu response(mb::Pdu p) {
+    p.direction = mb::Direction::Response;
+    return p;
+}
+
+}  // namespace
+
+TEST(CsvSink, FieldsAreQuotedOnlyWhenTheyMustBe) {
+    EXPECT_EQ(an::csv_field("plain text"), "plain text");
+    EXPECT_EQ(an::csv_field("a,b"), "\"a,b\"");
+    EXPECT_EQ(an::csv_field("say \"hi\""), "\"say \"\"hi\"\"\"");
+    EXPECT_EQ(an::csv_field("two\r\nlines"), "\"two\r\nlines\"");
+    EXPECT_EQ(an::csv_field(""), "");
+}
+
+TEST(CsvSink, RawValuesStatusesAndLatency) {
+    mbscope::test::Conversation c;
+    const bool coils[] = {true, false, true};
+    const std::uint16_t registers[] = {555, 0, 100};
+    c.send(true, adu(1, mb::make_read_request(mb::FunctionCode::ReadCoils, 10, 3)), 1s);
+    c.send(false, adu(1, response(mb::make_read_bits_response(mb::FunctionCode::ReadCoils, coils))),
+           1s + 2500us);
+    c.send(true, adu(2, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 96, 3)), 2s);
+    c.send(
+        false,
+        adu(2, response(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, registers))),
+        2s + 1ms);
+    c.send(true, adu(3, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 40, 1)), 3s);
+    c.send(false, adu(3, mb::make_exception(3, 2)), 3s + 1ms);
+    c.send(true, adu(4, mb::make_write_single_register(7, 1234)), 4s);  // never answered
+    std::ostringstream out;
+    {
+        mbscope::test::Collect kept;  // beside the CSV, as --csv FILE sits beside the text output
+        an::CsvSink csv(out);
+        an::TeeSink both({&kept, &csv});
+        an::Analyzer analyzer({}, both);
+        std::string error;
+        const auto file = c.file();
+        auto capture = an::CaptureSource::open_memory(file, error);
+        ASSERT_TRUE(capture);
+        analyzer.read_capture(*capture);
+        analyzer.finish();
+    }
+    EXPECT_EQ(
+        out.str().substr(0, out.str().find("\r\n")),
+        "time,source,transport,framing,link,unit_id,transaction_id,function,function_name,address,quantity,"
+        "status,exception_code,latency_ms,values,registers32,findings");
+    const auto rows = rows_of(out.str());
+    ASSERT_EQ(rows.size(), 4u);
+    EXPECT_EQ(rows[0].at("time"), "1970-01-01T00:00:01.000000Z");
+    EXPECT_EQ(rows[0].at("transport"), "tcp");
+    EXPECT_EQ(rows[0].at("framing"), "tcp");
+    EXPECT_EQ(rows[0].at("link"), "10.0.0.1:40000 -> 10.0.0.2:502");
+    EXPECT_EQ(rows[0].at("unit_id"), "1");
+    EXPECT_EQ(rows[0].at("transaction_id"), "1");
+    EXPECT_EQ(rows[0].at("function"), "1");
+    EXPECT_EQ(rows[0].at("function_name"), "Read Coils");
+    EXPECT_EQ(rows[0].at("address"), "10");
+    EXPECT_EQ(rows[0].at("quantity"), "3");
+    EXPECT_EQ(rows[0].at("status"), "ok");
+    EXPECT_EQ(rows[0].at("latency_ms"), "2.500");
+    EXPECT_EQ(rows[0].at("values"), "1 0 1");
+    EXPECT_EQ(rows[1].at("values"), "555 0 100");
+    EXPECT_EQ(rows[1].at("time"), "1970-01-01T00:00:02.000000Z");
+    EXPECT_EQ(rows[2].at("status"), "exception");
+    EXPECT_EQ(rows[2].at("exception_code"), "2");
+    EXPECT_EQ(rows[2].at("values"), "");
+    EXPECT_EQ(rows[2].at("findings"), "pair.exception_response");
+    EXPECT_EQ(rows[3].at("status"), "unanswered");
+    EXPECT_EQ(rows[3].at("function"), "6");
+    EXPECT_EQ(rows[3].at("address"), "7");
+    EXPECT_EQ(rows[3].at("quantity"), "1");
+    EXPECT_EQ(rows[3].at("values"), "1234");
+    EXPECT_EQ(rows[3].at("latency_ms"), "");
+}
+
+TEST(CsvSink, NamedValuesWithAProfileAndAQuotedSourceName) {
+    // tests/fixtures/profiles/test-device.json: 17 decimal places, 18 flow in m3/h scaled by 17, 23 filter
+    // with one decimal in s.
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/tests/fixtures/profiles"});
+    auto profile = store.load("test-device");
+    ASSERT_TRUE(profile.has_value());
+    an::AnalyzerOptions o;
+    o.semantics = std::make_shared<an::Semantics>();
+    o.semantics->add({}, std::make_shared<const mb::Profile>(std::move(profile.value())));
+    const std::uint16_t values[] = {2, 1234};
+    mbscope::test::Conversation c;
+    c.send(true, adu(1, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 17, 2)), 1s);
+    c.send(false,
+           adu(1, response(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, values))),
+           1s + 1ms);
+    c.send(true, adu(2, mb::make_write_single_register(23, 250)), 2s);
+    c.send(false, adu(2, response(mb::make_write_single_register(23, 250))), 2s + 1ms);
+    const std::string path = ::testing::TempDir() + "site \"A\", line 2.pcap";
+    const auto file = c.file();
+    std::ofstream(path, std::ios::binary)
+        .write(reinterpret_cast<const char*>(file.data()), static_cast<std::streamsize>(file.size()));
+    std::ostringstream out;
+    {
+        an::CsvSink csv(out);
+        an::Analyzer analyzer(o, csv);
+        EXPECT_TRUE(analyzer.read_capture(path));
+        analyzer.finish();
+    }
+    std::remove(path.c_str());
+    EXPECT_NE(out.str().find("\"" + ::testing::TempDir() + "site \"\"A\"\", line 2.pcap\""),
+              std::string::npos);
+    const auto rows = rows_of(out.str());
+    ASSERT_EQ(rows.size(), 2u);
+    EXPECT_EQ(rows[0].at("source"), path);
+    EXPECT_EQ(rows[0].at("values"), "decimal places=2; flow=12.34 m3/h");
+    EXPECT_EQ(rows[1].at("values"), "filter=25.0 s");
+}
+
+TEST(CsvSink, DecodeWritesCsvToStandardOutput) {
+    const std::string command = std::string(MBSCOPE_BINARY) + " decode --csv - " + MBSCOPE_SOURCE_DIR +
+                                "/captures/suricata-modbus.pcap";
+    FILE* pipe = popen(command.c_str(), "r");
+    ASSERT_NE(pipe, nullptr);
+    std::string out;
+    char buf[4096];
+    for (std::size_t n; (n = fread(buf, 1, sizeof buf, pipe)) > 0;)
+        out.append(buf, n);
+    EXPECT_EQ(pclose(pipe), 1 << 8 /* exit 1: the capture has error findings */) << out;
+    const auto rows = rows_of(out);
+    ASSERT_EQ(rows.size(), 18u);  // analyzer/README.md: 18 transactions in this capture
+    EXPECT_EQ(rows[0].at("link"), "10.0.0.57:2578 -> 10.0.0.3:502");
+    EXPECT_EQ(rows[0].at("status"), "exception");
+    EXPECT_EQ(rows[0].at("exception_code"), "11");
+    EXPECT_EQ(out.find("summary"), std::string::npos);  // nothing but CSV on standard output
+}
