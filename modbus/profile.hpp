@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -131,6 +132,7 @@ struct FunctionRules {
     std::vector<std::uint16_t> diagnostics;
     AddressCheck address_check = AddressCheck::Every;
     std::map<std::string, std::optional<int>> exceptions;  // condition → code (nullopt: the manual is silent)
+    std::set<std::string> implied_exceptions;              // conditions whose code the manual only implies
 
     bool supports(std::uint8_t fc) const;
     // The manual's limit, else the specification's (AP §6.x); 0 when the function has no quantity.

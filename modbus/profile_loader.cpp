@@ -425,6 +425,7 @@ FunctionRules parse_functions(Reader& r, const json& j) {
                 f.exceptions[it.key()] = (*it)["code"].get<int>();
             else if (it->is_object() && it->contains("code") && (*it)["code"].is_null())
                 f.exceptions[it.key()] = std::nullopt;
+            if (it->is_object() && it->value("implied", false)) f.implied_exceptions.insert(it.key());
         }
     return f;
 }

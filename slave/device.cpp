@@ -35,6 +35,39 @@ std::vector<std::uint8_t> encode(const Pdu& pdu) {
     return modbus::encode_pdu(pdu);
 }
 
+// A limit held by another register (MK-RNG-02, 000:623: a lower input or retransmission limit must not exceed
+// the upper one). modbus::check_writes knows the map only; the device also knows the other register's value:
+// the one written in the same block when the block holds it, else the one the image holds.
+std::optional<modbus::WriteRejection> check_linked_limits(const modbus::Profile& profile,
+                                                          const RegisterImage& image, Table t,
+                                                          std::uint16_t start,
+                                                          const std::vector<std::uint16_t>& values) {
+    const auto signed_value = [](const modbus::Point* p, std::uint16_t raw) -> std::int64_t {
+        const bool is_signed = p && (p->encoding.type == modbus::EncodingType::S16 || p->encoding.is_signed);
+        return is_signed ? static_cast<std::int16_t>(raw) : raw;
+    };
+    const auto value_at = [&](const modbus::PointRef& ref) {
+        const bool in_block = profile.resolve(ref.table) == profile.resolve(t) && ref.address >= start &&
+                              ref.address - start < static_cast<int>(values.size());
+        const std::uint16_t raw = in_block ? values[ref.address - start] : image.reg(ref.table, ref.address);
+        return signed_value(profile.find(ref.table, ref.address), raw);
+    };
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        const auto address = static_cast<std::uint16_t>(start + i);
+        const modbus::Point* p = profile.find(t, address);
+        if (!p || p->reserved || p->access == modbus::Access::Read || p->encoding.words == 2) continue;
+        const std::int64_t v = signed_value(p, values[i]);
+        const auto bad = [&](const char* why, const modbus::PointRef& ref) {
+            return modbus::WriteRejection{
+                modbus::exception_for(profile, "bad_value", exc_illegal_value), address,
+                "value " + std::to_string(v) + " " + why + " register " + std::to_string(ref.address)};
+        };
+        if (p->min_from && v < value_at(*p->min_from)) return bad("below the limit held in", *p->min_from);
+        if (p->max_from && v > value_at(*p->max_from)) return bad("above the limit held in", *p->max_from);
+    }
+    return std::nullopt;
+}
+
 }  // namespace
 
 Device::Device(const modbus::Profile& profile, std::uint8_t unit, FaultSet* faults)
@@ -132,6 +165,7 @@ std::optional<std::uint8_t> Device::check_write_block(Table t, std::uint16_t sta
     if (start + values.size() > 65536u)
         return modbus::exception_for(*profile_, "bad_address", exc_illegal_address);
     auto rejection = modbus::check_writes(*profile_, t, start, values);
+    if (!rejection) rejection = check_linked_limits(*profile_, image_, t, start, values);
     if (!rejection) return std::nullopt;
     const bool is_value_rule =
         rejection->exception_code == modbus::exception_for(*profile_, "bad_value", exc_illegal_value) &&

@@ -82,6 +82,10 @@ void RegisterImage::initialise() {
             std::int64_t v = 0;
             if ((e.type == EncodingType::Enum || e.type == EncodingType::Status) && !e.values.empty())
                 v = e.values.front().value;
+            // A character point starts as a character it allows (MK TAG characters: 000:493 (i)), not NUL.
+            if (e.type == EncodingType::AsciiChar && !e.allowed.empty())
+                v = static_cast<unsigned char>(e.allowed.find('A') != std::string::npos ? 'A'
+                                                                                        : e.allowed.front());
             if (p.min && *p.min > 0) v = *p.min;
             if (p.max && *p.max < 0) v = *p.max;
             if (e.words == 2) {

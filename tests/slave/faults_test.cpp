@@ -1,0 +1,353 @@
+// Every planted fault of slave/faults.hpp (23): what it does on the wire, and that without it the wire is
+// clean. Faults that live in the PDU are shown through slave::Device; faults that live in the ADU or in time
+// through slave::Server on 127.0.0.1 port 0 in a thread, with a raw socket client (tcp://, rtu-tcp://,
+// ascii-tcp://). Expected bytes are written by hand (CRCs and LRCs computed outside the code under test).
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "tests/slave/slave_test_support.hpp"
+
+namespace mbscope::slave::test {
+namespace {
+
+using mb::Table;
+using namespace std::chrono_literals;
+
+std::vector<FaultSpec> specs(const std::string& text) {
+    if (text.empty()) return {};
+    auto spec = parse_fault(text);
+    EXPECT_TRUE(spec.has_value()) << text;
+    return spec ? std::vector<FaultSpec>{*spec} : std::vector<FaultSpec>{};
+}
+
+// ASCII frame text as the hex of its characters, so every expectation is compared the same way.
+std::string ascii_hex(std::string_view text) {
+    return hex(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+}
+
+TEST(Faults, TwentyThreeAreDeclaredWithTheirCommandLineNames) {
+    EXPECT_EQ(fault_count, 23u);
+    std::set<std::string> names;
+    for (std::size_t i = 0; i < fault_count; ++i) {
+        const std::string name(to_string(static_cast<Fault>(i)));
+        names.insert(name);
+        EXPECT_NE(fault_help().find("  " + name), std::string::npos) << name;
+    }
+    EXPECT_EQ(names.size(), fault_count);
+    EXPECT_EQ(to_string(Fault::ReplyToBroadcast), "reply-to-broadcast");
+    EXPECT_EQ(to_string(Fault::CrashAfter), "crash-after");
+}
+
+TEST(Faults, ParseNamesTheProblem) {
+    auto ok = parse_fault("no-reply=0.25");
+    ASSERT_TRUE(ok.has_value());
+    EXPECT_EQ(ok->fault, Fault::NoReply);
+    EXPECT_DOUBLE_EQ(ok->arg, 0.25);
+    EXPECT_EQ(parse_fault("bad-crc")->arg, 1.0);  // rate faults default to every response
+    EXPECT_NE(parse_fault("no-such").error().find("unknown fault 'no-such'"), std::string::npos);
+    EXPECT_NE(parse_fault("slow-reply").error().find("needs"), std::string::npos);
+    EXPECT_NE(parse_fault("no-reply=1.5").error().find("rate must be in (0, 1]"), std::string::npos);
+    EXPECT_NE(parse_fault("bad-crc=0").error().find("rate"), std::string::npos);
+    EXPECT_NE(parse_fault("slow-reply=abc").error().find("not a number"), std::string::npos);
+    EXPECT_NE(parse_fault("wrong-exception=0").error().find("1..255"), std::string::npos);
+    EXPECT_NE(parse_fault("stuck-value=70000").error().find("0..65535"), std::string::npos);
+    EXPECT_NE(parse_fault("crash-after=-1").error().find("negative"), std::string::npos);
+}
+
+// A rate draws from the seeded generator: the same seed gives the same sequence of outcomes.
+TEST(Faults, RateIsDeterministicUnderTheSameSeed) {
+    const auto draws = [](std::uint64_t seed) {
+        FaultSet f(specs("no-reply=0.5"), seed);
+        std::vector<bool> out;
+        for (int i = 0; i < 64; ++i)
+            out.push_back(f.fires(Fault::NoReply));
+        return out;
+    };
+    const auto a = draws(7);
+    EXPECT_EQ(a, draws(7));
+    EXPECT_NE(a, draws(8));
+    const auto hits = std::count(a.begin(), a.end(), true);
+    EXPECT_GT(hits, 8);
+    EXPECT_LT(hits, 56);
+    FaultSet none;
+    EXPECT_FALSE(none.any());
+    EXPECT_FALSE(none.fires(Fault::NoReply));
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Faults in the PDU, through the Device.
+
+struct Step {
+    std::string request;
+    std::string without;  // the reply with no fault planted
+    std::string with;     // the reply with the fault planted
+    bool broadcast = false;
+};
+
+struct PduFaultCase {
+    std::string name;
+    std::string fault;
+    std::string profile;
+    std::vector<Step> steps;
+    std::function<void(RegisterImage&)> setup = {};
+};
+
+void PrintTo(const PduFaultCase& c, std::ostream* os) {
+    *os << c.name;
+}
+
+class PduFault : public ::testing::TestWithParam<PduFaultCase> {};
+
+TEST_P(PduFault, ShowsOnlyWhenPlanted) {
+    const auto& c = GetParam();
+    for (bool planted : {false, true}) {
+        SCOPED_TRACE(planted ? "--fault " + c.fault : "no fault");
+        FaultSet faults(planted ? specs(c.fault) : std::vector<FaultSpec>{}, 1);
+        Device device(profile(c.profile), 1, &faults);
+        if (c.setup) c.setup(device.image());
+        for (const auto& s : c.steps) {
+            SCOPED_TRACE(s.request);
+            EXPECT_EQ(ask(device, s.request, s.broadcast), planted ? s.with : s.without);
+        }
+    }
+}
+
+constexpr Table HR = Table::HoldingRegisters;
+
+const std::vector<PduFaultCase> pdu_faults = {
+    {"WrongByteCount",
+     "wrong-byte-count",
+     "modbus",
+     {{"03 00 00 00 01", "03 02 00 00", "03 03 00 00"}, {"01 00 00 00 01", "01 01 00", "01 02 00"}}},
+    // The profile's limit (MK: 15 registers) is ignored, the specification's (125) still holds.
+    {"IgnoreMaxQuantity",
+     "ignore-max-quantity",
+     "mmk-2030",
+     {{"03 00 00 00 10", "83 03",
+       "03 20 " +
+           [] {
+               std::string z;
+               for (int i = 0; i < 32; ++i)
+                   z += i ? " 00" : "00";
+               return z;
+           }()},
+      {"03 00 00 00 7E", "83 03", "83 03"}},
+     [](RegisterImage& i) {
+         for (std::uint16_t a = 0; a < 16; ++a)
+             i.set_reg(HR, a, 0);
+     }},
+    {"WrongException",
+     "wrong-exception=7",
+     "mmk-2030",
+     {{"02 00 00 00 01", "82 01", "82 07"}, {"03 00 C8 00 01", "83 02", "83 07"}}},
+    {"ExceptionForValid",
+     "exception-for-valid",
+     "modbus",
+     {{"03 00 00 00 01", "03 02 00 00", "83 04"}, {"02 FF FF 00 02", "82 02", "82 02"}}},
+    {"WordSwap",
+     "word-swap",
+     "walchem-w600",
+     {{"03 00 94 00 02", "03 04 00 00 40 E0", "03 04 40 E0 00 00"}},
+     [](RegisterImage& i) { i.set_f32(HR, 148, 7.0f, mb::WordOrder::Cdab); }},
+    {"OffByOneAddress",
+     "off-by-one-address",
+     "modbus",
+     {{"03 00 0A 00 01", "03 02 11 11", "03 02 22 22"}},
+     [](RegisterImage& i) {
+         i.set_reg(HR, 10, 0x1111);
+         i.set_reg(HR, 11, 0x2222);
+     }},
+    {"StuckValue",
+     "stuck-value=23",
+     "mmk-2030",
+     {{"06 00 17 00 0A", "06 00 17 00 0A", "06 00 17 00 0A"},
+      {"03 00 17 00 01", "03 02 00 0A", "03 02 00 00"}}},
+    {"DropWrite",
+     "drop-write",
+     "modbus",
+     {{"06 00 00 12 34", "06 00 00 12 34", "06 00 00 12 34"},
+      {"03 00 00 00 01", "03 02 12 34", "03 02 00 00"}}},
+    // Ranges, enumerations and linked limits are not enforced; the address and access rules still are.
+    {"AcceptOutOfRange",
+     "accept-out-of-range",
+     "mmk-2030",
+     {{"06 00 07 00 64", "86 03", "06 00 07 00 64"},
+      {"03 00 07 00 01", "03 02 00 00", "03 02 00 64"},
+      {"06 00 57 02 58", "86 03", "06 00 57 02 58"},
+      {"06 00 00 00 00", "86 02", "86 02"}}},
+    {"NoEcho",
+     "no-echo",
+     "modbus",
+     {{"06 00 00 12 34", "06 00 00 12 34", "06 00 00 ED CB"},
+      {"05 00 00 FF 00", "05 00 00 FF 00", "05 00 00 00 FF"},
+      {"08 00 00 A5 37", "08 00 00 A5 37", "08 00 00 5A C8"}}},
+    {"ReplyToBroadcast",
+     "reply-to-broadcast",
+     "modbus",
+     {{"06 00 00 12 34", "", "06 00 00 12 34", true}, {"03 00 00 00 01", "03 02 12 34", "03 02 12 34"}}},
+};
+
+INSTANTIATE_TEST_SUITE_P(Device, PduFault, ::testing::ValuesIn(pdu_faults),
+                         [](const auto& info) { return info.param.name; });
+
+// ---------------------------------------------------------------------------------------------------------
+// Faults in the ADU, through the Server.
+
+struct WireFaultCase {
+    std::string name;
+    std::string fault;
+    std::string scheme;
+    std::string request;
+    std::string without;
+    std::string with;  // "" = no answer
+};
+
+void PrintTo(const WireFaultCase& c, std::ostream* os) {
+    *os << c.name;
+}
+
+class WireFault : public ::testing::TestWithParam<WireFaultCase> {};
+
+TEST_P(WireFault, ShowsOnlyWhenPlanted) {
+    const auto& c = GetParam();
+    for (bool planted : {false, true}) {
+        SCOPED_TRACE(planted ? "--fault " + c.fault : "no fault");
+        RunningServer server(planted ? std::vector<std::string>{c.fault} : std::vector<std::string>{});
+        Client client(server.start(c.scheme));
+        ASSERT_TRUE(client.connected());
+        const std::string& expected = planted ? c.with : c.without;
+        const std::size_t count = expected.empty() ? 1 : bytes(expected).size();
+        EXPECT_EQ(client.exchange(c.request, count, expected.empty() ? silence : 5000ms), expected);
+    }
+}
+
+// FC3 register 0 of unit 1 (value 0) in each framing: RTU CRC 0x0A84 / reply 0x44B8, ASCII LRC FB / FA.
+const std::string tcp_request = "00 01 00 00 00 06 01 03 00 00 00 01";
+const std::string tcp_reply = "00 01 00 00 00 05 01 03 02 00 00";
+
+const std::vector<WireFaultCase> wire_faults = {
+    {"BadCrc", "bad-crc", "rtu-tcp", "01 03 00 00 00 01 84 0A", "01 03 02 00 00 B8 44",
+     "01 03 02 00 00 47 BB"},
+    {"BadLrc", "bad-lrc", "ascii-tcp", ascii_hex(":010300000001FB\r\n"), ascii_hex(":0103020000FA\r\n"),
+     ascii_hex(":0103020000FB\r\n")},
+    {"WrongUnit", "wrong-unit", "tcp", tcp_request, tcp_reply, "00 01 00 00 00 05 02 03 02 00 00"},
+    {"WrongUnitRtu", "wrong-unit", "rtu-tcp", "01 03 00 00 00 01 84 0A", "01 03 02 00 00 B8 44",
+     "02 03 02 00 00 FC 44"},
+    {"WrongTid", "wrong-tid", "tcp", tcp_request, tcp_reply, "00 02 00 00 00 05 01 03 02 00 00"},
+    {"BadProtocolId", "bad-protocol-id", "tcp", tcp_request, tcp_reply, "00 01 00 01 00 05 01 03 02 00 00"},
+    {"ShortResponse", "short-response", "tcp", tcp_request, tcp_reply, "00 01 00 00 00 04 01 03 02 00"},
+    {"ExtraBytes", "extra-bytes", "tcp", tcp_request, tcp_reply, "00 01 00 00 00 07 01 03 02 00 00 DE AD"},
+    {"WrongFunction", "wrong-function", "tcp", tcp_request, tcp_reply, "00 01 00 00 00 05 01 04 02 00 00"},
+    {"WrongFunctionOnException", "wrong-function", "tcp", "00 09 00 00 00 06 01 02 FF FF 00 02",
+     "00 09 00 00 00 03 01 82 02", "00 09 00 00 00 03 01 83 02"},
+    // Unit 0 (broadcast) FC6 register 0 := 0x1234.
+    {"ReplyToBroadcast", "reply-to-broadcast", "tcp", "00 05 00 00 00 06 00 06 00 00 12 34", "",
+     "00 05 00 00 00 06 00 06 00 00 12 34"},
+    {"ReplyToBroadcastRtu", "reply-to-broadcast", "rtu-tcp", "00 06 00 00 12 34 85 6C", "",
+     "00 06 00 00 12 34 85 6C"},
+    {"CrashAfterZero", "crash-after=0", "tcp", tcp_request, tcp_reply, ""},
+    {"NoReplyEveryRequest", "no-reply=1", "tcp", tcp_request, tcp_reply, ""},
+};
+
+INSTANTIATE_TEST_SUITE_P(Server, WireFault, ::testing::ValuesIn(wire_faults),
+                         [](const auto& info) { return info.param.name; });
+
+std::string tcp_read_request(std::uint16_t tid) {
+    const std::uint8_t adu[] = {
+        static_cast<std::uint8_t>(tid >> 8), static_cast<std::uint8_t>(tid), 0, 0, 0, 6, 1, 3, 0, 0, 0, 1};
+    return hex(adu);
+}
+
+// crash-after=N: N requests answered, none after.
+TEST(ServerFaults, CrashAfterAnswersNThenNothing) {
+    for (bool planted : {false, true}) {
+        SCOPED_TRACE(planted ? "--fault crash-after=2" : "no fault");
+        RunningServer server(planted ? std::vector<std::string>{"crash-after=2"}
+                                     : std::vector<std::string>{});
+        Client client(server.start("tcp"));
+        for (std::uint16_t tid = 1; tid <= 4; ++tid) {
+            const bool answered = !planted || tid <= 2;
+            const std::string reply = client.exchange(tcp_read_request(tid), 11, answered ? 5000ms : silence);
+            EXPECT_EQ(bytes(reply).size(), answered ? 11u : 0u) << "request " << tid;
+        }
+    }
+}
+
+// no-reply=RATE: which requests go unanswered depends on the seed and the order of requests only.
+TEST(ServerFaults, NoReplyRateIsTheSameSequenceUnderTheSameSeed) {
+    const auto answered = [](const std::vector<std::string>& faults, std::uint64_t seed) {
+        RunningServer server(faults, seed);
+        Client client(server.start("tcp"));
+        std::string burst;
+        for (std::uint16_t tid = 1; tid <= 24; ++tid)
+            burst += (tid > 1 ? " " : "") + tcp_read_request(tid);
+        client.send(bytes(burst));
+        std::vector<std::uint16_t> tids;
+        for (;;) {
+            const auto reply = client.read(11, silence);
+            if (reply.size() < 11) break;
+            tids.push_back(static_cast<std::uint16_t>(reply[0] << 8 | reply[1]));
+        }
+        return tids;
+    };
+    const auto all = answered({}, 3);
+    ASSERT_EQ(all.size(), 24u);
+    const auto first = answered({"no-reply=0.5"}, 3);
+    EXPECT_EQ(first, answered({"no-reply=0.5"}, 3));
+    EXPECT_GT(first.size(), 0u);
+    EXPECT_LT(first.size(), 24u);
+    EXPECT_NE(first, answered({"no-reply=0.5"}, 4));
+}
+
+// slow-reply=MS: the answer comes at least MS late. Only a generous lower bound is asserted (and, without the
+// fault, that the answer is not that late).
+TEST(ServerFaults, SlowReplyDelaysTheAnswer) {
+    for (bool planted : {false, true}) {
+        SCOPED_TRACE(planted ? "--fault slow-reply=800" : "no fault");
+        RunningServer server(planted ? std::vector<std::string>{"slow-reply=800"}
+                                     : std::vector<std::string>{});
+        Client client(server.start("tcp"));
+        const auto sent = std::chrono::steady_clock::now();
+        EXPECT_EQ(client.exchange(tcp_request, 11), tcp_reply);
+        const auto took = std::chrono::steady_clock::now() - sent;
+        if (planted)
+            EXPECT_GE(took, 750ms);
+        else
+            EXPECT_LT(took, 750ms);
+    }
+}
+
+// gap-inside-frame=CHARS over rtu-tcp: the response arrives in two parts, CHARS character times apart
+// (200 characters at the default 9600 baud: about 230 ms), which together are the whole frame.
+TEST(ServerFaults, GapInsideFrameSplitsTheResponse) {
+    for (bool planted : {false, true}) {
+        SCOPED_TRACE(planted ? "--fault gap-inside-frame=200" : "no fault");
+        RunningServer server(planted ? std::vector<std::string>{"gap-inside-frame=200"}
+                                     : std::vector<std::string>{});
+        Client client(server.start("rtu-tcp"));
+        client.send(bytes("01 03 00 00 00 01 84 0A"));
+        auto first = client.read_some(5000ms);
+        EXPECT_EQ(first.size(), planted ? 3u : 7u);
+        const auto rest = client.read(7 - first.size());
+        first.insert(first.end(), rest.begin(), rest.end());
+        EXPECT_EQ(hex(first), "01 03 02 00 00 B8 44");
+    }
+}
+
+// The fault reaches every framing it names: bad-crc leaves TCP alone, bad-lrc leaves RTU alone.
+TEST(ServerFaults, ChecksumFaultsTouchOnlyTheirFraming) {
+    {
+        RunningServer server({"bad-crc"});
+        Client client(server.start("tcp"));
+        EXPECT_EQ(client.exchange(tcp_request, 11), tcp_reply);
+    }
+    {
+        RunningServer server({"bad-lrc"});
+        Client client(server.start("rtu-tcp"));
+        EXPECT_EQ(client.exchange("01 03 00 00 00 01 84 0A", 7), "01 03 02 00 00 B8 44");
+    }
+}
+
+}  // namespace
+}  // namespace mbscope::slave::test

@@ -1,0 +1,237 @@
+#pragma once
+// Shared by the slave tests: the bundled profiles loaded once, PDUs written as hex, a Device driven with PDU
+// bytes, and a Server run on 127.0.0.1 port 0 in a thread with a raw socket client beside it.
+
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+#include "modbus/adu.hpp"
+#include "modbus/storage/profile_store.hpp"
+#include "modbus/transport/endpoint.hpp"
+#include "slave/device.hpp"
+#include "slave/faults.hpp"
+#include "slave/server.hpp"
+
+namespace mbscope::slave::test {
+
+namespace mb = mbscope::modbus;
+
+inline const mb::storage::ProfileStore& store() {
+    static const mb::storage::ProfileStore s(
+        {(std::filesystem::path(MBSCOPE_SOURCE_DIR) / "profiles").string()});
+    return s;
+}
+
+// A bundled profile with its default configuration, loaded once and kept for the life of the test binary
+// (a Device keeps a pointer to its profile).
+inline const mb::Profile& profile(const std::string& id) {
+    static std::map<std::string, std::unique_ptr<mb::Profile>> cache;
+    auto it = cache.find(id);
+    if (it == cache.end()) {
+        auto loaded = store().load(id);
+        if (!loaded) {
+            ADD_FAILURE() << "profile " << id << " does not load";
+            std::abort();
+        }
+        it = cache.emplace(id, std::make_unique<mb::Profile>(std::move(loaded.value()))).first;
+    }
+    return *it->second;
+}
+
+// Every bundled device id, as the profile store lists them.
+inline std::vector<std::string> profile_ids() {
+    std::vector<std::string> ids;
+    for (const auto& e : store().entries())
+        ids.push_back(e.id);
+    return ids;
+}
+
+// "03 00 60 00 03" → bytes; spaces are optional.
+inline std::vector<std::uint8_t> bytes(std::string_view hex) {
+    std::vector<std::uint8_t> out;
+    int high = -1;
+    for (char c : hex) {
+        int v = -1;
+        if (c >= '0' && c <= '9') v = c - '0';
+        if (c >= 'A' && c <= 'F') v = c - 'A' + 10;
+        if (c >= 'a' && c <= 'f') v = c - 'a' + 10;
+        if (v < 0) continue;
+        if (high < 0) {
+            high = v;
+        } else {
+            out.push_back(static_cast<std::uint8_t>(high * 16 + v));
+            high = -1;
+        }
+    }
+    return out;
+}
+
+// Bytes → "03 06 02 2B", upper case, one space between bytes (the form expected values are written in).
+inline std::string hex(std::span<const std::uint8_t> data) {
+    std::string out;
+    char buf[4];
+    for (std::uint8_t b : data) {
+        std::snprintf(buf, sizeof buf, "%02X", b);
+        if (!out.empty()) out += ' ';
+        out += buf;
+    }
+    return out;
+}
+
+// One request through the device: the reply PDU as hex, "" when the device does not answer.
+inline std::string ask(Device& device, std::string_view request_hex, bool broadcast = false) {
+    const auto pdu = bytes(request_hex);
+    return hex(device.handle({pdu, broadcast}).pdu);
+}
+
+// A request PDU of `fc` with a quantity field (read requests, FC15/FC16 with zeroed values).
+inline std::vector<std::uint8_t> quantity_request(std::uint8_t fc, std::uint16_t start,
+                                                  std::uint32_t quantity) {
+    std::vector<std::uint8_t> pdu{fc, static_cast<std::uint8_t>(start >> 8), static_cast<std::uint8_t>(start),
+                                  static_cast<std::uint8_t>(quantity >> 8),
+                                  static_cast<std::uint8_t>(quantity)};
+    if (fc == 15 || fc == 16) {
+        const std::size_t n = fc == 15 ? (quantity + 7) / 8 : 2 * quantity;
+        pdu.push_back(static_cast<std::uint8_t>(n));
+        pdu.insert(pdu.end(), n, 0);
+    }
+    return pdu;
+}
+
+// ---- a server in a thread
+
+// A slave::Server on 127.0.0.1, port 0, serving one unit with the given faults; stopped and joined when the
+// object goes away.
+class RunningServer {
+  public:
+    explicit RunningServer(const std::vector<std::string>& faults, std::uint64_t seed = 1,
+                           const std::string& profile_id = "modbus", std::uint8_t unit = 1)
+        : faults_(specs(faults), seed), device_(profile(profile_id), unit, &faults_) {}
+
+    ~RunningServer() { stop(); }
+
+    Device& device() noexcept { return device_; }
+
+    // Opens the endpoint and starts serving; the port clients connect to.
+    std::uint16_t start(const std::string& scheme) {
+        auto endpoint = mb::transport::parse_endpoint(scheme + "://127.0.0.1:0");
+        EXPECT_TRUE(endpoint.has_value());
+        server_ =
+            std::make_unique<Server>(*endpoint, std::vector<Device*>{&device_}, faults_, ServerOptions{});
+        auto opened = server_->open();
+        EXPECT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
+        thread_ = std::thread([this] { (void)server_->run(stop_); });
+        return server_->port();
+    }
+
+    void stop() {
+        stop_ = true;
+        if (thread_.joinable()) thread_.join();
+    }
+
+  private:
+    static std::vector<FaultSpec> specs(const std::vector<std::string>& texts) {
+        std::vector<FaultSpec> out;
+        for (const auto& t : texts) {
+            auto spec = parse_fault(t);
+            EXPECT_TRUE(spec.has_value()) << t;
+            if (spec) out.push_back(*spec);
+        }
+        return out;
+    }
+
+    FaultSet faults_;
+    Device device_;
+    std::unique_ptr<Server> server_;
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+};
+
+// A raw TCP client: sends bytes, reads what arrives within a deadline.
+class Client {
+  public:
+    explicit Client(std::uint16_t port) {
+        fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+        sockaddr_in a{};
+        a.sin_family = AF_INET;
+        a.sin_port = htons(port);
+        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        connected_ = ::connect(fd_, reinterpret_cast<const sockaddr*>(&a), sizeof a) == 0;
+    }
+    ~Client() {
+        if (fd_ >= 0) ::close(fd_);
+    }
+    Client(const Client&) = delete;
+    Client& operator=(const Client&) = delete;
+
+    bool connected() const noexcept { return connected_; }
+
+    void send(std::span<const std::uint8_t> data) {
+        ASSERT_EQ(::send(fd_, data.data(), data.size(), MSG_NOSIGNAL), static_cast<ssize_t>(data.size()));
+    }
+    void send(std::string_view text) {
+        send(std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+    }
+
+    // Whatever arrives in one read within `timeout` (empty when nothing does).
+    std::vector<std::uint8_t> read_some(std::chrono::milliseconds timeout) {
+        pollfd p{fd_, POLLIN, 0};
+        if (::poll(&p, 1, static_cast<int>(timeout.count())) <= 0) return {};
+        std::uint8_t buf[1024];
+        const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
+        return n > 0 ? std::vector<std::uint8_t>(buf, buf + n) : std::vector<std::uint8_t>{};
+    }
+
+    // Reads until `count` bytes arrived or `timeout` passed; returns what arrived.
+    std::vector<std::uint8_t> read(std::size_t count,
+                                   std::chrono::milliseconds timeout = std::chrono::seconds(5)) {
+        std::vector<std::uint8_t> out;
+        const auto deadline = std::chrono::steady_clock::now() + timeout;
+        while (out.size() < count) {
+            const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+                deadline - std::chrono::steady_clock::now());
+            if (left.count() <= 0) break;
+            pollfd p{fd_, POLLIN, 0};
+            if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) break;
+            std::uint8_t buf[1024];
+            const ssize_t n = ::recv(fd_, buf, std::min(sizeof buf, count - out.size()), 0);
+            if (n <= 0) break;
+            out.insert(out.end(), buf, buf + n);
+        }
+        return out;
+    }
+
+    // Sends a request and returns the reply's hex: `count` bytes expected; "" when nothing arrives within
+    // `timeout`.
+    std::string exchange(std::string_view request_hex, std::size_t count,
+                         std::chrono::milliseconds timeout = std::chrono::seconds(5)) {
+        send(bytes(request_hex));
+        return hex(read(count, timeout));
+    }
+
+  private:
+    int fd_ = -1;
+    bool connected_ = false;
+};
+
+// How long a test waits before it concludes that no answer is coming: far above a loopback round trip, also
+// under the sanitizers.
+inline constexpr std::chrono::milliseconds silence{400};
+
+}  // namespace mbscope::slave::test

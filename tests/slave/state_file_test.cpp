@@ -1,0 +1,182 @@
+// The slave's state file (slave/state_file.hpp): what a round trip keeps, that the replacement is atomic
+// (written beside and renamed, no .tmp left), and that a damaged or foreign file is refused by name.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "slave/state_file.hpp"
+#include "tests/slave/slave_test_support.hpp"
+
+namespace mbscope::slave::test {
+namespace {
+
+namespace fs = std::filesystem;
+using mb::Table;
+
+class StateFile : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir_ =
+            fs::temp_directory_path() / ("mbscope-state-" + std::to_string(::getpid()) + "-" + info->name());
+        fs::remove_all(dir_);
+        fs::create_directories(dir_);
+        path_ = (dir_ / "slave.json").string();
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+
+    void write_file(const std::string& text) const { std::ofstream(path_, std::ios::binary) << text; }
+    std::string read_file() const {
+        std::ifstream in(path_, std::ios::binary);
+        std::stringstream s;
+        s << in.rdbuf();
+        return s.str();
+    }
+
+    fs::path dir_;
+    std::string path_;
+};
+
+TEST_F(StateFile, RoundTripKeepsEveryWrittenValue) {
+    Device before(profile("mmk-2030"), 1);
+    Device other(profile("walchem-w600"), 2);
+    EXPECT_EQ(ask(before, "06 00 54 FC 19"), "06 00 54 FC 19");
+    EXPECT_EQ(ask(before, "05 00 01 FF 00"), "05 00 01 FF 00");
+    EXPECT_EQ(ask(other, "10 00 94 00 02 04 00 00 40 E0"), "10 00 94 00 02");
+    ASSERT_TRUE(save_state(path_, {&before, &other}).has_value());
+
+    Device after(profile("mmk-2030"), 1);
+    Device other_after(profile("walchem-w600"), 2);
+    auto loaded = load_state(path_, {&after, &other_after});
+    ASSERT_TRUE(loaded.has_value()) << loaded.error();
+    EXPECT_EQ(ask(after, "03 00 54 00 01"), "03 02 FC 19");
+    EXPECT_EQ(ask(after, "01 00 01 00 01"), "01 01 01");
+    EXPECT_EQ(ask(other_after, "03 00 94 00 02"), "03 04 00 00 40 E0");
+    EXPECT_EQ(after.image().changes(), before.image().changes());
+}
+
+// Only what differs from the initial image is kept: an untouched device saves no table.
+TEST_F(StateFile, KeepsOnlyChanges) {
+    Device device(profile("cth2265i"), 1);
+    ASSERT_TRUE(save_state(path_, {&device}).has_value());
+    EXPECT_EQ(read_file(),
+              "{\n \"format\": \"mbscope-slave-state/1\",\n \"units\": {\n  \"1\": {\n   \"profile\": "
+              "\"cth2265i\"\n  }\n }\n}\n");
+}
+
+TEST_F(StateFile, MissingFileIsAFirstStart) {
+    Device device(profile("modbus"), 1);
+    EXPECT_TRUE(load_state((dir_ / "absent.json").string(), {&device}).has_value());
+}
+
+// Written to FILE.tmp and renamed over FILE: the old contents are replaced whole and no .tmp survives.
+TEST_F(StateFile, ReplacementIsAtomic) {
+    write_file("old contents");
+    Device device(profile("modbus"), 1);
+    EXPECT_EQ(ask(device, "06 00 05 00 2A"), "06 00 05 00 2A");
+    ASSERT_TRUE(save_state(path_, {&device}).has_value());
+    EXPECT_FALSE(fs::exists(path_ + ".tmp"));
+    EXPECT_EQ(read_file().find("old contents"), std::string::npos);
+    EXPECT_NE(read_file().find("\"5\": 42"), std::string::npos) << read_file();
+    std::size_t entries = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir_))
+        ++entries;
+    EXPECT_EQ(entries, 1u);
+}
+
+// A .tmp left by a save that was killed before its rename is not read: the last complete image is.
+TEST_F(StateFile, LeftoverTmpFromAnInterruptedSaveIsIgnored) {
+    Device device(profile("modbus"), 1);
+    EXPECT_EQ(ask(device, "06 00 05 00 2A"), "06 00 05 00 2A");
+    ASSERT_TRUE(save_state(path_, {&device}).has_value());
+    std::ofstream(path_ + ".tmp") << "{\"format\": \"mbscope-slave-st";  // torn write
+    Device after(profile("modbus"), 1);
+    ASSERT_TRUE(load_state(path_, {&after}).has_value());
+    EXPECT_EQ(after.image().reg(Table::HoldingRegisters, 5), 42);
+}
+
+TEST_F(StateFile, SaveErrorNamesTheFile) {
+    Device device(profile("modbus"), 1);
+    const std::string nowhere = (dir_ / "no-such-dir" / "slave.json").string();
+    auto saved = save_state(nowhere, {&device});
+    ASSERT_FALSE(saved.has_value());
+    EXPECT_NE(saved.error().find(nowhere + ".tmp: open"), std::string::npos) << saved.error();
+}
+
+struct Damage {
+    const char* name;
+    std::string contents;
+    std::string says;  // part of the error, after the file's name
+};
+
+void PrintTo(const Damage& c, std::ostream* os) {
+    *os << c.name;
+}
+
+class DamagedStateFile : public StateFile, public ::testing::WithParamInterface<Damage> {};
+
+TEST_P(DamagedStateFile, IsRefusedNamingTheFile) {
+    write_file(GetParam().contents);
+    Device device(profile("mmk-2030"), 1);
+    auto loaded = load_state(path_, {&device});
+    ASSERT_FALSE(loaded.has_value());
+    EXPECT_EQ(loaded.error().rfind(path_ + ": ", 0), 0u) << loaded.error();
+    EXPECT_NE(loaded.error().find(GetParam().says), std::string::npos) << loaded.error();
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    StateFile, DamagedStateFile,
+    ::testing::Values(
+        Damage{"Truncated", R"({"format": "mbscope-slave-state/1", "units": {"1": {"prof)", "not valid JSON"},
+        Damage{"Empty", "", "not valid JSON"},
+        Damage{"OtherFormat", R"({"format": "something-else", "units": {}})",
+               "not an mbscope slave state file"},
+        Damage{"UnitsNotAnObject", R"({"format": "mbscope-slave-state/1", "units": []})",
+               "not an mbscope slave state file"},
+        Damage{"UnknownTable",
+               R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "nope": {}}}})",
+               "unknown table \"nope\""},
+        Damage{
+            "AddressOutOfRange",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"70000": 1}}}})",
+            "bad entry"},
+        Damage{
+            "ValueOutOfRange",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"5": 70000}}}})",
+            "bad entry"},
+        Damage{
+            "NegativeValue",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"5": -1}}}})",
+            "bad entry"},
+        Damage{
+            "AddressNotANumber",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"x5": 1}}}})",
+            "bad entry"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+// A unit saved with one profile and now served with another is refused, naming both.
+TEST_F(StateFile, ProfileMismatchIsRefused) {
+    Device saved(profile("mmk-2030"), 1);
+    EXPECT_EQ(ask(saved, "06 00 17 00 0A"), "06 00 17 00 0A");
+    ASSERT_TRUE(save_state(path_, {&saved}).has_value());
+    Device now(profile("ty-2090"), 1);
+    auto loaded = load_state(path_, {&now});
+    ASSERT_FALSE(loaded.has_value());
+    EXPECT_EQ(loaded.error(),
+              path_ + ": unit 1 was saved with profile \"mmk-2030\", now served as \"ty-2090\"");
+    EXPECT_EQ(now.image().reg(Table::HoldingRegisters, 23), 0);
+}
+
+// Units are matched by id: a unit the file does not hold starts from the initial image.
+TEST_F(StateFile, UnitsAreMatchedById) {
+    Device one(profile("modbus"), 1);
+    EXPECT_EQ(ask(one, "06 00 00 00 07"), "06 00 00 00 07");
+    ASSERT_TRUE(save_state(path_, {&one}).has_value());
+    Device two(profile("modbus"), 2);
+    ASSERT_TRUE(load_state(path_, {&two}).has_value());
+    EXPECT_EQ(two.image().reg(Table::HoldingRegisters, 0), 0);
+}
+
+}  // namespace
+}  // namespace mbscope::slave::test
