@@ -361,7 +361,8 @@ struct Server::Impl {
                     return true;
                 }
                 c.rtu.insert(c.rtu.end(), bytes.begin(), bytes.end());
-                deframe_rtu_stream(id, c);
+                c.last_byte = now;
+                deframe_rtu_stream(id, c, false);
                 c.partial = !c.rtu.empty();
                 return true;
         }
@@ -379,29 +380,60 @@ struct Server::Impl {
     }
 
     // RTU over TCP: frame ends come from the content (function code and byte counts, confirmed by the CRC).
-    void deframe_rtu_stream(std::uint64_t id, Connection& c) {
+    // What the content cannot end (FC8/00 echoes any number of data bytes, user-defined function codes, a
+    // truncated frame whose predicted length swallows the next request) is ended by a silence, as the
+    // gateway's serial side would end it: after options.stream_frame_silence the bytes held are taken as
+    // complete (`at_end`): one frame if their CRC says so, else resynchronised and the garbage dropped.
+    void deframe_rtu_stream(std::uint64_t id, Connection& c, bool at_end) {
         std::size_t head = 0;
+        if (at_end && c.rtu.size() >= 4 && c.rtu.size() <= modbus::max_rtu_adu_length &&
+            modbus::crc16(c.rtu) == 0) {
+            if (auto f = modbus::decode_rtu(c.rtu); f) on_frame(id, *f);
+            c.rtu.clear();
+            return;
+        }
         while (head < c.rtu.size()) {
             const std::span<const std::uint8_t> rest(c.rtu.data() + head, c.rtu.size() - head);
-            const auto step = modbus::rtu_step(rest, false);
+            const auto step = modbus::rtu_step(rest, at_end);
+            // A frame whose length the content does not give (an unknown function code, FC8 with any
+            // number of data bytes): the shortest prefix with a valid CRC is taken as the frame.
+            const bool unsized =
+                (step.kind == modbus::DeframeStep::Kind::NeedMore && rest.size() >= 2 && rest[1] == 8) ||
+                (step.kind == modbus::DeframeStep::Kind::Skip &&
+                 step.reason == modbus::UnparsedReason::UnknownFunction);
+            if (unsized) {
+                if (const std::size_t n = crc_valid_prefix(rest); n > 0) {
+                    if (auto f = modbus::decode_rtu(rest.first(n)); f) on_frame(id, *f);
+                    head += n;
+                    continue;
+                }
+                if (!at_end && rest.size() < modbus::max_rtu_adu_length) break;  // its CRC may still come
+            }
             if (step.kind == modbus::DeframeStep::Kind::NeedMore) break;
             if (step.kind == modbus::DeframeStep::Kind::Complete) {
                 if (auto f = modbus::decode_rtu(rest.first(step.length)); f) on_frame(id, *f);
                 head += step.length;
                 continue;
             }
-            // A function code the codec cannot size: a gateway delivers one frame per segment, so the rest
-            // of the buffer is that frame if its CRC says so (answered with exception 01).
-            if (step.reason == modbus::UnparsedReason::UnknownFunction && rest.size() >= 4 &&
-                rest.size() <= 256 && modbus::crc16(rest) == 0) {
-                if (auto f = modbus::decode_rtu(rest); f) on_frame(id, *f);
-                head = c.rtu.size();
-                break;
-            }
             ++stats.bad_frames;
             head += step.length ? step.length : 1;
         }
         c.rtu.erase(c.rtu.begin(), c.rtu.begin() + static_cast<long>(head));
+    }
+
+    // The length of a prefix of `bytes` (4 to 256 bytes) that ends in its own valid CRC, 0 if none: all the
+    // bytes held when they qualify (a client writes one frame at a time, and a shorter prefix can pass the
+    // CRC by chance, one time in 65536), else the shortest. One running CRC, checked at each length (the
+    // CRC of a frame followed by its CRC is 0).
+    static std::size_t crc_valid_prefix(std::span<const std::uint8_t> bytes) {
+        std::uint16_t crc = modbus::crc16_init;
+        const std::size_t limit = std::min(bytes.size(), modbus::max_rtu_adu_length);
+        std::size_t shortest = 0;
+        for (std::size_t n = 1; n <= limit; ++n) {
+            crc = modbus::crc16(bytes.subspan(n - 1, 1), crc);
+            if (n >= 4 && crc == 0 && shortest == 0) shortest = n;
+        }
+        return limit == bytes.size() && limit >= 4 && crc == 0 ? limit : shortest;
     }
 
     // Serial RTU: a silence of t3.5 ends the frame.
@@ -459,7 +491,12 @@ struct Server::Impl {
             if (!scheduled.empty()) wake = std::min(wake, scheduled.front().due);
             if (options.tick) wake = std::min(wake, last_tick + options.tick_interval);
             for (auto& [id, c] : connections)
-                if (c.serial && !c.rtu.empty()) wake = std::min(wake, c.last_byte + endpoint.line.t3_5());
+                if (!c.rtu.empty())
+                    wake =
+                        std::min(wake, c.last_byte + (c.serial ? std::chrono::duration_cast<Clock::duration>(
+                                                                     endpoint.line.t3_5())
+                                                               : std::chrono::duration_cast<Clock::duration>(
+                                                                     options.stream_frame_silence)));
             fds.clear();
             ids.clear();
             if (listener) {
@@ -506,6 +543,11 @@ struct Server::Impl {
                 if (c.serial) {
                     if (framing == Framing::Rtu) close_serial_frame(id, c, now);
                     continue;
+                }
+                if (framing == Framing::Rtu && !c.rtu.empty() &&
+                    now - c.last_byte >= options.stream_frame_silence) {
+                    deframe_rtu_stream(id, c, true);
+                    c.partial = !c.rtu.empty();
                 }
                 const auto idle = now - c.last_activity;
                 if (idle > options.idle_timeout || (c.partial && idle > options.frame_timeout)) {

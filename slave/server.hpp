@@ -30,6 +30,9 @@ struct ServerOptions {
     std::chrono::milliseconds frame_timeout{
         5'000};  // a partial frame held this long: the client is half-open
     std::size_t max_clients = 1024;
+    // RTU over TCP: bytes that the content cannot end as a frame are taken as complete after this silence
+    // (a serial gateway's character timeout); what they hold is answered or dropped then.
+    std::chrono::milliseconds stream_frame_silence{50};
     std::string state_file;   // saved after every acknowledged write when set
     bool create_pty = false;  // serial schemes: create a pseudo-terminal instead of opening the device
     // Called between requests with the time, so the simulated process moves while the slave serves.

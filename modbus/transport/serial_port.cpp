@@ -5,7 +5,10 @@
 #include <termios.h>
 
 #include <cerrno>
+#include <climits>
+#include <cstdlib>
 #include <cstring>
+#include <string_view>
 
 namespace mbscope::modbus::transport {
 
@@ -36,7 +39,14 @@ speed_t speed_of(std::uint32_t baud) noexcept {
     }
 }
 
-std::string make_raw(int fd, const SerialLine& line) {
+// A pseudo-terminal: the slave side of one (/dev/pts/N) or, from open_pty, either side.
+bool is_pty_device(const std::string& device) {
+    char resolved[PATH_MAX];
+    return ::realpath(device.c_str(), resolved) != nullptr &&
+           std::string_view(resolved).starts_with("/dev/pts/");
+}
+
+std::string make_raw(int fd, const SerialLine& line, bool pty) {
     termios tio{};
     if (tcgetattr(fd, &tio) != 0) return std::string("tcgetattr: ") + std::strerror(errno);
     cfmakeraw(&tio);
@@ -52,7 +62,14 @@ std::string make_raw(int fd, const SerialLine& line) {
     if (speed == 0) return "unsupported baud rate " + std::to_string(line.baud);
     cfsetispeed(&tio, speed);
     cfsetospeed(&tio, speed);
-    if (tcsetattr(fd, TCSANOW, &tio) != 0) return std::string("tcsetattr: ") + std::strerror(errno);
+    if (tcsetattr(fd, TCSANOW, &tio) != 0) {
+        // A pseudo-terminal carries bytes, not characters: it has no parity or stop bit to set, and recent
+        // kernels refuse PARENB and 7-bit characters on one (EINVAL). The line's settings still give t1.5 and
+        // t3.5. A real port that refuses them is an error.
+        if (!pty || errno != EINVAL) return std::string("tcsetattr: ") + std::strerror(errno);
+        tio.c_cflag = (tio.c_cflag & ~(PARENB | PARODD | CSTOPB | CSIZE)) | CS8;
+        if (tcsetattr(fd, TCSANOW, &tio) != 0) return std::string("tcsetattr: ") + std::strerror(errno);
+    }
     return {};
 }
 
@@ -61,7 +78,7 @@ std::string make_raw(int fd, const SerialLine& line) {
 Result<UniqueFd, std::string> open_serial(const std::string& device, const SerialLine& line) {
     UniqueFd fd(::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
     if (!fd) return device + ": " + std::strerror(errno);
-    if (auto err = make_raw(fd.get(), line); !err.empty()) return device + ": " + err;
+    if (auto err = make_raw(fd.get(), line, is_pty_device(device)); !err.empty()) return device + ": " + err;
     return fd;
 }
 
@@ -72,8 +89,8 @@ Result<Pty, std::string> open_pty(const SerialLine& line) {
         return std::string("openpty: ") + std::strerror(errno);
     Pty pty{UniqueFd(master), UniqueFd(slave), name};
     // Raw on both sides: the client side is what a Modbus master opens and must not translate CR/LF.
-    if (auto err = make_raw(slave, line); !err.empty()) return "pty: " + err;
-    if (auto err = make_raw(master, line); !err.empty()) return "pty: " + err;
+    if (auto err = make_raw(slave, line, true); !err.empty()) return "pty: " + err;
+    if (auto err = make_raw(master, line, true); !err.empty()) return "pty: " + err;
     const int flags = fcntl(master, F_GETFL);
     if (flags < 0 || fcntl(master, F_SETFL, flags | O_NONBLOCK) != 0)
         return std::string("pty: ") + std::strerror(errno);
