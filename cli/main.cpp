@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
     mbscope::cli::register_frame(app, exit_code);
     mbscope::cli::register_profile(app, exit_code);
     mbscope::cli::register_slave(app, exit_code);
+    mbscope::cli::register_check(app, exit_code);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

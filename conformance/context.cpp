@@ -1,0 +1,276 @@
+#include "conformance/context.hpp"
+
+#include <fnmatch.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cstdio>
+#include <map>
+
+#include "modbus/function_code.hpp"
+
+namespace mbscope::conformance {
+
+namespace tp = modbus::transport;
+
+std::string_view to_string(Outcome o) noexcept {
+    switch (o) {
+        case Outcome::Pass:
+            return "pass";
+        case Outcome::Fail:
+            return "fail";
+        case Outcome::Skip:
+            return "skip";
+        case Outcome::Error:
+            return "error";
+    }
+    return "?";
+}
+
+std::string_view to_string(Authority a) noexcept {
+    switch (a) {
+        case Authority::Specification:
+            return "specification";
+        case Authority::Manual:
+            return "manual";
+        case Authority::Implied:
+            return "implied";
+    }
+    return "?";
+}
+
+std::optional<std::uint16_t> TableFacts::first_valid() const {
+    if (runs.empty()) return std::nullopt;
+    return runs.front().first;
+}
+
+std::optional<std::uint16_t> TableFacts::last_valid() const {
+    if (runs.empty()) return std::nullopt;
+    return runs.back().second;
+}
+
+std::optional<std::uint16_t> TableFacts::run_of(std::uint32_t quantity) const {
+    for (const auto& [first, last] : runs)
+        if (static_cast<std::uint32_t>(last - first) + 1 >= quantity) return first;
+    return std::nullopt;
+}
+
+std::optional<std::uint16_t> TableFacts::hole() const {
+    if (runs.size() < 2) return std::nullopt;
+    return static_cast<std::uint16_t>(runs.front().second + 1);
+}
+
+bool TableFacts::valid(std::uint16_t address) const {
+    for (const auto& [first, last] : runs)
+        if (address >= first && address <= last) return true;
+    return false;
+}
+
+bool Context::selected(const std::string& rule_id) const {
+    if (options.rule_globs.empty()) return true;
+    for (const auto& g : options.rule_globs)
+        if (fnmatch(g.c_str(), rule_id.c_str(), 0) == 0) return true;
+    return false;
+}
+
+void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& body) {
+    if (!selected(rule.id) || (stop && stop->load())) return;
+    RuleResult r;
+    r.rule = rule;
+    if (rule.writes && options.read_only) {
+        r.outcome = Outcome::Skip;
+        r.reason = "writes to the device (--read-only)";
+        results.push_back(std::move(r));
+        return;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    body(r);
+    r.duration = std::chrono::steady_clock::now() - start;
+    r.evidence = session.take_evidence();
+    if (options.progress) options.progress(r);
+    results.push_back(std::move(r));
+}
+
+bool Context::serial_framing() const {
+    return session.client().framing() != modbus::Framing::Tcp;
+}
+bool Context::true_serial() const {
+    return modbus::transport::is_serial(session.client().endpoint().scheme);
+}
+
+std::string exception_text(std::uint8_t code) {
+    char buf[8];
+    std::snprintf(buf, sizeof buf, "%02X", code);
+    const auto name = modbus::exception_name(code);
+    return "exception " + std::string(buf) + (name ? " (" + std::string(*name) + ")" : "");
+}
+
+Authority authority_for(const modbus::Profile& p, const char* condition) {
+    const auto it = p.functions.exceptions.find(condition);
+    if (it == p.functions.exceptions.end() || !it->second || p.open_address_space)
+        return Authority::Specification;
+    if (p.functions.implied_exceptions.count(condition)) return Authority::Implied;
+    return Authority::Manual;
+}
+
+std::string spec_section(std::uint8_t fc) {
+    static const std::map<int, const char*> sections = {
+        {1, "6.1"},   {2, "6.2"},   {3, "6.3"},   {4, "6.4"},   {5, "6.5"},   {6, "6.6"},   {7, "6.7"},
+        {8, "6.8"},   {11, "6.9"},  {12, "6.10"}, {15, "6.11"}, {16, "6.12"}, {17, "6.13"}, {20, "6.14"},
+        {21, "6.15"}, {22, "6.16"}, {23, "6.17"}, {24, "6.18"}, {43, "6.19"}};
+    const auto it = sections.find(fc);
+    return it == sections.end() ? "AP §5.1, §7" : std::string("AP §") + it->second;
+}
+
+std::optional<std::uint16_t> valid_alternative(const modbus::Point* p, std::uint16_t current) {
+    if (!p) return static_cast<std::uint16_t>(current == 0 ? 1 : 0);
+    const auto& e = p->encoding;
+    if ((e.type == modbus::EncodingType::Enum || e.type == modbus::EncodingType::Status) &&
+        !e.values.empty()) {
+        for (const auto& v : e.values)
+            if (v.value != static_cast<std::int64_t>(current) && v.value >= 0 && v.value <= 65535)
+                return static_cast<std::uint16_t>(v.value);
+        return std::nullopt;
+    }
+    if (e.type == modbus::EncodingType::AsciiChar && !e.allowed.empty()) {
+        for (char ch : e.allowed)
+            if (static_cast<unsigned char>(ch) != current) return static_cast<unsigned char>(ch);
+        return std::nullopt;
+    }
+    const bool is_signed = e.type == modbus::EncodingType::S16 || e.is_signed;
+    const std::int64_t lo = p->min.value_or(is_signed ? -32768 : 0),
+                       hi = p->max.value_or(is_signed ? 32767 : 65535);
+    const std::int64_t now = is_signed ? static_cast<std::int16_t>(current) : current;
+    if (lo == hi) return std::nullopt;
+    return static_cast<std::uint16_t>(now == lo ? hi : lo);
+}
+
+bool freely_writable(const modbus::Point& p) {
+    if (p.access != modbus::Access::ReadWrite || p.reserved || p.fixed_value || p.encoding.words != 1 ||
+        p.min_from || p.max_from)
+        return false;
+    std::string n = p.name_en + " " + p.name;
+    std::transform(n.begin(), n.end(), n.begin(),
+                   [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+    for (const char* word :
+         {"address", "baud", "parity", "protocol", "communication", "endere", "comunica", "paridade"})
+        if (n.find(word) != std::string::npos) return false;
+    return true;
+}
+
+namespace {
+
+int hex_digit(std::uint8_t ch) {
+    if (ch >= '0' && ch <= '9') return ch - '0';
+    if (ch >= 'A' && ch <= 'F') return ch - 'A' + 10;
+    if (ch >= 'a' && ch <= 'f') return ch - 'a' + 10;
+    return -1;
+}
+
+// The unit a request was addressed to, read from its bytes in the reply's framing.
+std::optional<std::uint8_t> request_unit(const tp::Exchange& ex) {
+    const auto& s = ex.sent;
+    switch (ex.response->framing) {
+        case modbus::Framing::Tcp:
+            if (s.size() > 6) return s[6];
+            break;
+        case modbus::Framing::Rtu:
+            if (!s.empty()) return s[0];
+            break;
+        case modbus::Framing::Ascii:
+            if (s.size() > 2 && hex_digit(s[1]) >= 0 && hex_digit(s[2]) >= 0)
+                return static_cast<std::uint8_t>(hex_digit(s[1]) * 16 + hex_digit(s[2]));
+            break;
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
+// What is wrong with the reply's envelope, "" when nothing: TCP §4.4.1 (the server copies the transaction
+// and unit identifiers, the protocol identifier is 0) and SL §2.2 (the slave puts its own address in the
+// reply). A reply that breaks them is no answer to the request, whatever its PDU says.
+std::string envelope_fault(const tp::Exchange& ex) {
+    if (!ex.response) return "";
+    const auto& f = *ex.response;
+    if (f.framing == modbus::Framing::Tcp && ex.sent.size() >= 7) {
+        const auto tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
+        if (f.transaction_id() != tid)
+            return "reply to transaction " + std::to_string(f.transaction_id()) + " instead of " +
+                   std::to_string(tid);
+        if (f.protocol_id() != 0) return "reply with protocol identifier " + std::to_string(f.protocol_id());
+    }
+    const auto unit = request_unit(ex);
+    if (unit && *unit != 0 && f.unit_id() != *unit)
+        return "reply from unit " + std::to_string(f.unit_id()) + " to a request for unit " +
+               std::to_string(*unit);
+    return "";
+}
+
+std::optional<modbus::Pdu> response_pdu(const tp::Exchange& ex) {
+    if (!ex.response || !ex.response->checksum_ok || !envelope_fault(ex).empty()) return std::nullopt;
+    auto pdu = modbus::decode_response(ex.response->pdu());
+    if (!pdu) return std::nullopt;
+    return std::move(pdu).value();
+}
+
+std::string describe(const tp::Exchange& ex) {
+    if (ex.closed && ex.received.empty()) return "connection closed, no reply";
+    if (ex.received.empty()) return "no reply";
+    if (!ex.response) return std::to_string(ex.received.size()) + " bytes that form no frame";
+    if (!ex.response->checksum_ok) return "reply with a bad checksum";
+    if (auto fault = envelope_fault(ex); !fault.empty()) return fault;
+    const auto pdu_bytes = ex.response->pdu();
+    if (pdu_bytes.empty()) return "reply without a PDU";
+    auto pdu = modbus::decode_response(pdu_bytes);
+    if (!pdu) return "malformed reply to function " + std::to_string(pdu_bytes[0] & 0x7F);
+    if (pdu->is_exception()) {
+        const auto& e = std::get<modbus::ExceptionResponse>(pdu->body);
+        return exception_text(e.exception_code) + " to function " + std::to_string(pdu->function_code());
+    }
+    std::string out = "normal response, function " + std::to_string(pdu->function_code());
+    if (!pdu->violations.empty())
+        out += " (breaks " + std::string(modbus::info(*pdu->violations.begin()).name) + ")";
+    return out;
+}
+
+bool is_exception(const tp::Exchange& ex, std::uint8_t fc, std::uint8_t code) {
+    auto pdu = response_pdu(ex);
+    return pdu && pdu->is_exception() && pdu->function_code() == fc &&
+           std::get<modbus::ExceptionResponse>(pdu->body).exception_code == code;
+}
+
+bool is_normal(const tp::Exchange& ex, std::uint8_t fc) {
+    auto pdu = response_pdu(ex);
+    return pdu && !pdu->is_exception() && pdu->function_raw == fc && pdu->violations.empty();
+}
+
+void expect_exception(RuleResult& r, const tp::Exchange& ex, std::uint8_t fc, std::uint8_t code) {
+    r.expected = exception_text(code);
+    r.observed = describe(ex);
+    r.outcome = is_exception(ex, fc, code) ? Outcome::Pass : Outcome::Fail;
+}
+
+void expect_normal(RuleResult& r, const tp::Exchange& ex, std::uint8_t fc) {
+    r.expected = "normal response, function " + std::to_string(fc);
+    r.observed = describe(ex);
+    r.outcome = is_normal(ex, fc) ? Outcome::Pass : Outcome::Fail;
+}
+
+void expect_silence(RuleResult& r, const tp::Exchange& ex) {
+    r.expected = "no reply";
+    r.observed = describe(ex);
+    r.outcome = ex.received.empty() ? Outcome::Pass : Outcome::Fail;
+}
+
+std::optional<Context::ProbeRead> Context::probe_read() const {
+    const std::uint8_t fc = profile.functions.supports(3) ? 3 : 4;
+    const auto address =
+        facts(fc == 3 ? modbus::Table::HoldingRegisters : modbus::Table::InputRegisters).first_valid();
+    if (!address) return std::nullopt;
+    return ProbeRead{fc, modbus::encode_pdu(
+                             modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), *address, 1))};
+}
+
+}  // namespace mbscope::conformance

@@ -1,0 +1,108 @@
+#pragma once
+// What every rule family gets: the session, the profile, the facts derived from it (valid address runs,
+// writable points), the run's options, and helpers that turn an exchange into words and a verdict.
+
+#include <array>
+#include <atomic>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "conformance/rule.hpp"
+#include "conformance/session.hpp"
+#include "modbus/pdu.hpp"
+#include "modbus/profile.hpp"
+
+namespace mbscope::conformance {
+
+// The address space of one table as the profile (or, for the generic profile, probing) describes it.
+struct TableFacts {
+    modbus::Table table = modbus::Table::HoldingRegisters;
+    bool present = false;  // the function codes of this table are supported
+    std::vector<std::pair<std::uint16_t, std::uint16_t>>
+        runs;  // [first, last] of consecutive valid addresses
+    std::optional<std::uint16_t> first_valid() const;
+    std::optional<std::uint16_t> last_valid() const;
+    // A start where `quantity` consecutive valid addresses begin, if any.
+    std::optional<std::uint16_t> run_of(std::uint32_t quantity) const;
+    // An address inside [first, last] that no point occupies (a hole in the map), if any.
+    std::optional<std::uint16_t> hole() const;
+    bool valid(std::uint16_t address) const;
+};
+
+struct RunOptions {
+    bool read_only = false;
+    std::vector<std::string> rule_globs;  // empty: every rule
+    std::uint64_t seed = 1;
+    std::function<void(const RuleResult&)> progress;  // after each rule (a terminal shows where the run is)
+};
+
+struct Context {
+    Session& session;
+    const modbus::Profile& profile;
+    RunOptions options;
+    std::array<TableFacts, 5> tables;  // indexed by Table's value
+    std::vector<RuleResult> results;
+    const std::atomic<bool>* stop = nullptr;  // set on Ctrl-C: the remaining rules are not run
+
+    const TableFacts& facts(modbus::Table t) const { return tables[static_cast<int>(t)]; }
+    bool selected(const std::string& rule_id) const;
+    // Runs one rule: skips it when not selected or when it writes under --read-only, times it, collects
+    // its evidence. The body sets outcome, expected and observed.
+    void run(const RuleInfo& rule, const std::function<void(RuleResult&)>& body);
+    bool serial_framing() const;  // RTU or ASCII framing (serial lines and serial over TCP)
+    bool true_serial() const;     // a real serial line or pseudo-terminal
+    // A read of one valid register (FC3, else FC4) that every healthy device answers normally: the
+    // reference request of the framing, TCP and robustness rules. nullopt when no register is known.
+    struct ProbeRead {
+        std::uint8_t fc = 3;
+        std::vector<std::uint8_t> pdu;
+    };
+    std::optional<ProbeRead> probe_read() const;
+};
+
+// "exception 02 (Illegal Data Address)", "normal response", "no reply", "reply with a bad CRC" ...
+std::string describe(const modbus::transport::Exchange& ex);
+// What is wrong with the reply's envelope (transaction, protocol or unit identifier not those of the
+// request), "" when nothing.
+std::string envelope_fault(const modbus::transport::Exchange& ex);
+// The response PDU when the reply is a well-formed frame with a good checksum and the request's envelope,
+// else nullopt.
+std::optional<modbus::Pdu> response_pdu(const modbus::transport::Exchange& ex);
+bool is_exception(const modbus::transport::Exchange& ex, std::uint8_t fc, std::uint8_t code);
+bool is_normal(const modbus::transport::Exchange& ex, std::uint8_t fc);
+// Judges "expect exception `code`" and fills the result.
+void expect_exception(RuleResult& r, const modbus::transport::Exchange& ex, std::uint8_t fc,
+                      std::uint8_t code);
+void expect_normal(RuleResult& r, const modbus::transport::Exchange& ex, std::uint8_t fc);
+void expect_silence(RuleResult& r, const modbus::transport::Exchange& ex);
+std::string exception_text(std::uint8_t code);
+// Who decides the exception code for a condition ("bad_address", ...): the manual when the profile gives
+// its code, graded as implied when the manual only implies it, else the specification.
+Authority authority_for(const modbus::Profile& p, const char* condition);
+// "AP §6.3" for a function code's section of the specification.
+std::string spec_section(std::uint8_t fc);
+
+// A value other than `current` that the point documents as valid (another enumeration value, another allowed
+// character, a range limit), so a rule can change it and expect acceptance; nullopt when there is none.
+std::optional<std::uint16_t> valid_alternative(const modbus::Point* p, std::uint16_t current);
+// A point a rule may write freely: writable, not reserved, not a communication setting (address, baud rate,
+// parity, protocol: writing those would cut the runner off the device), one register, no range taken from
+// another register.
+bool freely_writable(const modbus::Point& p);
+
+// The families, in the order a run takes them.
+void check_function_codes(Context& c);
+void check_quantities(Context& c);
+void check_addresses(Context& c);
+void check_values(Context& c);
+void check_write_encoding(Context& c);
+void check_data(Context& c);
+void check_broadcast(Context& c);
+void check_framing(Context& c);
+void check_tcp(Context& c);
+void check_robustness(Context& c);
+void check_response_times(Context& c);
+
+}  // namespace mbscope::conformance

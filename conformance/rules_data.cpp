@@ -1,0 +1,170 @@
+// Echoes and data: FC5, FC6 and FC8/00 echo the request exactly; a written value reads back; 32-bit values
+// travel in the profile's word order; reserved registers read their documented fixed value.
+#include <cmath>
+#include <cstring>
+
+#include "conformance/context.hpp"
+
+namespace mbscope::conformance {
+
+using modbus::Table;
+
+namespace {
+
+const modbus::Point* first_writable(const modbus::Profile& p, Table t, int words) {
+    for (const auto& pt : p.table(t)) {
+        if (words == 1 && freely_writable(pt)) return &pt;
+        if (words == 2 && pt.access == modbus::Access::ReadWrite && !pt.reserved && pt.encoding.words == 2)
+            return &pt;
+    }
+    return nullptr;
+}
+
+bool echoes(const modbus::transport::Exchange& ex, std::span<const std::uint8_t> pdu) {
+    if (!ex.response || !ex.response->checksum_ok) return false;
+    const auto got = ex.response->pdu();
+    return std::equal(got.begin(), got.end(), pdu.begin(), pdu.end());
+}
+
+}  // namespace
+
+void check_data(Context& c) {
+    const bool generic = c.profile.open_address_space;
+    const auto coil = generic ? c.facts(Table::Coils).first_valid() : std::optional<std::uint16_t>{};
+    const modbus::Point* wc = first_writable(c.profile, Table::Coils, 1);
+    if (c.profile.functions.supports(5) && (wc || coil)) {
+        const std::uint16_t address = wc ? wc->address : *coil;
+        c.run({"echo.fc5", "echoes and data", "AP §6.5", "FC5 is answered with an exact echo of the request.",
+               Authority::Specification, true},
+              [&](RuleResult& r) {
+                  if (!c.session.remember(Table::Coils, address, 1)) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the coil could not be read, so nothing was written";
+                      return;
+                  }
+                  const bool now = c.session.touched().at({Table::Coils, address}).original != 0;
+                  const auto pdu = modbus::encode_pdu(modbus::make_write_single_coil(address, !now));
+                  const auto ex = c.session.request(pdu, "write the opposite value");
+                  r.expected = "the request's PDU, byte for byte";
+                  r.observed = describe(ex);
+                  r.outcome = echoes(ex, pdu) ? Outcome::Pass : Outcome::Fail;
+                  if (r.outcome == Outcome::Pass) {
+                      auto back = c.session.read_bits(Table::Coils, address, 1, "read it back");
+                      if (!back || (*back)[0] == now) {
+                          r.outcome = Outcome::Fail;
+                          r.observed += back ? "; reads back unchanged" : "; could not be read back";
+                      }
+                  }
+              });
+    }
+    const modbus::Point* wr = first_writable(c.profile, Table::HoldingRegisters, 1);
+    const auto reg =
+        generic ? c.facts(Table::HoldingRegisters).first_valid() : std::optional<std::uint16_t>{};
+    if (c.profile.functions.supports(6) && (wr || reg)) {
+        const std::uint16_t address = wr ? wr->address : *reg;
+        c.run({"echo.fc6", "echoes and data", "AP §6.6",
+               "FC6 is answered with an exact echo, and the value written reads back.",
+               Authority::Specification, true},
+              [&](RuleResult& r) {
+                  if (!c.session.remember(Table::HoldingRegisters, address, 1)) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the register could not be read, so nothing was written";
+                      return;
+                  }
+                  const auto now = c.session.touched().at({Table::HoldingRegisters, address}).original;
+                  const auto alternative = valid_alternative(wr, now);
+                  if (!alternative) {
+                      r.outcome = Outcome::Skip;
+                      r.reason = "the point documents no other valid value";
+                      return;
+                  }
+                  const std::uint16_t value = *alternative;
+                  const auto pdu = modbus::encode_pdu(modbus::make_write_single_register(address, value));
+                  const auto ex = c.session.request(pdu, "write a different value in range");
+                  r.expected = "an exact echo, then " + std::to_string(value) + " on read-back";
+                  r.observed = describe(ex);
+                  r.outcome = echoes(ex, pdu) ? Outcome::Pass : Outcome::Fail;
+                  auto back = c.session.read_registers(Table::HoldingRegisters, address, 1, "read it back");
+                  r.observed +=
+                      back ? "; reads back " + std::to_string((*back)[0]) : "; could not be read back";
+                  if (!back || (*back)[0] != value) r.outcome = Outcome::Fail;
+              });
+    }
+    const auto& diag = c.profile.functions.diagnostics;
+    if (c.profile.functions.supports(8) && std::find(diag.begin(), diag.end(), 0) != diag.end()) {
+        c.run({"echo.fc8.0", "echoes and data", "AP §6.8.1 (sub-function 00)",
+               "FC8 sub-function 0 returns the query data unchanged.", Authority::Specification, false},
+              [&](RuleResult& r) {
+                  const std::uint8_t data[4] = {0xA5, 0x5A, 0x00, 0xFF};
+                  const auto pdu = modbus::encode_pdu(modbus::make_diagnostics(0, data));
+                  const auto ex = c.session.request(pdu, "echo four bytes");
+                  r.expected = "the request's PDU, byte for byte";
+                  r.observed = describe(ex);
+                  r.outcome = echoes(ex, pdu) ? Outcome::Pass : Outcome::Fail;
+              });
+    }
+    // 32-bit values in the profile's word order.
+    const modbus::Point* w32 = first_writable(c.profile, Table::HoldingRegisters, 2);
+    if (w32 && c.profile.functions.supports(16)) {
+        const auto order = w32->encoding.word_order;
+        c.run({"data.word_order.hr" + std::to_string(w32->address), "echoes and data",
+               w32->source.empty() ? c.profile.source : w32->source,
+               "A 32-bit value written with FC16 in the profile's word order (" +
+                   std::string(modbus::to_string(order)) + ") reads back as the same value.",
+               Authority::Manual, true},
+              [&](RuleResult& r) {
+                  if (!c.session.remember(Table::HoldingRegisters, w32->address, 2, 2)) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the point could not be read, so nothing was written";
+                      return;
+                  }
+                  std::uint32_t u = 0;
+                  std::string shown;
+                  const double lo = w32->min ? static_cast<double>(*w32->min) : 0,
+                               hi = w32->max ? static_cast<double>(*w32->max) : 1000;
+                  if (w32->encoding.type == modbus::EncodingType::F32) {
+                      const float f = static_cast<float>(lo + (hi - lo) * 0.25) +
+                                      0.5f;  // not a round number: words differ
+                      std::memcpy(&u, &f, sizeof u);
+                      shown = std::to_string(f);
+                  } else {
+                      u = static_cast<std::uint32_t>(std::llround(lo + (hi - lo) / 3));
+                      if (u < 65536 && hi >= 65536 + lo)
+                          u += 65536;  // both words non-zero when the range allows
+                      shown = std::to_string(u);
+                  }
+                  const auto words = modbus::split_words(u, order);
+                  const auto ex = c.session.request(
+                      modbus::encode_pdu(modbus::make_write_multiple_registers(w32->address, words)),
+                      "write " + shown);
+                  auto back = c.session.read_registers(Table::HoldingRegisters, w32->address, 2,
+                                                       "read both registers back");
+                  r.expected = "normal response, then the words " + std::to_string(words[0]) + ", " +
+                               std::to_string(words[1]);
+                  r.observed = describe(ex) + (back ? "; reads " + std::to_string((*back)[0]) + ", " +
+                                                          std::to_string((*back)[1])
+                                                    : std::string("; could not be read back"));
+                  r.outcome = is_normal(ex, 16) && back && (*back)[0] == words[0] && (*back)[1] == words[1]
+                                  ? Outcome::Pass
+                                  : Outcome::Fail;
+              });
+    }
+    // Reserved registers with a documented read value (the CTH2265I's 0x55AA, 003:574).
+    for (const auto& p : c.profile.table(Table::HoldingRegisters)) {
+        if (!p.fixed_value || !c.profile.functions.supports(3)) continue;
+        c.run({"data.fixed.hr" + std::to_string(p.address), "echoes and data",
+               p.source.empty() ? c.profile.source : p.source,
+               "Register " + std::to_string(p.address) + " reads its documented fixed value " +
+                   std::to_string(*p.fixed_value) + ".",
+               Authority::Manual, false},
+              [&](RuleResult& r) {
+                  auto v =
+                      c.session.read_registers(Table::HoldingRegisters, p.address, 1, "read the fixed value");
+                  r.expected = std::to_string(*p.fixed_value);
+                  r.observed = v ? std::to_string((*v)[0]) : "no normal reply";
+                  r.outcome = v && (*v)[0] == *p.fixed_value ? Outcome::Pass : Outcome::Fail;
+              });
+    }
+}
+
+}  // namespace mbscope::conformance

@@ -1,0 +1,104 @@
+// Framing on serial lines and serial framing over TCP (SL §2.5): a bad CRC or LRC is never answered, nor a
+// truncated frame, nor one holding a silence above t1.5; the reply starts after t3.5; requests back to back
+// are each answered; ASCII accepts lower-case hex.
+#include <algorithm>
+#include <cctype>
+#include <thread>
+
+#include "conformance/context.hpp"
+#include "modbus/adu.hpp"
+
+namespace mbscope::conformance {
+
+using modbus::Table;
+
+void check_framing(Context& c) {
+    if (!c.serial_framing()) return;  // Modbus/TCP framing is the TCP family's
+    const bool ascii = c.session.client().framing() == modbus::Framing::Ascii;
+    const std::uint8_t fc = c.profile.functions.supports(3) ? 3 : 4;
+    const Table t = fc == 3 ? Table::HoldingRegisters : Table::InputRegisters;
+    const auto address = c.facts(t).first_valid();
+    if (!address) return;
+    const auto good = c.session.client().frame(
+        c.session.options().unit,
+        modbus::encode_pdu(modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), *address, 1)));
+    const std::string check = ascii ? "LRC" : "CRC";
+    c.run({"framing.bad_checksum", "framing", ascii ? "SL §2.5.2.2" : "SL §2.5.1.2",
+           "A request with a bad " + check + " gets no reply.", Authority::Specification, false},
+          [&](RuleResult& r) {
+              auto bad = good;
+              if (ascii)
+                  bad[bad.size() - 3] = bad[bad.size() - 3] == '0' ? '1' : '0';  // the LRC's low hex digit
+              else
+                  bad.back() ^= 0xFF;
+              expect_silence(r, c.session.raw(bad, "bad " + check));
+          });
+    c.run({"framing.truncated", "framing", "SL §2.5.1.1", "A truncated request gets no reply.",
+           Authority::Specification, false},
+          [&](RuleResult& r) {
+              const std::vector<std::uint8_t> half(good.begin(),
+                                                   good.begin() + static_cast<long>(good.size() / 2));
+              expect_silence(r, c.session.raw(half, "first half of a request"));
+              // Over TCP the half frame may still sit in the slave's buffer: let its resynchronisation run.
+              c.session.client().drain(std::chrono::milliseconds(150));
+          });
+    c.run({"framing.back_to_back", "framing", "SL §2.5.1.1", "Two requests back to back are each answered.",
+           Authority::Specification, false},
+          [&](RuleResult& r) {
+              if (c.true_serial()) {
+                  // On a line the second request may follow the first reply without delay.
+                  const auto a = c.session.raw(good, "first request");
+                  const auto b = c.session.raw(good, "second request right after the reply");
+                  r.expected = "two normal replies";
+                  r.observed = describe(a) + "; " + describe(b);
+                  r.outcome = is_normal(a, fc) && is_normal(b, fc) ? Outcome::Pass : Outcome::Fail;
+                  return;
+              }
+              auto both = good;
+              both.insert(both.end(), good.begin(), good.end());
+              const auto ex = c.session.raw(both, "two requests in one write", 2);
+              r.expected = "two normal replies";
+              r.observed = describe(ex) + " (" + std::to_string(ex.received.size()) + " bytes)";
+              r.outcome = is_normal(ex, fc) && !ex.timed_out && ex.received.size() >= 2 * (ascii ? 15u : 7u)
+                              ? Outcome::Pass
+                              : Outcome::Fail;
+          });
+    if (c.true_serial() && !ascii) {
+        const auto& line = c.session.client().endpoint().line;
+        c.run({"framing.reply_after_t3_5", "framing", "SL §2.5.1.1",
+               "The reply starts no sooner than t3.5 after the request.", Authority::Specification, false},
+              [&](RuleResult& r) {
+                  const auto ex = c.session.raw(good, "a request");
+                  r.expected = "first reply byte ≥ " + std::to_string(line.t3_5().count() / 1000) +
+                               " µs after the request";
+                  r.observed = describe(ex) + ", first byte after " +
+                               std::to_string(ex.first_byte.count() / 1000) + " µs";
+                  r.outcome =
+                      is_normal(ex, fc) && ex.first_byte >= line.t3_5() ? Outcome::Pass : Outcome::Fail;
+              });
+        c.run(
+            {"framing.gap_inside", "framing", "SL §2.5.1.1",
+             "A request with a silence above t1.5 inside it gets no reply.", Authority::Specification, false},
+            [&](RuleResult& r) {
+                const std::size_t half = good.size() / 2;
+                (void)c.session.client().write(std::span<const std::uint8_t>(good.data(), half));
+                std::this_thread::sleep_for(line.t1_5() * 2);
+                const auto ex =
+                    c.session.raw(std::span<const std::uint8_t>(good.data() + half, good.size() - half),
+                                  "second half after a pause of 2 × t1.5");
+                expect_silence(r, ex);
+            });
+    }
+    if (ascii) {
+        c.run({"framing.ascii_lower_case", "framing", "SL §2.5.2.1",
+               "A request in lower-case hex is answered.", Authority::Specification, false},
+              [&](RuleResult& r) {
+                  auto lower = good;
+                  std::transform(lower.begin(), lower.end(), lower.begin(),
+                                 [](std::uint8_t ch) { return static_cast<std::uint8_t>(std::tolower(ch)); });
+                  expect_normal(r, c.session.raw(lower, "lower-case hex"), fc);
+              });
+    }
+}
+
+}  // namespace mbscope::conformance

@@ -1,0 +1,196 @@
+// Function codes: every supported one answers with its own function code; every other one, reserved and
+// user-defined ranges included, gets exception 01 (AP §7).
+#include <algorithm>
+
+#include "conformance/context.hpp"
+#include "modbus/function_code.hpp"
+
+namespace mbscope::conformance {
+
+using modbus::Table;
+
+namespace {
+
+// The smallest request of `fc` that a conforming device must answer normally and that changes nothing:
+// reads of one item at the first valid address, writes of the value already there.
+std::optional<std::vector<std::uint8_t>> harmless_request(Context& c, std::uint8_t fc, std::string& why_not) {
+    const auto first = [&](Table t) { return c.facts(t).first_valid(); };
+    switch (fc) {
+        case 1:
+        case 2:
+        case 3:
+        case 4: {
+            const Table t = *modbus::table_of_function(fc);
+            if (!first(t)) {
+                why_not = "the map has no address in " + std::string(modbus::to_string(t));
+                return std::nullopt;
+            }
+            return modbus::encode_pdu(
+                modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), *first(t), 1));
+        }
+        case 5:
+        case 15: {
+            const auto& pts = c.profile.table(Table::Coils);
+            const auto it = std::find_if(pts.begin(), pts.end(), [](const modbus::Point& p) {
+                return p.access == modbus::Access::ReadWrite && !p.reserved;
+            });
+            if (it == pts.end()) {
+                why_not = "no readable and writable coil to rewrite with its own value";
+                return std::nullopt;
+            }
+            auto now = c.session.read_bits(Table::Coils, it->address, 1,
+                                           "current value, to write it back unchanged");
+            if (!now) {
+                why_not = "the coil's current value could not be read";
+                return std::nullopt;
+            }
+            const bool v = (*now)[0];
+            if (fc == 5) return modbus::encode_pdu(modbus::make_write_single_coil(it->address, v));
+            const bool bits[1] = {v};
+            return modbus::encode_pdu(modbus::make_write_multiple_coils(it->address, bits));
+        }
+        case 6:
+        case 16:
+        case 22:
+        case 23: {
+            const auto& pts = c.profile.table(Table::HoldingRegisters);
+            const auto it = std::find_if(pts.begin(), pts.end(), [](const modbus::Point& p) {
+                return p.access == modbus::Access::ReadWrite && !p.reserved && p.encoding.words == 1 &&
+                       !p.fixed_value;
+            });
+            std::uint16_t address = 0;
+            if (it != pts.end())
+                address = it->address;
+            else if (c.profile.open_address_space && c.facts(Table::HoldingRegisters).first_valid())
+                address = *c.facts(Table::HoldingRegisters).first_valid();
+            else {
+                why_not = "no readable and writable register to rewrite with its own value";
+                return std::nullopt;
+            }
+            auto now = c.session.read_registers(Table::HoldingRegisters, address, 1,
+                                                "current value, to write it back unchanged");
+            if (!now) {
+                why_not = "the register's current value could not be read";
+                return std::nullopt;
+            }
+            const std::uint16_t v[1] = {(*now)[0]};
+            if (fc == 6) return modbus::encode_pdu(modbus::make_write_single_register(address, v[0]));
+            if (fc == 16) return modbus::encode_pdu(modbus::make_write_multiple_registers(address, v));
+            if (fc == 22)
+                return modbus::encode_pdu(modbus::make_mask_write_register(address, 0xFFFF, 0x0000));
+            return modbus::encode_pdu(modbus::make_read_write_multiple(address, 1, address, v));
+        }
+        case 7:
+        case 11:
+        case 12:
+        case 17:
+            return modbus::encode_pdu(modbus::make_no_data_request(static_cast<modbus::FunctionCode>(fc)));
+        case 8: {
+            const std::uint8_t data[2] = {0xA5, 0x37};
+            return modbus::encode_pdu(modbus::make_diagnostics(0, data));
+        }
+        case 24: {
+            if (!first(Table::HoldingRegisters)) {
+                why_not = "no holding register to point the FIFO at";
+                return std::nullopt;
+            }
+            return modbus::encode_pdu(modbus::make_read_fifo_queue(*first(Table::HoldingRegisters)));
+        }
+        case 43:
+            return modbus::encode_pdu(modbus::make_read_device_id(1, 0));
+        default:
+            why_not = "no harmless request of this function is known to the runner";
+            return std::nullopt;
+    }
+}
+
+// A well-formed request of a public function code (so that a framing which sizes frames by their content
+// can find its end), or a body shaped like a read request for any other code: a device must not guess a
+// meaning for it either way. Writes aim at address 0 and are never executed by a conforming device.
+std::vector<std::uint8_t> shaped_request(std::uint8_t fc) {
+    using FC = modbus::FunctionCode;
+    const std::uint16_t zero[1] = {0};
+    const bool off[1] = {false};
+    switch (fc) {
+        case 1:
+        case 2:
+        case 3:
+        case 4:
+            return modbus::encode_pdu(modbus::make_read_request(static_cast<FC>(fc), 0, 1));
+        case 5:
+            return modbus::encode_pdu(modbus::make_write_single_coil(0, false));
+        case 6:
+            return modbus::encode_pdu(modbus::make_write_single_register(0, 0));
+        case 7:
+        case 11:
+        case 12:
+        case 17:
+            return modbus::encode_pdu(modbus::make_no_data_request(static_cast<FC>(fc)));
+        case 8:
+            return modbus::encode_pdu(modbus::make_diagnostics(0, std::vector<std::uint8_t>{0x00, 0x00}));
+        case 15:
+            return modbus::encode_pdu(modbus::make_write_multiple_coils(0, off));
+        case 16:
+            return modbus::encode_pdu(modbus::make_write_multiple_registers(0, zero));
+        case 20:  // one sub-request: reference type 6, file 1, record 0, length 1 (AP §6.14)
+            return {0x14, 0x07, 0x06, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01};
+        case 21:
+            return {0x15, 0x09, 0x06, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00};
+        case 22:
+            return modbus::encode_pdu(modbus::make_mask_write_register(0, 0xFFFF, 0));
+        case 23:
+            return modbus::encode_pdu(modbus::make_read_write_multiple(0, 1, 0, zero));
+        case 24:
+            return modbus::encode_pdu(modbus::make_read_fifo_queue(0));
+        case 43:
+            return modbus::encode_pdu(modbus::make_read_device_id(1, 0));
+        default:
+            return {fc, 0x00, 0x00, 0x00, 0x01};
+    }
+}
+
+}  // namespace
+
+void check_function_codes(Context& c) {
+    const auto& supported = c.profile.functions.supported;
+    for (std::uint8_t fc : supported) {
+        const std::string name(modbus::function_name(fc).value_or("function"));
+        const bool writes = fc == 5 || fc == 6 || fc == 15 || fc == 16 || fc == 22 || fc == 23;
+        c.run({"fc.supported." + std::to_string(fc), "function codes",
+               spec_section(fc) + "; " + c.profile.source,
+               "Function " + std::to_string(fc) + " (" + name +
+                   "), which the device supports, is answered normally.",
+               c.profile.open_address_space ? Authority::Specification : Authority::Manual, writes},
+              [&](RuleResult& r) {
+                  std::string why_not;
+                  auto pdu = harmless_request(c, fc, why_not);
+                  if (!pdu) {
+                      r.outcome = Outcome::Skip;
+                      r.reason = why_not;
+                      return;
+                  }
+                  const auto ex = c.session.request(*pdu, "a request of function " + std::to_string(fc));
+                  expect_normal(r, ex, fc);
+              });
+    }
+    const auto code = modbus::exception_for(c.profile, "unsupported_function", 0x01);
+    for (int fc = 1; fc <= 127; ++fc) {
+        if (std::find(supported.begin(), supported.end(), fc) != supported.end()) continue;
+        std::string kind = modbus::is_user_defined_function(static_cast<std::uint8_t>(fc)) ? "user-defined "
+                           : modbus::is_reserved_function(static_cast<std::uint8_t>(fc))   ? "reserved "
+                           : modbus::is_public_function(static_cast<std::uint8_t>(fc))     ? ""
+                                                                                           : "unassigned ";
+        c.run({"fc.unsupported." + std::to_string(fc), "function codes",
+               "AP §7 (exception 01); " + c.profile.source,
+               "The " + kind + "function code " + std::to_string(fc) +
+                   ", which the device does not support, gets " + exception_text(code) + ".",
+               authority_for(c.profile, "unsupported_function"), false},
+              [&](RuleResult& r) {
+                  const auto pdu = shaped_request(static_cast<std::uint8_t>(fc));
+                  const auto ex = c.session.request(pdu, "function code " + std::to_string(fc));
+                  expect_exception(r, ex, static_cast<std::uint8_t>(fc), code);
+              });
+    }
+}
+
+}  // namespace mbscope::conformance

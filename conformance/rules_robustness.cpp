@@ -1,0 +1,102 @@
+// Robustness: a burst of malformed frames does not stop the device serving a valid request; a valid
+// request right behind one that earns an exception is answered; response times are measured and held
+// against the profile's limit where the manual gives one.
+#include <algorithm>
+#include <random>
+
+#include "conformance/context.hpp"
+#include "modbus/transport/client.hpp"
+
+namespace mbscope::conformance {
+
+namespace tp = modbus::transport;
+
+void check_robustness(Context& c) {
+    const auto probe = c.probe_read();
+    if (!probe) return;
+    const std::uint8_t fc = probe->fc;
+    const auto& pdu = probe->pdu;
+    c.run({"robustness.garbage_burst", "robustness", "SL §2.5, TCP §4.2",
+           "After a burst of 32 malformed frames, a valid request is still answered correctly.",
+           Authority::Specification, false},
+          [&](RuleResult& r) {
+              // On TCP the garbage goes over a second connection, which the device may close; the valid
+              // request goes over the first: one client's garbage must not affect another.
+              std::mt19937_64 rng(c.options.seed);
+              const bool tcp = !c.serial_framing();
+              std::optional<tp::Client> other;
+              if (tcp) {
+                  auto o = tp::Client::open(c.session.client().endpoint());
+                  if (o) other.emplace(std::move(o).value());
+              }
+              tp::Client& noisy = other ? *other : c.session.client();
+              for (int i = 0; i < 32; ++i) {
+                  std::vector<std::uint8_t> junk(4 + rng() % 40);
+                  for (auto& b : junk)
+                      b = static_cast<std::uint8_t>(rng());
+                  if (!noisy.write(junk)) break;
+              }
+              if (!tcp) c.session.client().drain(std::chrono::milliseconds(200));
+              const auto ex = c.session.request(pdu, "a valid request after the burst");
+              expect_normal(r, ex, fc);
+          });
+    if (!c.true_serial()) {
+        c.run({"robustness.pipeline_after_exception", "robustness", "AP §7",
+               "A valid request sent right behind one that earns an exception is answered too.",
+               Authority::Specification, false},
+              [&](RuleResult& r) {
+                  const std::uint8_t bad[5] = {0x7F, 0x00, 0x00, 0x00, 0x01};
+                  auto both = c.session.client().frame(c.session.options().unit, bad);
+                  const auto second = c.session.client().frame(c.session.options().unit, pdu);
+                  tp::Exchange ex;
+                  if (c.session.client().endpoint().scheme == tp::Scheme::Udp) {
+                      // A datagram carries one ADU (TCP §4.2 over UDP): two datagrams back to back.
+                      (void)c.session.client().write(both);
+                      ex = c.session.raw(second,
+                                         "a valid read, in the datagram right behind one holding an "
+                                         "unsupported function (" +
+                                             std::to_string(both.size()) + " bytes)",
+                                         2);
+                      ex.sent.insert(ex.sent.begin(), both.begin(), both.end());
+                  } else {
+                      both.insert(both.end(), second.begin(), second.end());
+                      ex = c.session.raw(both, "an unsupported function, then a valid read, in one write", 2);
+                  }
+                  r.expected = "two replies: an exception, then a normal response";
+                  r.observed = describe(ex) + ", " + std::to_string(ex.received.size()) + " bytes in all";
+                  r.outcome = !ex.timed_out && response_pdu(ex) && response_pdu(ex)->is_exception() &&
+                                      ex.received.size() > ex.sent.size() / 2
+                                  ? Outcome::Pass
+                                  : Outcome::Fail;
+              });
+    }
+}
+
+// Run last: it reads the times of every exchange of the run.
+void check_response_times(Context& c) {
+    auto times = c.session.response_times();
+    const auto limit = c.profile.line.response_timeout_ms;
+    c.run(
+        {"robustness.response_time", "robustness", limit ? c.profile.source : "SL §2.4.1 (response timeout)",
+         limit ? "Every reply arrives within the manual's " + std::to_string(*limit) + " ms."
+               : "Response times are measured (min / median / max); the manual gives no limit.",
+         limit ? Authority::Manual : Authority::Specification, false},
+        [&](RuleResult& r) {
+            if (times.empty()) {
+                r.outcome = Outcome::Skip;
+                r.reason = "no reply was received in this run";
+                return;
+            }
+            std::sort(times.begin(), times.end());
+            const auto us = [](std::chrono::nanoseconds d) {
+                return std::to_string(d.count() / 1000) + " µs";
+            };
+            r.observed = "min " + us(times.front()) + ", median " + us(times[times.size() / 2]) + ", max " +
+                         us(times.back()) + " over " + std::to_string(times.size()) + " replies";
+            r.expected = limit ? "max ≤ " + std::to_string(*limit) + " ms" : "measured";
+            r.outcome =
+                !limit || times.back() <= std::chrono::milliseconds(*limit) ? Outcome::Pass : Outcome::Fail;
+        });
+}
+
+}  // namespace mbscope::conformance

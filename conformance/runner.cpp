@@ -1,0 +1,161 @@
+#include "conformance/runner.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
+#include <fstream>
+#include <iterator>
+
+namespace mbscope::conformance {
+
+using modbus::Table;
+
+std::size_t Report::count(Outcome o) const {
+    std::size_t n = 0;
+    for (const auto& r : results)
+        n += r.outcome == o;
+    return n;
+}
+
+std::size_t Report::failures_of(Authority a) const {
+    std::size_t n = 0;
+    for (const auto& r : results)
+        n += r.outcome == Outcome::Fail && r.rule.authority == a;
+    return n;
+}
+
+bool Report::all_restored() const {
+    for (const auto& t : restored)
+        if (!t.restored) return false;
+    return true;
+}
+
+int verdict(const Report& report) {
+    const bool failed =
+        report.failures_of(Authority::Specification) + report.failures_of(Authority::Manual) > 0 ||
+        report.count(Outcome::Error) > 0 || !report.all_restored();
+    return failed ? 1 : 0;
+}
+
+namespace {
+
+std::string fnv1a_of_file(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return "unavailable";
+    std::uint64_t h = 0xcbf29ce484222325ull;
+    for (std::istreambuf_iterator<char> it(in), end; it != end; ++it) {
+        h ^= static_cast<unsigned char>(*it);
+        h *= 0x100000001b3ull;
+    }
+    char buf[24];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+    return buf;
+}
+
+std::string utc_now() {
+    const std::time_t t = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+    return buf;
+}
+
+// The valid addresses of a table as runs, from the profile's points.
+void facts_from_profile(const modbus::Profile& p, TableFacts& f) {
+    std::vector<std::uint16_t> addresses;
+    for (const auto& pt : p.table(f.table))
+        for (int w = 0; w < pt.encoding.words; ++w)
+            addresses.push_back(static_cast<std::uint16_t>(pt.address + w));
+    std::sort(addresses.begin(), addresses.end());
+    for (auto a : addresses) {
+        if (!f.runs.empty() && a <= f.runs.back().second + 1)
+            f.runs.back().second = std::max(f.runs.back().second, a);
+        else
+            f.runs.push_back({a, a});
+    }
+}
+
+// The generic profile names no addresses: find how far the table reaches from 0 by bisection.
+void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f) {
+    const auto readable = [&](std::uint16_t a) {
+        const auto ex = s.request(
+            modbus::encode_pdu(modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), a, 1)),
+            "probe the address space");
+        return is_normal(ex, fc);
+    };
+    if (!readable(0)) return;
+    std::uint32_t lo = 0, hi = 65536;  // lo readable, hi not (or the end)
+    if (readable(0xFFFF)) {
+        f.runs.push_back({0, 0xFFFF});
+        return;
+    }
+    hi = 0xFFFF;
+    while (hi - lo > 1) {
+        const auto mid = (lo + hi) / 2;
+        if (readable(static_cast<std::uint16_t>(mid)))
+            lo = mid;
+        else
+            hi = mid;
+    }
+    f.runs.push_back({0, static_cast<std::uint16_t>(lo)});
+}
+
+}  // namespace
+
+Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,
+                 const CheckOptions& options, const std::atomic<bool>* stop) {
+    const auto started = std::chrono::steady_clock::now();
+    Report report;
+    report.mbscope_version = MBSCOPE_VERSION;
+    report.profile_id = profile.id;
+    report.profile_file = profile.file;
+    report.profile_hash = fnv1a_of_file(profile.file);
+    report.target = options.target;
+    report.unit = options.session.unit;
+    report.seed = options.run.seed;
+    report.read_only = options.run.read_only;
+    report.rule_globs = options.run.rule_globs;
+    report.interval_ms = options.session.interval.count();
+    report.timeout_ms = options.session.timeout.count();
+    report.started = utc_now();
+
+    Session session(client, options.session, &profile);
+    Context c{session, profile, options.run, {}, {}, stop};
+    for (Table t : {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters}) {
+        TableFacts& f = c.tables[static_cast<int>(t)];
+        f.table = t;
+        const std::uint8_t read_fc = t == Table::Coils            ? 1
+                                     : t == Table::DiscreteInputs ? 2
+                                     : t == Table::InputRegisters ? 4
+                                                                  : 3;
+        f.present = profile.functions.supports(read_fc);
+        if (!f.present) continue;
+        if (profile.open_address_space)
+            facts_by_probing(session, read_fc, f);
+        else
+            facts_from_profile(profile, f);
+    }
+    session.take_evidence();
+    using Family = void (*)(Context&);
+    const Family families[] = {check_function_codes, check_quantities,     check_addresses,
+                               check_values,         check_write_encoding, check_data,
+                               check_broadcast,      check_framing,        check_tcp,
+                               check_robustness,     check_response_times};
+    for (Family family : families) {
+        if (stop && stop->load()) {
+            report.stopped = true;
+            break;
+        }
+        family(c);
+    }
+    // Nothing lost: every point a rule wrote goes back to its original value, even after a stop.
+    report.restored = session.restore();
+    report.results = std::move(c.results);
+    report.response_times = session.response_times();
+    report.requests = session.requests();
+    report.wall = std::chrono::steady_clock::now() - started;
+    return report;
+}
+
+}  // namespace mbscope::conformance

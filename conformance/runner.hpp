@@ -1,0 +1,56 @@
+#pragma once
+// A certification run: facts from the profile (or probing, for the generic profile), every rule family in
+// turn, then every touched point restored and verified, whatever happened (a stop request, an error).
+
+#include <atomic>
+#include <chrono>
+#include <string>
+#include <vector>
+
+#include "conformance/context.hpp"
+#include "conformance/rule.hpp"
+#include "conformance/session.hpp"
+#include "modbus/profile.hpp"
+#include "modbus/transport/client.hpp"
+
+namespace mbscope::conformance {
+
+struct CheckOptions {
+    SessionOptions session;
+    RunOptions run;
+    std::string target;  // the URI, as given
+};
+
+struct Report {
+    std::string mbscope_version;
+    std::string profile_id;
+    std::string profile_file;
+    std::string profile_hash;  // FNV-1a 64 of the profile file, so a verdict names the exact map it used
+    std::string target;
+    std::uint8_t unit = 1;
+    std::uint64_t seed = 1;
+    bool read_only = false;
+    std::vector<std::string> rule_globs;
+    std::int64_t interval_ms = 0;
+    std::int64_t timeout_ms = 0;
+    std::string started;  // UTC, ISO 8601
+    std::chrono::nanoseconds wall{0};
+    std::uint64_t requests = 0;
+    bool stopped = false;  // interrupted before the end
+    std::vector<RuleResult> results;
+    std::vector<Touched> restored;
+    std::vector<std::chrono::nanoseconds> response_times;
+
+    std::size_t count(Outcome o) const;
+    std::size_t failures_of(Authority a) const;
+    bool all_restored() const;
+};
+
+// Exit-code view of a report: 0 nothing failed, 1 a rule of the specification or the manual failed (implied
+// rules are warnings) or a point could not be restored.
+int verdict(const Report& report);
+
+Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,
+                 const CheckOptions& options, const std::atomic<bool>* stop = nullptr);
+
+}  // namespace mbscope::conformance

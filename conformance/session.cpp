@@ -1,0 +1,157 @@
+#include "conformance/session.hpp"
+
+#include <algorithm>
+#include <thread>
+#include <utility>
+
+#include "modbus/pdu.hpp"
+
+namespace mbscope::conformance {
+
+using modbus::Table;
+namespace tp = modbus::transport;
+
+void Session::pace() {
+    if (options_.interval.count() > 0 && last_ != std::chrono::steady_clock::time_point{}) {
+        const auto next = last_ + options_.interval;
+        std::this_thread::sleep_until(next);
+    }
+    last_ = std::chrono::steady_clock::now();
+    ++requests_;
+}
+
+void Session::log(const tp::Exchange& ex, const std::string& note) {
+    evidence_.push_back({note, ex.sent, ex.received, ex.elapsed, ex.timed_out});
+    if (!ex.timed_out) times_.push_back(ex.elapsed);
+}
+
+tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::string& note,
+                              std::optional<std::uint8_t> unit,
+                              std::optional<std::chrono::milliseconds> timeout) {
+    pace();
+    auto ex = client_.transact(unit.value_or(options_.unit), pdu, timeout.value_or(options_.timeout));
+    if (ex.closed) {
+        // The device closed the connection (allowed after some malformed requests): the next rule gets a
+        // fresh one.
+        (void)client_.reconnect();
+    }
+    log(ex, note);
+    return ex;
+}
+
+tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string& note, std::size_t frames,
+                          std::optional<std::chrono::milliseconds> timeout) {
+    pace();
+    auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames);
+    if (ex.closed) (void)client_.reconnect();
+    log(ex, note);
+    return ex;
+}
+
+std::optional<std::vector<std::uint16_t>> Session::read_registers(Table table, std::uint16_t start,
+                                                                  std::uint16_t quantity,
+                                                                  const std::string& note) {
+    const auto fc = table == Table::InputRegisters ? modbus::FunctionCode::ReadInputRegisters
+                                                   : modbus::FunctionCode::ReadHoldingRegisters;
+    const auto pdu = modbus::encode_pdu(modbus::make_read_request(fc, start, quantity));
+    auto ex = request(pdu, note);
+    if (!ex.response || !ex.response->checksum_ok) return std::nullopt;
+    auto rsp = modbus::decode_response(ex.response->pdu());
+    if (!rsp || rsp->is_exception()) return std::nullopt;
+    const auto* regs = std::get_if<modbus::ReadRegistersResponse>(&rsp->body);
+    if (!regs || regs->values.size() != quantity) return std::nullopt;
+    return regs->values;
+}
+
+std::optional<std::vector<bool>> Session::read_bits(Table table, std::uint16_t start, std::uint16_t quantity,
+                                                    const std::string& note) {
+    const auto fc = table == Table::DiscreteInputs ? modbus::FunctionCode::ReadDiscreteInputs
+                                                   : modbus::FunctionCode::ReadCoils;
+    const auto pdu = modbus::encode_pdu(modbus::make_read_request(fc, start, quantity));
+    auto ex = request(pdu, note);
+    if (!ex.response || !ex.response->checksum_ok) return std::nullopt;
+    auto rsp = modbus::decode_response(ex.response->pdu());
+    if (!rsp || rsp->is_exception()) return std::nullopt;
+    const auto* bits = std::get_if<modbus::ReadBitsResponse>(&rsp->body);
+    if (!bits || bits->values.size() * 8 < quantity) return std::nullopt;
+    std::vector<bool> out(quantity);
+    for (std::size_t i = 0; i < quantity; ++i)
+        out[i] = modbus::bit_at(bits->values, i);
+    return out;
+}
+
+bool Session::remember(Table table, std::uint16_t start, std::uint16_t count, std::uint16_t chunk) {
+    if (chunk == 0) chunk = 1;
+    for (std::uint32_t done = 0; done < count;) {
+        const auto at = static_cast<std::uint16_t>(start + done);
+        const auto n = static_cast<std::uint16_t>(std::min<std::uint32_t>(chunk, count - done));
+        bool known = true;
+        for (std::uint16_t i = 0; i < n; ++i)
+            known &= touched_.count({table, static_cast<std::uint16_t>(at + i)}) != 0;
+        if (!known) {
+            std::vector<std::uint16_t> values;
+            if (modbus::is_bit_table(table)) {
+                auto bits = read_bits(table, at, n, "read original values before writing");
+                if (!bits) return false;
+                for (bool b : *bits)
+                    values.push_back(b ? 1 : 0);
+            } else {
+                auto regs = read_registers(table, at, n, "read original values before writing");
+                if (!regs) return false;
+                values = *regs;
+            }
+            for (std::uint16_t i = 0; i < n; ++i) {
+                const auto address = static_cast<std::uint16_t>(at + i);
+                touched_.try_emplace({table, address}, Touched{table, address, values[i], false, {}});
+            }
+        }
+        done += n;
+    }
+    // Where a coil is a view of the holding register at its address (Walchem), writing the coil writes the
+    // register: its full value is remembered too. Restoring takes coils first and registers last, so the
+    // register ends with its original value, not the 0 or 1 a coil write leaves.
+    if (table == Table::Coils && profile_ && profile_->coils_view_registers)
+        return remember(Table::HoldingRegisters, start, count, chunk);
+    return true;
+}
+
+std::vector<Touched> Session::restore() {
+    std::vector<Touched> out;
+    bool pair_written = false;  // the previous register was restored together with this one
+    for (auto& [key, t] : touched_) {
+        std::vector<std::uint8_t> pdu;
+        const bool skip_write = std::exchange(pair_written, false);
+        if (t.table == Table::Coils)
+            pdu = modbus::encode_pdu(modbus::make_write_single_coil(t.address, t.original != 0));
+        else
+            pdu = modbus::encode_pdu(modbus::make_write_single_register(t.address, t.original));
+        // A 32-bit point is restored with both halves in one FC16 (some devices refuse a lone half); any
+        // other register alone, so a read-only neighbour cannot spoil its write.
+        const auto next = touched_.find({t.table, static_cast<std::uint16_t>(t.address + 1)});
+        const modbus::Point* point = profile_ ? profile_->find(t.table, t.address) : nullptr;
+        const bool first_half = point && point->encoding.words == 2 && point->address == t.address;
+        if (t.table == Table::HoldingRegisters && first_half && next != touched_.end() && !skip_write) {
+            const std::uint16_t pair[2] = {t.original, next->second.original};
+            pdu = modbus::encode_pdu(modbus::make_write_multiple_registers(t.address, pair));
+            pair_written = true;
+        }
+        modbus::transport::Exchange ex;
+        if (!skip_write) ex = request(pdu, "restore the original value");
+        std::optional<std::uint16_t> now;
+        if (modbus::is_bit_table(t.table)) {
+            if (auto b = read_bits(t.table, t.address, 1, "verify the restored value")) now = (*b)[0] ? 1 : 0;
+        } else if (auto r = read_registers(t.table, t.address, 1, "verify the restored value")) {
+            now = (*r)[0];
+        }
+        t.restored = now && *now == t.original;
+        if (!t.restored)
+            t.problem =
+                now ? "reads " + std::to_string(*now) + " after restoring " + std::to_string(t.original)
+                    : std::string(ex.timed_out ? "no reply while restoring" : "could not read it back");
+        out.push_back(t);
+    }
+    take_evidence();
+    return out;
+}
+
+}  // namespace mbscope::conformance

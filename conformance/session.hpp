@@ -1,0 +1,85 @@
+#pragma once
+// The runner's hold on the device: every request goes through here, so pacing (the manual's minimum
+// polling interval), the evidence of the rule being run and the ledger of touched points are never
+// forgotten. Before the first write to a point its original value is read and kept; restore() writes every
+// kept value back and reads it again to verify.
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "conformance/rule.hpp"
+#include "modbus/profile.hpp"
+#include "modbus/transport/client.hpp"
+
+namespace mbscope::conformance {
+
+struct SessionOptions {
+    std::uint8_t unit = 1;
+    std::chrono::milliseconds timeout{1000};
+    std::chrono::milliseconds interval{0};
+};
+
+struct Touched {
+    modbus::Table table = modbus::Table::HoldingRegisters;
+    std::uint16_t address = 0;
+    std::uint16_t original = 0;
+    bool restored = false;  // written back and read back equal
+    std::string problem;    // why not
+};
+
+class Session {
+  public:
+    Session(modbus::transport::Client& client, SessionOptions options,
+            const modbus::Profile* profile = nullptr)
+        : client_(client), options_(options), profile_(profile) {}
+
+    // One request to `unit` (the session's unit when nullopt); the exchange joins the current evidence.
+    modbus::transport::Exchange request(std::span<const std::uint8_t> pdu, const std::string& note,
+                                        std::optional<std::uint8_t> unit = std::nullopt,
+                                        std::optional<std::chrono::milliseconds> timeout = std::nullopt);
+    // Bytes as given (framing and MBAP rules); `frames` replies awaited.
+    modbus::transport::Exchange raw(std::span<const std::uint8_t> bytes, const std::string& note,
+                                    std::size_t frames = 1,
+                                    std::optional<std::chrono::milliseconds> timeout = std::nullopt);
+
+    // Reads that must work for a rule to be judged; nullopt when the device did not answer normally.
+    std::optional<std::vector<std::uint16_t>> read_registers(modbus::Table table, std::uint16_t start,
+                                                             std::uint16_t quantity, const std::string& note);
+    std::optional<std::vector<bool>> read_bits(modbus::Table table, std::uint16_t start,
+                                               std::uint16_t quantity, const std::string& note);
+
+    // Keep the original values of [start, start+count) before writing them. False: they could not be read,
+    // and the rule must not write.
+    bool remember(modbus::Table table, std::uint16_t start, std::uint16_t count, std::uint16_t chunk = 1);
+    // Write back every remembered value, verify, and return the ledger.
+    std::vector<Touched> restore();
+    const std::map<std::pair<modbus::Table, std::uint16_t>, Touched>& touched() const noexcept {
+        return touched_;
+    }
+
+    std::vector<Evidence> take_evidence() { return std::exchange(evidence_, {}); }
+    const SessionOptions& options() const noexcept { return options_; }
+    modbus::transport::Client& client() noexcept { return client_; }
+    std::vector<std::chrono::nanoseconds>& response_times() noexcept { return times_; }
+    std::uint64_t requests() const noexcept { return requests_; }
+
+  private:
+    void pace();
+    void log(const modbus::transport::Exchange& ex, const std::string& note);
+
+    modbus::transport::Client& client_;
+    SessionOptions options_;
+    const modbus::Profile* profile_;  // tells which registers are halves of one 32-bit value
+    std::vector<Evidence> evidence_;
+    std::map<std::pair<modbus::Table, std::uint16_t>, Touched> touched_;
+    std::chrono::steady_clock::time_point last_{};
+    std::vector<std::chrono::nanoseconds> times_;
+    std::uint64_t requests_ = 0;
+};
+
+}  // namespace mbscope::conformance

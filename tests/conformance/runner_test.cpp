@@ -1,0 +1,354 @@
+// The conformance runner against the reference slave, in process: a slave::Server on 127.0.0.1 port 0 in a
+// thread, the runner's Client on the other end.
+//
+//  - CleanSlave: every bundled profile over Modbus/TCP, and one profile of each manual over every other
+//    transport (rtu-tcp, ascii-tcp, udp; RTU and ASCII over a pseudo-terminal), certify with no failure,
+//    restore every point they wrote, and leave the slave's register image as they found it.
+//  - PlantedFault: each of the slave's 23 faults makes the run fail (or warn, where only an implied rule
+//    of the manual catches it) through the rules that are meant to catch it.
+//  - Reports: the JSON report carries every rule with its evidence and the summary adds up; the JUnit XML
+//    report holds one testcase per rule with matching counts.
+#include <gtest/gtest.h>
+
+#include <fnmatch.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "conformance/report.hpp"
+#include "conformance/runner.hpp"
+#include "modbus/transport/client.hpp"
+#include "tests/slave/slave_test_support.hpp"
+
+namespace mbscope::conformance {
+namespace {
+
+namespace tp = modbus::transport;
+using slave::test::RunningServer;
+
+struct CheckRun {
+    Report report;
+    std::map<modbus::Table, std::map<std::uint16_t, std::uint16_t>> changes_after;  // slave image vs initial
+};
+
+CheckOptions options_for(std::chrono::milliseconds timeout = std::chrono::milliseconds(300)) {
+    CheckOptions o;
+    o.session.unit = 1;
+    o.session.timeout = timeout;
+    o.session.interval = std::chrono::milliseconds(0);  // the Walchem manual's 5 s polling is for plants
+    return o;
+}
+
+CheckRun certify(RunningServer& server, const std::string& scheme, const std::string& profile_id,
+                 const CheckOptions& options = options_for()) {
+    const std::uint16_t port = server.start(scheme);
+    auto endpoint = tp::parse_endpoint(scheme + "://127.0.0.1:" + std::to_string(port));
+    EXPECT_TRUE(endpoint.has_value());
+    auto client = tp::Client::open(*endpoint);
+    EXPECT_TRUE(client.has_value()) << (client ? "" : client.error());
+    CheckRun run;
+    if (!client) return run;
+    run.report = run_check(*client, slave::test::profile(profile_id), options);
+    server.stop();
+    run.changes_after = server.device().image().changes();
+    return run;
+}
+
+std::string failures(const Report& r) {
+    std::ostringstream out;
+    for (const auto& x : r.results)
+        if (x.outcome == Outcome::Fail || x.outcome == Outcome::Error)
+            out << "\n  " << x.rule.id << ": expected " << x.expected << ", observed " << x.observed
+                << (x.reason.empty() ? "" : " (" + x.reason + ")");
+    for (const auto& t : r.restored)
+        if (!t.restored) out << "\n  not restored: " << modbus::to_string(t.table) << ' ' << t.address;
+    return out.str();
+}
+
+void expect_clean(const CheckRun& run, std::size_t min_rules) {
+    const Report& r = run.report;
+    EXPECT_EQ(verdict(r), 0) << failures(r);
+    EXPECT_EQ(r.count(Outcome::Fail), 0u) << failures(r);
+    EXPECT_EQ(r.count(Outcome::Error), 0u) << failures(r);
+    EXPECT_GE(r.count(Outcome::Pass), min_rules);
+    EXPECT_TRUE(r.all_restored()) << failures(r);
+    EXPECT_FALSE(r.stopped);
+    // Nothing lost, nothing left behind: the slave holds its initial image again.
+    std::string changed;
+    for (const auto& [table, m] : run.changes_after)
+        for (const auto& [address, value] : m)
+            changed += " " + std::string(modbus::to_string(table)) + " " + std::to_string(address) + "=" +
+                       std::to_string(value);
+    EXPECT_EQ(changed, "") << "the run left values changed on the device";
+}
+
+// ---- a clean slave passes
+
+class EveryProfileOverTcp : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(EveryProfileOverTcp, CertifiesWithNoFailureAndRestoresEverything) {
+    RunningServer server({}, 1, GetParam());
+    const auto run = certify(server, "tcp", GetParam());
+    expect_clean(run, 150);
+    // Every rule names where it comes from and says what it checks.
+    for (const auto& x : run.report.results) {
+        EXPECT_FALSE(x.rule.id.empty());
+        EXPECT_FALSE(x.rule.source.empty()) << x.rule.id;
+        EXPECT_FALSE(x.rule.text.empty()) << x.rule.id;
+        if (x.outcome == Outcome::Skip) {
+            EXPECT_FALSE(x.reason.empty()) << x.rule.id;
+        }
+        if (x.outcome == Outcome::Pass && x.rule.id != "robustness.response_time") {
+            EXPECT_FALSE(x.evidence.empty()) << x.rule.id;
+        }
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Bundled, EveryProfileOverTcp, ::testing::ValuesIn(slave::test::profile_ids()),
+                         [](const auto& info) {
+                             std::string n = info.param;
+                             for (auto& ch : n)
+                                 if (ch == '-') ch = '_';
+                             return n;
+                         });
+
+struct TransportCase {
+    std::string scheme;
+    std::string profile;
+};
+
+std::ostream& operator<<(std::ostream& out, const TransportCase& c) {
+    return out << c.profile << " over " << c.scheme;
+}
+
+class EveryTransport : public ::testing::TestWithParam<TransportCase> {};
+
+TEST_P(EveryTransport, CertifiesWithNoFailureAndRestoresEverything) {
+    RunningServer server({}, 1, GetParam().profile);
+    expect_clean(certify(server, GetParam().scheme, GetParam().profile), 150);
+}
+
+std::vector<TransportCase> transport_cases() {
+    std::vector<TransportCase> out;
+    for (const char* scheme : {"rtu-tcp", "ascii-tcp", "udp"})
+        for (const char* id : {"mmk-2030", "dcy-2050", "cth2265i", "walchem-w600", "modbus"})
+            out.push_back({scheme, id});
+    return out;
+}
+
+INSTANTIATE_TEST_SUITE_P(OneProfilePerManual, EveryTransport, ::testing::ValuesIn(transport_cases()),
+                         [](const auto& info) {
+                             std::string n = info.param.scheme + "_" + info.param.profile;
+                             for (auto& ch : n)
+                                 if (ch == '-') ch = '_';
+                             return n;
+                         });
+
+// A true serial line: the slave on a pseudo-terminal it creates, the runner on the terminal's other side,
+// with the line's t1.5 and t3.5 in force (gaps inside requests, silences between them).
+class OverPseudoTerminal : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(OverPseudoTerminal, CertifiesWithNoFailureAndRestoresEverything) {
+    const std::string framing = GetParam();
+    slave::FaultSet faults;
+    slave::Device device(slave::test::profile("mmk-2030"), 1, &faults);
+    auto listen = tp::parse_endpoint(framing + ":pty?baud=38400");
+    ASSERT_TRUE(listen.has_value());
+    slave::ServerOptions so;
+    so.create_pty = true;
+    slave::Server server(*listen, {&device}, faults, so);
+    auto opened = server.open();
+    ASSERT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
+    std::atomic<bool> stop{false};
+    std::thread thread([&] { (void)server.run(stop); });
+    auto target = tp::parse_endpoint(framing + ":" + server.address() + "?baud=38400");
+    ASSERT_TRUE(target.has_value());
+    auto client = tp::Client::open(*target);
+    ASSERT_TRUE(client.has_value()) << (client ? "" : client.error());
+    CheckRun run;
+    run.report =
+        run_check(*client, slave::test::profile("mmk-2030"), options_for(std::chrono::milliseconds(500)));
+    stop = true;
+    thread.join();
+    run.changes_after = device.image().changes();
+    expect_clean(run, 150);
+    // The serial framing rules ran, with the line's timing.
+    std::size_t framing_rules = 0;
+    for (const auto& x : run.report.results)
+        if (x.rule.id.starts_with("framing.") && x.outcome == Outcome::Pass) ++framing_rules;
+    EXPECT_GE(framing_rules, 3u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Serial, OverPseudoTerminal, ::testing::Values("rtu", "ascii"));
+
+// ---- every planted fault is caught
+
+struct FaultCase {
+    std::string fault;    // as on the command line
+    std::string profile;  // a profile where the fault shows
+    std::string scheme;
+    std::string catches;        // glob of a rule id that must fail
+    bool warning_only = false;  // only rules the manual implies catch it (exit code 0, warnings reported)
+    // Rules to run (--rules), where a fault makes every rule wait for its timeout; empty: all.
+    std::vector<std::string> rules = {};
+};
+
+std::ostream& operator<<(std::ostream& out, const FaultCase& c) {
+    return out << c.fault << " on " << c.scheme << " as " << c.profile;
+}
+
+class PlantedFault : public ::testing::TestWithParam<FaultCase> {};
+
+TEST_P(PlantedFault, IsCaughtByTheRulesMeantToCatchIt) {
+    const FaultCase& c = GetParam();
+    RunningServer server({c.fault}, 7, c.profile);
+    auto options = options_for();
+    options.run.rule_globs = c.rules;
+    const auto run = certify(server, c.scheme, c.profile, options);
+    const Report& r = run.report;
+    std::vector<std::string> failed;
+    for (const auto& x : r.results)
+        if (x.outcome == Outcome::Fail) failed.push_back(x.rule.id);
+    ASSERT_FALSE(failed.empty()) << "the fault went unnoticed";
+    bool caught = false;
+    for (const auto& id : failed)
+        caught |= fnmatch(c.catches.c_str(), id.c_str(), 0) == 0;
+    std::string list;
+    for (const auto& id : failed)
+        list += " " + id;
+    EXPECT_TRUE(caught) << "no failing rule matches " << c.catches << "; failed:" << list;
+    if (c.warning_only) {
+        EXPECT_EQ(r.failures_of(Authority::Specification) + r.failures_of(Authority::Manual), 0u) << list;
+        EXPECT_GT(r.failures_of(Authority::Implied), 0u);
+    } else {
+        EXPECT_EQ(verdict(r), 1) << list;
+    }
+}
+
+std::vector<FaultCase> fault_cases() {
+    return {
+        {"bad-crc", "mmk-2030", "rtu-tcp", "fc.supported.3", false, {"fc.supported.*", "echo.*"}},
+        {"bad-lrc", "mmk-2030", "ascii-tcp", "fc.supported.3", false, {"fc.supported.*", "echo.*"}},
+        {"wrong-byte-count", "mmk-2030", "tcp", "quantity.fc3.max"},
+        {"short-response", "mmk-2030", "tcp", "fc.supported.3"},
+        {"extra-bytes", "mmk-2030", "rtu-tcp", "fc.supported.*", false, {"fc.supported.*", "echo.*"}},
+        {"wrong-unit", "mmk-2030", "tcp", "fc.supported.3"},
+        {"wrong-function", "mmk-2030", "tcp", "fc.supported.3"},
+        {"wrong-tid", "mmk-2030", "tcp", "tcp.tid_echo.*"},
+        {"bad-protocol-id", "walchem-w600", "tcp", "fc.supported.3"},
+        {"reply-to-broadcast", "mmk-2030", "rtu-tcp", "broadcast.read.silent"},
+        {"ignore-max-quantity", "mmk-2030", "tcp", "quantity.fc3.max_plus_one", true},
+        {"wrong-exception=4", "mmk-2030", "tcp", "fc.unsupported.*"},
+        {"exception-for-valid=0.5", "mmk-2030", "tcp", "fc.supported.*"},
+        {"no-reply=0.3", "mmk-2030", "tcp", "*", false, {"fc.supported.*", "quantity.*"}},
+        {"slow-reply=600", "cth2265i", "tcp", "fc.supported.3", false, {"fc.supported.*"}},
+        {"gap-inside-frame=5", "mmk-2030", "rtu-tcp", "*", false, {"fc.*", "robustness.*"}},
+        {"word-swap", "walchem-w600", "tcp", "data.word_order.*"},
+        {"off-by-one-address", "mmk-2030", "tcp", "address.fc3.last"},
+        {"stuck-value=21", "mmk-2030", "tcp", "value.hr21.limits"},
+        {"drop-write", "mmk-2030", "tcp", "echo.fc6"},
+        {"accept-out-of-range", "mmk-2030", "tcp", "value.hr*.outside"},
+        {"no-echo", "mmk-2030", "tcp", "echo.fc6"},
+        {"crash-after=20", "cth2265i", "tcp", "quantity.*", false, {"fc.supported.*", "quantity.*"}},
+    };
+}
+
+TEST(PlantedFaults, EveryFaultOfTheSlaveHasACase) {
+    std::set<std::string> named;
+    for (const auto& c : fault_cases())
+        named.insert(c.fault.substr(0, c.fault.find('=')));
+    for (std::size_t i = 0; i < slave::fault_count; ++i) {
+        const std::string name(slave::to_string(static_cast<slave::Fault>(i)));
+        EXPECT_TRUE(named.count(name)) << name << " has no conformance case";
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Slave, PlantedFault, ::testing::ValuesIn(fault_cases()), [](const auto& info) {
+    std::string n = info.param.fault.substr(0, info.param.fault.find('='));
+    for (auto& ch : n)
+        if (ch == '-') ch = '_';
+    return n;
+});
+
+// ---- the reports
+
+TEST(Reports, JsonCarriesEveryRuleWithEvidenceAndTheSummaryAddsUp) {
+    RunningServer server({"accept-out-of-range"}, 1, "mmk-2030");
+    const auto run = certify(server, "tcp", "mmk-2030");
+    const auto j = to_json(run.report);
+    ASSERT_TRUE(j.contains("rules"));
+    EXPECT_EQ(j["rules"].size(), run.report.results.size());
+    EXPECT_EQ(j["profile"]["id"], "mmk-2030");
+    std::size_t pass = 0, fail = 0;
+    for (const auto& rule : j["rules"]) {
+        for (const char* key : {"id", "family", "source", "text", "authority", "outcome", "evidence"})
+            EXPECT_TRUE(rule.contains(key)) << key;
+        pass += rule["outcome"] == "pass";
+        fail += rule["outcome"] == "fail";
+        if (rule["outcome"] == "fail") {
+            ASSERT_FALSE(rule["evidence"].empty()) << rule["id"];
+            EXPECT_FALSE(rule["evidence"][0]["sent"].get<std::string>().empty());
+        }
+    }
+    EXPECT_EQ(pass, run.report.count(Outcome::Pass));
+    EXPECT_EQ(fail, run.report.count(Outcome::Fail));
+    EXPECT_GT(fail, 0u);
+    EXPECT_EQ(j["restored"].size(), run.report.restored.size());
+}
+
+TEST(Reports, JunitHasOneTestcasePerRuleAndMatchingCounts) {
+    RunningServer server({"no-echo"}, 1, "cth2265i");
+    const auto run = certify(server, "tcp", "cth2265i");
+    std::ostringstream out;
+    write_junit(out, run.report);
+    const std::string xml = out.str();
+    ASSERT_TRUE(xml.starts_with("<?xml version=\"1.0\" encoding=\"UTF-8\"?>")) << xml.substr(0, 80);
+    const auto count = [&](const std::string& needle) {
+        std::size_t n = 0;
+        for (auto at = xml.find(needle); at != std::string::npos; at = xml.find(needle, at + 1))
+            ++n;
+        return n;
+    };
+    EXPECT_EQ(count("<testcase "), run.report.results.size());
+    // Rules the manual only implies are warnings: in the output, not counted as failures.
+    const std::size_t failing =
+        run.report.failures_of(Authority::Specification) + run.report.failures_of(Authority::Manual);
+    EXPECT_GT(failing, 0u);
+    EXPECT_EQ(count("<failure "), failing);
+    EXPECT_EQ(count("<skipped"), run.report.count(Outcome::Skip));
+    // The suite's totals agree with its testcases.
+    std::smatch m;
+    ASSERT_TRUE(
+        std::regex_search(xml, m, std::regex("<testsuites[^>]* tests=\"(\\d+)\"[^>]* failures=\"(\\d+)\"")))
+        << xml.substr(0, 400);
+    EXPECT_EQ(std::stoul(m[1]), run.report.results.size());
+    EXPECT_EQ(std::stoul(m[2]), failing);
+    // Well-formed for an XML parser nobody here wrote (Python's expat), which also checks the counts of
+    // every testsuite against its testcases.
+    const auto path =
+        std::filesystem::temp_directory_path() / ("mbscope-junit-" + std::to_string(::getpid()) + ".xml");
+    {
+        std::ofstream f(path);
+        f << xml;
+    }
+    const std::string check =
+        "python3 -c \"import sys, xml.etree.ElementTree as E\n"
+        "root = E.parse(sys.argv[1]).getroot()\n"
+        "assert root.tag == 'testsuites'\n"
+        "for s in root.iter('testsuite'):\n"
+        "    cases = s.findall('testcase')\n"
+        "    assert int(s.get('tests')) == len(cases), s.get('name')\n"
+        "    assert int(s.get('skipped')) == sum(1 for c in cases if c.find('skipped') is not None)\n"
+        "    assert int(s.get('errors')) == sum(1 for c in cases if c.find('error') is not None)\n"
+        "\" " +
+        path.string();
+    EXPECT_EQ(std::system(check.c_str()), 0) << "python3 rejects " << path;
+    std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace mbscope::conformance
