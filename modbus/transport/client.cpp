@@ -193,8 +193,20 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseco
                                                      ex.received.size() - scan_from);
             const Span s = find_frame(framing(), rest, silence, datagram);
             if (s.end == 0) break;
-            if (!ex.response) ex.response = decode(framing(), rest.subspan(s.begin, s.end - s.begin));
+            auto frame = decode(framing(), rest.subspan(s.begin, s.end - s.begin));
             scan_from += s.end;
+            // A late reply to one of the requests just before this one (a server that sleeps before an
+            // exception, as libmodbus does, answers after the client gave up): kept in `received`, counted,
+            // and not taken for this request's reply.
+            if (frame && framing() == Framing::Tcp && frames <= 1 && ex.sent.size() >= 7) {
+                const auto sent_tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
+                const auto behind = static_cast<std::uint16_t>(sent_tid - frame->transaction_id());
+                if (behind >= 1 && behind <= 256) {
+                    ++ex.stale_replies;
+                    continue;
+                }
+            }
+            if (!ex.response) ex.response = frame;
             ++found;
             ex.elapsed = Clock::now() - start;
             if (datagram || silence) break;
