@@ -1,0 +1,143 @@
+// The slave as a whole process (the mbscope binary), the way integrators and CI run it:
+//  - an acknowledged write survives kill -9: writes are answered, the process is killed without warning,
+//    a new process started on the same --state file serves every written value;
+//  - 100 clients at once, each with its own requests, every one answered with its own data, while a
+//    client sending garbage is disconnected without disturbing them.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <thread>
+
+#include "tests/slave/slave_test_support.hpp"
+
+extern char** environ;
+
+namespace mbscope::slave::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+// `mbscope slave ...` with its stdout read for the address it prints first.
+class SlaveProcess {
+  public:
+    explicit SlaveProcess(std::vector<std::string> args) {
+        args.insert(args.begin(), {MBSCOPE_BINARY, "slave"});
+        std::vector<char*> argv;
+        for (auto& a : args)
+            argv.push_back(a.data());
+        argv.push_back(nullptr);
+        int out[2];
+        if (::pipe(out) != 0) return;
+        posix_spawn_file_actions_t actions;
+        posix_spawn_file_actions_init(&actions);
+        posix_spawn_file_actions_adddup2(&actions, out[1], 1);
+        posix_spawn_file_actions_addclose(&actions, out[0]);
+        spawned_ = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) == 0;
+        posix_spawn_file_actions_destroy(&actions);
+        ::close(out[1]);
+        // The first line: "tcp://127.0.0.1:PORT".
+        std::string line;
+        char ch;
+        pollfd p{out[0], POLLIN, 0};
+        while (spawned_ && ::poll(&p, 1, 10'000) > 0 && ::read(out[0], &ch, 1) == 1 && ch != '\n')
+            line += ch;
+        ::close(out[0]);
+        const auto colon = line.rfind(':');
+        if (colon != std::string::npos) port_ = static_cast<std::uint16_t>(std::stoi(line.substr(colon + 1)));
+    }
+    ~SlaveProcess() { kill(SIGTERM); }
+
+    std::uint16_t port() const noexcept { return port_; }
+    // Sends `sig` and reaps the process.
+    void kill(int sig) {
+        if (!spawned_ || pid_ <= 0) return;
+        ::kill(pid_, sig);
+        int status = 0;
+        ::waitpid(pid_, &status, 0);
+        pid_ = -1;
+    }
+
+  private:
+    pid_t pid_ = -1;
+    bool spawned_ = false;
+    std::uint16_t port_ = 0;
+};
+
+std::string mbap(std::uint16_t tid, std::string_view pdu_hex) {
+    const auto pdu = bytes(pdu_hex);
+    char head[32];
+    std::snprintf(head, sizeof head, "%04X 0000 %04X 01 ", tid, static_cast<unsigned>(pdu.size() + 1));
+    return std::string(head) + std::string(pdu_hex);
+}
+
+TEST(SlaveProcess, AnAcknowledgedWriteSurvivesKill9) {
+    const fs::path dir = fs::temp_directory_path() / ("mbscope-durability-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const std::string state = (dir / "mmk-2030.json").string();
+    // Write values the manual allows, each acknowledged, then kill -9 before the process can do anything
+    // else.
+    {
+        SlaveProcess slave({"--profile", "mmk-2030", "--listen", "tcp://127.0.0.1:0", "--state", state});
+        ASSERT_NE(slave.port(), 0);
+        Client c(slave.port());
+        ASSERT_TRUE(c.connected());
+        // MMK-2030 holding register 21 (square-root cut-off, 0-5 %), 29 (high alarm hysteresis, 0-250) and
+        // coil 1 (password by value), written and echoed.
+        EXPECT_EQ(c.exchange(mbap(1, "06 00 15 00 03"), 12), "00 01 00 00 00 06 01 06 00 15 00 03");
+        EXPECT_EQ(c.exchange(mbap(2, "06 00 1D 00 2A"), 12), "00 02 00 00 00 06 01 06 00 1D 00 2A");
+        EXPECT_EQ(c.exchange(mbap(3, "05 00 01 FF 00"), 12), "00 03 00 00 00 06 01 05 00 01 FF 00");
+        slave.kill(SIGKILL);
+    }
+    SlaveProcess again({"--profile", "mmk-2030", "--listen", "tcp://127.0.0.1:0", "--state", state});
+    ASSERT_NE(again.port(), 0);
+    Client c(again.port());
+    ASSERT_TRUE(c.connected());
+    EXPECT_EQ(c.exchange(mbap(4, "03 00 15 00 01"), 11), "00 04 00 00 00 05 01 03 02 00 03");
+    EXPECT_EQ(c.exchange(mbap(6, "03 00 1D 00 01"), 11), "00 06 00 00 00 05 01 03 02 00 2A");
+    EXPECT_EQ(c.exchange(mbap(5, "01 00 01 00 01"), 10), "00 05 00 00 00 04 01 01 01 01");
+    fs::remove_all(dir);
+}
+
+TEST(SlaveProcess, HundredClientsAtOnceAreEachAnsweredWithTheirOwnData) {
+    SlaveProcess slave({"--profile", "modbus", "--listen", "tcp://127.0.0.1:0"});
+    ASSERT_NE(slave.port(), 0);
+    constexpr int clients = 100;
+    std::vector<std::unique_ptr<Client>> all;
+    for (int i = 0; i < clients; ++i) {
+        all.push_back(std::make_unique<Client>(slave.port()));
+        ASSERT_TRUE(all.back()->connected()) << "client " << i;
+    }
+    // A client that sends garbage: it may be disconnected; nobody else may notice.
+    Client noisy(slave.port());
+    ASSERT_TRUE(noisy.connected());
+    noisy.send(std::string_view("\xde\xad\xbe\xef\x00\x00\xff\xff garbage garbage garbage", 28));
+    // Every client writes its own register, all first, then reads it back: the values cannot mix.
+    for (int i = 0; i < clients; ++i) {
+        char pdu[32];
+        std::snprintf(pdu, sizeof pdu, "06 %04X %04X", 100 + i, 1000 + i);
+        all[i]->send(bytes(mbap(static_cast<std::uint16_t>(i), pdu)));
+    }
+    for (int i = 0; i < clients; ++i) {
+        char expected[64];
+        std::snprintf(expected, sizeof expected, "%02X %02X 00 00 00 06 01 06 %02X %02X %02X %02X", i >> 8,
+                      i & 0xFF, (100 + i) >> 8, (100 + i) & 0xFF, (1000 + i) >> 8, (1000 + i) & 0xFF);
+        EXPECT_EQ(hex(all[i]->read(12)), expected) << "client " << i;
+    }
+    for (int i = 0; i < clients; ++i) {
+        char pdu[32];
+        std::snprintf(pdu, sizeof pdu, "03 %04X 0001", 100 + i);
+        char expected[64];
+        std::snprintf(expected, sizeof expected, "%02X %02X 00 00 00 05 01 03 02 %02X %02X", (i + 500) >> 8,
+                      (i + 500) & 0xFF, (1000 + i) >> 8, (1000 + i) & 0xFF);
+        EXPECT_EQ(all[i]->exchange(mbap(static_cast<std::uint16_t>(i + 500), pdu), 11), expected)
+            << "client " << i;
+    }
+}
+
+}  // namespace
+}  // namespace mbscope::slave::test
