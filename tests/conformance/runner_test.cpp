@@ -15,7 +15,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <regex>
 #include <set>
 #include <sstream>
 
@@ -321,12 +320,14 @@ TEST(Reports, JunitHasOneTestcasePerRuleAndMatchingCounts) {
     EXPECT_EQ(count("<failure "), failing);
     EXPECT_EQ(count("<skipped"), run.report.count(Outcome::Skip));
     // The suite's totals agree with its testcases.
-    std::smatch m;
-    ASSERT_TRUE(
-        std::regex_search(xml, m, std::regex("<testsuites[^>]* tests=\"(\\d+)\"[^>]* failures=\"(\\d+)\"")))
-        << xml.substr(0, 400);
-    EXPECT_EQ(std::stoul(m[1]), run.report.results.size());
-    EXPECT_EQ(std::stoul(m[2]), failing);
+    // (No std::regex: GCC 12 warns inside it under the sanitizers.)
+    const auto root = xml.substr(0, xml.find('>', xml.find("<testsuites")));
+    const auto attribute = [&](const std::string& name) -> std::size_t {
+        const auto at = root.find(" " + name + "=\"");
+        return at == std::string::npos ? std::string::npos : std::stoul(root.substr(at + name.size() + 3));
+    };
+    EXPECT_EQ(attribute("tests"), run.report.results.size()) << root;
+    EXPECT_EQ(attribute("failures"), failing) << root;
     // Well-formed for an XML parser nobody here wrote (Python's expat), which also checks the counts of
     // every testsuite against its testcases.
     const auto path =
