@@ -139,6 +139,32 @@ struct FunctionRules {
     int max_for(std::uint8_t fc, bool write_part = false) const;
 };
 
+// The process behind a device, for the reference slave: what moves, and how. Not part of any manual (a
+// manual describes the instrument, not the plant it measures); each profile says which points are its
+// process values, totals and alarm outputs and why. Values are raw register values (engineering units
+// times the point's decimal scaling); time runs in fixed steps.
+struct SimulationSignal {
+    enum class Model : std::uint8_t {
+        Walk,       // a measured value: mean-reverting random walk around `start`, within [min, max]
+        Integrate,  // a total: accumulates `per_second` x the source's value each second (wraps at `max`)
+        Alarm,      // an alarm output: trips past the setpoint, releases past setpoint -/+ hysteresis
+    };
+    std::string id;
+    Model model = Model::Walk;
+    PointRef point;  // where the value is written (a two-register point: both words, in its word order)
+    double start = 0, min = 0, max = 0;
+    double step = 0;                               // Walk: standard deviation of the change per second
+    std::string of;                                // Integrate, Alarm: the signal they follow
+    double per_second = 0;                         // Integrate
+    std::optional<PointRef> setpoint, hysteresis;  // Alarm: read from the image, so writes take effect
+    bool high = true;                              // Alarm: trips above the setpoint (false: below)
+};
+
+struct Simulation {
+    std::string source;  // why these points: the manual lines that name them
+    std::vector<SimulationSignal> signals;
+};
+
 struct Profile {
     std::string id;  // model id, lower case
     std::string name;
@@ -154,6 +180,7 @@ struct Profile {
     // Walchem: coil-accessible fields are holding registers seen as bits; a coil reads 1 when the register at
     // its address is non-zero and FC5 writes 1 or 0 into that register (002:244, 493).
     bool coils_view_registers = false;
+    Simulation simulation;  // the process the reference slave runs behind the map (empty: values stay)
     std::vector<ProfileNote> notes;
     std::map<std::string, std::string> configuration;  // modular devices: channel → map
 

@@ -598,6 +598,102 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
     (void)block;
 }
 
+std::optional<double> number(Reader& r, const json& j, const std::string& key, const std::string& ptr,
+                             bool required) {
+    const json* c = r.child(j, key);
+    if (!c) {
+        if (required) r.error(ptr, "missing required field \"" + key + "\"");
+        return std::nullopt;
+    }
+    if (!c->is_number()) {
+        r.error(ptr + "/" + key, "must be a number");
+        return std::nullopt;
+    }
+    return c->get<double>();
+}
+
+// "simulation": {"source": ..., "signals": [{"id", "model": "walk"|"integrate"|"alarm", "point", ...}]}
+Simulation parse_simulation(Reader& r, const json& doc) {
+    Simulation sim;
+    const json* j = r.child(doc, "simulation");
+    if (!j) return sim;
+    if (!j->is_object()) {
+        r.error("/simulation", "must be an object");
+        return sim;
+    }
+    sim.source = r.source_of(*j);
+    const json* signals = r.child(*j, "signals");
+    if (!signals || !signals->is_array()) {
+        r.error("/simulation", "\"signals\" must be an array");
+        return sim;
+    }
+    for (std::size_t i = 0; i < signals->size(); ++i) {
+        const json& x = (*signals)[i];
+        const std::string ptr = "/simulation/signals/" + std::to_string(i);
+        SimulationSignal s;
+        s.id = r.string(x, "id", ptr, true).value_or("");
+        const auto model = r.string(x, "model", ptr, true).value_or("");
+        const json* point = r.child(x, "point");
+        auto ref = point ? point_ref(r, *point, ptr + "/point", Table::HoldingRegisters) : std::nullopt;
+        if (!point) r.error(ptr, "missing required field \"point\"");
+        if (!ref) continue;
+        s.point = *ref;
+        if (model == "walk") {
+            s.model = SimulationSignal::Model::Walk;
+            s.start = number(r, x, "start", ptr, true).value_or(0);
+            s.min = number(r, x, "min", ptr, true).value_or(0);
+            s.max = number(r, x, "max", ptr, true).value_or(0);
+            s.step = number(r, x, "step", ptr, true).value_or(0);
+            if (s.min > s.start || s.start > s.max) r.error(ptr, "needs min <= start <= max");
+        } else if (model == "integrate") {
+            s.model = SimulationSignal::Model::Integrate;
+            s.of = r.string(x, "of", ptr, true).value_or("");
+            s.per_second = number(r, x, "per_second", ptr, true).value_or(0);
+            s.start = number(r, x, "start", ptr, false).value_or(0);
+            s.max = number(r, x, "max", ptr, true).value_or(0);
+            if (s.max <= 0) r.error(ptr + "/max", "must be positive (the value a total wraps at)");
+        } else if (model == "alarm") {
+            s.model = SimulationSignal::Model::Alarm;
+            s.of = r.string(x, "of", ptr, true).value_or("");
+            const auto direction = r.string(x, "direction", ptr, true).value_or("high");
+            if (direction != "high" && direction != "low")
+                r.error(ptr + "/direction", "must be \"high\" or \"low\"");
+            s.high = direction == "high";
+            if (const json* sp = r.child(x, "setpoint"))
+                s.setpoint = point_ref(r, *sp, ptr + "/setpoint", Table::HoldingRegisters);
+            else
+                r.error(ptr, "missing required field \"setpoint\"");
+            if (const json* h = r.child(x, "hysteresis"))
+                s.hysteresis = point_ref(r, *h, ptr + "/hysteresis", Table::HoldingRegisters);
+        } else {
+            r.error(ptr + "/model", "unknown model \"" + model + "\" (walk, integrate, alarm)");
+            continue;
+        }
+        for (const auto& earlier : sim.signals)
+            if (earlier.id == s.id) r.error(ptr + "/id", "\"" + s.id + "\" is already used");
+        if (!s.of.empty() && std::none_of(sim.signals.begin(), sim.signals.end(),
+                                          [&](const SimulationSignal& e) { return e.id == s.of; }))
+            r.error(ptr + "/of", "\"" + s.of + "\" names no earlier signal");
+        sim.signals.push_back(std::move(s));
+    }
+    return sim;
+}
+
+// A model keeps the signals whose points it has (a model without a register has no process there), and
+// drops those that follow a dropped signal.
+void keep_simulation_of(Profile& p) {
+    std::vector<SimulationSignal> kept;
+    for (const auto& s : p.simulation.signals) {
+        const bool here = p.find(s.point.table, s.point.address) &&
+                          (!s.setpoint || p.find(s.setpoint->table, s.setpoint->address)) &&
+                          (!s.hysteresis || p.find(s.hysteresis->table, s.hysteresis->address));
+        const bool source_kept = s.of.empty() || std::any_of(kept.begin(), kept.end(),
+                                                             [&](const auto& k) { return k.id == s.of; });
+        if (here && source_kept) kept.push_back(s);
+    }
+    p.simulation.signals = std::move(kept);
+}
+
 Profile resolve_model(Reader& r, const json& doc, const json& model, const std::string& mptr,
                       const Tables& base, const Profile& common, const ModularMaps* maps,
                       const ProfileConfig& config) {
@@ -641,6 +737,7 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
             }
             apply_override(r, o, ptr, p.points[idx(*t)], *t);
         }
+    keep_simulation_of(p);
     // references to other points must exist in this model
     for (Table t : all_tables)
         for (const auto& pt : p.points[idx(t)]) {
@@ -693,6 +790,7 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
         for (const auto& x : *n)
             if (x.is_object())
                 common.notes.push_back({x.value("text", ""), x.value("source", ""), x.value("kind", "")});
+    common.simulation = parse_simulation(r, doc);
     Tables base;
     parse_tables(r, doc, base);
 

@@ -1,8 +1,10 @@
 #pragma once
-// The simulated process behind a device: measured values move the way the instrument's input would, so a
-// slave looks alive to a client polling it. Deterministic: the same --seed and the same number of elapsed
-// steps give the same values, whatever the wall clock did (steps are fixed, `advance` counts how many are
-// due).
+// The simulated process behind a device, as its profile's "simulation" block describes it: measured values
+// wander around a set value, totals integrate a flow, alarm outputs trip at their set-point and release past
+// its hysteresis (set-points and hysteresis read from the image each step, so a client's write takes effect
+// at once). Deterministic: the same --seed and the same number of elapsed steps give the same values,
+// whatever the wall clock did (steps are fixed, `advance` counts how many are due). A point frozen by the
+// stuck-value fault is left alone.
 
 #include <chrono>
 #include <cstdint>
