@@ -139,9 +139,17 @@ void check_values(Context& c) {
                    exception_text(read_only_code) + ".",
                authority_for(c.profile, "write_read_only"), true},
               [&](RuleResult& r) {
-                  if (!remember(r, *p)) return;
-                  const auto now = c.session.touched().at({Table::HoldingRegisters, p->address}).original;
-                  expect_exception(r, write(*p, now, "its own value"), 6, read_only_code);
+                  // The write carries the value the point holds, so even a device that wrongly accepts it
+                  // changes nothing: nothing to restore (a process value moves on its own and could not be
+                  // restored anyway).
+                  const auto now =
+                      c.session.read_registers(Table::HoldingRegisters, p->address, 1, "its value");
+                  if (!now) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the point could not be read";
+                      return;
+                  }
+                  expect_exception(r, write(*p, (*now)[0], "its own value"), 6, read_only_code);
               });
     }
 }
@@ -159,50 +167,93 @@ void check_write_encoding(Context& c) {
             });
     }
     if (c.profile.functions.supports(16)) {
-        c.run({"value.fc16.byte_count", "values and access", "AP §6.12",
-               "FC16 whose byte count disagrees with the quantity gets exception 03 and writes nothing.",
-               Authority::Specification, true},
-              [&](RuleResult& r) {
-                  const auto start = c.facts(Table::HoldingRegisters).first_valid().value_or(0);
-                  if (!c.session.remember(Table::HoldingRegisters, start, 1)) {
-                      r.outcome = Outcome::Error;
-                      r.reason = "the register's value could not be read, so nothing was written";
-                      return;
-                  }
-                  // Quantity 1, byte count 3, three data bytes: consistent framing, inconsistent count.
-                  const std::vector<std::uint8_t> pdu = {0x10,
-                                                         static_cast<std::uint8_t>(start >> 8),
-                                                         static_cast<std::uint8_t>(start),
-                                                         0x00,
-                                                         0x01,
-                                                         0x03,
-                                                         0x00,
-                                                         0x00,
-                                                         0x00};
-                  expect_exception(r, c.session.request(pdu, "quantity 1, byte count 3"), 16, 0x03);
-              });
+        c.run(
+            {"value.fc16.byte_count", "values and access", "AP §6.12",
+             "FC16 whose byte count disagrees with the quantity gets exception 03 and writes nothing.",
+             Authority::Specification, true},
+            [&](RuleResult& r) {
+                // A register the run may write (a process value or a read-only point would refuse for
+                // another reason, and could not be restored), carrying a value other than its own, so an
+                // executed write shows on reading back.
+                const modbus::Point* wp = nullptr;
+                for (const auto& p : c.profile.table(Table::HoldingRegisters))
+                    if (!wp && freely_writable(p)) wp = &p;
+                const auto first = c.facts(Table::HoldingRegisters).first_valid();
+                if (!wp && !(c.profile.open_address_space && first)) {
+                    r.outcome = Outcome::Skip;
+                    r.reason = "the map has no register this run may write";
+                    return;
+                }
+                const std::uint16_t start = wp ? wp->address : *first;
+                if (!c.session.remember(Table::HoldingRegisters, start, 1)) {
+                    r.outcome = Outcome::Error;
+                    r.reason = "the register's value could not be read, so nothing was written";
+                    return;
+                }
+                // The value now (an earlier rule may have changed it; the ledger keeps the first one).
+                const auto current =
+                    c.session.read_registers(Table::HoldingRegisters, start, 1, "its value now");
+                if (!current) {
+                    r.outcome = Outcome::Error;
+                    r.reason = "the register's value could not be read";
+                    return;
+                }
+                const std::uint16_t original = (*current)[0];
+                const std::uint16_t other =
+                    wp ? valid_alternative(wp, original).value_or(original ^ 1u) : original ^ 1u;
+                // Quantity 1, byte count 3, three data bytes: consistent framing, inconsistent count.
+                const std::vector<std::uint8_t> pdu = {
+                    0x10, static_cast<std::uint8_t>(start >> 8), static_cast<std::uint8_t>(start), 0x00, 0x01,
+                    0x03, static_cast<std::uint8_t>(other >> 8), static_cast<std::uint8_t>(other), 0x00};
+                expect_exception(r, c.session.request(pdu, "quantity 1, byte count 3"), 16, 0x03);
+                const auto back =
+                    c.session.read_registers(Table::HoldingRegisters, start, 1, "read it back: unchanged");
+                if (!back || (*back)[0] != original) {
+                    r.outcome = Outcome::Fail;
+                    r.observed += back ? "; the register now reads " + std::to_string((*back)[0])
+                                       : "; could not be read back";
+                }
+            });
     }
     if (c.profile.functions.supports(15)) {
         c.run({"value.fc15.byte_count", "values and access", "AP §6.11",
                "FC15 whose byte count disagrees with the quantity gets exception 03 and writes nothing.",
                Authority::Specification, true},
               [&](RuleResult& r) {
-                  const auto start = c.facts(Table::Coils).first_valid().value_or(0);
-                  if (c.facts(Table::Coils).first_valid() && !c.session.remember(Table::Coils, start, 1)) {
-                      r.outcome = Outcome::Error;
-                      r.reason = "the coil's value could not be read, so nothing was written";
-                      return;
+                  // A coil the run may write where the map has one, carrying the opposite of its value, so
+                  // an executed write shows on reading back.
+                  const modbus::Point* wc = nullptr;
+                  for (const auto& p : c.profile.table(Table::Coils))
+                      if (!wc && p.access == modbus::Access::ReadWrite && !p.reserved) wc = &p;
+                  const auto first = c.facts(Table::Coils).first_valid();
+                  const std::uint16_t start = wc ? wc->address : first.value_or(0);
+                  std::optional<bool> now;
+                  if (wc || first) {
+                      if (!c.session.remember(Table::Coils, start, 1)) {
+                          r.outcome = Outcome::Error;
+                          r.reason = "the coil's value could not be read, so nothing was written";
+                          return;
+                      }
+                      if (auto b = c.session.read_bits(Table::Coils, start, 1, "its value now"))
+                          now = (*b)[0];
                   }
                   // Quantity 1 needs 1 byte; 2 are announced and sent.
-                  const std::vector<std::uint8_t> pdu = {0x0F,
-                                                         static_cast<std::uint8_t>(start >> 8),
-                                                         static_cast<std::uint8_t>(start),
-                                                         0x00,
-                                                         0x01,
-                                                         0x02,
-                                                         0x00,
-                                                         0x00};
+                  const std::vector<std::uint8_t> pdu = {
+                      0x0F,
+                      static_cast<std::uint8_t>(start >> 8),
+                      static_cast<std::uint8_t>(start),
+                      0x00,
+                      0x01,
+                      0x02,
+                      static_cast<std::uint8_t>(now && !*now ? 0x01 : 0x00),
+                      0x00};
                   expect_exception(r, c.session.request(pdu, "quantity 1, byte count 2"), 15, 0x03);
+                  if (!now) return;
+                  const auto back = c.session.read_bits(Table::Coils, start, 1, "read it back: unchanged");
+                  if (!back || (*back)[0] != *now) {
+                      r.outcome = Outcome::Fail;
+                      r.observed += back ? "; the coil changed" : "; could not be read back";
+                  }
               });
     }
 }
