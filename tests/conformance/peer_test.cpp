@@ -131,6 +131,44 @@ TEST(Peer, LibmodbusServerFailsExactlyWhereItDepartsFromTheSpecification) {
     EXPECT_GT(report.count(Outcome::Pass), 50u);
 }
 
+// The same libmodbus server judged as an MK Controle MMK-2030: libmodbus serves whatever its mapping
+// holds, so the manual's limits (15 registers, 30 coils per request) and its map's holes are not there.
+TEST(Peer, LibmodbusServerAsAnMk2030BreaksTheManualsLimits) {
+    const auto port = free_port();
+    Peer peer({MBSCOPE_LIBMODBUS_SERVER, std::to_string(port)});
+    ASSERT_TRUE(peer.spawned());
+    auto client = connect("tcp://127.0.0.1:" + std::to_string(port));
+    ASSERT_TRUE(client.has_value());
+    modbus::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    const auto mk = store.load("mmk-2030");
+    ASSERT_TRUE(mk.has_value());
+    CheckOptions o;
+    o.session.timeout = std::chrono::milliseconds(1000);
+    o.run.read_only = true;
+    o.run.rule_globs = {"quantity.fc3.*", "quantity.fc1.*", "address.fc3.*"};
+    const auto report = run_check(*client, *mk, o);
+    const auto failed = failing(report);
+    // 16 registers (the manual allows 15) and 31 coils (it allows 30) are answered, where the manual
+    // implies exception 03 ...
+    EXPECT_TRUE(failed.count("quantity.fc3.max_plus_one")) << listed(failed);
+    EXPECT_TRUE(failed.count("quantity.fc1.max_plus_one")) << listed(failed);
+    // ... the map's end is not an end ...
+    EXPECT_TRUE(failed.count("address.fc3.past_end")) << listed(failed);
+    // ... while what the manual allows is answered.
+    for (const auto& x : report.results)
+        if (x.rule.id == "quantity.fc3.max" || x.rule.id == "quantity.fc3.one" ||
+            x.rule.id == "address.fc3.first") {
+            EXPECT_EQ(x.outcome, Outcome::Pass) << x.rule.id << ": " << x.observed;
+        }
+    // The evidence shows the 16 registers coming back.
+    for (const auto& x : report.results)
+        if (x.rule.id == "quantity.fc3.max_plus_one") {
+            ASSERT_FALSE(x.evidence.empty());
+            EXPECT_EQ(x.evidence.back().received.size(), 9u + 2 * 16)
+                << "MBAP 7 + FC + count + 32 data bytes";
+        }
+}
+
 TEST(Peer, PymodbusServerFailsExactlyWhereItDepartsFromTheSpecification) {
     if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
     const auto port = free_port();

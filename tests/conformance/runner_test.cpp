@@ -351,5 +351,23 @@ TEST(Reports, JunitHasOneTestcasePerRuleAndMatchingCounts) {
     std::filesystem::remove(path);
 }
 
+TEST(Reports, HtmlIsOneSelfContainedPageWithEveryRuleAndTheResponseTimes) {
+    RunningServer server({"no-echo"}, 1, "cth2265i");
+    const auto run = certify(server, "tcp", "cth2265i");
+    std::ostringstream out;
+    write_html(out, run.report);
+    const std::string html = out.str();
+    EXPECT_TRUE(html.starts_with("<!DOCTYPE html>"));
+    EXPECT_NE(html.find("</html>"), std::string::npos);
+    EXPECT_NE(html.find("Response times"), std::string::npos);
+    // Self-contained: nothing fetched from elsewhere.
+    EXPECT_EQ(html.find("src=\"http"), std::string::npos);
+    EXPECT_EQ(html.find("href=\"http"), std::string::npos);
+    for (const auto& x : run.report.results)
+        EXPECT_NE(html.find(x.rule.id), std::string::npos) << x.rule.id;
+    // The failing echo shows its bytes.
+    EXPECT_NE(html.find("echo.fc6"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace mbscope::conformance
