@@ -103,6 +103,59 @@ TEST(SlaveProcess, AnAcknowledgedWriteSurvivesKill9) {
     fs::remove_all(dir);
 }
 
+TEST(SlaveProcess, KilledInTheMiddleOfAStreamOfWritesLosesNoAcknowledgedOne) {
+    const fs::path dir = fs::temp_directory_path() / ("mbscope-stream-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const std::string state = (dir / "mmk-2030.json").string();
+    // Hysteresis registers 29..32 (0-250 each) take turns, each write a new value; the writer remembers the
+    // last value acknowledged per register and the one in flight when the process died.
+    int acked[4] = {-1, -1, -1, -1}, in_flight[4] = {-1, -1, -1, -1};
+    {
+        SlaveProcess slave({"--profile", "mmk-2030", "--listen", "tcp://127.0.0.1:0", "--state", state});
+        ASSERT_NE(slave.port(), 0);
+        Client c(slave.port());
+        ASSERT_TRUE(c.connected());
+        std::atomic<bool> killed{false};
+        std::thread killer([&] {
+            std::this_thread::sleep_for(std::chrono::milliseconds(300));
+            slave.kill(SIGKILL);
+            killed = true;
+        });
+        int written = 0;
+        for (std::uint16_t tid = 1; !killed && tid < 60000; ++tid) {
+            const int r = tid % 4;
+            const int value = (tid / 4) % 251;
+            char pdu[32];
+            std::snprintf(pdu, sizeof pdu, "06 00 %02X 00 %02X", 29 + r, value);
+            in_flight[r] = value;
+            c.send(bytes(mbap(tid, pdu)));
+            if (c.read(12, std::chrono::milliseconds(500)).size() != 12)
+                break;  // no ack: the process is gone
+            acked[r] = value;
+            in_flight[r] = -1;
+            ++written;
+        }
+        killer.join();
+        EXPECT_GT(written, 20) << "the stream was too short to mean anything";
+    }
+    SlaveProcess again({"--profile", "mmk-2030", "--listen", "tcp://127.0.0.1:0", "--state", state});
+    ASSERT_NE(again.port(), 0);
+    Client c(again.port());
+    for (int r = 0; r < 4; ++r) {
+        if (acked[r] < 0) continue;
+        char pdu[32];
+        std::snprintf(pdu, sizeof pdu, "03 00 %02X 00 01", 29 + r);
+        const auto reply = bytes(c.exchange(mbap(static_cast<std::uint16_t>(100 + r), pdu), 11));
+        ASSERT_EQ(reply.size(), 11u);
+        const int now = reply[9] << 8 | reply[10];
+        // The acknowledged value, or the one written after it whose acknowledgement was lost with the
+        // process.
+        EXPECT_TRUE(now == acked[r] || now == in_flight[r])
+            << "register " << 29 + r << ": reads " << now << ", last acknowledged " << acked[r];
+    }
+    fs::remove_all(dir);
+}
+
 TEST(SlaveProcess, HundredClientsAtOnceAreEachAnsweredWithTheirOwnData) {
     SlaveProcess slave({"--profile", "modbus", "--listen", "tcp://127.0.0.1:0"});
     ASSERT_NE(slave.port(), 0);
