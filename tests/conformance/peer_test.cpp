@@ -188,5 +188,33 @@ TEST(Peer, PymodbusServerFailsExactlyWhereItDepartsFromTheSpecification) {
     EXPECT_GT(report.count(Outcome::Pass), 150u);
 }
 
+// pymodbus's server judged as an MMK-2030: like libmodbus's, it serves whatever its datastore holds.
+TEST(Peer, PymodbusServerAsAnMk2030BreaksTheManualsLimits) {
+    if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
+    const auto port = free_port();
+    Peer peer({"/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py", "tcp",
+               std::to_string(port)});
+    ASSERT_TRUE(peer.spawned());
+    auto client = connect("tcp://127.0.0.1:" + std::to_string(port));
+    ASSERT_TRUE(client.has_value());
+    modbus::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    const auto mk = store.load("mmk-2030");
+    ASSERT_TRUE(mk.has_value());
+    CheckOptions o;
+    o.session.timeout = std::chrono::milliseconds(1000);
+    o.run.read_only = true;
+    o.run.rule_globs = {"quantity.fc3.*", "quantity.fc1.*", "address.fc3.*"};
+    const auto report = run_check(*client, *mk, o);
+    const auto failed = failing(report);
+    EXPECT_TRUE(failed.count("quantity.fc3.max_plus_one")) << listed(failed);
+    EXPECT_TRUE(failed.count("quantity.fc1.max_plus_one")) << listed(failed);
+    EXPECT_TRUE(failed.count("address.fc3.past_end")) << listed(failed);
+    for (const auto& x : report.results)
+        if (x.rule.id == "quantity.fc3.max" || x.rule.id == "quantity.fc3.one" ||
+            x.rule.id == "address.fc3.first") {
+            EXPECT_EQ(x.outcome, Outcome::Pass) << x.rule.id << ": " << x.observed;
+        }
+}
+
 }  // namespace
 }  // namespace mbscope::conformance
