@@ -48,6 +48,8 @@ struct Process::Impl {
         const modbus::Point* point = p.find(ref.table, ref.address);
         const auto& image = device->image();
         if (modbus::is_bit_table(ref.table)) return image.bit(ref.table, ref.address) ? 1 : 0;
+        if (point && point->encoding.type == modbus::EncodingType::F32)
+            return image.f32(ref.table, point->address, point->encoding.word_order);
         if (point && point->encoding.words == 2) {
             const std::uint32_t v = image.u32(ref.table, point->address, point->encoding.word_order);
             return point->encoding.is_signed ? static_cast<double>(static_cast<std::int32_t>(v)) : v;
@@ -56,6 +58,12 @@ struct Process::Impl {
         const bool is_signed =
             point && (point->encoding.type == modbus::EncodingType::S16 || point->encoding.is_signed);
         return is_signed ? static_cast<double>(static_cast<std::int16_t>(v)) : v;
+    }
+
+    // What a client reads: whole counts of an integer point (a total shows what it has completed), the
+    // value itself for a float.
+    static double shown(const State& s) {
+        return s.point && s.point->encoding.type == modbus::EncodingType::F32 ? s.value : std::floor(s.value);
     }
 
     void write(const State& s, double value) {
@@ -80,6 +88,10 @@ struct Process::Impl {
             const bool high_here = e.type == T::U32High || e.type == T::Digits4High;
             image.set_reg(ref.table, ref.address, high_here ? hi : lo);
             if (!device->frozen(ref.table, *e.pair)) image.set_reg(ref.table, *e.pair, high_here ? lo : hi);
+            return;
+        }
+        if (s.point && e.type == T::F32) {  // a float travels as its IEEE 754 bytes, not as an integer
+            image.set_f32(ref.table, s.point->address, static_cast<float>(value), e.word_order);
             return;
         }
         if (s.point && s.point->encoding.words == 2)
@@ -117,7 +129,7 @@ struct Process::Impl {
                     break;
                 }
             }
-            write(s, std::floor(s.value));
+            write(s, shown(s));
         }
     }
 };
@@ -133,7 +145,7 @@ Process::Process(Device& device, std::uint64_t seed)
             if (impl_->states[i].signal->id == sig.of) s.source = i;
         s.value = sig.model == Model::Alarm ? 0 : sig.start;
         impl_->states.push_back(s);
-        impl_->write(impl_->states.back(), std::floor(s.value));
+        impl_->write(impl_->states.back(), Impl::shown(impl_->states.back()));
     }
 }
 Process::~Process() = default;

@@ -100,6 +100,34 @@ TEST(ProcessModel, ProfilesWithoutASimulationStayStill) {
     EXPECT_TRUE(d.image().changes().empty());
 }
 
+TEST(ProcessModel, FloatPointsCarryTheValueAsAnIeee754Float) {
+    const std::string text = R"({
+      "format": "mbscope-profile/1", "family": "test", "vendor": "test",
+      "line": {"transports": ["tcp"]}, "functions": {"supported": [3]},
+      "tables": {"holding_registers": [
+        {"address": 10, "name": "pv", "access": "r", "source": "test",
+         "encoding": {"type": "f32", "word_order": "cdab"}}]},
+      "simulation": {"signals": [
+        {"id": "pv", "model": "walk", "point": 10, "start": 7.25, "min": 0, "max": 14, "step": 0.5}]},
+      "models": [{"id": "test"}]
+    })";
+    auto loaded = mb::parse_profiles(text, "test.json", nullptr, {});
+    ASSERT_TRUE(loaded.errors.empty()) << mb::to_string(loaded.errors.front());
+    ASSERT_EQ(loaded.profiles.size(), 1u);
+    Device d(loaded.profiles[0], 1);
+    Process p(d, 1);
+    EXPECT_FLOAT_EQ(d.image().f32(Table::HoldingRegisters, 10, mb::WordOrder::Cdab), 7.25f);
+    bool fraction = false;
+    for (int i = 0; i < 100; ++i) {
+        p.step();
+        const float v = d.image().f32(Table::HoldingRegisters, 10, mb::WordOrder::Cdab);
+        ASSERT_GE(v, 0.0f);
+        ASSERT_LE(v, 14.0f);
+        fraction |= v != static_cast<float>(static_cast<int>(v));
+    }
+    EXPECT_TRUE(fraction) << "a float walk keeps its fractions";
+}
+
 TEST(ProcessModel, LoaderNamesEveryMistakeInASimulationBlock) {
     const std::string text = R"({
       "format": "mbscope-profile/1", "family": "test", "vendor": "test",
