@@ -119,6 +119,27 @@ std::vector<Touched> Session::restore() {
     std::vector<Touched> out;
     bool pair_written = false;  // the previous register was restored together with this one
     for (auto& [key, t] : touched_) {
+        // A point the map makes read-only (a block write can span one) is not written back: a device that
+        // follows its map refuses the write, and its value may move on its own (a process value, a relay
+        // state). It is reported with what it reads, not judged: a device that took a write there already
+        // failed the rule that made it.
+        const modbus::Point* own = profile_ ? profile_->find(t.table, t.address) : nullptr;
+        if (own && own->access == modbus::Access::Read) {
+            std::optional<std::uint16_t> now;
+            if (modbus::is_bit_table(t.table)) {
+                if (auto b = read_bits(t.table, t.address, 1, "read the read-only point"))
+                    now = (*b)[0] ? 1 : 0;
+            } else if (auto r = read_registers(t.table, t.address, 1, "read the read-only point")) {
+                now = (*r)[0];
+            }
+            t.restored = true;
+            if (!now || *now != t.original)
+                t.problem = "read-only in the map, not written back; reads " +
+                            (now ? std::to_string(*now) : std::string("nothing")) + ", was " +
+                            std::to_string(t.original);
+            out.push_back(t);
+            continue;
+        }
         std::vector<std::uint8_t> pdu;
         const bool skip_write = std::exchange(pair_written, false);
         if (t.table == Table::Coils)
