@@ -16,15 +16,6 @@ namespace {
 
 using mb::Table;
 
-struct PyCase {
-    std::string profile;
-    std::string transport;  // tcp, rtu-tcp, rtu
-};
-
-std::ostream& operator<<(std::ostream& out, const PyCase& c) {
-    return out << c.profile << " over " << c.transport;
-}
-
 std::string run(const std::string& command) {
     std::string out;
     if (FILE* f = ::popen(command.c_str(), "r")) {
@@ -38,11 +29,11 @@ std::string run(const std::string& command) {
     return out;
 }
 
-class PymodbusClient : public ::testing::TestWithParam<PyCase> {};
+class PymodbusClient : public ::testing::TestWithParam<ClientCase> {};
 
 TEST_P(PymodbusClient, WritesReadsBackAndGetsTheManualsExceptions) {
     if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
-    const PyCase& c = GetParam();
+    const ClientCase& c = GetParam();
     FaultSet faults;
     Device device(profile(c.profile), 1, &faults);
     const mb::Profile& p = device.profile();
@@ -91,22 +82,8 @@ TEST_P(PymodbusClient, WritesReadsBackAndGetsTheManualsExceptions) {
     EXPECT_EQ(got, expected) << "register " << address;
 }
 
-std::vector<PyCase> py_cases() {
-    std::vector<PyCase> out;
-    for (const auto& id : profile_ids())
-        out.push_back({id, "tcp"});
-    for (const char* transport : {"rtu-tcp", "rtu"})
-        for (const char* id : {"mmk-2030", "dcy-2050", "cth2265i", "walchem-w600", "modbus"})
-            out.push_back({id, transport});
-    return out;
-}
-
-INSTANTIATE_TEST_SUITE_P(EveryProfile, PymodbusClient, ::testing::ValuesIn(py_cases()), [](const auto& info) {
-    std::string n = info.param.profile + "_" + info.param.transport;
-    for (auto& ch : n)
-        if (ch == '-') ch = '_';
-    return n;
-});
+INSTANTIATE_TEST_SUITE_P(EveryProfile, PymodbusClient, ::testing::ValuesIn(client_cases({"rtu-tcp", "rtu"})),
+                         client_case_name);
 
 }  // namespace
 }  // namespace mbscope::slave::test

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <ostream>
 #include <span>
 #include <string>
 #include <string_view>
@@ -112,6 +113,38 @@ inline std::vector<std::uint8_t> quantity_request(std::uint8_t fc, std::uint16_t
         pdu.insert(pdu.end(), n, 0);
     }
     return pdu;
+}
+
+// ---- peer clients: which profiles over which transports
+
+// A profile served over a transport ("tcp", "rtu-tcp", "rtu" for a pseudo-terminal).
+struct ClientCase {
+    std::string profile;
+    std::string transport;
+};
+
+inline std::ostream& operator<<(std::ostream& out, const ClientCase& c) {
+    return out << c.profile << " over " << c.transport;
+}
+
+// Every bundled profile over TCP, and one profile of each manual (and the generic one) over each of
+// `others`.
+inline std::vector<ClientCase> client_cases(std::initializer_list<const char*> others) {
+    std::vector<ClientCase> out;
+    for (const auto& id : profile_ids())
+        out.push_back({id, "tcp"});
+    for (const char* transport : others)
+        for (const char* id : {"mmk-2030", "dcy-2050", "cth2265i", "walchem-w600", "modbus"})
+            out.push_back({id, transport});
+    return out;
+}
+
+// "mmk_2030_rtu_tcp": a test name GoogleTest accepts.
+inline std::string client_case_name(const ::testing::TestParamInfo<ClientCase>& info) {
+    std::string n = info.param.profile + "_" + info.param.transport;
+    for (auto& ch : n)
+        if (ch == '-') ch = '_';
+    return n;
 }
 
 // ---- a server in a thread
