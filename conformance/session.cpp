@@ -115,6 +115,16 @@ bool Session::remember(Table table, std::uint16_t start, std::uint16_t count, st
     return true;
 }
 
+std::optional<std::uint16_t> Session::read_point(Table table, std::uint16_t address,
+                                                 const std::string& note) {
+    if (modbus::is_bit_table(table)) {
+        if (auto b = read_bits(table, address, 1, note)) return (*b)[0] ? 1 : 0;
+        return std::nullopt;
+    }
+    if (auto r = read_registers(table, address, 1, note)) return (*r)[0];
+    return std::nullopt;
+}
+
 std::vector<Touched> Session::restore() {
     std::vector<Touched> out;
     bool pair_written = false;  // the previous register was restored together with this one
@@ -125,13 +135,7 @@ std::vector<Touched> Session::restore() {
         // failed the rule that made it.
         const modbus::Point* own = profile_ ? profile_->find(t.table, t.address) : nullptr;
         if (own && own->access == modbus::Access::Read) {
-            std::optional<std::uint16_t> now;
-            if (modbus::is_bit_table(t.table)) {
-                if (auto b = read_bits(t.table, t.address, 1, "read the read-only point"))
-                    now = (*b)[0] ? 1 : 0;
-            } else if (auto r = read_registers(t.table, t.address, 1, "read the read-only point")) {
-                now = (*r)[0];
-            }
+            const auto now = read_point(t.table, t.address, "read the read-only point");
             t.restored = true;
             if (!now || *now != t.original)
                 t.problem = "read-only in the map, not written back; reads " +
@@ -158,12 +162,7 @@ std::vector<Touched> Session::restore() {
         }
         modbus::transport::Exchange ex;
         if (!skip_write) ex = request(pdu, "restore the original value");
-        std::optional<std::uint16_t> now;
-        if (modbus::is_bit_table(t.table)) {
-            if (auto b = read_bits(t.table, t.address, 1, "verify the restored value")) now = (*b)[0] ? 1 : 0;
-        } else if (auto r = read_registers(t.table, t.address, 1, "verify the restored value")) {
-            now = (*r)[0];
-        }
+        const auto now = read_point(t.table, t.address, "verify the restored value");
         t.restored = now && *now == t.original;
         if (!t.restored)
             t.problem =

@@ -50,6 +50,9 @@ class Session {
     // Reads that must work for a rule to be judged; nullopt when the device did not answer normally.
     std::optional<std::vector<std::uint16_t>> read_registers(modbus::Table table, std::uint16_t start,
                                                              std::uint16_t quantity, const std::string& note);
+    // One point's value (a bit as 0/1); nullopt when the device did not answer normally.
+    std::optional<std::uint16_t> read_point(modbus::Table table, std::uint16_t address,
+                                            const std::string& note);
     std::optional<std::vector<bool>> read_bits(modbus::Table table, std::uint16_t start,
                                                std::uint16_t quantity, const std::string& note);
 
