@@ -6,6 +6,8 @@
 #include <sstream>
 #include <vector>
 
+#include "analyzer/serial_logs.hpp"
+
 namespace mbscope::analyzer {
 
 using modbus::Direction;
@@ -16,18 +18,12 @@ std::optional<InputFormat> parse_input_format(std::string_view n) {
     if (n == "rtu" || n == "raw") return InputFormat::RtuRaw;
     if (n == "ascii") return InputFormat::AsciiRaw;
     if (n == "text") return InputFormat::Text;
+    if (n == "jpnevulator") return InputFormat::Jpnevulator;
+    if (n == "socat") return InputFormat::Socat;
     return std::nullopt;
 }
 
 namespace {
-
-std::optional<Direction> direction_token(std::string t) {
-    for (auto& c : t)
-        c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-    if (t == ">" || t == "M" || t == "TX" || t == "REQ" || t == "MASTER") return Direction::Request;
-    if (t == "<" || t == "S" || t == "RX" || t == "RSP" || t == "SLAVE") return Direction::Response;
-    return std::nullopt;
-}
 
 bool parse_hex_tokens(std::istringstream& words, std::vector<std::uint8_t>& out, std::string first = {}) {
     std::string digits;
@@ -79,7 +75,7 @@ bool read_text(Analyzer& a, const std::string& path) {
         }
         std::string next;
         words >> next;
-        auto dir = direction_token(next);
+        auto dir = direction_word(next);
         std::vector<std::uint8_t> bytes;
         if (!parse_hex_tokens(words, bytes, dir ? std::string() : next)) {
             a.input_error(path + ":" + std::to_string(number) + ": not hex bytes");
@@ -107,6 +103,18 @@ bool read_raw(Analyzer& a, const std::string& path) {
     return true;
 }
 
+bool read_log(Analyzer& a, const std::string& path, InputFormat format, const SerialLogOptions& options) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+        a.input_error(path + ": cannot open");
+        return false;
+    }
+    const auto chunk = [&](const SerialChunk& c) { a.serial(path, c.bytes, c.received, c.direction); };
+    const auto error = [&](const std::string& message) { a.input_error(message); };
+    return format == InputFormat::Jpnevulator ? read_jpnevulator_log(in, path, options, chunk, error)
+                                              : read_socat_log(in, path, options, chunk, error);
+}
+
 }  // namespace
 
 InputFormat detect_input_format(std::span<const std::uint8_t> h) {
@@ -116,6 +124,9 @@ InputFormat detect_input_format(std::span<const std::uint8_t> h) {
             return InputFormat::Pcap;
     }
     if (!h.empty() && h[0] == ':') return InputFormat::AsciiRaw;
+    const std::string_view text(reinterpret_cast<const char*>(h.data()), h.size());
+    if (looks_like_jpnevulator_log(text)) return InputFormat::Jpnevulator;
+    if (looks_like_socat_log(text)) return InputFormat::Socat;
     // text: printable first line that starts with a number
     std::size_t i = 0;
     while (i < h.size() && (h[i] == ' ' || h[i] == '\t'))
@@ -129,14 +140,14 @@ InputFormat detect_input_format(std::span<const std::uint8_t> h) {
     return InputFormat::RtuRaw;
 }
 
-bool read_input(Analyzer& a, const std::string& path, InputFormat format) {
+bool read_input(Analyzer& a, const std::string& path, InputFormat format, const SerialLogOptions& options) {
     if (format == InputFormat::Auto) {
         std::ifstream in(path, std::ios::binary);
         if (!in) {
             a.input_error(path + ": cannot open");
             return false;
         }
-        std::vector<char> head(256);
+        std::vector<char> head(4096);  // socat -d writes a few diagnostic lines before the first block
         in.read(head.data(), static_cast<std::streamsize>(head.size()));
         head.resize(static_cast<std::size_t>(in.gcount()));
         format = detect_input_format({reinterpret_cast<const std::uint8_t*>(head.data()), head.size()});
@@ -153,6 +164,10 @@ bool read_input(Analyzer& a, const std::string& path, InputFormat format) {
         case InputFormat::AsciiRaw:
             a.set_serial_framing(modbus::Framing::Ascii);
             return read_raw(a, path);
+        case InputFormat::Jpnevulator:
+        case InputFormat::Socat:
+            a.set_serial_framing(modbus::Framing::Rtu);
+            return read_log(a, path, format, options);
         case InputFormat::Auto:
             break;
     }

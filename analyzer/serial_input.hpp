@@ -6,6 +6,7 @@
 //    TIME in seconds (decimal fraction allowed) when the chunk's last byte arrived; DIR optional: ">", "M",
 //    "TX", "REQ" for master → slave, "<", "S", "RX", "RSP" for slave → master; HEX the bytes ("11 03 00 60",
 //    "110300600003"). Lines starting with '#' and blank lines are skipped.
+//  - logs of other tools: jpnevulator --read --timing-print and socat -x -v (analyzer/serial_logs.hpp).
 // A malformed line is reported with file and line number; the lines around it are still decoded.
 
 #include <optional>
@@ -14,16 +15,22 @@
 #include <string_view>
 
 #include "analyzer/analyzer.hpp"
+#include "analyzer/serial_logs.hpp"
 
 namespace mbscope::analyzer {
 
-enum class InputFormat { Auto, Pcap, RtuRaw, AsciiRaw, Text };
-std::optional<InputFormat> parse_input_format(std::string_view name);  // auto, pcap, rtu, ascii, text
-// pcap/pcapng magic → Pcap; ':' → AsciiRaw; a first line "NUMBER [DIR] HEX" → Text; otherwise RtuRaw.
+enum class InputFormat { Auto, Pcap, RtuRaw, AsciiRaw, Text, Jpnevulator, Socat };
+// auto, pcap, rtu, ascii, text, jpnevulator, socat
+std::optional<InputFormat> parse_input_format(std::string_view name);
+// pcap/pcapng magic → Pcap; ':' → AsciiRaw; a jpnevulator timestamp line first → Jpnevulator; a socat -x
+// block header (after socat -d lines, if any) → Socat; a first line "NUMBER [DIR] HEX" → Text; otherwise
+// RtuRaw. `head`: the file's first few KiB.
 InputFormat detect_input_format(std::span<const std::uint8_t> head);
 
 // Read a file in the given format into the analyzer; false when it could not be read completely (the
-// analyzer's summary names what went wrong).
-bool read_input(Analyzer& analyzer, const std::string& path, InputFormat format);
+// analyzer's summary names what went wrong). `logs`: how the other tools' logs map to directions
+// (analyzer/serial_logs.hpp).
+bool read_input(Analyzer& analyzer, const std::string& path, InputFormat format,
+                const SerialLogOptions& logs = {});
 
 }  // namespace mbscope::analyzer

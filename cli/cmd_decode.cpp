@@ -34,6 +34,8 @@ struct DecodeOptions {
     std::uint32_t baud = 9600;
     std::string parity = "N";
     int data_bits = 8, stop_bits = 1;
+    std::string master_alias, slave_alias;
+    std::string socat_master = "left";
 };
 
 // --profile ID for every device, --map SELECTOR=ID per device (SELECTOR: UNIT, IP or IP:UNIT).
@@ -118,8 +120,13 @@ int run_decode(const DecodeOptions& o) {
     analyzer::Analyzer a(options, sink);
     bool all_read = true, any_read = false;
     const auto format = analyzer::parse_input_format(o.format);
+    analyzer::SerialLogOptions logs;
+    logs.master_alias = o.master_alias;
+    logs.slave_alias = o.slave_alias;
+    logs.socat_master_left = o.socat_master == "left";
+    logs.line = options.serial_line;
     for (const auto& f : o.files) {
-        const bool ok = analyzer::read_input(a, f, *format);
+        const bool ok = analyzer::read_input(a, f, *format, logs);
         all_read &= ok;
         any_read |= ok || a.summary().packets > 0;
     }
@@ -141,8 +148,20 @@ void register_decode(CLI::App& app, int& exit_code) {
         ->required()
         ->check(CLI::ExistingFile);
     cmd->add_option("--format", o->format,
-                    "auto, pcap, rtu (raw dump), ascii (raw dump), text (TIME [DIR] HEX...)")
-        ->check(CLI::IsMember({"auto", "pcap", "pcapng", "rtu", "raw", "ascii", "text"}))
+                    "auto, pcap, rtu (raw dump), ascii (raw dump), text (TIME [DIR] HEX...), jpnevulator "
+                    "(--read --timing-print log), socat (socat -x -v standard error)")
+        ->check(
+            CLI::IsMember({"auto", "pcap", "pcapng", "rtu", "raw", "ascii", "text", "jpnevulator", "socat"}))
+        ->capture_default_str();
+    cmd->add_option("--master-alias", o->master_alias,
+                    "jpnevulator logs: the --tty alias (or device) that carries the master's requests; the "
+                    "other tty is the slave's");
+    cmd->add_option("--slave-alias", o->slave_alias,
+                    "jpnevulator logs: the --tty alias (or device) that carries the slaves' responses");
+    cmd->add_option("--socat-master", o->socat_master,
+                    "socat logs: which socat address is the master's side; '>' blocks flow from the left "
+                    "(first) address to the right one")
+        ->check(CLI::IsMember({"left", "right"}))
         ->capture_default_str();
     cmd->add_option("--baud", o->baud, "Serial line: baud rate (for t1.5/t3.5)")->capture_default_str();
     cmd->add_option("--parity", o->parity, "Serial line: N, E or O")
