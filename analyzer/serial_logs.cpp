@@ -320,13 +320,8 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
                       "capture with socat -x -v");
                 return false;
             }
-            if (got) {
+            if (got) {  // fewer than 16 when the data held a 0x0A: socat -v breaks the line after it
                 any_data = true;
-                if (got < want) {
-                    error(where(name, number) + "a socat -x line holds " + std::to_string(got) +
-                          " bytes where " + std::to_string(want) + " were due");
-                    ok = false;
-                }
                 continue;
             }
         }

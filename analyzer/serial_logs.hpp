@@ -21,10 +21,11 @@
 //     > 2026/11/30 06:23:27.000754320  length=8 from=0 to=7     <- ">" ADDRESS1 → ADDRESS2, "<" back;
 //      11 03 00 6b 00 03 76 87                          ...k..v.    from/to count each direction's bytes
 //     --                                                          <- " %02x" bytes, 16 a line, ASCII column
-//   The time is taken after the read that returned the block, so it is when the block's last byte arrived.
-//   socat 1.7.4 prints the microseconds in a nine-digit field ("27.000754320" is 27 s + 754320 us, as the
-//   blocks' spacing shows); a file whose nine-digit fractions all start with "000" is read that way, one with
-//   any other nine-digit fraction as nanoseconds, six digits as microseconds. Diagnostic lines (-d:
+//   A hex line holds at most 16 bytes and also ends after a 0x0A byte (-v breaks lines at the data's
+//   newlines). The time is taken after the read that returned the block, so it is when the block's last byte
+//   arrived. socat 1.7.4 prints the microseconds in a nine-digit field ("27.000754320" is 27 s + 754320 us,
+//   as the blocks' spacing shows); a file whose nine-digit fractions all start with "000" is read that way,
+//   one with any other nine-digit fraction as nanoseconds, six digits as microseconds. Diagnostic lines (-d:
 //   "2026/11/30 ... socat[PID] N
 //   ...") are skipped. `socat -v` without -x writes the bytes as text with non-printable ones replaced by
 //   '.', which cannot be decoded: such a file is an input error that says to capture with -x.
