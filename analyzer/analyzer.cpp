@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "analyzer/exported_pdu.hpp"
+#include "analyzer/rtac_serial.hpp"
 #include "analyzer/word_order.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
@@ -141,6 +142,7 @@ void Analyzer::packet(const std::string& source, const Packet& p) {
     expire(now_, false);
     if (p.linktype >= link_user0 && p.linktype <= link_user15) return user_dlt_packet(p);
     if (p.linktype == link_upper_pdu) return exported_pdu(p);
+    if (p.linktype == link_rtac_serial) return rtac_packet(p);
     L4Packet l4;
     if (parse_packet(p.linktype, p.data, l4) != ParseStatus::Ok) return;
     if (!server_port(l4.transport, l4.destination.port) && !server_port(l4.transport, l4.source.port)) return;
@@ -521,6 +523,7 @@ struct Analyzer::SerialLink {
     std::unique_ptr<AsciiDeframer> ascii;
     Direction hint = Direction::Unknown;
     std::uint64_t offset = 0;  // exported PDUs: bytes of the records before this one
+    int rtac_side = -1;        // RTAC serial: 0 sending, 1 receiving, -1 not yet known
 };
 
 Analyzer::SerialLink& Analyzer::serial_link(const std::string& key, const std::string& link,
@@ -612,18 +615,23 @@ void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> b
     serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint);
 }
 
-void Analyzer::serial_bytes(SerialLink& link, Framing framing, std::span<const std::uint8_t> bytes,
-                            Timestamp received, Direction hint) {
+void Analyzer::close_frames(SerialLink& link, Timestamp t, std::uint64_t packet) {
     DeframeEvents events;
+    if (link.timed) link.timed->advance(Timestamp::max(), events);
+    if (link.untimed) link.untimed->finish(events);
+    if (link.ascii) link.ascii->finish(events);
+    serial_events(link, events, t, packet);
+}
+
+void Analyzer::serial_bytes(SerialLink& link, Framing framing, std::span<const std::uint8_t> bytes,
+                            Timestamp received, Direction hint, std::uint64_t packet) {
     if (hint != link.hint) {
         // The other side is talking now: whatever the line held before is complete, and belongs to the
         // direction it was captured in.
-        if (link.timed) link.timed->advance(Timestamp::max(), events);
-        if (link.untimed) link.untimed->finish(events);
-        if (link.ascii) link.ascii->finish(events);
-        serial_events(link, events, received);
+        close_frames(link, received, packet);
         link.hint = hint;
     }
+    DeframeEvents events;
     if (framing == Framing::Ascii) {
         if (!link.ascii) link.ascii = std::make_unique<AsciiDeframer>();
         link.ascii->feed(bytes, received, events);
@@ -638,7 +646,7 @@ void Analyzer::serial_bytes(SerialLink& link, Framing framing, std::span<const s
         if (!link.untimed) link.untimed = std::make_unique<RtuDeframer>();
         link.untimed->feed(bytes, events);
     }
-    serial_events(link, events, received);
+    serial_events(link, events, received, packet);
 }
 
 void Analyzer::user_dlt_packet(const Packet& p) {
@@ -706,6 +714,63 @@ void Analyzer::exported_pdu(const Packet& p) {
     }
     l.offset += record->pdu.size();
     serial_events(l, events, p.time, p.number);
+}
+
+void Analyzer::rtac_packet(const Packet& p) {
+    const auto r = parse_rtac_serial(p.data);
+    if (!r) {
+        input_error(source_ + ": packet " + std::to_string(p.number) + ": RTAC serial record of " +
+                    std::to_string(p.data.size()) + " bytes is shorter than its 12-byte header");
+        return;
+    }
+    SerialLink& link = serial_link(source_);
+    const Timestamp t = r->arrived.count() ? r->arrived : p.time;
+    if (t > now_) now_ = t;
+    const auto event = static_cast<RtacEvent>(r->event);
+    const auto finding = [&](FindingCode code, const std::string& message) {
+        FrameRecord about;
+        about.time = t;
+        about.source = source_;
+        about.link = link.flow->link;
+        about.packet = p.number;
+        report(code, about, message);
+    };
+    // TX is what the RTAC sent: requests when it is the master on the port. Without --rtac-role the
+    // direction is left to the state machine, but a change of side still ends the frame on the line.
+    Direction hint = link.hint;
+    const bool tx = event == RtacEvent::TxStart || event == RtacEvent::TxEnd;
+    const bool rx = event == RtacEvent::RxStart || event == RtacEvent::RxEnd;
+    if (tx || rx) {
+        const int side = tx ? 0 : 1;
+        if (options_.rtac_tx)
+            hint = tx ? *options_.rtac_tx
+                      : (*options_.rtac_tx == Direction::Request ? Direction::Response : Direction::Request);
+        if (link.rtac_side != side && link.rtac_side != -1) close_frames(link, t, p.number);
+        link.rtac_side = side;
+    }
+    switch (event) {
+        case RtacEvent::FramingError:
+        case RtacEvent::ParityError:
+        case RtacEvent::Break:
+        case RtacEvent::Overflow:
+            finding(FindingCode::StreamLineError,
+                    "the RTAC's UART reported " + std::string(to_string(event)) +
+                        (link.rtac_side == 0   ? " while sending"
+                         : link.rtac_side == 1 ? " while receiving"
+                                               : "") +
+                        "; the frame around it may be damaged (check baud rate, parity and wiring)");
+            break;
+        case RtacEvent::DataLost:
+            finding(FindingCode::StreamGap,
+                    "the RTAC lost captured data (CAPTURE_DATA_LOST): frames around it may be incomplete");
+            close_frames(link, t, p.number);
+            break;
+        default:
+            break;
+    }
+    if (!r->payload.empty()) serial_bytes(link, options_.serial_framing, r->payload, t, hint, p.number);
+    // The UART says the message is over: the frame on the line is complete.
+    if (event == RtacEvent::TxEnd || event == RtacEvent::RxEnd) close_frames(link, t, p.number);
 }
 
 bool Analyzer::read_capture(CaptureSource& capture) {

@@ -4,7 +4,8 @@
 // (502 and any --tcp-port); pairing uses a hashed table keyed by (flow, transaction id), bounded and expired
 // by capture time, so memory stays flat however long the capture is. Serial gateways' ports
 // (--rtu-over-tcp) carry raw RTU frames in the TCP stream instead of MBAP. Serial bytes inside pcap files
-// (USER0..15 with --user-dlt, Wireshark exported PDUs) go the way of the serial captures.
+// (USER0..15 with --user-dlt, Wireshark exported PDUs, SEL RTAC serial records) go the way of the serial
+// captures.
 
 #include <deque>
 #include <map>
@@ -39,6 +40,9 @@ struct AnalyzerOptions {
     // What link types USER0..USER15 (147-162) carry: they are private by definition, so only the user can
     // say. nullopt: such packets are not decoded (and the input says why once).
     std::optional<modbus::Framing> user_dlt;
+    // SEL RTAC serial captures (link type 250): what the RTAC's TX bytes are, Request when it is the master
+    // on that port, Response when it is the slave; nullopt: the request → response state machine decides.
+    std::optional<modbus::Direction> rtac_tx;
     // FC3/FC4 replies of devices without a profile also read as 32-bit values in this order.
     std::optional<modbus::WordOrder> word_order;
 };
@@ -96,11 +100,13 @@ class Analyzer {
                             Carrier carrier);
     SerialLink& serial_link(const std::string& source);
     void serial_bytes(SerialLink& link, modbus::Framing framing, std::span<const std::uint8_t> bytes,
-                      modbus::Timestamp received, modbus::Direction hint);
+                      modbus::Timestamp received, modbus::Direction hint, std::uint64_t packet = 0);
+    void close_frames(SerialLink& link, modbus::Timestamp t, std::uint64_t packet = 0);
     void serial_events(SerialLink& link, modbus::DeframeEvents& events, modbus::Timestamp t,
                        std::uint64_t packet = 0);
     void user_dlt_packet(const Packet& packet);
     void exported_pdu(const Packet& packet);
+    void rtac_packet(const Packet& packet);
     modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
     void on_request(Flow& flow, FrameRecord record);
     void on_response(Flow& flow, FrameRecord record);

@@ -12,6 +12,7 @@ namespace mbscope::analyzer {
 
 // Link types that carry no IP (pcap/dlt.h values): the analyzer takes them before parse_packet.
 inline constexpr int link_user0 = 147, link_user15 = 162;  // private use: serial bytes, if the user says so
+inline constexpr int link_rtac_serial = 250;               // SEL RTAC serial records (rtac_serial.hpp)
 inline constexpr int link_upper_pdu = 252;                 // Wireshark exported PDUs (exported_pdu.hpp)
 
 struct Endpoint {

@@ -36,6 +36,7 @@ struct DecodeOptions {
     int data_bits = 8, stop_bits = 1;
     std::string master_alias, slave_alias;
     std::string socat_master = "left";
+    std::string rtac_role;
 };
 
 // --profile ID for every device, --map SELECTOR=ID per device (SELECTOR: UNIT, IP or IP:UNIT).
@@ -85,6 +86,8 @@ int run_decode(const DecodeOptions& o) {
     options.rtu_over_tcp_ports = o.rtu_over_tcp_ports;
     if (!o.user_dlt.empty())
         options.user_dlt = o.user_dlt == "ascii" ? modbus::Framing::Ascii : modbus::Framing::Rtu;
+    if (!o.rtac_role.empty())
+        options.rtac_tx = o.rtac_role == "master" ? modbus::Direction::Request : modbus::Direction::Response;
     if (!o.word_order.empty()) options.word_order = modbus::parse_word_order(o.word_order);
     options.timeout =
         std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(o.timeout_s));
@@ -182,6 +185,10 @@ void register_decode(CLI::App& app, int& exit_code) {
            "What pcap link types USER0..USER15 (147-162) carry: rtu or ascii serial bytes, one chunk "
            "per record with its capture time")
         ->check(CLI::IsMember({"rtu", "ascii"}));
+    cmd->add_option("--rtac-role", o->rtac_role,
+                    "SEL RTAC serial captures (link type 250): the RTAC's role on the port, master (its TX "
+                    "bytes are requests) or slave; unset, the request → response state machine decides")
+        ->check(CLI::IsMember({"master", "slave"}));
     cmd->add_option("--timeout", o->timeout_s,
                     "Seconds without a response before a request is reported unanswered")
         ->capture_default_str();
@@ -202,7 +209,7 @@ void register_decode(CLI::App& app, int& exit_code) {
     json->excludes(jsonl);
     cmd->footer(
         "Link types: Ethernet, Linux cooked, raw IP, BSD loopback; USER0..15 with --user-dlt; Wireshark "
-        "exported PDUs (252, text2pcap -P mbrtu|mbtcp).\n"
+        "exported PDUs (252, text2pcap -P mbrtu|mbtcp); SEL RTAC serial (250).\n"
         "Exit codes: 0 decoded with no error-severity finding, 1 faults found, 2 an input could not be "
         "read.\n"
         "Record types and fields: analyzer/README.md.");

@@ -51,6 +51,7 @@ enum class FindingCode : std::uint16_t {
     // stream: bytes that formed no frame
     StreamUnparsedBytes = 500,
     StreamGap = 501,
+    StreamLineError = 502,
     // pair: a request and its response, judged together
     PairNoResponse = 600,
     PairNoResponseAtEnd = 601,
