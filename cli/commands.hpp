@@ -15,5 +15,6 @@ void register_frame(CLI::App& app, int& exit_code);
 void register_profile(CLI::App& app, int& exit_code);
 void register_slave(CLI::App& app, int& exit_code);
 void register_check(CLI::App& app, int& exit_code);
+void register_sniff(CLI::App& app, int& exit_code);
 
 }  // namespace mbscope::cli

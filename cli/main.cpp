@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
     mbscope::cli::register_profile(app, exit_code);
     mbscope::cli::register_slave(app, exit_code);
     mbscope::cli::register_check(app, exit_code);
+    mbscope::cli::register_sniff(app, exit_code);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -1,0 +1,62 @@
+#pragma once
+// Live capture for mbscope sniff: packets from a network interface through libpcap (pcap_create,
+// immediate mode, a BPF filter on the Modbus ports), or bytes from one or two serial ports read raw with
+// the host's clock, fed to the same Analyzer as files are, and optionally written to a capture file.
+//
+// libpcap writes classic pcap only (pcap_dump), whatever the file is called: the interface's link type for
+// network captures, USER0 (147) for serial bytes, one record a read, stamped when the read returned, which
+// `mbscope decode --user-dlt rtu` reads back. The direction of serial bytes is not kept in the file.
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "analyzer/analyzer.hpp"
+#include "modbus/serial_line.hpp"
+
+namespace mbscope::analyzer {
+
+struct SniffOptions {
+    std::string interface;  // network capture: a libpcap device ("lo", "eth0")
+    std::vector<std::uint16_t> tcp_ports{502}, udp_ports{502};
+    std::string serial;   // serial capture: the line, or the master's transmit line when serial2 is set
+    std::string serial2;  // the slaves' transmit line (two taps of a full-duplex or RS-232 link)
+    modbus::SerialLine line{};
+    std::string write;  // capture file to write (classic pcap), empty for none
+    std::optional<std::chrono::duration<double>> duration;  // stop after this long
+    std::optional<std::uint64_t> count;                     // stop after this many packets or serial reads
+};
+
+// The filter for the options' ports: "tcp port 502 or udp port 502 ...".
+std::string capture_filter(const SniffOptions& options);
+
+class LiveCapture {
+  public:
+    // Opens the interface or the serial ports (and the output file). nullptr with `error` set when they
+    // cannot be opened; `permission_denied` tells a missing capture privilege from other failures.
+    static std::unique_ptr<LiveCapture> open(const SniffOptions& options, std::string& error,
+                                             bool& permission_denied);
+    ~LiveCapture();
+    LiveCapture(const LiveCapture&) = delete;
+    LiveCapture& operator=(const LiveCapture&) = delete;
+
+    // Captures into the analyzer until the duration or count is reached or `stop` is set; then reads what
+    // is already waiting and returns. False on a capture error (recorded as the analyzer's input error).
+    bool run(Analyzer& analyzer, const std::atomic<bool>& stop);
+    std::uint64_t captured() const noexcept { return captured_; }
+    const std::string& name() const noexcept { return name_; }
+
+  private:
+    LiveCapture() = default;
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+    SniffOptions options_;
+    std::string name_;
+    std::uint64_t captured_ = 0;
+};
+
+}  // namespace mbscope::analyzer
