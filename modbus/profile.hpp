@@ -152,12 +152,18 @@ struct SimulationSignal {
     std::string id;
     Model model = Model::Walk;
     PointRef point;  // where the value is written (a two-register point: both words, in its word order)
+    // No point ("point" left out, `point` unused): a quantity the device measures but its map does not show
+    // (the pulse rate an -FCS totalizer counts); the signals that follow it see it all the same.
+    bool hidden = false;
     double start = 0, min = 0, max = 0;
     double step = 0;                               // Walk: standard deviation of the change per second
     std::string of;                                // Integrate, Alarm: the signal they follow
     double per_second = 0;                         // Integrate
     std::optional<PointRef> setpoint, hysteresis;  // Alarm: read from the image, so writes take effect
     bool high = true;                              // Alarm: trips above the setpoint (false: below)
+    // Modular devices: the signal exists only where the configuration gives these channels these maps (the
+    // same address is another channel's field, or no field, in other configurations).
+    std::map<std::string, std::string> configuration;
 };
 
 struct Simulation {

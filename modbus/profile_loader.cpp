@@ -633,11 +633,14 @@ Simulation parse_simulation(Reader& r, const json& doc) {
         SimulationSignal s;
         s.id = r.string(x, "id", ptr, true).value_or("");
         const auto model = r.string(x, "model", ptr, true).value_or("");
-        const json* point = r.child(x, "point");
-        auto ref = point ? point_ref(r, *point, ptr + "/point", Table::HoldingRegisters) : std::nullopt;
-        if (!point) r.error(ptr, "missing required field \"point\"");
-        if (!ref) continue;
-        s.point = *ref;
+        // No "point": a hidden signal (it moves and others follow it; a client cannot read it).
+        if (const json* point = r.child(x, "point")) {
+            auto ref = point_ref(r, *point, ptr + "/point", Table::HoldingRegisters);
+            if (!ref) continue;
+            s.point = *ref;
+        } else {
+            s.hidden = true;
+        }
         if (model == "walk") {
             s.model = SimulationSignal::Model::Walk;
             s.start = number(r, x, "start", ptr, true).value_or(0);
@@ -665,10 +668,21 @@ Simulation parse_simulation(Reader& r, const json& doc) {
                 r.error(ptr, "missing required field \"setpoint\"");
             if (const json* h = r.child(x, "hysteresis"))
                 s.hysteresis = point_ref(r, *h, ptr + "/hysteresis", Table::HoldingRegisters);
+            if (s.hidden) r.error(ptr, "missing required field \"point\" (an alarm is an output)");
         } else {
             r.error(ptr + "/model", "unknown model \"" + model + "\" (walk, integrate, alarm)");
             continue;
         }
+        // Modular devices: {"CHANNEL": "MAP"}, the configuration the signal's addresses belong to.
+        if (const json* c = r.child(x, "configuration"); c && !c->is_object())
+            r.error(ptr + "/configuration", "must be an object of CHANNEL: MAP");
+        else if (c)
+            for (auto it = c->begin(); it != c->end(); ++it) {
+                if (it->is_string())
+                    s.configuration[it.key()] = it->get<std::string>();
+                else
+                    r.error(ptr + "/configuration/" + it.key(), "must be a map id");
+            }
         for (const auto& earlier : sim.signals)
             if (earlier.id == s.id) r.error(ptr + "/id", "\"" + s.id + "\" is already used");
         if (!s.of.empty() && std::none_of(sim.signals.begin(), sim.signals.end(),
@@ -679,17 +693,22 @@ Simulation parse_simulation(Reader& r, const json& doc) {
     return sim;
 }
 
-// A model keeps the signals whose points it has (a model without a register has no process there), and
-// drops those that follow a dropped signal.
+// A model keeps the signals whose points it has (a model without a register has no process there) in the
+// configuration they name, and drops those that follow a dropped signal.
 void keep_simulation_of(Profile& p) {
     std::vector<SimulationSignal> kept;
     for (const auto& s : p.simulation.signals) {
-        const bool here = p.find(s.point.table, s.point.address) &&
+        const bool configured =
+            std::all_of(s.configuration.begin(), s.configuration.end(), [&](const auto& c) {
+                const auto it = p.configuration.find(c.first);
+                return it != p.configuration.end() && it->second == c.second;
+            });
+        const bool here = (s.hidden || p.find(s.point.table, s.point.address)) &&
                           (!s.setpoint || p.find(s.setpoint->table, s.setpoint->address)) &&
                           (!s.hysteresis || p.find(s.hysteresis->table, s.hysteresis->address));
         const bool source_kept = s.of.empty() || std::any_of(kept.begin(), kept.end(),
                                                              [&](const auto& k) { return k.id == s.of; });
-        if (here && source_kept) kept.push_back(s);
+        if (configured && here && source_kept) kept.push_back(s);
     }
     p.simulation.signals = std::move(kept);
 }

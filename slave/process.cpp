@@ -67,6 +67,7 @@ struct Process::Impl {
     }
 
     void write(const State& s, double value) {
+        if (s.signal->hidden) return;  // nothing on the map shows it
         const auto& ref = s.signal->point;
         if (device->frozen(ref.table, ref.address)) return;  // stuck-value fault: the process cannot move it
         auto& image = device->image();
@@ -140,7 +141,7 @@ Process::Process(Device& device, std::uint64_t seed)
     for (const auto& sig : p.simulation.signals) {
         Impl::State s;
         s.signal = &sig;
-        s.point = p.find(sig.point.table, sig.point.address);
+        s.point = sig.hidden ? nullptr : p.find(sig.point.table, sig.point.address);
         for (std::size_t i = 0; i < impl_->states.size(); ++i)
             if (impl_->states[i].signal->id == sig.of) s.source = i;
         s.value = sig.model == Model::Alarm ? 0 : sig.start;
