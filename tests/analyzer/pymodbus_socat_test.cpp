@@ -5,15 +5,9 @@
 // and a clean run has no finding; with the slave's bad-crc fault the finding appears. The bundled log
 // captures/pymodbus-socat-rtu.log (written by this setup) is decoded against a reviewed golden output, so
 // that part does not depend on timing (MBSCOPE_UPDATE_GOLDEN=1 rewrites it).
-#include <fcntl.h>
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <array>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -21,76 +15,13 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
-extern char** environ;
+#include "process_support.hpp"
 
 namespace {
 
-std::string run(const std::string& command) {
-    std::string out;
-    if (FILE* p = ::popen(command.c_str(), "r")) {
-        std::array<char, 4096> buf{};
-        while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p))
-            out.append(buf.data(), n);
-        ::pclose(p);
-    }
-    return out;
-}
-
-std::string slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-bool have(const std::string& program) {
-    return std::system(("command -v " + program + " >/dev/null 2>&1").c_str()) == 0;
-}
-
-// A process whose standard output and error go to files; stopped with SIGTERM when it goes out of scope.
-class Child {
-  public:
-    Child(std::vector<std::string> args, const std::string& out, const std::string& err) {
-        std::vector<char*> argv;
-        for (auto& a : args)
-            argv.push_back(a.data());
-        argv.push_back(nullptr);
-        posix_spawn_file_actions_t actions;
-        posix_spawn_file_actions_init(&actions);
-        posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        spawned_ = ::posix_spawnp(&pid_, argv[0], &actions, nullptr, argv.data(), environ) == 0;
-        posix_spawn_file_actions_destroy(&actions);
-    }
-    ~Child() { stop(); }
-    Child(const Child&) = delete;
-    Child& operator=(const Child&) = delete;
-    bool spawned() const { return spawned_; }
-    void stop() {
-        if (!spawned_) return;
-        ::kill(pid_, SIGTERM);
-        int status = 0;
-        ::waitpid(pid_, &status, 0);
-        spawned_ = false;
-    }
-
-  private:
-    pid_t pid_ = 0;
-    bool spawned_ = false;
-};
-
-// Polls until `ready` holds, for at most five seconds.
-template <typename F>
-bool wait_for(F ready) {
-    for (int i = 0; i < 500; ++i) {
-        if (ready()) return true;
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return false;
-}
+using namespace mbscope::test;
 
 struct Session {
     std::string client;  // pymodbus's line
