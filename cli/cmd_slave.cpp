@@ -171,6 +171,12 @@ void register_slave(CLI::App& app, int& exit_code) {
         "pseudo-terminal)\n"
         "The address clients connect to is printed on stdout (the real port when PORT is 0, the pty's "
         "path).\n\n"
+        "Units (a multi-drop line is several devices on one endpoint):\n"
+        "  --unit 1=cth2265i --unit 2=mmk-2030 --unit 3   each unit with its own profile (3: --profile's)\n"
+        "  A unit no --unit names gets no reply, on every transport (the slave is no gateway). Unit 0 is\n"
+        "  the broadcast: every unit whose profile allows the function executes it, none replies. Over\n"
+        "  tcp with a single unit, unit 255 reaches it too (Modbus/TCP: the device is its IP address),\n"
+        "  and so does any unit when its manual says so (Walchem).\n\n"
         "Faults (--fault NAME[=ARG], repeatable, deterministic under --seed):\n" +
         slave::fault_help() +
         "\nExit codes: 0 stopped by SIGINT/SIGTERM, 2 could not start (bad option, profile, endpoint or "

@@ -5,68 +5,19 @@
 //    client sending garbage is disconnected without disturbing them.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <thread>
 
+#include "tests/slave/slave_process.hpp"
 #include "tests/slave/slave_test_support.hpp"
-
-extern char** environ;
 
 namespace mbscope::slave::test {
 namespace {
 
 namespace fs = std::filesystem;
-
-// `mbscope slave ...` with its stdout read for the address it prints first.
-class SlaveProcess {
-  public:
-    explicit SlaveProcess(std::vector<std::string> args) {
-        args.insert(args.begin(), {MBSCOPE_BINARY, "slave"});
-        std::vector<char*> argv;
-        for (auto& a : args)
-            argv.push_back(a.data());
-        argv.push_back(nullptr);
-        int out[2];
-        if (::pipe(out) != 0) return;
-        posix_spawn_file_actions_t actions;
-        posix_spawn_file_actions_init(&actions);
-        posix_spawn_file_actions_adddup2(&actions, out[1], 1);
-        posix_spawn_file_actions_addclose(&actions, out[0]);
-        spawned_ = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) == 0;
-        posix_spawn_file_actions_destroy(&actions);
-        ::close(out[1]);
-        // The first line: "tcp://127.0.0.1:PORT".
-        std::string line;
-        char ch;
-        pollfd p{out[0], POLLIN, 0};
-        while (spawned_ && ::poll(&p, 1, 10'000) > 0 && ::read(out[0], &ch, 1) == 1 && ch != '\n')
-            line += ch;
-        ::close(out[0]);
-        const auto colon = line.rfind(':');
-        if (colon != std::string::npos) port_ = static_cast<std::uint16_t>(std::stoi(line.substr(colon + 1)));
-    }
-    ~SlaveProcess() { kill(SIGTERM); }
-
-    std::uint16_t port() const noexcept { return port_; }
-    // Sends `sig` and reaps the process.
-    void kill(int sig) {
-        if (!spawned_ || pid_ <= 0) return;
-        ::kill(pid_, sig);
-        int status = 0;
-        ::waitpid(pid_, &status, 0);
-        pid_ = -1;
-    }
-
-  private:
-    pid_t pid_ = -1;
-    bool spawned_ = false;
-    std::uint16_t port_ = 0;
-};
 
 std::string mbap(std::uint16_t tid, std::string_view pdu_hex) {
     const auto pdu = bytes(pdu_hex);
