@@ -603,7 +603,10 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         else
             r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
                       std::to_string(pdu.error().offset);
-        expire(now_, false);
+        // Up to this frame's own time, not the capture's: a timed deframer closes a frame only when later
+        // bytes show the silence after it, so a request and its response read in one chunk come out when the
+        // next chunk arrives, which may be more than the timeout later.
+        expire(r.time, false);
         on_frame(flow, std::move(r));
     }
     events.clear();
@@ -774,8 +777,12 @@ void Analyzer::rtac_packet(const Packet& p) {
 }
 
 bool Analyzer::read_capture(CaptureSource& capture) {
-    while (auto p = capture.next())
+    constexpr std::uint64_t progress_every = 256;  // packets between two calls: the clock is not free
+    while (auto p = capture.next()) {
         packet(capture.name(), *p);
+        if (options_.progress && p->number % progress_every == 0)
+            options_.progress(summary_, capture.offset());
+    }
     if (!capture.error().empty()) {
         input_error(capture.error());
         return false;

@@ -8,6 +8,7 @@
 // captures.
 
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -45,6 +46,9 @@ struct AnalyzerOptions {
     std::optional<modbus::Direction> rtac_tx;
     // FC3/FC4 replies of devices without a profile also read as 32-bit values in this order.
     std::optional<modbus::WordOrder> word_order;
+    // Called every few hundred packets while a capture file is read, with the summary so far and the byte
+    // offset reached in that file (for a progress line); empty: not called.
+    std::function<void(const Summary&, std::uint64_t offset)> progress;
 };
 
 class Analyzer {

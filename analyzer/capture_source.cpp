@@ -59,6 +59,12 @@ int CaptureSource::linktype() const noexcept {
     return pcap_datalink(impl_->pcap);
 }
 
+std::uint64_t CaptureSource::offset() const noexcept {
+    FILE* file = pcap_file(impl_->pcap);
+    const long at = file ? std::ftell(file) : -1;
+    return at > 0 ? static_cast<std::uint64_t>(at) : 0;
+}
+
 std::optional<Packet> CaptureSource::next() {
     if (!error_.empty()) return std::nullopt;
     pcap_pkthdr* header = nullptr;

@@ -36,6 +36,8 @@ class CaptureSource {
     std::optional<Packet> next();
     const std::string& error() const noexcept { return error_; }
     int linktype() const noexcept;
+    // Byte offset in the file reached so far (the end of the last packet read).
+    std::uint64_t offset() const noexcept;
     const std::string& name() const noexcept { return name_; }
 
   private:

@@ -1,12 +1,15 @@
 // mbscope decode: captures in; frames, transactions, findings and a summary out.
 #include <unistd.h>
 
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "analyzer/analyzer.hpp"
 #include "analyzer/csv_sink.hpp"
+#include "analyzer/progress.hpp"
 #include "analyzer/serial_input.hpp"
 #include "analyzer/sinks.hpp"
 #include "cli/commands.hpp"
@@ -24,7 +27,7 @@ struct DecodeOptions {
     std::string user_dlt;
     std::string csv;
     std::string word_order;
-    bool json = false, jsonl = false, summary = false;
+    bool json = false, jsonl = false, summary = false, no_progress = false;
     double timeout_s = 3.0;
     std::string format = "auto";
     std::string profile;
@@ -120,6 +123,31 @@ int run_decode(const DecodeOptions& o) {
     for (auto& s : sinks)
         outputs.push_back(s.get());
     analyzer::TeeSink sink(outputs);
+
+    // A progress line on standard error, only for a person at a terminal: never into a file or a pipe, and
+    // not while records stream to the same terminal on standard output (they would tear the line).
+    const bool records_on_terminal = ::isatty(STDOUT_FILENO) && !o.summary && o.csv != "-";
+    std::optional<analyzer::ProgressMeter> meter;
+    analyzer::ProgressState progress;
+    if (!o.no_progress && ::isatty(STDERR_FILENO) && !records_on_terminal) {
+        meter.emplace(std::cerr);
+        for (const auto& f : o.files) {
+            std::error_code ec;
+            const auto size = std::filesystem::file_size(f, ec);
+            if (!ec) progress.total_bytes += size;
+        }
+    }
+    std::uint64_t files_done = 0;  // bytes of the files already read
+    const auto show = [&](const analyzer::Summary& s, std::uint64_t offset) {
+        progress.packets = s.packets;
+        progress.bytes_read = files_done + offset;
+        progress.frames = s.frames;
+        progress.findings = 0;
+        for (const auto& [code, n] : s.findings)
+            progress.findings += n;
+        meter->update(progress);
+    };
+    if (meter) options.progress = show;
     analyzer::Analyzer a(options, sink);
     bool all_read = true, any_read = false;
     const auto format = analyzer::parse_input_format(o.format);
@@ -132,7 +160,14 @@ int run_decode(const DecodeOptions& o) {
         const bool ok = analyzer::read_input(a, f, *format, logs);
         all_read &= ok;
         any_read |= ok || a.summary().packets > 0;
+        if (meter) {
+            std::error_code ec;
+            const auto size = std::filesystem::file_size(f, ec);
+            show(a.summary(), ec ? 0 : size);
+            files_done += ec ? 0 : size;
+        }
     }
+    if (meter) meter->clear();
     a.finish();
     for (const auto& e : a.summary().input_errors)
         std::cerr << "mbscope decode: " << e << '\n';
@@ -196,6 +231,9 @@ void register_decode(CLI::App& app, int& exit_code) {
     auto* jsonl = cmd->add_flag("--jsonl", o->jsonl,
                                 "One JSON object per line (frame, transaction, finding, unparsed, summary)");
     cmd->add_flag("--summary", o->summary, "Only the summary (the fastest path)");
+    cmd->add_flag("--no-progress", o->no_progress,
+                  "No progress line on standard error (shown only when it is a terminal and records do "
+                  "not stream to the same terminal)");
     cmd->add_option("--csv", o->csv,
                     "One CSV row per transaction (RFC 4180) to FILE, or to standard output with -");
     cmd->add_option("--word-order", o->word_order,
