@@ -664,7 +664,21 @@ void Analyzer::user_dlt_packet(const Packet& p) {
         return;
     }
     // Each record is a chunk of the line as the sniffer read it, stamped when its last byte arrived.
-    serial_bytes(serial_link(source_), *options_.user_dlt, p.data, p.time, Direction::Unknown);
+    auto bytes = p.data;
+    Direction hint = Direction::Unknown;
+    if (options_.user_dlt_direction) {
+        if (bytes.empty()) {
+            input_error(source_ + ": packet " + std::to_string(p.number) +
+                        ": empty record where a direction byte was expected (--user-dlt " +
+                        (*options_.user_dlt == Framing::Ascii ? "ascii" : "rtu") + "-dir)");
+            return;
+        }
+        if (bytes[0] == static_cast<std::uint8_t>(UserDltDirection::MasterToSlave)) hint = Direction::Request;
+        if (bytes[0] == static_cast<std::uint8_t>(UserDltDirection::SlaveToMaster))
+            hint = Direction::Response;
+        bytes = bytes.subspan(1);
+    }
+    serial_bytes(serial_link(source_), *options_.user_dlt, bytes, p.time, hint);
 }
 
 void Analyzer::exported_pdu(const Packet& p) {

@@ -26,6 +26,10 @@
 
 namespace mbscope::analyzer {
 
+// The direction pseudo-header of USER0..15 records with --user-dlt rtu-dir|ascii-dir: one byte ahead of the
+// line's bytes (in the manner of LINKTYPE_PPP_WITH_DIR and the other *_WITH_DIR link types).
+enum class UserDltDirection : std::uint8_t { MasterToSlave = 0, SlaveToMaster = 1 };
+
 struct AnalyzerOptions {
     std::vector<std::uint16_t> tcp_ports{502};
     std::vector<std::uint16_t> udp_ports{502};
@@ -41,6 +45,9 @@ struct AnalyzerOptions {
     // What link types USER0..USER15 (147-162) carry: they are private by definition, so only the user can
     // say. nullopt: such packets are not decoded (and the input says why once).
     std::optional<modbus::Framing> user_dlt;
+    // USER0..15 records start with a one-byte direction pseudo-header (UserDltDirection), as mbscope sniff
+    // writes two serial taps; other values of the byte leave the direction to the state machine.
+    bool user_dlt_direction = false;
     // SEL RTAC serial captures (link type 250): what the RTAC's TX bytes are, Request when it is the master
     // on that port, Response when it is the slave; nullopt: the request → response state machine decides.
     std::optional<modbus::Direction> rtac_tx;

@@ -39,6 +39,13 @@ std::string capture_filter(const SniffOptions& o) {
     return filter;
 }
 
+std::string pcap_output_name(const std::string& requested) {
+    constexpr std::string_view ng = ".pcapng";
+    if (requested.size() > ng.size() && requested.ends_with(ng))
+        return requested.substr(0, requested.size() - ng.size()) + ".pcap";
+    return requested;
+}
+
 struct LiveCapture::Impl {
     pcap_t* pcap = nullptr;  // network capture
     pcap_t* dead = nullptr;  // serial capture's output: a USER0 "capture" for pcap_dump_open
@@ -49,14 +56,23 @@ struct LiveCapture::Impl {
         if (pcap) pcap_close(pcap);
         if (dead) pcap_close(dead);
     }
-    void dump(Timestamp t, std::span<const std::uint8_t> bytes) {
+    bool direction_header = false;  // two serial taps: one byte of UserDltDirection ahead of each record
+    std::vector<std::uint8_t> record;
+    void dump(Timestamp t, std::span<const std::uint8_t> bytes, int port) {
         if (!dumper) return;
+        if (direction_header) {
+            record.assign(1, static_cast<std::uint8_t>(port == 0 ? UserDltDirection::MasterToSlave
+                                                                 : UserDltDirection::SlaveToMaster));
+            record.insert(record.end(), bytes.begin(), bytes.end());
+            bytes = record;
+        }
         pcap_pkthdr h{};
         h.ts.tv_sec = static_cast<time_t>(std::chrono::duration_cast<std::chrono::seconds>(t).count());
         h.ts.tv_usec = static_cast<suseconds_t>(
             std::chrono::duration_cast<std::chrono::microseconds>(t % std::chrono::seconds(1)).count());
         h.caplen = h.len = static_cast<bpf_u_int32>(bytes.size());
         pcap_dump(reinterpret_cast<u_char*>(dumper), &h, bytes.data());
+        pcap_dump_flush(dumper);  // a serial read is rare: the file is complete even if the process is killed
     }
 };
 
@@ -113,15 +129,17 @@ std::unique_ptr<LiveCapture> LiveCapture::open(const SniffOptions& o, std::strin
             m.serial[i] = std::move(fd.value());
         }
         m.dead = pcap_open_dead(147, snap_length);  // LINKTYPE_USER0: the line's bytes
+        m.direction_header = !o.serial2.empty();
         writer = m.dead;
     } else {
         error = "nothing to capture: give --interface or --serial";
         return nullptr;
     }
     if (!o.write.empty()) {
-        m.dumper = pcap_dump_open(writer, o.write.c_str());
+        c->written_ = pcap_output_name(o.write);
+        m.dumper = pcap_dump_open(writer, c->written_.c_str());
         if (!m.dumper) {
-            error = o.write + ": " + pcap_geterr(writer);
+            error = c->written_ + ": " + pcap_geterr(writer);
             return nullptr;
         }
     }
@@ -129,6 +147,10 @@ std::unique_ptr<LiveCapture> LiveCapture::open(const SniffOptions& o, std::strin
 }
 
 LiveCapture::~LiveCapture() = default;
+
+bool LiveCapture::direction_header() const noexcept {
+    return impl_->direction_header;
+}
 
 bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
     Impl& m = *impl_;
@@ -198,7 +220,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             const Timestamp t = wall_clock();
             const std::span<const std::uint8_t> bytes(buf, static_cast<std::size_t>(got));
             ++captured_;
-            m.dump(t, bytes);
+            m.dump(t, bytes, which[k]);
             a.serial(name_, bytes, t,
                      two ? (which[k] == 0 ? Direction::Request : Direction::Response) : Direction::Unknown);
         }

@@ -3,9 +3,13 @@
 // immediate mode, a BPF filter on the Modbus ports), or bytes from one or two serial ports read raw with
 // the host's clock, fed to the same Analyzer as files are, and optionally written to a capture file.
 //
-// libpcap writes classic pcap only (pcap_dump), whatever the file is called: the interface's link type for
-// network captures, USER0 (147) for serial bytes, one record a read, stamped when the read returned, which
-// `mbscope decode --user-dlt rtu` reads back. The direction of serial bytes is not kept in the file.
+// libpcap writes classic pcap only (pcap_dump; libpcap 1.10 has no pcapng writer): the interface's link type
+// for network captures, USER0 (147) for serial bytes, one record a read, stamped when the read returned. A
+// name ending in .pcapng is not honoured silently: the file is written under the same name ending in .pcap
+// (written() says which). One serial port: the records are the line's bytes, read back with
+// `mbscope decode --user-dlt rtu`. Two ports: each record starts with a one-byte direction pseudo-header
+// (UserDltDirection: 0 the first port, master to slave; 1 the second, slave to master), read back with
+// `--user-dlt rtu-dir` into the same directions.
 
 #include <atomic>
 #include <chrono>
@@ -26,13 +30,17 @@ struct SniffOptions {
     std::string serial;   // serial capture: the line, or the master's transmit line when serial2 is set
     std::string serial2;  // the slaves' transmit line (two taps of a full-duplex or RS-232 link)
     modbus::SerialLine line{};
-    std::string write;  // capture file to write (classic pcap), empty for none
+    std::string write;  // capture file to write (classic pcap), empty for none; .pcapng becomes .pcap
     std::optional<std::chrono::duration<double>> duration;  // stop after this long
     std::optional<std::uint64_t> count;                     // stop after this many packets or serial reads
 };
 
 // The filter for the options' ports: "tcp port 502 or udp port 502 ...".
 std::string capture_filter(const SniffOptions& options);
+
+// The name libpcap's output goes to for a requested name: FILE.pcapng becomes FILE.pcap (classic pcap is
+// all libpcap writes, and a .pcapng name would mislead every reader that trusts extensions).
+std::string pcap_output_name(const std::string& requested);
 
 class LiveCapture {
   public:
@@ -49,6 +57,10 @@ class LiveCapture {
     bool run(Analyzer& analyzer, const std::atomic<bool>& stop);
     std::uint64_t captured() const noexcept { return captured_; }
     const std::string& name() const noexcept { return name_; }
+    // The file being written (empty for none): the requested name, or with .pcapng replaced by .pcap.
+    const std::string& written() const noexcept { return written_; }
+    // True when serial records carry the direction pseudo-header (two ports).
+    bool direction_header() const noexcept;
 
   private:
     LiveCapture() = default;
@@ -56,6 +68,7 @@ class LiveCapture {
     std::unique_ptr<Impl> impl_;
     SniffOptions options_;
     std::string name_;
+    std::string written_;
     std::uint64_t captured_ = 0;
 };
 

@@ -17,24 +17,12 @@ using namespace mbscope::test;
 TEST(JpnevulatorPeer, LogOfTwoTapsDecodesIntoATransaction) {
     if (!have("jpnevulator") || !have("socat")) GTEST_SKIP() << "needs jpnevulator and socat";
     const std::string dir = ::testing::TempDir() + "jpnevulator_peer";
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    Child master_pair({"socat", "pty,raw,echo=0,link=" + dir + "/m1", "pty,raw,echo=0,link=" + dir + "/m2"},
-                      "/dev/null", dir + "/socat1.err");
-    Child slave_pair({"socat", "pty,raw,echo=0,link=" + dir + "/s1", "pty,raw,echo=0,link=" + dir + "/s2"},
-                     "/dev/null", dir + "/socat2.err");
-    ASSERT_TRUE(wait_for([&] {
-        return std::filesystem::exists(dir + "/m1") && std::filesystem::exists(dir + "/m2") &&
-               std::filesystem::exists(dir + "/s1") && std::filesystem::exists(dir + "/s2");
-    }));
-    // Held open to the end: a pty end closed makes socat stop relaying.
-    const int master_end = ::open((dir + "/m1").c_str(), O_RDWR | O_NOCTTY);
-    const int slave_end = ::open((dir + "/s1").c_str(), O_RDWR | O_NOCTTY);
-    ASSERT_GE(master_end, 0);
-    ASSERT_GE(slave_end, 0);
+    SocatTaps taps(dir);
+    ASSERT_TRUE(taps.ready());
+    const int master_end = taps.master_end, slave_end = taps.slave_end;
     const std::string log = dir + "/bus.log";
-    Child logger({"jpnevulator", "--read", "--timing-print", "--ascii", "--tty", dir + "/m2:master", "--tty",
-                  dir + "/s2:slave", "--file", log},
+    Child logger({"jpnevulator", "--read", "--timing-print", "--ascii", "--tty",
+                  taps.master_tap() + ":master", "--tty", taps.slave_tap() + ":slave", "--file", log},
                  "/dev/null", dir + "/jpnevulator.err");
     const auto request = bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45});
     const auto response = bytes({0x11, 0x03, 0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA});
@@ -44,8 +32,6 @@ TEST(JpnevulatorPeer, LogOfTwoTapsDecodesIntoATransaction) {
     ASSERT_EQ(::write(slave_end, response.data(), response.size()), 11);
     ASSERT_TRUE(wait_for([&] { return slurp(log).find("C8 BA") != std::string::npos; }));
     logger.stop();
-    ::close(master_end);
-    ::close(slave_end);
 
     Collect sink;
     an::Analyzer a({}, sink);

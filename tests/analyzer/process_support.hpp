@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -85,5 +86,42 @@ bool wait_for(F ready) {
     }
     return false;
 }
+
+// Two socat pty pairs standing for the two taps of a serial line, in a fresh directory: DIR/m1 <-> DIR/m2
+// (the master's transmit line) and DIR/s1 <-> DIR/s2 (the slaves'). The test writes into the m1 and s1
+// ends, held open to the end (a pty end closed makes socat stop relaying); the program under test reads m2
+// and s2. ready() is false when socat did not start or the ends could not be opened.
+class SocatTaps {
+  public:
+    explicit SocatTaps(const std::string& dir)
+        : dir_((std::filesystem::remove_all(dir), std::filesystem::create_directories(dir), dir)),
+          master_pair_({"socat", "pty,raw,echo=0,link=" + dir + "/m1", "pty,raw,echo=0,link=" + dir + "/m2"},
+                       "/dev/null", dir + "/socat1.err"),
+          slave_pair_({"socat", "pty,raw,echo=0,link=" + dir + "/s1", "pty,raw,echo=0,link=" + dir + "/s2"},
+                      "/dev/null", dir + "/socat2.err") {
+        if (!wait_for([&] {
+                return std::filesystem::exists(dir + "/m1") && std::filesystem::exists(dir + "/m2") &&
+                       std::filesystem::exists(dir + "/s1") && std::filesystem::exists(dir + "/s2");
+            }))
+            return;
+        master_end = ::open((dir + "/m1").c_str(), O_RDWR | O_NOCTTY);
+        slave_end = ::open((dir + "/s1").c_str(), O_RDWR | O_NOCTTY);
+    }
+    ~SocatTaps() {
+        if (master_end >= 0) ::close(master_end);
+        if (slave_end >= 0) ::close(slave_end);
+    }
+    SocatTaps(const SocatTaps&) = delete;
+    SocatTaps& operator=(const SocatTaps&) = delete;
+    bool ready() const { return master_end >= 0 && slave_end >= 0; }
+    std::string master_tap() const { return dir_ + "/m2"; }
+    std::string slave_tap() const { return dir_ + "/s2"; }
+
+    int master_end = -1, slave_end = -1;
+
+  private:
+    std::string dir_;
+    Child master_pair_, slave_pair_;
+};
 
 }  // namespace mbscope::test

@@ -153,11 +153,55 @@ TEST(Sniff, TwoSerialTapsGiveDirectionsAndAUserZeroFile) {
     EXPECT_TRUE(sink.transactions[0].response.has_value());
     EXPECT_EQ(sink.transactions[0].request.direction, mb::Direction::Request);
     EXPECT_TRUE(sink.findings.empty());
+    EXPECT_TRUE(capture->direction_header());
     capture.reset();
 
+    // Two taps: each USER0 record leads with its direction byte, and decodes into the same directions.
     an::AnalyzerOptions user0;
     user0.user_dlt = mb::Framing::Rtu;
+    user0.user_dlt_direction = true;
     const auto again = decode_file(o.write, user0);
     ASSERT_EQ(again->transactions.size(), 1u);
-    EXPECT_TRUE(again->transactions[0].response.has_value());
+    ASSERT_TRUE(again->transactions[0].response.has_value());
+    EXPECT_EQ(again->transactions[0].request.direction, mb::Direction::Request);
+    EXPECT_EQ(again->transactions[0].response->direction, mb::Direction::Response);
+    EXPECT_TRUE(again->findings.empty());
+}
+
+TEST(Sniff, PcapngNameIsWrittenAsPcap) {
+    EXPECT_EQ(an::pcap_output_name("plant.pcapng"), "plant.pcap");
+    EXPECT_EQ(an::pcap_output_name("/tmp/a.b/plant.pcap"), "/tmp/a.b/plant.pcap");
+    EXPECT_EQ(an::pcap_output_name("plant"), "plant");
+    EXPECT_EQ(an::pcap_output_name(".pcapng"), ".pcapng");
+}
+
+TEST(Sniff, OneSerialTapWritesPlainUserZeroRecords) {
+    int master = -1, slave = -1;
+    char path[64];
+    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
+    an::SniffOptions o;
+    o.serial = path;
+    o.write = ::testing::TempDir() + "sniff_one.pcapng";
+    std::string error;
+    bool denied = false;
+    auto capture = an::LiveCapture::open(o, error, denied);
+    ASSERT_TRUE(capture) << error;
+    EXPECT_EQ(capture->written(), ::testing::TempDir() + "sniff_one.pcap");
+    EXPECT_FALSE(capture->direction_header());
+    Collect sink;
+    an::Analyzer a({}, sink);
+    std::atomic<bool> stop{false};
+    std::thread sniffer([&] { capture->run(a, stop); });
+    ASSERT_EQ(::write(master, rtu_request.data(), rtu_request.size()), 8);
+    stop = true;
+    sniffer.join();
+    a.finish();
+    ::close(master);
+    ::close(slave);
+    capture.reset();
+    an::AnalyzerOptions user0;
+    user0.user_dlt = mb::Framing::Rtu;
+    const auto again = decode_file(::testing::TempDir() + "sniff_one.pcap", user0);
+    ASSERT_EQ(again->transactions.size(), 1u);
+    EXPECT_EQ(again->transactions[0].request.frame.unit_id(), 0x11);
 }

@@ -1,0 +1,130 @@
+#include "cli/analysis_options.hpp"
+
+#include <iostream>
+
+#include "analyzer/csv_sink.hpp"
+#include "cli/profile_json.hpp"
+#include "modbus/storage/profile_store.hpp"
+
+namespace mbscope::cli {
+
+void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
+    cmd.add_option("--tcp-port", o.tcp_ports, "Modbus/TCP server port besides 502 (repeatable)");
+    cmd.add_option("--udp-port", o.udp_ports, "Modbus/UDP server port besides 502 (repeatable)");
+    cmd.add_option("--baud", o.baud, "Serial line: baud rate (for t1.5/t3.5)")->capture_default_str();
+    cmd.add_option("--parity", o.parity, "Serial line: N, E or O")
+        ->check(CLI::IsMember({"N", "E", "O", "n", "e", "o", "none", "even", "odd"}))
+        ->capture_default_str();
+    cmd.add_option("--data-bits", o.data_bits, "Serial line: data bits")
+        ->check(CLI::Range(5, 8))
+        ->capture_default_str();
+    cmd.add_option("--stop-bits", o.stop_bits, "Serial line: stop bits")
+        ->check(CLI::Range(1, 2))
+        ->capture_default_str();
+    cmd.add_option("--timeout", o.timeout_s,
+                   "Seconds without a response before a request is reported unanswered")
+        ->capture_default_str();
+    auto* json = cmd.add_flag("--json", o.json, "One JSON document: every record, then the summary");
+    auto* jsonl = cmd.add_flag("--jsonl", o.jsonl,
+                               "One JSON object per line (frame, transaction, finding, unparsed, summary)");
+    json->excludes(jsonl);
+    cmd.add_flag("--summary", o.summary, "Only the summary (the fastest path)");
+    cmd.add_option("--csv", o.csv,
+                   "One CSV row per transaction (RFC 4180) to FILE, or to standard output with -");
+    cmd.add_option("--word-order", o.word_order,
+                   "Devices without a profile: read FC3/FC4 replies two registers at a time as u32 and "
+                   "float32 in this order (abcd = big-endian, cdab = registers swapped, badc, dcba)")
+        ->check(CLI::IsMember({"abcd", "badc", "cdab", "dcba"}));
+    cmd.add_option("--profile", o.profile, "Device profile for every device (see mbscope profile list)");
+    cmd.add_option("--map", o.maps, "Profile per device: UNIT=ID, IP=ID or IP:UNIT=ID (repeatable)");
+    cmd.add_option("--profile-dir", o.profile_dirs, "Extra directory of profile files (repeatable)");
+    cmd.add_option("--config", o.config, "Modular devices: CHANNEL=MAP (repeatable)");
+}
+
+namespace {
+
+// --profile ID for every device, --map SELECTOR=ID per device (SELECTOR: UNIT, IP or IP:UNIT).
+bool load_semantics(const AnalysisCliOptions& o, const std::string& command,
+                    analyzer::AnalyzerOptions& options) {
+    if (o.profile.empty() && o.maps.empty()) return true;
+    modbus::storage::ProfileStore store(profile_directories(o.profile_dirs));
+    modbus::ProfileConfig config;
+    for (const auto& kv : o.config) {
+        const auto eq = kv.find('=');
+        if (eq == std::string::npos) {
+            std::cerr << "mbscope " << command << ": --config takes CHANNEL=MAP, not '" << kv << "'\n";
+            return false;
+        }
+        config[kv.substr(0, eq)] = kv.substr(eq + 1);
+    }
+    auto semantics = std::make_shared<analyzer::Semantics>();
+    auto add = [&](const analyzer::DeviceSelector& selector, const std::string& id) {
+        auto p = store.load(id, config);
+        if (!p) {
+            for (const auto& e : p.error())
+                std::cerr << "mbscope " << command << ": " << modbus::to_string(e) << '\n';
+            return false;
+        }
+        semantics->add(selector, std::make_shared<const modbus::Profile>(std::move(p.value())));
+        return true;
+    };
+    if (!o.profile.empty() && !add({}, o.profile)) return false;
+    for (const auto& m : o.maps) {
+        const auto eq = m.find('=');
+        auto selector = eq == std::string::npos ? std::nullopt : analyzer::parse_selector(m.substr(0, eq));
+        if (!selector) {
+            std::cerr << "mbscope " << command << ": --map takes UNIT=ID, IP=ID or IP:UNIT=ID, not '" << m
+                      << "'\n";
+            return false;
+        }
+        if (!add(*selector, m.substr(eq + 1))) return false;
+    }
+    options.semantics = std::move(semantics);
+    return true;
+}
+
+}  // namespace
+
+bool apply_analysis_options(const AnalysisCliOptions& o, const std::string& command,
+                            analyzer::AnalyzerOptions& options) {
+    options.tcp_ports.insert(options.tcp_ports.end(), o.tcp_ports.begin(), o.tcp_ports.end());
+    options.udp_ports.insert(options.udp_ports.end(), o.udp_ports.begin(), o.udp_ports.end());
+    if (!o.word_order.empty()) options.word_order = modbus::parse_word_order(o.word_order);
+    options.timeout =
+        std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(o.timeout_s));
+    options.serial_line = {o.baud, static_cast<std::uint8_t>(o.data_bits), *modbus::parse_parity(o.parity),
+                           static_cast<std::uint8_t>(o.stop_bits)};
+    return load_semantics(o, command, options);
+}
+
+bool Outputs::open(const AnalysisCliOptions& o, const std::string& command) {
+    // --csv - takes standard output for itself; --csv FILE goes beside the usual output.
+    if (o.csv == "-" && (o.json || o.jsonl || o.summary)) {
+        std::cerr << "mbscope " << command
+                  << ": --csv - and --json, --jsonl or --summary all want standard output\n";
+        return false;
+    }
+    if (!o.csv.empty() && o.csv != "-") {
+        csv_file_.open(o.csv, std::ios::binary);
+        if (!csv_file_) {
+            std::cerr << "mbscope " << command << ": cannot write " << o.csv << '\n';
+            return false;
+        }
+    }
+    if (!o.csv.empty())
+        sinks_.push_back(std::make_unique<analyzer::CsvSink>(o.csv == "-" ? std::cout : csv_file_));
+    if (o.csv != "-") {
+        if (o.json || o.jsonl)
+            sinks_.push_back(std::make_unique<analyzer::JsonSink>(std::cout, o.jsonl));
+        else
+            sinks_.push_back(std::make_unique<analyzer::TextSink>(std::cout, o.summary));
+    }
+    records_on_stdout_ = !o.summary && !o.json;  // a JSON document is written at the end
+    std::vector<analyzer::Sink*> outputs;
+    for (auto& s : sinks_)
+        outputs.push_back(s.get());
+    tee_ = std::make_unique<analyzer::TeeSink>(outputs);
+    return true;
+}
+
+}  // namespace mbscope::cli

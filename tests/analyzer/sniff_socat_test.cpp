@@ -1,0 +1,91 @@
+// mbscope sniff as a process on two taps of a serial line: two socat pty pairs stand for the master's and
+// the slaves' transmit lines, the MK manual's FC3 exchange (000:356-370), an FC6 write with its echo and an
+// exception reply are written into their far ends, and sniff decodes them and writes them (--write
+// bus.pcapng, written as bus.pcap). The written file, decoded again with --user-dlt rtu-dir, must give the
+// same frames in the same directions and the same transactions. Skipped when socat is not installed.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "process_support.hpp"
+#include "test_packets.hpp"
+
+using namespace mbscope::test;
+
+namespace {
+
+// The frames and transactions of a --jsonl output, without what names the input (source, link, device)
+// and without times (sniff stamps in nanoseconds, the pcap file keeps microseconds).
+struct Records {
+    std::vector<nlohmann::json> frames, transactions;
+};
+Records records(const std::string& jsonl) {
+    Records r;
+    std::istringstream in(jsonl);
+    for (std::string line; std::getline(in, line);) {
+        auto j = nlohmann::json::parse(line, nullptr, false);
+        if (j.is_discarded()) continue;
+        if (j["type"] == "frame") {
+            r.frames.push_back(
+                {{"direction", j["direction"]}, {"raw", j["raw"]}, {"function", j.value("function", -1)}});
+        } else if (j["type"] == "transaction") {
+            r.transactions.push_back({{"request_frame", j["request_frame"]},
+                                      {"response_frame", j.value("response_frame", 0)},
+                                      {"unit_id", j["unit_id"]},
+                                      {"function", j["function"]},
+                                      {"exception_code", j.value("exception_code", 0)},
+                                      {"timeout", j.value("timeout", false)}});
+        }
+    }
+    return r;
+}
+
+}  // namespace
+
+TEST(SniffSocat, WrittenSessionDecodesToTheSameTransactions) {
+    if (!have("socat")) GTEST_SKIP() << "needs socat";
+    const std::string dir = ::testing::TempDir() + "sniff_socat";
+    SocatTaps taps(dir);
+    ASSERT_TRUE(taps.ready());
+    const int master_end = taps.master_end, slave_end = taps.slave_end;
+    const std::string written = dir + "/bus.pcap";
+    Child sniff({MBSCOPE_BINARY, "sniff", "--serial", dir + "/m2", "--serial2", dir + "/s2", "--baud",
+                 "19200", "--write", dir + "/bus.pcapng", "--jsonl"},
+                dir + "/sniff.jsonl", dir + "/sniff.err");
+    ASSERT_TRUE(wait_for([&] { return std::filesystem::exists(written); })) << slurp(dir + "/sniff.err");
+
+    const std::vector<std::pair<int, std::vector<std::uint8_t>>> line = {
+        {master_end, bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45})},
+        {slave_end, bytes({0x11, 0x03, 0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA})},
+        {master_end, bytes({0x11, 0x06, 0x00, 0x01, 0x00, 0x03, 0x9A, 0x9B})},
+        {slave_end, bytes({0x11, 0x06, 0x00, 0x01, 0x00, 0x03, 0x9A, 0x9B})},
+        {master_end, bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45})},
+        {slave_end, bytes({0x11, 0x83, 0x02, 0xC1, 0x34})},
+    };
+    // Each chunk written once sniff has recorded the one before (it flushes every serial record): the
+    // order of the two taps is the order on the line.
+    std::uintmax_t expected = 24;  // pcap file header
+    for (const auto& [fd, chunk] : line) {
+        ASSERT_EQ(::write(fd, chunk.data(), chunk.size()), static_cast<ssize_t>(chunk.size()));
+        expected += 16 + 1 + chunk.size();  // record header, direction byte, the bytes
+        ASSERT_TRUE(wait_for([&] { return std::filesystem::file_size(written) >= expected; }))
+            << slurp(dir + "/sniff.err");
+    }
+    sniff.stop();  // SIGTERM: sniff drains, prints its summary and closes the file
+
+    const std::string err = slurp(dir + "/sniff.err");
+    EXPECT_NE(err.find("libpcap writes classic pcap only: writing " + written), std::string::npos) << err;
+    EXPECT_NE(err.find("--user-dlt rtu-dir"), std::string::npos) << err;
+    const Records live = records(slurp(dir + "/sniff.jsonl"));
+    const Records again = records(run(std::string(MBSCOPE_BINARY) +
+                                      " decode --baud 19200 --user-dlt rtu-dir --jsonl '" + written + "'"));
+    ASSERT_EQ(live.frames.size(), 6u) << slurp(dir + "/sniff.jsonl");
+    ASSERT_EQ(live.transactions.size(), 3u);
+    EXPECT_EQ(live.frames, again.frames);
+    EXPECT_EQ(live.transactions, again.transactions);
+    for (std::size_t i = 0; i < live.frames.size(); ++i) {
+        EXPECT_EQ(live.frames[i]["direction"], i % 2 ? "response" : "request") << i;
+    }
+    EXPECT_EQ(live.transactions[2]["exception_code"], 2);
+}
