@@ -83,7 +83,9 @@ std::optional<CalendarTime> parse_calendar(std::string_view s, std::size_t& pos,
     const std::chrono::year_month_day ymd{std::chrono::year{*y},
                                           std::chrono::month{static_cast<unsigned>(*mo)},
                                           std::chrono::day{static_cast<unsigned>(*d)}};
-    if (!ymd.ok() || *h > 23 || *mi > 59 || *sec > 60) return std::nullopt;
+    // Timestamps are nanoseconds since 1970 in 64 bits: years past 2261 (or before 1970, which no logger
+    // writes) would overflow, so such a line is malformed rather than a time.
+    if (!ymd.ok() || *y < 1970 || *y > 2261 || *h > 23 || *mi > 59 || *sec > 60) return std::nullopt;
     CalendarTime t{std::chrono::sys_days{ymd} + std::chrono::hours(*h) + std::chrono::minutes(*mi) +
                        std::chrono::seconds(*sec),
                    {}};

@@ -180,8 +180,10 @@ json frame_to_json(const FrameRecord& f) {
 }
 
 void JsonSink::emit(json j) {
+    // Strings from a capture (a log line quoted in an input error, FC43 identification objects) need not be
+    // UTF-8: invalid bytes become U+FFFD instead of an exception that would end the run.
     if (lines_)
-        out_ << j.dump() << '\n';
+        out_ << j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
     else
         document_.push_back(std::move(j));
 }
@@ -303,7 +305,7 @@ void TeeSink::end(const Summary& summary) {
 
 void JsonSink::end(const Summary& s) {
     emit(summary_to_json(s));
-    if (!lines_) out_ << document_.dump(2) << '\n';
+    if (!lines_) out_ << document_.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
 }
 
 }  // namespace mbscope::analyzer

@@ -88,13 +88,17 @@ int run_check_command(const CheckCliOptions& o) {
     const auto report = conformance::run_check(*client, *profile, options, &stop_check);
     if (done) std::cerr << "\r\033[K";
     if (o.json)
-        std::cout << conformance::to_json(report).dump(2) << '\n';
+        std::cout << conformance::to_json(report).dump(2, ' ', false,
+                                                       nlohmann::json::error_handler_t::replace)
+                  << '\n';
     else
         conformance::write_text(std::cout, report, o.verbose);
     bool written = true;
     if (!o.report.empty())
-        written &= write_file(
-            o.report, [&](std::ostream& out) { out << conformance::to_json(report).dump(2) << '\n'; });
+        written &= write_file(o.report, [&](std::ostream& out) {
+            out << conformance::to_json(report).dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+                << '\n';
+        });
     if (!o.junit.empty())
         written &= write_file(o.junit, [&](std::ostream& out) { conformance::write_junit(out, report); });
     if (!o.html.empty())

@@ -194,7 +194,10 @@ int emit(const std::vector<DecodedFrame>& frames, bool json) {
         else if (!d.clean() && rc == exit_ok)
             rc = exit_findings;
     }
-    if (json) std::cout << (frames.size() == 1 ? all[0].dump(2) : all.dump(2)) << '\n';
+    if (json)
+        std::cout << (frames.size() == 1 ? all[0] : all)
+                         .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+                  << '\n';
     return rc;
 }
 

@@ -113,7 +113,7 @@ namespace {
 
 std::string value_text(const nlohmann::json& v) {
     if (v.is_string()) return v.get<std::string>();
-    return v.dump();
+    return v.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 void findings_of(const DecodedFrame& d, std::vector<FindingCode>& out) {

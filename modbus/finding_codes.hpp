@@ -29,6 +29,7 @@ enum class FindingCode : std::uint16_t {
     PduDeviceIdCodeInvalid = 110,
     PduFifoCountTooLarge = 111,
     PduMalformed = 112,
+    PduDiagnosticDataLength = 113,
     // rtu: serial line RTU framing (SL §2.5.1)
     RtuCrcMismatch = 200,
     RtuGapInsideFrame = 201,

@@ -119,6 +119,10 @@ Result<Pdu> decode_request_body(Pdu pdu, ByteReader& r) {
         if (!sub) return truncated(r);
         auto data = r.rest();
         if (!diagnostic_name(*sub)) pdu.violations.add(FindingCode::PduReservedSubFunction);
+        // AP §6.8.1: every sub-function but 00 (echo of any data) carries one 16-bit data field; 15 hex
+        // (Modbus Plus statistics) answers with more.
+        if (*sub != 0x00 && *sub != 0x15 && data.size() != 2)
+            pdu.violations.add(FindingCode::PduDiagnosticDataLength);
         pdu.body = Diagnostics{*sub, {data.begin(), data.end()}};
         return pdu;
     }
@@ -284,6 +288,10 @@ Result<Pdu> decode_response_body(Pdu pdu, ByteReader& r) {
         if (!sub) return truncated(r);
         auto data = r.rest();
         if (!diagnostic_name(*sub)) pdu.violations.add(FindingCode::PduReservedSubFunction);
+        // AP §6.8.1: every sub-function but 00 (echo of any data) carries one 16-bit data field; 15 hex
+        // (Modbus Plus statistics) answers with more.
+        if (*sub != 0x00 && *sub != 0x15 && data.size() != 2)
+            pdu.violations.add(FindingCode::PduDiagnosticDataLength);
         pdu.body = Diagnostics{*sub, {data.begin(), data.end()}};
         return pdu;
     }

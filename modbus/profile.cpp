@@ -349,6 +349,18 @@ std::optional<WriteRejection> check_word(const Profile& profile, const Point& p,
 
 }  // namespace
 
+std::optional<std::uint8_t> check_read(const Profile& profile, Table t, std::uint16_t start,
+                                       std::uint32_t quantity) {
+    const auto bad = exception_for(profile, "bad_address", 0x02);
+    if (start + quantity > 65536u) return bad;
+    if (profile.open_address_space) return std::nullopt;
+    if (!profile.implements(t) && !profile.implements(profile.resolve(t))) return bad;
+    const std::uint32_t checked = profile.functions.address_check == AddressCheck::First ? 1 : quantity;
+    for (std::uint32_t i = 0; i < checked; ++i)
+        if (!profile.find(t, static_cast<std::uint16_t>(start + i))) return bad;
+    return std::nullopt;
+}
+
 std::optional<WriteRejection> check_writes(const Profile& profile, Table table, std::uint16_t start,
                                            const std::vector<std::uint16_t>& values) {
     if (profile.open_address_space || values.empty()) return std::nullopt;

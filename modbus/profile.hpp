@@ -221,6 +221,13 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                                          const std::vector<std::uint16_t>& words,
                                          const std::map<std::uint16_t, std::uint16_t>& context = {});
 
+// Would the device accept reading `quantity` items from `start` in table `t` (FC1-FC4, FC23's read part)?
+// nullopt: yes; otherwise the profile's code for a bad address (02 unless the manual gives another): an
+// address past 65535, a table the device does not implement, or an address the map lacks (only the first
+// one when the manual says the device checks only that). The quantity itself is not judged here.
+std::optional<std::uint8_t> check_read(const Profile& profile, Table t, std::uint16_t start,
+                                       std::uint32_t quantity);
+
 // Would the device accept writing `value` at `address`? nullopt: yes; otherwise the exception code the
 // profile says it answers (02 for an address the map lacks or a read-only point where the manual gives
 // none, 03 for a value outside the documented range or enumeration).

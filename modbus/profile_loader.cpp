@@ -780,7 +780,7 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
     json doc;
     try {
         doc = json::parse(text.begin(), text.end());
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {  // parse_error, and out_of_range for a number too large (406)
         r.error("", std::string("not valid JSON: ") + e.what());
         return out;
     }

@@ -101,12 +101,19 @@ Reply Device::handle(const Request& request) {
     const std::uint8_t fc = request.pdu[0];
     const bool answer_broadcast = request.broadcast && faults_->fires(Fault::ReplyToBroadcast);
 
-    if (listen_only_) {  // AP §6.8.1 sub-function 04: only "restart communications" is acted upon
-        const bool restart = fc == 8 && request.pdu.size() >= 3 && request.pdu[1] == 0 && request.pdu[2] == 1;
-        if (!restart) {
+    // AP §6.8.1: in listen-only mode (sub-function 04) only "restart communications" (sub-function 01, data
+    // 0000 or FF00) is acted upon, and even it is not answered ("no response is returned").
+    if (listen_only_) {
+        const auto& p = request.pdu;
+        const bool restart =
+            fc == 8 && p.size() == 5 && p[1] == 0 && p[2] == 1 && (p[3] == 0 || p[3] == 0xFF) && p[4] == 0;
+        if (restart) {
+            listen_only_ = false;
+            counters_ = Counters{};
+        } else {
             ++counters_.no_response;
-            return reply;
         }
+        return reply;
     }
     // A broadcast runs only a write the profile allows in broadcast, and is never answered (SL §2.1).
     if (request.broadcast && !answer_broadcast) {
@@ -144,19 +151,6 @@ std::optional<std::uint8_t> Device::check_quantity(std::uint8_t fc, std::uint32_
         limit = std::max(limit, specification_max(fc, write_part));
     if (quantity == 0 || (limit > 0 && quantity > static_cast<std::uint32_t>(limit)))
         return modbus::exception_for(*profile_, "bad_quantity", exc_illegal_value);
-    return std::nullopt;
-}
-
-std::optional<std::uint8_t> Device::check_read_addresses(Table t, std::uint16_t start,
-                                                         std::uint32_t quantity) {
-    const auto bad = modbus::exception_for(*profile_, "bad_address", exc_illegal_address);
-    if (start + quantity > 65536u) return bad;
-    if (profile_->open_address_space) return std::nullopt;
-    if (!profile_->implements(t) && !profile_->implements(profile_->resolve(t))) return bad;
-    const std::uint32_t checked =
-        profile_->functions.address_check == modbus::AddressCheck::First ? 1 : quantity;
-    for (std::uint32_t i = 0; i < checked; ++i)
-        if (!profile_->find(t, static_cast<std::uint16_t>(start + i))) return bad;
     return std::nullopt;
 }
 
@@ -263,7 +257,7 @@ std::vector<std::uint8_t> Device::read_bits(const Pdu& req) {
     if (auto e = check_quantity(fc, r.quantity)) return exception(fc, *e);
     const Table t = fc == 1 ? Table::Coils : Table::DiscreteInputs;
     const std::uint16_t start = served(r.starting_address);
-    if (auto e = check_read_addresses(t, start, r.quantity)) return exception(fc, *e);
+    if (auto e = modbus::check_read(*profile_, t, start, r.quantity)) return exception(fc, *e);
     // AP §6.1: LSB of the first byte is the first bit; unused high bits stay zero.
     modbus::ReadBitsResponse bits;
     bits.values.assign((r.quantity + 7) / 8, 0);
@@ -281,7 +275,7 @@ std::vector<std::uint8_t> Device::read_registers(const Pdu& req) {
     if (auto e = check_quantity(fc, r.quantity)) return exception(fc, *e);
     const Table t = fc == 3 ? Table::HoldingRegisters : Table::InputRegisters;
     const std::uint16_t start = served(r.starting_address);
-    if (auto e = check_read_addresses(t, start, r.quantity)) return exception(fc, *e);
+    if (auto e = modbus::check_read(*profile_, t, start, r.quantity)) return exception(fc, *e);
     std::vector<std::uint16_t> words(r.quantity);
     for (std::uint32_t i = 0; i < r.quantity; ++i)
         words[i] = read_word(t, static_cast<std::uint16_t>(start + i));
@@ -365,7 +359,7 @@ std::vector<std::uint8_t> Device::read_write_multiple(const Pdu& req, bool& wrot
         return exception(23, exc_illegal_value);
     const std::uint16_t read_start = served(rw.read_starting_address);
     const std::uint16_t write_start = served(rw.write_starting_address);
-    if (auto e = check_read_addresses(Table::HoldingRegisters, read_start, rw.quantity_to_read))
+    if (auto e = modbus::check_read(*profile_, Table::HoldingRegisters, read_start, rw.quantity_to_read))
         return exception(23, *e);
     if (auto e = check_write_block(Table::HoldingRegisters, write_start, rw.write_values))
         return exception(23, *e);
@@ -395,10 +389,9 @@ std::vector<std::uint8_t> Device::diagnostics(const Pdu& req) {
                 for (auto& b : rsp.data)
                     b = static_cast<std::uint8_t>(~b);
             break;
-        case 0x01:  // restart communications option: leave listen-only mode, clear the counters
+        case 0x01:  // restart communications option (outside listen-only mode): clear the counters
             if (d.data.size() != 2 || (d.data[0] != 0x00 && d.data[0] != 0xFF) || d.data[1] != 0x00)
                 return exception(8, exc_illegal_value);
-            listen_only_ = false;
             counters_ = Counters{};
             break;
         case 0x02:

@@ -63,8 +63,6 @@ class Device {
     // Rules: nullopt passes, otherwise the exception code.
     std::optional<std::uint8_t> check_quantity(std::uint8_t fc, std::uint32_t quantity,
                                                bool write_part = false);
-    std::optional<std::uint8_t> check_read_addresses(modbus::Table t, std::uint16_t start,
-                                                     std::uint32_t quantity);
     std::optional<std::uint8_t> check_write_block(modbus::Table t, std::uint16_t start,
                                                   const std::vector<std::uint16_t>& values);
     std::uint16_t read_word(modbus::Table t, std::uint16_t address) const noexcept;

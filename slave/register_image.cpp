@@ -34,13 +34,15 @@ std::uint16_t RegisterImage::reg(Table t, std::uint16_t address) const noexcept 
     return words(t)[address];
 }
 void RegisterImage::set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept {
-    words(t)[address] = value;
+    auto& word = words(t)[address];
+    modifications_ += word != value;
+    word = value;
 }
 bool RegisterImage::bit(Table t, std::uint16_t address) const noexcept {
     return words(t)[address] != 0;
 }
 void RegisterImage::set_bit(Table t, std::uint16_t address, bool value) noexcept {
-    words(t)[address] = value ? 1 : 0;
+    set_reg(t, address, value ? 1 : 0);
 }
 
 std::uint32_t RegisterImage::u32(Table t, std::uint16_t address, modbus::WordOrder order) const noexcept {

@@ -33,6 +33,9 @@ class RegisterImage {
     // Every address whose value differs from the initial image, per table: what a state file keeps.
     std::map<Table, std::map<std::uint16_t, std::uint16_t>> changes() const;
     const modbus::Profile& profile() const noexcept { return *profile_; }
+    // How many stores changed a value since construction: equal counts mean an unchanged image (a cheap
+    // test of "this request changed nothing", the fuzz oracle's and the state file's question).
+    std::uint64_t modifications() const noexcept { return modifications_; }
 
   private:
     std::vector<std::uint16_t>& words(Table t) noexcept;
@@ -43,6 +46,7 @@ class RegisterImage {
     // Indexed by the resolved table's value; bits are kept one per word for simple, uniform storage.
     std::vector<std::uint16_t> tables_[5];
     std::vector<std::uint16_t> initial_[5];
+    std::uint64_t modifications_ = 0;
 };
 
 }  // namespace mbscope::slave

@@ -18,6 +18,7 @@
 #include "modbus/tcp_deframer.hpp"
 #include "modbus/transport/serial_port.hpp"
 #include "modbus/transport/socket.hpp"
+#include "slave/responder.hpp"
 #include "slave/state_file.hpp"
 
 namespace mbscope::slave {
@@ -53,13 +54,6 @@ struct Scheduled {
     std::vector<std::uint8_t> bytes;
 };
 
-// What a request frame carries, whatever its framing.
-struct Incoming {
-    std::uint8_t unit = 0;
-    std::span<const std::uint8_t> pdu;
-    std::uint16_t transaction_id = 0;
-};
-
 }  // namespace
 
 struct Server::Impl {
@@ -77,7 +71,7 @@ struct Server::Impl {
     std::map<std::uint64_t, Connection> connections;
     std::uint64_t next_id = 1;
     std::deque<Scheduled> scheduled;  // kept sorted by due time
-    std::uint64_t answered = 0;
+    Responder responder;
     Clock::time_point last_tick{};
 
     Impl(tp::Endpoint e, std::vector<Device*> u, FaultSet& f, ServerOptions o, ServerStats& s)
@@ -86,95 +80,17 @@ struct Server::Impl {
           faults(f),
           options(std::move(o)),
           stats(s),
-          framing(tp::framing_of(endpoint.scheme)) {}
+          framing(tp::framing_of(endpoint.scheme)),
+          responder(units, faults, framing, framing == Framing::Tcp && !tp::is_serial(endpoint.scheme),
+                    [this] { return save(); }) {}
 
     // ---- request → response
-
-    Device* route(std::uint8_t unit) {
-        for (Device* d : units)
-            if (d->unit() == unit) return d;
-        // Modbus/TCP: a device reached by its IP address answers unit 0xFF (TCP §4.4.1.2); Walchem answers
-        // every non-zero unit id (002:213-215).
-        if (framing == Framing::Tcp && !tp::is_serial(endpoint.scheme) && units.size() == 1 &&
-            (unit == 0xFF || units.front()->profile().line.any_unit_answered))
-            return units.front();
-        return nullptr;
-    }
 
     bool save() {
         if (options.state_file.empty()) return true;
         auto saved = save_state(options.state_file, units);
         if (!saved) std::fprintf(stderr, "mbscope slave: cannot save state: %s\n", saved.error().c_str());
         return bool(saved);
-    }
-
-    // The response PDU, or nothing when the request is not answered.
-    std::vector<std::uint8_t> answer(const Incoming& in) {
-        ++stats.requests;
-        if (faults.enabled(Fault::CrashAfter) &&
-            answered >= static_cast<std::uint64_t>(faults.arg(Fault::CrashAfter)))
-            return {};
-        std::vector<std::uint8_t> pdu;
-        if (in.unit == 0) {  // broadcast: every unit on the line executes it
-            bool wrote = false;
-            for (Device* d : units) {
-                if (d->unit() == 0) continue;  // address 0 configured: communication disabled (MK 000:220)
-                Reply r = d->handle({in.pdu, true});
-                wrote |= r.wrote;
-                if (pdu.empty()) pdu = std::move(r.pdu);  // only with reply-to-broadcast
-            }
-            if (wrote) save();
-        } else {
-            Device* d = route(in.unit);
-            if (!d || (d->unit() == 0)) return {};
-            Reply r = d->handle({in.pdu, false});
-            // An acknowledgement promises the write is kept: when it cannot be saved, the device says it
-            // failed (exception 04) instead.
-            if (r.wrote && !r.pdu.empty() && !save())
-                r.pdu = modbus::encode_pdu(modbus::make_exception(in.pdu[0], 0x04));
-            pdu = std::move(r.pdu);
-        }
-        if (pdu.empty()) return {};
-        if (faults.fires(Fault::NoReply)) return {};
-        ++answered;
-        if (faults.fires(Fault::WrongFunction))
-            pdu[0] = static_cast<std::uint8_t>((((pdu[0] & 0x7F) + 1) & 0x7F) | (pdu[0] & 0x80));
-        if (faults.fires(Fault::ShortResponse) && pdu.size() > 1) pdu.pop_back();
-        if (faults.fires(Fault::ExtraBytes)) pdu.insert(pdu.end(), {0xDE, 0xAD});
-        return pdu;
-    }
-
-    std::vector<std::uint8_t> frame(const Incoming& in, const std::vector<std::uint8_t>& pdu) {
-        const auto unit = static_cast<std::uint8_t>(faults.fires(Fault::WrongUnit) ? in.unit + 1 : in.unit);
-        switch (framing) {
-            case Framing::Tcp: {
-                const auto tid =
-                    static_cast<std::uint16_t>(in.transaction_id + (faults.fires(Fault::WrongTid) ? 1 : 0));
-                return modbus::encode_tcp(tid, unit, pdu, faults.fires(Fault::BadProtocolId) ? 1 : 0);
-            }
-            case Framing::Rtu: {
-                auto adu = modbus::encode_rtu(unit, pdu);
-                if (faults.fires(Fault::BadCrc)) {
-                    adu[adu.size() - 1] ^= 0xFF;
-                    adu[adu.size() - 2] ^= 0xFF;
-                }
-                return adu;
-            }
-            case Framing::Ascii: {
-                std::string text = modbus::encode_ascii(unit, pdu);
-                if (faults.fires(Fault::BadLrc) && text.size() >= 5) {
-                    // The two hex digits before CR LF are the LRC: replace them with LRC + 1.
-                    const unsigned lrc =
-                        static_cast<unsigned>(std::stoul(text.substr(text.size() - 4, 2), nullptr, 16));
-                    char hex[3];
-                    std::snprintf(hex, sizeof hex, "%02X", (lrc + 1) & 0xFF);
-                    text[text.size() - 4] = hex[0];
-                    text[text.size() - 3] = hex[1];
-                }
-                return {text.begin(), text.end()};
-            }
-        }
-        return {};
     }
 
     std::chrono::nanoseconds character_time() const { return endpoint.line.character_time(); }
@@ -243,17 +159,12 @@ struct Server::Impl {
     }
 
     void on_frame(std::uint64_t id, const modbus::Frame& f) {
-        for (Device* d : units)
-            d->count_frame(f.checksum_ok);
-        if (!f.checksum_ok) {
-            ++stats.bad_frames;  // SL §2.5.1.2: a frame with a bad CRC/LRC is not answered
-            return;
-        }
-        if (f.framing == Framing::Tcp && f.protocol_id() != 0) return;  // not Modbus (TCP §3.1.3): discarded
-        Incoming in{f.unit_id(), f.pdu(), f.framing == Framing::Tcp ? f.transaction_id() : std::uint16_t{0}};
-        auto pdu = answer(in);
-        if (pdu.empty()) return;
-        send(id, nullptr, 0, frame(in, pdu));
+        if (!f.checksum_ok)
+            ++stats.bad_frames;
+        else if (f.framing != Framing::Tcp || f.protocol_id() == 0)
+            ++stats.requests;
+        auto reply = responder.respond(f);
+        if (!reply.empty()) send(id, nullptr, 0, std::move(reply));
     }
 
     // ---- endpoints
@@ -469,11 +380,9 @@ struct Server::Impl {
                 ++stats.bad_frames;
                 continue;
             }
-            for (Device* d : units)
-                d->count_frame(true);
-            Incoming in{f->unit_id(), f->pdu(), f->transaction_id()};
-            auto pdu = answer(in);
-            if (!pdu.empty()) send(0, &peer, len, frame(in, pdu));
+            ++stats.requests;
+            auto reply = responder.respond(*f);
+            if (!reply.empty()) send(0, &peer, len, std::move(reply));
         }
     }
 

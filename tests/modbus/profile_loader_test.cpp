@@ -173,6 +173,10 @@ TEST(ProfileLoader, InvalidJsonAndOtherDocuments) {
     auto bad = load("{ \"format\": ");
     ASSERT_EQ(bad.errors.size(), 1u);
     EXPECT_NE(bad.errors[0].message.find("not valid JSON"), std::string::npos);
+    // A number too large for a double is nlohmann's out_of_range, not a parse_error: still an error record.
+    auto overflow = load("8888e8888");
+    ASSERT_EQ(overflow.errors.size(), 1u);
+    EXPECT_NE(overflow.errors[0].message.find("not valid JSON"), std::string::npos);
     auto schema = load(R"({"$schema": "https://json-schema.org/draft/2020-12/schema"})");
     EXPECT_FALSE(schema.is_profile);
     EXPECT_TRUE(schema.errors.empty());

@@ -47,7 +47,8 @@ TEST(Device, WriteFlagIsSetOnlyByAcceptedWrites) {
     EXPECT_TRUE(device.handle({bytes("05 00 01 FF 00"), true}).wrote);  // broadcast, executed
 }
 
-// AP §6.8.1: sub-function 04 silences the device until 01 restarts communications.
+// AP §6.8.1: sub-function 04 silences the device until 01 restarts communications; the restart itself is
+// not answered when it leaves listen-only mode ("no response is returned"), and is answered otherwise.
 TEST(Device, ListenOnlyModeAnswersNothingButRestart) {
     Device device(profile("modbus"), 1);
     EXPECT_EQ(ask(device, "08 00 04 00 00"), "");
@@ -55,8 +56,9 @@ TEST(Device, ListenOnlyModeAnswersNothingButRestart) {
     EXPECT_EQ(ask(device, "03 00 00 00 01"), "");
     EXPECT_EQ(ask(device, "06 00 00 12 34"), "");
     EXPECT_EQ(device.image().reg(Table::HoldingRegisters, 0), 0);
-    EXPECT_EQ(ask(device, "08 00 01 00 00"), "08 00 01 00 00");
+    EXPECT_EQ(ask(device, "08 00 01 00 00"), "");
     EXPECT_FALSE(device.listen_only());
+    EXPECT_EQ(ask(device, "08 00 01 00 00"), "08 00 01 00 00");
     EXPECT_EQ(ask(device, "03 00 00 00 01"), "03 02 00 00");
 }
 
