@@ -379,6 +379,10 @@ std::vector<std::uint8_t> Device::diagnostics(const Pdu& req) {
     if (std::find(supported.begin(), supported.end(), d.sub_function) == supported.end())
         return exception(8,
                          modbus::exception_for(*profile_, "fc8_unknown_sub_function", exc_illegal_function));
+    // Every sub-function but 00 carries one 16-bit data field (AP §6.8.1): other lengths are inconsistent
+    // data, exception 03.
+    if (req.violations.contains(modbus::FindingCode::PduDiagnosticDataLength))
+        return exception(8, exc_illegal_value);
     modbus::Diagnostics rsp = d;
     const auto counter = [&](std::uint16_t v) {
         rsp.data = {static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v)};

@@ -1,0 +1,502 @@
+#include "conformance/oracle.hpp"
+
+#include <algorithm>
+
+#include "conformance/context.hpp"
+#include "modbus/addressing.hpp"
+#include "modbus/adu.hpp"
+#include "modbus/pdu.hpp"
+
+namespace mbscope::conformance {
+
+namespace tp = modbus::transport;
+using modbus::Framing;
+using modbus::Table;
+
+std::string to_string(const OracleViolation& v) {
+    return v.rule + " (" + v.source + "): expected " + v.expected + ", observed " + v.observed;
+}
+
+struct ExchangeOracle::Request {
+    std::uint8_t unit = 0;
+    bool checksum_ok = true;
+    std::uint16_t protocol_id = 0;
+    std::vector<std::uint8_t> pdu;
+    std::optional<modbus::Pdu> decoded;  // nullopt: the structure could not be recovered
+};
+
+ExchangeOracle::ExchangeOracle(Framing framing, std::vector<Unit> units, bool ip_network)
+    : framing_(framing), units_(std::move(units)), ip_network_(ip_network) {}
+
+void ExchangeOracle::reset() {
+    listen_only_.clear();
+    written_.clear();
+}
+
+namespace {
+
+Table table_of_fc(std::uint8_t fc) {
+    return modbus::table_of_function(fc).value_or(Table::HoldingRegisters);
+}
+
+bool serial(Framing f) {
+    return f != Framing::Tcp;
+}
+
+std::string codes_text(const std::set<std::uint8_t>& codes) {
+    std::string out;
+    for (auto c : codes)
+        out += (out.empty() ? "" : " or ") + exception_text(c);
+    return out;
+}
+
+// The points the simulated process moves: their values are the process's, not the last write's.
+bool simulated(const modbus::Profile& p, Table t, std::uint16_t address) {
+    for (const auto& s : p.simulation.signals) {
+        if (s.hidden || p.resolve(s.point.table) != p.resolve(t)) continue;
+        const modbus::Point* point = p.find(s.point.table, s.point.address);
+        const int words = point ? point->encoding.words : 1;
+        if (address >= s.point.address && address < s.point.address + words) return true;
+    }
+    return false;
+}
+
+}  // namespace
+
+std::optional<ExchangeOracle::Request> ExchangeOracle::decode_sent(
+    const std::vector<std::uint8_t>& sent) const {
+    modbus::Result<modbus::Frame> frame = framing_ == Framing::Rtu     ? modbus::decode_rtu(sent)
+                                          : framing_ == Framing::Ascii ? modbus::decode_ascii(sent)
+                                                                       : modbus::decode_tcp(sent);
+    if (!frame) return std::nullopt;
+    Request r;
+    r.unit = frame->unit_id();
+    r.checksum_ok = frame->checksum_ok;
+    r.protocol_id = framing_ == Framing::Tcp ? frame->protocol_id() : 0;
+    const auto pdu = frame->pdu();
+    r.pdu.assign(pdu.begin(), pdu.end());
+    if (auto d = modbus::decode_request(r.pdu); d) r.decoded = std::move(d).value();
+    return r;
+}
+
+const ExchangeOracle::Unit* ExchangeOracle::route(std::uint8_t unit) const {
+    for (const Unit& u : units_)
+        if (u.id == unit) return &u;
+    if (ip_network_ && units_.size() == 1 && (unit == 0xFF || units_.front().profile->line.any_unit_answered))
+        return &units_.front();
+    return nullptr;
+}
+
+ExchangeOracle::Expected ExchangeOracle::expect(const Request& r) const {
+    Expected e;
+    const auto silence = [&](const char* rule, const char* source) {
+        e.silence = true;
+        e.rule = rule;
+        e.source = source;
+        return e;
+    };
+    if (!r.checksum_ok) return silence("silence.bad_checksum", "SL §2.5.1.2");
+    if (r.protocol_id != 0) return silence("silence.protocol_id", "TCP §3.1.3");
+    if (r.pdu.empty()) return silence("silence.empty_pdu", "AP §4.1");
+    if (r.unit == 0) {
+        // A broadcast on a serial line is never answered (SL §2.1); over Modbus/TCP unit 0 is not a broadcast
+        // address and the specification leaves the answer to the device.
+        if (serial(framing_)) return silence("silence.broadcast", "SL §2.1");
+        e.judged = false;
+        return e;
+    }
+    const Unit* u = route(r.unit);
+    if (!u) {
+        if (serial(framing_)) return silence("silence.other_unit", "SL §2.1");
+        // A Modbus/TCP device that does not serve the unit id: silence, or a gateway's exceptions 0A/0B.
+        e.silence = true;
+        e.exceptions = {0x0A, 0x0B};
+        e.rule = "reply.other_unit";
+        e.source = "TCP §4.4.1.2";
+        return e;
+    }
+    if (listen_only_.count(u->id)) {
+        // Only "restart communications" acts, and even it is not answered (AP §6.8.1 sub-function 01).
+        const auto& q = r.pdu;
+        const bool restart =
+            q.size() == 5 && q[0] == 8 && q[1] == 0 && q[2] == 1 && (q[3] == 0 || q[3] == 0xFF) && q[4] == 0;
+        return silence(restart ? "silence.restart_from_listen_only" : "silence.listen_only", "AP §6.8.1");
+    }
+    return expect_pdu(r, *u->profile);
+}
+
+ExchangeOracle::Expected ExchangeOracle::expect_pdu(const Request& r, const modbus::Profile& p) const {
+    Expected e;
+    const std::uint8_t fc = r.pdu[0];
+    const auto refuse = [&](std::uint8_t code, const char* rule, const char* source) {
+        e.exceptions = {code};
+        e.rule = rule;
+        e.source = source;
+        return e;
+    };
+    if ((fc & 0x80) != 0 || !p.functions.supports(fc))
+        return refuse(modbus::exception_for(p, "unsupported_function", 0x01), "reply.unsupported_function",
+                      "AP §7 (exception 01)");
+    // The structure cannot be recovered: the data are inconsistent with the function (AP §7, code 03).
+    if (!r.decoded) return refuse(0x03, "reply.malformed_request", "AP §7 (exception 03)");
+    const modbus::Pdu& req = *r.decoded;
+    const auto bad_quantity = [&](std::uint32_t q, bool write_part = false) {
+        const int max = p.functions.max_for(fc, write_part);
+        return q == 0 || (max > 0 && q > static_cast<std::uint32_t>(max));
+    };
+    const std::uint8_t quantity_code = modbus::exception_for(p, "bad_quantity", 0x03);
+    const bool byte_count_wrong = req.violations.contains(modbus::FindingCode::PduByteCountMismatch);
+    const auto write_check = [&](Table t, std::uint16_t start, const std::vector<std::uint16_t>& values) {
+        if (start + values.size() > 65536u)
+            return refuse(modbus::exception_for(p, "bad_address", 0x02), "reply.address",
+                          "AP §6 (exception 02)");
+        if (auto rej = modbus::check_writes(p, t, start, values))
+            return refuse(rej->exception_code, "reply.rejected_write", "profile ranges and access");
+        e.normal = true;
+        // A limit held in another register (MK-RNG-02) depends on the image: 03 may also be right.
+        for (std::size_t i = 0; i < values.size(); ++i)
+            if (const auto* pt = p.find(t, static_cast<std::uint16_t>(start + i));
+                pt && (pt->min_from || pt->max_from))
+                e.exceptions.insert(modbus::exception_for(p, "bad_value", 0x03));
+        return e;
+    };
+    switch (fc) {
+        case 1:
+        case 2:
+        case 3:
+        case 4: {
+            const auto& rr = std::get<modbus::ReadRequest>(req.body);
+            if (bad_quantity(rr.quantity))
+                return refuse(quantity_code, "reply.quantity", "AP §6 (exception 03)");
+            if (auto code = modbus::check_read(p, table_of_fc(fc), rr.starting_address, rr.quantity))
+                return refuse(*code, "reply.address", "AP §6 (exception 02)");
+            e.normal = true;
+            return e;
+        }
+        case 5: {
+            const auto& w = std::get<modbus::WriteSingle>(req.body);
+            if (w.value != 0xFF00 && w.value != 0x0000) return refuse(0x03, "reply.coil_value", "AP §6.5");
+            return write_check(Table::Coils, w.address, {static_cast<std::uint16_t>(w.value ? 1 : 0)});
+        }
+        case 6: {
+            const auto& w = std::get<modbus::WriteSingle>(req.body);
+            return write_check(Table::HoldingRegisters, w.address, {w.value});
+        }
+        case 15: {
+            const auto& w = std::get<modbus::WriteMultipleCoilsRequest>(req.body);
+            if (bad_quantity(w.quantity)) return refuse(quantity_code, "reply.quantity", "AP §6.11");
+            if (byte_count_wrong || w.values.size() * 8 < w.quantity)
+                return refuse(0x03, "reply.byte_count", "AP §6.11");
+            std::vector<std::uint16_t> values(w.quantity);
+            for (std::size_t i = 0; i < w.quantity; ++i)
+                values[i] = modbus::bit_at(w.values, i) ? 1 : 0;
+            return write_check(Table::Coils, w.starting_address, values);
+        }
+        case 16: {
+            const auto& w = std::get<modbus::WriteMultipleRegistersRequest>(req.body);
+            if (bad_quantity(w.quantity)) return refuse(quantity_code, "reply.quantity", "AP §6.12");
+            if (byte_count_wrong || w.values.size() != w.quantity)
+                return refuse(0x03, "reply.byte_count", "AP §6.12");
+            return write_check(Table::HoldingRegisters, w.starting_address, w.values);
+        }
+        case 8: {
+            const auto& d = std::get<modbus::Diagnostics>(req.body);
+            const auto& subs = p.functions.diagnostics;
+            if (std::find(subs.begin(), subs.end(), d.sub_function) == subs.end())
+                return refuse(modbus::exception_for(p, "fc8_unknown_sub_function", 0x01), "reply.diagnostics",
+                              "AP §6.8");
+            if (req.violations.contains(modbus::FindingCode::PduDiagnosticDataLength))
+                return refuse(0x03, "reply.diagnostics", "AP §6.8.1 (one data field)");
+            if (d.sub_function == 0x04) {  // force listen only mode: no response (AP §6.8.1)
+                e.silence = true;
+                e.rule = "silence.listen_only";
+                e.source = "AP §6.8.1";
+                return e;
+            }
+            e.normal = true;
+            if (d.sub_function != 0x00) e.exceptions = {0x03};  // the sub-function's data may be refused
+            return e;
+        }
+        default:
+            // Functions whose outcome depends on what the oracle does not model (event logs, FIFOs, file
+            // records, identification objects): any reply of the right form.
+            e.normal = true;
+            e.exceptions = {0x01, 0x02, 0x03, 0x04};
+            return e;
+    }
+}
+
+void ExchangeOracle::check_normal_shape(const Request& r, const modbus::Pdu& reply,
+                                        std::vector<OracleViolation>& out) const {
+    const auto bad = [&](const char* rule, const char* source, std::string expected) {
+        out.push_back({rule, source, std::move(expected), "a response that differs"});
+    };
+    if (!r.decoded) return;
+    const modbus::Pdu& req = *r.decoded;
+    const std::uint8_t fc = req.function_code();
+    const auto echo_of_request = [&] {
+        if (modbus::encode_pdu(reply) != r.pdu) bad("reply.echo", "AP §6", "an echo of the request");
+    };
+    switch (fc) {
+        case 1:
+        case 2: {
+            const auto& rr = std::get<modbus::ReadRequest>(req.body);
+            const auto* bits = std::get_if<modbus::ReadBitsResponse>(&reply.body);
+            if (!bits || bits->values.size() != (rr.quantity + 7u) / 8u)
+                bad("reply.byte_count", "AP §6.1", std::to_string((rr.quantity + 7) / 8) + " data bytes");
+            break;
+        }
+        case 3:
+        case 4: {
+            const auto& rr = std::get<modbus::ReadRequest>(req.body);
+            const auto* regs = std::get_if<modbus::ReadRegistersResponse>(&reply.body);
+            if (!regs || regs->values.size() != rr.quantity)
+                bad("reply.byte_count", "AP §6.3", std::to_string(rr.quantity) + " registers");
+            break;
+        }
+        case 5:
+        case 6:
+        case 22:
+            echo_of_request();
+            break;
+        case 8:
+            if (std::get<modbus::Diagnostics>(req.body).sub_function == 0) echo_of_request();
+            break;
+        case 15:
+        case 16: {
+            const auto* w = std::get_if<modbus::WriteMultipleResponse>(&reply.body);
+            const auto [start, quantity] =
+                fc == 15
+                    ? std::pair{std::get<modbus::WriteMultipleCoilsRequest>(req.body).starting_address,
+                                std::get<modbus::WriteMultipleCoilsRequest>(req.body).quantity}
+                    : std::pair{std::get<modbus::WriteMultipleRegistersRequest>(req.body).starting_address,
+                                std::get<modbus::WriteMultipleRegistersRequest>(req.body).quantity};
+            if (!w || w->starting_address != start || w->quantity != quantity)
+                bad("reply.echo", "AP §6.11-6.12", "the request's starting address and quantity");
+            break;
+        }
+        case 23: {
+            const auto& rw = std::get<modbus::ReadWriteMultipleRequest>(req.body);
+            const auto* regs = std::get_if<modbus::ReadRegistersResponse>(&reply.body);
+            if (!regs || regs->values.size() != rw.quantity_to_read)
+                bad("reply.byte_count", "AP §6.17", std::to_string(rw.quantity_to_read) + " registers");
+            break;
+        }
+        default:
+            break;
+    }
+}
+
+bool ExchangeOracle::tracked(const modbus::Profile& p, Table t, std::uint16_t address) const {
+    if (simulated(p, t, address)) return false;
+    if (p.coils_view_registers && t == Table::Coils) return false;  // views of registers: tracked there
+    if (p.open_address_space) return true;
+    const modbus::Point* point = p.find(t, address);
+    return point && !point->reserved && point->access == modbus::Access::ReadWrite && !point->fixed_value;
+}
+
+void ExchangeOracle::forget_written(const Request& r) {
+    // Writes the oracle does not model (mask write, FC23, broadcasts): the addresses they touch are unknown.
+    if (!r.decoded) return;
+    const Unit* u = route(r.unit);
+    std::erase_if(written_, [&](const auto& kv) { return !u || std::get<0>(kv.first) == u->id; });
+}
+
+void ExchangeOracle::learn(const Request& r, const modbus::Pdu& reply) {
+    const Unit* u = route(r.unit);
+    if (!u || !r.decoded || reply.is_exception()) return;
+    const modbus::Profile& p = *u->profile;
+    const modbus::Pdu& req = *r.decoded;
+    const std::uint8_t fc = req.function_code();
+    const auto key = [&](Table t, std::uint32_t address) {
+        return ShadowKey{u->id, static_cast<int>(p.resolve(t)), static_cast<std::uint16_t>(address)};
+    };
+    const auto remember = [&](Table t, std::uint16_t start, const std::vector<std::uint16_t>& values) {
+        for (std::size_t i = 0; i < values.size(); ++i) {
+            const auto address = static_cast<std::uint16_t>(start + i);
+            const modbus::Point* point = p.open_address_space ? nullptr : p.find(t, address);
+            // Half of a 32-bit value written alone: the device may keep the pair consistent its own way.
+            const bool whole = !point || point->encoding.words == 1 ||
+                               (point->address >= start && point->address + 1u < start + values.size());
+            if (tracked(p, t, address) && whole)
+                written_[key(t, address)] = values[i];
+            else
+                written_.erase(key(t, address));
+            // Walchem: a coil write sets the register at its address to 1 or 0 (002:244, 493).
+            if (t == Table::Coils && p.coils_view_registers)
+                written_.erase(key(Table::HoldingRegisters, address));
+        }
+    };
+    switch (fc) {
+        case 1:
+        case 2:
+        case 3:
+        case 4:
+        case 23: {
+            if (fc == 23) {
+                forget_written(r);
+                return;
+            }
+            return;
+        }
+        case 5: {
+            const auto& w = std::get<modbus::WriteSingle>(req.body);
+            remember(Table::Coils, w.address, {static_cast<std::uint16_t>(w.value ? 1 : 0)});
+            return;
+        }
+        case 6: {
+            const auto& w = std::get<modbus::WriteSingle>(req.body);
+            remember(Table::HoldingRegisters, w.address, {w.value});
+            return;
+        }
+        case 15: {
+            const auto& w = std::get<modbus::WriteMultipleCoilsRequest>(req.body);
+            std::vector<std::uint16_t> values(w.quantity);
+            for (std::size_t i = 0; i < w.quantity; ++i)
+                values[i] = modbus::bit_at(w.values, i) ? 1 : 0;
+            remember(Table::Coils, w.starting_address, values);
+            return;
+        }
+        case 16: {
+            const auto& w = std::get<modbus::WriteMultipleRegistersRequest>(req.body);
+            remember(Table::HoldingRegisters, w.starting_address, w.values);
+            return;
+        }
+        case 8:
+            if (std::get<modbus::Diagnostics>(req.body).sub_function == 0x01) listen_only_.erase(u->id);
+            return;
+        case 22:
+            forget_written(r);
+            return;
+        default:
+            return;
+    }
+}
+
+std::vector<OracleViolation> ExchangeOracle::judge(const tp::Exchange& ex,
+                                                   std::optional<bool> state_changed) {
+    std::vector<OracleViolation> out;
+    const auto r = decode_sent(ex.sent);
+    if (!r) return out;  // not a frame: nothing the rules say about it
+    // Unit 0: a broadcast on a serial line, and executed as one by many Modbus/TCP devices (the reference
+    // slave among them) though TCP does not define it: what it may have written is no longer known.
+    if (r->unit == 0 && r->decoded) written_.clear();
+    const Expected e = expect(*r);
+    if (!e.judged) return out;
+    const bool silent = ex.received.empty();
+    const std::string observed = describe(ex);
+    const auto fail = [&](std::string rule, std::string source, std::string expected) {
+        out.push_back({std::move(rule), std::move(source), std::move(expected), observed});
+    };
+    const Unit* u = route(r->unit);
+    const bool is_listen_only_request =
+        e.silence && e.rule == "silence.listen_only" && u && !listen_only_.count(u->id);
+
+    if (silent) {
+        if (!e.silence) fail("reply.missing", "AP §4.1, SL §2.1", "a reply");
+        if (is_listen_only_request) listen_only_.insert(u->id);
+        // A restart that leaves listen-only mode is not answered (AP §6.8.1).
+        if (u && listen_only_.count(u->id) && e.rule != "silence.listen_only") listen_only_.erase(u->id);
+        if (state_changed.value_or(false) && !(r->unit == 0 && r->decoded && r->checksum_ok))
+            fail("state.changed_without_reply", "AP §4.1", "no change of the device's registers");
+        return out;
+    }
+    const auto pdu = response_pdu(ex);
+    const bool exception_allowed_silence = e.silence && !e.exceptions.empty();
+    if (e.silence && !exception_allowed_silence) {
+        fail(e.rule, e.source, "no reply");
+        return out;
+    }
+    if (!ex.response) {
+        fail("reply.unframed", "AP §4.1", "a reply framed like the request");
+        return out;
+    }
+    if (!ex.response->checksum_ok) {
+        fail("reply.checksum", framing_ == Framing::Ascii ? "SL §2.5.2.2" : "SL §2.5.1.2",
+             "a reply with a valid checksum");
+        return out;
+    }
+    if (const auto envelope = envelope_fault(ex); !envelope.empty()) {
+        fail("reply.envelope", framing_ == Framing::Tcp ? "TCP §3.1.3" : "SL §2.1",
+             "the request's transaction, protocol and unit identifiers");
+        return out;
+    }
+    const auto bytes = ex.response->pdu();
+    if (bytes.empty() || (bytes[0] & 0x7F) != (r->pdu[0] & 0x7F)) {
+        fail("reply.function", "AP §4.1", "a reply to function " + std::to_string(r->pdu[0] & 0x7F));
+        return out;
+    }
+    // Notes and warnings (a function code that is not public, an exception code the specification does not
+    // define) are not malformations; the exception code is judged below.
+    const bool malformed = !pdu || std::any_of(pdu->violations.begin(), pdu->violations.end(), [](auto code) {
+        return modbus::info(code).severity == modbus::Severity::Error;
+    });
+    if (malformed) {
+        fail("reply.malformed", "AP §6", "a well-formed reply");
+        return out;
+    }
+    if (ex.received.size() > ex.response->wire_length)
+        fail("reply.trailing_bytes", "AP §4.1", "nothing after the reply");
+    if (pdu->is_exception()) {
+        const auto code = std::get<modbus::ExceptionResponse>(pdu->body).exception_code;
+        if (!e.exceptions.count(code)) {
+            const std::string expected =
+                e.normal ? (e.exceptions.empty() ? "a normal response"
+                                                 : "a normal response or " + codes_text(e.exceptions))
+                         : codes_text(e.exceptions);
+            fail(e.normal ? "reply.exception_for_valid" : e.rule, e.normal ? "AP §4.1" : e.source, expected);
+        }
+        if (state_changed.value_or(false))
+            fail("state.changed_on_exception", "AP §7", "no change of the device's registers");
+        return out;
+    }
+    if (!e.normal) {
+        fail(e.rule, e.source, codes_text(e.exceptions));
+        return out;
+    }
+    check_normal_shape(*r, *pdu, out);
+    // Values written with an acknowledgement read back as written.
+    if (u && r->decoded) {
+        const modbus::Pdu& req = *r->decoded;
+        const std::uint8_t fc = req.function_code();
+        if (fc >= 1 && fc <= 4) {
+            const auto& rr = std::get<modbus::ReadRequest>(req.body);
+            const modbus::Profile& p = *u->profile;
+            const Table t = table_of_fc(fc);
+            for (std::uint32_t i = 0; i < rr.quantity; ++i) {
+                const auto address = static_cast<std::uint16_t>(rr.starting_address + i);
+                const auto it = written_.find(ShadowKey{u->id, static_cast<int>(p.resolve(t)), address});
+                if (it == written_.end()) continue;
+                std::uint16_t got = 0;
+                if (const auto* regs = std::get_if<modbus::ReadRegistersResponse>(&pdu->body)) {
+                    if (i >= regs->values.size()) break;
+                    got = regs->values[i];
+                } else if (const auto* bits = std::get_if<modbus::ReadBitsResponse>(&pdu->body)) {
+                    if (i / 8 >= bits->values.size()) break;
+                    got = modbus::bit_at(bits->values, i) ? 1 : 0;
+                }
+                if (got != it->second) {
+                    out.push_back({"state.lost_write", "AP §6.6, §6.12 (a write acknowledged is done)",
+                                   "address " + std::to_string(address) + " reads " +
+                                       std::to_string(it->second) + ", the value written",
+                                   "it reads " + std::to_string(got)});
+                    break;
+                }
+            }
+        }
+    }
+    learn(*r, *pdu);
+    return out;
+}
+
+std::string ExchangeOracle::expectation(const std::vector<std::uint8_t>& sent) const {
+    const auto r = decode_sent(sent);
+    if (!r) return "";
+    const Expected e = expect(*r);
+    if (!e.judged) return "";
+    if (e.silence) return e.exceptions.empty() ? "no reply" : "no reply or " + codes_text(e.exceptions);
+    if (!e.normal) return codes_text(e.exceptions);
+    return e.exceptions.empty() ? "a normal response" : "a normal response or " + codes_text(e.exceptions);
+}
+
+}  // namespace mbscope::conformance
