@@ -226,7 +226,7 @@ std::vector<Field> describe_pdu(const Pdu& pdu) {
                                : (is_user_defined_function(pdu.function_code()) ? "user-defined"
                                   : is_reserved_function(pdu.function_code())   ? "reserved"
                                                                                 : "unassigned");
-    if (pdu.is_exception()) meaning += " (exception)";
+    if ((pdu.function_raw & exception_bit) != 0) meaning += " (exception)";
     out.push_back(Field{"function_code", pdu.function_raw, meaning});
     std::visit(Describer{pdu, out}, pdu.body);
     return out;

@@ -240,7 +240,7 @@ Result<Pdu> decode_device_id_response(Pdu pdu, ByteReader& r) {
 
 Result<Pdu> decode_response_body(Pdu pdu, ByteReader& r) {
     const std::uint8_t fc = pdu.function_code();
-    if (pdu.is_exception()) {
+    if ((pdu.function_raw & exception_bit) != 0) {
         auto code = r.u8();
         if (!code) return truncated(r);
         if (!exception_name(*code)) pdu.violations.add(FindingCode::PduUnknownExceptionCode);
@@ -391,7 +391,7 @@ Result<Pdu> decode_request(std::span<const std::uint8_t> bytes) noexcept {
     Pdu pdu;
     pdu.function_raw = *fc;
     pdu.direction = Direction::Request;
-    if (pdu.is_exception()) {  // requests never carry the exception bit: keep it raw
+    if ((pdu.function_raw & exception_bit) != 0) {  // requests never carry the exception bit: keep it raw
         pdu.violations.add(FindingCode::PduUnknownFunction);
         auto data = r.rest();
         pdu.body = RawPdu{{data.begin(), data.end()}};

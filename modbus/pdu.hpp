@@ -196,7 +196,9 @@ struct Pdu {
     FindingList violations;  // rules of the specification this PDU breaks (empty for encoders' output)
 
     std::uint8_t function_code() const noexcept { return function_raw & 0x7F; }
-    bool is_exception() const noexcept { return (function_raw & exception_bit) != 0; }
+    // An exception response, as decoded: the exception bit alone does not make one (a request carrying a
+    // function code above 127 decodes as raw data, and code reading exception_code must not assume it).
+    bool is_exception() const noexcept { return std::holds_alternative<ExceptionResponse>(body); }
     bool operator==(const Pdu& o) const { return function_raw == o.function_raw && body == o.body; }
 };
 
