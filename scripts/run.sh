@@ -34,6 +34,16 @@ slave_demo() {
   ./build/release/cli/mbscope frame --tcp --direction response $reply
 }
 
+# The fuzz targets built through the ClusterFuzzLite contract (.clusterfuzzlite/build.sh) with clang and
+# local values, then each run briefly from its seed corpus: fails on a crash, leak, timeout or oracle violation.
+fuzz_smoke() {
+  local flags="-O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined,fuzzer-no-link -fno-sanitize-recover=all"
+  rm -rf build/fuzz-out
+  CC=clang CXX=clang++ CFLAGS="$flags" CXXFLAGS="$flags" LIB_FUZZING_ENGINE=-fsanitize=fuzzer \
+    OUT="$PWD/build/fuzz-out" WORK="$PWD/build" bash .clusterfuzzlite/build.sh
+  bash fuzz/smoke.sh build/fuzz-out "${MBSCOPE_FUZZ_SECONDS:-12}"
+}
+
 case "${1:-demo}" in
   demo)
     build release >/dev/null
@@ -53,6 +63,7 @@ case "${1:-demo}" in
     ctest --preset release -j "$jobs"
     build asan
     ctest --preset asan -j "$jobs"
+    fuzz_smoke
     ;;
   *)
     echo "usage: bash scripts/run.sh demo|test" >&2

@@ -1,0 +1,33 @@
+#!/bin/bash -eu
+# The OSS-Fuzz / ClusterFuzzLite build contract: $CC $CXX $CFLAGS $CXXFLAGS $LIB_FUZZING_ENGINE in, fuzz
+# targets in $OUT, each with its seed corpus (fuzz_<name>_seed_corpus.zip) and dictionary (fuzz_<name>.dict),
+# and the device profiles beside them ($OUT/profiles, where the targets look first after $MBSCOPE_PROFILE_PATH).
+# Also run by the project's own test command with local values (scripts/run.sh), so it cannot rot.
+SRC_DIR=${SRC_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
+BUILD=${WORK:-/tmp}/mbscope-fuzz-build
+
+cmake -S "$SRC_DIR" -B "$BUILD" \
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_C_COMPILER="$CC" -DCMAKE_CXX_COMPILER="$CXX" \
+  -DCMAKE_C_FLAGS="$CFLAGS" -DCMAKE_CXX_FLAGS="$CXXFLAGS" \
+  -DMBSCOPE_FUZZ_ENGINE="$LIB_FUZZING_ENGINE" \
+  -DMBSCOPE_BUILD_TESTS=OFF -DMBSCOPE_BUILD_BENCH=OFF -DMBSCOPE_WERROR=OFF >/dev/null
+cmake --build "$BUILD" --target fuzz_targets -j "$(nproc)"
+
+mkdir -p "$OUT"
+for binary in "$BUILD"/fuzz/fuzz_*; do
+  name=$(basename "$binary")
+  case "$name" in *.dict) continue ;; esac
+  cp "$binary" "$OUT/"
+  cp "$BUILD/fuzz/$name.dict" "$OUT/"
+  target=${name#fuzz_}
+  if [ -d "$SRC_DIR/corpus/$target" ]; then
+    (cd "$SRC_DIR/corpus/$target" && python3 -c "
+import os, sys, zipfile
+with zipfile.ZipFile(sys.argv[1], 'w') as z:
+    for f in sorted(os.listdir('.')):
+        z.write(f)" "$OUT/${name}_seed_corpus.zip")
+  fi
+done
+rm -rf "$OUT/profiles"
+cp -r "$SRC_DIR/profiles" "$OUT/profiles"

@@ -1,0 +1,50 @@
+#include "fuzz/bundled_profiles.hpp"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include "modbus/storage/profile_store.hpp"
+
+namespace mbscope::fuzz {
+
+namespace {
+
+std::vector<std::string> candidate_directories() {
+    std::vector<std::string> dirs;
+    if (const char* path = std::getenv("MBSCOPE_PROFILE_PATH"))
+        for (auto& d : modbus::storage::split_path_list(path))
+            dirs.push_back(d);
+    std::error_code ec;
+    const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) dirs.push_back((exe.parent_path() / "profiles").string());
+    dirs.push_back(MBSCOPE_SOURCE_DIR "/profiles");
+    return dirs;
+}
+
+}  // namespace
+
+const std::vector<modbus::Profile>& bundled_profiles() {
+    static const std::vector<modbus::Profile> profiles = [] {
+        std::vector<modbus::Profile> out;
+        for (const auto& dir : candidate_directories()) {
+            if (!std::filesystem::is_directory(dir)) continue;
+            modbus::storage::ProfileStore store({dir});
+            for (const auto& entry : store.entries())
+                if (auto p = store.load(entry.id); p) out.push_back(std::move(p.value()));
+            if (!out.empty()) break;
+        }
+        if (out.empty()) {
+            std::fprintf(stderr,
+                         "no device profiles found (set MBSCOPE_PROFILE_PATH to the profiles folder)\n");
+            std::abort();
+        }
+        return out;
+    }();
+    return profiles;
+}
+
+}  // namespace mbscope::fuzz

@@ -1,0 +1,34 @@
+// The profile loader on hostile JSON: structure, ranges, references between points, simulation blocks and
+// modular-device configurations. The include callback offers one shared map file so the Walchem path is
+// reachable. Properties: no crash, no exception escapes, every problem is an error record with a pointer;
+// a profile that loads is self-consistent enough to be queried over its whole address space.
+#include <string>
+#include <string_view>
+
+#include "fuzz/fuzz_support.hpp"
+#include "modbus/profile_loader.hpp"
+
+using namespace mbscope;
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    const std::string_view text(reinterpret_cast<const char*>(data), size);
+    // The include file is the same document: cheap, and it makes "maps_file" reach a real parse.
+    const modbus::IncludeFn include = [&](const std::string&) { return std::optional<std::string>(text); };
+    const auto loaded = modbus::parse_profiles(text, "fuzz.json", include);
+    for (const auto& e : loaded.errors)
+        if (e.message.empty())
+            fuzz::fail("fuzz_profile", "an error without a message at '" + e.pointer + "'");
+    for (const auto& p : loaded.profiles) {
+        for (int t : {0, 1, 3, 4}) {
+            const auto table = static_cast<modbus::Table>(t);
+            for (const auto& point : p.table(table))
+                if (p.find(table, point.address) == nullptr)
+                    fuzz::fail("fuzz_profile", "point '" + point.name + "' at " +
+                                                   std::to_string(point.address) +
+                                                   " is not found at its own address");
+            (void)modbus::check_read(p, table, 0, 125);
+            (void)modbus::check_writes(p, table, 0, std::vector<std::uint16_t>(16, 0xFFFF));
+        }
+    }
+    return 0;
+}

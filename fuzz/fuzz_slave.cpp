@@ -1,0 +1,118 @@
+// The reference slave's request handling for every bundled profile and framing, with the shared exchange
+// oracle (conformance/oracle.hpp) judging each reply. The input is a profile, a framing, one or two units,
+// then a sequence of requests; each request is an exact-size heap buffer (no padding to the largest ADU, so
+// a read past the request is caught), framed correctly or sent as the raw bytes the input holds. Between
+// requests the registers are compared, so a refused request that changed them is caught.
+// A violated rule aborts with its id, the rule's source and what was expected and observed; with
+// MBSCOPE_FUZZ_TRACE set every exchange is printed.
+#include <fuzzer/FuzzedDataProvider.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "conformance/oracle.hpp"
+#include "fuzz/bundled_profiles.hpp"
+#include "fuzz/fuzz_support.hpp"
+#include "modbus/adu.hpp"
+#include "slave/device.hpp"
+#include "slave/responder.hpp"
+
+using namespace mbscope;
+using modbus::Framing;
+
+namespace {
+
+modbus::Result<modbus::Frame> decode(Framing framing, std::span<const std::uint8_t> adu) {
+    switch (framing) {
+        case Framing::Rtu:
+            return modbus::decode_rtu(adu);
+        case Framing::Ascii:
+            return modbus::decode_ascii(adu);
+        case Framing::Tcp:
+            break;
+    }
+    return modbus::decode_tcp(adu);
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    FuzzedDataProvider in(data, size);
+    const auto& profiles = fuzz::bundled_profiles();
+    const modbus::Profile& first = profiles[in.ConsumeIntegralInRange<std::size_t>(0, profiles.size() - 1)];
+    const modbus::Profile& second = profiles[in.ConsumeIntegralInRange<std::size_t>(0, profiles.size() - 1)];
+    const Framing framing = in.PickValueInArray({Framing::Rtu, Framing::Ascii, Framing::Tcp});
+    const bool two_units = in.ConsumeBool();
+    const bool ip_network = framing == Framing::Tcp && in.ConsumeBool();
+
+    slave::FaultSet faults;  // none: the clean slave must satisfy every rule
+    const auto unit_of = [](const modbus::Profile& p, int preferred) {
+        return static_cast<std::uint8_t>(
+            std::clamp(preferred, std::max(1, p.line.unit_min), std::max(1, p.line.unit_max)));
+    };
+    std::vector<std::unique_ptr<slave::Device>> devices;
+    devices.push_back(std::make_unique<slave::Device>(first, unit_of(first, 1), &faults));
+    if (two_units && unit_of(second, 2) != devices.front()->unit())
+        devices.push_back(std::make_unique<slave::Device>(second, unit_of(second, 2), &faults));
+    std::vector<slave::Device*> units;
+    std::vector<conformance::ExchangeOracle::Unit> oracle_units;
+    for (auto& d : devices) {
+        units.push_back(d.get());
+        oracle_units.push_back({d->unit(), &d->profile()});
+    }
+    slave::Responder responder(units, faults, framing, ip_network);
+    conformance::ExchangeOracle oracle(framing, oracle_units, ip_network);
+
+    std::uint16_t tid = 0;
+    while (in.remaining_bytes() > 0) {
+        const auto shape = in.ConsumeIntegral<std::uint8_t>();
+        const auto length = in.ConsumeIntegralInRange<std::size_t>(0, 260);
+        const auto body = in.ConsumeBytes<std::uint8_t>(length);
+        std::vector<std::uint8_t> adu;
+        if ((shape & 0x03) !=
+            0) {  // framed correctly: unit (often one that is served) and PDU from the input
+            std::uint8_t unit = (shape & 0x04) ? units[(shape >> 3) % units.size()]->unit()
+                                               : static_cast<std::uint8_t>(shape >> 3);
+            if (framing == Framing::Tcp && (shape & 0x80)) unit = 0xFF;
+            const std::span<const std::uint8_t> pdu(body.data(), std::min<std::size_t>(body.size(), 253));
+            if (framing == Framing::Rtu) adu = modbus::encode_rtu(unit, pdu);
+            if (framing == Framing::Tcp) adu = modbus::encode_tcp(++tid, unit, pdu);
+            if (framing == Framing::Ascii) {
+                const auto text = modbus::encode_ascii(unit, pdu);
+                adu.assign(text.begin(), text.end());
+            }
+        } else {
+            adu = body;  // as the input holds it: checksum, MBAP header and all
+        }
+        const auto frame = decode(framing, adu);
+        if (!frame) continue;  // no frame: the server never hands such bytes to a unit
+
+        std::uint64_t before = 0;
+        for (auto* d : units)
+            before += d->image().modifications();
+        modbus::transport::Exchange ex;
+        ex.sent = adu;
+        ex.received = responder.respond(*frame);
+        if (!ex.received.empty()) {
+            if (auto reply = decode(framing, ex.received); reply) ex.response = *reply;
+        }
+        std::uint64_t after = 0;
+        for (auto* d : units)
+            after += d->image().modifications();
+        const bool changed = after != before;
+        static const bool trace = std::getenv("MBSCOPE_FUZZ_TRACE") != nullptr;
+        if (trace)
+            std::fprintf(stderr, "unit %s  %s -> %s\n", std::to_string(frame->unit_id()).c_str(),
+                         fuzz::hex(ex.sent).c_str(),
+                         ex.received.empty() ? "(silence)" : fuzz::hex(ex.received).c_str());
+        for (const auto& v : oracle.judge(ex, changed))
+            fuzz::fail("fuzz_slave", conformance::to_string(v) + "\n  profile " + first.id +
+                                         (units.size() > 1 ? " + " + second.id : "") + "\n  request " +
+                                         fuzz::hex(ex.sent) + "\n  reply   " + fuzz::hex(ex.received));
+    }
+    return 0;
+}

@@ -1,0 +1,69 @@
+#pragma once
+// What every fuzz target shares: the libFuzzer entry point's signature, a way to fail that names the
+// property that broke (libFuzzer and the replay runner both stop on abort), and the accounting check of the
+// deframers: every byte fed comes out exactly once, as part of a frame or of an unparsed run, in order.
+
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <span>
+#include <string>
+#include <variant>
+
+#include "modbus/frame.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size);
+
+namespace mbscope::fuzz {
+
+[[noreturn]] inline void fail(const char* target, const std::string& property) {
+    std::fprintf(stderr, "%s: property violated: %s\n", target, property.c_str());
+    std::fflush(stderr);
+    std::abort();
+}
+
+// "11 03 00 6B": bytes as the failure messages show them.
+inline std::string hex(std::span<const std::uint8_t> bytes) {
+    static constexpr char digits[] = "0123456789ABCDEF";
+    std::string out;
+    for (auto b : bytes) {
+        if (!out.empty()) out += ' ';
+        out += digits[b >> 4];
+        out += digits[b & 15];
+    }
+    return out;
+}
+
+// Events must tile the stream [0, end): contiguous, in order, nothing twice, nothing missing. `skipped`
+// are stream ranges the caller declared lost (TCP holes), which no event covers.
+class StreamAccount {
+  public:
+    explicit StreamAccount(const char* target) : target_(target) {}
+    void skip(std::uint64_t missing) { next_ += missing; }
+    void take(const modbus::DeframeEvents& events) {
+        for (const auto& e : events) {
+            const auto [offset, length] = std::visit(
+                [](const auto& v) {
+                    return std::pair<std::uint64_t, std::uint64_t>{v.offset, length_of(v)};
+                },
+                e);
+            if (offset != next_)
+                fail(target_, "event at stream offset " + std::to_string(offset) + " where " +
+                                  std::to_string(next_) + " was expected (bytes lost or reported twice)");
+            if (length == 0) fail(target_, "empty event at offset " + std::to_string(offset));
+            next_ = offset + length;
+        }
+    }
+    void finish(std::uint64_t total) const {
+        if (next_ != total)
+            fail(target_, std::to_string(total) + " bytes fed, " + std::to_string(next_) + " accounted for");
+    }
+
+  private:
+    static std::uint64_t length_of(const modbus::Frame& f) { return f.wire_length; }
+    static std::uint64_t length_of(const modbus::Unparsed& u) { return u.length; }
+    const char* target_;
+    std::uint64_t next_ = 0;
+};
+
+}  // namespace mbscope::fuzz

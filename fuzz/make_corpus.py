@@ -1,0 +1,302 @@
+#!/usr/bin/python3
+"""Builds the seed corpora in corpus/<target>/ from material nobody chose for the fuzzer: the manuals' worked
+example frames (captures/manual-examples.txt), the bundled captures and serial logs, and requests derived from
+every bundled profile's map (first and last valid address of each table, the manual's quantity limits, a value
+inside each writable point's range). Each seed is laid out the way its target reads its input through
+FuzzedDataProvider (control values from the end, data from the front), so the first run already reaches deep.
+
+    fuzz/make_corpus.py --mbscope build/release/cli/mbscope            # write the seeds
+    fuzz/make_corpus.py --mbscope ... --merge build/fuzz/fuzz          # then minimise: libFuzzer -merge=1
+
+Files are named by the SHA-1 of their content, so running it twice changes nothing.
+"""
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TARGETS = ["pdu", "rtu_deframer", "ascii_deframer", "tcp_stream", "capture", "serial_log", "profile", "slave",
+           "libmodbus_diff"]
+
+
+class Provider:
+    """The inverse of LLVM's FuzzedDataProvider: integers are taken from the end of the input (most significant
+    byte first), byte runs from the front."""
+
+    def __init__(self):
+        self.front = bytearray()
+        self.back = bytearray()  # in consumption order
+
+    def integral(self, lo, hi, value):
+        span = hi - lo
+        count = 0
+        while count < 8 and (span >> (8 * count)) > 0:
+            count += 1
+        v = value - lo
+        self.back += bytes((v >> (8 * (count - 1 - i))) & 0xFF for i in range(count))
+
+    def uint8(self, value):
+        self.back.append(value & 0xFF)
+
+    def boolean(self, value):
+        self.uint8(1 if value else 0)
+
+    def data(self, payload):
+        self.front += payload
+
+    def bytes(self):
+        return bytes(self.front) + bytes(reversed(self.back))
+
+
+def crc16(data):
+    crc = 0xFFFF
+    for b in data:
+        crc ^= b
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return bytes([crc & 0xFF, crc >> 8])
+
+
+def rtu(unit, pdu):
+    adu = bytes([unit]) + pdu
+    return adu + crc16(adu)
+
+
+def ascii_frame(unit, pdu):
+    body = bytes([unit]) + pdu
+    lrc = (-sum(body)) & 0xFF
+    return b":" + (body + bytes([lrc])).hex().upper().encode() + b"\r\n"
+
+
+def tcp(tid, unit, pdu):
+    return tid.to_bytes(2, "big") + b"\x00\x00" + (len(pdu) + 1).to_bytes(2, "big") + bytes([unit]) + pdu
+
+
+def manual_examples():
+    """(framing, bytes) of every example frame in captures/manual-examples.txt."""
+    out = []
+    with open(os.path.join(ROOT, "captures", "manual-examples.txt")) as f:
+        for line in f:
+            line = line.split("#", 1)[0].strip()
+            if not line:
+                continue
+            framing, rest = line.split(None, 1)
+            if framing == "ascii":
+                out.append((framing, rest.strip().encode() + b"\r\n"))
+            else:
+                out.append((framing, bytes.fromhex(rest)))
+    return out
+
+
+def pdu_of(framing, frame):
+    if framing == "rtu":
+        return frame[1:-2]
+    if framing == "tcp":
+        return frame[7:]
+    body = bytes.fromhex(frame[1:-2].decode())
+    return body[1:-1]
+
+
+def profiles(mbscope):
+    env = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
+    listed = json.loads(subprocess.check_output([mbscope, "profile", "list", "--json"], env=env))
+    out = []
+    for entry in listed:
+        shown = json.loads(subprocess.check_output([mbscope, "profile", "show", entry["id"], "--json"], env=env))
+        out.append(shown)
+    return out
+
+
+def requests_for(profile):
+    """PDUs that exercise a profile's map: valid reads at both ends of each table, the manual's quantity limit
+    and one past it, writes inside a writable point's range, FC8 echo and listen-only, and an unknown code."""
+    fns = profile["functions"]
+    limits = fns.get("max_quantity", {})
+    pdus = []
+    tables = {"coils": (1, 5, 15), "discrete_inputs": (2, None, None), "input_registers": (4, None, None),
+              "holding_registers": (3, 6, 16)}
+    for name, (read_fc, single_fc, multi_fc) in tables.items():
+        points = profile["tables"].get(name, [])
+        if isinstance(points, dict):  # {"same_as": TABLE}: the other table's map
+            points = profile["tables"].get(points.get("same_as"), [])
+        if not isinstance(points, list) or not points:
+            # The generic profile has no map: every address exists.
+            points = [{"address": 0, "access": "rw"}, {"address": 65535, "access": "rw"}] if profile.get(
+                "id") == "modbus" else []
+        if not points:
+            continue
+        first, last = points[0]["address"], points[-1]["address"]
+        limit = int(limits.get(str(read_fc), 125 if read_fc > 2 else 2000))
+        for start, quantity in ((first, 1), (last, 1), (first, min(limit, 125)), (first, limit + 1)):
+            pdus.append(bytes([read_fc]) + start.to_bytes(2, "big") + quantity.to_bytes(2, "big"))
+        writable = [p for p in points if p.get("access") in ("rw", "w")]
+        for p in writable[:2]:
+            value = p.get("range", {}).get("min", 0) & 0xFFFF
+            if single_fc == 5:
+                pdus.append(bytes([5]) + p["address"].to_bytes(2, "big") + b"\xff\x00")
+                pdus.append(bytes([15]) + p["address"].to_bytes(2, "big") + b"\x00\x01\x01\x01")
+            elif single_fc == 6:
+                pdus.append(bytes([6]) + p["address"].to_bytes(2, "big") + value.to_bytes(2, "big"))
+                pdus.append(bytes([16]) + p["address"].to_bytes(2, "big") + b"\x00\x01\x02" +
+                            value.to_bytes(2, "big"))
+            pdus.append(bytes([read_fc]) + p["address"].to_bytes(2, "big") + b"\x00\x01")  # read it back
+    pdus += [b"\x08\x00\x00\x12\x34", b"\x08\x00\x04\x00\x00", b"\x03\x00\x00\x00\x01", b"\x08\x00\x01\x00\x00",
+             b"\x41", b"\x2b\x0e\x01\x00", b"\x17\x00\x00\x00\x01\x00\x00\x00\x01\x02\x00\x00"]
+    return pdus
+
+
+def write(target, payload, out_dir):
+    directory = os.path.join(out_dir, target)
+    os.makedirs(directory, exist_ok=True)
+    with open(os.path.join(directory, hashlib.sha1(payload).hexdigest()), "wb") as f:
+        f.write(payload)
+
+
+def build(mbscope, out_dir):
+    examples = manual_examples()
+    rtu_frames = [b for f, b in examples if f == "rtu"]
+    ascii_frames = [b for f, b in examples if f == "ascii"]
+    captures = [os.path.join(ROOT, "captures", n) for n in sorted(os.listdir(os.path.join(ROOT, "captures")))]
+    pcaps = [open(p, "rb").read() for p in captures if p.endswith((".pcap", ".pcapng"))]
+    logs = [open(p, "rb").read() for p in captures if p.endswith(".log")]
+    all_profiles = profiles(mbscope)
+
+    # pdu: direction flag in the first byte, then the PDU.
+    for framing, frame in examples:
+        pdu = pdu_of(framing, frame)
+        for direction in (0, 1):
+            write("pdu", bytes([direction]) + pdu, out_dir)
+
+    # rtu_deframer / ascii_deframer: the frames as one stream, chunked and timed by the trailing bytes.
+    for timed in (False, True):
+        p = Provider()
+        p.boolean(timed)
+        p.integral(0, 3, 1)  # 9600 baud
+        for frame in rtu_frames:
+            p.integral(1, 64, len(frame))
+            p.integral(0, 20000, 5000 if timed else 0)
+            p.data(frame)
+        write("rtu_deframer", p.bytes(), out_dir)
+        p = Provider()
+        p.boolean(timed)
+        for frame in ascii_frames + [ascii_frame(0x11, pdu_of("rtu", f)) for f in rtu_frames]:
+            p.integral(1, 64, min(len(frame), 64))
+            p.integral(0, 1500, 10)
+            p.data(frame[:64])
+        write("ascii_deframer", p.bytes(), out_dir)
+
+    # tcp_stream and libmodbus_diff: the examples' PDUs over MBAP, and the profile-derived requests.
+    mbap = [tcp(i + 1, 0x11, pdu_of(f, b)) for i, (f, b) in enumerate(examples)]
+    stream = b"".join(mbap)[:2048]
+    p = Provider()
+    p.integral(0, 0xFFFFFFFF, 0xFFFFFF00)  # sequence numbers that wrap
+    p.integral(0, 2048, len(stream))
+    p.data(stream)
+    p.integral(64, 4096, 4096)
+    offset = 0
+    for adu in mbap:  # in order, then the first ADU again (a retransmission)
+        if offset + len(adu) > len(stream):
+            break
+        p.integral(0, len(stream) - 1, offset)
+        p.integral(1, min(300, len(stream) - offset), len(adu))
+        p.uint8(0)
+        offset += len(adu)
+    write("tcp_stream", p.bytes(), out_dir)
+    for adu in mbap:
+        write("libmodbus_diff", adu, out_dir)
+    generic = next(pr for pr in all_profiles if pr["id"] == "modbus")
+    for i, pdu in enumerate(requests_for(generic)):
+        write("libmodbus_diff", tcp(0x100 + i, 1, pdu), out_dir)
+
+    # capture: the pcap, then one byte of analyzer options (0: defaults; 0x20: with a profile).
+    for pcap in pcaps:
+        for flags in (0x00, 0x24):
+            p = Provider()
+            p.uint8(flags)
+            if flags & 0x20:
+                p.integral(0, len(all_profiles) - 1, 0)
+            p.data(pcap)
+            write("capture", p.bytes(), out_dir)
+
+    # serial_log: format "auto", 9600 baud, no parity, then the log; the text format from the examples.
+    text = "".join("%.3f %s %s\n" % (1 + i * 0.05, ">" if i % 2 == 0 else "<", frame.hex(" ").upper())
+                   for i, frame in enumerate(rtu_frames)).encode()
+    for log in logs + [text, b"".join(rtu_frames), b"".join(ascii_frames)]:
+        p = Provider()
+        p.integral(0, 5, 0)
+        p.integral(0, 3, 1)
+        p.boolean(False)
+        p.data(log)
+        write("serial_log", p.bytes(), out_dir)
+
+    # profile: the smaller bundled documents as they are.
+    for name in ("modbus.json", "cth2265i.json", os.path.join("mk", "3.08-mmk-2030.json")):
+        write("profile", open(os.path.join(ROOT, "profiles", name), "rb").read(), out_dir)
+
+    # slave: per profile and framing, its derived requests framed correctly, each followed by a copy with a
+    # broken checksum (raw), to one unit.
+    framings = ["rtu", "ascii", "tcp"]
+    for index, pr in enumerate(all_profiles):
+        unit = max(1, min(pr.get("line", {}).get("unit_min", 1), 247))
+        for framing_index, framing in enumerate(framings):
+            if framing != "tcp" and index % 4 != 0:
+                continue  # serial framings on a quarter of the profiles keep the corpus small
+            p = Provider()
+            p.integral(0, len(all_profiles) - 1, index)
+            p.integral(0, len(all_profiles) - 1, index)
+            p.integral(0, 2, framing_index)
+            p.boolean(False)
+            if framing == "tcp":
+                p.boolean(True)
+            for pdu in requests_for(pr):
+                p.uint8(0x05)  # framed, to the first served unit
+                p.integral(0, 260, len(pdu))
+                p.data(pdu)
+            broken = rtu(unit, b"\x03\x00\x00\x00\x01")[:-1] + b"\x00"
+            p.uint8(0x00)
+            p.integral(0, 260, len(broken))
+            p.data(broken)
+            write("slave", p.bytes(), out_dir)
+    return 0
+
+
+def merge(fuzz_dir, out_dir):
+    """Minimise each target's corpus with libFuzzer's -merge=1 into corpus/<target>/."""
+    for target in TARGETS:
+        binary = os.path.join(fuzz_dir, "fuzz_" + target)
+        seeds = os.path.join(out_dir, target)
+        final = os.path.join(ROOT, "corpus", target)
+        if not os.path.exists(binary) or not os.path.isdir(seeds):
+            continue
+        merged = tempfile.mkdtemp()
+        inputs = [seeds] + ([final] if os.path.isdir(final) else [])
+        subprocess.run([binary, "-merge=1", "-max_len=65536", merged] + inputs, check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                       env=dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles")))
+        shutil.rmtree(final, ignore_errors=True)
+        shutil.copytree(merged, final)
+        shutil.rmtree(merged)
+        print("%s: %d files" % (target, len(os.listdir(final))))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mbscope", required=True, help="the mbscope binary (for the profiles' maps)")
+    parser.add_argument("--merge", metavar="FUZZ_DIR", help="folder of the fuzz_* binaries: minimise with -merge=1")
+    args = parser.parse_args()
+    if args.merge:
+        with tempfile.TemporaryDirectory() as seeds:
+            build(args.mbscope, seeds)
+            merge(args.merge, seeds)
+    else:
+        build(args.mbscope, os.path.join(ROOT, "corpus"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

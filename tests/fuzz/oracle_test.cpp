@@ -1,0 +1,357 @@
+// The exchange oracle (conformance/oracle.hpp) that the slave's fuzz target and `mbscope fuzz` share:
+//  - every bundled profile, served by the clean reference slave, passes a script of requests derived from its
+//    map (both ends of each table, one past the manual's quantity limit, writes read back, out-of-range
+//    values, unsupported functions, broadcasts, bad checksums) with no violation, over RTU, ASCII and TCP;
+//  - every planted fault the Responder applies breaks a named rule of the oracle on the same script;
+//  - the faults that live in time (slow-reply, gap-inside-frame) are named as the ones left to the network
+//    fuzzer and the conformance runner, so a new fault must be classified here.
+#include "conformance/oracle.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <set>
+
+#include "modbus/adu.hpp"
+#include "modbus/pdu.hpp"
+#include "slave/responder.hpp"
+#include "slave/slave_test_support.hpp"
+
+namespace {
+
+namespace mb = mbscope::modbus;
+namespace cf = mbscope::conformance;
+namespace sl = mbscope::slave;
+using mb::Framing;
+using mb::Table;
+
+std::vector<std::uint8_t> u16(std::uint16_t v) {
+    return {static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v)};
+}
+
+std::vector<std::uint8_t> pdu(std::uint8_t fc, std::initializer_list<std::uint16_t> words) {
+    std::vector<std::uint8_t> out{fc};
+    for (auto w : words) {
+        const auto b = u16(w);
+        out.insert(out.end(), b.begin(), b.end());
+    }
+    return out;
+}
+
+struct Step {
+    std::uint8_t unit;  // 0: broadcast
+    std::vector<std::uint8_t> pdu;
+    bool corrupt = false;  // the checksum (RTU CRC / ASCII LRC) is broken
+};
+
+// Requests derived from the profile's map: what a careful tester sends first.
+std::vector<Step> script(const mb::Profile& p, std::uint8_t unit, Framing framing) {
+    std::vector<Step> steps;
+    const auto add = [&](std::vector<std::uint8_t> bytes) { steps.push_back({unit, std::move(bytes)}); };
+    const std::pair<Table, std::uint8_t> reads[] = {{Table::Coils, 1},
+                                                    {Table::DiscreteInputs, 2},
+                                                    {Table::InputRegisters, 4},
+                                                    {Table::HoldingRegisters, 3}};
+    for (auto [table, fc] : reads) {
+        if (!p.functions.supports(fc)) continue;
+        const auto& points = p.table(table);
+        const std::uint16_t first = points.empty() ? 0 : points.front().address;
+        const std::uint16_t last = points.empty() ? 0 : points.back().address;
+        const int max = p.functions.max_for(fc);
+        add(pdu(fc, {first, 1}));
+        add(pdu(fc, {last, 1}));
+        add(pdu(fc, {first, static_cast<std::uint16_t>(max + 1)}));
+    }
+    // Writes inside the range, read back; a value past the range.
+    int written = 0;
+    for (const auto& pt : p.table(Table::HoldingRegisters)) {
+        // Points with a documented range: a value inside it is known to be accepted, one past it refused.
+        if (written == 3 || pt.access != mb::Access::ReadWrite || pt.encoding.words != 1 || pt.reserved ||
+            !p.functions.supports(6) || pt.fixed_value || pt.min_from || pt.max_from || !pt.max ||
+            pt.encoding.type == mb::EncodingType::Enum)
+            continue;
+        const std::uint16_t value = static_cast<std::uint16_t>(pt.max.value_or(pt.min.value_or(0) + 1));
+        add(pdu(6, {pt.address, value}));
+        add(pdu(3, {pt.address, 1}));
+        if (pt.max && *pt.max < 0xFFFF && *pt.max >= 0)
+            add(pdu(6, {pt.address, static_cast<std::uint16_t>(*pt.max + 1)}));
+        ++written;
+    }
+    // A 32-bit value in the middle of its range, written whole in the point's word order and read back.
+    for (const auto& pt : p.table(Table::HoldingRegisters)) {
+        if (pt.access != mb::Access::ReadWrite || pt.encoding.words != 2 || pt.reserved || !pt.min ||
+            !pt.max || !p.functions.supports(16))
+            continue;
+        const double middle = (static_cast<double>(*pt.min) + static_cast<double>(*pt.max)) / 2;
+        const std::uint32_t raw = pt.encoding.type == mb::EncodingType::F32
+                                      ? std::bit_cast<std::uint32_t>(static_cast<float>(middle))
+                                      : static_cast<std::uint32_t>(static_cast<std::int64_t>(middle));
+        const auto words = mb::split_words(raw, pt.encoding.word_order);
+        std::vector<std::uint8_t> w = pdu(16, {pt.address, 2});
+        w.push_back(4);
+        for (auto v : words)
+            for (auto x : u16(v))
+                w.push_back(x);
+        add(w);
+        add(pdu(3, {pt.address, 2}));
+        break;
+    }
+    for (const auto& pt : p.table(Table::Coils)) {
+        if (pt.access != mb::Access::ReadWrite || !p.functions.supports(5)) continue;
+        add(pdu(5, {pt.address, 0xFF00}));
+        add(pdu(1, {pt.address, 1}));
+        add(pdu(5, {pt.address, 0x1234}));
+        break;
+    }
+    if (p.functions.supports(8)) add(pdu(8, {0x0000, 0xA537}));
+    add({0x41, 0x01});
+    // A broadcast write of the first written value, and a read broadcast (never executed, never answered).
+    if (framing != Framing::Tcp) {
+        for (const auto& s : std::vector<Step>(steps))
+            if (s.pdu[0] == 6) {
+                steps.push_back({0, s.pdu});
+                break;
+            }
+        steps.push_back({0, pdu(3, {0, 1})});
+        steps.push_back({unit, pdu(3, {0, 1}), true});
+    }
+    return steps;
+}
+
+std::vector<std::uint8_t> frame(Framing framing, std::uint8_t unit, const std::vector<std::uint8_t>& p,
+                                std::uint16_t tid, bool corrupt) {
+    std::vector<std::uint8_t> adu;
+    switch (framing) {
+        case Framing::Rtu:
+            adu = mb::encode_rtu(unit, p);
+            if (corrupt) adu.back() ^= 0x5A;
+            break;
+        case Framing::Ascii: {
+            auto text = mb::encode_ascii(unit, p);
+            if (corrupt) text[text.size() - 3] = text[text.size() - 3] == '0' ? '1' : '0';
+            adu.assign(text.begin(), text.end());
+            break;
+        }
+        case Framing::Tcp:
+            adu = mb::encode_tcp(tid, unit, p);
+            break;
+    }
+    return adu;
+}
+
+mb::Result<mb::Frame> decode(Framing framing, std::span<const std::uint8_t> adu) {
+    if (framing == Framing::Rtu) return mb::decode_rtu(adu);
+    if (framing == Framing::Ascii) return mb::decode_ascii(adu);
+    return mb::decode_tcp(adu);
+}
+
+// Runs the script through a Responder with `faults` and judges every exchange; returns the violations.
+std::vector<cf::OracleViolation> run(const mb::Profile& p, Framing framing, sl::FaultSet& faults) {
+    const auto unit = static_cast<std::uint8_t>(std::clamp(1, std::max(1, p.line.unit_min), p.line.unit_max));
+    sl::Device device(p, unit, &faults);
+    sl::Responder responder({&device}, faults, framing, framing == Framing::Tcp);
+    cf::ExchangeOracle oracle(framing, {{unit, &p}}, framing == Framing::Tcp);
+    std::vector<cf::OracleViolation> found;
+    std::uint16_t tid = 0;
+    for (const Step& s : script(p, unit, framing)) {
+        mbscope::modbus::transport::Exchange ex;
+        ex.sent = frame(framing, s.unit, s.pdu, ++tid, s.corrupt);
+        const auto f = decode(framing, ex.sent);
+        if (!f) {
+            ADD_FAILURE() << "the script's frame does not decode";
+            continue;
+        }
+        const auto before = device.image().modifications();
+        ex.received = responder.respond(*f);
+        if (!ex.received.empty())
+            if (auto r = decode(framing, ex.received); r) ex.response = *r;
+        for (auto& v : oracle.judge(ex, device.image().modifications() != before))
+            found.push_back(std::move(v));
+    }
+    return found;
+}
+
+std::string listing(const std::vector<cf::OracleViolation>& vs) {
+    std::string out;
+    for (const auto& v : vs)
+        out += "\n  " + cf::to_string(v);
+    return out;
+}
+
+// ---- the clean slave satisfies the oracle for every profile and framing
+
+struct CleanCase {
+    std::string profile;
+    Framing framing;
+};
+
+class CleanSlave : public ::testing::TestWithParam<CleanCase> {};
+
+TEST_P(CleanSlave, BreaksNoRule) {
+    const auto& c = GetParam();
+    sl::FaultSet none;
+    const auto found = run(mbscope::slave::test::profile(c.profile), c.framing, none);
+    EXPECT_TRUE(found.empty()) << listing(found);
+}
+
+std::vector<CleanCase> clean_cases() {
+    std::vector<CleanCase> out;
+    for (const auto& id : mbscope::slave::test::profile_ids())
+        for (auto f : {Framing::Rtu, Framing::Ascii, Framing::Tcp})
+            out.push_back({id, f});
+    return out;
+}
+
+INSTANTIATE_TEST_SUITE_P(Profiles, CleanSlave, ::testing::ValuesIn(clean_cases()), [](const auto& info) {
+    std::string n = info.param.profile + "_" +
+                    (info.param.framing == Framing::Rtu     ? "rtu"
+                     : info.param.framing == Framing::Ascii ? "ascii"
+                                                            : "tcp");
+    for (auto& ch : n)
+        if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+    return n;
+});
+
+// ---- every fault the Responder plants breaks a named rule
+
+struct FaultCase {
+    std::string fault;  // as on the command line; "stuck-value" gets the first written register
+    std::string profile;
+    Framing framing;
+    std::set<std::string> rules;  // at least one of these must be broken
+};
+
+std::ostream& operator<<(std::ostream& out, const FaultCase& c) {
+    return out << c.fault << " on " << c.profile;
+}
+
+// Faults that delay or split a reply in time: the Responder never sees them (the server's send queue
+// applies them), so the network fuzzer and the conformance runner catch them (tests/conformance).
+const std::set<std::string> timing_faults = {"slow-reply", "gap-inside-frame"};
+
+std::vector<FaultCase> fault_cases() {
+    return {
+        {"bad-crc", "mmk-2030", Framing::Rtu, {"reply.checksum"}},
+        {"bad-lrc", "mmk-2030", Framing::Ascii, {"reply.checksum"}},
+        {"wrong-byte-count", "mmk-2030", Framing::Tcp, {"reply.malformed"}},
+        {"short-response", "mmk-2030", Framing::Tcp, {"reply.malformed"}},
+        {"extra-bytes", "mmk-2030", Framing::Rtu, {"reply.malformed"}},
+        {"wrong-unit", "mmk-2030", Framing::Rtu, {"reply.envelope"}},
+        {"wrong-function", "mmk-2030", Framing::Tcp, {"reply.function"}},
+        {"wrong-tid", "mmk-2030", Framing::Tcp, {"reply.envelope"}},
+        {"bad-protocol-id", "walchem-w600", Framing::Tcp, {"reply.envelope"}},
+        {"reply-to-broadcast", "mmk-2030", Framing::Rtu, {"silence.broadcast"}},
+        {"ignore-max-quantity", "mmk-2030", Framing::Tcp, {"reply.quantity"}},
+        {"wrong-exception=4", "mmk-2030", Framing::Tcp, {"reply.unsupported_function", "reply.quantity"}},
+        {"exception-for-valid", "mmk-2030", Framing::Tcp, {"reply.exception_for_valid"}},
+        {"no-reply=1", "mmk-2030", Framing::Rtu, {"reply.missing"}},
+        {"word-swap", "walchem-w600", Framing::Tcp, {"state.lost_write"}},
+        {"off-by-one-address", "mmk-2030", Framing::Tcp, {"reply.exception_for_valid", "state.lost_write"}},
+        {"stuck-value", "mmk-2030", Framing::Tcp, {"state.lost_write"}},
+        {"drop-write", "mmk-2030", Framing::Rtu, {"state.lost_write"}},
+        {"accept-out-of-range", "mmk-2030", Framing::Tcp, {"reply.rejected_write"}},
+        {"no-echo", "mmk-2030", Framing::Tcp, {"reply.echo"}},
+        {"crash-after=3", "cth2265i", Framing::Rtu, {"reply.missing"}},
+    };
+}
+
+class PlantedFault : public ::testing::TestWithParam<FaultCase> {};
+
+TEST_P(PlantedFault, BreaksTheRuleMeantToCatchIt) {
+    const auto& c = GetParam();
+    const auto& p = mbscope::slave::test::profile(c.profile);
+    std::string text = c.fault;
+    if (text == "stuck-value") {
+        // The first register the script writes.
+        for (const auto& s : script(p, 1, c.framing))
+            if (s.pdu[0] == 6) {
+                text += "=" + std::to_string((s.pdu[1] << 8) | s.pdu[2]);
+                break;
+            }
+    }
+    const auto spec = sl::parse_fault(text);
+    ASSERT_TRUE(spec) << spec.error();
+    sl::FaultSet faults({*spec}, 7);
+    const auto found = run(p, c.framing, faults);
+    ASSERT_FALSE(found.empty()) << "the oracle did not notice " << c.fault;
+    const bool named =
+        std::any_of(found.begin(), found.end(), [&](const auto& v) { return c.rules.count(v.rule); });
+    EXPECT_TRUE(named) << "none of the expected rules broken:" << listing(found);
+}
+
+INSTANTIATE_TEST_SUITE_P(Slave, PlantedFault, ::testing::ValuesIn(fault_cases()), [](const auto& info) {
+    std::string n = info.param.fault.substr(0, info.param.fault.find('='));
+    for (auto& ch : n)
+        if (ch == '-') ch = '_';
+    return n;
+});
+
+TEST(PlantedFaults, EveryFaultIsCaughtByTheOracleOrNamedAsATimingFault) {
+    std::set<std::string> named = timing_faults;
+    for (const auto& c : fault_cases())
+        named.insert(c.fault.substr(0, c.fault.find('=')));
+    for (std::size_t i = 0; i < sl::fault_count; ++i) {
+        const std::string name(sl::to_string(static_cast<sl::Fault>(i)));
+        EXPECT_TRUE(named.count(name)) << name << " has no oracle case";
+    }
+}
+
+// ---- single rules, with the bytes written out
+
+TEST(ExchangeOracle, SilenceIsDemandedForABadCrcAndARepliedOneIsAViolation) {
+    const auto& p = mbscope::slave::test::profile("mmk-2030");
+    cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+    mbscope::modbus::transport::Exchange ex;
+    ex.sent = mb::encode_rtu(1, pdu(3, {0, 1}));
+    ex.sent.back() ^= 1;
+    EXPECT_EQ(oracle.expectation(ex.sent), "no reply");
+    EXPECT_TRUE(oracle.judge(ex).empty());
+    ex.received = mb::encode_rtu(1, std::vector<std::uint8_t>{0x03, 0x02, 0x00, 0x00});
+    ex.response = *mb::decode_rtu(ex.received);
+    const auto v = oracle.judge(ex);
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].rule, "silence.bad_checksum");
+    EXPECT_EQ(v[0].source, "SL §2.5.1.2");
+}
+
+TEST(ExchangeOracle, ListenOnlyModeSilencesEverythingUntilAValidRestart) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+    const auto send = [&](const std::vector<std::uint8_t>& request, const std::vector<std::uint8_t>& reply) {
+        mbscope::modbus::transport::Exchange ex;
+        ex.sent = mb::encode_rtu(1, request);
+        if (!reply.empty()) {
+            ex.received = mb::encode_rtu(1, reply);
+            ex.response = *mb::decode_rtu(ex.received);
+        }
+        return oracle.judge(ex);
+    };
+    EXPECT_TRUE(send(pdu(8, {4, 0}), {}).empty());
+    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "no reply");
+    const auto answered = send(pdu(3, {0, 1}), {0x03, 0x02, 0x00, 0x00});
+    ASSERT_EQ(answered.size(), 1u);
+    EXPECT_EQ(answered[0].rule, "silence.listen_only");
+    EXPECT_TRUE(send(pdu(8, {1, 0}), {}).empty());  // the restart, unanswered
+    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "a normal response");
+}
+
+TEST(ExchangeOracle, AnAcknowledgedWriteMustReadBack) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    cf::ExchangeOracle oracle(Framing::Tcp, {{1, &p}}, true);
+    mbscope::modbus::transport::Exchange write;
+    write.sent = mb::encode_tcp(1, 1, pdu(6, {7, 0x1234}));
+    write.received = write.sent;  // the echo
+    write.response = *mb::decode_tcp(write.received);
+    EXPECT_TRUE(oracle.judge(write).empty());
+    mbscope::modbus::transport::Exchange read;
+    read.sent = mb::encode_tcp(2, 1, pdu(3, {7, 1}));
+    read.received = mb::encode_tcp(2, 1, std::vector<std::uint8_t>{0x03, 0x02, 0x00, 0x00});
+    read.response = *mb::decode_tcp(read.received);
+    const auto v = oracle.judge(read);
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].rule, "state.lost_write");
+    EXPECT_NE(v[0].expected.find("4660"), std::string::npos);
+}
+
+}  // namespace
