@@ -328,17 +328,6 @@ void ExchangeOracle::learn(const Request& r, const modbus::Pdu& reply) {
         }
     };
     switch (fc) {
-        case 1:
-        case 2:
-        case 3:
-        case 4:
-        case 23: {
-            if (fc == 23) {
-                forget_written(r);
-                return;
-            }
-            return;
-        }
         case 5: {
             const auto& w = std::get<modbus::WriteSingle>(req.body);
             remember(Table::Coils, w.address, {static_cast<std::uint16_t>(w.value ? 1 : 0)});
@@ -365,7 +354,8 @@ void ExchangeOracle::learn(const Request& r, const modbus::Pdu& reply) {
         case 8:
             if (std::get<modbus::Diagnostics>(req.body).sub_function == 0x01) listen_only_.erase(u->id);
             return;
-        case 22:
+        case 22:  // mask write and read/write multiple: what they stored is not modelled
+        case 23:
             forget_written(r);
             return;
         default:

@@ -18,11 +18,6 @@ using namespace mbscope;
 
 namespace {
 
-struct NullBuffer : std::streambuf {
-    int overflow(int c) override { return c; }
-    std::streamsize xsputn(const char*, std::streamsize n) override { return n; }
-};
-
 struct CountingSink : analyzer::Sink {
     std::uint64_t frames = 0;
     void frame(const analyzer::FrameRecord&) override { ++frames; }
@@ -47,7 +42,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     const auto capture = in.ConsumeRemainingBytes<std::uint8_t>();
 
-    NullBuffer null_buffer;
+    fuzz::NullBuffer null_buffer;
     std::ostream nowhere(&null_buffer);
     analyzer::TextSink text(nowhere);
     analyzer::JsonSink json(nowhere, true);

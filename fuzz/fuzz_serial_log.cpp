@@ -18,15 +18,6 @@
 
 using namespace mbscope;
 
-namespace {
-
-struct NullBuffer : std::streambuf {
-    int overflow(int c) override { return c; }
-    std::streamsize xsputn(const char*, std::streamsize n) override { return n; }
-};
-
-}  // namespace
-
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     FuzzedDataProvider in(data, size);
     // Names, not enumerators: a format this build does not know falls back to detection.
@@ -46,7 +37,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (n <= 0) fuzz::fail("fuzz_serial_log", "write to the in-memory file failed");
         written += static_cast<std::size_t>(n);
     }
-    NullBuffer null_buffer;
+    fuzz::NullBuffer null_buffer;
     std::ostream nowhere(&null_buffer);
     analyzer::JsonSink sink(nowhere, true);
     analyzer::Analyzer a(options, sink);

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <span>
+#include <streambuf>
 #include <string>
 #include <variant>
 
@@ -21,6 +22,12 @@ namespace mbscope::fuzz {
     std::fflush(stderr);
     std::abort();
 }
+
+// A stream buffer that discards: the output sinks run in full, nothing is kept.
+struct NullBuffer : std::streambuf {
+    int overflow(int c) override { return c; }
+    std::streamsize xsputn(const char*, std::streamsize n) override { return n; }
+};
 
 // "11 03 00 6B": bytes as the failure messages show them.
 inline std::string hex(std::span<const std::uint8_t> bytes) {
