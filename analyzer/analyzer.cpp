@@ -138,6 +138,12 @@ void Analyzer::packet(const std::string& source, const Packet& p) {
     source_ = source;
     packet_number_ = p.number;
     ++summary_.packets;
+    if (p.time_out_of_range && time_warned_source_ != source) {
+        time_warned_source_ = source;
+        input_error(source + ": packet " + std::to_string(p.number) +
+                    ": timestamp beyond April 2262, not representable; such packets are decoded at the "
+                    "time of the packet before them");
+    }
     if (p.time > now_) now_ = p.time;
     expire(now_, false);
     if (p.linktype >= link_user0 && p.linktype <= link_user15) return user_dlt_packet(p);

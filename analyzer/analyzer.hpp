@@ -136,6 +136,7 @@ class Analyzer {
     std::deque<Expiry> expiries_;
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;
     std::string source_;
+    std::string time_warned_source_;  // the last source whose out-of-range timestamps were reported
     std::uint64_t packet_number_ = 0;
     modbus::Timestamp now_{0};
     std::vector<std::string> told_user_dlt_;  // sources already told that USER link types need --user-dlt

@@ -4,6 +4,8 @@
 
 #include <cstdio>
 
+#include "analyzer/timestamps.hpp"
+
 namespace mbscope::analyzer {
 
 struct CaptureSource::Impl {
@@ -75,7 +77,10 @@ std::optional<Packet> CaptureSource::next() {
     if (rc == 1) {
         Packet p;
         p.number = ++count_;
-        p.time = std::chrono::seconds(header->ts.tv_sec) + std::chrono::nanoseconds(header->ts.tv_usec);
+        // Opened with nanosecond precision: tv_usec holds nanoseconds.
+        const auto time = timestamp_from(header->ts.tv_sec, header->ts.tv_usec);
+        p.time_out_of_range = !time;
+        p.time = last_time_ = time.value_or(last_time_);
         p.linktype = pcap_datalink(impl_->pcap);
         p.data = {data, header->caplen};
         p.original_length = header->len;

@@ -17,6 +17,7 @@ namespace mbscope::analyzer {
 struct Packet {
     std::uint64_t number = 0;  // 1-based, as tshark counts
     modbus::Timestamp time{0};
+    bool time_out_of_range = false;  // the record's time is not representable; `time` is the last one seen
     int linktype = 0;
     std::span<const std::uint8_t> data;  // valid until the next call to next()
     std::uint32_t original_length = 0;
@@ -47,6 +48,7 @@ class CaptureSource {
     std::string error_;
     std::string name_;
     std::uint64_t count_ = 0;
+    modbus::Timestamp last_time_{0};
 };
 
 }  // namespace mbscope::analyzer

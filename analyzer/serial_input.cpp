@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "analyzer/serial_logs.hpp"
+#include "analyzer/timestamps.hpp"
 
 namespace mbscope::analyzer {
 
@@ -48,9 +49,11 @@ bool parse_hex_tokens(std::istringstream& words, std::vector<std::uint8_t>& out,
 bool parse_time(const std::string& token, modbus::Timestamp& t) {
     double seconds = 0;
     auto [p, ec] = std::from_chars(token.data(), token.data() + token.size(), seconds);
-    if (ec != std::errc() || p != token.data() + token.size() || seconds < 0) return false;
-    t = std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(seconds));
-    return t.count() > 0 || seconds == 0;
+    if (ec != std::errc() || p != token.data() + token.size()) return false;
+    const auto converted = timestamp_from_seconds(seconds);  // "1e300", "nan" and "inf" parse as doubles
+    if (!converted) return false;
+    t = *converted;
+    return true;
 }
 
 bool read_text(Analyzer& a, const std::string& path) {
@@ -68,8 +71,8 @@ bool read_text(Analyzer& a, const std::string& path) {
         if (!(words >> time_token) || time_token[0] == '#') continue;
         modbus::Timestamp t{0};
         if (!parse_time(time_token, t)) {
-            a.input_error(path + ":" + std::to_string(number) + ": not a time in seconds: '" + time_token +
-                          "'");
+            a.input_error(path + ":" + std::to_string(number) +
+                          ": not a time in seconds from 0 to 9.2e9 (year 2262): '" + time_token + "'");
             ok = false;
             continue;
         }

@@ -129,3 +129,58 @@ TEST(DamagedCapture, CommandExitsTwoAndStillReportsWhatItRead) {
     EXPECT_NE(out.find("packet 2 at byte offset 100"), std::string::npos) << out;
     EXPECT_NE(out.find("summary: 1 packets"), std::string::npos) << out;
 }
+
+namespace {
+
+void put32(std::vector<std::uint8_t>& b, std::uint32_t v) {
+    for (int i = 0; i < 4; ++i)
+        b.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+}
+
+// A pcapng block: type, total length, body padded to 32 bits, total length again.
+void block(std::vector<std::uint8_t>& out, std::uint32_t type, std::vector<std::uint8_t> body) {
+    body.resize((body.size() + 3) / 4 * 4);
+    const auto total = static_cast<std::uint32_t>(12 + body.size());
+    put32(out, type);
+    put32(out, total);
+    out.insert(out.end(), body.begin(), body.end());
+    put32(out, total);
+}
+
+}  // namespace
+
+// pcapng timestamps are 64-bit counts of microseconds: 2^64 of them is half a million years, beyond the
+// nanosecond timestamps the analysis keeps (found by fuzzing: the conversion overflowed). The packet is
+// still decoded, and the input error names it.
+TEST(DamagedCapture, PcapngTimestampBeyond2262IsNamedAndThePacketStillDecoded) {
+    std::vector<std::uint8_t> f;
+    std::vector<std::uint8_t> shb;
+    put32(shb, 0x1A2B3C4D);
+    put32(shb, 1);  // version 1.0
+    put32(shb, 0xFFFFFFFF);
+    put32(shb, 0xFFFFFFFF);  // section length unknown
+    block(f, 0x0A0D0D0A, shb);
+    std::vector<std::uint8_t> idb;
+    put32(idb, 101);  // LINKTYPE_RAW (IPv4), no reserved bits
+    put32(idb, 65535);
+    block(f, 1, idb);
+    // IPv4 + TCP to port 502 carrying an FC3 request.
+    const auto packet = mbscope::test::packet(
+        true, 1, {0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0x11, 0x03, 0x00, 0x6B, 0x00, 0x03});
+    for (const std::uint64_t ts : {std::uint64_t{0xFFFFFFFFFFFFFFF0}, std::uint64_t{1'000'000}}) {
+        std::vector<std::uint8_t> epb;
+        put32(epb, 0);
+        put32(epb, static_cast<std::uint32_t>(ts >> 32));
+        put32(epb, static_cast<std::uint32_t>(ts));
+        put32(epb, static_cast<std::uint32_t>(packet.size()));
+        put32(epb, static_cast<std::uint32_t>(packet.size()));
+        epb.insert(epb.end(), packet.begin(), packet.end());
+        block(f, 6, epb);
+    }
+    const auto o = analyse(f);
+    EXPECT_TRUE(o.opened);
+    EXPECT_EQ(o.summary.packets, 2u);
+    EXPECT_GE(o.summary.frames, 1u);
+    ASSERT_EQ(o.summary.input_errors.size(), 1u);
+    EXPECT_NE(o.error.find("packet 1: timestamp beyond April 2262"), std::string::npos) << o.error;
+}

@@ -290,3 +290,23 @@ TEST(SerialLogs, FormatDetection) {
     EXPECT_EQ(an::parse_input_format("jpnevulator"), an::InputFormat::Jpnevulator);
     EXPECT_EQ(an::parse_input_format("socat"), an::InputFormat::Socat);
 }
+
+// Times are nanoseconds since 1970 in 64 bits: a text log whose time parses as a double but is not a
+// representable time (found by fuzzing: "1e300" overflowed the conversion) is a named bad line.
+TEST(TextLog, TimesThatAreNotRepresentableAreNamedAndTheRestRead) {
+    const auto path = write_temp("mbscope-text-times.txt",
+                                 "1e300 > 11 03 00 6B 00 03 76 87\n"
+                                 "nan > 11 03 00 6B 00 03 76 87\n"
+                                 "inf > 11 03 00 6B 00 03 76 87\n"
+                                 "9300000000 > 11 03 00 6B 00 03 76 87\n"
+                                 "1.5 > 11 03 00 6B 00 03 76 87\n");
+    const auto r = decode(path, an::InputFormat::Text);
+    EXPECT_FALSE(r->ok);
+    ASSERT_EQ(r->summary.input_errors.size(), 4u);
+    EXPECT_NE(r->summary.input_errors[0].find(":1: not a time"), std::string::npos)
+        << r->summary.input_errors[0];
+    EXPECT_NE(r->summary.input_errors[3].find(":4: not a time"), std::string::npos)
+        << r->summary.input_errors[3];
+    ASSERT_EQ(r->sink.frames.size(), 1u);
+    EXPECT_EQ(r->sink.frames[0].time, mb::Timestamp(1'500'000'000));
+}
