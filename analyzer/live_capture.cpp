@@ -4,9 +4,14 @@
 #include <poll.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
+#include "analyzer/pcapng_writer.hpp"
+#include "analyzer/timestamps.hpp"
 #include "modbus/transport/serial_port.hpp"
 
 namespace mbscope::analyzer {
@@ -20,6 +25,16 @@ namespace {
 constexpr int snap_length = 65535;
 constexpr int read_timeout_ms = 100;  // how often the loop looks at the clock and the stop flag
 constexpr int drain_timeout_ms = 20;  // after a stop, the silence that ends the serial capture
+
+// pcap_datalink() gives DLT_ values, capture files hold LINKTYPE_ values: they differ for the few link
+// types whose DLT_ number varies by platform. pcap_dump maps them itself; libpcap exports no mapping.
+int linktype_of(int dlt) {
+    if (dlt == DLT_RAW) return 101;
+#if DLT_LOOP != 108
+    if (dlt == DLT_LOOP) return 108;
+#endif
+    return dlt;
+}
 
 Timestamp wall_clock() {
     return std::chrono::duration_cast<Timestamp>(std::chrono::system_clock::now().time_since_epoch());
@@ -39,17 +54,18 @@ std::string capture_filter(const SniffOptions& o) {
     return filter;
 }
 
-std::string pcap_output_name(const std::string& requested) {
+bool writes_pcapng(std::string_view path) {
     constexpr std::string_view ng = ".pcapng";
-    if (requested.size() > ng.size() && requested.ends_with(ng))
-        return requested.substr(0, requested.size() - ng.size()) + ".pcap";
-    return requested;
+    if (path.size() < ng.size()) return false;
+    return std::equal(ng.begin(), ng.end(), path.end() - static_cast<std::ptrdiff_t>(ng.size()),
+                      [](char a, char b) { return a == std::tolower(static_cast<unsigned char>(b)); });
 }
 
 struct LiveCapture::Impl {
     pcap_t* pcap = nullptr;  // network capture
-    pcap_t* dead = nullptr;  // serial capture's output: a USER0 "capture" for pcap_dump_open
-    pcap_dumper_t* dumper = nullptr;
+    pcap_t* dead = nullptr;  // serial capture's classic pcap output: a USER0 "capture" for pcap_dump_open
+    pcap_dumper_t* dumper = nullptr;  // classic pcap output
+    PcapngWriter pcapng;              // pcapng output: one interface per network interface or serial port
     UniqueFd serial[2];
     ~Impl() {
         if (dumper) pcap_dump_close(dumper);
@@ -58,21 +74,59 @@ struct LiveCapture::Impl {
     }
     bool direction_header = false;  // two serial taps: one byte of UserDltDirection ahead of each record
     std::vector<std::uint8_t> record;
-    void dump(Timestamp t, std::span<const std::uint8_t> bytes, int port) {
-        if (!dumper) return;
+
+    // The capture file for `names` (the interface, or each serial port), all of `linktype` and `snaplen`.
+    std::string open_output(const std::string& path, int linktype, int snaplen,
+                            const std::vector<std::string>& names) {
+        if (writes_pcapng(path)) {
+            if (auto e = pcapng.open(path); !e.empty()) return e;
+            for (const auto& name : names) {
+                if (auto e = pcapng.add_interface(static_cast<std::uint16_t>(linktype),
+                                                  static_cast<std::uint32_t>(snaplen), name);
+                    !e.empty())
+                    return e;
+            }
+            return pcapng.flush();  // a reader opening the file before the first packet finds it whole
+        }
+        pcap_t* source = pcap ? pcap : (dead = pcap_open_dead(linktype, snap_length));
+        if (!source) return path + ": " + std::strerror(ENOMEM);
+        dumper = pcap_dump_open(source, path.c_str());
+        if (!dumper) return path + ": " + pcap_geterr(source);
+        return {};
+    }
+
+    // One record from `port` (the serial port's index, 0 for a network interface) to the capture file, if
+    // any: classic pcap keeps microseconds, pcapng nanoseconds. An error naming the file when it fails.
+    std::string dump(Timestamp t, std::span<const std::uint8_t> bytes, std::uint32_t original_length,
+                     int port) {
+        if (!dumper && !pcapng.is_open()) return {};
         if (direction_header) {
             record.assign(1, static_cast<std::uint8_t>(port == 0 ? UserDltDirection::MasterToSlave
                                                                  : UserDltDirection::SlaveToMaster));
             record.insert(record.end(), bytes.begin(), bytes.end());
             bytes = record;
+            ++original_length;
         }
+        if (pcapng.is_open())
+            return pcapng.write_packet(static_cast<std::uint32_t>(port), t, bytes, original_length);
         pcap_pkthdr h{};
         h.ts.tv_sec = static_cast<time_t>(std::chrono::duration_cast<std::chrono::seconds>(t).count());
         h.ts.tv_usec = static_cast<suseconds_t>(
             std::chrono::duration_cast<std::chrono::microseconds>(t % std::chrono::seconds(1)).count());
-        h.caplen = h.len = static_cast<bpf_u_int32>(bytes.size());
+        h.caplen = static_cast<bpf_u_int32>(bytes.size());
+        h.len = original_length;
         pcap_dump(reinterpret_cast<u_char*>(dumper), &h, bytes.data());
-        pcap_dump_flush(dumper);  // a serial read is rare: the file is complete even if the process is killed
+        return {};
+    }
+
+    std::string flush(const std::string& path) {
+        if (pcapng.is_open()) return pcapng.flush();
+        if (!dumper) return {};
+        errno = 0;
+        // pcap_dump reports nothing: a write that failed before shows in the stream's error flag.
+        if (pcap_dump_flush(dumper) != 0 || std::ferror(pcap_dump_file(dumper)))
+            return path + ": " + (errno ? std::strerror(errno) : "write error");
+        return {};
     }
 };
 
@@ -83,7 +137,8 @@ std::unique_ptr<LiveCapture> LiveCapture::open(const SniffOptions& o, std::strin
     c->impl_ = std::make_unique<Impl>();
     c->options_ = o;
     Impl& m = *c->impl_;
-    pcap_t* writer = nullptr;
+    int linktype = link_user0, snaplen = snap_length;
+    std::vector<std::string> interfaces;  // as the capture file names them
     if (!o.interface.empty()) {
         c->name_ = o.interface;
         char err[PCAP_ERRBUF_SIZE] = {};
@@ -114,7 +169,9 @@ std::unique_ptr<LiveCapture> LiveCapture::open(const SniffOptions& o, std::strin
             error = o.interface + ": " + err;
             return nullptr;
         }
-        writer = m.pcap;
+        linktype = linktype_of(pcap_datalink(m.pcap));
+        snaplen = pcap_snapshot(m.pcap);
+        interfaces = {o.interface};
     } else if (!o.serial.empty()) {
         c->name_ = o.serial2.empty() ? o.serial : o.serial + "+" + o.serial2;
         const std::string* devices[2] = {&o.serial, &o.serial2};
@@ -127,19 +184,18 @@ std::unique_ptr<LiveCapture> LiveCapture::open(const SniffOptions& o, std::strin
                 return nullptr;
             }
             m.serial[i] = std::move(fd.value());
+            interfaces.push_back(*devices[i]);
         }
-        m.dead = pcap_open_dead(147, snap_length);  // LINKTYPE_USER0: the line's bytes
+        // USER0 records hold the line's bytes. Two ports are two interfaces of the pcapng file, but libpcap
+        // does not tell which a record came from: the direction byte does, for mbscope decode.
         m.direction_header = !o.serial2.empty();
-        writer = m.dead;
     } else {
         error = "nothing to capture: give --interface or --serial";
         return nullptr;
     }
     if (!o.write.empty()) {
-        c->written_ = pcap_output_name(o.write);
-        m.dumper = pcap_dump_open(writer, c->written_.c_str());
-        if (!m.dumper) {
-            error = c->written_ + ": " + pcap_geterr(writer);
+        if (auto e = m.open_output(o.write, linktype, snaplen, interfaces); !e.empty()) {
+            error = e;
             return nullptr;
         }
     }
@@ -158,6 +214,15 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
     const auto done = [&] {
         if (options_.count && captured_ >= *options_.count) return true;
         return options_.duration && std::chrono::steady_clock::now() - start >= *options_.duration;
+    };
+    // A capture file that cannot be written ends the capture: what was asked for can no longer be kept.
+    const auto write_failed = [&](const std::string& error) {
+        a.input_error(error);
+        return false;
+    };
+    const auto finished = [&] {
+        const std::string written = m.flush(options_.write);
+        return written.empty() || write_failed(written);
     };
     bool draining = false;
     if (m.pcap) {
@@ -180,14 +245,17 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             }
             Packet p;
             p.number = ++captured_;
-            p.time = std::chrono::seconds(h->ts.tv_sec) + std::chrono::microseconds(h->ts.tv_usec);
+            const auto time = timestamp_from(h->ts.tv_sec, std::int64_t{h->ts.tv_usec} * 1000);
+            p.time_out_of_range = !time;
+            p.time = time.value_or(wall_clock());
             p.linktype = linktype;
             p.data = {data, h->caplen};
             p.original_length = h->len;
-            if (m.dumper) pcap_dump(reinterpret_cast<u_char*>(m.dumper), h, data);
+            const std::string written = m.dump(p.time, p.data, h->len, 0);
             a.packet(name_, p);
+            if (!written.empty()) return write_failed(written);
         }
-        return true;
+        return finished();
     }
     // Serial: each read is a chunk stamped when it returned. With two taps the first carries the master's
     // requests and the second the slaves' responses.
@@ -220,12 +288,15 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             const Timestamp t = wall_clock();
             const std::span<const std::uint8_t> bytes(buf, static_cast<std::size_t>(got));
             ++captured_;
-            m.dump(t, bytes, which[k]);
+            std::string written = m.dump(t, bytes, static_cast<std::uint32_t>(bytes.size()), which[k]);
+            // A serial read is rare: flushed at once, the file is whole even if the process is killed.
+            if (written.empty()) written = m.flush(options_.write);
             a.serial(name_, bytes, t,
                      two ? (which[k] == 0 ? Direction::Request : Direction::Response) : Direction::Unknown);
+            if (!written.empty()) return write_failed(written);
         }
     }
-    return true;
+    return finished();
 }
 
 }  // namespace mbscope::analyzer

@@ -3,13 +3,13 @@
 // immediate mode, a BPF filter on the Modbus ports), or bytes from one or two serial ports read raw with
 // the host's clock, fed to the same Analyzer as files are, and optionally written to a capture file.
 //
-// libpcap writes classic pcap only (pcap_dump; libpcap 1.10 has no pcapng writer): the interface's link type
-// for network captures, USER0 (147) for serial bytes, one record a read, stamped when the read returned. A
-// name ending in .pcapng is not honoured silently: the file is written under the same name ending in .pcap
-// (written() says which). One serial port: the records are the line's bytes, read back with
-// `mbscope decode --user-dlt rtu`. Two ports: each record starts with a one-byte direction pseudo-header
-// (UserDltDirection: 0 the first port, master to slave; 1 the second, slave to master), read back with
-// `--user-dlt rtu-dir` into the same directions.
+// The file is pcapng when its name ends in .pcapng (any case; PcapngWriter, nanosecond timestamps, one
+// interface for the network interface or for each serial port), classic pcap otherwise (libpcap's pcap_dump,
+// microseconds). Records carry the interface's link type for network captures, USER0 (147) for serial
+// bytes, one record a read, stamped when the read returned. One serial port: the records are the line's
+// bytes, read back with `mbscope decode --user-dlt rtu`. Two ports: each record starts with a one-byte
+// direction pseudo-header (UserDltDirection: 0 the first port, master to slave; 1 the second, slave to
+// master), read back with `--user-dlt rtu-dir` into the same directions.
 
 #include <atomic>
 #include <chrono>
@@ -17,6 +17,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "analyzer/analyzer.hpp"
@@ -30,7 +31,7 @@ struct SniffOptions {
     std::string serial;   // serial capture: the line, or the master's transmit line when serial2 is set
     std::string serial2;  // the slaves' transmit line (two taps of a full-duplex or RS-232 link)
     modbus::SerialLine line{};
-    std::string write;  // capture file to write (classic pcap), empty for none; .pcapng becomes .pcap
+    std::string write;  // capture file to write (see writes_pcapng), empty for none
     std::optional<std::chrono::duration<double>> duration;  // stop after this long
     std::optional<std::uint64_t> count;                     // stop after this many packets or serial reads
 };
@@ -38,9 +39,9 @@ struct SniffOptions {
 // The filter for the options' ports: "tcp port 502 or udp port 502 ...".
 std::string capture_filter(const SniffOptions& options);
 
-// The name libpcap's output goes to for a requested name: FILE.pcapng becomes FILE.pcap (classic pcap is
-// all libpcap writes, and a .pcapng name would mislead every reader that trusts extensions).
-std::string pcap_output_name(const std::string& requested);
+// True when `path` ends in .pcapng, in any case: the capture file is then written as pcapng, otherwise as
+// classic pcap.
+bool writes_pcapng(std::string_view path);
 
 class LiveCapture {
   public:
@@ -53,12 +54,11 @@ class LiveCapture {
     LiveCapture& operator=(const LiveCapture&) = delete;
 
     // Captures into the analyzer until the duration or count is reached or `stop` is set; then reads what
-    // is already waiting and returns. False on a capture error (recorded as the analyzer's input error).
+    // is already waiting, flushes the capture file and returns. False on a capture error or a failed write
+    // of the capture file (recorded as the analyzer's input error, naming the file).
     bool run(Analyzer& analyzer, const std::atomic<bool>& stop);
     std::uint64_t captured() const noexcept { return captured_; }
     const std::string& name() const noexcept { return name_; }
-    // The file being written (empty for none): the requested name, or with .pcapng replaced by .pcap.
-    const std::string& written() const noexcept { return written_; }
     // True when serial records carry the direction pseudo-header (two ports).
     bool direction_header() const noexcept;
 
@@ -68,7 +68,6 @@ class LiveCapture {
     std::unique_ptr<Impl> impl_;
     SniffOptions options_;
     std::string name_;
-    std::string written_;
     std::uint64_t captured_ = 0;
 };
 

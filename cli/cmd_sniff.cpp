@@ -48,9 +48,6 @@ int run_sniff(SniffCliOptions o) {
                   << '\n';
         return exit_failure;
     }
-    if (!capture->written().empty() && capture->written() != s.write)
-        std::cerr << "mbscope sniff: libpcap writes classic pcap only: writing " << capture->written()
-                  << " (editcap -F pcapng converts it)\n";
     analyzer::Analyzer a(options, outputs.sink());
     std::signal(SIGINT, on_stop_signal);
     std::signal(SIGTERM, on_stop_signal);
@@ -58,9 +55,8 @@ int run_sniff(SniffCliOptions o) {
     a.finish();
     for (const auto& e : a.summary().input_errors)
         std::cerr << "mbscope sniff: " << e << '\n';
-    if (!capture->written().empty() && !s.serial.empty())
-        std::cerr << "mbscope sniff: " << capture->written()
-                  << " holds the serial bytes as USER0 records; read it "
+    if (!s.write.empty() && !s.serial.empty())
+        std::cerr << "mbscope sniff: " << s.write << " holds the serial bytes as USER0 records; read it "
                   << "with mbscope decode --user-dlt " << (capture->direction_header() ? "rtu-dir" : "rtu")
                   << '\n';
     if (!ok) return exit_failure;
@@ -82,8 +78,8 @@ void register_sniff(CLI::App& app, int& exit_code) {
     iface->excludes(serial);
     add_analysis_options(*cmd, o->common);
     cmd->add_option("--write", o->sniff.write,
-                    "Also write what was captured to FILE, in classic pcap format (libpcap writes no "
-                    "pcapng: a name ending in .pcapng is written as .pcap). Serial bytes are USER0 records: "
+                    "Also write what was captured to FILE: pcapng (nanosecond timestamps) when the name "
+                    "ends in .pcapng, in any case; classic pcap otherwise. Serial bytes are USER0 records: "
                     "read back with mbscope decode --user-dlt rtu, or --user-dlt rtu-dir with --serial2 "
                     "(a direction byte leads each record)");
     cmd->add_option("--duration", o->duration_s, "Stop after this many seconds");
@@ -91,7 +87,7 @@ void register_sniff(CLI::App& app, int& exit_code) {
     cmd->footer(
         "Stops at --duration, --count, SIGINT or SIGTERM, then prints the summary.\n"
         "Exit codes: 0 no error-severity finding, 1 faults found, 2 the capture could not be opened "
-        "or failed.");
+        "or failed, or its --write file could not be written.");
     cmd->callback([o, &exit_code] { exit_code = run_sniff(*o); });
 }
 

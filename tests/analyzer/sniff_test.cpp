@@ -10,6 +10,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "analyzer/live_capture.hpp"
@@ -52,6 +56,30 @@ std::unique_ptr<Collect> decode_file(const std::string& path, an::AnalyzerOption
     return sink;
 }
 
+// The file's first four bytes, as a little-endian number: a pcapng Section Header Block starts 0x0A0D0D0A,
+// a classic pcap file 0xA1B2C3D4 (microseconds).
+std::uint32_t magic(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    unsigned char b[4] = {};
+    in.read(reinterpret_cast<char*>(b), 4);
+    return b[0] | b[1] << 8 | b[2] << 16 | static_cast<std::uint32_t>(b[3]) << 24;
+}
+constexpr std::uint32_t pcapng_magic = 0x0A0D0D0A, pcap_magic = 0xA1B2C3D4;
+
+// Runs `capture` into `a` while the FC3 request is written into the pty `master`, then stops it, or with
+// `stop_after` false lets it end by itself. What run() returned.
+bool sniff_request(an::LiveCapture& capture, an::Analyzer& a, int master, bool stop_after = true) {
+    std::atomic<bool> stop{false};
+    bool ran = false;
+    std::thread sniffer([&] { ran = capture.run(a, stop); });
+    const ssize_t written = ::write(master, rtu_request.data(), rtu_request.size());
+    stop = stop_after;
+    sniffer.join();
+    a.finish();
+    EXPECT_EQ(written, 8);
+    return ran;
+}
+
 }  // namespace
 
 TEST(Sniff, FilterNamesEveryPort) {
@@ -61,7 +89,9 @@ TEST(Sniff, FilterNamesEveryPort) {
     EXPECT_EQ(an::capture_filter(o), "tcp port 502 or tcp port 1502 or udp port 502");
 }
 
-TEST(Sniff, LoopbackModbusTcpExchangeIsDecodedAndWritten) {
+// A Modbus/TCP exchange on lo, decoded as it comes and written into `name`, whose format `expected_magic`
+// names; the file decodes again into the same transaction at the same times.
+void loopback_exchange(const std::string& name, std::uint32_t expected_magic) {
     // The server first, for its port: the capture filters on it.
     const int server = ::socket(AF_INET, SOCK_STREAM, 0);
     sockaddr_in addr{};
@@ -77,7 +107,7 @@ TEST(Sniff, LoopbackModbusTcpExchangeIsDecodedAndWritten) {
     o.interface = "lo";
     o.tcp_ports = {port};
     o.udp_ports = {};
-    o.write = ::testing::TempDir() + "sniff_lo.pcap";
+    o.write = ::testing::TempDir() + name;
     std::string error;
     bool denied = false;
     auto capture = an::LiveCapture::open(o, error, denied);
@@ -116,9 +146,20 @@ TEST(Sniff, LoopbackModbusTcpExchangeIsDecodedAndWritten) {
     EXPECT_TRUE(sink.findings.empty());
     capture.reset();  // closes the file
 
+    EXPECT_EQ(magic(o.write), expected_magic) << o.write;
     const auto again = decode_file(o.write, options);
     ASSERT_EQ(again->transactions.size(), 1u);
-    EXPECT_TRUE(again->transactions[0].response.has_value());
+    ASSERT_TRUE(again->transactions[0].response.has_value());
+    EXPECT_EQ(again->transactions[0].request.time, sink.transactions[0].request.time);
+    EXPECT_EQ(again->transactions[0].response->time, sink.transactions[0].response->time);
+}
+
+TEST(Sniff, LoopbackModbusTcpExchangeIsDecodedAndWrittenAsClassicPcap) {
+    loopback_exchange("sniff_lo.pcap", pcap_magic);
+}
+
+TEST(Sniff, LoopbackModbusTcpExchangeIsDecodedAndWrittenAsPcapng) {
+    loopback_exchange("sniff_lo.pcapng", pcapng_magic);
 }
 
 TEST(Sniff, TwoSerialTapsGiveDirectionsAndAUserZeroFile) {
@@ -130,7 +171,7 @@ TEST(Sniff, TwoSerialTapsGiveDirectionsAndAUserZeroFile) {
     an::SniffOptions o;
     o.serial = path[0];
     o.serial2 = path[1];
-    o.write = ::testing::TempDir() + "sniff_serial.pcap";
+    o.write = ::testing::TempDir() + "sniff_serial.pcapng";
     std::string error;
     bool denied = false;
     auto capture = an::LiveCapture::open(o, error, denied);
@@ -156,7 +197,9 @@ TEST(Sniff, TwoSerialTapsGiveDirectionsAndAUserZeroFile) {
     EXPECT_TRUE(capture->direction_header());
     capture.reset();
 
-    // Two taps: each USER0 record leads with its direction byte, and decodes into the same directions.
+    // Two taps: each USER0 record leads with its direction byte, and decodes into the same directions and
+    // times (pcapng keeps the nanoseconds the reads were stamped with).
+    EXPECT_EQ(magic(o.write), pcapng_magic);
     an::AnalyzerOptions user0;
     user0.user_dlt = mb::Framing::Rtu;
     user0.user_dlt_direction = true;
@@ -165,43 +208,103 @@ TEST(Sniff, TwoSerialTapsGiveDirectionsAndAUserZeroFile) {
     ASSERT_TRUE(again->transactions[0].response.has_value());
     EXPECT_EQ(again->transactions[0].request.direction, mb::Direction::Request);
     EXPECT_EQ(again->transactions[0].response->direction, mb::Direction::Response);
+    EXPECT_EQ(again->transactions[0].request.time, sink.transactions[0].request.time);
+    EXPECT_EQ(again->transactions[0].response->time, sink.transactions[0].response->time);
     EXPECT_TRUE(again->findings.empty());
 }
 
-TEST(Sniff, PcapngNameIsWrittenAsPcap) {
-    EXPECT_EQ(an::pcap_output_name("plant.pcapng"), "plant.pcap");
-    EXPECT_EQ(an::pcap_output_name("/tmp/a.b/plant.pcap"), "/tmp/a.b/plant.pcap");
-    EXPECT_EQ(an::pcap_output_name("plant"), "plant");
-    EXPECT_EQ(an::pcap_output_name(".pcapng"), ".pcapng");
+TEST(Sniff, PcapngIsChosenByTheNameInAnyCase) {
+    EXPECT_TRUE(an::writes_pcapng("plant.pcapng"));
+    EXPECT_TRUE(an::writes_pcapng("/tmp/PLANT.PcapNG"));
+    EXPECT_FALSE(an::writes_pcapng("plant.pcap"));
+    EXPECT_FALSE(an::writes_pcapng("/tmp/a.pcapng/plant"));
+    EXPECT_FALSE(an::writes_pcapng("pcapng"));
 }
 
-TEST(Sniff, OneSerialTapWritesPlainUserZeroRecords) {
+// One tap into `name`: plain USER0 records, decoded again into the request.
+void one_serial_tap(const std::string& name, std::uint32_t expected_magic) {
     int master = -1, slave = -1;
     char path[64];
     ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
     an::SniffOptions o;
     o.serial = path;
-    o.write = ::testing::TempDir() + "sniff_one.pcapng";
+    o.write = ::testing::TempDir() + name;
     std::string error;
     bool denied = false;
     auto capture = an::LiveCapture::open(o, error, denied);
     ASSERT_TRUE(capture) << error;
-    EXPECT_EQ(capture->written(), ::testing::TempDir() + "sniff_one.pcap");
     EXPECT_FALSE(capture->direction_header());
     Collect sink;
     an::Analyzer a({}, sink);
-    std::atomic<bool> stop{false};
-    std::thread sniffer([&] { capture->run(a, stop); });
-    ASSERT_EQ(::write(master, rtu_request.data(), rtu_request.size()), 8);
-    stop = true;
-    sniffer.join();
-    a.finish();
+    EXPECT_TRUE(sniff_request(*capture, a, master));
     ::close(master);
     ::close(slave);
     capture.reset();
+    EXPECT_EQ(magic(o.write), expected_magic) << o.write;
     an::AnalyzerOptions user0;
     user0.user_dlt = mb::Framing::Rtu;
-    const auto again = decode_file(::testing::TempDir() + "sniff_one.pcap", user0);
+    const auto again = decode_file(o.write, user0);
     ASSERT_EQ(again->transactions.size(), 1u);
     EXPECT_EQ(again->transactions[0].request.frame.unit_id(), 0x11);
+}
+
+TEST(Sniff, OneSerialTapWritesPlainUserZeroRecordsAsPcapng) {
+    one_serial_tap("sniff_one.PCAPNG", pcapng_magic);
+}
+
+TEST(Sniff, OneSerialTapWritesPlainUserZeroRecordsAsClassicPcap) {
+    one_serial_tap("sniff_one.pcap", pcap_magic);
+}
+
+TEST(Sniff, UnwritableFileIsNamedWhenOpening) {
+    int master = -1, slave = -1;
+    char path[64];
+    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
+    for (const std::string name : {"sniff_dir.pcapng", "sniff_dir.pcap"}) {
+        an::SniffOptions o;
+        o.serial = path;
+        o.write = ::testing::TempDir() + name;
+        std::filesystem::create_directories(o.write);  // a directory where the file should go
+        std::string error;
+        bool denied = false;
+        EXPECT_FALSE(an::LiveCapture::open(o, error, denied));
+        EXPECT_EQ(error.rfind(o.write + ": ", 0), 0u) << error;
+    }
+    ::close(master);
+    ::close(slave);
+}
+
+TEST(Sniff, FullDiskEndsTheCaptureWithAnErrorNamingTheFile) {
+    if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "needs /dev/full";
+    int master = -1, slave = -1;
+    char path[64];
+    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
+    // Names that choose the format, on a device where every write fails for want of space.
+    const std::string ng = ::testing::TempDir() + "sniff_full.pcapng",
+                      classic = ::testing::TempDir() + "sniff_full.pcap";
+    for (const auto& link : {ng, classic}) {
+        std::filesystem::remove(link);
+        std::filesystem::create_symlink("/dev/full", link);
+    }
+    const std::string no_space = std::strerror(ENOSPC);
+    an::SniffOptions o;
+    o.serial = path;
+    std::string error;
+    bool denied = false;
+    // pcapng: the header is flushed when the file is opened, and fails there.
+    o.write = ng;
+    EXPECT_FALSE(an::LiveCapture::open(o, error, denied));
+    EXPECT_EQ(error, ng + ": " + no_space);
+    // Classic pcap: the first record flushed fails and ends the run.
+    o.write = classic;
+    o.duration = std::chrono::seconds(10);  // a bound, should the write not fail
+    auto capture = an::LiveCapture::open(o, error, denied);
+    ASSERT_TRUE(capture) << error;
+    Collect sink;
+    an::Analyzer a({}, sink);
+    EXPECT_FALSE(sniff_request(*capture, a, master, false));  // ends by itself, on the failed write
+    ::close(master);
+    ::close(slave);
+    ASSERT_EQ(a.summary().input_errors.size(), 1u);
+    EXPECT_EQ(a.summary().input_errors[0], classic + ": " + no_space);
 }

@@ -1,0 +1,141 @@
+// The pcapng writer (mbscope sniff --write FILE.pcapng) against two independent readers: libpcap, through
+// the analyzer's CaptureSource, and tshark (skipped without it; capinfos names the format when present).
+// Both must see the link types, bytes, lengths and timestamps written, to the nanosecond. Write errors are
+// strings naming the file, never a crash.
+#include <gtest/gtest.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "analyzer/capture_source.hpp"
+#include "analyzer/pcapng_writer.hpp"
+#include "process_support.hpp"
+#include "test_packets.hpp"
+
+namespace an = mbscope::analyzer;
+namespace mb = mbscope::modbus;
+using mbscope::test::bytes;
+
+namespace {
+
+constexpr std::uint16_t link_user0 = 147;
+
+struct Written {
+    std::uint32_t interface;
+    mb::Timestamp time;
+    std::vector<std::uint8_t> data;
+    std::uint32_t original_length;
+};
+
+// Two ports of a serial line as two USER0 interfaces (libpcap reads several interfaces of one link type),
+// lengths that need padding or none, a sub-second part of 0, and a record cut short of its packet.
+const std::vector<Written> packets = {
+    {0, mb::Timestamp(1'700'000'000'123'456'789), bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45}), 8},
+    {1, mb::Timestamp(1'700'000'000'130'000'001),
+     bytes({0x11, 0x03, 0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA}), 11},
+    {0, mb::Timestamp(1'700'000'001'000'000'000), bytes({0x11, 0x83, 0x02}), 3},
+    {1, mb::Timestamp(1'700'000'001'999'999'999), bytes({0x11, 0x06, 0x00, 0x01}), 8},
+};
+
+std::string write_file(const std::string& name, const std::vector<Written>& records,
+                       std::uint16_t second_linktype = link_user0) {
+    const std::string path = ::testing::TempDir() + name;
+    an::PcapngWriter w;
+    EXPECT_EQ(w.open(path), "");
+    EXPECT_EQ(w.add_interface(link_user0, 65535, "/dev/ttyUSB0"), "");
+    EXPECT_EQ(w.add_interface(second_linktype, 65535, "/dev/ttyUSB1"), "");
+    EXPECT_EQ(w.interfaces(), 2u);
+    for (const auto& r : records)
+        EXPECT_EQ(w.write_packet(r.interface, r.time, r.data, r.original_length), "");
+    EXPECT_EQ(w.close(), "");
+    return path;
+}
+
+}  // namespace
+
+TEST(PcapngWriter, LibpcapReadsBackLinkTypesBytesAndNanoseconds) {
+    const std::string path = write_file("writer_libpcap.pcapng", packets);
+    std::string error;
+    auto source = an::CaptureSource::open_file(path, error);
+    ASSERT_TRUE(source) << error;
+    EXPECT_EQ(source->linktype(), link_user0);
+    for (const auto& want : packets) {
+        const auto got = source->next();
+        ASSERT_TRUE(got) << source->error();
+        EXPECT_EQ(got->linktype, link_user0);
+        EXPECT_FALSE(got->time_out_of_range);
+        EXPECT_EQ(got->time, want.time);
+        EXPECT_EQ(std::vector<std::uint8_t>(got->data.begin(), got->data.end()), want.data);
+        EXPECT_EQ(got->original_length, want.original_length);
+    }
+    EXPECT_FALSE(source->next());
+    EXPECT_EQ(source->error(), "");
+    EXPECT_EQ(source->offset(), std::filesystem::file_size(path));
+}
+
+TEST(PcapngWriter, TsharkReadsTimesLengthsAndInterfaces) {
+    if (!mbscope::test::have("tshark")) GTEST_SKIP() << "needs tshark";
+    // Interfaces of two link types, which tshark takes and libpcap 1.10 does not: raw IP on the second.
+    auto records = packets;
+    records[1].data = mbscope::test::packet(true, 1000, bytes({0, 7, 0, 0, 0, 6, 0x11, 3, 0, 0x60, 0, 3}));
+    records[1].original_length = static_cast<std::uint32_t>(records[1].data.size());
+    const std::string path = write_file("writer_tshark.pcapng", records, mbscope::test::link_raw);
+    const std::string err = path + ".err";
+    const std::string out = mbscope::test::run(
+        "tshark -r '" + path + "' -T fields -E separator=/t -e frame.time_epoch -e frame.len " +
+        "-e frame.cap_len -e frame.interface_name -e frame.protocols 2>'" + err + "'; echo exit $?");
+    EXPECT_EQ(out,
+              "1700000000.123456789\t8\t8\t/dev/ttyUSB0\tuser_dlt:data\n"
+              "1700000000.130000001\t52\t52\t/dev/ttyUSB1\traw:ip:tcp:mbtcp:modbus\n"
+              "1700000001.000000000\t3\t3\t/dev/ttyUSB0\tuser_dlt:data\n"
+              "1700000001.999999999\t8\t4\t/dev/ttyUSB1\traw\n"
+              "exit 0\n")
+        << mbscope::test::slurp(err);
+    if (!mbscope::test::have("capinfos")) return;
+    const std::string info = mbscope::test::run("capinfos -t '" + path + "'");
+    EXPECT_NE(info.find("pcapng"), std::string::npos) << info;
+}
+
+TEST(PcapngWriter, ErrorsNameTheFileAndNeverCrash) {
+    an::PcapngWriter w;
+    EXPECT_NE(w.write_packet(0, mb::Timestamp(0), bytes({1}), 1).find("not open"), std::string::npos);
+
+    // A directory cannot be opened for writing.
+    const std::string dir = ::testing::TempDir() + "writer_dir.pcapng";
+    std::filesystem::create_directories(dir);
+    const std::string opened = w.open(dir);
+    EXPECT_NE(opened.find(dir + ": "), std::string::npos) << opened;
+    EXPECT_FALSE(w.is_open());
+
+    // Wrong arguments are refused, and the file stays good for the right ones.
+    const std::string path = ::testing::TempDir() + "writer_args.pcapng";
+    ASSERT_EQ(w.open(path), "");
+    ASSERT_EQ(w.add_interface(link_user0, 4, "port"), "");
+    EXPECT_NE(w.write_packet(1, mb::Timestamp(0), bytes({1}), 1).find(path + ": packet for interface 1"),
+              std::string::npos);
+    EXPECT_NE(w.write_packet(0, mb::Timestamp(-1), bytes({1}), 1).find("before 1970"), std::string::npos);
+    EXPECT_NE(w.write_packet(0, mb::Timestamp(0), bytes({1, 2, 3, 4, 5}), 5).find("snapshot length"),
+              std::string::npos);
+    EXPECT_NE(w.add_interface(link_user0, 0, std::string(70000, 'x')).find("too long"), std::string::npos);
+    EXPECT_EQ(w.write_packet(0, mb::Timestamp(1), bytes({1, 2, 3, 4}), 4), "");
+    EXPECT_EQ(w.close(), "");
+    std::string error;
+    auto source = an::CaptureSource::open_file(path, error);
+    ASSERT_TRUE(source) << error;
+    EXPECT_TRUE(source->next());
+    EXPECT_FALSE(source->next());
+    EXPECT_EQ(source->error(), "");
+
+    // A full disk: the first write that reaches it fails, and so does everything after.
+    if (!std::filesystem::exists("/dev/full")) return;
+    ASSERT_EQ(w.open("/dev/full"), "");  // the header is buffered
+    std::string full = w.add_interface(link_user0, 0, "port");
+    for (int i = 0; i < 1000 && full.empty(); ++i)
+        full = w.write_packet(0, mb::Timestamp(i), std::vector<std::uint8_t>(1000, 0x55), 1000);
+    if (full.empty()) full = w.flush();
+    EXPECT_EQ(full, "/dev/full: " + std::string(std::strerror(ENOSPC)));
+    EXPECT_EQ(w.write_packet(0, mb::Timestamp(0), bytes({1}), 1), full);
+    EXPECT_EQ(w.close(), full);
+    EXPECT_FALSE(w.is_open());
+}
