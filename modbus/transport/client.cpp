@@ -145,9 +145,10 @@ Exchange Client::transact(std::uint8_t unit, std::span<const std::uint8_t> pdu,
 }
 
 Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseconds timeout,
-                     std::size_t frames) {
+                     std::size_t frames, std::span<const std::uint8_t> request) {
     Exchange ex;
-    ex.sent.assign(bytes.begin(), bytes.end());
+    if (request.empty()) request = bytes;
+    ex.sent.assign(request.begin(), request.end());
     if (auto w = write(bytes); !w) {
         ex.closed = true;
         ex.timed_out = true;
@@ -218,12 +219,15 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseco
     return ex;
 }
 
-void Client::drain(std::chrono::milliseconds quiet) {
+std::vector<std::uint8_t> Client::drain(std::chrono::milliseconds quiet) {
+    std::vector<std::uint8_t> out;
     std::uint8_t buf[2048];
     for (;;) {
         pollfd p{fd_.get(), POLLIN, 0};
-        if (::poll(&p, 1, static_cast<int>(quiet.count())) <= 0) return;
-        if (::read(fd_.get(), buf, sizeof buf) <= 0) return;
+        if (::poll(&p, 1, static_cast<int>(quiet.count())) <= 0) return out;
+        const ssize_t n = ::read(fd_.get(), buf, sizeof buf);
+        if (n <= 0) return out;
+        out.insert(out.end(), buf, buf + n);
     }
 }
 

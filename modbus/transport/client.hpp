@@ -49,12 +49,15 @@ class Client {
                       std::chrono::milliseconds timeout);
     // Sends `bytes` exactly as given (malformed frames, split segments, pipelines) and collects replies for
     // up to `timeout`; stops early after `frames` complete frames (0: wait the whole time).
+    // `request`: the whole request when `bytes` is only its last piece (the rest went out with write()); its
+    // transaction id tells this request's reply from late ones, and it is the exchange's `sent`.
     Exchange raw(std::span<const std::uint8_t> bytes, std::chrono::milliseconds timeout,
-                 std::size_t frames = 1);
+                 std::size_t frames = 1, std::span<const std::uint8_t> request = {});
     // Sends without waiting (the first part of a split request); errors when the peer is gone.
     Result<void, std::string> write(std::span<const std::uint8_t> bytes);
-    // Reads and discards whatever is pending for `quiet` (resynchronise between tests).
-    void drain(std::chrono::milliseconds quiet);
+    // Reads whatever arrives until `quiet` passes without a byte (resynchronise between tests; a late reply
+    // to the previous request); returns it.
+    std::vector<std::uint8_t> drain(std::chrono::milliseconds quiet);
     // Closes and connects again (after the slave closed the connection).
     Result<void, std::string> reconnect();
 
