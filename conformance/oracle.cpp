@@ -122,7 +122,13 @@ ExchangeOracle::Expected ExchangeOracle::expect(const Request& r) const {
             q.size() == 5 && q[0] == 8 && q[1] == 0 && q[2] == 1 && (q[3] == 0 || q[3] == 0xFF) && q[4] == 0;
         return silence(restart ? "silence.restart_from_listen_only" : "silence.listen_only", "AP §6.8.1");
     }
-    return expect_pdu(r, *u->profile);
+    Expected answer = expect_pdu(r, *u->profile);
+    if (framing_ == Framing::Rtu) {
+        const auto predicted = modbus::predict_pdu_length(r.pdu, modbus::Direction::Request);
+        answer.silence_allowed =
+            predicted.kind != modbus::LengthPrediction::Kind::Known || predicted.length != r.pdu.size();
+    }
+    return answer;
 }
 
 ExchangeOracle::Expected ExchangeOracle::expect_pdu(const Request& r, const modbus::Profile& p) const {
@@ -383,7 +389,7 @@ std::vector<OracleViolation> ExchangeOracle::judge(const tp::Exchange& ex,
         e.silence && e.rule == "silence.listen_only" && u && !listen_only_.count(u->id);
 
     if (silent) {
-        if (!e.silence) fail("reply.missing", "AP §4.1, SL §2.1", "a reply");
+        if (!e.silence && !e.silence_allowed) fail("reply.missing", "AP §4.1, SL §2.1", "a reply");
         if (is_listen_only_request) listen_only_.insert(u->id);
         // A restart that leaves listen-only mode is not answered (AP §6.8.1).
         if (u && listen_only_.count(u->id) && e.rule != "silence.listen_only") listen_only_.erase(u->id);
@@ -485,8 +491,10 @@ std::string ExchangeOracle::expectation(const std::vector<std::uint8_t>& sent) c
     const Expected e = expect(*r);
     if (!e.judged) return "";
     if (e.silence) return e.exceptions.empty() ? "no reply" : "no reply or " + codes_text(e.exceptions);
-    if (!e.normal) return codes_text(e.exceptions);
-    return e.exceptions.empty() ? "a normal response" : "a normal response or " + codes_text(e.exceptions);
+    const std::string quiet = e.silence_allowed ? ", or no reply" : "";
+    if (!e.normal) return codes_text(e.exceptions) + quiet;
+    return (e.exceptions.empty() ? "a normal response" : "a normal response or " + codes_text(e.exceptions)) +
+           quiet;
 }
 
 }  // namespace mbscope::conformance

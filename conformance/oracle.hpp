@@ -18,6 +18,10 @@
 //   state    no change of the device's registers on a refused request; a value written with an
 //            acknowledgement reads back as written (the slave never loses an acknowledged write).
 // Over a network `state_changed` is unknown; the read-back rule still holds.
+// RTU frames end at a silence (SL §2.5.1.1), and a slave reading a stream or a line may end one where the
+// function code says the request ends: a CRC-valid RTU request longer or shorter than its function's length,
+// or of a function whose length cannot be told, may go unanswered over a stream (no rule demands an answer
+// to it), though an answer must still keep the rules.
 
 #include <cstdint>
 #include <map>
@@ -67,6 +71,7 @@ class ExchangeOracle {
     struct Expected {
         bool judged = true;                 // false: the oracle has no opinion on this request
         bool silence = false;               // the rules demand silence
+        bool silence_allowed = false;       // silence is one of the allowed answers
         bool normal = false;                // a normal response is allowed
         std::set<std::uint8_t> exceptions;  // exception codes allowed
         std::string rule;                   // the rule that decides (silence, or the refusal)
