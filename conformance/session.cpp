@@ -170,6 +170,25 @@ std::vector<Touched> Session::restore() {
                     : std::string(ex.timed_out ? "no reply while restoring" : "could not read it back");
         out.push_back(t);
     }
+    // Points whose ranges depend on each other (a lower limit that must not exceed its upper limit,
+    // MK-RNG-02) may refuse their original value until a later point is back: those are tried again, as
+    // long as a pass brings one more back.
+    for (bool progress = true; progress;) {
+        progress = false;
+        for (auto& t : out) {
+            if (t.restored) continue;
+            auto& kept = touched_.at({t.table, t.address});
+            const auto pdu = modbus::encode_pdu(
+                t.table == Table::Coils ? modbus::make_write_single_coil(t.address, t.original != 0)
+                                        : modbus::make_write_single_register(t.address, t.original));
+            (void)request(pdu, "restore the original value again");
+            const auto now = read_point(t.table, t.address, "verify the restored value");
+            if (now && *now == t.original) {
+                t.restored = kept.restored = progress = true;
+                t.problem.clear();
+            }
+        }
+    }
     take_evidence();
     return out;
 }
