@@ -53,15 +53,8 @@ int run_check_command(const CheckCliOptions& o) {
         std::cerr << "mbscope check: " << endpoint.error() << '\n';
         return exit_failure;
     }
-    const auto config = parse_config_options(o.config, "check");
-    if (!config) return exit_failure;
-    modbus::storage::ProfileStore store(profile_directories(o.profile_dirs));
-    auto profile = store.load(o.profile, *config);
-    if (!profile) {
-        for (const auto& e : profile.error())
-            std::cerr << "mbscope check: " << modbus::to_string(e) << '\n';
-        return exit_failure;
-    }
+    const auto profile = load_profile_for(o.profile, o.profile_dirs, o.config, "check");
+    if (!profile) return exit_failure;
     auto client = modbus::transport::Client::open(*endpoint);
     if (!client) {
         std::cerr << "mbscope check: cannot reach the target: " << client.error() << '\n';

@@ -16,5 +16,7 @@ void register_profile(CLI::App& app, int& exit_code);
 void register_slave(CLI::App& app, int& exit_code);
 void register_check(CLI::App& app, int& exit_code);
 void register_sniff(CLI::App& app, int& exit_code);
+void register_fuzz(CLI::App& app, int& exit_code);
+void register_replay(CLI::App& app, int& exit_code);
 
 }  // namespace mbscope::cli

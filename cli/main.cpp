@@ -15,6 +15,8 @@ int main(int argc, char** argv) {
     mbscope::cli::register_slave(app, exit_code);
     mbscope::cli::register_check(app, exit_code);
     mbscope::cli::register_sniff(app, exit_code);
+    mbscope::cli::register_fuzz(app, exit_code);
+    mbscope::cli::register_replay(app, exit_code);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

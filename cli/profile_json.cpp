@@ -74,4 +74,19 @@ std::optional<modbus::ProfileConfig> parse_config_options(const std::vector<std:
     return config;
 }
 
+std::optional<modbus::Profile> load_profile_for(const std::string& id, const std::vector<std::string>& dirs,
+                                                const std::vector<std::string>& config_options,
+                                                const char* command) {
+    const auto config = parse_config_options(config_options, command);
+    if (!config) return std::nullopt;
+    modbus::storage::ProfileStore store(profile_directories(dirs));
+    auto profile = store.load(id, *config);
+    if (!profile) {
+        for (const auto& e : profile.error())
+            std::cerr << "mbscope " << command << ": " << modbus::to_string(e) << '\n';
+        return std::nullopt;
+    }
+    return std::move(profile).value();
+}
+
 }  // namespace mbscope::cli

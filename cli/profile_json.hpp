@@ -23,4 +23,10 @@ std::vector<std::string> profile_directories(const std::vector<std::string>& ext
 std::optional<modbus::ProfileConfig> parse_config_options(const std::vector<std::string>& options,
                                                           const char* command);
 
+// The profile `id` with its --config options, from --profile-dir entries and the usual places; nullopt
+// after messages naming `command` and what is wrong.
+std::optional<modbus::Profile> load_profile_for(const std::string& id, const std::vector<std::string>& dirs,
+                                                const std::vector<std::string>& config_options,
+                                                const char* command);
+
 }  // namespace mbscope::cli

@@ -1,0 +1,199 @@
+// mbscope fuzz: fuzz any slave over the network or a serial line, with the rules as the oracle.
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include "cli/commands.hpp"
+#include "cli/profile_json.hpp"
+#include "fuzz/network/campaign.hpp"
+#include "modbus/transport/endpoint.hpp"
+
+namespace mbscope::cli {
+namespace {
+
+struct FuzzCliOptions {
+    std::string target;
+    std::string profile = "modbus";
+    int unit = 1;
+    std::string duration;
+    std::uint64_t requests = 0;
+    std::uint64_t seed = 1;
+    std::string artifacts;
+    bool read_only = false;
+    int timeout_ms = 1000;
+    int silence_ms = -1;  // -1: the timeout
+    int slow_ms = 0;
+    int interval_ms = -1;  // -1: the profile's minimum polling interval
+    std::size_t minimise = 64;
+    std::size_t max_findings = 0;
+    bool progress = true;
+    std::vector<std::string> profile_dirs;
+    std::vector<std::string> config;
+};
+
+std::atomic<bool> stop_fuzz{false};
+extern "C" void on_fuzz_signal(int) {
+    stop_fuzz.store(true);
+}
+
+// "60s", "2m", "500ms", "90" (seconds).
+std::optional<std::chrono::milliseconds> parse_duration(const std::string& text) {
+    std::size_t used = 0;
+    double value = 0;
+    try {
+        value = std::stod(text, &used);
+    } catch (const std::exception&) {
+        return std::nullopt;
+    }
+    const std::string unit = text.substr(used);
+    double ms = 0;
+    if (unit.empty() || unit == "s")
+        ms = value * 1000;
+    else if (unit == "ms")
+        ms = value;
+    else if (unit == "m" || unit == "min")
+        ms = value * 60000;
+    else if (unit == "h")
+        ms = value * 3600000;
+    else
+        return std::nullopt;
+    if (!(ms > 0) || ms > 1e12) return std::nullopt;
+    return std::chrono::milliseconds(static_cast<std::int64_t>(ms));
+}
+
+void show_progress(const fuzz::network::CampaignSummary& s) {
+    std::fprintf(stderr,
+                 "\r\033[K%llu requests  %.0f/s  %zu findings  %zu response classes  %zu rule outcomes",
+                 static_cast<unsigned long long>(s.requests), s.requests_per_second(), s.findings.size(),
+                 s.response_classes, s.outcomes.size());
+    std::fflush(stderr);
+}
+
+int run_fuzz_command(const FuzzCliOptions& o) {
+    auto endpoint = modbus::transport::parse_endpoint(o.target);
+    if (!endpoint) {
+        std::cerr << "mbscope fuzz: " << endpoint.error() << '\n';
+        return exit_failure;
+    }
+    const auto profile = load_profile_for(o.profile, o.profile_dirs, o.config, "fuzz");
+    if (!profile) return exit_failure;
+    fuzz::network::CampaignOptions options;
+    options.endpoint = *endpoint;
+    options.target = o.target;
+    options.unit = static_cast<std::uint8_t>(o.unit);
+    options.read_only = o.read_only;
+    options.seed = o.seed;
+    if (o.requests) options.requests = o.requests;
+    if (!o.duration.empty()) {
+        options.duration = parse_duration(o.duration);
+        if (!options.duration) {
+            std::cerr << "mbscope fuzz: --duration takes a time such as 60s, 500ms or 5m, not '" << o.duration
+                      << "'\n";
+            return exit_failure;
+        }
+    }
+    if (!options.requests && !options.duration) options.duration = std::chrono::seconds(60);
+    options.timeout = std::chrono::milliseconds(o.timeout_ms);
+    options.silence_wait = std::chrono::milliseconds(o.silence_ms >= 0 ? o.silence_ms : o.timeout_ms);
+    options.slow = std::chrono::milliseconds(o.slow_ms);
+    options.interval = std::chrono::milliseconds(
+        o.interval_ms >= 0 ? o.interval_ms : profile->line.min_poll_interval_ms.value_or(0));
+    options.artifacts = o.artifacts;
+    options.minimise_budget = o.minimise;
+    options.max_findings = o.max_findings;
+    const bool meter = o.progress && isatty(STDERR_FILENO);
+    if (meter) options.progress = show_progress;
+    options.stop = &stop_fuzz;
+    std::signal(SIGINT, on_fuzz_signal);
+    std::signal(SIGTERM, on_fuzz_signal);
+    std::signal(SIGPIPE, SIG_IGN);
+
+    const auto summary = fuzz::network::run_campaign(*profile, options);
+    if (meter) std::cerr << "\r\033[K";
+    auto j = fuzz::network::to_json(summary);
+    j["target"] = o.target;
+    j["profile"] = profile->id;
+    j["unit"] = o.unit;
+    j["seed"] = o.seed;
+    for (const auto& f : summary.findings)
+        std::cerr << "mbscope fuzz: finding " << f.rule << " (" << f.source << ") on function "
+                  << int(f.function) << ", " << f.count << "x: expected " << f.expected << "; observed "
+                  << f.observed
+                  << (f.file.empty() ? ""
+                                     : "\n  reproducer: " + f.file + "  (mbscope replay --target " +
+                                           o.target + " " + f.file + ")")
+                  << '\n';
+    std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
+    if (!summary.reachable) {
+        std::cerr << "mbscope fuzz: cannot reach the target: " << summary.error << '\n';
+        return exit_failure;
+    }
+    bool unrestored = false;
+    for (const auto& t : summary.restored)
+        unrestored |= !t.restored;
+    if (unrestored)
+        std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\")\n";
+    return summary.findings.empty() && !unrestored ? exit_ok : exit_findings;
+}
+
+}  // namespace
+
+void register_fuzz(CLI::App& app, int& exit_code) {
+    auto o = std::make_shared<FuzzCliOptions>();
+    auto* cmd = app.add_subcommand(
+        "fuzz", "Fuzz a slave over any transport, judged by the Modbus rules and its manual");
+    cmd->footer(
+        "Targets: tcp://HOST:PORT  udp://HOST:PORT  rtu-tcp://HOST:PORT  ascii-tcp://HOST:PORT\n"
+        "         rtu:DEVICE?baud=9600&parity=E&stop=1   ascii:DEVICE?...\n"
+        "Requests are made from the grammar and the profile's map (boundaries, quantities, byte counts, "
+        "MBAP\n"
+        "fields, checksums, split frames; FC 23, 20, 21, 43 and 8 drawn more often) and mutated where they\n"
+        "showed a new response class. Every reply is judged with the rules of `mbscope check`; a target "
+        "that\n"
+        "stops answering a health-check read, replies late, or answers slower than --slow is a finding too.\n"
+        "Each finding is saved once per rule and function in --artifacts as a JSON reproducer, shortened to\n"
+        "the fewest requests that break the rule again; `mbscope replay --target URI FILE` runs it.\n"
+        "Every point written is read first and written back at the end; --read-only writes nothing.\n"
+        "Output: progress on a terminal (stderr), findings on stderr, a JSON summary on stdout.\n"
+        "Exit codes: 0 nothing found, 1 at least one finding (or a point not restored), 2 the target could\n"
+        "not be reached or never answered.\n"
+        "Example: mbscope fuzz --target tcp://127.0.0.1:5020 --profile mmk-2030 --duration 60s --artifacts "
+        "out");
+    cmd->add_option("--target", o->target, "The slave to fuzz (URI)")->required();
+    cmd->add_option("--profile", o->profile,
+                    "Device profile id or alias (default: modbus, the specification only)");
+    cmd->add_option("--unit", o->unit, "Unit id of the slave (default 1)")->check(CLI::Range(1, 255));
+    cmd->add_option("--duration", o->duration,
+                    "Run this long: 60s, 500ms, 5m (default 60s without --requests)");
+    cmd->add_option("--requests", o->requests, "Stop after N requests");
+    cmd->add_option("--seed", o->seed, "Seed: the same seed against the same target sends the same requests");
+    cmd->add_option("--artifacts", o->artifacts, "Directory for reproducers (created)");
+    cmd->add_flag("--read-only", o->read_only,
+                  "Send only requests that cannot write (public read functions)");
+    cmd->add_option("--timeout", o->timeout_ms, "Milliseconds to wait for a reply that is due (default 1000)")
+        ->check(CLI::Range(1, 60000));
+    cmd->add_option("--silence-wait", o->silence_ms,
+                    "Milliseconds to wait where the rules demand silence (default: --timeout); a reply "
+                    "arriving later is still caught, as reply.late")
+        ->check(CLI::Range(0, 60000));
+    cmd->add_option("--slow", o->slow_ms,
+                    "A reply later than this many ms is a finding (default: the profile's response timeout, "
+                    "else 250; plus the longest frame's transmission on a serial line)")
+        ->check(CLI::Range(0, 600000));
+    cmd->add_option("--interval", o->interval_ms,
+                    "Milliseconds between requests (default: the profile's minimum polling interval)");
+    cmd->add_option("--minimise", o->minimise,
+                    "Replays spent shortening each reproducer (default 64, 0: none)");
+    cmd->add_option("--max-findings", o->max_findings,
+                    "Stop once N findings are saved (default: run the whole budget)");
+    cmd->add_flag("!--no-progress", o->progress, "No progress line, even on a terminal");
+    cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");
+    cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");
+    cmd->callback([o, &exit_code] { exit_code = run_fuzz_command(*o); });
+}
+
+}  // namespace mbscope::cli

@@ -1,0 +1,120 @@
+// mbscope replay: send a reproducer saved by `mbscope fuzz` to a target and judge it again.
+#include <csignal>
+#include <iostream>
+#include <memory>
+
+#include "cli/commands.hpp"
+#include "cli/profile_json.hpp"
+#include "fuzz/fuzz_support.hpp"
+#include "fuzz/network/reproducer.hpp"
+#include "modbus/transport/endpoint.hpp"
+
+namespace mbscope::cli {
+namespace {
+
+struct ReplayCliOptions {
+    std::string target;
+    std::string file;
+    std::string profile;  // empty: the reproducer's
+    int unit = -1;        // -1: the reproducer's
+    int timeout_ms = 1000;
+    bool json = false;
+    std::vector<std::string> profile_dirs;
+    std::vector<std::string> config;
+};
+
+int run_replay_command(const ReplayCliOptions& o) {
+    auto reproducer = fuzz::network::load_reproducer(o.file);
+    if (!reproducer) {
+        std::cerr << "mbscope replay: " << reproducer.error() << '\n';
+        return exit_failure;
+    }
+    const auto& r = *reproducer;
+    auto endpoint = modbus::transport::parse_endpoint(o.target.empty() ? r.target : o.target);
+    if (!endpoint) {
+        std::cerr << "mbscope replay: " << endpoint.error() << '\n';
+        return exit_failure;
+    }
+    const auto profile =
+        load_profile_for(o.profile.empty() ? r.profile : o.profile, o.profile_dirs, o.config, "replay");
+    if (!profile) return exit_failure;
+    const auto framing = modbus::transport::framing_of(endpoint->scheme);
+    if (!r.framing.empty() && r.framing != modbus::to_string(framing))
+        std::cerr << "mbscope replay: the reproducer was recorded with " << r.framing
+                  << " framing; the target uses " << modbus::to_string(framing)
+                  << ": the bytes are sent as recorded\n";
+    auto client = modbus::transport::Client::open(*endpoint);
+    if (!client) {
+        std::cerr << "mbscope replay: cannot reach the target: " << client.error() << '\n';
+        return exit_failure;
+    }
+    std::signal(SIGPIPE, SIG_IGN);
+    const std::uint8_t unit = o.unit >= 0 ? static_cast<std::uint8_t>(o.unit) : r.unit;
+    conformance::ExchangeOracle oracle(framing, {{unit, &*profile}},
+                                       endpoint->scheme == modbus::transport::Scheme::Tcp ||
+                                           endpoint->scheme == modbus::transport::Scheme::Udp);
+    fuzz::network::ReplayOptions options;
+    options.timeout = options.silence_wait = std::chrono::milliseconds(o.timeout_ms);
+    const auto steps = fuzz::network::replay(*client, oracle, r.steps, options);
+
+    const bool again = fuzz::network::breaks(steps, r.rule);
+    std::size_t violations = 0;
+    nlohmann::json out = nlohmann::json::array();
+    for (std::size_t i = 0; i < steps.size(); ++i) {
+        const auto& s = steps[i];
+        violations += s.violations.size();
+        nlohmann::json broken = nlohmann::json::array();
+        for (const auto& v : s.violations)
+            broken.push_back(
+                {{"rule", v.rule}, {"source", v.source}, {"expected", v.expected}, {"observed", v.observed}});
+        out.push_back({{"step", i + 1},
+                       {"sent", fuzz::hex(s.exchange.sent)},
+                       {"received", fuzz::hex(s.exchange.received)},
+                       {"elapsed_ms", std::chrono::duration<double, std::milli>(s.exchange.elapsed).count()},
+                       {"violations", broken}});
+        if (!o.json) {
+            std::cout << "step " << i + 1 << "  " << r.steps[i].recipe << "\n  sent     "
+                      << fuzz::hex(s.exchange.sent) << "\n  received "
+                      << (s.exchange.received.empty() ? "(nothing)" : fuzz::hex(s.exchange.received)) << '\n';
+            for (const auto& v : s.violations)
+                std::cout << "  broken   " << conformance::to_string(v) << '\n';
+        }
+    }
+    if (o.json) {
+        std::cout << nlohmann::json{{"file", o.file}, {"rule", r.rule}, {"reproduced", again}, {"steps", out}}
+                         .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+                  << '\n';
+    } else {
+        std::cout << (again ? "reproduced: " : "not reproduced: ") << r.rule << " (" << r.source << ")";
+        if (!again && violations) std::cout << "; other rules broken: " << violations;
+        std::cout << '\n';
+    }
+    return again || violations ? exit_findings : exit_ok;
+}
+
+}  // namespace
+
+void register_replay(CLI::App& app, int& exit_code) {
+    auto o = std::make_shared<ReplayCliOptions>();
+    auto* cmd = app.add_subcommand("replay", "Send a reproducer saved by `mbscope fuzz` and judge it again");
+    cmd->footer(
+        "Sends each step exactly as recorded (pieces, pauses, reconnections) and judges every reply with "
+        "the\n"
+        "rules of `mbscope fuzz` and `mbscope check`.\n"
+        "Exit codes: 0 no rule broken, 1 the recorded rule (or another) broken again, 2 the file or the\n"
+        "target could not be used.\n"
+        "Example: mbscope replay --target tcp://127.0.0.1:5020 out/reply.checksum-fc3.json");
+    cmd->add_option("file", o->file, "Reproducer (JSON) written by mbscope fuzz --artifacts")->required();
+    cmd->add_option("--target", o->target, "The slave (URI; default: the one recorded)");
+    cmd->add_option("--profile", o->profile, "Device profile (default: the one recorded)");
+    cmd->add_option("--unit", o->unit, "Unit id the rules expect (default: the one recorded)")
+        ->check(CLI::Range(0, 255));
+    cmd->add_option("--timeout", o->timeout_ms, "Milliseconds to wait for each reply (default 1000)")
+        ->check(CLI::Range(1, 60000));
+    cmd->add_flag("--json", o->json, "Print the exchanges as JSON");
+    cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");
+    cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");
+    cmd->callback([o, &exit_code] { exit_code = run_replay_command(*o); });
+}
+
+}  // namespace mbscope::cli

@@ -1,0 +1,566 @@
+#include "fuzz/network/campaign.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "fuzz/fuzz_support.hpp"
+#include "fuzz/network/generator.hpp"
+#include "modbus/pdu.hpp"
+
+namespace mbscope::fuzz::network {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using modbus::Table;
+using modbus::transport::Exchange;
+
+constexpr std::size_t trace_capacity = 32;  // steps kept since the last known-good state
+
+std::uint16_t word(const std::vector<std::uint8_t>& pdu, std::size_t at) {
+    return at + 1 < pdu.size() ? static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]) : 0;
+}
+
+// What a request may write, read from its header bytes whether or not the rest is well formed: a device
+// that executes a malformed write writes there.
+struct WriteRange {
+    Table table = Table::HoldingRegisters;
+    std::uint16_t start = 0;
+    std::uint16_t count = 0;
+};
+std::optional<WriteRange> write_range(const std::vector<std::uint8_t>& pdu) {
+    if (pdu.size() < 3) return std::nullopt;
+    const std::uint16_t a = word(pdu, 1);
+    switch (pdu[0]) {
+        case 5:
+            return WriteRange{Table::Coils, a, 1};
+        case 6:
+        case 22:
+            return WriteRange{Table::HoldingRegisters, a, 1};
+        case 15:
+            return WriteRange{Table::Coils, a, std::min<std::uint16_t>(word(pdu, 3), modbus::max_write_bits)};
+        case 16:
+            return WriteRange{Table::HoldingRegisters, a,
+                              std::min<std::uint16_t>(word(pdu, 3), modbus::max_write_registers)};
+        case 23:
+            return WriteRange{Table::HoldingRegisters, word(pdu, 5),
+                              std::min<std::uint16_t>(word(pdu, 7), modbus::max_rw_write_registers)};
+        default:
+            return std::nullopt;
+    }
+}
+
+// The reply's PDU, when a frame came back.
+std::optional<std::vector<std::uint8_t>> reply_pdu(const Exchange& ex) {
+    if (!ex.response) return std::nullopt;
+    const auto p = ex.response->pdu();
+    return std::vector<std::uint8_t>(p.begin(), p.end());
+}
+
+class Campaign {
+  public:
+    Campaign(const modbus::Profile& profile, const CampaignOptions& options,
+             modbus::transport::Client& client)
+        : profile_(profile),
+          options_(options),
+          client_(client),
+          framing_(modbus::transport::framing_of(options.endpoint.scheme)),
+          serial_line_(modbus::transport::is_serial(options.endpoint.scheme)),
+          ip_network_(options.endpoint.scheme == modbus::transport::Scheme::Tcp ||
+                      options.endpoint.scheme == modbus::transport::Scheme::Udp),
+          oracle_(framing_, {{options.unit, &profile}}, ip_network_),
+          session_(client, conformance::SessionOptions{options.unit, options.timeout, options.interval},
+                   &profile),
+          generator_(profile, GeneratorOptions{framing_, serial_line_, options.endpoint.line.t1_5(),
+                                               options.unit, options.read_only, options.seed}) {
+        slow_ = options.slow.count()
+                    ? options.slow
+                    : std::chrono::milliseconds(profile.line.response_timeout_ms.value_or(250));
+        if (serial_line_)  // the longest frame's transmission on top
+            slow_ += std::chrono::duration_cast<std::chrono::milliseconds>(
+                options.endpoint.line.character_time() * 2 * modbus::max_rtu_adu_length);
+        health_ = health_request();
+        rng_.seed(options.seed ^ 0x9E3779B97F4A7C15ull);
+        for (const auto& p : profile.table(Table::HoldingRegisters))
+            if (p.access == modbus::Access::ReadWrite && !p.reserved && !p.fixed_value)
+                rewritable_.push_back(&p);
+        std::shuffle(rewritable_.begin(), rewritable_.end(), rng_);
+        replay_.timeout = options.timeout;
+        replay_.silence_wait = options.silence_wait;
+    }
+
+    CampaignSummary run();
+
+  private:
+    std::vector<std::uint8_t> health_request() const;
+    Step frame(const Probe& p);
+    ReplayedStep send(const Step& step, std::chrono::milliseconds timeout);
+    bool healthy(std::chrono::nanoseconds* latency = nullptr);
+    bool prepare_writes(const Probe& p);
+    std::optional<Probe> round_trip();
+    void pace();
+    void classify(const Probe& p, const ReplayedStep& r);
+    void record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable);
+    std::vector<Step> minimise(const std::string& rule, bool& reproduced);
+    conformance::OracleViolation slow_reply(std::chrono::nanoseconds first,
+                                            std::chrono::nanoseconds second) const;
+    void progress(bool force = false);
+    bool done() const;
+
+    const modbus::Profile& profile_;
+    const CampaignOptions& options_;
+    modbus::transport::Client& client_;
+    modbus::Framing framing_;
+    bool serial_line_;
+    bool ip_network_;
+    conformance::ExchangeOracle oracle_;
+    conformance::Session session_;
+    Generator generator_;
+    ReplayOptions replay_;
+    std::chrono::milliseconds slow_{250};
+    std::vector<std::uint8_t> health_;
+    CampaignSummary s_;
+    std::deque<Step> trace_;
+    std::set<std::string> classes_;
+    std::map<std::string, std::size_t> finding_index_;  // rule + function -> index in s_.findings
+    Clock::time_point start_{}, last_send_{}, last_progress_{};
+    std::optional<Probe> follow_up_;
+    std::mt19937_64 rng_;
+    std::vector<const modbus::Point*> rewritable_;  // holding registers a master may read and write
+    std::size_t next_round_trip_ = 0;
+    std::uint8_t last_function_ = 0;
+    std::optional<modbus::transport::Exchange> last_;  // the previous probe's exchange
+};
+
+std::vector<std::uint8_t> Campaign::health_request() const {
+    // A read of one point the map says exists and is readable: any device following its manual answers it
+    // normally, whatever the fuzzer sent before.
+    for (const Table t :
+         {Table::HoldingRegisters, Table::InputRegisters, Table::Coils, Table::DiscreteInputs}) {
+        const std::uint8_t fc = t == Table::HoldingRegisters ? 3
+                                : t == Table::InputRegisters ? 4
+                                : t == Table::Coils          ? 1
+                                                             : 2;
+        if (!profile_.functions.supports(fc) || !profile_.implements(t)) continue;
+        for (const auto& p : profile_.table(t))
+            if (p.access != modbus::Access::Write && !modbus::check_read(profile_, t, p.address, 1))
+                return modbus::encode_pdu(
+                    modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), p.address, 1));
+    }
+    return modbus::encode_pdu(modbus::make_read_request(modbus::FunctionCode::ReadHoldingRegisters, 0, 1));
+}
+
+Step Campaign::frame(const Probe& p) {
+    const std::uint16_t tid = client_.next_transaction_id();
+    client_.set_transaction_id(static_cast<std::uint16_t>(tid + 1));
+    const Wire w = frame_probe(p, framing_, tid);
+    Step step;
+    step.parts = w.parts;
+    step.pause = w.pause;
+    step.reconnect_after = p.envelope == Envelope::MbapLength && !serial_line_ &&
+                           options_.endpoint.scheme != modbus::transport::Scheme::Udp;
+    step.void_by_gap = serial_line_ && w.parts.size() > 1 && w.pause > options_.endpoint.line.t1_5();
+    step.recipe = p.recipe;
+    return step;
+}
+
+ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout) {
+    ReplayOptions o = replay_;
+    o.timeout = timeout;
+    auto r = send_step(client_, oracle_, step, o);
+    last_send_ = Clock::now();
+    return r;
+}
+
+bool Campaign::healthy(std::chrono::nanoseconds* latency) {
+    for (int attempt = 0; attempt < 3; ++attempt) {
+        ++s_.health_checks;
+        Probe p;
+        p.unit = options_.unit;
+        p.pdu = health_;
+        p.recipe = "health check";
+        const auto r = send(frame(p), options_.timeout);
+        if (r.exchange.closed) {
+            if (!client_.reconnect()) return false;
+            continue;
+        }
+        // Alive is answering at all: whether the answer keeps the rules is the probes' business.
+        if (!r.exchange.received.empty()) {
+            if (latency) *latency = r.exchange.first_byte;
+            return true;
+        }
+        (void)client_.drain(std::chrono::milliseconds(10));
+    }
+    return false;
+}
+
+bool Campaign::prepare_writes(const Probe& p) {
+    const auto range = write_range(p.pdu);
+    if (!range || range->count == 0) return true;
+    // Only where the write can land: the unit, a broadcast, or any unit over Modbus/TCP (devices that
+    // ignore the unit id are common there).
+    if (framing_ != modbus::Framing::Tcp && p.unit != options_.unit && p.unit != 0) return true;
+    // Only a write the device's own rules let through: a function it supports, a quantity within its limits.
+    // Any other the device must refuse; one that it executes anyway is a finding already (reply.*,
+    // state.*), and its points are left as the device wrote them, as the summary's findings say.
+    const std::uint8_t fc = p.pdu[0];
+    const int max = profile_.functions.max_for(fc, fc == 23);
+    if (!profile_.functions.supports(fc) || (max > 0 && range->count > max)) return true;
+    const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range->start} + range->count);
+    bool ok = true;
+    if (profile_.open_address_space) {
+        ok = session_.remember(range->table, range->start, static_cast<std::uint16_t>(end - range->start),
+                               100);
+    } else {
+        for (std::uint32_t a = range->start; a < end && ok; ++a)
+            if (profile_.find(range->table, static_cast<std::uint16_t>(a)))
+                ok = session_.remember(range->table, static_cast<std::uint16_t>(a), 1);
+    }
+    (void)session_.take_evidence();
+    session_.response_times().clear();
+    return ok;
+}
+
+// A write to one point a master may read and write, read just before: either the value it holds (always
+// in range, so it is acknowledged) or another value its map allows. The read-back that follows must return
+// what was written: a swapped, misplaced, stuck or lost write shows there. The points are taken in turn (in
+// an order drawn from the seed), so a fault at one address is reached in a bounded number of requests.
+std::optional<Probe> Campaign::round_trip() {
+    if (rewritable_.empty()) return std::nullopt;
+    const modbus::Point& point = *rewritable_[next_round_trip_++ % rewritable_.size()];
+    const std::uint16_t words = point.encoding.words == 2 ? 2 : 1;
+    const bool ok = session_.remember(Table::HoldingRegisters, point.address, words);
+    (void)session_.take_evidence();
+    session_.response_times().clear();
+    if (!ok) return std::nullopt;
+    std::vector<std::uint16_t> values;
+    for (std::uint16_t i = 0; i < words; ++i)
+        values.push_back(session_.touched()
+                             .at({Table::HoldingRegisters, static_cast<std::uint16_t>(point.address + i)})
+                             .original);
+    Probe p;
+    p.unit = options_.unit;
+    p.recipe = "write back the value read";
+    if (words == 1 && rng_() % 2) {
+        std::vector<std::int64_t> allowed;
+        for (const auto& v : point.encoding.values)
+            allowed.push_back(v.value);
+        if (point.min && point.max && *point.max > *point.min)
+            allowed.insert(allowed.end(), {*point.min, *point.max});
+        std::erase(allowed, static_cast<std::int64_t>(values[0]));
+        if (!allowed.empty()) {
+            values[0] = static_cast<std::uint16_t>(allowed[rng_() % allowed.size()]);
+            p.recipe = "write another value the map allows";
+        }
+    }
+    p.pdu = words == 2 && profile_.functions.supports(16)
+                ? modbus::encode_pdu(modbus::make_write_multiple_registers(point.address, values))
+                : modbus::encode_pdu(modbus::make_write_single_register(point.address, values[0]));
+    return p;
+}
+
+void Campaign::pace() {
+    if (options_.interval.count() == 0) return;
+    const auto next = last_send_ + options_.interval;
+    if (Clock::now() < next) std::this_thread::sleep_until(next);
+}
+
+void Campaign::classify(const Probe& p, const ReplayedStep& r) {
+    std::string outcome;
+    const auto pdu = reply_pdu(r.exchange);
+    if (r.exchange.received.empty()) {
+        outcome = "silence";
+        ++s_.silences;
+    } else if (!pdu || pdu->empty()) {
+        outcome = "unframed reply";
+        ++s_.replies;
+    } else if (pdu->front() & 0x80) {
+        char b[16];
+        std::snprintf(b, sizeof b, "exception %02X", pdu->size() > 1 ? (*pdu)[1] : 0);
+        outcome = b;
+        ++s_.replies;
+        ++s_.exceptions;
+    } else {
+        outcome = "normal";
+        ++s_.replies;
+    }
+    ++s_.outcomes[outcome];
+    std::string key = std::to_string(p.pdu.empty() ? 0 : p.pdu[0]) + "|" + outcome;
+    const std::size_t n = r.exchange.received.size();
+    key += "|" + std::to_string(n < 8 ? n : 8 + n / 16);
+    // Latency in two bands only: finer bands would make the feedback (and so the run) depend on the
+    // machine's load rather than on the seed.
+    key += r.exchange.elapsed > slow_ / 2 ? "|late" : "|prompt";
+    for (const auto& v : r.violations) {
+        ++s_.outcomes["rule " + v.rule];
+        key += "|" + v.rule;
+    }
+    if (classes_.insert(key).second) generator_.keep(p);
+    s_.response_classes = classes_.size();
+}
+
+std::vector<Step> Campaign::minimise(const std::string& rule, bool& reproduced) {
+    std::vector<Step> window(trace_.begin(), trace_.end());
+    reproduced = false;
+    std::size_t budget = options_.minimise_budget;
+    const auto reproduces = [&](const std::vector<Step>& steps) {
+        if (budget == 0) return false;
+        --budget;
+        (void)client_.drain(std::chrono::milliseconds(0));
+        conformance::ExchangeOracle fresh(framing_, {{options_.unit, &profile_}}, ip_network_);
+        return breaks(replay(client_, fresh, steps, replay_), rule);
+    };
+    std::vector<Step> found;
+    for (std::size_t n = 1; n <= window.size();
+         n = n * 2 > window.size() && n < window.size() ? window.size() : n * 2) {
+        std::vector<Step> suffix(window.end() - static_cast<std::ptrdiff_t>(n), window.end());
+        if (reproduces(suffix)) {
+            found = std::move(suffix);
+            break;
+        }
+        if (budget == 0 || n == window.size()) break;
+    }
+    if (found.empty()) return window;
+    reproduced = true;
+    for (std::size_t i = 0; found.size() > 1 && i + 1 < found.size() && budget > 0;) {
+        auto shorter = found;
+        shorter.erase(shorter.begin() + static_cast<std::ptrdiff_t>(i));
+        if (reproduces(shorter))
+            found = std::move(shorter);
+        else
+            ++i;
+    }
+    return found;
+}
+
+void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable) {
+    const std::string key = v.rule + "|" + std::to_string(fc);
+    if (auto it = finding_index_.find(key); it != finding_index_.end()) {
+        ++s_.findings[it->second].count;
+        return;
+    }
+    CampaignFinding f;
+    f.rule = v.rule;
+    f.source = v.source;
+    f.expected = v.expected;
+    f.observed = v.observed;
+    f.function = fc;
+    f.first_request = s_.requests;
+    f.count = 1;
+    Reproducer& r = f.reproducer;
+    r.rule = v.rule;
+    r.source = v.source;
+    r.expected = v.expected;
+    r.observed = v.observed;
+    r.target = options_.target;
+    r.profile = profile_.id;
+    r.unit = options_.unit;
+    r.framing = std::string(modbus::to_string(framing_));
+    r.seed = options_.seed;
+    r.request = s_.requests;
+    r.original_steps = trace_.size();
+    if (replayable && options_.minimise_budget > 0)
+        r.steps = minimise(v.rule, r.minimised);
+    else
+        r.steps.assign(trace_.begin(), trace_.end());
+    if (!options_.artifacts.empty()) {
+        std::error_code ec;
+        std::filesystem::create_directories(options_.artifacts, ec);
+        std::string name = v.rule + "-fc" + std::to_string(fc) + ".json";
+        const std::string path = (std::filesystem::path(options_.artifacts) / name).string();
+        if (auto saved = save_reproducer(r, path); saved) f.file = path;
+    }
+    finding_index_.emplace(key, s_.findings.size());
+    s_.findings.push_back(std::move(f));
+}
+
+conformance::OracleViolation Campaign::slow_reply(std::chrono::nanoseconds first,
+                                                  std::chrono::nanoseconds second) const {
+    const auto ms = [](std::chrono::nanoseconds t) { return std::to_string(t.count() / 1'000'000) + " ms"; };
+    return {"timing.slow_reply",
+            options_.slow.count()               ? "--slow"
+            : profile_.line.response_timeout_ms ? profile_.source
+                                                : "SL §2.4.1",
+            "a reply within " + std::to_string(slow_.count()) + " ms",
+            "replies after " + ms(first) + " and " + ms(second)};
+}
+
+void Campaign::progress(bool force) {
+    if (!options_.progress) return;
+    const auto now = Clock::now();
+    if (!force && now - last_progress_ < std::chrono::milliseconds(250)) return;
+    last_progress_ = now;
+    s_.elapsed = now - start_;
+    options_.progress(s_);
+}
+
+bool Campaign::done() const {
+    if (options_.stop && options_.stop->load()) return true;
+    if (s_.target_lost) return true;
+    if (options_.max_findings && s_.findings.size() >= options_.max_findings) return true;
+    if (options_.requests && s_.requests >= *options_.requests) return true;
+    if (options_.duration && Clock::now() - start_ >= *options_.duration) return true;
+    return false;
+}
+
+CampaignSummary Campaign::run() {
+    start_ = Clock::now();
+    if (!healthy()) {
+        s_.error = "no normal reply to the health-check request " + fuzz::hex(health_) + " (unit " +
+                   std::to_string(options_.unit) + ")";
+        return s_;
+    }
+    s_.reachable = true;
+    while (!done()) {
+        std::optional<Probe> chosen = std::exchange(follow_up_, std::nullopt);
+        if (!chosen && !options_.read_only && rng_() % 100 < 5) chosen = round_trip();
+        Probe p = chosen ? std::move(*chosen) : generator_.next();
+        if (!prepare_writes(p)) {
+            ++s_.skipped_writes;
+            continue;
+        }
+        pace();
+        // Whatever arrived since the last exchange ended is that exchange's reply, too late. Only looked
+        // for where one can be pending (no whole, valid reply came): a poll per request costs speed.
+        if (last_ && (last_->received.empty() || last_->timed_out || !last_->response ||
+                      !last_->response->checksum_ok)) {
+            for (const auto& v : late_reply(client_, oracle_, *last_))
+                record(v, last_function_, true);
+        }
+        const Step step = frame(p);
+        trace_.push_back(step);
+        if (trace_.size() > trace_capacity) trace_.pop_front();
+        auto r = send(step, options_.timeout);
+        last_ = r.exchange;
+        ++s_.requests;
+        classify(p, r);
+        const std::uint8_t fc = p.pdu.empty() ? 0 : p.pdu[0];
+        last_function_ = fc;
+
+        if (r.exchange.closed && client_.reconnect()) {
+            if (!healthy()) s_.target_lost = true;
+        } else if (r.exchange.closed) {
+            s_.target_lost = true;
+        }
+        for (const auto& v : r.violations) {
+            if (v.rule == "reply.missing") {
+                // Missing twice, with four times the patience, before it counts.
+                const auto again = send(frame(p), options_.timeout * 4);
+                if (!again.exchange.received.empty()) {
+                    // Answered the second time: a slow target when it took longer than --slow, else chance.
+                    if (again.exchange.first_byte > slow_)
+                        record(slow_reply(again.exchange.first_byte, again.exchange.first_byte), fc, false);
+                    else
+                        ++s_.unconfirmed;
+                    continue;
+                }
+                if (!healthy()) s_.target_lost = true;
+            }
+            record(v, fc, !s_.target_lost);
+        }
+        if (step.reconnect_after) {
+            (void)client_.reconnect();
+            if (!healthy()) s_.target_lost = true;
+        }
+        if (s_.target_lost) {
+            record({"target.unresponsive", "AP §4.1",
+                    "a normal reply to the health-check request " + fuzz::hex(health_) + " after a failure",
+                    "no reply to " + std::to_string(3) + " health checks, connection " +
+                        (r.exchange.closed ? "closed" : "open")},
+                   fc, false);
+            break;
+        }
+        if (!r.exchange.received.empty() && r.exchange.first_byte > slow_) {
+            std::chrono::nanoseconds latency{0};
+            if (healthy(&latency) && latency > slow_)
+                record(slow_reply(r.exchange.first_byte, latency), fc, false);
+        }
+        // An acknowledged write is read back at once: a lost or misplaced write shows on the read.
+        if (const auto range = write_range(p.pdu); range && range->count && r.violations.empty()) {
+            const auto reply = reply_pdu(r.exchange);
+            if (reply && !reply->empty() && !(reply->front() & 0x80) && p.unit == options_.unit) {
+                const bool bits = range->table == Table::Coils;
+                Probe back;
+                back.unit = options_.unit;
+                back.pdu = modbus::encode_pdu(modbus::make_read_request(
+                    bits ? modbus::FunctionCode::ReadCoils : modbus::FunctionCode::ReadHoldingRegisters,
+                    range->start,
+                    std::min<std::uint16_t>(range->count,
+                                            bits ? modbus::max_read_bits : modbus::max_read_registers)));
+                back.recipe = "read back fc" + std::to_string(fc);
+                if (generator_.allowed(back.pdu)) follow_up_ = back;
+            }
+        }
+        progress();
+    }
+    if (options_.stop && options_.stop->load()) s_.stopped = true;
+    progress(true);
+    s_.elapsed = Clock::now() - start_;  // the fuzzing, not the restore after it
+    if (!s_.target_lost && !session_.touched().empty()) s_.restored = session_.restore();
+    return s_;
+}
+
+}  // namespace
+
+double CampaignSummary::requests_per_second() const {
+    const double seconds = std::chrono::duration<double>(elapsed).count();
+    return seconds > 0 ? static_cast<double>(requests) / seconds : 0;
+}
+
+CampaignSummary run_campaign(const modbus::Profile& profile, const CampaignOptions& options) {
+    auto client = modbus::transport::Client::open(options.endpoint);
+    if (!client) {
+        CampaignSummary s;
+        s.error = client.error();
+        return s;
+    }
+    Campaign c(profile, options, *client);
+    return c.run();
+}
+
+nlohmann::json to_json(const CampaignSummary& s) {
+    nlohmann::json findings = nlohmann::json::array();
+    for (const auto& f : s.findings)
+        findings.push_back({{"rule", f.rule},
+                            {"source", f.source},
+                            {"expected", f.expected},
+                            {"observed", f.observed},
+                            {"function", f.function},
+                            {"first_request", f.first_request},
+                            {"count", f.count},
+                            {"reproducer", f.file.empty() ? nlohmann::json(nullptr) : nlohmann::json(f.file)},
+                            {"steps", f.reproducer.steps.size()},
+                            {"minimised", f.reproducer.minimised}});
+    nlohmann::json restored = nlohmann::json::array();
+    for (const auto& t : s.restored)
+        restored.push_back({{"table", std::string(modbus::to_string(t.table))},
+                            {"address", t.address},
+                            {"original", t.original},
+                            {"restored", t.restored},
+                            {"problem", t.problem}});
+    nlohmann::json j{{"reachable", s.reachable},
+                     {"requests", s.requests},
+                     {"replies", s.replies},
+                     {"exceptions", s.exceptions},
+                     {"silences", s.silences},
+                     {"skipped_writes", s.skipped_writes},
+                     {"unconfirmed", s.unconfirmed},
+                     {"health_checks", s.health_checks},
+                     {"seconds", std::chrono::duration<double>(s.elapsed).count()},
+                     {"requests_per_second", s.requests_per_second()},
+                     {"response_classes", s.response_classes},
+                     {"outcomes", s.outcomes},
+                     {"findings", findings},
+                     {"restored", restored},
+                     {"stopped", s.stopped},
+                     {"target_lost", s.target_lost}};
+    if (!s.error.empty()) j["error"] = s.error;
+    return j;
+}
+
+}  // namespace mbscope::fuzz::network

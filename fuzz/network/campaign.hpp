@@ -1,0 +1,84 @@
+#pragma once
+// `mbscope fuzz`: a fuzzing campaign against any slave over any transport. Each probe (generator.hpp) is
+// sent, and its exchange judged by the exchange oracle `mbscope check` and the in-process slave target
+// share (conformance/oracle.hpp). Besides the oracle's rules the campaign watches what only a live target
+// shows: a hung or crashed target (no reply to a known-good health-check request after a failure, a
+// connection that cannot be made again), a slow one (replies later than --slow, confirmed by a second
+// slow health check), replies that arrive after their request was given up, and a request voided by a
+// silence inside it on a serial line that is answered anyway.
+//
+// A finding is confirmed before it is kept (a missing reply must be missing twice), saved once per rule and
+// function code as a reproducer (reproducer.hpp: the bytes sent since the last known-good state, shortened
+// to the fewest steps that still break the rule) and counted after that. Every point written is read first
+// and written back at the end, as the conformance runner does; --read-only sends nothing that writes.
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "conformance/session.hpp"
+#include "fuzz/network/reproducer.hpp"
+#include "modbus/profile.hpp"
+#include "modbus/transport/endpoint.hpp"
+
+namespace mbscope::fuzz::network {
+
+struct CampaignOptions {
+    modbus::transport::Endpoint endpoint;
+    std::string target;  // the URI as given, for reproducers' commands
+    std::uint8_t unit = 1;
+    bool read_only = false;
+    std::uint64_t seed = 1;
+    std::optional<std::uint64_t> requests;              // stop after this many probes
+    std::optional<std::chrono::milliseconds> duration;  // stop after this long
+    std::chrono::milliseconds timeout{1000};            // wait for a reply that is due
+    std::chrono::milliseconds silence_wait{1000};       // wait where the rules demand silence
+    std::chrono::milliseconds slow{0};      // slower replies are findings (0: from the profile, else 250)
+    std::chrono::milliseconds interval{0};  // between requests (the manual's polling interval)
+    std::string artifacts;                  // directory for reproducers; empty: none written
+    std::size_t minimise_budget = 64;       // replays spent shortening one reproducer
+    std::size_t max_findings = 0;           // stop once this many are saved (0: run the whole budget)
+    std::function<void(const struct CampaignSummary&)> progress;  // called about four times a second
+    const std::atomic<bool>* stop = nullptr;
+};
+
+struct CampaignFinding {
+    std::string rule;  // an oracle rule, or target.unresponsive, timing.slow_reply, reply.late, ...
+    std::string source;
+    std::string expected;
+    std::string observed;
+    std::uint8_t function = 0;  // of the request that showed it
+    std::uint64_t first_request = 0;
+    std::uint64_t count = 0;
+    Reproducer reproducer;
+    std::string file;  // where the reproducer was saved; empty when none was
+};
+
+struct CampaignSummary {
+    bool reachable = false;
+    std::string error;  // why the target could not be reached
+    std::uint64_t requests = 0;
+    std::uint64_t replies = 0, exceptions = 0, silences = 0;
+    std::uint64_t skipped_writes = 0;  // write probes not sent: the original values could not be read
+    std::uint64_t unconfirmed = 0;     // failures that did not happen again when checked
+    std::uint64_t health_checks = 0;
+    std::chrono::nanoseconds elapsed{0};
+    std::size_t response_classes = 0;
+    std::map<std::string, std::uint64_t> outcomes;  // "normal", "exception 02", "silence", each rule broken
+    std::vector<CampaignFinding> findings;
+    std::vector<conformance::Touched> restored;
+    bool stopped = false;      // interrupted
+    bool target_lost = false;  // the run ended because the target stopped answering
+    double requests_per_second() const;
+};
+
+CampaignSummary run_campaign(const modbus::Profile& profile, const CampaignOptions& options);
+
+nlohmann::json to_json(const CampaignSummary& s);
+
+}  // namespace mbscope::fuzz::network

@@ -1,0 +1,215 @@
+#include "fuzz/network/reproducer.hpp"
+
+#include "fuzz/fuzz_support.hpp"
+#include "modbus/adu.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+namespace mbscope::fuzz::network {
+
+namespace {
+
+modbus::Result<std::vector<std::uint8_t>, std::string> unhex(const std::string& text) {
+    std::vector<std::uint8_t> out;
+    std::istringstream in(text);
+    for (std::string token; in >> token;) {
+        if (token.size() != 2 || !std::isxdigit(static_cast<unsigned char>(token[0])) ||
+            !std::isxdigit(static_cast<unsigned char>(token[1])))
+            return std::string("'" + token + "' is not a hex byte");
+        out.push_back(static_cast<std::uint8_t>(std::stoul(token, nullptr, 16)));
+    }
+    return out;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> Step::joined() const {
+    std::vector<std::uint8_t> out;
+    for (const auto& p : parts)
+        out.insert(out.end(), p.begin(), p.end());
+    return out;
+}
+
+nlohmann::json to_json(const Reproducer& r) {
+    nlohmann::json steps = nlohmann::json::array();
+    for (const auto& s : r.steps) {
+        nlohmann::json parts = nlohmann::json::array();
+        for (const auto& p : s.parts)
+            parts.push_back(fuzz::hex(p));
+        nlohmann::json j{{"parts", parts}, {"recipe", s.recipe}};
+        if (s.pause.count()) j["pause_ms"] = s.pause.count();
+        if (s.reconnect_after) j["reconnect_after"] = true;
+        if (s.void_by_gap) j["void_by_gap"] = true;
+        steps.push_back(std::move(j));
+    }
+    return {{"mbscope_reproducer", 1},
+            {"rule", r.rule},
+            {"source", r.source},
+            {"expected", r.expected},
+            {"observed", r.observed},
+            {"target", r.target},
+            {"profile", r.profile},
+            {"unit", r.unit},
+            {"framing", r.framing},
+            {"seed", r.seed},
+            {"request", r.request},
+            {"minimised", r.minimised},
+            {"original_steps", r.original_steps},
+            {"steps", steps},
+            {"replay", "mbscope replay --target " + r.target + " --profile " + r.profile + " --unit " +
+                           std::to_string(r.unit) + " FILE"}};
+}
+
+modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::json& j) {
+    try {
+        if (!j.is_object() || j.value("mbscope_reproducer", 0) != 1)
+            return std::string("not an mbscope reproducer (no \"mbscope_reproducer\": 1)");
+        Reproducer r;
+        r.rule = j.value("rule", "");
+        r.source = j.value("source", "");
+        r.expected = j.value("expected", "");
+        r.observed = j.value("observed", "");
+        r.target = j.value("target", "");
+        r.profile = j.value("profile", "modbus");
+        const int unit = j.value("unit", 1);
+        if (unit < 0 || unit > 255) return std::string("unit " + std::to_string(unit) + " is not 0..255");
+        r.unit = static_cast<std::uint8_t>(unit);
+        r.framing = j.value("framing", "");
+        r.seed = j.value("seed", std::uint64_t{0});
+        r.request = j.value("request", std::uint64_t{0});
+        r.minimised = j.value("minimised", false);
+        r.original_steps = j.value("original_steps", std::size_t{0});
+        if (!j.contains("steps") || !j["steps"].is_array()) return std::string("no \"steps\" array");
+        std::size_t index = 0;
+        for (const auto& s : j["steps"]) {
+            ++index;
+            Step step;
+            if (!s.contains("parts") || !s["parts"].is_array() || s["parts"].empty())
+                return std::string("step " + std::to_string(index) + ": no \"parts\"");
+            for (const auto& p : s["parts"]) {
+                auto bytes = unhex(p.get<std::string>());
+                if (!bytes) return std::string("step " + std::to_string(index) + ": " + bytes.error());
+                step.parts.push_back(std::move(bytes).value());
+            }
+            const auto pause = s.value("pause_ms", 0);
+            if (pause < 0 || pause > 60000)
+                return std::string("step " + std::to_string(index) + ": pause_ms outside 0..60000");
+            step.pause = std::chrono::milliseconds(pause);
+            step.reconnect_after = s.value("reconnect_after", false);
+            step.void_by_gap = s.value("void_by_gap", false);
+            step.recipe = s.value("recipe", "");
+            r.steps.push_back(std::move(step));
+        }
+        return r;
+    } catch (const nlohmann::json::exception& e) {
+        return std::string(e.what());
+    }
+}
+
+modbus::Result<Reproducer, std::string> load_reproducer(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) return std::string(path + ": cannot open");
+    const auto j = nlohmann::json::parse(in, nullptr, false);
+    if (j.is_discarded()) return std::string(path + ": not JSON");
+    auto r = reproducer_from_json(j);
+    if (!r) return std::string(path + ": " + r.error());
+    return r;
+}
+
+modbus::Result<void, std::string> save_reproducer(const Reproducer& r, const std::string& path) {
+    const std::string temporary = path + ".tmp";
+    {
+        std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+        out << to_json(r).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
+        out.flush();
+        if (!out) return std::string(path + ": cannot write");
+    }
+    if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+        ::unlink(temporary.c_str());
+        return std::string(path + ": cannot write");
+    }
+    return {};
+}
+
+ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
+                       const Step& step, const ReplayOptions& options) {
+    ReplayedStep r;
+    const auto whole = step.joined();
+    // Where the rules demand silence (or have no opinion: no frame, unit 0 over TCP) the wait is short; a
+    // reply after it is judged when the next step begins (late_reply). Where silence is merely allowed (an
+    // RTU request whose length its function does not predict, which a slave may end at a silence or drop)
+    // a reply may come after the slave's own silence: it is waited for in full, so that it is not taken
+    // for the next request's.
+    const auto expected = oracle.expectation(whole);
+    const bool silence = step.void_by_gap || expected.empty() || expected.starts_with("no reply");
+    for (std::size_t i = 0; i + 1 < step.parts.size(); ++i) {
+        (void)client.write(step.parts[i]);
+        std::this_thread::sleep_for(step.pause);
+    }
+    r.exchange = client.raw(step.parts.back(), silence ? options.silence_wait : options.timeout, 1, whole);
+    if (step.void_by_gap) {
+        // The slave must drop a request with a silence over t1.5 inside it (SL §2.5.1.1); the oracle judges
+        // bytes, not their timing, so this rule is judged here.
+        if (!r.exchange.received.empty())
+            r.violations.push_back(
+                {"silence.gap_inside_request", "SL §2.5.1.1",
+                 "no reply to a request with a silence over t1.5 inside it",
+                 std::to_string(r.exchange.received.size()) + " bytes: " + fuzz::hex(r.exchange.received)});
+    } else {
+        r.violations = oracle.judge(r.exchange);
+    }
+    return r;
+}
+
+std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& client,
+                                                     conformance::ExchangeOracle& oracle,
+                                                     const modbus::transport::Exchange& previous) {
+    const auto bytes = client.drain(std::chrono::milliseconds(0));
+    if (bytes.empty()) return {};
+    // Judged as the reply it is: a late answer the rules allow (a gateway's exception 0B) is no finding.
+    modbus::transport::Exchange ex = previous;
+    ex.received = bytes;
+    ex.response.reset();
+    const auto framing = client.framing();
+    auto frame = framing == modbus::Framing::Rtu     ? modbus::decode_rtu(bytes)
+                 : framing == modbus::Framing::Ascii ? modbus::decode_ascii(bytes)
+                                                     : modbus::decode_tcp(bytes);
+    if (frame) ex.response = std::move(frame).value();
+    auto found = oracle.judge(ex);
+    for (auto& v : found)
+        v.observed = "after the request was given up: " + v.observed;
+    return found;
+}
+
+std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
+                                 const std::vector<Step>& steps, const ReplayOptions& options) {
+    std::vector<ReplayedStep> out;
+    const auto late = [&] {
+        if (out.empty()) return;
+        const auto found = late_reply(client, oracle, out.back().exchange);
+        out.back().violations.insert(out.back().violations.end(), found.begin(), found.end());
+    };
+    for (const auto& step : steps) {
+        late();
+        out.push_back(send_step(client, oracle, step, options));
+        if (step.reconnect_after) (void)client.reconnect();
+    }
+    std::this_thread::sleep_for(std::min(options.timeout, std::chrono::milliseconds(50)));
+    late();
+    return out;
+}
+
+bool breaks(const std::vector<ReplayedStep>& replayed, const std::string& rule) {
+    return std::any_of(replayed.begin(), replayed.end(), [&](const ReplayedStep& s) {
+        return std::any_of(s.violations.begin(), s.violations.end(),
+                           [&](const auto& v) { return v.rule == rule; });
+    });
+}
+
+}  // namespace mbscope::fuzz::network

@@ -1,0 +1,300 @@
+// The network fuzzer (`mbscope fuzz`) against the reference slave on loopback:
+//  - every planted fault of the slave is found, with a rule that names its effect, within a bounded
+//    number of requests from a fixed seed (well inside the 60 s the fuzzer is promised to need);
+//  - the clean slave yields nothing in the same budget, on every transport;
+//  - a test enumerates the slave's faults, so a new fault without a case here fails the build;
+//  - reproducers replay: saved, loaded, sent again, the same rule broken;
+//  - written points are restored; --read-only writes nothing;
+//  - the command's exit codes (0 nothing found, 1 findings, 2 unreachable) and its JSON summary.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+#include "fuzz/network/campaign.hpp"
+#include "slave/slave_test_support.hpp"
+
+namespace {
+
+namespace fz = mbscope::fuzz::network;
+namespace sl = mbscope::slave;
+using mbscope::slave::test::RunningServer;
+
+struct FaultCase {
+    std::string fault;
+    std::string profile;
+    std::string scheme;
+    std::set<std::string> rules;  // any of these names the fault's effect
+};
+
+std::ostream& operator<<(std::ostream& out, const FaultCase& c) {
+    return out << c.fault << " on " << c.profile << " over " << c.scheme;
+}
+
+fz::CampaignOptions options_for(const std::string& scheme, std::uint16_t port) {
+    fz::CampaignOptions o;
+    o.target = scheme + "://127.0.0.1:" + std::to_string(port);
+    o.endpoint = *mbscope::modbus::transport::parse_endpoint(o.target);
+    o.seed = 1;
+    o.requests = 3000;
+    o.duration = std::chrono::seconds(60);
+    o.timeout = std::chrono::milliseconds(300);
+    o.silence_wait = std::chrono::milliseconds(20);
+    o.slow = std::chrono::milliseconds(400);
+    o.minimise_budget = 8;
+    return o;
+}
+
+std::string listing(const fz::CampaignSummary& s) {
+    std::string out;
+    for (const auto& f : s.findings)
+        out += "\n  " + f.rule + " on fc" + std::to_string(f.function) + ": expected " + f.expected +
+               "; observed " + f.observed;
+    return out.empty() ? " (none)" : out;
+}
+
+std::vector<FaultCase> fault_cases() {
+    return {
+        {"bad-crc", "mmk-2030", "rtu-tcp", {"reply.checksum"}},
+        {"bad-lrc", "mmk-2030", "ascii-tcp", {"reply.checksum"}},
+        {"wrong-byte-count", "mmk-2030", "tcp", {"reply.malformed", "reply.byte_count"}},
+        {"short-response", "mmk-2030", "tcp", {"reply.malformed"}},
+        {"extra-bytes", "mmk-2030", "rtu-tcp", {"reply.malformed", "reply.trailing_bytes"}},
+        {"wrong-unit", "mmk-2030", "tcp", {"reply.envelope"}},
+        {"wrong-function", "mmk-2030", "tcp", {"reply.function"}},
+        {"wrong-tid", "mmk-2030", "tcp", {"reply.envelope"}},
+        {"bad-protocol-id", "walchem-w600", "tcp", {"reply.envelope"}},
+        {"reply-to-broadcast", "mmk-2030", "rtu-tcp", {"silence.broadcast", "reply.late"}},
+        {"ignore-max-quantity", "mmk-2030", "tcp", {"reply.quantity"}},
+        {"wrong-exception=4",
+         "mmk-2030",
+         "tcp",
+         {"reply.unsupported_function", "reply.quantity", "reply.address"}},
+        {"exception-for-valid=0.5", "mmk-2030", "tcp", {"reply.exception_for_valid"}},
+        {"no-reply=0.3", "mmk-2030", "tcp", {"reply.missing", "target.unresponsive"}},
+        {"slow-reply=800", "cth2265i", "tcp", {"timing.slow_reply"}},
+        {"gap-inside-frame=60", "mmk-2030", "rtu-tcp", {"reply.checksum", "reply.unframed", "reply.late"}},
+        {"word-swap", "walchem-w600", "tcp", {"state.lost_write"}},
+        {"off-by-one-address",
+         "mmk-2030",
+         "tcp",
+         {"reply.exception_for_valid", "reply.address", "state.lost_write"}},
+        // 21: square-root cut-off, channel 1 (0..5 %), a setpoint no process moves (000:486-721).
+        {"stuck-value=21", "mmk-2030", "tcp", {"state.lost_write"}},
+        {"drop-write", "mmk-2030", "tcp", {"state.lost_write"}},
+        {"accept-out-of-range", "mmk-2030", "tcp", {"reply.rejected_write"}},
+        {"no-echo", "mmk-2030", "tcp", {"reply.echo"}},
+        {"crash-after=200", "cth2265i", "tcp", {"target.unresponsive", "reply.missing"}},
+    };
+}
+
+class PlantedFault : public ::testing::TestWithParam<FaultCase> {};
+
+TEST_P(PlantedFault, IsFoundByTheNetworkFuzzerWithTheRuleItBreaks) {
+    const auto& c = GetParam();
+    RunningServer server({c.fault}, 7, c.profile);
+    auto o = options_for(c.scheme, server.start(c.scheme));
+    if (c.fault.starts_with("slow-reply")) o.timeout = std::chrono::milliseconds(2000);
+    o.max_findings = 1;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile(c.profile), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    ASSERT_FALSE(s.findings.empty()) << "nothing found in " << s.requests << " requests";
+    const bool named = std::any_of(s.findings.begin(), s.findings.end(),
+                                   [&](const auto& f) { return c.rules.count(f.rule); });
+    EXPECT_TRUE(named) << "no finding names the fault's effect:" << listing(s);
+    EXPECT_FALSE(s.findings.front().reproducer.steps.empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(Slave, PlantedFault, ::testing::ValuesIn(fault_cases()), [](const auto& info) {
+    std::string n = info.param.fault.substr(0, info.param.fault.find('='));
+    for (auto& ch : n)
+        if (ch == '-') ch = '_';
+    return n;
+});
+
+TEST(PlantedFaults, EveryFaultOfTheSlaveHasANetworkFuzzingCase) {
+    std::set<std::string> named;
+    for (const auto& c : fault_cases())
+        named.insert(c.fault.substr(0, c.fault.find('=')));
+    for (std::size_t i = 0; i < sl::fault_count; ++i) {
+        const std::string name(sl::to_string(static_cast<sl::Fault>(i)));
+        EXPECT_TRUE(named.count(name)) << name << " has no network fuzzing case";
+    }
+}
+
+struct CleanCase {
+    std::string profile;
+    std::string scheme;
+};
+
+class CleanSlave : public ::testing::TestWithParam<CleanCase> {};
+
+// The same budget as the fault cases, against the slave without faults: nothing is found, and every point
+// written is restored.
+TEST_P(CleanSlave, YieldsNoFindingAndRestoresEveryWrite) {
+    const auto& c = GetParam();
+    RunningServer server({}, 7, c.profile);
+    auto o = options_for(c.scheme, server.start(c.scheme));
+    // RTU over a stream: requests whose length the function does not tell are waited for in full (the
+    // slave ends them at a silence), so fewer in the same time.
+    o.requests = c.scheme == "rtu-tcp" ? 600 : 1500;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile(c.profile), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    EXPECT_TRUE(s.findings.empty()) << listing(s);
+    EXPECT_EQ(s.requests, *o.requests);
+    EXPECT_GT(s.response_classes, 10u);
+    EXPECT_GT(s.exceptions, 0u);
+    EXPECT_GT(s.replies, s.exceptions);
+    for (const auto& t : s.restored)
+        EXPECT_TRUE(t.restored) << mbscope::modbus::to_string(t.table) << " " << t.address << ": "
+                                << t.problem;
+}
+
+INSTANTIATE_TEST_SUITE_P(Slave, CleanSlave,
+                         ::testing::Values(CleanCase{"mmk-2030", "tcp"}, CleanCase{"mmk-2030", "rtu-tcp"},
+                                           CleanCase{"mmk-2030", "ascii-tcp"},
+                                           CleanCase{"cth2265i", "rtu-tcp"}, CleanCase{"walchem-w600", "tcp"},
+                                           CleanCase{"modbus", "tcp"}),
+                         [](const auto& info) {
+                             std::string n = info.param.profile + "_" + info.param.scheme;
+                             for (auto& ch : n)
+                                 if (ch == '-') ch = '_';
+                             return n;
+                         });
+
+TEST(NetworkFuzzer, ReadOnlyNeverChangesTheDevice) {
+    RunningServer server({}, 7, "mmk-2030");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.requests = 800;
+    o.read_only = true;
+    const auto before = server.device().image().modifications();
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    EXPECT_TRUE(s.findings.empty()) << listing(s);
+    EXPECT_TRUE(s.restored.empty());
+    EXPECT_EQ(server.device().image().modifications(), before);
+}
+
+TEST(NetworkFuzzer, TheSameSeedSendsTheSameRequests) {
+    const auto run = [](std::uint64_t seed) {
+        RunningServer server({}, 7, "mmk-2030");
+        auto o = options_for("tcp", server.start("tcp"));
+        o.requests = 300;
+        o.seed = seed;
+        return fz::to_json(fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o))["outcomes"];
+    };
+    EXPECT_EQ(run(3), run(3));
+    EXPECT_NE(run(3), run(4));
+}
+
+TEST(NetworkFuzzer, UnreachableTargetIsReportedNotFuzzed) {
+    fz::CampaignOptions o = options_for("tcp", 1);  // nothing listens on port 1
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+    EXPECT_FALSE(s.reachable);
+    EXPECT_FALSE(s.error.empty());
+    EXPECT_EQ(s.requests, 0u);
+}
+
+TEST(NetworkFuzzer, ReproducerIsSavedMinimisedAndReplaysTheSameRule) {
+    const auto dir = std::filesystem::path(::testing::TempDir()) / "mbscope-netfuzz-artifacts";
+    std::filesystem::remove_all(dir);
+    RunningServer server({"no-echo"}, 7, "mmk-2030");
+    const auto port = server.start("tcp");
+    auto o = options_for("tcp", port);
+    o.artifacts = dir.string();
+    o.max_findings = 1;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+    ASSERT_EQ(s.findings.size(), 1u) << listing(s);
+    const auto& f = s.findings.front();
+    EXPECT_EQ(f.rule, "reply.echo");
+    ASSERT_FALSE(f.file.empty());
+    const auto loaded = fz::load_reproducer(f.file);
+    ASSERT_TRUE(loaded) << loaded.error();
+    EXPECT_EQ(loaded->rule, "reply.echo");
+    EXPECT_TRUE(loaded->minimised);
+    EXPECT_EQ(loaded->steps.size(), 1u);  // one request without its echo is the whole story
+
+    auto client = mbscope::modbus::transport::Client::open(o.endpoint);
+    ASSERT_TRUE(client);
+    mbscope::conformance::ExchangeOracle oracle(mbscope::modbus::Framing::Tcp,
+                                                {{1, &mbscope::slave::test::profile("mmk-2030")}}, true);
+    const auto replayed = fz::replay(*client, oracle, loaded->steps, {});
+    EXPECT_TRUE(fz::breaks(replayed, "reply.echo"));
+}
+
+TEST(NetworkFuzzer, DamagedReproducersAreRefusedWithTheReason) {
+    const auto path = (std::filesystem::path(::testing::TempDir()) / "mbscope-bad-reproducer.json").string();
+    const auto with = [&](const std::string& text) {
+        std::ofstream(path) << text;
+        auto r = fz::load_reproducer(path);
+        return r ? std::string("loaded") : r.error();
+    };
+    EXPECT_NE(with("not json").find("not JSON"), std::string::npos);
+    EXPECT_NE(with("{}").find("not an mbscope reproducer"), std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1})").find("steps"), std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["0G"]}]})").find("step 1"),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":[7]}]})").find(path), std::string::npos);
+    EXPECT_EQ(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["01 03"]}]})"), "loaded");
+}
+
+// ---- the command
+
+struct Run {
+    int status = -1;
+    std::string out;
+};
+
+Run run(const std::string& arguments) {
+    Run r;
+    FILE* p = popen((std::string(MBSCOPE_BINARY) + " " + arguments + " 2>&1").c_str(), "r");
+    char buf[4096];
+    while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
+        r.out.append(buf, n);
+    r.status = WEXITSTATUS(pclose(p));
+    return r;
+}
+
+TEST(FuzzCommand, ExitCodesSummaryAndReplay) {
+    const auto dir = std::filesystem::path(::testing::TempDir()) / "mbscope-fuzz-command";
+    std::filesystem::remove_all(dir);
+    {
+        RunningServer server({}, 7, "cth2265i");
+        const auto port = server.start("tcp");
+        const auto clean =
+            run("fuzz --target tcp://127.0.0.1:" + std::to_string(port) +
+                " --profile cth2265i --requests 300 --timeout 300 --silence-wait 20 --slow 400");
+        EXPECT_EQ(clean.status, 0) << clean.out;
+        EXPECT_NE(clean.out.find("\"requests\": 300"), std::string::npos) << clean.out;
+        EXPECT_NE(clean.out.find("\"findings\": []"), std::string::npos) << clean.out;
+    }
+    RunningServer server({"wrong-function"}, 7, "cth2265i");
+    const auto target = "tcp://127.0.0.1:" + std::to_string(server.start("tcp"));
+    const auto found =
+        run("fuzz --target " + target +
+            " --profile cth2265i --requests 300 --timeout 300 --silence-wait 20 --max-findings 1 "
+            "--artifacts " +
+            dir.string());
+    EXPECT_EQ(found.status, 1) << found.out;
+    EXPECT_NE(found.out.find("reply.function"), std::string::npos) << found.out;
+    std::vector<std::filesystem::path> files;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+        files.push_back(e.path());
+    ASSERT_EQ(files.size(), 1u);
+    const auto replayed = run("replay --target " + target + " " + files.front().string());
+    EXPECT_EQ(replayed.status, 1) << replayed.out;
+    EXPECT_NE(replayed.out.find("reproduced: reply.function"), std::string::npos) << replayed.out;
+
+    const auto unreachable = run("fuzz --target tcp://127.0.0.1:1 --profile cth2265i --requests 10");
+    EXPECT_EQ(unreachable.status, 2) << unreachable.out;
+    EXPECT_NE(unreachable.out.find("cannot reach the target"), std::string::npos) << unreachable.out;
+    EXPECT_EQ(run("fuzz --help").status, 0);
+    EXPECT_EQ(run("replay --help").status, 0);
+    EXPECT_EQ(run("replay " + (dir / "missing.json").string()).status, 2);
+}
+
+}  // namespace
