@@ -9,6 +9,9 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 dir=${1:?usage: fuzz/smoke.sh DIR [SECONDS]}
 seconds=${2:-15}
+# A fixed seed: the smoke explores the same inputs on every run (as far as the time allows), so a red CI
+# run is a reproducible one. New ground is the continuous fuzzing's job (ClusterFuzzLite, -fork locally).
+seed=${MBSCOPE_FUZZ_SEED:-1}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 export MBSCOPE_PROFILE_PATH="$PWD/profiles"
@@ -17,7 +20,7 @@ run_one() {  # target
   local t=$1 corpus="$work/corpus-$1" log="$work/$1.log"
   mkdir -p "$corpus" "$work/artifacts-$t"
   [ -d "corpus/$t" ] && cp -r "corpus/$t/." "$corpus/"
-  "$dir/fuzz_$t" "$corpus" -dict="$dir/fuzz_$t.dict" -max_total_time="$seconds" -timeout=10 \
+  "$dir/fuzz_$t" "$corpus" -dict="$dir/fuzz_$t.dict" -max_total_time="$seconds" -timeout=10 -seed="$seed" \
     -rss_limit_mb=2048 -max_len=65536 -artifact_prefix="$work/artifacts-$t/" >"$log" 2>&1
   local rc=$?
   local runs

@@ -41,7 +41,7 @@ fuzz_smoke() {
   rm -rf build/fuzz-out
   CC=clang CXX=clang++ CFLAGS="$flags" CXXFLAGS="$flags" LIB_FUZZING_ENGINE=-fsanitize=fuzzer \
     OUT="$PWD/build/fuzz-out" WORK="$PWD/build" bash .clusterfuzzlite/build.sh
-  bash fuzz/smoke.sh build/fuzz-out "${MBSCOPE_FUZZ_SECONDS:-12}"
+  bash fuzz/smoke.sh build/fuzz-out "${MBSCOPE_FUZZ_SECONDS:-8}"
 }
 
 case "${1:-demo}" in
@@ -59,10 +59,11 @@ case "${1:-demo}" in
     slave_demo
     ;;
   test)
+    # Twice the cores: many tests wait on timers (reply timeouts, silences, processes) rather than compute.
     build release
-    ctest --preset release -j "$jobs"
+    ctest --preset release -j "$((jobs * 2))"
     build asan
-    ctest --preset asan -j "$jobs"
+    ctest --preset asan -j "$((jobs * 2))"
     fuzz_smoke
     ;;
   *)
