@@ -74,6 +74,11 @@ class Analyzer {
     bool read_capture(const std::string& path);
     bool read_capture(CaptureSource& capture);
     void input_error(const std::string& message) { summary_.input_errors.push_back(message); }
+    // How far a reader has got in its file, in bytes: passed on to the progress callback. Readers call it
+    // every so many records (finding the offset of a stream is not free).
+    void reached(std::uint64_t offset) {
+        if (options_.progress) options_.progress(summary_, offset);
+    }
     void set_serial_framing(modbus::Framing framing) noexcept { options_.serial_framing = framing; }
     void finish();
     const Summary& summary() const noexcept { return summary_; }

@@ -56,6 +56,23 @@ bool parse_time(const std::string& token, modbus::Timestamp& t) {
     return true;
 }
 
+// Tells the analyzer where `in` has got to, every `every` records: a progress line for serial logs moves
+// within a file, not only from one file to the next.
+class Position {
+  public:
+    Position(Analyzer& a, std::istream& in) : a_(a), in_(in) {}
+    void record() {
+        if (++count_ % every != 0) return;
+        if (const auto at = in_.tellg(); at >= 0) a_.reached(static_cast<std::uint64_t>(at));
+    }
+
+  private:
+    static constexpr std::uint64_t every = 1024;
+    Analyzer& a_;
+    std::istream& in_;
+    std::uint64_t count_ = 0;
+};
+
 bool read_text(Analyzer& a, const std::string& path) {
     std::ifstream in(path);
     if (!in) {
@@ -64,8 +81,10 @@ bool read_text(Analyzer& a, const std::string& path) {
     }
     bool ok = true;
     int number = 0;
+    Position position(a, in);
     for (std::string line; std::getline(in, line);) {
         ++number;
+        position.record();
         std::istringstream words(line);
         std::string time_token;
         if (!(words >> time_token) || time_token[0] == '#') continue;
@@ -98,10 +117,13 @@ bool read_raw(Analyzer& a, const std::string& path) {
         return false;
     }
     std::vector<char> buf(1 << 16);
+    std::uint64_t offset = 0;
     while (in) {
         in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
         const auto n = static_cast<std::size_t>(in.gcount());
         if (n) a.serial(path, {reinterpret_cast<const std::uint8_t*>(buf.data()), n}, modbus::Timestamp{0});
+        offset += n;
+        a.reached(offset);
     }
     return true;
 }
@@ -112,7 +134,11 @@ bool read_log(Analyzer& a, const std::string& path, InputFormat format, const Se
         a.input_error(path + ": cannot open");
         return false;
     }
-    const auto chunk = [&](const SerialChunk& c) { a.serial(path, c.bytes, c.received, c.direction); };
+    Position position(a, in);
+    const auto chunk = [&](const SerialChunk& c) {
+        a.serial(path, c.bytes, c.received, c.direction);
+        position.record();
+    };
     const auto error = [&](const std::string& message) { a.input_error(message); };
     return format == InputFormat::Jpnevulator ? read_jpnevulator_log(in, path, options, chunk, error)
                                               : read_socat_log(in, path, options, chunk, error);

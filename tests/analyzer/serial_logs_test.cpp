@@ -4,8 +4,10 @@
 // written into the ptys; expected times and directions are worked out by hand from the log lines.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 #include "analyzer/serial_input.hpp"
 #include "analyzer/serial_logs.hpp"
@@ -309,4 +311,28 @@ TEST(TextLog, TimesThatAreNotRepresentableAreNamedAndTheRestRead) {
         << r->summary.input_errors[3];
     ASSERT_EQ(r->sink.frames.size(), 1u);
     EXPECT_EQ(r->sink.frames[0].time, mb::Timestamp(1'500'000'000));
+}
+
+// A progress line for a serial log moves within the file: the readers report the offset they reached every
+// so many records, in order, never past the end.
+TEST(SerialLogs, ProgressReportsOffsetsWithinAFile) {
+    std::string text, raw;
+    for (int i = 0; i < 5000; ++i)
+        text += std::to_string(i) + ".000 > 11 03 00 6B 00 03 76 87\n";
+    raw.assign(300000, '\x11');
+    for (const auto& [name, content, format] :
+         {std::tuple{"mbscope-progress.txt", text, an::InputFormat::Text},
+          std::tuple{"mbscope-progress.bin", raw, an::InputFormat::RtuRaw}}) {
+        SCOPED_TRACE(name);
+        const auto path = write_temp(name, content);
+        std::vector<std::uint64_t> offsets;
+        an::AnalyzerOptions options;
+        options.progress = [&](const an::Summary&, std::uint64_t offset) { offsets.push_back(offset); };
+        decode(path, format, {}, options);
+        ASSERT_GE(offsets.size(), 4u);
+        EXPECT_TRUE(std::is_sorted(offsets.begin(), offsets.end()));
+        EXPECT_GT(offsets.front(), 0u);
+        EXPECT_LE(offsets.back(), content.size());
+        EXPECT_GT(offsets.back(), content.size() / 2);
+    }
 }
