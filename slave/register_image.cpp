@@ -10,15 +10,23 @@ int index_of(Table t) noexcept {
 }
 }  // namespace
 
+namespace {
+const std::array<std::uint16_t, 256> zero_page{};
+}  // namespace
+
 RegisterImage::RegisterImage(const modbus::Profile& profile) : profile_(&profile) {
-    for (Table t : {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters})
-        if (profile.resolve(t) == t) tables_[index_of(t)].assign(65536, 0);
+    for (auto& w : tables_)
+        w.page.fill(&zero_page);
     initialise();
-    for (int i = 0; i < 5; ++i)
-        initial_[i] = tables_[i];
+    // What initialise() wrote becomes the initial image, shared by every page until it is written again.
+    for (int i = 0; i < 5; ++i) {
+        for (std::size_t p = 0; p < page_count; ++p)
+            if (tables_[i].own[p]) initial_pages_.push_back(std::move(tables_[i].own[p]));
+        initial_[i] = tables_[i].page;
+    }
 }
 
-std::vector<std::uint16_t>& RegisterImage::words(Table t) noexcept {
+RegisterImage::Words& RegisterImage::words(Table t) noexcept {
     if (t == Table::Coils && profile_->coils_view_registers) t = Table::HoldingRegisters;
     if (t == Table::DiscreteInputs && profile_->coils_view_registers &&
         profile_->resolve(Table::DiscreteInputs) == Table::Coils)
@@ -26,20 +34,30 @@ std::vector<std::uint16_t>& RegisterImage::words(Table t) noexcept {
     return tables_[index_of(profile_->resolve(t))];
 }
 
-const std::vector<std::uint16_t>& RegisterImage::words(Table t) const noexcept {
+const RegisterImage::Words& RegisterImage::words(Table t) const noexcept {
     return const_cast<RegisterImage*>(this)->words(t);
 }
 
+std::uint16_t& RegisterImage::writable(Words& w, std::uint16_t address) {
+    const std::size_t p = address / page_words;
+    if (!w.own[p]) {
+        w.own[p] = std::make_unique<Page>(*w.page[p]);
+        w.page[p] = w.own[p].get();
+    }
+    return (*w.own[p])[address % page_words];
+}
+
 std::uint16_t RegisterImage::reg(Table t, std::uint16_t address) const noexcept {
-    return words(t)[address];
+    return (*words(t).page[address / page_words])[address % page_words];
 }
 void RegisterImage::set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept {
-    auto& word = words(t)[address];
-    modifications_ += word != value;
-    word = value;
+    Words& w = words(t);
+    if ((*w.page[address / page_words])[address % page_words] == value) return;
+    writable(w, address) = value;
+    ++modifications_;
 }
 bool RegisterImage::bit(Table t, std::uint16_t address) const noexcept {
-    return words(t)[address] != 0;
+    return reg(t, address) != 0;
 }
 void RegisterImage::set_bit(Table t, std::uint16_t address, bool value) noexcept {
     set_reg(t, address, value ? 1 : 0);
@@ -105,10 +123,14 @@ void RegisterImage::initialise() {
 std::map<Table, std::map<std::uint16_t, std::uint16_t>> RegisterImage::changes() const {
     std::map<Table, std::map<std::uint16_t, std::uint16_t>> out;
     for (Table t : {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters}) {
-        const auto& now = tables_[index_of(t)];
-        const auto& then = initial_[index_of(t)];
-        for (std::size_t a = 0; a < now.size(); ++a)
-            if (now[a] != then[a]) out[t][static_cast<std::uint16_t>(a)] = now[a];
+        const Words& now = tables_[index_of(t)];
+        for (std::size_t p = 0; p < page_count; ++p) {
+            if (!now.own[p]) continue;  // unwritten: the initial page itself
+            const Page& then = *initial_[index_of(t)][p];
+            for (std::size_t i = 0; i < page_words; ++i)
+                if ((*now.own[p])[i] != then[i])
+                    out[t][static_cast<std::uint16_t>(p * page_words + i)] = (*now.own[p])[i];
+        }
     }
     return out;
 }

@@ -5,8 +5,10 @@
 // Initial values follow the map: fixed read values (CTH2265I 0x55AA), an enumeration's first value, a
 // range's minimum when zero is outside it (floats encoded in the profile's word order).
 
+#include <array>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <vector>
 
 #include "modbus/profile.hpp"
@@ -38,14 +40,27 @@ class RegisterImage {
     std::uint64_t modifications() const noexcept { return modifications_; }
 
   private:
-    std::vector<std::uint16_t>& words(Table t) noexcept;
-    const std::vector<std::uint16_t>& words(Table t) const noexcept;
+    // Each table is 256 pages of 256 words. A page nobody wrote since the image was made is shared with the
+    // initial image (all-zero pages with one static page); a write copies its page first. Making an image
+    // costs the pages the map initialises, not 64 Ki words per table (what made the slave fuzz target
+    // spend most of its time zeroing and copying memory), and changes() looks at written pages only.
+    static constexpr std::size_t page_words = 256;
+    static constexpr std::size_t page_count = 65536 / page_words;
+    using Page = std::array<std::uint16_t, page_words>;
+    struct Words {
+        std::array<const Page*, page_count> page{};           // what reads see
+        std::array<std::unique_ptr<Page>, page_count> own{};  // pages written since the initial image
+    };
+    Words& words(Table t) noexcept;
+    const Words& words(Table t) const noexcept;
+    std::uint16_t& writable(Words& w, std::uint16_t address);
     void initialise();
 
     const modbus::Profile* profile_;
     // Indexed by the resolved table's value; bits are kept one per word for simple, uniform storage.
-    std::vector<std::uint16_t> tables_[5];
-    std::vector<std::uint16_t> initial_[5];
+    Words tables_[5];
+    std::array<const Page*, page_count> initial_[5]{};
+    std::vector<std::unique_ptr<const Page>> initial_pages_;  // the initial image's non-zero pages
     std::uint64_t modifications_ = 0;
 };
 
