@@ -21,6 +21,7 @@ using modbus::Table;
 using modbus::transport::Exchange;
 
 constexpr std::size_t trace_capacity = 32;  // steps kept since the last known-good state
+constexpr int health_attempts = 3;          // health checks before a target counts as unresponsive
 
 std::uint16_t word(const std::vector<std::uint8_t>& pdu, std::size_t at) {
     return at + 1 < pdu.size() ? static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]) : 0;
@@ -135,6 +136,7 @@ class Campaign {
     std::size_t next_round_trip_ = 0;
     std::uint8_t last_function_ = 0;
     std::optional<modbus::transport::Exchange> last_;  // the previous probe's exchange
+    bool health_passed_ = false;                       // a health check passed since the trace was cleared
 };
 
 std::vector<std::uint8_t> Campaign::health_request() const {
@@ -178,7 +180,7 @@ ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout)
 }
 
 bool Campaign::healthy(std::chrono::nanoseconds* latency) {
-    for (int attempt = 0; attempt < 3; ++attempt) {
+    for (int attempt = 0; attempt < health_attempts; ++attempt) {
         ++s_.health_checks;
         Probe p;
         p.unit = options_.unit;
@@ -192,6 +194,7 @@ bool Campaign::healthy(std::chrono::nanoseconds* latency) {
         // Alive is answering at all: whether the answer keeps the rules is the probes' business.
         if (!r.exchange.received.empty()) {
             if (latency) *latency = r.exchange.first_byte;
+            health_passed_ = true;
             return true;
         }
         (void)client_.drain(std::chrono::milliseconds(10));
@@ -416,6 +419,7 @@ CampaignSummary Campaign::run() {
         return s_;
     }
     s_.reachable = true;
+    health_passed_ = false;  // the trace starts empty anyway
     while (!done()) {
         std::optional<Probe> chosen = std::exchange(follow_up_, std::nullopt);
         if (!chosen && !options_.read_only && rng_() % 100 < 5) chosen = round_trip();
@@ -470,7 +474,7 @@ CampaignSummary Campaign::run() {
         if (s_.target_lost) {
             record({"target.unresponsive", "AP §4.1",
                     "a normal reply to the health-check request " + fuzz::hex(health_) + " after a failure",
-                    "no reply to " + std::to_string(3) + " health checks, connection " +
+                    "no reply to " + std::to_string(health_attempts) + " health checks, connection " +
                         (r.exchange.closed ? "closed" : "open")},
                    fc, false);
             break;
@@ -496,6 +500,10 @@ CampaignSummary Campaign::run() {
                 if (generator_.allowed(back.pdu)) follow_up_ = back;
             }
         }
+        // A health check passed in this round: the target is known to be good from here, and a later
+        // reproducer starts here (its findings were saved above with the steps before).
+        // Not while a read-back is due: the write it checks belongs in that reproducer.
+        if (std::exchange(health_passed_, false) && !follow_up_) trace_.clear();
         progress();
     }
     if (options_.stop && options_.stop->load()) s_.stopped = true;
