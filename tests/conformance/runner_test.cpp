@@ -2,7 +2,8 @@
 // thread, the runner's Client on the other end.
 //
 //  - CleanSlave: every bundled profile over Modbus/TCP, and one profile of each manual over every other
-//    transport (rtu-tcp, ascii-tcp, udp; RTU and ASCII over a pseudo-terminal), certify with no failure,
+//    transport (rtu-tcp, ascii-tcp, udp; RTU and ASCII over a pseudo-terminal in serial_line_test.cpp),
+//    certify with no failure,
 //    restore every point they wrote, and leave the slave's register image as they found it.
 //  - PlantedFault: each of the slave's 23 faults makes the run fail (or warn, where only an implied rule
 //    of the manual catches it) through the rules that are meant to catch it.
@@ -18,72 +19,12 @@
 #include <set>
 #include <sstream>
 
-#include "conformance/report.hpp"
-#include "conformance/runner.hpp"
-#include "modbus/transport/client.hpp"
-#include "tests/slave/slave_test_support.hpp"
+#include "tests/conformance/runner_support.hpp"
 
 namespace mbscope::conformance {
 namespace {
 
-namespace tp = modbus::transport;
-using slave::test::RunningServer;
-
-struct CheckRun {
-    Report report;
-    std::map<modbus::Table, std::map<std::uint16_t, std::uint16_t>> changes_after;  // slave image vs initial
-};
-
-CheckOptions options_for(std::chrono::milliseconds timeout = std::chrono::milliseconds(300)) {
-    CheckOptions o;
-    o.session.unit = 1;
-    o.session.timeout = timeout;
-    o.session.interval = std::chrono::milliseconds(0);  // the Walchem manual's 5 s polling is for plants
-    return o;
-}
-
-CheckRun certify(RunningServer& server, const std::string& scheme, const std::string& profile_id,
-                 const CheckOptions& options = options_for()) {
-    const std::uint16_t port = server.start(scheme);
-    auto endpoint = tp::parse_endpoint(scheme + "://127.0.0.1:" + std::to_string(port));
-    EXPECT_TRUE(endpoint.has_value());
-    auto client = tp::Client::open(*endpoint);
-    EXPECT_TRUE(client.has_value()) << (client ? "" : client.error());
-    CheckRun run;
-    if (!client) return run;
-    run.report = run_check(*client, slave::test::profile(profile_id), options);
-    server.stop();
-    run.changes_after = server.device().image().changes();
-    return run;
-}
-
-std::string failures(const Report& r) {
-    std::ostringstream out;
-    for (const auto& x : r.results)
-        if (x.outcome == Outcome::Fail || x.outcome == Outcome::Error)
-            out << "\n  " << x.rule.id << ": expected " << x.expected << ", observed " << x.observed
-                << (x.reason.empty() ? "" : " (" + x.reason + ")");
-    for (const auto& t : r.restored)
-        if (!t.restored) out << "\n  not restored: " << modbus::to_string(t.table) << ' ' << t.address;
-    return out.str();
-}
-
-void expect_clean(const CheckRun& run, std::size_t min_rules) {
-    const Report& r = run.report;
-    EXPECT_EQ(verdict(r), 0) << failures(r);
-    EXPECT_EQ(r.count(Outcome::Fail), 0u) << failures(r);
-    EXPECT_EQ(r.count(Outcome::Error), 0u) << failures(r);
-    EXPECT_GE(r.count(Outcome::Pass), min_rules);
-    EXPECT_TRUE(r.all_restored()) << failures(r);
-    EXPECT_FALSE(r.stopped);
-    // Nothing lost, nothing left behind: the slave holds its initial image again.
-    std::string changed;
-    for (const auto& [table, m] : run.changes_after)
-        for (const auto& [address, value] : m)
-            changed += " " + std::string(modbus::to_string(table)) + " " + std::to_string(address) + "=" +
-                       std::to_string(value);
-    EXPECT_EQ(changed, "") << "the run left values changed on the device";
-}
+using namespace mbscope::conformance::test;
 
 // ---- a clean slave passes
 
@@ -146,43 +87,6 @@ INSTANTIATE_TEST_SUITE_P(OneProfilePerManual, EveryTransport, ::testing::ValuesI
                                  if (ch == '-') ch = '_';
                              return n;
                          });
-
-// A true serial line: the slave on a pseudo-terminal it creates, the runner on the terminal's other side,
-// with the line's t1.5 and t3.5 in force (gaps inside requests, silences between them).
-class OverPseudoTerminal : public ::testing::TestWithParam<std::string> {};
-
-TEST_P(OverPseudoTerminal, CertifiesWithNoFailureAndRestoresEverything) {
-    const std::string framing = GetParam();
-    slave::FaultSet faults;
-    slave::Device device(slave::test::profile("mmk-2030"), 1, &faults);
-    auto listen = tp::parse_endpoint(framing + ":pty?baud=38400");
-    ASSERT_TRUE(listen.has_value());
-    slave::ServerOptions so;
-    so.create_pty = true;
-    slave::Server server(*listen, {&device}, faults, so);
-    auto opened = server.open();
-    ASSERT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
-    std::atomic<bool> stop{false};
-    std::thread thread([&] { (void)server.run(stop); });
-    auto target = tp::parse_endpoint(framing + ":" + server.address() + "?baud=38400");
-    ASSERT_TRUE(target.has_value());
-    auto client = tp::Client::open(*target);
-    ASSERT_TRUE(client.has_value()) << (client ? "" : client.error());
-    CheckRun run;
-    run.report =
-        run_check(*client, slave::test::profile("mmk-2030"), options_for(std::chrono::milliseconds(500)));
-    stop = true;
-    thread.join();
-    run.changes_after = device.image().changes();
-    expect_clean(run, 150);
-    // The serial framing rules ran, with the line's timing.
-    std::size_t framing_rules = 0;
-    for (const auto& x : run.report.results)
-        if (x.rule.id.starts_with("framing.") && x.outcome == Outcome::Pass) ++framing_rules;
-    EXPECT_GE(framing_rules, 3u);
-}
-
-INSTANTIATE_TEST_SUITE_P(Serial, OverPseudoTerminal, ::testing::Values("rtu", "ascii"));
 
 // ---- every planted fault is caught
 
