@@ -5,8 +5,8 @@
 
 #include "cli/commands.hpp"
 #include "cli/profile_json.hpp"
-#include "fuzz/fuzz_support.hpp"
 #include "fuzz/network/reproducer.hpp"
+#include "modbus/describe.hpp"
 #include "modbus/transport/endpoint.hpp"
 
 namespace mbscope::cli {
@@ -68,14 +68,15 @@ int run_replay_command(const ReplayCliOptions& o) {
             broken.push_back(
                 {{"rule", v.rule}, {"source", v.source}, {"expected", v.expected}, {"observed", v.observed}});
         out.push_back({{"step", i + 1},
-                       {"sent", fuzz::hex(s.exchange.sent)},
-                       {"received", fuzz::hex(s.exchange.received)},
+                       {"sent", modbus::hex_bytes(s.exchange.sent)},
+                       {"received", modbus::hex_bytes(s.exchange.received)},
                        {"elapsed_ms", std::chrono::duration<double, std::milli>(s.exchange.elapsed).count()},
                        {"violations", broken}});
         if (!o.json) {
             std::cout << "step " << i + 1 << "  " << r.steps[i].recipe << "\n  sent     "
-                      << fuzz::hex(s.exchange.sent) << "\n  received "
-                      << (s.exchange.received.empty() ? "(nothing)" : fuzz::hex(s.exchange.received)) << '\n';
+                      << modbus::hex_bytes(s.exchange.sent) << "\n  received "
+                      << (s.exchange.received.empty() ? "(nothing)" : modbus::hex_bytes(s.exchange.received))
+                      << '\n';
             for (const auto& v : s.violations)
                 std::cout << "  broken   " << conformance::to_string(v) << '\n';
         }

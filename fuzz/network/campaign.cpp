@@ -8,8 +8,8 @@
 #include <set>
 #include <thread>
 
-#include "fuzz/fuzz_support.hpp"
 #include "fuzz/network/generator.hpp"
+#include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
 
 namespace mbscope::fuzz::network {
@@ -414,7 +414,7 @@ bool Campaign::done() const {
 CampaignSummary Campaign::run() {
     start_ = Clock::now();
     if (!healthy()) {
-        s_.error = "no normal reply to the health-check request " + fuzz::hex(health_) + " (unit " +
+        s_.error = "no normal reply to the health-check request " + modbus::hex_bytes(health_) + " (unit " +
                    std::to_string(options_.unit) + ")";
         return s_;
     }
@@ -473,7 +473,8 @@ CampaignSummary Campaign::run() {
         }
         if (s_.target_lost) {
             record({"target.unresponsive", "AP §4.1",
-                    "a normal reply to the health-check request " + fuzz::hex(health_) + " after a failure",
+                    "a normal reply to the health-check request " + modbus::hex_bytes(health_) +
+                        " after a failure",
                     "no reply to " + std::to_string(health_attempts) + " health checks, connection " +
                         (r.exchange.closed ? "closed" : "open")},
                    fc, false);

@@ -1,7 +1,7 @@
 #include "fuzz/network/reproducer.hpp"
 
-#include "fuzz/fuzz_support.hpp"
 #include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
 
 #include <unistd.h>
 
@@ -41,7 +41,7 @@ nlohmann::json to_json(const Reproducer& r) {
     for (const auto& s : r.steps) {
         nlohmann::json parts = nlohmann::json::array();
         for (const auto& p : s.parts)
-            parts.push_back(fuzz::hex(p));
+            parts.push_back(modbus::hex_bytes(p));
         nlohmann::json j{{"parts", parts}, {"recipe", s.recipe}};
         if (s.pause.count()) j["pause_ms"] = s.pause.count();
         if (s.reconnect_after) j["reconnect_after"] = true;
@@ -157,10 +157,10 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
         // The slave must drop a request with a silence over t1.5 inside it (SL §2.5.1.1); the oracle judges
         // bytes, not their timing, so this rule is judged here.
         if (!r.exchange.received.empty())
-            r.violations.push_back(
-                {"silence.gap_inside_request", "SL §2.5.1.1",
-                 "no reply to a request with a silence over t1.5 inside it",
-                 std::to_string(r.exchange.received.size()) + " bytes: " + fuzz::hex(r.exchange.received)});
+            r.violations.push_back({"silence.gap_inside_request", "SL §2.5.1.1",
+                                    "no reply to a request with a silence over t1.5 inside it",
+                                    std::to_string(r.exchange.received.size()) +
+                                        " bytes: " + modbus::hex_bytes(r.exchange.received)});
     } else {
         r.violations = oracle.judge(r.exchange);
     }
