@@ -1,6 +1,7 @@
 #include "analyzer/analyzer.hpp"
 
 #include <algorithm>
+#include <cstring>
 
 #include "analyzer/exported_pdu.hpp"
 #include "analyzer/rtac_serial.hpp"
@@ -14,7 +15,7 @@ using namespace mbscope::modbus;
 
 struct Analyzer::Flow {
     std::uint64_t id = 0;
-    std::string link;                                // "client -> server"
+    SharedText link;                                 // "client -> server"
     std::string server;                              // "server"
     Carrier carrier = Carrier::Tcp;                  // Tcp: reassembled; the others come whole
     std::unique_ptr<TcpReassembler> reassembler[2];  // [0] client → server, [1] server → client
@@ -26,7 +27,41 @@ struct Analyzer::Flow {
     Timestamp rtu_last[2] = {};          // when each side last sent: the time of a frame closed later
     std::size_t pending = 0;
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
+    // "server unit N" and its statistics, made once per unit seen on the link rather than once per frame.
+    struct Unit {
+        std::uint8_t id;
+        SharedText device;
+        DeviceStats* stats;
+    };
+    std::vector<Unit> units;
 };
+
+std::size_t Analyzer::FlowKeyHash::operator()(const FlowKey& k) const noexcept {
+    std::uint64_t h = 1469598103934665603ull ^ static_cast<std::uint64_t>(k.transport);
+    const auto mix = [&h](const Endpoint& e) {
+        std::uint64_t a, b;
+        std::memcpy(&a, e.address.data(), 8);
+        std::memcpy(&b, e.address.data() + 8, 8);
+        h = (h ^ a) * 0x100000001b3ull;
+        h = (h ^ b) * 0x100000001b3ull;
+        h = (h ^ (std::uint64_t{e.port} << 1 | e.v6)) * 0x100000001b3ull;
+    };
+    mix(k.client);
+    mix(k.server);
+    return static_cast<std::size_t>(h ^ (h >> 29));
+}
+
+const SharedText& Analyzer::device_of(Flow& flow, std::uint8_t unit, DeviceStats*& stats) {
+    for (const auto& u : flow.units)
+        if (u.id == unit) {
+            stats = u.stats;
+            return u.device;
+        }
+    std::string device = flow.server + " unit " + std::to_string(unit);
+    stats = &summary_.devices[device];
+    flow.units.push_back({unit, std::move(device), stats});
+    return flow.units.back().device;
+}
 
 Analyzer::Analyzer(AnalyzerOptions options, Sink& sink) : options_(std::move(options)), sink_(sink) {}
 Analyzer::~Analyzer() = default;
@@ -59,6 +94,8 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
     to_server = server_port(l4.transport, l4.destination.port);
     const Endpoint& client = to_server ? l4.source : l4.destination;
     const Endpoint& server = to_server ? l4.destination : l4.source;
+    Flow*& known = flow_index_[FlowKey{l4.transport, client, server}];
+    if (known) return *known;
     std::string key =
         (l4.transport == Transport::Tcp ? "tcp " : "udp ") + client.to_string() + " -> " + server.to_string();
     auto& slot = flows_[key];
@@ -80,6 +117,7 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
             }
         }
     }
+    known = slot.get();
     return *slot;
 }
 
@@ -134,8 +172,12 @@ void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) 
     deframed(f, dir == 0, events, t);
 }
 
+void Analyzer::set_source(const std::string& source) {
+    if (source_.str() != source) source_ = source;  // shared by every record from that file
+}
+
 void Analyzer::packet(const std::string& source, const Packet& p) {
-    source_ = source;
+    set_source(source);
     packet_number_ = p.number;
     ++summary_.packets;
     if (p.time_out_of_range && time_warned_source_ != source) {
@@ -211,21 +253,22 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
         r.direction = to_server ? Direction::Request : Direction::Response;
         r.carrier = flow.carrier;
         r.frame = std::get<Frame>(e);
-        r.device = flow.server + " unit " + std::to_string(r.frame.unit_id());
+        DeviceStats* stats = nullptr;
+        r.device = device_of(flow, r.frame.unit_id(), stats);
         auto pdu = decode_pdu(r.frame.pdu(), r.direction);
         if (pdu)
             r.pdu = std::move(pdu.value());
         else
             r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
                       std::to_string(pdu.error().offset);
-        on_frame(flow, std::move(r));
+        on_frame(flow, r, *stats);
     }
     events.clear();
 }
 
-void Analyzer::on_frame(Flow& flow, FrameRecord r) {
+void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     ++summary_.frames;
-    if (r.frame.framing == Framing::Rtu && !r.frame.checksum_ok) ++summary_.devices[r.device].checksum_errors;
+    if (r.frame.framing == Framing::Rtu && !r.frame.checksum_ok) ++stats.checksum_errors;
     sink_.frame(r);
     for (auto code : r.frame.findings) {
         std::string message(info(code).summary);
@@ -245,9 +288,9 @@ void Analyzer::on_frame(Flow& flow, FrameRecord r) {
             report(code, r, std::string(info(code).summary));
     if (!r.error.empty()) report(FindingCode::PduMalformed, r, "PDU could not be decoded: " + r.error);
     if (r.direction == Direction::Request)
-        on_request(flow, std::move(r));
+        on_request(flow, r, stats);
     else
-        on_response(flow, std::move(r));
+        on_response(flow, r);
 }
 
 namespace {
@@ -257,8 +300,7 @@ std::uint16_t pairing_id(const Frame& f) {
 }
 }  // namespace
 
-void Analyzer::on_request(Flow& flow, FrameRecord r) {
-    auto& stats = summary_.devices[r.device];
+void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     ++stats.requests;
     if (r.pdu) ++stats.functions[r.pdu->function_code()];
     if (options_.semantics && r.pdu)
@@ -282,7 +324,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord r) {
         report(FindingCode::PairNoResponse, old.request,
                "request to " + old.request.device + " got no response before the next request",
                {old.request.index});
-        complete(std::move(old), std::nullopt, true);
+        complete(old, nullptr, true);
     }
     if (auto it = pending_.find(key); it != pending_.end()) {
         report(FindingCode::PairTransactionIdDuplicate, r,
@@ -292,7 +334,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord r) {
         Pending old = std::move(it->second);
         pending_.erase(it);
         --flow.pending;
-        complete(std::move(old), std::nullopt, true);
+        complete(old, nullptr, true);
     }
     if (flow.pending >= options_.max_pending_per_flow) {
         report(FindingCode::PairPendingOverflow, r,
@@ -304,7 +346,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord r) {
             Pending given_up = std::move(old->second);
             pending_.erase(old);
             --flow.pending;
-            complete(std::move(given_up), std::nullopt, true);
+            complete(given_up, nullptr, true);
             break;
         }
     }
@@ -312,7 +354,10 @@ void Analyzer::on_request(Flow& flow, FrameRecord r) {
     const Timestamp timeout = r.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
     // an untimed capture (raw dump) has no clock: its requests expire only when the master moves on
     expiries_.push_back({r.time.count() ? r.time + timeout : Timestamp::max(), key, serial});
-    pending_[key] = Pending{std::move(r), serial};
+    Pending& slot = pending_.try_emplace(key).first->second;  // any earlier one was completed above
+    slot.request = std::move(r);
+    slot.serial = serial;
+    slot.stats = &stats;
     ++flow.pending;
 }
 
@@ -332,7 +377,7 @@ bool echo_matches(const Pdu& request, const Pdu& response) {
         case 6:
         case 8:
         case 22:
-            return encode_pdu(request) == encode_pdu(response);
+            return request.body == response.body;
         case 15:
         case 16: {
             const auto* rsp = std::get_if<WriteMultipleResponse>(&response.body);
@@ -358,7 +403,7 @@ std::string describe_request(const Pdu& p) {
 
 }  // namespace
 
-void Analyzer::on_response(Flow& flow, FrameRecord r) {
+void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         report(FindingCode::PairBroadcastResponse, r,
                "a response carries unit 0: no slave may answer a broadcast");
@@ -385,13 +430,12 @@ void Analyzer::on_response(Flow& flow, FrameRecord r) {
             return;
         }
     }
-    Pending pending = std::move(it->second);
-    pending_.erase(it);
     --flow.pending;
-    complete(std::move(pending), std::move(r), false);
+    complete(it->second, &r, false);  // reports and sinks never touch the pending table
+    pending_.erase(it);
 }
 
-void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bool timed_out) {
+void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out) {
     TransactionRecord t;
     t.request = std::move(pending.request);
     // The transaction is written first, then what was found in it.
@@ -402,9 +446,9 @@ void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bo
         std::vector<std::uint64_t> frames;
     };
     std::vector<Deferred> found;
-    auto& stats = summary_.devices[t.request.device];
+    DeviceStats& stats = *pending.stats;
     if (response) {
-        t.response = std::move(response);
+        t.response.emplace(std::move(*response));
         const FrameRecord& rsp = *t.response;
         ++stats.responses;
         if (rsp.time.count() && t.request.time.count()) {  // raw dumps carry no time: no latency either
@@ -463,7 +507,7 @@ void Analyzer::complete(Pending pending, std::optional<FrameRecord> response, bo
         ++stats.timeouts;
     }
     if (options_.semantics && t.response && t.request.pdu && t.response->pdu) {
-        const std::string server = t.request.link.substr(t.request.link.find(" -> ") + 4);
+        const std::string server = t.request.link.str().substr(t.request.link.str().find(" -> ") + 4);
         if (const Profile* profile = options_.semantics->profile_for(server, t.request.frame.unit_id())) {
             t.profile = profile;
             t.values =
@@ -513,7 +557,7 @@ void Analyzer::expire(Timestamp now, bool at_end) {
                                                                                   : options_.serial_timeout)
                                           .count()) +
                        " ms");
-        complete(std::move(p), std::nullopt, !ended);
+        complete(p, nullptr, !ended);
     }
 }
 
@@ -602,7 +646,8 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
         r.carrier = flow.carrier;
         r.frame = frame;
-        r.device = flow.server + " unit " + std::to_string(frame.unit_id());
+        DeviceStats* stats = nullptr;
+        r.device = device_of(flow, frame.unit_id(), stats);
         auto pdu = decode_pdu(r.frame.pdu(), r.direction);
         if (pdu)
             r.pdu = std::move(pdu.value());
@@ -613,14 +658,14 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         // bytes show the silence after it, so a request and its response read in one chunk come out when the
         // next chunk arrives, which may be more than the timeout later.
         expire(r.time, false);
-        on_frame(flow, std::move(r));
+        on_frame(flow, r, *stats);
     }
     events.clear();
 }
 
 void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> bytes, Timestamp received,
                       Direction hint) {
-    source_ = source;
+    set_source(source);
     serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint);
 }
 

@@ -88,6 +88,7 @@ class Analyzer {
     struct Pending {
         FrameRecord request;
         std::uint64_t serial = 0;
+        DeviceStats* stats = nullptr;  // its device's, in the summary
     };
     struct PendingKey {
         std::uint64_t flow;
@@ -105,12 +106,23 @@ class Analyzer {
         std::uint64_t serial;
     };
 
+    // The flow of a packet by its binary addresses: a frame must not cost formatting two endpoints as text.
+    struct FlowKey {
+        Transport transport;
+        Endpoint client, server;
+        bool operator==(const FlowKey&) const = default;
+    };
+    struct FlowKeyHash {
+        std::size_t operator()(const FlowKey& k) const noexcept;
+    };
     bool server_port(Transport transport, std::uint16_t port) const;
     Flow& flow_for(const L4Packet& l4, bool& to_server);
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);
     void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);
-    void on_frame(Flow& flow, FrameRecord record);
+    // Records pass by reference down the pipeline (a frame record is over 500 bytes): the request is moved
+    // once into the pending table, and both frames once into their transaction.
+    void on_frame(Flow& flow, FrameRecord& record, DeviceStats& stats);
     struct SerialLink;
     SerialLink& serial_link(const std::string& key, const std::string& link, const std::string& server,
                             Carrier carrier);
@@ -124,9 +136,9 @@ class Analyzer {
     void exported_pdu(const Packet& packet);
     void rtac_packet(const Packet& packet);
     modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
-    void on_request(Flow& flow, FrameRecord record);
-    void on_response(Flow& flow, FrameRecord record);
-    void complete(Pending pending, std::optional<FrameRecord> response, bool timed_out);
+    void on_request(Flow& flow, FrameRecord& record, DeviceStats& stats);
+    void on_response(Flow& flow, FrameRecord& record);
+    void complete(Pending& pending, FrameRecord* response, bool timed_out);
     void expire(modbus::Timestamp now, bool at_end);
     void report(modbus::FindingCode code, const FrameRecord& about, std::string message,
                 std::vector<std::uint64_t> frames = {});
@@ -135,12 +147,16 @@ class Analyzer {
     AnalyzerOptions options_;
     Sink& sink_;
     Summary summary_;
-    std::map<std::string, std::unique_ptr<Flow>> flows_;
+    const SharedText& device_of(Flow& flow, std::uint8_t unit, DeviceStats*& stats);
+    void set_source(const std::string& source);
+
+    std::map<std::string, std::unique_ptr<Flow>> flows_;  // owner, in a stable order for the end
+    std::unordered_map<FlowKey, Flow*, FlowKeyHash> flow_index_;
     std::map<std::string, std::unique_ptr<SerialLink>> serial_links_;
     std::unordered_map<PendingKey, Pending, PendingHash> pending_;
     std::deque<Expiry> expiries_;
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;
-    std::string source_;
+    SharedText source_;
     std::string time_warned_source_;  // the last source whose out-of-range timestamps were reported
     std::uint64_t packet_number_ = 0;
     modbus::Timestamp now_{0};

@@ -2,7 +2,12 @@
 
 #include <pcap/pcap.h>
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 
 #include "analyzer/timestamps.hpp"
 
@@ -18,10 +23,72 @@ struct CaptureSource::Impl {
 
 CaptureSource::~CaptureSource() = default;
 
+namespace {
+
+// A file read through stdio whose position is known without a system call. The reader asks where it is
+// before every packet (a damaged record is reported with its byte offset) and the progress line asks too;
+// ftell() on an ordinary FILE is an lseek() each time, which was a sixth of the time of a summary run.
+// Through fopencookie the position is our own count of the bytes read.
+struct CountedFile {
+    int fd = -1;
+    off64_t position = 0;
+};
+
+ssize_t counted_read(void* cookie, char* buffer, std::size_t size) {
+    auto* f = static_cast<CountedFile*>(cookie);
+    ssize_t n;
+    do {
+        n = ::read(f->fd, buffer, size);
+    } while (n < 0 && errno == EINTR);
+    if (n > 0) f->position += n;
+    return n;
+}
+
+int counted_seek(void* cookie, off64_t* offset, int whence) {
+    auto* f = static_cast<CountedFile*>(cookie);
+    if (whence == SEEK_CUR && *offset == 0) {  // ftell()
+        *offset = f->position;
+        return 0;
+    }
+    const off64_t at = ::lseek64(f->fd, *offset, whence);
+    if (at < 0) return -1;
+    f->position = *offset = at;
+    return 0;
+}
+
+int counted_close(void* cookie) {
+    auto* f = static_cast<CountedFile*>(cookie);
+    const int rc = f->fd > STDIN_FILENO ? ::close(f->fd) : 0;
+    delete f;
+    return rc;
+}
+
+FILE* open_counted(const std::string& path, std::string& error) {
+    const int fd = path == "-" ? STDIN_FILENO : ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+        error = path + ": " + std::strerror(errno);
+        return nullptr;
+    }
+    auto* cookie = new CountedFile{fd, 0};
+    FILE* file = fopencookie(cookie, "rb", {counted_read, nullptr, counted_seek, counted_close});
+    if (!file) {
+        error = path + ": " + std::strerror(errno);
+        counted_close(cookie);
+        return nullptr;
+    }
+    std::setvbuf(file, nullptr, _IOFBF, 1 << 16);
+    return file;
+}
+
+}  // namespace
+
 std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path, std::string& error) {
+    FILE* file = open_counted(path, error);
+    if (!file) return nullptr;
     char errbuf[PCAP_ERRBUF_SIZE] = {};
-    pcap_t* p = pcap_open_offline_with_tstamp_precision(path.c_str(), PCAP_TSTAMP_PRECISION_NANO, errbuf);
+    pcap_t* p = pcap_fopen_offline_with_tstamp_precision(file, PCAP_TSTAMP_PRECISION_NANO, errbuf);
     if (!p) {
+        std::fclose(file);
         error = path + ": " + errbuf;
         return nullptr;
     }

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "analyzer/shared_text.hpp"
 #include "modbus/frame.hpp"
 #include "modbus/pdu.hpp"
 #include "modbus/profile.hpp"
@@ -33,9 +34,9 @@ struct FrameRecord {
     std::uint64_t index = 0;   // 1-based frame number in this analysis
     std::uint64_t packet = 0;  // capture packet in which the frame ended
     modbus::Timestamp time{0};
-    std::string source;  // input file
-    std::string link;    // "client -> server" (TCP/UDP) or the serial port
-    std::string device;  // "server unit N": what a finding is about
+    SharedText source;  // input file
+    SharedText link;    // "client -> server" (TCP/UDP) or the serial port
+    SharedText device;  // "server unit N": what a finding is about
     modbus::Direction direction = modbus::Direction::Unknown;
     Carrier carrier = Carrier::Tcp;
     modbus::Frame frame;
@@ -60,17 +61,17 @@ struct TransactionRecord {
 struct FindingRecord {
     modbus::FindingCode code{};
     modbus::Timestamp time{0};
-    std::string source;
-    std::string link;
-    std::string device;
+    SharedText source;
+    SharedText link;
+    SharedText device;
     std::vector<std::uint64_t> frames;
     std::uint64_t packet = 0;
     std::string message;
 };
 
 struct UnparsedRecord {
-    std::string source;
-    std::string link;
+    SharedText source;
+    SharedText link;
     modbus::Direction direction = modbus::Direction::Unknown;
     modbus::Timestamp time{0};
     std::uint64_t packet = 0;

@@ -1,0 +1,48 @@
+#pragma once
+// An immutable string shared by every record that names the same thing. A capture of a million frames
+// names a few links, sources and devices a million times; each frame record used to carry its own copies
+// (two allocations a frame for "10.0.0.1:40000 -> 10.1.0.1:502" and "10.1.0.1:502 unit 3"). Copying a
+// SharedText is a reference count, and records kept beyond the analysis (tests keep them) stay valid.
+
+#include <memory>
+#include <ostream>
+#include <string>
+#include <string_view>
+
+namespace mbscope::analyzer {
+
+class SharedText {
+  public:
+    SharedText() = default;
+    SharedText(std::string text) : text_(std::make_shared<const std::string>(std::move(text))) {}  // NOLINT
+    SharedText(const char* text) : SharedText(std::string(text)) {}                                // NOLINT
+
+    const std::string& str() const noexcept { return text_ ? *text_ : empty_string(); }
+    operator const std::string&() const noexcept { return str(); }  // NOLINT: reads as the string it is
+    std::string_view view() const noexcept { return str(); }
+    bool empty() const noexcept { return str().empty(); }
+    std::size_t size() const noexcept { return str().size(); }
+
+    friend bool operator==(const SharedText& a, const SharedText& b) noexcept {
+        return a.text_ == b.text_ || a.str() == b.str();
+    }
+    friend bool operator==(const SharedText& a, std::string_view b) noexcept { return a.str() == b; }
+    friend bool operator==(const SharedText& a, const std::string& b) noexcept { return a.str() == b; }
+    friend bool operator==(const SharedText& a, const char* b) noexcept { return a.str() == b; }
+    friend std::string operator+(const SharedText& a, std::string_view b) {
+        return std::string(a.str()).append(b);
+    }
+    friend std::string operator+(std::string_view a, const SharedText& b) {
+        return std::string(a).append(b.str());
+    }
+    friend std::ostream& operator<<(std::ostream& out, const SharedText& t) { return out << t.str(); }
+
+  private:
+    static const std::string& empty_string() noexcept {
+        static const std::string empty;
+        return empty;
+    }
+    std::shared_ptr<const std::string> text_;
+};
+
+}  // namespace mbscope::analyzer
