@@ -132,7 +132,8 @@ void shift_offsets(DeframeEvents& events, std::uint64_t by) {
 }  // namespace
 
 void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> bytes, Timestamp t) {
-    DeframeEvents events;
+    DeframeEvents& events = stream_events_;  // reused: one allocation for the run, not one a packet
+    events.clear();
     if (!f.rtu_over_tcp) {
         f.deframer[dir].feed(bytes, t, events);
         deframed(f, dir == 0, events, t);

@@ -156,6 +156,7 @@ class Analyzer {
     std::unordered_map<PendingKey, Pending, PendingHash> pending_;
     std::deque<Expiry> expiries_;
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;
+    modbus::DeframeEvents stream_events_;
     SharedText source_;
     std::string time_warned_source_;  // the last source whose out-of-range timestamps were reported
     std::uint64_t packet_number_ = 0;

@@ -6,9 +6,11 @@
 //   ASCII: unit | PDU | LRC            (decoded from the hex characters; wire offsets index the characters)
 //   TCP:   transaction id (2) | protocol id (2) | length (2) | unit | PDU
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <span>
 #include <string_view>
 #include <variant>
@@ -35,13 +37,35 @@ struct Frame {
     std::uint64_t offset = 0;       // stream offset of the first byte on the wire
     std::uint32_t wire_length = 0;  // bytes on the wire (ASCII: characters, ':' to LF)
     std::uint16_t length = 0;       // binary ADU length held in bytes
-    std::array<std::uint8_t, max_frame_bytes> bytes{};
+    // A new frame's bytes are zero; a copy copies only the first `length` of them (most ADUs are a tenth of
+    // the buffer, and frames are copied from the deframer to the analyzer's records): past `length` the
+    // bytes of a copy are unspecified.
+    std::array<std::uint8_t, max_frame_bytes> bytes;
     bool checksum_ok = true;  // RTU CRC / ASCII LRC; always true for TCP
     FindingList findings;     // framing-level rule breaks (rtu.*, ascii.*, tcp.*)
     Timestamp start{0};       // end of the first byte on the wire (timed input only)
     Timestamp end{0};         // end of the last byte (timed input only)
     float max_gap_chars = 0;  // longest silence inside the frame, in character times (timed RTU only)
     std::uint16_t gap_before_byte = 0;  // index of the byte that followed that silence
+    // (a field added here must be added to operator= above: the size check below is there to say so)
+
+    Frame() noexcept : bytes{} {}
+    Frame(const Frame& other) noexcept { *this = other; }
+    Frame& operator=(const Frame& other) noexcept {
+        if (this == &other) return *this;
+        framing = other.framing;
+        offset = other.offset;
+        wire_length = other.wire_length;
+        length = other.length;
+        std::memcpy(bytes.data(), other.bytes.data(), std::min<std::size_t>(other.length, max_frame_bytes));
+        checksum_ok = other.checksum_ok;
+        findings = other.findings;
+        start = other.start;
+        end = other.end;
+        max_gap_chars = other.max_gap_chars;
+        gap_before_byte = other.gap_before_byte;
+        return *this;
+    }
 
     std::span<const std::uint8_t> adu() const noexcept { return {bytes.data(), length}; }
     std::uint8_t unit_id() const noexcept;
@@ -60,6 +84,7 @@ struct Frame {
     std::uint16_t checksum_received() const noexcept;
     std::uint16_t checksum_computed() const noexcept;
 };
+static_assert(sizeof(void*) != 8 || sizeof(Frame) == 336, "Frame changed: copy the new field in Frame::operator=");
 
 enum class UnparsedReason : std::uint8_t {
     Garbage = 0,          // no frame could start here
