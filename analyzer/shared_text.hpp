@@ -14,10 +14,13 @@ namespace mbscope::analyzer {
 class SharedText {
   public:
     SharedText() = default;
-    SharedText(std::string text) : text_(std::make_shared<const std::string>(std::move(text))) {}  // NOLINT
-    SharedText(const char* text) : SharedText(std::string(text)) {}                                // NOLINT
+    SharedText(std::string text) : text_(std::make_shared<const Entry>(std::move(text))) {}  // NOLINT
+    SharedText(const char* text) : SharedText(std::string(text)) {}                          // NOLINT
 
-    const std::string& str() const noexcept { return text_ ? *text_ : empty_string(); }
+    const std::string& str() const noexcept { return text_ ? text_->text : empty_string(); }
+    // Plain printable ASCII without quotes or backslashes: written into JSON as it is (checked once per
+    // text, not once per record that names it).
+    bool json_plain() const noexcept { return !text_ || text_->json_plain; }
     operator const std::string&() const noexcept { return str(); }  // NOLINT: reads as the string it is
     std::string_view view() const noexcept { return str(); }
     bool empty() const noexcept { return str().empty(); }
@@ -42,7 +45,17 @@ class SharedText {
         static const std::string empty;
         return empty;
     }
-    std::shared_ptr<const std::string> text_;
+    struct Entry {
+        explicit Entry(std::string t) : text(std::move(t)) {
+            for (char c : text) {
+                const auto u = static_cast<unsigned char>(c);
+                if (u < 0x20 || u >= 0x80 || c == '"' || c == '\\') json_plain = false;
+            }
+        }
+        std::string text;
+        bool json_plain = true;
+    };
+    std::shared_ptr<const Entry> text_;
 };
 
 }  // namespace mbscope::analyzer

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 
+#include "analyzer/json_lines.hpp"
 #include "analyzer/word_order.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/profile_json.hpp"
@@ -179,20 +180,57 @@ json frame_to_json(const FrameRecord& f) {
     return j;
 }
 
+JsonSink::~JsonSink() {
+    flush();
+}
+
+void JsonSink::flush() {
+    const auto text = writer_.text();
+    out_.write(text.data(), static_cast<std::streamsize>(text.size()));
+    writer_.clear();
+}
+
+void JsonSink::line_written() {
+    writer_.end_line();
+    if (writer_.size() >= (1u << 16)) flush();
+}
+
 void JsonSink::emit(json j) {
     // Strings from a capture (a log line quoted in an input error, FC43 identification objects) need not be
     // UTF-8: invalid bytes become U+FFFD instead of an exception that would end the run.
-    if (lines_)
-        out_ << j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
-    else
+    if (lines_) {
+        writer_.raw(j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+        line_written();
+    } else {
         document_.push_back(std::move(j));
+    }
 }
 
 void JsonSink::frame(const FrameRecord& f) {
-    emit(frame_to_json(f));
+    if (!lines_) return emit(frame_to_json(f));
+    write_frame(f, writer_);
+    line_written();
 }
 
 void JsonSink::transaction(const TransactionRecord& t) {
+    if (!lines_) return emit(transaction_to_json(t));
+    write_transaction(t, writer_);
+    line_written();
+}
+
+void JsonSink::finding(const FindingRecord& f) {
+    if (!lines_) return emit(finding_to_json(f));
+    write_finding(f, writer_);
+    line_written();
+}
+
+void JsonSink::unparsed(const UnparsedRecord& u) {
+    if (!lines_) return emit(unparsed_to_json(u));
+    write_unparsed(u, writer_);
+    line_written();
+}
+
+json transaction_to_json(const TransactionRecord& t) {
     json j{
         {"type", "transaction"},  {"ts", seconds(t.request.time)},    {"source", t.request.source},
         {"link", t.request.link}, {"request_frame", t.request.index}, {"unit_id", t.request.frame.unit_id()}};
@@ -222,10 +260,10 @@ void JsonSink::transaction(const TransactionRecord& t) {
         for (const auto& r : t.registers32)  // a NaN or infinite f32 is written as null
             j["registers32"].push_back({{"address", r.address}, {"u32", r.u32}, {"f32", r.f32}});
     }
-    emit(std::move(j));
+    return j;
 }
 
-void JsonSink::finding(const FindingRecord& f) {
+json finding_to_json(const FindingRecord& f) {
     const auto& i = info(f.code);
     json j{{"type", "finding"},           {"ts", seconds(f.time)},
            {"source", f.source},          {"link", f.link},
@@ -234,19 +272,19 @@ void JsonSink::finding(const FindingRecord& f) {
            {"packet", f.packet}};
     if (!f.device.empty()) j["device"] = f.device;
     if (!f.frames.empty()) j["frames"] = f.frames;
-    emit(std::move(j));
+    return j;
 }
 
-void JsonSink::unparsed(const UnparsedRecord& u) {
-    emit(json{{"type", "unparsed"},
-              {"ts", seconds(u.time)},
-              {"source", u.source},
-              {"link", u.link},
-              {"direction", direction_json(u.direction)},
-              {"offset", u.offset},
-              {"length", u.length},
-              {"reason", std::string(to_string(u.reason))},
-              {"packet", u.packet}});
+json unparsed_to_json(const UnparsedRecord& u) {
+    return json{{"type", "unparsed"},
+                {"ts", seconds(u.time)},
+                {"source", u.source},
+                {"link", u.link},
+                {"direction", direction_json(u.direction)},
+                {"offset", u.offset},
+                {"length", u.length},
+                {"reason", std::string(to_string(u.reason))},
+                {"packet", u.packet}};
 }
 
 json summary_to_json(const Summary& s) {
@@ -305,7 +343,9 @@ void TeeSink::end(const Summary& summary) {
 
 void JsonSink::end(const Summary& s) {
     emit(summary_to_json(s));
+    flush();
     if (!lines_) out_ << document_.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
+    out_.flush();
 }
 
 }  // namespace mbscope::analyzer

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "analyzer/records.hpp"
+#include "modbus/json_writer.hpp"
 
 namespace mbscope::analyzer {
 
@@ -30,7 +31,10 @@ class TextSink : public Sink {
 class JsonSink : public Sink {
   public:
     // lines: one object per line as records come (JSONL); otherwise one document written at the end.
+    // Lines are written by json_lines.hpp's streaming writer into a buffer passed on to `out` in 64 KiB
+    // pieces; the document is built with nlohmann::json.
     JsonSink(std::ostream& out, bool lines) : out_(out), lines_(lines) {}
+    ~JsonSink() override;
     void frame(const FrameRecord& f) override;
     void transaction(const TransactionRecord& t) override;
     void finding(const FindingRecord& f) override;
@@ -39,8 +43,11 @@ class JsonSink : public Sink {
 
   private:
     void emit(nlohmann::json j);
+    void line_written();
+    void flush();
     std::ostream& out_;
     bool lines_;
+    modbus::JsonWriter writer_;
     nlohmann::json document_ = nlohmann::json::array();
 };
 
@@ -59,7 +66,11 @@ class TeeSink : public Sink {
 };
 
 nlohmann::json summary_to_json(const Summary& s);
+// Each record as an nlohmann document (--json, and the reference the JSON lines are tested against).
 nlohmann::json frame_to_json(const FrameRecord& f);
+nlohmann::json transaction_to_json(const TransactionRecord& t);
+nlohmann::json finding_to_json(const FindingRecord& f);
+nlohmann::json unparsed_to_json(const UnparsedRecord& u);
 double seconds(modbus::Timestamp t);
 
 }  // namespace mbscope::analyzer

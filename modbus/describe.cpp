@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "modbus/addressing.hpp"
+#include "modbus/json_writer.hpp"
 
 namespace mbscope::modbus {
 
@@ -32,12 +33,17 @@ std::string hex8(std::uint8_t v) {
 
 namespace {
 
-nlohmann::json words_json(const std::vector<std::uint16_t>& words) {
-    auto a = nlohmann::json::array();
-    for (auto w : words)
-        a.push_back(w);
-    return a;
-}
+// What a field's value is, before it is made into a JSON value or written to a stream.
+struct HexBytes {
+    std::span<const std::uint8_t> bytes;
+};
+struct Words {
+    const std::vector<std::uint16_t>& words;
+};
+struct Bits {
+    std::span<const std::uint8_t> packed;
+    std::size_t count;
+};
 
 std::string words_hex(const std::vector<std::uint16_t>& words) {
     std::string s;
@@ -48,13 +54,6 @@ std::string words_hex(const std::vector<std::uint16_t>& words) {
     return s;
 }
 
-nlohmann::json bits_json(std::span<const std::uint8_t> packed, std::size_t count) {
-    auto a = nlohmann::json::array();
-    for (std::size_t i = 0; i < count; ++i)
-        a.push_back(bit_at(packed, i) ? 1 : 0);
-    return a;
-}
-
 std::string reference_meaning(std::uint8_t fc, std::uint16_t address) {
     auto table = table_of_function(fc);
     std::string s = hex16(address);
@@ -62,51 +61,125 @@ std::string reference_meaning(std::uint8_t fc, std::uint16_t address) {
     return s;
 }
 
+// describe_pdu's output: every field with its JSON value and its meaning.
+struct FieldList {
+    std::vector<Field>& out;
+
+    static nlohmann::json json_of(const HexBytes& v) { return hex_bytes(v.bytes); }
+    static nlohmann::json json_of(const Words& v) {
+        auto a = nlohmann::json::array();
+        for (auto w : v.words)
+            a.push_back(w);
+        return a;
+    }
+    static nlohmann::json json_of(const Bits& v) {
+        auto a = nlohmann::json::array();
+        for (std::size_t i = 0; i < v.count; ++i)
+            a.push_back(bit_at(v.packed, i) ? 1 : 0);
+        return a;
+    }
+    static nlohmann::json json_of(const std::string& v) { return v; }
+    template <class N>
+    requires std::is_integral_v<N>
+    static nlohmann::json json_of(N v) { return v; }
+
+    // `meaning`: text, or a function that makes it (write_pdu_fields never asks for it).
+    template <class V, class M>
+    void add(std::string name, const V& value, M&& meaning) {
+        std::string text;
+        if constexpr (std::is_invocable_v<M>)
+            text = meaning();
+        else
+            text = meaning;
+        out.push_back(Field{std::move(name), json_of(value), std::move(text)});
+    }
+};
+
+// write_pdu_fields' output: the values straight into a JSON stream, meanings never made.
+struct FieldStream {
+    JsonWriter& out;
+
+    void write(const HexBytes& v) { out.hex_value(v.bytes); }
+    void write(const Words& v) {
+        out.begin_array();
+        for (auto w : v.words)
+            out.value(w);
+        out.end_array();
+    }
+    void write(const Bits& v) {
+        out.begin_array();
+        for (std::size_t i = 0; i < v.count; ++i)
+            out.value(bit_at(v.packed, i) ? 1 : 0);
+        out.end_array();
+    }
+    void write(const std::string& v) { out.value(std::string_view(v)); }
+    template <class N>
+    requires std::is_integral_v<N>
+    void write(N v) {
+        if constexpr (std::is_signed_v<N>)
+            out.value(static_cast<std::int64_t>(v));
+        else
+            out.value(static_cast<std::uint64_t>(v));
+    }
+
+    template <class V, class M>
+    void add(std::string_view name, const V& value, M&&) {
+        out.dynamic_key(name);
+        write(value);
+    }
+};
+
+template <class Out>
 struct Describer {
     const Pdu& pdu;
-    std::vector<Field>& out;
-    void add(std::string name, nlohmann::json value, std::string meaning = {}) {
-        out.push_back(Field{std::move(name), std::move(value), std::move(meaning)});
+    Out& out;
+    void add(auto&& name, const auto& value) { out.add(std::forward<decltype(name)>(name), value, ""); }
+    void add(auto&& name, const auto& value, auto&& meaning) {
+        out.add(std::forward<decltype(name)>(name), value, meaning);
     }
     std::uint8_t fc() const { return pdu.function_code(); }
+    auto reference(std::uint16_t address) const {
+        return [fc = fc(), address] { return reference_meaning(fc, address); };
+    }
 
     void operator()(const RawPdu& b) {
-        add("data", hex_bytes(b.data), std::to_string(b.data.size()) + " bytes");
+        add("data", HexBytes{b.data}, [&] { return std::to_string(b.data.size()) + " bytes"; });
     }
     void operator()(const ReadRequest& b) {
-        add("starting_address", b.starting_address, reference_meaning(fc(), b.starting_address));
+        add("starting_address", b.starting_address, reference(b.starting_address));
         add("quantity", b.quantity, fc() <= 2 ? "coils/inputs" : "registers");
     }
     void operator()(const WriteSingle& b) {
-        add(fc() == 0x05 ? "output_address" : "register_address", b.address,
-            reference_meaning(fc(), b.address));
+        add(fc() == 0x05 ? "output_address" : "register_address", b.address, reference(b.address));
         if (fc() == 0x05)
-            add("output_value", b.value,
+            add(
+                "output_value", b.value,
                 b.value == 0xFF00   ? "ON"
                 : b.value == 0x0000 ? "OFF"
-                                    : hex16(b.value) + " (invalid: FF00 or 0000)");
+                                    : [&] { return hex16(b.value) + " (invalid: FF00 or 0000)"; }());
         else
-            add("register_value", b.value,
-                hex16(b.value) + ", signed " + std::to_string(static_cast<std::int16_t>(b.value)));
+            add("register_value", b.value, [&] {
+                return hex16(b.value) + ", signed " + std::to_string(static_cast<std::int16_t>(b.value));
+            });
     }
     void operator()(const NoData&) {}
     void operator()(const Diagnostics& b) {
         auto name = diagnostic_name(b.sub_function);
         add("sub_function", b.sub_function, name ? std::string(*name) : "reserved");
-        add("data", hex_bytes(b.data));
+        add("data", HexBytes{b.data});
     }
     void operator()(const WriteMultipleCoilsRequest& b) {
-        add("starting_address", b.starting_address, reference_meaning(fc(), b.starting_address));
+        add("starting_address", b.starting_address, reference(b.starting_address));
         add("quantity", b.quantity, "coils");
         add("byte_count", b.byte_count);
-        add("outputs_value", bits_json(b.values, std::min<std::size_t>(b.quantity, b.values.size() * 8)),
-            hex_bytes(b.values));
+        add("outputs_value", Bits{b.values, std::min<std::size_t>(b.quantity, b.values.size() * 8)},
+            [&] { return hex_bytes(b.values); });
     }
     void operator()(const WriteMultipleRegistersRequest& b) {
-        add("starting_address", b.starting_address, reference_meaning(fc(), b.starting_address));
+        add("starting_address", b.starting_address, reference(b.starting_address));
         add("quantity", b.quantity, "registers");
         add("byte_count", b.byte_count);
-        add("registers_value", words_json(b.values), words_hex(b.values));
+        add("registers_value", Words{b.values}, [&] { return words_hex(b.values); });
     }
     void operator()(const FileRecordRequest& b) {
         add("byte_count", b.byte_count);
@@ -118,23 +191,21 @@ struct Describer {
             add(p + "record_number", s.record_number);
             add(p + "record_length", s.record_length);
             if (!s.record_data.empty())
-                add(p + "record_data", words_json(s.record_data), words_hex(s.record_data));
+                add(p + "record_data", Words{s.record_data}, [&] { return words_hex(s.record_data); });
         }
     }
     void operator()(const MaskWriteRegister& b) {
-        add("reference_address", b.reference_address, reference_meaning(fc(), b.reference_address));
-        add("and_mask", b.and_mask, hex16(b.and_mask));
-        add("or_mask", b.or_mask, hex16(b.or_mask));
+        add("reference_address", b.reference_address, reference(b.reference_address));
+        add("and_mask", b.and_mask, [&] { return hex16(b.and_mask); });
+        add("or_mask", b.or_mask, [&] { return hex16(b.or_mask); });
     }
     void operator()(const ReadWriteMultipleRequest& b) {
-        add("read_starting_address", b.read_starting_address,
-            reference_meaning(fc(), b.read_starting_address));
+        add("read_starting_address", b.read_starting_address, reference(b.read_starting_address));
         add("quantity_to_read", b.quantity_to_read);
-        add("write_starting_address", b.write_starting_address,
-            reference_meaning(fc(), b.write_starting_address));
+        add("write_starting_address", b.write_starting_address, reference(b.write_starting_address));
         add("quantity_to_write", b.quantity_to_write);
         add("write_byte_count", b.write_byte_count);
-        add("write_registers_value", words_json(b.write_values), words_hex(b.write_values));
+        add("write_registers_value", Words{b.write_values}, [&] { return words_hex(b.write_values); });
     }
     void operator()(const ReadFifoQueueRequest& b) { add("fifo_pointer_address", b.fifo_pointer_address); }
     void operator()(const ReadDeviceIdRequest& b) {
@@ -147,16 +218,16 @@ struct Describer {
     void operator()(const MeiTransport& b) {
         add("mei_type", b.mei_type,
             b.mei_type == mei_canopen_general_reference ? "CANopen General Reference" : "unknown");
-        add("data", hex_bytes(b.data));
+        add("data", HexBytes{b.data});
     }
     void operator()(const ReadBitsResponse& b) {
         add("byte_count", b.byte_count);
-        add("status", bits_json(b.values, b.values.size() * 8),
-            hex_bytes(b.values) + " (LSB = first address)");
+        add("status", Bits{b.values, b.values.size() * 8},
+            [&] { return hex_bytes(b.values) + " (LSB = first address)"; });
     }
     void operator()(const ReadRegistersResponse& b) {
         add("byte_count", b.byte_count);
-        add("registers_value", words_json(b.values), words_hex(b.values));
+        add("registers_value", Words{b.values}, [&] { return words_hex(b.values); });
     }
     void operator()(const ReadExceptionStatusResponse& b) {
         add("output_data", b.output_data, hex8(b.output_data));
@@ -170,15 +241,15 @@ struct Describer {
         add("status", b.status, b.status == 0xFFFF ? "busy" : "ready");
         add("event_count", b.event_count);
         add("message_count", b.message_count);
-        add("events", hex_bytes(b.events));
+        add("events", HexBytes{b.events});
     }
     void operator()(const WriteMultipleResponse& b) {
-        add("starting_address", b.starting_address, reference_meaning(fc(), b.starting_address));
+        add("starting_address", b.starting_address, reference(b.starting_address));
         add("quantity", b.quantity);
     }
     void operator()(const ReportServerIdResponse& b) {
         add("byte_count", b.byte_count);
-        add("data", hex_bytes(b.data), "server id, run indicator, device specific");
+        add("data", HexBytes{b.data}, "server id, run indicator, device specific");
     }
     void operator()(const ReadFileRecordResponse& b) {
         add("byte_count", b.byte_count);
@@ -187,13 +258,13 @@ struct Describer {
             const std::string p = "sub_response[" + std::to_string(i) + "].";
             add(p + "file_response_length", s.length);
             add(p + "reference_type", s.reference_type);
-            add(p + "record_data", words_json(s.record_data), words_hex(s.record_data));
+            add(p + "record_data", Words{s.record_data}, [&] { return words_hex(s.record_data); });
         }
     }
     void operator()(const ReadFifoQueueResponse& b) {
         add("byte_count", b.byte_count);
         add("fifo_count", b.fifo_count);
-        add("fifo_value_register", words_json(b.values), words_hex(b.values));
+        add("fifo_value_register", Words{b.values}, [&] { return words_hex(b.values); });
     }
     void operator()(const ReadDeviceIdResponse& b) {
         add("mei_type", mei_read_device_identification, "Read Device Identification");
@@ -228,8 +299,16 @@ std::vector<Field> describe_pdu(const Pdu& pdu) {
                                                                                 : "unassigned");
     if ((pdu.function_raw & exception_bit) != 0) meaning += " (exception)";
     out.push_back(Field{"function_code", pdu.function_raw, meaning});
-    std::visit(Describer{pdu, out}, pdu.body);
+    FieldList list{out};
+    std::visit(Describer<FieldList>{pdu, list}, pdu.body);
     return out;
+}
+
+void write_pdu_fields(const Pdu& pdu, JsonWriter& out) {
+    FieldStream stream{out};
+    out.begin_object();
+    std::visit(Describer<FieldStream>{pdu, stream}, pdu.body);
+    out.end_object();
 }
 
 std::vector<Field> describe_framing(const Frame& f) {

@@ -20,6 +20,10 @@ struct Field {
 };
 
 std::vector<Field> describe_pdu(const Pdu& pdu);
+class JsonWriter;
+// The PDU's fields after the function code, as one JSON object of name → value (the values of describe_pdu,
+// in its order), written straight to a stream: what JSON lines carry for every frame.
+void write_pdu_fields(const Pdu& pdu, JsonWriter& out);
 // The framing's own fields (unit id, MBAP, CRC/LRC), not the PDU's.
 std::vector<Field> describe_framing(const Frame& frame);
 

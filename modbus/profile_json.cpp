@@ -1,5 +1,7 @@
 #include "modbus/profile_json.hpp"
 
+#include "modbus/json_writer.hpp"
+
 namespace mbscope::modbus {
 
 using json = nlohmann::json;
@@ -57,6 +59,26 @@ json named_value_to_json(const NamedValue& v) {
     }
     if (v.partial) j["partial"] = true;
     return j;
+}
+
+void write_named_value(const NamedValue& v, JsonWriter& out) {  // named_value_to_json's object, keys sorted
+    out.begin_object();
+    out.member("address", v.address);
+    if (!v.point) out.member("in_map", false);
+    if (v.point) {
+        out.member("name", std::string_view(v.point->name));
+        if (!v.point->name_en.empty()) out.member("name_en", std::string_view(v.point->name_en));
+    }
+    if (v.partial) out.member("partial", true);
+    out.key("raw");
+    out.begin_array();
+    for (auto w : v.raw)
+        out.value(w);
+    out.end_array();
+    out.member("text", std::string_view(v.text));
+    if (v.point && !v.point->unit.empty()) out.member("unit", std::string_view(v.point->unit));
+    if (v.number) out.member("value", *v.number);
+    out.end_object();
 }
 
 }  // namespace mbscope::modbus

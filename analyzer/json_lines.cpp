@@ -1,0 +1,153 @@
+#include "analyzer/json_lines.hpp"
+
+#include "modbus/describe.hpp"
+#include "modbus/profile_json.hpp"
+
+namespace mbscope::analyzer {
+
+using namespace mbscope::modbus;
+
+namespace {
+
+double seconds_of(Timestamp t) {
+    return std::chrono::duration<double>(t).count();
+}
+
+void text_member(JsonWriter& out, JsonKey key, const SharedText& text) {
+    out.key(key);
+    if (text.json_plain())
+        out.plain_value(text.view());
+    else
+        out.value(text.view());
+}
+
+}  // namespace
+
+void write_frame(const FrameRecord& f, JsonWriter& out) {
+    const bool tcp = f.frame.framing == Framing::Tcp;
+    const auto pdu_bytes = f.frame.pdu();
+    out.begin_object();
+    out.member("checksum_ok", f.frame.checksum_ok);
+    out.member("direction", to_string(f.direction));
+    if (!f.pdu) out.member("error", std::string_view(f.error));
+    if (f.pdu)
+        out.member("exception", f.pdu->is_exception());
+    else if (!pdu_bytes.empty())  // the function byte is known even when the rest is not
+        out.member("exception", (pdu_bytes[0] & 0x80) != 0);
+    if (f.pdu) {
+        out.key("fields");
+        write_pdu_fields(*f.pdu, out);
+    }
+    out.member("frame", f.index);
+    out.member("framing", to_string(f.frame.framing));
+    if (f.pdu) {
+        out.member("function", f.pdu->function_code());
+        if (auto n = function_name(f.pdu->function_code())) out.member("function_name", *n);
+        out.member("function_raw", f.pdu->function_raw);
+    } else if (!pdu_bytes.empty()) {
+        out.member("function", static_cast<std::uint8_t>(pdu_bytes[0] & 0x7F));
+        out.member("function_raw", pdu_bytes[0]);
+    }
+    text_member(out, "link", f.link);
+    out.member("packet", f.packet);
+    if (tcp) out.member("protocol_id", f.frame.protocol_id());
+    out.key("raw");
+    out.hex_value(f.frame.adu());
+    text_member(out, "source", f.source);
+    if (tcp) out.member("transaction_id", f.frame.transaction_id());
+    out.member("transport", to_string(f.carrier));
+    out.member("ts", seconds_of(f.time));
+    out.member("type", "frame");
+    out.member("unit_id", f.frame.unit_id());
+    out.end_object();
+}
+
+void write_transaction(const TransactionRecord& t, JsonWriter& out) {
+    const FrameRecord& q = t.request;
+    const FrameRecord* r = t.response ? &*t.response : nullptr;
+    out.begin_object();
+    if (!r && t.broadcast) out.member("broadcast", true);
+    if (r && r->pdu && r->pdu->is_exception())
+        out.member("exception_code", std::get<ExceptionResponse>(r->pdu->body).exception_code);
+    if (!t.findings.empty()) {
+        out.key("findings");
+        out.begin_array();
+        for (auto c : t.findings)
+            out.value(to_string(c));
+        out.end_array();
+    }
+    if (q.pdu) out.member("function", q.pdu->function_code());
+    if (r && t.latency)
+        out.member("latency_ms", std::chrono::duration<double, std::milli>(*t.latency).count());
+    text_member(out, "link", q.link);
+    if (t.profile) out.member("profile", std::string_view(t.profile->id));
+    if (t.word_order) {
+        out.key("registers32");
+        out.begin_array();
+        for (const auto& reg : t.registers32) {  // a NaN or infinite f32 is written as null
+            out.begin_object();
+            out.member("address", reg.address);
+            out.member("f32", reg.f32);
+            out.member("u32", reg.u32);
+            out.end_object();
+        }
+        out.end_array();
+    }
+    out.member("request_frame", q.index);
+    if (r) out.member("response_frame", r->index);
+    text_member(out, "source", q.source);
+    if (!r && !t.broadcast) out.member("timeout", t.timed_out);
+    if (q.frame.framing == Framing::Tcp) out.member("transaction_id", q.frame.transaction_id());
+    out.member("transport", to_string(q.carrier));
+    out.member("ts", seconds_of(q.time));
+    out.member("type", "transaction");
+    out.member("unit_id", q.frame.unit_id());
+    if (!t.values.empty()) {
+        out.key("values");
+        out.begin_array();
+        for (const auto& v : t.values)
+            write_named_value(v, out);
+        out.end_array();
+    }
+    if (t.word_order) out.member("word_order", to_string(*t.word_order));
+    out.end_object();
+}
+
+void write_finding(const FindingRecord& f, JsonWriter& out) {
+    const auto& i = info(f.code);
+    out.begin_object();
+    out.member("code", i.name);
+    if (!f.device.empty()) text_member(out, "device", f.device);
+    if (!f.frames.empty()) {
+        out.key("frames");
+        out.begin_array();
+        for (auto n : f.frames)
+            out.value(n);
+        out.end_array();
+    }
+    text_member(out, "link", f.link);
+    out.member("message", std::string_view(f.message));
+    out.member("packet", f.packet);
+    out.member("rule", i.rule);
+    out.member("severity", to_string(i.severity));
+    text_member(out, "source", f.source);
+    out.member("ts", seconds_of(f.time));
+    out.member("type", "finding");
+    out.end_object();
+}
+
+void write_unparsed(const UnparsedRecord& u, JsonWriter& out) {
+    out.begin_object();
+    out.member("direction", to_string(u.direction));
+    out.member("length", u.length);
+    text_member(out, "link", u.link);
+    out.member("offset", u.offset);
+    out.member("packet", u.packet);
+    out.member("reason", to_string(u.reason));
+    text_member(out, "source", u.source);
+    out.member("ts", seconds_of(u.time));
+    out.member("type", "unparsed");
+    out.end_object();
+}
+
+}  // namespace mbscope::analyzer
