@@ -73,6 +73,12 @@ std::optional<modbus::WriteRejection> check_linked_limits(const modbus::Profile&
 Device::Device(const modbus::Profile& profile, std::uint8_t unit, FaultSet* faults)
     : profile_(&profile), unit_(unit), faults_(faults ? faults : &no_faults_), image_(profile) {}
 
+void Device::reset() noexcept {
+    image_.reset();
+    counters_ = Counters{};
+    listen_only_ = false;
+}
+
 void Device::count_frame(bool checksum_ok) noexcept {
     ++counters_.bus_messages;
     if (!checksum_ok) ++counters_.bus_comm_errors;

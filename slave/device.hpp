@@ -47,6 +47,8 @@ class Device {
 
     Reply handle(const Request& request);
     void count_frame(bool checksum_ok) noexcept;  // the server saw a frame on the line (any unit)
+    // As the device was made: initial register image, counters zero, not in listen-only mode.
+    void reset() noexcept;
 
     RegisterImage& image() noexcept { return image_; }
     const RegisterImage& image() const noexcept { return image_; }

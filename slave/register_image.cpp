@@ -24,6 +24,16 @@ RegisterImage::RegisterImage(const modbus::Profile& profile) : profile_(&profile
             if (tables_[i].own[p]) initial_pages_.push_back(std::move(tables_[i].own[p]));
         initial_[i] = tables_[i].page;
     }
+    written_.clear();
+}
+
+void RegisterImage::reset() noexcept {
+    for (const auto& [table, page] : written_) {
+        tables_[table].own[page].reset();
+        tables_[table].page[page] = initial_[table][page];
+    }
+    written_.clear();
+    modifications_ = 0;
 }
 
 RegisterImage::Words& RegisterImage::words(Table t) noexcept {
@@ -43,6 +53,7 @@ std::uint16_t& RegisterImage::writable(Words& w, std::uint16_t address) {
     if (!w.own[p]) {
         w.own[p] = std::make_unique<Page>(*w.page[p]);
         w.page[p] = w.own[p].get();
+        written_.emplace_back(static_cast<std::uint8_t>(&w - tables_), static_cast<std::uint8_t>(p));
     }
     return (*w.own[p])[address % page_words];
 }

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "modbus/profile.hpp"
@@ -38,6 +39,10 @@ class RegisterImage {
     // How many stores changed a value since construction: equal counts mean an unchanged image (a cheap
     // test of "this request changed nothing", the fuzz oracle's and the state file's question).
     std::uint64_t modifications() const noexcept { return modifications_; }
+    // Back to the image construction made: the pages written since are dropped, the initial ones shared
+    // again, the modification count is zero. Costs the pages written, not the map (the fuzz target resets
+    // one image per input instead of building it again).
+    void reset() noexcept;
 
   private:
     // Each table is 256 pages of 256 words. A page nobody wrote since the image was made is shared with the
@@ -60,7 +65,8 @@ class RegisterImage {
     // Indexed by the resolved table's value; bits are kept one per word for simple, uniform storage.
     Words tables_[5];
     std::array<const Page*, page_count> initial_[5]{};
-    std::vector<std::unique_ptr<const Page>> initial_pages_;  // the initial image's non-zero pages
+    std::vector<std::unique_ptr<const Page>> initial_pages_;      // the initial image's non-zero pages
+    std::vector<std::pair<std::uint8_t, std::uint8_t>> written_;  // (table, page) of every own page
     std::uint64_t modifications_ = 0;
 };
 

@@ -103,6 +103,37 @@ TEST(Device, InitialImageFollowsTheMap) {
     }
 }
 
+// reset() makes the device as it was made (the fuzz target reuses one device per profile and unit): the
+// written registers read their initial values again, counters are zero, listen-only mode is left.
+TEST(Device, ResetIsAsMade) {
+    Device device(profile("walchem-w600"), 1);
+    const Device made(profile("walchem-w600"), 1);
+    EXPECT_EQ(ask(device, "10 00 94 00 02 04 00 00 40 00"), "10 00 94 00 02");
+    EXPECT_EQ(ask(device, "06 7F 00 12 34").substr(0, 2), "86");
+    ASSERT_NE(device.image().modifications(), 0u);
+    device.reset();
+    EXPECT_EQ(device.image().modifications(), 0u);
+    EXPECT_TRUE(device.image().changes().empty());
+    EXPECT_EQ(device.counters().server_messages, 0);
+    EXPECT_EQ(device.counters().exceptions, 0);
+    for (std::uint32_t a = 0; a < 65536; ++a)
+        ASSERT_EQ(device.image().reg(Table::HoldingRegisters, static_cast<std::uint16_t>(a)),
+                  made.image().reg(Table::HoldingRegisters, static_cast<std::uint16_t>(a)))
+            << a;
+    EXPECT_EQ(ask(device, "03 00 94 00 02"), "03 04 00 00 3F 80");
+    // Written again after a reset, and reset again.
+    EXPECT_EQ(ask(device, "06 00 94 00 07"), "06 00 94 00 07");
+    device.reset();
+    EXPECT_EQ(ask(device, "03 00 94 00 02"), "03 04 00 00 3F 80");
+
+    Device generic(profile("modbus"), 1);
+    EXPECT_EQ(ask(generic, "08 00 04 00 00"), "");
+    ASSERT_TRUE(generic.listen_only());
+    generic.reset();
+    EXPECT_FALSE(generic.listen_only());
+    EXPECT_EQ(ask(generic, "03 00 00 00 01"), "03 02 00 00");
+}
+
 // Tables a profile declares the same share storage: a write through FC6 reads back through FC4 (MK-FC04-01).
 TEST(Device, SameAsTablesShareStorage) {
     Device device(profile("mmk-2030"), 1);
