@@ -14,6 +14,8 @@
 #include "modbus/frame.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size);
+// Defined by the targets that prepare something once per process (libFuzzer calls it before fuzzing).
+extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv);
 
 namespace mbscope::fuzz {
 
