@@ -43,10 +43,10 @@ bool serial(Framing f) {
     return f != Framing::Tcp;
 }
 
-std::string codes_text(const std::set<std::uint8_t>& codes) {
+std::string codes_text(const std::bitset<256>& codes) {
     std::string out;
-    for (auto c : codes)
-        out += (out.empty() ? "" : " or ") + exception_text(c);
+    for (unsigned c = 0; c < codes.size(); ++c)
+        if (codes.test(c)) out += (out.empty() ? "" : " or ") + exception_text(static_cast<std::uint8_t>(c));
     return out;
 }
 
@@ -380,9 +380,10 @@ std::vector<OracleViolation> ExchangeOracle::judge(const tp::Exchange& ex,
     const Expected e = expect(*r);
     if (!e.judged) return out;
     const bool silent = ex.received.empty();
-    const std::string observed = describe(ex);
-    const auto fail = [&](std::string rule, std::string source, std::string expected) {
-        out.push_back({std::move(rule), std::move(source), std::move(expected), observed});
+    // The reply in words, only for a violation: most exchanges keep every rule, and describing one decodes
+    // the reply again and formats text.
+    const auto fail = [&](std::string_view rule, std::string_view source, std::string expected) {
+        out.push_back({std::string(rule), std::string(source), std::move(expected), describe(ex)});
     };
     const Unit* u = route(r->unit);
     const bool is_listen_only_request =
@@ -438,8 +439,8 @@ std::vector<OracleViolation> ExchangeOracle::judge(const tp::Exchange& ex,
         if (!e.exceptions.count(code)) {
             const std::string expected =
                 e.normal ? (e.exceptions.empty() ? "a normal response"
-                                                 : "a normal response or " + codes_text(e.exceptions))
-                         : codes_text(e.exceptions);
+                                                 : "a normal response or " + codes_text(e.exceptions.bits))
+                         : codes_text(e.exceptions.bits);
             fail(e.normal ? "reply.exception_for_valid" : e.rule, e.normal ? "AP §4.1" : e.source, expected);
         }
         if (state_changed.value_or(false))
@@ -447,7 +448,7 @@ std::vector<OracleViolation> ExchangeOracle::judge(const tp::Exchange& ex,
         return out;
     }
     if (!e.normal) {
-        fail(e.rule, e.source, codes_text(e.exceptions));
+        fail(e.rule, e.source, codes_text(e.exceptions.bits));
         return out;
     }
     check_normal_shape(*r, *pdu, out);
@@ -490,10 +491,11 @@ std::string ExchangeOracle::expectation(const std::vector<std::uint8_t>& sent) c
     if (!r) return "";
     const Expected e = expect(*r);
     if (!e.judged) return "";
-    if (e.silence) return e.exceptions.empty() ? "no reply" : "no reply or " + codes_text(e.exceptions);
+    if (e.silence) return e.exceptions.empty() ? "no reply" : "no reply or " + codes_text(e.exceptions.bits);
     const std::string quiet = e.silence_allowed ? ", or no reply" : "";
-    if (!e.normal) return codes_text(e.exceptions) + quiet;
-    return (e.exceptions.empty() ? "a normal response" : "a normal response or " + codes_text(e.exceptions)) +
+    if (!e.normal) return codes_text(e.exceptions.bits) + quiet;
+    return (e.exceptions.empty() ? "a normal response"
+                                 : "a normal response or " + codes_text(e.exceptions.bits)) +
            quiet;
 }
 

@@ -23,11 +23,14 @@
 // or of a function whose length cannot be told, may go unanswered over a stream (no rule demands an answer
 // to it), though an answer must still keep the rules.
 
+#include <bitset>
 #include <cstdint>
+#include <initializer_list>
 #include <map>
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "modbus/frame.hpp"
@@ -68,14 +71,26 @@ class ExchangeOracle {
     void reset();
 
   private:
+    // Exception codes, one bit each: a judged request allocates nothing for them.
+    struct Codes {
+        std::bitset<256> bits;
+        Codes() = default;
+        Codes(std::initializer_list<std::uint8_t> codes) {
+            for (auto c : codes)
+                bits.set(c);
+        }
+        void insert(std::uint8_t c) { bits.set(c); }
+        bool count(std::uint8_t c) const { return bits.test(c); }
+        bool empty() const { return bits.none(); }
+    };
     struct Expected {
-        bool judged = true;                 // false: the oracle has no opinion on this request
-        bool silence = false;               // the rules demand silence
-        bool silence_allowed = false;       // silence is one of the allowed answers
-        bool normal = false;                // a normal response is allowed
-        std::set<std::uint8_t> exceptions;  // exception codes allowed
-        std::string rule;                   // the rule that decides (silence, or the refusal)
-        std::string source;
+        bool judged = true;            // false: the oracle has no opinion on this request
+        bool silence = false;          // the rules demand silence
+        bool silence_allowed = false;  // silence is one of the allowed answers
+        bool normal = false;           // a normal response is allowed
+        Codes exceptions;              // exception codes allowed
+        std::string_view rule;         // the rule that decides (silence, or the refusal); a literal
+        std::string_view source;       // a literal
     };
     struct Request;  // the request as decoded from the bytes sent
     std::optional<Request> decode_sent(const std::vector<std::uint8_t>& sent) const;
