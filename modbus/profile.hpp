@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <set>
@@ -131,8 +132,10 @@ struct FunctionRules {
     std::vector<std::uint8_t> broadcast;
     std::vector<std::uint16_t> diagnostics;
     AddressCheck address_check = AddressCheck::Every;
-    std::map<std::string, std::optional<int>> exceptions;  // condition → code (nullopt: the manual is silent)
-    std::set<std::string> implied_exceptions;              // conditions whose code the manual only implies
+    // condition → code (nullopt: the manual is silent). Looked up by a literal (exception_for) on every
+    // refused request: std::less<> finds it without making a string of it.
+    std::map<std::string, std::optional<int>, std::less<>> exceptions;
+    std::set<std::string, std::less<>> implied_exceptions;  // conditions whose code the manual only implies
 
     bool supports(std::uint8_t fc) const;
     // The manual's limit, else the specification's (AP §6.x); 0 when the function has no quantity.
