@@ -16,7 +16,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const bool timed = in.ConsumeBool();
     fuzz::StreamAccount account("fuzz_ascii_deframer");
     modbus::AsciiDeframer deframer;
-    modbus::DeframeEvents events;
+    modbus::DeframeEvents& events = fuzz::reused_events();
     std::uint64_t total = 0;
     modbus::Timestamp now{1'000'000'000};
     while (in.remaining_bytes() > 0) {

@@ -17,7 +17,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     modbus::SerialLine line;
     line.baud = in.PickValueInArray<std::uint32_t>({1200, 9600, 19200, 115200});
     fuzz::StreamAccount account("fuzz_rtu_deframer");
-    modbus::DeframeEvents events;
+    modbus::DeframeEvents& events = fuzz::reused_events();
     std::uint64_t total = 0;
     modbus::RtuDeframer raw;
     modbus::RtuTimedDeframer timed_deframer(line);

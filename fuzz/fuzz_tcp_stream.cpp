@@ -23,7 +23,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
     fuzz::StreamAccount account(target);
     modbus::TcpStreamDeframer deframer;
-    modbus::DeframeEvents events;
+    modbus::DeframeEvents& events = fuzz::reused_events();
     std::uint64_t position = 0;  // stream position of the next byte the reassembler must deliver
     analyzer::TcpReassembler reassembler(
         [&](std::span<const std::uint8_t> bytes, modbus::Timestamp t) {

@@ -209,7 +209,8 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
     } else if (at_end && n > 0) {
         // Split by content. Keep the result only if it finds at least one frame; otherwise the
         // silence-delimited run is one frame with a bad CRC (or too short to be one).
-        DeframeEvents split;
+        DeframeEvents& split = split_;
+        split.clear();
         std::size_t pos = 0;
         bool any_frame = false;
         Unparsed run{};
