@@ -37,18 +37,20 @@ struct Analyzer::Flow {
 };
 
 std::size_t Analyzer::FlowKeyHash::operator()(const FlowKey& k) const noexcept {
-    std::uint64_t h = 1469598103934665603ull ^ static_cast<std::uint64_t>(k.transport);
-    const auto mix = [&h](const Endpoint& e) {
-        std::uint64_t a, b;
-        std::memcpy(&a, e.address.data(), 8);
-        std::memcpy(&b, e.address.data() + 8, 8);
-        h = (h ^ a) * 0x100000001b3ull;
-        h = (h ^ b) * 0x100000001b3ull;
-        h = (h ^ (std::uint64_t{e.port} << 1 | e.v6)) * 0x100000001b3ull;
-    };
-    mix(k.client);
-    mix(k.server);
-    return static_cast<std::size_t>(h ^ (h >> 29));
+    std::uint64_t h = 0x9E3779B97F4A7C15ull;
+    for (auto w : k.words)
+        h = (h ^ w) * 0xBF58476D1CE4E5B9ull;
+    return static_cast<std::size_t>(h ^ (h >> 31));
+}
+
+Analyzer::FlowKey Analyzer::flow_key(Transport transport, const Endpoint& client, const Endpoint& server) {
+    FlowKey k;
+    std::memcpy(&k.words[0], client.address.data(), 16);
+    std::memcpy(&k.words[2], server.address.data(), 16);
+    k.words[4] = std::uint64_t{client.port} | std::uint64_t{server.port} << 16 |
+                 std::uint64_t{client.v6} << 32 | std::uint64_t{server.v6} << 33 |
+                 std::uint64_t{static_cast<std::uint8_t>(transport)} << 34;
+    return k;
 }
 
 const SharedText& Analyzer::device_of(Flow& flow, std::uint8_t unit, DeviceStats*& stats) {
@@ -94,7 +96,7 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
     to_server = server_port(l4.transport, l4.destination.port);
     const Endpoint& client = to_server ? l4.source : l4.destination;
     const Endpoint& server = to_server ? l4.destination : l4.source;
-    Flow*& known = flow_index_[FlowKey{l4.transport, client, server}];
+    Flow*& known = flow_index_[flow_key(l4.transport, client, server)];
     if (known) return *known;
     std::string key =
         (l4.transport == Transport::Tcp ? "tcp " : "udp ") + client.to_string() + " -> " + server.to_string();

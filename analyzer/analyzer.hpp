@@ -106,15 +106,16 @@ class Analyzer {
         std::uint64_t serial;
     };
 
-    // The flow of a packet by its binary addresses: a frame must not cost formatting two endpoints as text.
+    // The flow of a packet by its binary addresses, packed in five words (both addresses, then ports, the
+    // IPv6 flags and the transport): finding a packet's flow must not cost formatting endpoints as text.
     struct FlowKey {
-        Transport transport;
-        Endpoint client, server;
+        std::uint64_t words[5];
         bool operator==(const FlowKey&) const = default;
     };
     struct FlowKeyHash {
         std::size_t operator()(const FlowKey& k) const noexcept;
     };
+    static FlowKey flow_key(Transport transport, const Endpoint& client, const Endpoint& server);
     bool server_port(Transport transport, std::uint16_t port) const;
     Flow& flow_for(const L4Packet& l4, bool& to_server);
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);

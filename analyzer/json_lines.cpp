@@ -13,6 +13,12 @@ double seconds_of(Timestamp t) {
     return std::chrono::duration<double>(t).count();
 }
 
+// Names this program gives (enumerations, function names, record types) are plain ASCII: no escaping.
+void plain_member(JsonWriter& out, JsonKey key, std::string_view text) {
+    out.key(key);
+    out.plain_value(text);
+}
+
 void text_member(JsonWriter& out, JsonKey key, const SharedText& text) {
     out.key(key);
     if (text.json_plain())
@@ -28,7 +34,7 @@ void write_frame(const FrameRecord& f, JsonWriter& out) {
     const auto pdu_bytes = f.frame.pdu();
     out.begin_object();
     out.member("checksum_ok", f.frame.checksum_ok);
-    out.member("direction", to_string(f.direction));
+    plain_member(out, "direction", to_string(f.direction));
     if (!f.pdu) out.member("error", std::string_view(f.error));
     if (f.pdu)
         out.member("exception", f.pdu->is_exception());
@@ -39,10 +45,10 @@ void write_frame(const FrameRecord& f, JsonWriter& out) {
         write_pdu_fields(*f.pdu, out);
     }
     out.member("frame", f.index);
-    out.member("framing", to_string(f.frame.framing));
+    plain_member(out, "framing", to_string(f.frame.framing));
     if (f.pdu) {
         out.member("function", f.pdu->function_code());
-        if (auto n = function_name(f.pdu->function_code())) out.member("function_name", *n);
+        if (auto n = function_name(f.pdu->function_code())) plain_member(out, "function_name", *n);
         out.member("function_raw", f.pdu->function_raw);
     } else if (!pdu_bytes.empty()) {
         out.member("function", static_cast<std::uint8_t>(pdu_bytes[0] & 0x7F));
@@ -55,9 +61,9 @@ void write_frame(const FrameRecord& f, JsonWriter& out) {
     out.hex_value(f.frame.adu());
     text_member(out, "source", f.source);
     if (tcp) out.member("transaction_id", f.frame.transaction_id());
-    out.member("transport", to_string(f.carrier));
+    plain_member(out, "transport", to_string(f.carrier));
     out.member("ts", seconds_of(f.time));
-    out.member("type", "frame");
+    plain_member(out, "type", "frame");
     out.member("unit_id", f.frame.unit_id());
     out.end_object();
 }
@@ -98,9 +104,9 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
     text_member(out, "source", q.source);
     if (!r && !t.broadcast) out.member("timeout", t.timed_out);
     if (q.frame.framing == Framing::Tcp) out.member("transaction_id", q.frame.transaction_id());
-    out.member("transport", to_string(q.carrier));
+    plain_member(out, "transport", to_string(q.carrier));
     out.member("ts", seconds_of(q.time));
-    out.member("type", "transaction");
+    plain_member(out, "type", "transaction");
     out.member("unit_id", q.frame.unit_id());
     if (!t.values.empty()) {
         out.key("values");
@@ -109,7 +115,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
             write_named_value(v, out);
         out.end_array();
     }
-    if (t.word_order) out.member("word_order", to_string(*t.word_order));
+    if (t.word_order) plain_member(out, "word_order", to_string(*t.word_order));
     out.end_object();
 }
 
@@ -129,24 +135,24 @@ void write_finding(const FindingRecord& f, JsonWriter& out) {
     out.member("message", std::string_view(f.message));
     out.member("packet", f.packet);
     out.member("rule", i.rule);
-    out.member("severity", to_string(i.severity));
+    plain_member(out, "severity", to_string(i.severity));
     text_member(out, "source", f.source);
     out.member("ts", seconds_of(f.time));
-    out.member("type", "finding");
+    plain_member(out, "type", "finding");
     out.end_object();
 }
 
 void write_unparsed(const UnparsedRecord& u, JsonWriter& out) {
     out.begin_object();
-    out.member("direction", to_string(u.direction));
+    plain_member(out, "direction", to_string(u.direction));
     out.member("length", u.length);
     text_member(out, "link", u.link);
     out.member("offset", u.offset);
     out.member("packet", u.packet);
-    out.member("reason", to_string(u.reason));
+    plain_member(out, "reason", to_string(u.reason));
     text_member(out, "source", u.source);
     out.member("ts", seconds_of(u.time));
-    out.member("type", "unparsed");
+    plain_member(out, "type", "unparsed");
     out.end_object();
 }
 

@@ -9,6 +9,7 @@
 // characters) and bytes that are not valid UTF-8 become U+FFFD; a double is written in the shortest form
 // that reads back to the same value, with ".0" when it is integral; NaN and infinities are null.
 
+#include <cassert>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -71,6 +72,11 @@ class JsonWriter {
     void value(std::string_view text);
     // A string its owner knows needs no escaping (printable ASCII, no quote, no backslash): copied as it is.
     void plain_value(std::string_view text) {
+#ifndef NDEBUG
+        for (char c : text)  // debug and sanitizer builds hold the owner to its word
+            assert(static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x80 &&
+                   c != '"' && c != '\\');
+#endif
         separate();
         char* p = reserve(text.size() + 2);
         *p = '"';
@@ -78,16 +84,28 @@ class JsonWriter {
         p[text.size() + 1] = '"';
         size_ += text.size() + 2;
     }
-    void value(const char* text) { value(std::string_view(text)); }
+    void value(const char* text) {
+        value(std::string_view(text));
+    }
     void value(bool b);
     void value(double d);
-    void value(float f) { value(static_cast<double>(f)); }
+    void value(float f) {
+        value(static_cast<double>(f));
+    }
     void value(std::uint64_t n);
     void value(std::int64_t n);
-    void value(std::uint32_t n) { value(static_cast<std::uint64_t>(n)); }
-    void value(std::uint16_t n) { value(static_cast<std::uint64_t>(n)); }
-    void value(std::uint8_t n) { value(static_cast<std::uint64_t>(n)); }
-    void value(int n) { value(static_cast<std::int64_t>(n)); }
+    void value(std::uint32_t n) {
+        value(static_cast<std::uint64_t>(n));
+    }
+    void value(std::uint16_t n) {
+        value(static_cast<std::uint64_t>(n));
+    }
+    void value(std::uint8_t n) {
+        value(static_cast<std::uint64_t>(n));
+    }
+    void value(int n) {
+        value(static_cast<std::int64_t>(n));
+    }
     void null();
     // "11 03 00 60": bytes as the hex_bytes() string, without making the string first.
     void hex_value(std::span<const std::uint8_t> bytes);
