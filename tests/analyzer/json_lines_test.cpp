@@ -23,6 +23,7 @@ namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using json = nlohmann::json;
 using namespace std::chrono_literals;
+using namespace std::string_literals;
 
 namespace {
 
@@ -198,9 +199,9 @@ TEST(JsonLines, StringsAreEscapedAndBytesThatAreNotUtf8BecomeReplacementCharacte
     const std::string samples[] = {
         "plain",
         "quote \" backslash \\ slash /",
-        std::string("controls \x01\x1F\b\f\n\r\t and a NUL \0 inside", 38),
-        "Vazão instantânea m³/h",     // UTF-8 from the manuals
-        "emoji \xF0\x9F\x98\x80 ok",  // four bytes
+        "controls \x01\x1F\b\f\n\r\t and a NUL \0 inside"s,  // the NUL is part of the string
+        "Vazão instantânea m³/h",                            // UTF-8 from the manuals
+        "emoji \xF0\x9F\x98\x80 ok",                         // four bytes
         "bad \xFF\xFE lone \x80 continuation",
         "truncated \xE2\x82",
         "cut short \xE2\x82 then more \xF0\x9F\x98 and \xF4\x8F",
