@@ -275,15 +275,17 @@ void Generator::envelope(Probe& p) {
     } else if (r < 11 && options_.framing == modbus::Framing::Ascii) {
         p.envelope = Envelope::LowerCaseHex;
     }
-    // Splits: on a stream, pieces a few milliseconds apart test reassembly; on a real serial line a pause
-    // beyond t1.5 makes the request void (SL §2.5.1.1).
+    // Splits: on a stream, pieces written apart test reassembly: up to 100 µs, long enough for a slave that
+    // answers in tens of microseconds to read the first piece alone (the writes are not coalesced: the
+    // client sets TCP_NODELAY), short enough to keep the slave busy (millisecond pauses made them most of
+    // the fuzzer's time). On a real serial line a pause beyond t1.5 makes the request void (SL §2.5.1.1).
     if (below(100) < 6) {
         p.split = static_cast<std::uint8_t>(2 + below(2));
         if (options_.serial_line) {
-            const auto t = std::chrono::duration_cast<std::chrono::milliseconds>(options_.t1_5 * 2);
-            p.pause = std::max(t, std::chrono::milliseconds(2));
+            const auto t = std::chrono::duration_cast<std::chrono::microseconds>(options_.t1_5 * 2);
+            p.pause = std::max<std::chrono::microseconds>(t, std::chrono::milliseconds(2));
         } else {
-            p.pause = std::chrono::milliseconds(below(4));
+            p.pause = std::chrono::microseconds(25 * below(5));
         }
     }
 }

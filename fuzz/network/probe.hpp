@@ -29,14 +29,14 @@ struct Probe {
     // Written in `split` pieces (1: at once), `pause` apart: TCP reassembly on stream transports, the t1.5
     // rule on a serial line.
     std::uint8_t split = 1;
-    std::chrono::milliseconds pause{0};
+    std::chrono::microseconds pause{0};
     std::string recipe;  // how it was made, for the reproducer: "fc16 quantity max+1", "mutated: ..."
 };
 
 // The wire bytes of a framed probe, in the pieces they are written.
 struct Wire {
     std::vector<std::vector<std::uint8_t>> parts;
-    std::chrono::milliseconds pause{0};
+    std::chrono::microseconds pause{0};
     std::vector<std::uint8_t> joined() const;
 };
 

@@ -43,7 +43,7 @@ nlohmann::json to_json(const Reproducer& r) {
         for (const auto& p : s.parts)
             parts.push_back(modbus::hex_bytes(p));
         nlohmann::json j{{"parts", parts}, {"recipe", s.recipe}};
-        if (s.pause.count()) j["pause_ms"] = s.pause.count();
+        if (s.pause.count()) j["pause_us"] = s.pause.count();
         if (s.reconnect_after) j["reconnect_after"] = true;
         if (s.void_by_gap) j["void_by_gap"] = true;
         steps.push_back(std::move(j));
@@ -97,10 +97,12 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
                 if (!bytes) return std::string("step " + std::to_string(index) + ": " + bytes.error());
                 step.parts.push_back(std::move(bytes).value());
             }
-            const auto pause = s.value("pause_ms", 0);
-            if (pause < 0 || pause > 60000)
-                return std::string("step " + std::to_string(index) + ": pause_ms outside 0..60000");
-            step.pause = std::chrono::milliseconds(pause);
+            // Microseconds; reproducers written before stream pauses were finer say milliseconds.
+            const std::int64_t pause = s.contains("pause_us") ? s.value("pause_us", std::int64_t{0})
+                                                              : 1000 * s.value("pause_ms", std::int64_t{0});
+            if (pause < 0 || pause > 60'000'000)
+                return std::string("step " + std::to_string(index) + ": pause outside 0..60 s");
+            step.pause = std::chrono::microseconds(pause);
             step.reconnect_after = s.value("reconnect_after", false);
             step.void_by_gap = s.value("void_by_gap", false);
             step.recipe = s.value("recipe", "");

@@ -20,7 +20,7 @@ namespace mbscope::fuzz::network {
 
 struct Step {
     std::vector<std::vector<std::uint8_t>> parts;  // written in this order
-    std::chrono::milliseconds pause{0};            // between parts
+    std::chrono::microseconds pause{0};            // between parts
     bool reconnect_after = false;                  // a stream left out of step (MBAP length probes)
     bool void_by_gap = false;                      // a pause inside it beyond t1.5 on a serial line
     std::string recipe;
