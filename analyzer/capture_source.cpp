@@ -15,6 +15,11 @@ namespace mbscope::analyzer {
 
 struct CaptureSource::Impl {
     pcap_t* pcap = nullptr;
+    // Classic pcap records are a fixed header and caplen bytes, so where the next one starts is known
+    // without asking the FILE (ftell() was a twentieth of a summary run). record_header is learnt from the
+    // first record (16 bytes, 24 in Kuznetzov's format); 0: ask ftell() before every record (pcapng).
+    long position = -1;
+    long record_header = 0;
     FILE* memory = nullptr;  // fmemopen'd buffer for open_memory
     ~Impl() {
         if (pcap) pcap_close(pcap);  // closes the FILE too
@@ -139,8 +144,25 @@ std::optional<Packet> CaptureSource::next() {
     pcap_pkthdr* header = nullptr;
     const u_char* data = nullptr;
     FILE* file = pcap_file(impl_->pcap);
-    const long before = file ? std::ftell(file) : -1;
+    const long before = impl_->record_header ? impl_->position : file ? std::ftell(file) : -1;
     const int rc = pcap_next_ex(impl_->pcap, &header, &data);
+    if (rc == 1 && file) {
+        const long caplen = header->caplen;
+        // A record longer than the snapshot length is cut to it by libpcap, which skips the rest: its size
+        // on disk is not known from the header then, and ftell() says.
+        const bool cut = caplen >= pcap_snapshot(impl_->pcap);
+        if (impl_->record_header && !cut) {
+            impl_->position = before + impl_->record_header + caplen;
+        } else if (count_ == 0 && pcap_major_version(impl_->pcap) == 2 && before >= 0 && !cut) {
+            const long after = std::ftell(file);
+            if (after - before - caplen == 16 || after - before - caplen == 24) {
+                impl_->record_header = after - before - caplen;
+                impl_->position = after;
+            }
+        } else if (impl_->record_header) {
+            impl_->position = std::ftell(file);
+        }
+    }
     if (rc == 1) {
         Packet p;
         p.number = ++count_;
