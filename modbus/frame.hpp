@@ -84,7 +84,8 @@ struct Frame {
     std::uint16_t checksum_received() const noexcept;
     std::uint16_t checksum_computed() const noexcept;
 };
-static_assert(sizeof(void*) != 8 || sizeof(Frame) == 336, "Frame changed: copy the new field in Frame::operator=");
+static_assert(sizeof(void*) != 8 || sizeof(Frame) == 336,
+              "Frame changed: copy the new field in Frame::operator=");
 
 enum class UnparsedReason : std::uint8_t {
     Garbage = 0,          // no frame could start here
