@@ -1,7 +1,8 @@
 #!/bin/bash -eu
 # The OSS-Fuzz / ClusterFuzzLite build contract: $CC $CXX $CFLAGS $CXXFLAGS $LIB_FUZZING_ENGINE in, fuzz
-# targets in $OUT, each with its seed corpus (fuzz_<name>_seed_corpus.zip) and dictionary (fuzz_<name>.dict),
-# and the device profiles beside them ($OUT/profiles, where the targets look first after $MBSCOPE_PROFILE_PATH).
+# targets in $OUT, each with its seed corpus (fuzz_<name>_seed_corpus.zip), its dictionary (fuzz_<name>.dict)
+# and, where it has one, its options (fuzz_<name>.options); and the device profiles beside them
+# ($OUT/profiles, where the targets look first after $MBSCOPE_PROFILE_PATH).
 # Also run by the project's own test command with local values (scripts/run.sh), so it cannot rot.
 SRC_DIR=${SRC_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
 BUILD=${WORK:-/tmp}/mbscope-fuzz-build
@@ -21,6 +22,8 @@ for binary in "$BUILD"/fuzz/fuzz_*; do
   cp "$binary" "$OUT/"
   cp "$BUILD/fuzz/$name.dict" "$OUT/"
   target=${name#fuzz_}
+  # Per-target libFuzzer options (fuzz/<target>.options: max_len where the input has a natural bound).
+  if [ -f "$SRC_DIR/fuzz/$target.options" ]; then cp "$SRC_DIR/fuzz/$target.options" "$OUT/$name.options"; fi
   if [ -d "$SRC_DIR/corpus/$target" ]; then
     (cd "$SRC_DIR/corpus/$target" && python3 -c "
 import os, sys, zipfile

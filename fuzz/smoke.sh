@@ -23,8 +23,12 @@ run_one() {  # target
   local t=$1 corpus="$work/corpus-$1" log="$work/$1.log"
   mkdir -p "$corpus" "$work/artifacts-$t"
   [ -d "corpus/$t" ] && cp -r "corpus/$t/." "$corpus/"
+  # A target's own bound on its input, from fuzz/<target>.options as ClusterFuzzLite reads it; else 64 KiB.
+  local max_len
+  max_len=$(sed -n 's/^max_len *= *\([0-9]*\)/\1/p' "fuzz/$t.options" 2>/dev/null)
   "$dir/fuzz_$t" "$corpus" -dict="$dir/fuzz_$t.dict" -max_total_time="$seconds" -timeout=10 -seed="$seed" \
-    -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1 -artifact_prefix="$work/artifacts-$t/" >"$log" 2>&1
+    -rss_limit_mb=2048 -max_len="${max_len:-65536}" -print_final_stats=1 -artifact_prefix="$work/artifacts-$t/" \
+    >"$log" 2>&1
   local rc=$?
   local runs rate
   runs=$(grep -o 'Done [0-9]* runs' "$log" | tail -1)
