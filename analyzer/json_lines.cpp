@@ -1,5 +1,7 @@
 #include "analyzer/json_lines.hpp"
 
+#include "analyzer/sinks.hpp"
+
 #include "modbus/describe.hpp"
 #include "modbus/profile_json.hpp"
 
@@ -8,10 +10,6 @@ namespace mbscope::analyzer {
 using namespace mbscope::modbus;
 
 namespace {
-
-double seconds_of(Timestamp t) {
-    return std::chrono::duration<double>(t).count();
-}
 
 // Names this program gives (enumerations, function names, record types) are plain ASCII: no escaping.
 void plain_member(JsonWriter& out, JsonKey key, std::string_view text) {
@@ -62,7 +60,7 @@ void write_frame(const FrameRecord& f, JsonWriter& out) {
     text_member(out, "source", f.source);
     if (tcp) out.member("transaction_id", f.frame.transaction_id());
     plain_member(out, "transport", to_string(f.carrier));
-    out.member("ts", seconds_of(f.time));
+    out.member("ts", seconds(f.time));
     plain_member(out, "type", "frame");
     out.member("unit_id", f.frame.unit_id());
     out.end_object();
@@ -105,7 +103,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
     if (!r && !t.broadcast) out.member("timeout", t.timed_out);
     if (q.frame.framing == Framing::Tcp) out.member("transaction_id", q.frame.transaction_id());
     plain_member(out, "transport", to_string(q.carrier));
-    out.member("ts", seconds_of(q.time));
+    out.member("ts", seconds(q.time));
     plain_member(out, "type", "transaction");
     out.member("unit_id", q.frame.unit_id());
     if (!t.values.empty()) {
@@ -137,7 +135,7 @@ void write_finding(const FindingRecord& f, JsonWriter& out) {
     out.member("rule", i.rule);
     plain_member(out, "severity", to_string(i.severity));
     text_member(out, "source", f.source);
-    out.member("ts", seconds_of(f.time));
+    out.member("ts", seconds(f.time));
     plain_member(out, "type", "finding");
     out.end_object();
 }
@@ -151,7 +149,7 @@ void write_unparsed(const UnparsedRecord& u, JsonWriter& out) {
     out.member("packet", u.packet);
     plain_member(out, "reason", to_string(u.reason));
     text_member(out, "source", u.source);
-    out.member("ts", seconds_of(u.time));
+    out.member("ts", seconds(u.time));
     plain_member(out, "type", "unparsed");
     out.end_object();
 }
