@@ -12,6 +12,8 @@
 #include <string_view>
 #include <utility>
 
+#include "modbus/json_writer.hpp"
+
 namespace mbscope::analyzer {
 
 class SharedText {
@@ -65,14 +67,9 @@ class SharedText {
         return empty;
     }
     struct Entry {
-        explicit Entry(std::string t) : text(std::move(t)) {
-            for (char c : text) {
-                const auto u = static_cast<unsigned char>(c);
-                if (u < 0x20 || u >= 0x80 || c == '"' || c == '\\') json_plain = false;
-            }
-        }
+        explicit Entry(std::string t) : text(std::move(t)), json_plain(modbus::json_plain(text)) {}
         std::string text;
-        bool json_plain = true;
+        bool json_plain;
         std::size_t references = 1;
     };
     Entry* entry_ = nullptr;

@@ -1,7 +1,6 @@
 #include "modbus/json_writer.hpp"
 
 #include <algorithm>
-#include <array>
 #include <charconv>
 #include <cmath>
 
@@ -54,21 +53,6 @@ std::size_t invalid_sequence(std::string_view s) {
     return n;
 }
 
-// Characters a JSON string cannot hold as they are (", \, controls) or that start a UTF-8 sequence to check.
-constexpr auto special = [] {
-    std::array<bool, 256> t{};
-    for (int c = 0; c < 256; ++c)
-        t[c] = c < 0x20 || c == '"' || c == '\\' || c >= 0x80;
-    return t;
-}();
-
-std::size_t plain_prefix(std::string_view s) {
-    std::size_t i = 0;
-    while (i < s.size() && !special[static_cast<unsigned char>(s[i])])
-        ++i;
-    return i;
-}
-
 }  // namespace
 
 void JsonWriter::grow(std::size_t n) {
@@ -83,17 +67,8 @@ void JsonWriter::grow(std::size_t n) {
 
 void JsonWriter::dynamic_key(std::string_view name) {
     separate();
-    if (plain_prefix(name) == name.size()) {  // every key this project writes
-        char* p = reserve(name.size() + 3);
-        *p = '"';
-        std::memcpy(p + 1, name.data(), name.size());
-        p[name.size() + 1] = '"';
-        p[name.size() + 2] = ':';
-        size_ += name.size() + 3;
-    } else {
-        escaped(name);
-        put(':');
-    }
+    escaped(name);
+    put(':');
     after_key_ = true;
 }
 
@@ -161,14 +136,7 @@ void JsonWriter::hex_value(std::span<const std::uint8_t> bytes) {
 
 void JsonWriter::escaped(std::string_view s) {
     static constexpr char digits[] = "0123456789abcdef";
-    if (plain_prefix(s) == s.size()) {  // the common case: nothing to escape or check
-        char* p = reserve(s.size() + 2);
-        *p = '"';
-        std::memcpy(p + 1, s.data(), s.size());
-        p[s.size() + 1] = '"';
-        size_ += s.size() + 2;
-        return;
-    }
+    if (json_plain(s)) return quoted(s);  // the common case: nothing to escape or check
     put('"');
     std::size_t plain = 0;  // start of the run of characters copied as they are
     const auto flush = [&](std::size_t i) { append(s.data() + plain, i - plain); };

@@ -19,16 +19,22 @@
 
 namespace mbscope::modbus {
 
+// Printable ASCII with no quote and no backslash: a JSON string of it is the text between quotes.
+constexpr bool json_plain(std::string_view text) noexcept {
+    for (char c : text) {
+        const auto u = static_cast<unsigned char>(c);
+        if (u < 0x20 || u >= 0x80 || c == '"' || c == '\\') return false;
+    }
+    return true;
+}
+
 // A key written in the program: checked when the program is compiled (it needs no escaping), so writing it
 // is a copy. Keys known only at run time go through JsonWriter::dynamic_key().
 struct JsonKey {
     std::string_view name;
     template <std::size_t N>
     consteval JsonKey(const char (&text)[N]) : name(text, N - 1) {  // NOLINT: literals convert
-        for (char c : name) {
-            const auto u = static_cast<unsigned char>(c);
-            if (u < 0x20 || u >= 0x80 || c == '"' || c == '\\') throw "a JsonKey must need no escaping";
-        }
+        if (!json_plain(name)) throw "a JsonKey must need no escaping";
     }
 };
 
@@ -59,12 +65,8 @@ class JsonWriter {
     // A key of the object being written; the value follows with one of the calls below.
     void key(JsonKey k) {
         separate();
-        char* p = reserve(k.name.size() + 3);
-        *p = '"';
-        std::memcpy(p + 1, k.name.data(), k.name.size());
-        p[k.name.size() + 1] = '"';
-        p[k.name.size() + 2] = ':';
-        size_ += k.name.size() + 3;
+        quoted(k.name);
+        put(':');
         after_key_ = true;
     }
     void dynamic_key(std::string_view name);
@@ -72,40 +74,20 @@ class JsonWriter {
     void value(std::string_view text);
     // A string its owner knows needs no escaping (printable ASCII, no quote, no backslash): copied as it is.
     void plain_value(std::string_view text) {
-#ifndef NDEBUG
-        for (char c : text)  // debug and sanitizer builds hold the owner to its word
-            assert(static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x80 &&
-                   c != '"' && c != '\\');
-#endif
+        assert(json_plain(text));  // debug builds hold the owner to its word
         separate();
-        char* p = reserve(text.size() + 2);
-        *p = '"';
-        std::memcpy(p + 1, text.data(), text.size());
-        p[text.size() + 1] = '"';
-        size_ += text.size() + 2;
+        quoted(text);
     }
-    void value(const char* text) {
-        value(std::string_view(text));
-    }
+    void value(const char* text) { value(std::string_view(text)); }
     void value(bool b);
     void value(double d);
-    void value(float f) {
-        value(static_cast<double>(f));
-    }
+    void value(float f) { value(static_cast<double>(f)); }
     void value(std::uint64_t n);
     void value(std::int64_t n);
-    void value(std::uint32_t n) {
-        value(static_cast<std::uint64_t>(n));
-    }
-    void value(std::uint16_t n) {
-        value(static_cast<std::uint64_t>(n));
-    }
-    void value(std::uint8_t n) {
-        value(static_cast<std::uint64_t>(n));
-    }
-    void value(int n) {
-        value(static_cast<std::int64_t>(n));
-    }
+    void value(std::uint32_t n) { value(static_cast<std::uint64_t>(n)); }
+    void value(std::uint16_t n) { value(static_cast<std::uint64_t>(n)); }
+    void value(std::uint8_t n) { value(static_cast<std::uint64_t>(n)); }
+    void value(int n) { value(static_cast<std::int64_t>(n)); }
     void null();
     // "11 03 00 60": bytes as the hex_bytes() string, without making the string first.
     void hex_value(std::span<const std::uint8_t> bytes);
@@ -154,6 +136,14 @@ class JsonWriter {
     void close(char c) {
         put(c);
         first_ = false;
+    }
+    // text between quotes, as it is (json_plain text)
+    void quoted(std::string_view text) {
+        char* p = reserve(text.size() + 2);
+        *p = '"';
+        std::memcpy(p + 1, text.data(), text.size());
+        p[text.size() + 1] = '"';
+        size_ += text.size() + 2;
     }
     void escaped(std::string_view text);
 
