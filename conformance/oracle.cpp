@@ -1,6 +1,7 @@
 #include "conformance/oracle.hpp"
 
 #include <algorithm>
+#include <span>
 
 #include "conformance/context.hpp"
 #include "modbus/addressing.hpp"
@@ -30,6 +31,7 @@ ExchangeOracle::ExchangeOracle(Framing framing, std::vector<Unit> units, bool ip
 
 void ExchangeOracle::reset() {
     listen_only_.clear();
+    listen_only_unknown_.clear();
     written_.clear();
 }
 
@@ -41,6 +43,17 @@ Table table_of_fc(std::uint8_t fc) {
 
 bool serial(Framing f) {
     return f != Framing::Tcp;
+}
+
+// FC8 sub-function 01 with the data the specification allows (0000, FF00): what leaves listen-only mode.
+bool restart_communications(std::span<const std::uint8_t> pdu) {
+    return pdu.size() == 5 && pdu[0] == 8 && pdu[1] == 0 && pdu[2] == 1 && (pdu[3] == 0 || pdu[3] == 0xFF) &&
+           pdu[4] == 0;
+}
+
+// FC8 sub-function 01 or 04 of any data: a request that may change a device's listen-only mode.
+bool listen_only_diagnostics(std::span<const std::uint8_t> pdu) {
+    return pdu.size() >= 3 && pdu[0] == 8 && pdu[1] == 0 && (pdu[2] == 1 || pdu[2] == 4);
 }
 
 std::string codes_text(const std::bitset<256>& codes) {
@@ -115,12 +128,15 @@ ExchangeOracle::Expected ExchangeOracle::expect(const Request& r) const {
         e.source = "TCP §4.4.1.2";
         return e;
     }
+    if (listen_only_unknown_.count(u->id)) {
+        e.judged = false;  // silence and a reply may both be right (see judge())
+        return e;
+    }
     if (listen_only_.count(u->id)) {
         // Only "restart communications" acts, and even it is not answered (AP §6.8.1 sub-function 01).
-        const auto& q = r.pdu;
-        const bool restart =
-            q.size() == 5 && q[0] == 8 && q[1] == 0 && q[2] == 1 && (q[3] == 0 || q[3] == 0xFF) && q[4] == 0;
-        return silence(restart ? "silence.restart_from_listen_only" : "silence.listen_only", "AP §6.8.1");
+        return silence(
+            restart_communications(r.pdu) ? "silence.restart_from_listen_only" : "silence.listen_only",
+            "AP §6.8.1");
     }
     Expected answer = expect_pdu(r, *u->profile);
     if (framing_ == Framing::Rtu) {
@@ -377,23 +393,43 @@ std::vector<OracleViolation> ExchangeOracle::judge(const tp::Exchange& ex,
     // Unit 0: a broadcast on a serial line, and executed as one by many Modbus/TCP devices (the reference
     // slave among them) though TCP does not define it: what it may have written is no longer known.
     if (r->unit == 0 && r->decoded) written_.clear();
+    // Whether a broadcast diagnostics request acts is not said anywhere: SL §2.1 lets a broadcast carry
+    // writes, AP §6.8.1 speaks of "the addressed remote device". After a broadcast that may force listen-only
+    // mode (04) or leave it (01), a device's mode is unknown until it answers (it is not in the mode) or is
+    // sent an addressed restart (it is out of the mode either way); until then its silence and its replies
+    // are not judged.
+    if (r->unit == 0 && r->checksum_ok && listen_only_diagnostics(r->pdu)) {
+        const bool force = r->pdu[2] == 4;
+        for (const Unit& unit : units_) {
+            if (!force && !listen_only_.count(unit.id)) continue;  // a restart outside the mode changes none
+            listen_only_unknown_.insert(unit.id);
+            listen_only_.erase(unit.id);
+        }
+    }
+    const bool silent = ex.received.empty();
+    const Unit* u = route(r->unit);
+    if (u && r->checksum_ok && listen_only_unknown_.count(u->id)) {
+        const bool restart = restart_communications(r->pdu);
+        if (silent && !restart) return out;  // still unknown
+        listen_only_unknown_.erase(u->id);
+        if (silent) return out;  // a restart that left the mode, unanswered as AP §6.8.1 says
+    }
     const Expected e = expect(*r);
     if (!e.judged) return out;
-    const bool silent = ex.received.empty();
     // The reply in words, only for a violation: most exchanges keep every rule, and describing one decodes
     // the reply again and formats text.
     const auto fail = [&](std::string_view rule, std::string_view source, std::string expected) {
         out.push_back({std::string(rule), std::string(source), std::move(expected), describe(ex)});
     };
-    const Unit* u = route(r->unit);
     const bool is_listen_only_request =
         e.silence && e.rule == "silence.listen_only" && u && !listen_only_.count(u->id);
 
     if (silent) {
         if (!e.silence && !e.silence_allowed) fail("reply.missing", "AP §4.1, SL §2.1", "a reply");
         if (is_listen_only_request) listen_only_.insert(u->id);
-        // A restart that leaves listen-only mode is not answered (AP §6.8.1).
-        if (u && listen_only_.count(u->id) && e.rule != "silence.listen_only") listen_only_.erase(u->id);
+        // A restart that leaves listen-only mode is not answered (AP §6.8.1). Nothing else leaves it: not a
+        // frame the device never took (a bad checksum, another unit's).
+        if (u && e.rule == "silence.restart_from_listen_only") listen_only_.erase(u->id);
         if (state_changed.value_or(false) && !(r->unit == 0 && r->decoded && r->checksum_ok))
             fail("state.changed_without_reply", "AP §4.1", "no change of the device's registers");
         return out;

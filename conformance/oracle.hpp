@@ -109,6 +109,7 @@ class ExchangeOracle {
     std::vector<Unit> units_;
     bool ip_network_;
     std::set<std::uint8_t> listen_only_;
+    std::set<std::uint8_t> listen_only_unknown_;  // units a broadcast diagnostics request may have switched
     std::map<ShadowKey, std::uint16_t> written_;  // acknowledged writes, as they must read back
 };
 

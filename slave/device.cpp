@@ -108,11 +108,13 @@ Reply Device::handle(const Request& request) {
     const bool answer_broadcast = request.broadcast && faults_->fires(Fault::ReplyToBroadcast);
 
     // AP §6.8.1: in listen-only mode (sub-function 04) only "restart communications" (sub-function 01, data
-    // 0000 or FF00) is acted upon, and even it is not answered ("no response is returned").
+    // 0000 or FF00) is acted upon, and even it is not answered ("no response is returned"). Only when it is
+    // addressed to the device: a broadcast runs writes alone (SL §2.1), so a broadcast restart no more
+    // leaves the mode than a broadcast sub-function 04 enters it.
     if (listen_only_) {
         const auto& p = request.pdu;
-        const bool restart =
-            fc == 8 && p.size() == 5 && p[1] == 0 && p[2] == 1 && (p[3] == 0 || p[3] == 0xFF) && p[4] == 0;
+        const bool restart = !request.broadcast && fc == 8 && p.size() == 5 && p[1] == 0 && p[2] == 1 &&
+                             (p[3] == 0 || p[3] == 0xFF) && p[4] == 0;
         if (restart) {
             listen_only_ = false;
             counters_ = Counters{};

@@ -332,8 +332,58 @@ TEST(ExchangeOracle, ListenOnlyModeSilencesEverythingUntilAValidRestart) {
     const auto answered = send(pdu(3, {0, 1}), {0x03, 0x02, 0x00, 0x00});
     ASSERT_EQ(answered.size(), 1u);
     EXPECT_EQ(answered[0].rule, "silence.listen_only");
+    // A frame the device never takes (a bad CRC) does not end the mode.
+    mbscope::modbus::transport::Exchange corrupt;
+    corrupt.sent = mb::encode_rtu(1, pdu(8, {1, 0}));
+    corrupt.sent.back() ^= 1;
+    EXPECT_TRUE(oracle.judge(corrupt).empty());
+    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "no reply");
+    EXPECT_TRUE(send(pdu(8, {1, 0x4500}), {}).empty());  // a restart with data the mode does not act on
+    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "no reply");
     EXPECT_TRUE(send(pdu(8, {1, 0}), {}).empty());  // the restart, unanswered
     EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "a normal response");
+}
+
+// Whether a broadcast FC8 01/04 acts is said nowhere (SL §2.1 lets a broadcast carry writes, AP §6.8.1
+// speaks of the addressed device): after one the device's mode is unknown and neither its silence nor its
+// reply is judged, until it answers or is sent an addressed restart. The reference slave ignores both
+// broadcasts; a device that obeyed them must not be reported either.
+TEST(ExchangeOracle, ABroadcastListenOnlyDiagnosticsLeavesTheModeUnknownUntilTheDeviceSpeaks) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+    const auto send = [&](std::uint8_t unit, const std::vector<std::uint8_t>& request,
+                          const std::vector<std::uint8_t>& reply) {
+        mbscope::modbus::transport::Exchange ex;
+        ex.sent = mb::encode_rtu(unit, request);
+        if (!reply.empty()) {
+            ex.received = mb::encode_rtu(unit, reply);
+            ex.response = *mb::decode_rtu(ex.received);
+        }
+        return oracle.judge(ex);
+    };
+    const auto read = mb::encode_rtu(1, pdu(3, {0, 1}));
+    // A device that obeyed a broadcast 04: silent, and not reported.
+    EXPECT_TRUE(send(0, pdu(8, {4, 0}), {}).empty());
+    EXPECT_EQ(oracle.expectation(read), "");
+    EXPECT_TRUE(send(1, pdu(3, {0, 1}), {}).empty());
+    // An addressed restart brings it back either way; unanswered, since it was in the mode.
+    EXPECT_TRUE(send(1, pdu(8, {1, 0}), {}).empty());
+    EXPECT_EQ(oracle.expectation(read), "a normal response");
+
+    // A device that ignored a broadcast 04 answers, and from then on is judged again.
+    EXPECT_TRUE(send(0, pdu(8, {4, 0}), {}).empty());
+    EXPECT_TRUE(send(1, pdu(3, {0, 1}), {0x03, 0x02, 0x00, 0x00}).empty());
+    EXPECT_EQ(oracle.expectation(read), "a normal response");
+    EXPECT_EQ(send(1, pdu(3, {0, 1}), {}).at(0).rule, "reply.missing");
+
+    // In the mode by an addressed 04, a broadcast restart may or may not have left it.
+    EXPECT_TRUE(send(1, pdu(8, {4, 0}), {}).empty());
+    EXPECT_EQ(oracle.expectation(read), "no reply");
+    EXPECT_TRUE(send(0, pdu(8, {1, 0}), {}).empty());
+    EXPECT_EQ(oracle.expectation(read), "");
+    EXPECT_TRUE(send(1, pdu(5, {5, 0x5B05}), {}).empty());  // still in it: silence is not reported
+    EXPECT_TRUE(send(1, pdu(8, {1, 0}), {0x08, 0x00, 0x01, 0x00, 0x00}).empty());  // was out: the echo
+    EXPECT_EQ(oracle.expectation(read), "a normal response");
 }
 
 TEST(ExchangeOracle, AnAcknowledgedWriteMustReadBack) {

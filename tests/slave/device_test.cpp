@@ -62,6 +62,21 @@ TEST(Device, ListenOnlyModeAnswersNothingButRestart) {
     EXPECT_EQ(ask(device, "03 00 00 00 01"), "03 02 00 00");
 }
 
+// A broadcast runs only writes (SL §2.1): a broadcast sub-function 04 does not enter listen-only mode and a
+// broadcast restart does not leave it (found by fuzz_slave: the oracle and the slave disagreed).
+TEST(Device, BroadcastDiagnosticsNeitherEnterNorLeaveListenOnlyMode) {
+    Device device(profile("modbus"), 1);
+    EXPECT_TRUE(device.handle({bytes("08 00 04 00 00"), true}).pdu.empty());
+    EXPECT_FALSE(device.listen_only());
+    EXPECT_EQ(ask(device, "08 00 04 00 00"), "");
+    ASSERT_TRUE(device.listen_only());
+    EXPECT_TRUE(device.handle({bytes("08 00 01 00 00"), true}).pdu.empty());
+    EXPECT_TRUE(device.listen_only());
+    EXPECT_EQ(ask(device, "05 00 05 5B 05"), "");
+    EXPECT_EQ(ask(device, "08 00 01 00 00"), "");
+    EXPECT_FALSE(device.listen_only());
+}
+
 TEST(Device, RestartCommunicationsChecksItsData) {
     Device device(profile("modbus"), 1);
     EXPECT_EQ(ask(device, "08 00 01 12 34"), "88 03");
