@@ -87,18 +87,7 @@ DecodedFrame decode_frame(Framing framing, std::vector<std::uint8_t> wire, Direc
     DecodedFrame d;
     d.framing = framing;
     d.wire = std::move(wire);
-    Result<Frame> frame = make_error(ErrorCode::Truncated, 0);
-    switch (framing) {
-        case Framing::Rtu:
-            frame = decode_rtu(d.wire);
-            break;
-        case Framing::Ascii:
-            frame = decode_ascii(d.wire);
-            break;
-        case Framing::Tcp:
-            frame = decode_tcp(d.wire);
-            break;
-    }
+    Result<Frame> frame = decode_adu(framing, d.wire);
     if (!frame) {
         d.error = std::string(to_string(framing)) + " ADU: " + describe_error(frame.error());
         return d;

@@ -78,9 +78,7 @@ bool simulated(const modbus::Profile& p, Table t, std::uint16_t address) {
 
 std::optional<ExchangeOracle::Request> ExchangeOracle::decode_sent(
     const std::vector<std::uint8_t>& sent) const {
-    modbus::Result<modbus::Frame> frame = framing_ == Framing::Rtu     ? modbus::decode_rtu(sent)
-                                          : framing_ == Framing::Ascii ? modbus::decode_ascii(sent)
-                                                                       : modbus::decode_tcp(sent);
+    modbus::Result<modbus::Frame> frame = modbus::decode_adu(framing_, sent);
     if (!frame) return std::nullopt;
     Request r;
     r.unit = frame->unit_id();

@@ -12,6 +12,7 @@
 #include "fuzz/fuzz_support.hpp"
 #include "fuzz/libmodbus_peer.hpp"
 #include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
 #include "slave/device.hpp"
 
@@ -65,14 +66,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         // Invalid for the codec: libmodbus may wait for more bytes, refuse it or answer an exception, but
         // must not serve it.
         if (whole && their_normal)
-            fuzz::fail(target, "libmodbus serves a request the codec finds invalid: " + fuzz::hex(adu) +
-                                   " -> " + fuzz::hex(theirs.reply));
+            fuzz::fail(target, "libmodbus serves a request the codec finds invalid: " +
+                                   modbus::hex_bytes(adu) + " -> " + modbus::hex_bytes(theirs.reply));
         return 0;
     }
     if (!whole)
         fuzz::fail(target, "the codec decodes a complete, valid request of " + std::to_string(size) +
                                " bytes, libmodbus read " + std::to_string(theirs.received) + ": " +
-                               fuzz::hex(adu));
+                               modbus::hex_bytes(adu));
 
     slave::Device device(generic_profile(), frame->unit_id());
     const auto ours = device.handle({pdu, false}).pdu;
@@ -80,7 +81,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         theirs.reply.size() > 7 ? std::span<const std::uint8_t>(theirs.reply).subspan(7)
                                 : std::span<const std::uint8_t>{};
     if (!std::equal(ours.begin(), ours.end(), their_pdu.begin(), their_pdu.end()))
-        fuzz::fail(target, "different answers to " + fuzz::hex(adu) + "\n  reference slave: " +
-                               fuzz::hex(ours) + "\n  libmodbus:       " + fuzz::hex(their_pdu));
+        fuzz::fail(target, "different answers to " + modbus::hex_bytes(adu) +
+                               "\n  reference slave: " + modbus::hex_bytes(ours) +
+                               "\n  libmodbus:       " + modbus::hex_bytes(their_pdu));
     return 0;
 }

@@ -22,6 +22,7 @@
 #include "fuzz/bundled_profiles.hpp"
 #include "fuzz/fuzz_support.hpp"
 #include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
 #include "slave/device.hpp"
 #include "slave/responder.hpp"
 
@@ -29,18 +30,6 @@ using namespace mbscope;
 using modbus::Framing;
 
 namespace {
-
-modbus::Result<modbus::Frame> decode(Framing framing, std::span<const std::uint8_t> adu) {
-    switch (framing) {
-        case Framing::Rtu:
-            return modbus::decode_rtu(adu);
-        case Framing::Ascii:
-            return modbus::decode_ascii(adu);
-        case Framing::Tcp:
-            break;
-    }
-    return modbus::decode_tcp(adu);
-}
 
 slave::FaultSet no_faults;  // none: the clean slave must satisfy every rule
 
@@ -121,7 +110,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         } else {
             adu = std::move(body);  // as the input holds it: checksum, MBAP header and all
         }
-        const auto frame = decode(framing, adu);
+        const auto frame = modbus::decode_adu(framing, adu);
         if (!frame) continue;  // no frame: the server never hands such bytes to a unit
 
         std::uint64_t before = 0;
@@ -131,7 +120,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         ex.sent = std::move(adu);  // the frame holds its own copy
         ex.received = responder.respond(*frame);
         if (!ex.received.empty()) {
-            if (auto reply = decode(framing, ex.received); reply) ex.response = std::move(*reply);
+            if (auto reply = modbus::decode_adu(framing, ex.received); reply) ex.response = std::move(*reply);
         }
         std::uint64_t after = 0;
         for (auto* d : units)
@@ -140,12 +129,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         static const bool trace = std::getenv("MBSCOPE_FUZZ_TRACE") != nullptr;
         if (trace)
             std::fprintf(stderr, "unit %s  %s -> %s\n", std::to_string(frame->unit_id()).c_str(),
-                         fuzz::hex(ex.sent).c_str(),
-                         ex.received.empty() ? "(silence)" : fuzz::hex(ex.received).c_str());
+                         modbus::hex_bytes(ex.sent).c_str(),
+                         ex.received.empty() ? "(silence)" : modbus::hex_bytes(ex.received).c_str());
         for (const auto& v : oracle.judge(ex, changed))
             fuzz::fail("fuzz_slave", conformance::to_string(v) + "\n  profile " + first.id +
                                          (units.size() > 1 ? " + " + second.id : "") + "\n  request " +
-                                         fuzz::hex(ex.sent) + "\n  reply   " + fuzz::hex(ex.received));
+                                         modbus::hex_bytes(ex.sent) + "\n  reply   " +
+                                         modbus::hex_bytes(ex.received));
     }
     return 0;
 }

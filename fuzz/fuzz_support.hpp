@@ -41,18 +41,6 @@ inline modbus::DeframeEvents& reused_events() {
     return events;
 }
 
-// "11 03 00 6B": bytes as the failure messages show them.
-inline std::string hex(std::span<const std::uint8_t> bytes) {
-    static constexpr char digits[] = "0123456789ABCDEF";
-    std::string out;
-    for (auto b : bytes) {
-        if (!out.empty()) out += ' ';
-        out += digits[b >> 4];
-        out += digits[b & 15];
-    }
-    return out;
-}
-
 // Events must tile the stream [0, end): contiguous, in order, nothing twice, nothing missing. `skipped`
 // are stream ranges the caller declared lost (TCP holes), which no event covers.
 class StreamAccount {

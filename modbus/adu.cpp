@@ -135,4 +135,16 @@ Result<Frame> decode_tcp(std::span<const std::uint8_t> adu) noexcept {
     return frame;
 }
 
+Result<Frame> decode_adu(Framing framing, std::span<const std::uint8_t> adu) noexcept {
+    switch (framing) {
+        case Framing::Rtu:
+            return decode_rtu(adu);
+        case Framing::Ascii:
+            return decode_ascii(adu);
+        case Framing::Tcp:
+            break;
+    }
+    return decode_tcp(adu);
+}
+
 }  // namespace mbscope::modbus

@@ -38,6 +38,8 @@ Result<Frame> decode_rtu(std::span<const std::uint8_t> adu) noexcept;
 Result<Frame> decode_ascii(std::span<const std::uint8_t> chars) noexcept;
 // Modbus/TCP ADU. Errors: Truncated, LengthFieldInvalid (length outside 2..254 or not the bytes present).
 Result<Frame> decode_tcp(std::span<const std::uint8_t> adu) noexcept;
+// One ADU as the framing writes it: decode_rtu, decode_ascii or decode_tcp.
+Result<Frame> decode_adu(Framing framing, std::span<const std::uint8_t> adu) noexcept;
 
 namespace detail {
 // Decode the hex characters between ':' and CR into frame.bytes; sets the LRC status and findings.

@@ -178,10 +178,7 @@ std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& 
     modbus::transport::Exchange ex = previous;
     ex.received = bytes;
     ex.response.reset();
-    const auto framing = client.framing();
-    auto frame = framing == modbus::Framing::Rtu     ? modbus::decode_rtu(bytes)
-                 : framing == modbus::Framing::Ascii ? modbus::decode_ascii(bytes)
-                                                     : modbus::decode_tcp(bytes);
+    auto frame = modbus::decode_adu(client.framing(), bytes);
     if (frame) ex.response = std::move(frame).value();
     auto found = oracle.judge(ex);
     for (auto& v : found)

@@ -57,9 +57,7 @@ Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silen
 }
 
 std::optional<Frame> decode(Framing framing, std::span<const std::uint8_t> bytes) {
-    Result<Frame> f = framing == Framing::Tcp   ? decode_tcp(bytes)
-                      : framing == Framing::Rtu ? decode_rtu(bytes)
-                                                : decode_ascii(bytes);
+    Result<Frame> f = decode_adu(framing, bytes);
     if (!f) return std::nullopt;
     return std::move(f).value();
 }

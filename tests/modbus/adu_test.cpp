@@ -98,3 +98,23 @@ TEST(AsciiAdu, StructuralErrorsNameTheCharacter) {
     EXPECT_EQ(mb::decode_ascii(bytes_of(":1103006000389\r\n")).error().code, mb::ErrorCode::OddHexLength);
     EXPECT_EQ(mb::decode_ascii(bytes_of(":1103\r\n")).error().code, mb::ErrorCode::Truncated);
 }
+
+// decode_adu is the framing's own decoder: the same frame, and the same error on bytes of another framing.
+TEST(Adu, DecodeAduChoosesTheFramingsDecoder) {
+    const std::vector<std::uint8_t> pdu{0x03, 0x00, 0x60, 0x00, 0x01};
+    const auto rtu = mb::encode_rtu(0x11, pdu);
+    const auto tcp = mb::encode_tcp(7, 0x11, pdu);
+    const auto text = mb::encode_ascii(0x11, pdu);
+    const std::vector<std::uint8_t> ascii(text.begin(), text.end());
+    for (const auto& [framing, adu] : {std::pair{mb::Framing::Rtu, rtu}, std::pair{mb::Framing::Tcp, tcp},
+                                       std::pair{mb::Framing::Ascii, ascii}}) {
+        const auto frame = mb::decode_adu(framing, adu);
+        ASSERT_TRUE(frame) << static_cast<int>(framing);
+        EXPECT_EQ(frame->framing, framing);
+        EXPECT_EQ(frame->unit_id(), 0x11);
+        EXPECT_TRUE(frame->checksum_ok);
+        EXPECT_EQ(std::vector<std::uint8_t>(frame->pdu().begin(), frame->pdu().end()), pdu);
+    }
+    EXPECT_EQ(mb::decode_adu(mb::Framing::Ascii, rtu).error().code, mb::ErrorCode::BadStartCharacter);
+    EXPECT_EQ(mb::decode_adu(mb::Framing::Tcp, rtu).error().code, mb::ErrorCode::LengthFieldInvalid);
+}
