@@ -13,16 +13,13 @@ namespace {
 
 // Names this program gives (enumerations, function names, record types) are plain ASCII: no escaping.
 void plain_member(JsonWriter& out, JsonKey key, std::string_view text) {
-    out.key(key);
-    out.plain_value(text);
+    out.plain_member(key, text);
 }
 
 void text_member(JsonWriter& out, JsonKey key, const SharedText& text) {
+    if (text.json_plain()) return out.plain_member(key, text.view());
     out.key(key);
-    if (text.json_plain())
-        out.plain_value(text.view());
-    else
-        out.value(text.view());
+    out.value(text.view());
 }
 
 }  // namespace

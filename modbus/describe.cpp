@@ -100,12 +100,7 @@ struct FieldStream {
     JsonWriter& out;
 
     void write(const HexBytes& v) { out.hex_value(v.bytes); }
-    void write(const Words& v) {
-        out.begin_array();
-        for (auto w : v.words)
-            out.value(w);
-        out.end_array();
-    }
+    void write(const Words& v) { out.value(std::span<const std::uint16_t>(v.words)); }
     void write(const Bits& v) {
         out.begin_array();
         for (std::size_t i = 0; i < v.count; ++i)
@@ -124,7 +119,7 @@ struct FieldStream {
 
     template <class V, class M>
     void add(std::string_view name, const V& value, M&&) {
-        out.dynamic_key(name);
+        out.plain_key(name);  // field names are this file's literals and indexes
         write(value);
     }
 };

@@ -1,6 +1,7 @@
 #include "modbus/json_writer.hpp"
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 
@@ -102,6 +103,19 @@ void JsonWriter::value(std::int64_t n) {
     size_ = static_cast<std::size_t>(std::to_chars(p, p + 24, n).ptr - buffer_.get());
 }
 
+void JsonWriter::value(std::span<const std::uint16_t> words) {
+    separate();
+    char* p = reserve(2 + words.size() * 6);  // "65535," each
+    *p++ = '[';
+    for (std::size_t i = 0; i < words.size(); ++i) {
+        if (i) *p++ = ',';
+        p = std::to_chars(p, p + 5, words[i]).ptr;
+    }
+    *p++ = ']';
+    size_ = static_cast<std::size_t>(p - buffer_.get());
+    first_ = false;
+}
+
 void JsonWriter::value(double d) {
     if (!std::isfinite(d)) return null();
     separate();
@@ -120,18 +134,25 @@ void JsonWriter::value(double d) {
 }
 
 void JsonWriter::hex_value(std::span<const std::uint8_t> bytes) {
-    static constexpr char digits[] = "0123456789ABCDEF";
+    // Every byte's two digits and a space, so that each byte is one 4-byte copy (the next byte's copy
+    // overwrites the fourth): a table of 1 KiB.
+    static constexpr auto table = [] {
+        constexpr char digits[] = "0123456789ABCDEF";
+        std::array<std::array<char, 4>, 256> t{};
+        for (std::size_t b = 0; b < 256; ++b)
+            t[b] = {digits[b >> 4], digits[b & 0xF], ' ', ' '};
+        return t;
+    }();
     separate();
     const std::size_t n = 2 + (bytes.empty() ? 0 : bytes.size() * 3 - 1);
-    char* p = reserve(n);
+    char* p = reserve(n + 2);  // room for the last copy's two spare characters
     size_ += n;
     *p++ = '"';
-    for (std::size_t i = 0; i < bytes.size(); ++i) {
-        if (i) *p++ = ' ';
-        *p++ = digits[bytes[i] >> 4];
-        *p++ = digits[bytes[i] & 0xF];
+    for (const std::uint8_t b : bytes) {
+        std::memcpy(p, table[b].data(), 4);
+        p += 3;
     }
-    *p = '"';
+    p[bytes.empty() ? 0 : -1] = '"';
 }
 
 void JsonWriter::escaped(std::string_view s) {

@@ -10,6 +10,7 @@
 // that reads back to the same value, with ".0" when it is integral; NaN and infinities are null.
 
 #include <cassert>
+#include <charconv>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -63,10 +64,11 @@ class JsonWriter {
     void begin_array() { open('['); }
     void end_array() { close(']'); }
     // A key of the object being written; the value follows with one of the calls below.
-    void key(JsonKey k) {
-        separate();
-        quoted(k.name);
-        put(':');
+    void key(JsonKey k) { plain_key(k.name); }
+    // A key made by the program at run time from names that need no escaping ("sub_request[0].file_number").
+    void plain_key(std::string_view name) {
+        assert(json_plain(name));
+        size_ = static_cast<std::size_t>(put_key(reserve(name.size() + 4), name) - buffer_.get());
         after_key_ = true;
     }
     void dynamic_key(std::string_view name);
@@ -89,6 +91,8 @@ class JsonWriter {
     void value(std::uint8_t n) { value(static_cast<std::uint64_t>(n)); }
     void value(int n) { value(static_cast<std::int64_t>(n)); }
     void null();
+    // [1,2,3]: register values, the commonest array of a record stream, written through one cursor.
+    void value(std::span<const std::uint16_t> words);
     // "11 03 00 60": bytes as the hex_bytes() string, without making the string first.
     void hex_value(std::span<const std::uint8_t> bytes);
 
@@ -103,6 +107,36 @@ class JsonWriter {
     void member(JsonKey name, const T& v) {
         key(name);
         value(v);
+    }
+    // The hot members of a record stream, key and value written through one cursor; inline, so that the
+    // key's length is a constant where the key is a literal.
+    void member(JsonKey name, std::uint64_t n) {
+        char* p = put_key(reserve(name.name.size() + 4 + 20), name.name);
+        size_ = static_cast<std::size_t>(std::to_chars(p, p + 20, n).ptr - buffer_.get());
+    }
+    void member(JsonKey name, std::uint32_t n) { member(name, static_cast<std::uint64_t>(n)); }
+    void member(JsonKey name, std::uint16_t n) { member(name, static_cast<std::uint64_t>(n)); }
+    void member(JsonKey name, std::uint8_t n) { member(name, static_cast<std::uint64_t>(n)); }
+    void member(JsonKey name, bool b) {
+        char* p = put_key(reserve(name.name.size() + 4 + 5), name.name);
+        if (b) {
+            std::memcpy(p, "true", 4);
+            p += 4;
+        } else {
+            std::memcpy(p, "false", 5);
+            p += 5;
+        }
+        size_ = static_cast<std::size_t>(p - buffer_.get());
+    }
+    // A member whose text its owner knows needs no escaping (see plain_value).
+    void plain_member(JsonKey name, std::string_view text) {
+        assert(json_plain(text));
+        char* p = put_key(reserve(name.name.size() + text.size() + 6), name.name);
+        *p++ = '"';
+        std::memcpy(p, text.data(), text.size());
+        p += text.size();
+        *p++ = '"';
+        size_ = static_cast<std::size_t>(p - buffer_.get());
     }
 
   private:
@@ -119,6 +153,19 @@ class JsonWriter {
     void put(char c) {
         *reserve(1) = c;
         ++size_;
+    }
+    // `,"key":` (no comma at the start of an object) at p, which has room for it; returns the end. The
+    // writer's state is read once and the text written through a local cursor: a store through a char*
+    // may alias any member, so writing through put() made the compiler reload them after every character.
+    char* put_key(char* p, std::string_view name) {
+        if (!first_) *p++ = ',';
+        first_ = false;
+        *p++ = '"';
+        std::memcpy(p, name.data(), name.size());
+        p += name.size();
+        *p++ = '"';
+        *p++ = ':';
+        return p;
     }
     void separate() {
         if (after_key_) {
