@@ -247,7 +247,7 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
                        std::string(to_string(u->reason)) + ")");
             continue;
         }
-        FrameRecord r;
+        FrameRecord r(std::get<Frame>(e));
         r.index = ++next_frame_;
         r.packet = packet_number_;
         r.time = t;
@@ -255,7 +255,6 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
         r.link = flow.link;
         r.direction = to_server ? Direction::Request : Direction::Response;
         r.carrier = flow.carrier;
-        r.frame = std::get<Frame>(e);
         DeviceStats* stats = nullptr;
         r.device = device_of(flow, r.frame.unit_id(), stats);
         auto pdu = decode_pdu(r.frame.pdu(), r.direction);
@@ -312,8 +311,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
                 report(rule.code, r, rule.message);
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
-        TransactionRecord t;
-        t.request = std::move(r);
+        TransactionRecord t(std::move(r));
         t.broadcast = true;
         sink_.transaction(t);
         return;
@@ -439,8 +437,7 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
 }
 
 void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out) {
-    TransactionRecord t;
-    t.request = std::move(pending.request);
+    TransactionRecord t(std::move(pending.request));
     // The transaction is written first, then what was found in it.
     struct Deferred {
         FindingCode code;
@@ -639,7 +636,7 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             continue;
         }
         Frame& frame = std::get<Frame>(e);
-        FrameRecord r;
+        FrameRecord r(frame);
         r.index = ++next_frame_;
         r.packet = packet;
         r.time = frame.end.count() ? frame.end : t;
@@ -648,7 +645,6 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         r.link = flow.link;
         r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
         r.carrier = flow.carrier;
-        r.frame = frame;
         DeviceStats* stats = nullptr;
         r.device = device_of(flow, frame.unit_id(), stats);
         auto pdu = decode_pdu(r.frame.pdu(), r.direction);

@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "analyzer/shared_text.hpp"
@@ -31,6 +32,10 @@ struct Register32 {
 };
 
 struct FrameRecord {
+    FrameRecord() = default;
+    // With its frame from the start: a new Frame zeroes its whole buffer, a copy copies only the bytes the
+    // frame holds (made for every frame of a capture, this was a tenth of the summary's time).
+    explicit FrameRecord(const modbus::Frame& f) : frame(f) {}
     std::uint64_t index = 0;   // 1-based frame number in this analysis
     std::uint64_t packet = 0;  // capture packet in which the frame ended
     modbus::Timestamp time{0};
@@ -45,6 +50,8 @@ struct FrameRecord {
 };
 
 struct TransactionRecord {
+    TransactionRecord() = default;
+    explicit TransactionRecord(FrameRecord&& r) : request(std::move(r)) {}  // see FrameRecord(const Frame&)
     FrameRecord request;
     std::optional<FrameRecord> response;
     std::optional<modbus::Timestamp> latency;
