@@ -50,6 +50,11 @@ struct Frame {
     // (a field added here must be added to operator= above: the size check below is there to say so)
 
     Frame() noexcept : bytes{} {}
+    // For a deframer that fills the frame at once (length and the bytes before it): the bytes past `length`
+    // are left as they are, as in a copy, instead of zeroing 263 bytes per frame (half the time of the TCP
+    // deframer's loop).
+    struct Unfilled {};
+    explicit Frame(Unfilled) noexcept {}
     Frame(const Frame& other) noexcept { *this = other; }
     Frame& operator=(const Frame& other) noexcept {
         if (this == &other) return *this;

@@ -146,7 +146,7 @@ void RtuDeframer::run(bool at_end, DeframeEvents& out) {
             pending_.length += static_cast<std::uint32_t>(step.length);
         } else {
             flush_unparsed(out);
-            Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>));
+            Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>, Frame::Unfilled{}));
             detail::fill_rtu_frame(rest.first(step.length), frame);
             frame.offset = base_;
         }
@@ -179,7 +179,7 @@ void RtuDeframer::finish(DeframeEvents& out) {
 // ---------------------------------------------------------------- timed
 
 void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, DeframeEvents& out) {
-    Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>));
+    Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>, Frame::Unfilled{}));
     detail::fill_rtu_frame({seg_.data() + begin, length}, frame);
     frame.offset = seg_offset_ + begin;
     frame.start = times_[begin];

@@ -95,7 +95,7 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
             in_sync_ = false;
         } else {
             flush_unparsed(out);
-            Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>));
+            Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>, Frame::Unfilled{}));
             frame.framing = Framing::Tcp;
             frame.offset = base_;
             frame.length = static_cast<std::uint16_t>(step.length);
