@@ -6,6 +6,7 @@
 #include "conformance/context.hpp"
 #include "modbus/addressing.hpp"
 #include "modbus/adu.hpp"
+#include "modbus/function_code.hpp"
 #include "modbus/pdu.hpp"
 
 namespace mbscope::conformance {
@@ -43,12 +44,6 @@ Table table_of_fc(std::uint8_t fc) {
 
 bool serial(Framing f) {
     return f != Framing::Tcp;
-}
-
-// FC8 sub-function 01 with the data the specification allows (0000, FF00): what leaves listen-only mode.
-bool restart_communications(std::span<const std::uint8_t> pdu) {
-    return pdu.size() == 5 && pdu[0] == 8 && pdu[1] == 0 && pdu[2] == 1 && (pdu[3] == 0 || pdu[3] == 0xFF) &&
-           pdu[4] == 0;
 }
 
 // FC8 sub-function 01 or 04 of any data: a request that may change a device's listen-only mode.
@@ -132,9 +127,9 @@ ExchangeOracle::Expected ExchangeOracle::expect(const Request& r) const {
     }
     if (listen_only_.count(u->id)) {
         // Only "restart communications" acts, and even it is not answered (AP §6.8.1 sub-function 01).
-        return silence(
-            restart_communications(r.pdu) ? "silence.restart_from_listen_only" : "silence.listen_only",
-            "AP §6.8.1");
+        return silence(modbus::is_restart_communications(r.pdu) ? "silence.restart_from_listen_only"
+                                                                : "silence.listen_only",
+                       "AP §6.8.1");
     }
     Expected answer = expect_pdu(r, *u->profile);
     if (framing_ == Framing::Rtu) {
@@ -407,7 +402,7 @@ std::vector<OracleViolation> ExchangeOracle::judge(const tp::Exchange& ex,
     const bool silent = ex.received.empty();
     const Unit* u = route(r->unit);
     if (u && r->checksum_ok && listen_only_unknown_.count(u->id)) {
-        const bool restart = restart_communications(r->pdu);
+        const bool restart = modbus::is_restart_communications(r->pdu);
         if (silent && !restart) return out;  // still unknown
         listen_only_unknown_.erase(u->id);
         if (silent) return out;  // a restart that left the mode, unanswered as AP §6.8.1 says

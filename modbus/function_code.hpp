@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string_view>
 
 namespace mbscope::modbus {
@@ -39,6 +40,9 @@ bool is_public_function(std::uint8_t function_code) noexcept;
 // AP §5.1: 65-72 and 100-110 are user-defined; 9, 10, 13, 14, 41, 42, 90, 91, 125, 126, 127 are reserved.
 bool is_user_defined_function(std::uint8_t function_code) noexcept;
 bool is_reserved_function(std::uint8_t function_code) noexcept;
+// AP §6.8.1: FC8 sub-function 01 with the data the specification allows (0000 or FF00), the one request a
+// device in listen-only mode acts upon.
+bool is_restart_communications(std::span<const std::uint8_t> pdu) noexcept;
 
 enum class ExceptionCode : std::uint8_t {
     IllegalFunction = 0x01,

@@ -112,10 +112,7 @@ Reply Device::handle(const Request& request) {
     // addressed to the device: a broadcast runs writes alone (SL §2.1), so a broadcast restart no more
     // leaves the mode than a broadcast sub-function 04 enters it.
     if (listen_only_) {
-        const auto& p = request.pdu;
-        const bool restart = !request.broadcast && fc == 8 && p.size() == 5 && p[1] == 0 && p[2] == 1 &&
-                             (p[3] == 0 || p[3] == 0xFF) && p[4] == 0;
-        if (restart) {
+        if (!request.broadcast && modbus::is_restart_communications(request.pdu)) {
             listen_only_ = false;
             counters_ = Counters{};
         } else {
