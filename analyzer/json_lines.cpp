@@ -11,11 +11,8 @@ using namespace mbscope::modbus;
 
 namespace {
 
-// Names this program gives (enumerations, function names, record types) are plain ASCII: no escaping.
-void plain_member(JsonWriter& out, JsonKey key, std::string_view text) {
-    out.plain_member(key, text);
-}
-
+// Names this program gives (enumerations, function names, record types) go through out.plain_member: no
+// escaping. Link, source and device names come from the input and are checked once, when they are made.
 void text_member(JsonWriter& out, JsonKey key, const SharedText& text) {
     if (text.json_plain()) return out.plain_member(key, text.view());
     out.key(key);
@@ -29,7 +26,7 @@ void write_frame(const FrameRecord& f, JsonWriter& out) {
     const auto pdu_bytes = f.frame.pdu();
     out.begin_object();
     out.member("checksum_ok", f.frame.checksum_ok);
-    plain_member(out, "direction", to_string(f.direction));
+    out.plain_member("direction", to_string(f.direction));
     if (!f.pdu) out.member("error", std::string_view(f.error));
     if (f.pdu)
         out.member("exception", f.pdu->is_exception());
@@ -40,10 +37,10 @@ void write_frame(const FrameRecord& f, JsonWriter& out) {
         write_pdu_fields(*f.pdu, out);
     }
     out.member("frame", f.index);
-    plain_member(out, "framing", to_string(f.frame.framing));
+    out.plain_member("framing", to_string(f.frame.framing));
     if (f.pdu) {
         out.member("function", f.pdu->function_code());
-        if (auto n = function_name(f.pdu->function_code())) plain_member(out, "function_name", *n);
+        if (auto n = function_name(f.pdu->function_code())) out.plain_member("function_name", *n);
         out.member("function_raw", f.pdu->function_raw);
     } else if (!pdu_bytes.empty()) {
         out.member("function", static_cast<std::uint8_t>(pdu_bytes[0] & 0x7F));
@@ -56,9 +53,9 @@ void write_frame(const FrameRecord& f, JsonWriter& out) {
     out.hex_value(f.frame.adu());
     text_member(out, "source", f.source);
     if (tcp) out.member("transaction_id", f.frame.transaction_id());
-    plain_member(out, "transport", to_string(f.carrier));
+    out.plain_member("transport", to_string(f.carrier));
     out.member("ts", seconds(f.time));
-    plain_member(out, "type", "frame");
+    out.plain_member("type", "frame");
     out.member("unit_id", f.frame.unit_id());
     out.end_object();
 }
@@ -99,9 +96,9 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
     text_member(out, "source", q.source);
     if (!r && !t.broadcast) out.member("timeout", t.timed_out);
     if (q.frame.framing == Framing::Tcp) out.member("transaction_id", q.frame.transaction_id());
-    plain_member(out, "transport", to_string(q.carrier));
+    out.plain_member("transport", to_string(q.carrier));
     out.member("ts", seconds(q.time));
-    plain_member(out, "type", "transaction");
+    out.plain_member("type", "transaction");
     out.member("unit_id", q.frame.unit_id());
     if (!t.values.empty()) {
         out.key("values");
@@ -110,7 +107,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
             write_named_value(v, out);
         out.end_array();
     }
-    if (t.word_order) plain_member(out, "word_order", to_string(*t.word_order));
+    if (t.word_order) out.plain_member("word_order", to_string(*t.word_order));
     out.end_object();
 }
 
@@ -130,24 +127,24 @@ void write_finding(const FindingRecord& f, JsonWriter& out) {
     out.member("message", std::string_view(f.message));
     out.member("packet", f.packet);
     out.member("rule", i.rule);
-    plain_member(out, "severity", to_string(i.severity));
+    out.plain_member("severity", to_string(i.severity));
     text_member(out, "source", f.source);
     out.member("ts", seconds(f.time));
-    plain_member(out, "type", "finding");
+    out.plain_member("type", "finding");
     out.end_object();
 }
 
 void write_unparsed(const UnparsedRecord& u, JsonWriter& out) {
     out.begin_object();
-    plain_member(out, "direction", to_string(u.direction));
+    out.plain_member("direction", to_string(u.direction));
     out.member("length", u.length);
     text_member(out, "link", u.link);
     out.member("offset", u.offset);
     out.member("packet", u.packet);
-    plain_member(out, "reason", to_string(u.reason));
+    out.plain_member("reason", to_string(u.reason));
     text_member(out, "source", u.source);
     out.member("ts", seconds(u.time));
-    plain_member(out, "type", "unparsed");
+    out.plain_member("type", "unparsed");
     out.end_object();
 }
 

@@ -132,11 +132,7 @@ class JsonWriter {
     void plain_member(JsonKey name, std::string_view text) {
         assert(json_plain(text));
         char* p = put_key(reserve(name.name.size() + text.size() + 6), name.name);
-        *p++ = '"';
-        std::memcpy(p, text.data(), text.size());
-        p += text.size();
-        *p++ = '"';
-        size_ = static_cast<std::size_t>(p - buffer_.get());
+        size_ = static_cast<std::size_t>(put_quoted(p, text) - buffer_.get());
     }
 
   private:
@@ -184,13 +180,16 @@ class JsonWriter {
         put(c);
         first_ = false;
     }
-    // text between quotes, as it is (json_plain text)
+    // text between quotes, as it is (json_plain text), at p, which has room for it; returns the end
+    static char* put_quoted(char* p, std::string_view text) {
+        *p++ = '"';
+        std::memcpy(p, text.data(), text.size());
+        p += text.size();
+        *p++ = '"';
+        return p;
+    }
     void quoted(std::string_view text) {
-        char* p = reserve(text.size() + 2);
-        *p = '"';
-        std::memcpy(p + 1, text.data(), text.size());
-        p[text.size() + 1] = '"';
-        size_ += text.size() + 2;
+        size_ = static_cast<std::size_t>(put_quoted(reserve(text.size() + 2), text) - buffer_.get());
     }
     void escaped(std::string_view text);
 
