@@ -7,8 +7,8 @@
 #include <filesystem>
 
 #include "analyzer/serial_input.hpp"
-#include "process_support.hpp"
 #include "test_packets.hpp"
+#include "tests/support/process_support.hpp"
 
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;

@@ -10,8 +10,8 @@
 
 #include "analyzer/capture_source.hpp"
 #include "analyzer/pcapng_writer.hpp"
-#include "process_support.hpp"
 #include "test_packets.hpp"
+#include "tests/support/process_support.hpp"
 
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;

@@ -5,7 +5,7 @@
 #include <sstream>
 
 #include "analyzer/progress.hpp"
-#include "process_support.hpp"
+#include "tests/support/process_support.hpp"
 
 namespace {
 

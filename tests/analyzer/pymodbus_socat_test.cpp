@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "process_support.hpp"
+#include "tests/support/process_support.hpp"
 
 namespace {
 

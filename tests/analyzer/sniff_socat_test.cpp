@@ -9,8 +9,8 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
-#include "process_support.hpp"
 #include "test_packets.hpp"
+#include "tests/support/process_support.hpp"
 
 using namespace mbscope::test;
 

@@ -8,8 +8,8 @@
 #include <map>
 #include <sstream>
 
-#include "process_support.hpp"
 #include "test_packets.hpp"
+#include "tests/support/process_support.hpp"
 
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;

@@ -5,13 +5,8 @@
 // here and in conformance/README.md, each checked against the bytes the server sent.
 #include <gtest/gtest.h>
 #include <netinet/in.h>
-#include <signal.h>
-#include <spawn.h>
 #include <sys/socket.h>
-#include <sys/wait.h>
 #include <unistd.h>
-
-#include <fcntl.h>
 
 #include <set>
 #include <thread>
@@ -19,8 +14,7 @@
 #include "conformance/runner.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "modbus/transport/client.hpp"
-
-extern char** environ;
+#include "tests/support/process_support.hpp"
 
 namespace mbscope::conformance {
 namespace {
@@ -40,32 +34,10 @@ std::uint16_t free_port() {
     return ntohs(a.sin_port);
 }
 
-// A peer server process, killed when the object goes away.
-class Peer {
+// A peer server process, stopped when the object goes away.
+class Peer : public mbscope::test::Child {
   public:
-    explicit Peer(std::vector<std::string> argv) {
-        std::vector<char*> args;
-        for (auto& a : argv)
-            args.push_back(a.data());
-        args.push_back(nullptr);
-        posix_spawn_file_actions_t actions;
-        posix_spawn_file_actions_init(&actions);
-        posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-        posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
-        spawned_ = posix_spawn(&pid_, args[0], &actions, nullptr, args.data(), environ) == 0;
-        posix_spawn_file_actions_destroy(&actions);
-    }
-    ~Peer() {
-        if (!spawned_) return;
-        ::kill(pid_, SIGTERM);
-        int status = 0;
-        ::waitpid(pid_, &status, 0);
-    }
-    bool spawned() const noexcept { return spawned_; }
-
-  private:
-    pid_t pid_ = -1;
-    bool spawned_ = false;
+    explicit Peer(std::vector<std::string> argv) : Child(std::move(argv), "/dev/null", "/dev/null") {}
 };
 
 // Connects once the peer listens (a Python interpreter takes a moment to start).

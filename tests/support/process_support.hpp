@@ -1,5 +1,5 @@
 #pragma once
-// Shared by the analyzer tests that drive other programs (socat, jpnevulator, pymodbus, mbscope itself):
+// Shared by the tests that drive other programs (socat, jpnevulator, pymodbus, mbscope itself):
 // run a command for its output, read a file, start a process with its output in files and stop it by its
 // id, poll for a condition.
 #include <fcntl.h>
