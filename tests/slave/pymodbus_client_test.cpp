@@ -1,6 +1,7 @@
 // The reference slave driven by pymodbus's client (Debian python3-pymodbus, tests/peers/pymodbus_client.py)
-// over Modbus/TCP for every bundled profile, and over RTU-over-TCP and an RTU pseudo-terminal for one
-// profile of each manual: a value the manual allows is written and read back, one past the range is
+// for every bundled profile over every transport the slave serves (Modbus/TCP, Modbus/UDP, RTU and ASCII
+// over TCP, RTU and ASCII on a pseudo-terminal): a value the manual allows is written and read back, one
+// past the range is
 // refused with exception 03 and leaves the register unchanged, FC17 (which no bundled device supports)
 // gets exception 01.
 #include <gtest/gtest.h>
@@ -56,18 +57,18 @@ TEST_P(PymodbusClient, WritesReadsBackAndGetsTheManualsExceptions) {
         GTEST_SKIP() << c.profile << " has no register a client may write";
     }
 
-    auto endpoint = mb::transport::parse_endpoint(
-        c.transport == "rtu" ? std::string("rtu:pty?baud=38400&parity=N") : c.transport + "://127.0.0.1:0");
+    const bool serial = c.transport == "rtu" || c.transport == "ascii";
+    auto endpoint = mb::transport::parse_endpoint(serial ? c.transport + ":pty?baud=38400&parity=N"
+                                                         : c.transport + "://127.0.0.1:0");
     ASSERT_TRUE(endpoint.has_value());
     ServerOptions o;
-    o.create_pty = c.transport == "rtu";
+    o.create_pty = serial;
     Server server(*endpoint, {&device}, faults, o);
     auto opened = server.open();
     ASSERT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
     std::atomic<bool> stop{false};
     std::thread thread([&] { (void)server.run(stop); });
-    const std::string target =
-        c.transport == "rtu" ? server.address() : "127.0.0.1:" + std::to_string(server.port());
+    const std::string target = serial ? server.address() : "127.0.0.1:" + std::to_string(server.port());
     const std::string got =
         run("/usr/bin/python3 " + std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_client.py " +
             c.transport + " " + target + " 1 " + std::to_string(address) + " " + std::to_string(value) + " " +
@@ -82,7 +83,9 @@ TEST_P(PymodbusClient, WritesReadsBackAndGetsTheManualsExceptions) {
     EXPECT_EQ(got, expected) << "register " << address;
 }
 
-INSTANTIATE_TEST_SUITE_P(EveryProfile, PymodbusClient, ::testing::ValuesIn(client_cases({"rtu-tcp", "rtu"})),
+INSTANTIATE_TEST_SUITE_P(EveryProfile, PymodbusClient,
+                         ::testing::ValuesIn(client_cases({"tcp", "udp", "rtu-tcp", "ascii-tcp", "rtu",
+                                                           "ascii"})),
                          client_case_name);
 
 }  // namespace

@@ -117,7 +117,8 @@ inline std::vector<std::uint8_t> quantity_request(std::uint8_t fc, std::uint16_t
 
 // ---- peer clients: which profiles over which transports
 
-// A profile served over a transport ("tcp", "rtu-tcp", "rtu" for a pseudo-terminal).
+// A profile served over a transport ("tcp", "udp", "rtu-tcp", "ascii-tcp"; "rtu" and "ascii" on a
+// pseudo-terminal).
 struct ClientCase {
     std::string profile;
     std::string transport;
@@ -127,14 +128,11 @@ inline std::ostream& operator<<(std::ostream& out, const ClientCase& c) {
     return out << c.profile << " over " << c.transport;
 }
 
-// Every bundled profile over TCP, and one profile of each manual (and the generic one) over each of
-// `others`.
-inline std::vector<ClientCase> client_cases(std::initializer_list<const char*> others) {
+// Every bundled profile over each of `transports`.
+inline std::vector<ClientCase> client_cases(std::initializer_list<const char*> transports) {
     std::vector<ClientCase> out;
-    for (const auto& id : profile_ids())
-        out.push_back({id, "tcp"});
-    for (const char* transport : others)
-        for (const char* id : {"mmk-2030", "dcy-2050", "cth2265i", "walchem-w600", "modbus"})
+    for (const char* transport : transports)
+        for (const auto& id : profile_ids())
             out.push_back({id, transport});
     return out;
 }
