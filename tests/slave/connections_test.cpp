@@ -1,0 +1,204 @@
+// The slave's connections and its serial line, seen from outside: a TCP client that says nothing is
+// disconnected after the idle timeout and one that stops in the middle of a frame (half-open) after the
+// frame timeout, while a client that keeps talking keeps its connection; on an RTU line the answer never
+// starts before the request's t3.5 silence (SL §2.5.1.1) and a frame with a bad CRC is never answered.
+//
+// The timeouts are asserted from below (a connection is never closed early) and from above only with a wide
+// margin (closed within seconds of a timeout of a few hundred milliseconds), so that a loaded machine
+// cannot make them fail.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <termios.h>
+
+#include <thread>
+
+#include "tests/slave/slave_test_support.hpp"
+
+namespace mbscope::slave::test {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+constexpr std::string_view kReadOneRegister = "000100000006010300000001";  // MBAP tid 1, FC3 0 x1
+
+// A server with the given options on 127.0.0.1, port 0, serving the generic profile as unit 1.
+class Served {
+  public:
+    Served(const std::string& endpoint, ServerOptions options) : device_(profile("modbus"), 1, &faults_) {
+        auto e = mb::transport::parse_endpoint(endpoint);
+        EXPECT_TRUE(e.has_value()) << endpoint;
+        server_ = std::make_unique<Server>(*e, std::vector<Device*>{&device_}, faults_, std::move(options));
+        auto opened = server_->open();
+        EXPECT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
+        thread_ = std::thread([this] { (void)server_->run(stop_); });
+    }
+    ~Served() { stop(); }
+    void stop() {
+        stop_ = true;
+        if (thread_.joinable()) thread_.join();
+    }
+    Server& server() { return *server_; }
+
+  private:
+    FaultSet faults_;
+    Device device_;
+    std::unique_ptr<Server> server_;
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+};
+
+// True when the peer closes the connection (a read returns end of file) within `timeout`.
+bool closed_within(int fd, std::chrono::milliseconds timeout) {
+    const auto deadline = Clock::now() + timeout;
+    while (Clock::now() < deadline) {
+        pollfd p{fd, POLLIN, 0};
+        if (::poll(&p, 1, 50) <= 0) continue;
+        std::uint8_t buf[256];
+        const ssize_t n = ::recv(fd, buf, sizeof buf, MSG_DONTWAIT);
+        if (n == 0) return true;
+        if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK) return true;  // reset
+    }
+    return false;
+}
+
+// A raw TCP connection to the server whose descriptor the test watches.
+int connect_to(std::uint16_t port) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(port);
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(::connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a), 0);
+    return fd;
+}
+
+// A whole FC3 reply (11 bytes) to a read of one register.
+bool answered(Client& c) {
+    c.send(bytes(kReadOneRegister));
+    return c.read(11).size() == 11;
+}
+
+void send_hex(int fd, std::string_view text) {
+    const auto b = bytes(text);
+    ASSERT_EQ(::send(fd, b.data(), b.size(), MSG_NOSIGNAL), static_cast<ssize_t>(b.size()));
+}
+
+TEST(Connections, AnIdleClientIsClosedAfterTheIdleTimeoutWhileATalkingOneStays) {
+    ServerOptions o;
+    o.idle_timeout = 1000ms;
+    Served s("tcp://127.0.0.1:0", o);
+    const auto connected = Clock::now();
+    const int idle = connect_to(s.server().port());
+    Client talking(s.server().port());
+    ASSERT_TRUE(talking.connected());
+
+    // The talking client asks about every 50 ms until the idle one is closed (at most 10 s), and is
+    // answered each time.
+    bool closed = false;
+    int asked = 0, replies = 0;
+    while (!closed && Clock::now() - connected < 10s) {
+        ++asked;
+        if (answered(talking)) ++replies;
+        closed = closed_within(idle, 50ms);
+    }
+    const auto elapsed = Clock::now() - connected;
+    EXPECT_TRUE(closed) << "a client silent for 10 s with a 1 s idle timeout is still connected";
+    EXPECT_GE(elapsed, o.idle_timeout) << "closed before its idle timeout";
+    EXPECT_EQ(replies, asked);
+    EXPECT_TRUE(answered(talking)) << "the talking client lost its connection";
+    ::close(idle);
+    s.stop();
+    EXPECT_EQ(s.server().stats().closed_idle, 1u);
+}
+
+TEST(Connections, AHalfOpenClientIsClosedAfterTheFrameTimeoutLongBeforeTheIdleTimeout) {
+    ServerOptions o;
+    o.idle_timeout = 60s;
+    o.frame_timeout = 200ms;
+    Served s("tcp://127.0.0.1:0", o);
+    const int half_open = connect_to(s.server().port());
+    Client quiet(s.server().port());
+    ASSERT_TRUE(quiet.connected());
+    ASSERT_TRUE(answered(quiet));
+
+    // Seven bytes of a twelve-byte request, then nothing: a client that died in the middle of a frame.
+    send_hex(half_open, kReadOneRegister.substr(0, 14));
+    EXPECT_TRUE(closed_within(half_open, 10s)) << "half a frame held for 10 s with a 200 ms frame timeout";
+    // A client that finished its frames and stays quiet is not half-open: it keeps its connection.
+    EXPECT_TRUE(answered(quiet));
+    ::close(half_open);
+    s.stop();
+    EXPECT_EQ(s.server().stats().closed_idle, 1u);
+}
+
+// The other side of the slave's pseudo-terminal, raw.
+int open_terminal(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+    EXPECT_GE(fd, 0) << path;
+    if (fd < 0) return fd;
+    termios t{};
+    ::tcgetattr(fd, &t);
+    ::cfmakeraw(&t);
+    ::tcsetattr(fd, TCSANOW, &t);
+    return fd;
+}
+
+// Waits for the first byte of a reply; the time from `sent` to it, or nothing within `timeout`.
+std::optional<Clock::duration> first_byte_after(int fd, Clock::time_point sent,
+                                                std::chrono::milliseconds timeout) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(timeout.count())) <= 0) return std::nullopt;
+    return Clock::now() - sent;
+}
+
+std::vector<std::uint8_t> read_all(int fd, std::size_t count) {
+    std::vector<std::uint8_t> out;
+    while (out.size() < count) {
+        pollfd p{fd, POLLIN, 0};
+        if (::poll(&p, 1, 1000) <= 0) break;
+        std::uint8_t buf[256];
+        const ssize_t n = ::read(fd, buf, std::min(sizeof buf, count - out.size()));
+        if (n <= 0) break;
+        out.insert(out.end(), buf, buf + n);
+    }
+    return out;
+}
+
+TEST(SerialLine, RtuAnswersOnlyAfterTheRequestsT35SilenceAndNeverABadCrc) {
+    // 1200 baud, 8N1: a character is 8.3 ms, t3.5 29 ms, long enough to measure from below on any machine.
+    Served s("rtu:pty?baud=1200&parity=N", [] {
+        ServerOptions o;
+        o.create_pty = true;
+        return o;
+    }());
+    auto line = mb::transport::parse_endpoint("rtu:pty?baud=1200&parity=N");
+    ASSERT_TRUE(line.has_value());
+    const auto t35 = line->line.t3_5();
+    const int fd = open_terminal(s.server().address());
+    ASSERT_GE(fd, 0);
+
+    // FC3, address 0, one register, to unit 1 (CRC 840A), its last byte flipped: never answered.
+    const auto bad = bytes("01030000000184 0B");
+    ASSERT_EQ(::write(fd, bad.data(), bad.size()), static_cast<ssize_t>(bad.size()));
+    EXPECT_FALSE(first_byte_after(fd, Clock::now(), 300ms).has_value())
+        << "a frame with a bad CRC was answered";
+
+    for (int round = 0; round < 3; ++round) {
+        const auto good = bytes("010300000001840A");
+        const auto sent = Clock::now();
+        ASSERT_EQ(::write(fd, good.data(), good.size()), static_cast<ssize_t>(good.size()));
+        const auto after = first_byte_after(fd, sent, 2000ms);
+        ASSERT_TRUE(after.has_value()) << "round " << round << ": no answer";
+        EXPECT_GE(*after, t35) << "round " << round
+                               << ": the answer started before the request's t3.5 silence";
+        const auto reply = read_all(fd, 7);
+        ASSERT_EQ(reply.size(), 7u);
+        EXPECT_EQ(hex(std::span<const std::uint8_t>(reply.data(), 3)), "01 03 02");
+        std::this_thread::sleep_for(50ms);
+    }
+    ::close(fd);
+}
+
+}  // namespace
+}  // namespace mbscope::slave::test
