@@ -134,6 +134,53 @@ class EveryProfile : public ::testing::TestWithParam<std::string> {
     Device device{p, 1};
 };
 
+// The rules below have a subject only in some profiles (a read-only register, a range, FC8, ...): each is
+// instantiated over the bundled profiles that have it, so no case runs without a subject.
+template <typename Has>
+std::vector<std::string> profiles_with(Has has) {
+    std::vector<std::string> out;
+    for (const auto& id : profile_ids())
+        if (has(profile(id))) out.push_back(id);
+    return out;
+}
+
+// A read-only single register, nullptr when the map has none.
+const mb::Point* read_only_register(const mb::Profile& p) {
+    return find_point(p, [](const mb::Point& pt) {
+        return pt.access == mb::Access::Read && !pt.reserved && pt.encoding.words == 1;
+    });
+}
+
+// A writable single register with a range that FC6 can step past, nullptr when none.
+const mb::Point* ranged_register(const mb::Profile& p) {
+    return find_point(p, [](const mb::Point& x) {
+        if (!writable_word(x) || !x.max || x.encoding.type == mb::EncodingType::Enum) return false;
+        return *x.max + 1 <= (is_signed(x) ? 32767 : 65535);
+    });
+}
+
+// A writable 32-bit float with a range, nullptr when none.
+const mb::Point* ranged_float(const mb::Profile& p) {
+    return find_point(p, [](const mb::Point& x) {
+        return x.access != mb::Access::Read && x.encoding.type == mb::EncodingType::F32 && x.max;
+    });
+}
+
+// A writable enumeration, nullptr when none.
+const mb::Point* enumerated_register(const mb::Profile& p) {
+    return find_point(p, [](const mb::Point& x) {
+        return writable_word(x) && x.encoding.type == mb::EncodingType::Enum && !x.encoding.values.empty();
+    });
+}
+
+class MappedProfile : public EveryProfile {};           // addresses outside the map exist
+class OpenProfile : public EveryProfile {};             // every address is mapped (the generic profile)
+class ProfileWithReadOnly : public EveryProfile {};     // a read-only register
+class ProfileWithRange : public EveryProfile {};        // a writable register or float with a range
+class ProfileWithEnumeration : public EveryProfile {};  // a writable enumeration
+class ProfileWithFc5 : public EveryProfile {};
+class ProfileWithFc8 : public EveryProfile {};
+
 // MK-FC-01 (000:287, 313), WA-FC-01 (002:226-238), CTH-FC-01 (003:498), AP §7: a function the device does
 // not list is answered with exception 01 — every profile's manual (or the specification) says 01.
 TEST_P(EveryProfile, UnsupportedFunctionIsException01) {
@@ -187,8 +234,7 @@ TEST_P(EveryProfile, QuantityAtTheLimitIsNotRefusedForItsSize) {
 
 // MK-EXC-03/05 (000:476, 481-484), WA-EXC-03 (002:390), CTH-EXC-01 (003:566-574), MK-MODEL-01: an address
 // the map lacks is exception 02, for reads and writes, at the first hole and one past the last point.
-TEST_P(EveryProfile, UnmappedAddressIsException02) {
-    if (p.open_address_space) GTEST_SKIP() << "the generic profile holds every address";
+TEST_P(MappedProfile, UnmappedAddressIsException02) {
     for (int fc : {1, 2, 3, 4, 5, 6, 15, 16}) {
         if (!p.functions.supports(u8(fc))) continue;
         const Table t = table_of(fc);
@@ -214,8 +260,7 @@ TEST_P(EveryProfile, UnmappedAddressIsException02) {
 // AP §6 (every address of the range must exist) against WA-EXC-03 (002:390: "only if the first requested
 // register is not valid"): a read that starts on the last mapped address before a hole and runs into it is
 // 02 on devices that check every address, answered with data on devices that check the first only.
-TEST_P(EveryProfile, ReadRunningIntoAHoleFollowsTheAddressCheck) {
-    if (p.open_address_space) GTEST_SKIP() << "the generic profile holds every address";
+TEST_P(MappedProfile, ReadRunningIntoAHoleFollowsTheAddressCheck) {
     const Table t = Table::HoldingRegisters;
     const std::uint32_t hole = first_unmapped(p, t, first_point(p, t));
     ASSERT_GT(hole, 0u);
@@ -225,6 +270,21 @@ TEST_P(EveryProfile, ReadRunningIntoAHoleFollowsTheAddressCheck) {
         EXPECT_EQ(bytes(reply).size(), 6u) << reply;
     else
         EXPECT_EQ(reply, "83 02");
+}
+
+// AP §4.3: a device may map every address of every table; the generic profile does, so no address is 02,
+// from the first to the last, and a read running over the top of the space is still answered with data.
+TEST_P(OpenProfile, EveryAddressIsAnswered) {
+    for (int fc : {1, 2, 3, 4}) {
+        for (std::uint16_t a : {0x0000, 0x7FFF, 0xFFFF}) {
+            SCOPED_TRACE("FC" + std::to_string(fc) + " address " + std::to_string(a));
+            EXPECT_EQ(bytes(ask(device, quantity_request(u8(fc), a, 1))).size(), fc <= 2 ? 3u : 4u);
+        }
+        EXPECT_EQ(bytes(ask(device, quantity_request(u8(fc), 0xFFF0, 16))).size(), fc <= 2 ? 4u : 34u);
+    }
+    EXPECT_EQ(ask(device, write_single(6, 0xFFFF, 0x1234)), hex(write_single(6, 0xFFFF, 0x1234)));
+    EXPECT_EQ(ask(device, write_single(5, 0xFFFF, 0xFF00)), hex(write_single(5, 0xFFFF, 0xFF00)));
+    EXPECT_EQ(device.image().reg(Table::HoldingRegisters, 0xFFFF), 0x1234);
 }
 
 // MK-BC-02 (000:313), CTH-BC-02 (003:498), SL §2.1: a read sent to unit 0 is neither executed nor answered.
@@ -275,11 +335,9 @@ TEST_P(EveryProfile, BroadcastWriteIsExecutedAndNeverAnswered) {
 
 // MK-RO-01 (000:493 "Somente leitura"), CTH-MAP-02 (003:598-610), WA-GEN-04 (002:172): a read-only point is
 // not written. No manual gives the code; every profile leaves it to the specification's 02.
-TEST_P(EveryProfile, WriteToReadOnlyPointIsException02) {
-    const mb::Point* ro = find_point(p, [](const mb::Point& pt) {
-        return pt.access == mb::Access::Read && !pt.reserved && pt.encoding.words == 1;
-    });
-    if (!ro) GTEST_SKIP() << "no read-only register";
+TEST_P(ProfileWithReadOnly, WriteToReadOnlyPointIsException02) {
+    const mb::Point* ro = read_only_register(p);
+    ASSERT_NE(ro, nullptr);
     const std::uint16_t before = device.image().reg(Table::HoldingRegisters, ro->address);
     SCOPED_TRACE(ro->source);
     EXPECT_EQ(ask(device, write_single(6, ro->address, static_cast<std::uint16_t>(before + 1))), "86 02");
@@ -289,12 +347,8 @@ TEST_P(EveryProfile, WriteToReadOnlyPointIsException02) {
 // MK-RNG-01 (every "Faixa de valores"), WA-EXC-04 (002:391), CTH-EXC-01 (003:566-574): a value outside the
 // point's range is exception 03 and not kept; the range's own bound is accepted. 32-bit floats are written
 // whole with FC16 in the profile's word order (WA-ADR-04, 002:499).
-TEST_P(EveryProfile, ValueOutsideTheRangeIsException03) {
-    const mb::Point* pt = find_point(p, [](const mb::Point& x) {
-        if (!writable_word(x) || !x.max || x.encoding.type == mb::EncodingType::Enum) return false;
-        return *x.max + 1 <= (is_signed(x) ? 32767 : 65535);
-    });
-    if (pt) {
+TEST_P(ProfileWithRange, ValueOutsideTheRangeIsException03) {
+    if (const mb::Point* pt = ranged_register(p)) {
         SCOPED_TRACE(pt->source + " " + pt->name_en);
         const auto above = static_cast<std::uint16_t>(*pt->max + 1);
         EXPECT_EQ(ask(device, write_single(6, pt->address, above)), "86 03");
@@ -303,10 +357,8 @@ TEST_P(EveryProfile, ValueOutsideTheRangeIsException03) {
         EXPECT_EQ(ask(device, write_single(6, pt->address, top)), hex(write_single(6, pt->address, top)));
         return;
     }
-    const mb::Point* f = find_point(p, [](const mb::Point& x) {
-        return x.access != mb::Access::Read && x.encoding.type == mb::EncodingType::F32 && x.max;
-    });
-    if (!f) GTEST_SKIP() << "no writable register with a range";
+    const mb::Point* f = ranged_float(p);
+    ASSERT_NE(f, nullptr);
     SCOPED_TRACE(f->source + " " + f->name_en);
     const auto order = f->encoding.word_order;
     EXPECT_EQ(ask(device, write_registers(f->address, float_words(static_cast<float>(*f->max) + 1, order))),
@@ -318,11 +370,9 @@ TEST_P(EveryProfile, ValueOutsideTheRangeIsException03) {
 }
 
 // MK-ENC-05 (000:1360), MK-CFG-01 (000:218-226), WA-ENC-06: a value outside an enumeration is exception 03.
-TEST_P(EveryProfile, ValueOutsideTheEnumerationIsException03) {
-    const mb::Point* pt = find_point(p, [](const mb::Point& x) {
-        return writable_word(x) && x.encoding.type == mb::EncodingType::Enum && !x.encoding.values.empty();
-    });
-    if (!pt) GTEST_SKIP() << "no writable enumeration";
+TEST_P(ProfileWithEnumeration, ValueOutsideTheEnumerationIsException03) {
+    const mb::Point* pt = enumerated_register(p);
+    ASSERT_NE(pt, nullptr);
     SCOPED_TRACE(pt->source + " " + pt->name_en);
     std::int64_t top = 0;
     for (const auto& v : pt->encoding.values)
@@ -334,8 +384,7 @@ TEST_P(EveryProfile, ValueOutsideTheEnumerationIsException03) {
 
 // AP §6.5, MK-FC05-01 (000:371), WA-FC05-01 (002:330): FC5 values other than FF00/0000 are exception 03,
 // checked before the address (so also at an address the map lacks).
-TEST_P(EveryProfile, Fc5OtherValueIsException03BeforeTheAddress) {
-    if (!p.functions.supports(5)) GTEST_SKIP();
+TEST_P(ProfileWithFc5, Fc5OtherValueIsException03BeforeTheAddress) {
     for (std::uint16_t v : {0x1234, 0x0001, 0x00FF, 0xFFFF}) {
         SCOPED_TRACE(v);
         EXPECT_EQ(ask(device, write_single(5, 0xFFFF, v)), "85 03");
@@ -345,15 +394,66 @@ TEST_P(EveryProfile, Fc5OtherValueIsException03BeforeTheAddress) {
 // MK-FC08-01 (000:411-425), CTH-FC08-01 (003:540-546), AP §6.8.1: sub-function 0 echoes the request, any
 // data; a sub-function the device lacks is exception 01 (the MK and CTH manuals are silent on the code: their
 // profiles take the specification's).
-TEST_P(EveryProfile, Fc8ReturnQueryDataEchoesAndUnknownSubFunctionIs01) {
-    if (!p.functions.supports(8)) GTEST_SKIP();
+TEST_P(ProfileWithFc8, Fc8ReturnQueryDataEchoesAndUnknownSubFunctionIs01) {
     for (const char* echo : {"08 00 00 A5 37", "08 00 00 00 00", "08 00 00 FF FF"})
         EXPECT_EQ(ask(device, bytes(echo)), echo);
     EXPECT_EQ(ask(device, bytes("08 00 63 A5 37")), "88 01");
 }
 
-INSTANTIATE_TEST_SUITE_P(Bundled, EveryProfile, ::testing::ValuesIn(profile_ids()),
-                         [](const auto& info) { return test_name(info.param); });
+const auto profile_name = [](const auto& info) { return test_name(info.param); };
+INSTANTIATE_TEST_SUITE_P(Bundled, EveryProfile, ::testing::ValuesIn(profile_ids()), profile_name);
+INSTANTIATE_TEST_SUITE_P(Bundled, MappedProfile, ::testing::ValuesIn(profiles_with([](const mb::Profile& p) {
+                             return !p.open_address_space;
+                         })),
+                         profile_name);
+INSTANTIATE_TEST_SUITE_P(Bundled, OpenProfile, ::testing::ValuesIn(profiles_with([](const mb::Profile& p) {
+                             return p.open_address_space;
+                         })),
+                         profile_name);
+INSTANTIATE_TEST_SUITE_P(Bundled, ProfileWithReadOnly,
+                         ::testing::ValuesIn(profiles_with([](const mb::Profile& p) {
+                             return read_only_register(p);
+                         })),
+                         profile_name);
+INSTANTIATE_TEST_SUITE_P(Bundled, ProfileWithRange,
+                         ::testing::ValuesIn(profiles_with([](const mb::Profile& p) {
+                             return ranged_register(p) || ranged_float(p);
+                         })),
+                         profile_name);
+INSTANTIATE_TEST_SUITE_P(Bundled, ProfileWithEnumeration,
+                         ::testing::ValuesIn(profiles_with([](const mb::Profile& p) {
+                             return enumerated_register(p);
+                         })),
+                         profile_name);
+INSTANTIATE_TEST_SUITE_P(Bundled, ProfileWithFc5, ::testing::ValuesIn(profiles_with([](const mb::Profile& p) {
+                             return p.functions.supports(5);
+                         })),
+                         profile_name);
+INSTANTIATE_TEST_SUITE_P(Bundled, ProfileWithFc8, ::testing::ValuesIn(profiles_with([](const mb::Profile& p) {
+                             return p.functions.supports(8);
+                         })),
+                         profile_name);
+
+// The profiles each rule above leaves out, named: a profile that loses its subject (a transcription that
+// drops a range, FC8 removed) shows here instead of silently running fewer cases.
+TEST(EveryProfileList, RulesWithoutASubjectLeaveOutOnlyTheseProfiles) {
+    const auto without = [](auto has) {
+        std::vector<std::string> out;
+        for (const auto& id : profile_ids())
+            if (!has(profile(id))) out.push_back(id);
+        return out;
+    };
+    using V = std::vector<std::string>;
+    EXPECT_EQ(without([](const mb::Profile& p) { return !p.open_address_space; }), V{"modbus"});
+    EXPECT_EQ(without([](const mb::Profile& p) { return read_only_register(p) != nullptr; }), V{"modbus"});
+    EXPECT_EQ(without([](const mb::Profile& p) { return ranged_register(p) || ranged_float(p); }),
+              (V{"cth2265i", "modbus"}));
+    EXPECT_EQ(without([](const mb::Profile& p) { return enumerated_register(p) != nullptr; }),
+              (V{"cth2265i", "modbus"}));
+    EXPECT_EQ(without([](const mb::Profile& p) { return p.functions.supports(5); }), V{});
+    EXPECT_EQ(without([](const mb::Profile& p) { return p.functions.supports(8); }),
+              (V{"walchem-intuition9", "walchem-w600", "walchem-w900"}));
+}
 
 TEST(EveryProfileList, HoldsTheFortyEightBundledDevices) {
     EXPECT_EQ(profile_ids().size(), 48u);  // README: 43 MK Controle models, 3 Walchem, CTH2265I, generic
