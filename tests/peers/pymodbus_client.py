@@ -1,12 +1,16 @@
 #!/usr/bin/python3
-"""A Modbus client nobody here wrote: pymodbus (Debian python3-pymodbus) against a slave, one line of
-results per step, for tests/slave/pymodbus_client_test.cpp.
+"""A Modbus client nobody here wrote: pymodbus (Debian python3-pymodbus) against slaves, one line of
+results per slave, for tests/slave/pymodbus_client_test.cpp.
 
-    pymodbus_client.py tcp|udp|rtu-tcp|ascii-tcp|rtu|ascii TARGET UNIT ADDRESS VALUE BAD_VALUE
+    pymodbus_client.py tcp|udp|rtu-tcp|ascii-tcp|rtu|ascii < TARGETS
 
-TARGET is HOST:PORT, or the serial device (38400 baud, 8N1) for rtu and ascii. Writes VALUE to holding register ADDRESS and reads it
-back, writes BAD_VALUE (expected to be refused), reads again, and asks for FC17. Prints:
+Each line of standard input names one slave: TARGET UNIT ADDRESS VALUE BAD_VALUE. TARGET is HOST:PORT, or
+the serial device (38400 baud, 8N1) for rtu and ascii. The client writes VALUE to holding register ADDRESS
+and reads it back, writes BAD_VALUE (expected to be refused), reads again, and asks for FC17. One line out
+per line in:
     write=ok|exception:N|error  read=V|...  bad=...  after=V  fc17=...
+One interpreter serves every slave of a transport: starting Python and importing pymodbus costs more than
+the exchanges themselves.
 """
 import logging
 import sys
@@ -27,25 +31,23 @@ def outcome(response):
     return "ok"
 
 
-def main():
-    transport, target, unit, address, value, bad = sys.argv[1:7]
-    unit, address, value, bad = int(unit), int(address), int(value), int(bad)
-    logging.basicConfig(level=logging.CRITICAL)
+def client_for(transport, target):
     if transport in FRAMERS:
-        client = ModbusSerialClient(framer=FRAMERS[transport], port=target, baudrate=38400, parity="N",
-                                    timeout=1)
-    elif transport == "udp":
-        host, port = target.rsplit(":", 1)
-        client = ModbusUdpClient(host, port=int(port), timeout=1)
-    else:
-        # rtu-tcp and ascii-tcp: serial framing over a TCP connection, as a serial gateway carries it.
-        host, port = target.rsplit(":", 1)
-        framer = FRAMERS.get(transport.removesuffix("-tcp"))
-        kwargs = {"framer": framer} if framer else {}
-        client = ModbusTcpClient(host, port=int(port), timeout=1, **kwargs)
+        return ModbusSerialClient(framer=FRAMERS[transport], port=target, baudrate=38400, parity="N",
+                                  timeout=1)
+    host, port = target.rsplit(":", 1)
+    if transport == "udp":
+        return ModbusUdpClient(host, port=int(port), timeout=1)
+    # rtu-tcp and ascii-tcp: serial framing over a TCP connection, as a serial gateway carries it.
+    framer = FRAMERS.get(transport.removesuffix("-tcp"))
+    kwargs = {"framer": framer} if framer else {}
+    return ModbusTcpClient(host, port=int(port), timeout=1, **kwargs)
+
+
+def session(transport, target, unit, address, value, bad):
+    client = client_for(transport, target)
     if not client.connect():
-        print("connect=failed")
-        return 1
+        return "connect=failed"
     out = []
     w = client.write_register(address, value, slave=unit)
     out.append("write=" + outcome(w))
@@ -58,7 +60,19 @@ def main():
     s = client.execute(ReportSlaveIdRequest(unit=unit))
     out.append("fc17=" + outcome(s))
     client.close()
-    print(" ".join(out))
+    return " ".join(out)
+
+
+def main():
+    transport = sys.argv[1]
+    logging.basicConfig(level=logging.CRITICAL)
+    for line in sys.stdin:
+        fields = line.split()
+        if len(fields) != 5:
+            continue
+        target = fields[0]
+        unit, address, value, bad = (int(f) for f in fields[1:])
+        print(session(transport, target, unit, address, value, bad), flush=True)
     return 0
 
 

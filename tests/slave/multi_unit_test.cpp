@@ -125,15 +125,8 @@ TEST_P(MultiUnit, ABroadcastWriteReachesEveryUnitWithThePointAndIsNotAnswered) {
     EXPECT_EQ(line.ask(2, "03 0F AC 00 01"), "83 02");
 }
 
-// "rtu_tcp": a test name GoogleTest accepts.
-std::string transport_name(const ::testing::TestParamInfo<std::string>& info) {
-    std::string n = info.param;
-    for (auto& ch : n)
-        if (ch == '-') ch = '_';
-    return n;
-}
-
-INSTANTIATE_TEST_SUITE_P(Transports, MultiUnit, ::testing::Values("tcp", "rtu-tcp", "rtu"), transport_name);
+INSTANTIATE_TEST_SUITE_P(Transports, MultiUnit, ::testing::Values("tcp", "rtu-tcp", "rtu"),
+                         transport_test_name);
 
 TEST(MultiUnitState, TheStateFileKeepsEachUnitsWritesAcrossARestart) {
     const fs::path dir = fs::temp_directory_path() / ("mbscope-multi-unit-" + std::to_string(::getpid()));
@@ -208,7 +201,8 @@ TEST_P(MultiUnitLibmodbus, ReadsAndWritesEachUnitByItsProfile) {
     modbus_free(ctx);
 }
 
-INSTANTIATE_TEST_SUITE_P(Transports, MultiUnitLibmodbus, ::testing::Values("tcp", "rtu"), transport_name);
+INSTANTIATE_TEST_SUITE_P(Transports, MultiUnitLibmodbus, ::testing::Values("tcp", "rtu"),
+                         transport_test_name);
 
 }  // namespace
 }  // namespace mbscope::slave::test
