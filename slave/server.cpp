@@ -2,6 +2,7 @@
 
 #include <netinet/in.h>
 #include <poll.h>
+#include <sched.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -386,6 +387,14 @@ struct Server::Impl {
         }
     }
 
+    // After answering, the loop polls without sleeping for this long (yielding the core to anything else
+    // runnable) before it blocks again. A master polling back to back sends its next request within tens
+    // of microseconds; waking a sleeping thread for it costs about as much as the whole exchange (perf:
+    // over half the slave's time in the scheduler's wake-up path), so one client's rate more than doubles.
+    // A master polling every 100 ms costs the slave 50 us of a core per request.
+    static constexpr auto spin_after_reply = std::chrono::microseconds(50);
+    Clock::time_point spin_until{};
+
     modbus::Result<void, std::string> run(const std::atomic<bool>& stop) {
         std::vector<pollfd> fds;
         std::vector<std::uint64_t> ids;
@@ -421,9 +430,12 @@ struct Server::Impl {
                 ids.push_back(id);
             }
             const auto wait = std::chrono::duration_cast<std::chrono::microseconds>(wake - now).count();
-            const int timeout_ms = wait <= 0 ? 0 : static_cast<int>((wait + 999) / 1000);
+            const bool spin = now < spin_until;
+            const int timeout_ms = spin || wait <= 0 ? 0 : static_cast<int>((wait + 999) / 1000);
+            const auto responses_before = stats.responses;
             const int rc = ::poll(fds.data(), fds.size(), timeout_ms);
             if (rc < 0 && errno != EINTR) return std::string("poll: ") + std::strerror(errno);
+            if (rc == 0 && spin) ::sched_yield();
             now = Clock::now();
             std::vector<std::uint64_t> to_close;
             for (std::size_t i = 0; rc > 0 && i < fds.size(); ++i) {
@@ -471,6 +483,7 @@ struct Server::Impl {
             }
             for (auto id : to_close)
                 connections.erase(id);
+            if (stats.responses != responses_before) spin_until = now + spin_after_reply;
         }
         return {};
     }

@@ -1,6 +1,7 @@
 #include "modbus/transport/client.hpp"
 
 #include <poll.h>
+#include <sched.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -160,6 +161,10 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseco
             ? std::chrono::duration_cast<std::chrono::milliseconds>(endpoint_.line.t3_5()) +
                   std::chrono::milliseconds(1)
             : options_.settle;
+    // A server on the same machine or a fast network answers within tens of microseconds: polling without
+    // sleeping for that long first spares the wake-up of a sleeping thread, which costs about as much as
+    // the exchange (the slave's server loop does the same after answering).
+    const auto spin_until = start + std::chrono::microseconds(50);
     std::size_t found = 0, scan_from = 0;
     std::uint8_t buf[2048];
     for (;;) {
@@ -168,10 +173,15 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseco
         auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now);
         const bool timing_silence = framing() == Framing::Rtu && !ex.received.empty();
         if (timing_silence) wait = std::min(wait, silence_window);
+        const bool spin = now < spin_until && ex.received.empty();
         pollfd p{fd_.get(), POLLIN, 0};
-        const int rc = ::poll(&p, 1, static_cast<int>(std::max<long>(1, wait.count())));
+        const int rc = ::poll(&p, 1, spin ? 0 : static_cast<int>(std::max<long>(1, wait.count())));
         if (rc < 0 && errno == EINTR) continue;
         bool silence = false;
+        if (rc == 0 && spin) {
+            ::sched_yield();
+            continue;
+        }
         if (rc == 0) {
             if (!timing_silence) continue;
             silence = true;
