@@ -349,5 +349,25 @@ TEST(ServerFaults, ChecksumFaultsTouchOnlyTheirFraming) {
     }
 }
 
+// Faults planted together each leave their mark on the same response: over rtu-tcp, wrong-unit,
+// wrong-function and extra-bytes change the PDU and bad-crc the frame around it (the right CRC of
+// 02 04 02 00 00 DE AD is D8 99); over tcp, wrong-tid, bad-protocol-id, wrong-unit and wrong-function.
+TEST(ServerFaults, FaultsPlantedTogetherEachShow) {
+    {
+        RunningServer server({"wrong-unit", "wrong-function", "extra-bytes", "bad-crc"});
+        Client client(server.start("rtu-tcp"));
+        client.send(bytes("01 03 00 00 00 01 84 0A"));
+        const auto reply = client.read(9);
+        ASSERT_EQ(reply.size(), 9u);
+        EXPECT_EQ(hex(std::span(reply).first(7)), "02 04 02 00 00 DE AD");
+        EXPECT_NE(hex(std::span(reply).last(2)), "D8 99") << "bad-crc did not spoil the CRC";
+    }
+    {
+        RunningServer server({"wrong-tid", "bad-protocol-id", "wrong-unit", "wrong-function"});
+        Client client(server.start("tcp"));
+        EXPECT_EQ(client.exchange(tcp_read_request(1), 11), "00 02 00 01 00 05 02 04 02 00 00");
+    }
+}
+
 }  // namespace
 }  // namespace mbscope::slave::test
