@@ -60,9 +60,12 @@ Result<UniqueFd, std::string> first_working(const std::string& host, std::uint16
 }
 
 Result<UniqueFd, std::string> bound_socket(const std::string& host, std::uint16_t port, int socktype) {
-    return first_working(host, port, socktype, true, [](int fd, const addrinfo* a) -> std::string {
+    return first_working(host, port, socktype, true, [socktype](int fd, const addrinfo* a) -> std::string {
+        // TCP: a restarted server rebinds its port while old connections sit in TIME_WAIT. Not UDP, where
+        // SO_REUSEADDR lets a second socket bind a port in use (even one picked for port 0), and the
+        // datagrams meant for one server go to the other.
         const int one = 1;
-        setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+        if (socktype == SOCK_STREAM) setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
         if (::bind(fd, a->ai_addr, a->ai_addrlen) != 0) return std::strerror(errno);
         return {};
     });

@@ -132,6 +132,24 @@ TEST(Connections, AHalfOpenClientIsClosedAfterTheFrameTimeoutLongBeforeTheIdleTi
     EXPECT_EQ(s.server().stats().closed_idle, 1u);
 }
 
+// A second slave on a UDP port in use is refused, not bound beside the first (where the kernel would hand
+// the first one's datagrams to it); the same for TCP.
+TEST(Connections, ASecondSlaveOnAPortInUseIsRefused) {
+    for (const std::string scheme : {"udp", "tcp"}) {
+        SCOPED_TRACE(scheme);
+        Served first(scheme + "://127.0.0.1:0", ServerOptions{});
+        const auto port = std::to_string(first.server().port());
+        auto endpoint = mb::transport::parse_endpoint(scheme + "://127.0.0.1:" + port);
+        ASSERT_TRUE(endpoint.has_value());
+        FaultSet faults;
+        Device device(profile("modbus"), 1, &faults);
+        Server second(*endpoint, {&device}, faults, ServerOptions{});
+        auto opened = second.open();
+        ASSERT_FALSE(opened.has_value()) << scheme << " port " << port << " bound twice";
+        EXPECT_NE(opened.error().find(port), std::string::npos) << opened.error();
+    }
+}
+
 // The other side of the slave's pseudo-terminal, raw.
 int open_terminal(const std::string& path) {
     const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
