@@ -22,75 +22,20 @@ using Clock = std::chrono::steady_clock;
 
 constexpr std::string_view kReadOneRegister = "000100000006010300000001";  // MBAP tid 1, FC3 0 x1
 
-// A server with the given options on 127.0.0.1, port 0, serving the generic profile as unit 1.
-class Served {
-  public:
-    Served(const std::string& endpoint, ServerOptions options) : device_(profile("modbus"), 1, &faults_) {
-        auto e = mb::transport::parse_endpoint(endpoint);
-        EXPECT_TRUE(e.has_value()) << endpoint;
-        server_ = std::make_unique<Server>(*e, std::vector<Device*>{&device_}, faults_, std::move(options));
-        auto opened = server_->open();
-        EXPECT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
-        thread_ = std::thread([this] { (void)server_->run(stop_); });
-    }
-    ~Served() { stop(); }
-    void stop() {
-        stop_ = true;
-        if (thread_.joinable()) thread_.join();
-    }
-    Server& server() { return *server_; }
-
-  private:
-    FaultSet faults_;
-    Device device_;
-    std::unique_ptr<Server> server_;
-    std::atomic<bool> stop_{false};
-    std::thread thread_;
-};
-
-// True when the peer closes the connection (a read returns end of file) within `timeout`.
-bool closed_within(int fd, std::chrono::milliseconds timeout) {
-    const auto deadline = Clock::now() + timeout;
-    while (Clock::now() < deadline) {
-        pollfd p{fd, POLLIN, 0};
-        if (::poll(&p, 1, 50) <= 0) continue;
-        std::uint8_t buf[256];
-        const ssize_t n = ::recv(fd, buf, sizeof buf, MSG_DONTWAIT);
-        if (n == 0) return true;
-        if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK) return true;  // reset
-    }
-    return false;
-}
-
-// A raw TCP connection to the server whose descriptor the test watches.
-int connect_to(std::uint16_t port) {
-    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_port = htons(port);
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    EXPECT_EQ(::connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a), 0);
-    return fd;
-}
-
 // A whole FC3 reply (11 bytes) to a read of one register.
 bool answered(Client& c) {
     c.send(bytes(kReadOneRegister));
     return c.read(11).size() == 11;
 }
 
-void send_hex(int fd, std::string_view text) {
-    const auto b = bytes(text);
-    ASSERT_EQ(::send(fd, b.data(), b.size(), MSG_NOSIGNAL), static_cast<ssize_t>(b.size()));
-}
-
 TEST(Connections, AnIdleClientIsClosedAfterTheIdleTimeoutWhileATalkingOneStays) {
     ServerOptions o;
     o.idle_timeout = 1000ms;
-    Served s("tcp://127.0.0.1:0", o);
+    RunningServer s({});
+    const auto port = s.serve("tcp://127.0.0.1:0", o).port();
     const auto connected = Clock::now();
-    const int idle = connect_to(s.server().port());
-    Client talking(s.server().port());
+    Client idle(port);
+    Client talking(port);
     ASSERT_TRUE(talking.connected());
 
     // The talking client asks about every 50 ms until the idle one is closed (at most 10 s), and is
@@ -100,14 +45,13 @@ TEST(Connections, AnIdleClientIsClosedAfterTheIdleTimeoutWhileATalkingOneStays) 
     while (!closed && Clock::now() - connected < 10s) {
         ++asked;
         if (answered(talking)) ++replies;
-        closed = closed_within(idle, 50ms);
+        closed = idle.closed_within(50ms);
     }
     const auto elapsed = Clock::now() - connected;
     EXPECT_TRUE(closed) << "a client silent for 10 s with a 1 s idle timeout is still connected";
     EXPECT_GE(elapsed, o.idle_timeout) << "closed before its idle timeout";
     EXPECT_EQ(replies, asked);
     EXPECT_TRUE(answered(talking)) << "the talking client lost its connection";
-    ::close(idle);
     s.stop();
     EXPECT_EQ(s.server().stats().closed_idle, 1u);
 }
@@ -116,18 +60,18 @@ TEST(Connections, AHalfOpenClientIsClosedAfterTheFrameTimeoutLongBeforeTheIdleTi
     ServerOptions o;
     o.idle_timeout = 60s;
     o.frame_timeout = 200ms;
-    Served s("tcp://127.0.0.1:0", o);
-    const int half_open = connect_to(s.server().port());
-    Client quiet(s.server().port());
+    RunningServer s({});
+    const auto port = s.serve("tcp://127.0.0.1:0", o).port();
+    Client half_open(port);
+    Client quiet(port);
     ASSERT_TRUE(quiet.connected());
     ASSERT_TRUE(answered(quiet));
 
     // Seven bytes of a twelve-byte request, then nothing: a client that died in the middle of a frame.
-    send_hex(half_open, kReadOneRegister.substr(0, 14));
-    EXPECT_TRUE(closed_within(half_open, 10s)) << "half a frame held for 10 s with a 200 ms frame timeout";
+    half_open.send(bytes(kReadOneRegister.substr(0, 14)));
+    EXPECT_TRUE(half_open.closed_within(10s)) << "half a frame held for 10 s with a 200 ms frame timeout";
     // A client that finished its frames and stays quiet is not half-open: it keeps its connection.
     EXPECT_TRUE(answered(quiet));
-    ::close(half_open);
     s.stop();
     EXPECT_EQ(s.server().stats().closed_idle, 1u);
 }
@@ -137,8 +81,8 @@ TEST(Connections, AHalfOpenClientIsClosedAfterTheFrameTimeoutLongBeforeTheIdleTi
 TEST(Connections, ASecondSlaveOnAPortInUseIsRefused) {
     for (const std::string scheme : {"udp", "tcp"}) {
         SCOPED_TRACE(scheme);
-        Served first(scheme + "://127.0.0.1:0", ServerOptions{});
-        const auto port = std::to_string(first.server().port());
+        RunningServer first({});
+        const auto port = std::to_string(first.start(scheme));
         auto endpoint = mb::transport::parse_endpoint(scheme + "://127.0.0.1:" + port);
         ASSERT_TRUE(endpoint.has_value());
         FaultSet faults;
@@ -185,11 +129,10 @@ std::vector<std::uint8_t> read_all(int fd, std::size_t count) {
 
 TEST(SerialLine, RtuAnswersOnlyAfterTheRequestsT35SilenceAndNeverABadCrc) {
     // 1200 baud, 8N1: a character is 8.3 ms, t3.5 29 ms, long enough to measure from below on any machine.
-    Served s("rtu:pty?baud=1200&parity=N", [] {
-        ServerOptions o;
-        o.create_pty = true;
-        return o;
-    }());
+    ServerOptions o;
+    o.create_pty = true;
+    RunningServer s({});
+    s.serve("rtu:pty?baud=1200&parity=N", o);
     auto line = mb::transport::parse_endpoint("rtu:pty?baud=1200&parity=N");
     ASSERT_TRUE(line.has_value());
     const auto t35 = line->line.t3_5();

@@ -24,20 +24,11 @@ using mb::Table;
 // from a pseudo-terminal to the server's port.
 class Served {
   public:
-    explicit Served(const ClientCase& c) : device_(profile(c.profile), 1, &faults_) {
-        const bool pty = c.transport == "rtu";
-        auto endpoint = mb::transport::parse_endpoint(pty ? std::string("rtu:pty?baud=38400&parity=N")
-                                                          : c.transport + "://127.0.0.1:0");
-        EXPECT_TRUE(endpoint.has_value());
-        ServerOptions o;
-        o.create_pty = pty;
-        server_ = std::make_unique<Server>(*endpoint, std::vector<Device*>{&device_}, faults_, o);
-        auto opened = server_->open();
-        EXPECT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
-        thread_ = std::thread([this] { (void)server_->run(stop_); });
-        std::string serial = server_->address();
-        if (c.transport == "rtu-tcp") serial = start_gateway(c);
-        ctx_ = c.transport == "tcp" ? modbus_new_tcp("127.0.0.1", server_->port())
+    explicit Served(const ClientCase& c) : slave_({}, 1, c.profile) {
+        Server& server = slave_.serve_over(c.transport);
+        std::string serial = server.address();
+        if (c.transport == "rtu-tcp") serial = start_gateway(c, server.port());
+        ctx_ = c.transport == "tcp" ? modbus_new_tcp("127.0.0.1", server.port())
                                     : modbus_new_rtu(serial.c_str(), 38400, 'N', 8, 1);
         EXPECT_NE(ctx_, nullptr);
         if (ctx_) {
@@ -51,34 +42,28 @@ class Served {
             modbus_close(ctx_);
             modbus_free(ctx_);
         }
-        stop_ = true;
-        thread_.join();
     }
     modbus_t* ctx() { return ctx_; }
     bool connected() const { return connected_; }
-    Device& device() { return device_; }
+    Device& device() { return slave_.device(); }
 
   private:
     // socat between a pseudo-terminal (its path returned) and the server's TCP port.
-    std::string start_gateway(const ClientCase& c) {
+    std::string start_gateway(const ClientCase& c, std::uint16_t port) {
         const std::string dir = ::testing::TempDir() + "libmodbus_gateway_" + c.profile;
         std::filesystem::remove_all(dir);
         std::filesystem::create_directories(dir);
         const std::string link = dir + "/serial";
         gateway_ = std::make_unique<mbscope::test::Child>(
             std::vector<std::string>{"socat", "pty,raw,echo=0,link=" + link,
-                                     "tcp:127.0.0.1:" + std::to_string(server_->port())},
+                                     "tcp:127.0.0.1:" + std::to_string(port)},
             "/dev/null", dir + "/socat.err");
         EXPECT_TRUE(mbscope::test::wait_for([&] { return std::filesystem::exists(link); }))
             << "socat did not make " << link;
         return link;
     }
 
-    FaultSet faults_;
-    Device device_;
-    std::unique_ptr<Server> server_;
-    std::atomic<bool> stop_{false};
-    std::thread thread_;
+    RunningServer slave_;  // declared first: stops last, after the gateway and the client are gone
     std::unique_ptr<mbscope::test::Child> gateway_;
     modbus_t* ctx_ = nullptr;
     bool connected_ = false;

@@ -26,8 +26,8 @@ using mb::Table;
 // One profile served for the client, and what the client must see.
 class Case {
   public:
-    Case(const std::string& id, const std::string& transport) : id_(id), device_(profile(id), 1, &faults_) {
-        const mb::Profile& p = device_.profile();
+    Case(const std::string& id, const std::string& transport) : id_(id), slave_({}, 1, id) {
+        const mb::Profile& p = slave_.device().profile();
         // A register the client may write, a value it allows, and one past its range where it has one.
         const mb::Point* w = nullptr;
         for (const auto& pt : p.table(Table::HoldingRegisters))
@@ -38,7 +38,8 @@ class Case {
             if (!w && conformance::freely_writable(pt)) w = &pt;
         if (w) {
             address_ = w->address;
-            value_ = conformance::valid_alternative(w, device_.image().reg(Table::HoldingRegisters, address_))
+            value_ = conformance::valid_alternative(
+                         w, slave_.device().image().reg(Table::HoldingRegisters, address_))
                          .value_or(0);
             refusable_ = w->max && *w->max < 32767 && w->encoding.values.empty();
             bad_ = refusable_ ? static_cast<std::uint16_t>(*w->max + 1) : value_;
@@ -46,24 +47,10 @@ class Case {
         writable_ = w || p.open_address_space;
         fc17_ = p.functions.supports(17);
 
+        const Server& server = slave_.serve_over(transport);
         const bool serial = transport == "rtu" || transport == "ascii";
-        auto endpoint = mb::transport::parse_endpoint(serial ? transport + ":pty?baud=38400&parity=N"
-                                                             : transport + "://127.0.0.1:0");
-        EXPECT_TRUE(endpoint.has_value());
-        ServerOptions o;
-        o.create_pty = serial;
-        server_ = std::make_unique<Server>(*endpoint, std::vector<Device*>{&device_}, faults_, o);
-        auto opened = server_->open();
-        EXPECT_TRUE(opened.has_value()) << id << ": " << (opened ? "" : opened.error());
-        thread_ = std::thread([this] { (void)server_->run(stop_); });
-        target_ = serial ? server_->address() : "127.0.0.1:" + std::to_string(server_->port());
+        target_ = serial ? server.address() : "127.0.0.1:" + std::to_string(server.port());
     }
-    ~Case() {
-        stop_ = true;
-        thread_.join();
-    }
-    Case(const Case&) = delete;
-    Case& operator=(const Case&) = delete;
 
     const std::string& id() const { return id_; }
     bool writable() const { return writable_; }
@@ -81,13 +68,9 @@ class Case {
 
   private:
     std::string id_;
-    FaultSet faults_;
-    Device device_;
+    RunningServer slave_;
     std::uint16_t address_ = 0, value_ = 1234, bad_ = 1234;
     bool refusable_ = false, writable_ = false, fc17_ = false;
-    std::unique_ptr<Server> server_;
-    std::atomic<bool> stop_{false};
-    std::thread thread_;
     std::string target_;
 };
 

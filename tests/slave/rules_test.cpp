@@ -167,278 +167,279 @@ const mb::Point* enumerated_register(const mb::Profile& p) {
     });
 }
 
+// The subjects the rules below need, each a predicate on a profile.
+bool every_profile(const mb::Profile&) {
+    return true;
+}
+bool has_unmapped_addresses(const mb::Profile& p) {
+    return !p.open_address_space;
+}
+bool maps_every_address(const mb::Profile& p) {
+    return p.open_address_space;
+}
+bool has_read_only_register(const mb::Profile& p) {
+    return read_only_register(p) != nullptr;
+}
+bool has_range(const mb::Profile& p) {
+    return ranged_register(p) || ranged_float(p);
+}
+bool has_enumeration(const mb::Profile& p) {
+    return enumerated_register(p) != nullptr;
+}
+bool has_fc5(const mb::Profile& p) {
+    return p.functions.supports(5);
+}
+bool has_fc8(const mb::Profile& p) {
+    return p.functions.supports(8);
+}
+
 // MK-FC-01 (000:287, 313), WA-FC-01 (002:226-238), CTH-FC-01 (003:498), AP §7: a function the device does
 // not list is answered with exception 01 — every profile's manual (or the specification) says 01.
 TEST(EveryProfile, UnsupportedFunctionIsException01) {
-    for_profiles([](const mb::Profile&) { return true; },
-                 [&](const mb::Profile& p, Device& device) {
-                     for (int fc = 1; fc < 0x80; ++fc) {
-                         if (p.functions.supports(u8(fc))) continue;
-                         SCOPED_TRACE("FC" + std::to_string(fc));
-                         EXPECT_EQ(ask(device, {u8(fc), 0x00, 0x00, 0x00, 0x01}), exception_hex(fc, 0x01));
-                     }
-                 });
+    for_profiles(every_profile, [&](const mb::Profile& p, Device& device) {
+        for (int fc = 1; fc < 0x80; ++fc) {
+            if (p.functions.supports(u8(fc))) continue;
+            SCOPED_TRACE("FC" + std::to_string(fc));
+            EXPECT_EQ(ask(device, {u8(fc), 0x00, 0x00, 0x00, 0x01}), exception_hex(fc, 0x01));
+        }
+    });
 }
 
 // MK-FC01-02, MK-FC03-01, MK-FC15-01, MK-FC16-01 (000:325, 351, 431, 451), WA-FC01-01..WA-FC16-01
 // (002:232-238), CTH-FC03-01/CTH-FC16-01 (003:518, 560), AP §6: one more than the profile's limit, and
 // zero, are exception 03 — checked before the address (AP §6 state diagrams), so the start is a valid one.
 TEST(EveryProfile, QuantityAboveTheLimitOrZeroIsException03) {
-    for_profiles(
-        [](const mb::Profile&) { return true; },
-        [&](const mb::Profile& p, Device& device) {
-            for (int fc : {1, 2, 3, 4, 15, 16}) {
-                if (!p.functions.supports(u8(fc))) continue;
-                const int limit = p.functions.max_for(u8(fc));
-                const std::uint16_t start = first_point(p, table_of(fc));
-                for (std::uint32_t q : {static_cast<std::uint32_t>(limit + 1), 0u}) {
-                    SCOPED_TRACE("FC" + std::to_string(fc) + " quantity " + std::to_string(q));
-                    EXPECT_EQ(ask(device, quantity_request(u8(fc), start, q)), exception_hex(fc, 0x03));
-                }
+    for_profiles(every_profile, [&](const mb::Profile& p, Device& device) {
+        for (int fc : {1, 2, 3, 4, 15, 16}) {
+            if (!p.functions.supports(u8(fc))) continue;
+            const int limit = p.functions.max_for(u8(fc));
+            const std::uint16_t start = first_point(p, table_of(fc));
+            for (std::uint32_t q : {static_cast<std::uint32_t>(limit + 1), 0u}) {
+                SCOPED_TRACE("FC" + std::to_string(fc) + " quantity " + std::to_string(q));
+                EXPECT_EQ(ask(device, quantity_request(u8(fc), start, q)), exception_hex(fc, 0x03));
             }
-            if (p.functions.supports(23)) {  // AP §6.17: read part 125, write part 121
-                const int read_limit = p.functions.max_for(23), write_limit = p.functions.max_for(23, true);
-                std::vector<std::uint8_t> over_read{
-                    23, 0, 0, u8((read_limit + 1) >> 8), u8(read_limit + 1), 0, 0, 0, 1, 2, 0, 0};
-                EXPECT_EQ(ask(device, over_read), exception_hex(23, 0x03));
-                std::vector<std::uint8_t> over_write{
-                    23, 0, 0, 0, 1, 0, 0, 0, u8(write_limit + 1), u8(2 * (write_limit + 1))};
-                over_write.insert(over_write.end(), 2 * (write_limit + 1), 0);
-                EXPECT_EQ(ask(device, over_write), exception_hex(23, 0x03));
-            }
-        });
+        }
+        if (p.functions.supports(23)) {  // AP §6.17: read part 125, write part 121
+            const int read_limit = p.functions.max_for(23), write_limit = p.functions.max_for(23, true);
+            std::vector<std::uint8_t> over_read{
+                23, 0, 0, u8((read_limit + 1) >> 8), u8(read_limit + 1), 0, 0, 0, 1, 2, 0, 0};
+            EXPECT_EQ(ask(device, over_read), exception_hex(23, 0x03));
+            std::vector<std::uint8_t> over_write{
+                23, 0, 0, 0, 1, 0, 0, 0, u8(write_limit + 1), u8(2 * (write_limit + 1))};
+            over_write.insert(over_write.end(), 2 * (write_limit + 1), 0);
+            EXPECT_EQ(ask(device, over_write), exception_hex(23, 0x03));
+        }
+    });
 }
 
 // The limit itself is not a quantity error: a read of exactly the maximum is answered with data, or with 02
 // when the map has a hole in the range (AP §6: the quantity check passes, the address check decides).
 TEST(EveryProfile, QuantityAtTheLimitIsNotRefusedForItsSize) {
-    for_profiles([](const mb::Profile&) { return true; },
-                 [&](const mb::Profile& p, Device& device) {
-                     for (int fc : {1, 2, 3, 4}) {
-                         if (!p.functions.supports(u8(fc))) continue;
-                         const auto limit = static_cast<std::uint32_t>(p.functions.max_for(u8(fc)));
-                         SCOPED_TRACE("FC" + std::to_string(fc) + " quantity " + std::to_string(limit));
-                         const std::string reply =
-                             ask(device, quantity_request(u8(fc), first_point(p, table_of(fc)), limit));
-                         EXPECT_NE(reply, exception_hex(fc, 0x03));
-                         if (reply.substr(0, 2) == hex(std::vector<std::uint8_t>{u8(fc)})) {
-                             const std::size_t data = fc <= 2 ? (limit + 7) / 8 : 2 * limit;
-                             EXPECT_EQ(bytes(reply).size(), 2 + data);
-                         }
-                     }
-                 });
+    for_profiles(every_profile, [&](const mb::Profile& p, Device& device) {
+        for (int fc : {1, 2, 3, 4}) {
+            if (!p.functions.supports(u8(fc))) continue;
+            const auto limit = static_cast<std::uint32_t>(p.functions.max_for(u8(fc)));
+            SCOPED_TRACE("FC" + std::to_string(fc) + " quantity " + std::to_string(limit));
+            const std::string reply =
+                ask(device, quantity_request(u8(fc), first_point(p, table_of(fc)), limit));
+            EXPECT_NE(reply, exception_hex(fc, 0x03));
+            if (reply.substr(0, 2) == hex(std::vector<std::uint8_t>{u8(fc)})) {
+                const std::size_t data = fc <= 2 ? (limit + 7) / 8 : 2 * limit;
+                EXPECT_EQ(bytes(reply).size(), 2 + data);
+            }
+        }
+    });
 }
 
 // MK-EXC-03/05 (000:476, 481-484), WA-EXC-03 (002:390), CTH-EXC-01 (003:566-574), MK-MODEL-01: an address
 // the map lacks is exception 02, for reads and writes, at the first hole and one past the last point.
 TEST(MappedProfile, UnmappedAddressIsException02) {
-    for_profiles([](const mb::Profile& p) { return !p.open_address_space; },
-                 [&](const mb::Profile& p, Device& device) {
-                     for (int fc : {1, 2, 3, 4, 5, 6, 15, 16}) {
-                         if (!p.functions.supports(u8(fc))) continue;
-                         const Table t = table_of(fc);
-                         const auto& points = p.table(t);
-                         std::vector<std::uint32_t> holes{first_unmapped(p, t)};
-                         if (!points.empty())
-                             holes.push_back(first_unmapped(p, t, points.back().address + 1u));
-                         for (std::uint32_t a : holes) {
-                             if (a > 65535) continue;
-                             SCOPED_TRACE("FC" + std::to_string(fc) + " address " + std::to_string(a));
-                             const auto address = static_cast<std::uint16_t>(a);
-                             std::vector<std::uint8_t> request;
-                             if (fc == 5)
-                                 request = write_single(5, address, 0xFF00);
-                             else if (fc == 6)
-                                 request = write_single(6, address, 0);
-                             else
-                                 request = quantity_request(u8(fc), address, 1);
-                             EXPECT_EQ(ask(device, request), exception_hex(fc, 0x02));
-                         }
-                     }
-                 });
+    for_profiles(has_unmapped_addresses, [&](const mb::Profile& p, Device& device) {
+        for (int fc : {1, 2, 3, 4, 5, 6, 15, 16}) {
+            if (!p.functions.supports(u8(fc))) continue;
+            const Table t = table_of(fc);
+            const auto& points = p.table(t);
+            std::vector<std::uint32_t> holes{first_unmapped(p, t)};
+            if (!points.empty()) holes.push_back(first_unmapped(p, t, points.back().address + 1u));
+            for (std::uint32_t a : holes) {
+                if (a > 65535) continue;
+                SCOPED_TRACE("FC" + std::to_string(fc) + " address " + std::to_string(a));
+                const auto address = static_cast<std::uint16_t>(a);
+                std::vector<std::uint8_t> request;
+                if (fc == 5)
+                    request = write_single(5, address, 0xFF00);
+                else if (fc == 6)
+                    request = write_single(6, address, 0);
+                else
+                    request = quantity_request(u8(fc), address, 1);
+                EXPECT_EQ(ask(device, request), exception_hex(fc, 0x02));
+            }
+        }
+    });
 }
 
 // AP §6 (every address of the range must exist) against WA-EXC-03 (002:390: "only if the first requested
 // register is not valid"): a read that starts on the last mapped address before a hole and runs into it is
 // 02 on devices that check every address, answered with data on devices that check the first only.
 TEST(MappedProfile, ReadRunningIntoAHoleFollowsTheAddressCheck) {
-    for_profiles([](const mb::Profile& p) { return !p.open_address_space; },
-                 [&](const mb::Profile& p, Device& device) {
-                     const Table t = Table::HoldingRegisters;
-                     const std::uint32_t hole = first_unmapped(p, t, first_point(p, t));
-                     ASSERT_GT(hole, 0u);
-                     ASSERT_LT(hole, 65536u);
-                     const std::string reply =
-                         ask(device, quantity_request(3, static_cast<std::uint16_t>(hole - 1), 2));
-                     if (p.functions.address_check == mb::AddressCheck::First)
-                         EXPECT_EQ(bytes(reply).size(), 6u) << reply;
-                     else
-                         EXPECT_EQ(reply, "83 02");
-                 });
+    for_profiles(has_unmapped_addresses, [&](const mb::Profile& p, Device& device) {
+        const Table t = Table::HoldingRegisters;
+        const std::uint32_t hole = first_unmapped(p, t, first_point(p, t));
+        ASSERT_GT(hole, 0u);
+        ASSERT_LT(hole, 65536u);
+        const std::string reply = ask(device, quantity_request(3, static_cast<std::uint16_t>(hole - 1), 2));
+        if (p.functions.address_check == mb::AddressCheck::First)
+            EXPECT_EQ(bytes(reply).size(), 6u) << reply;
+        else
+            EXPECT_EQ(reply, "83 02");
+    });
 }
 
 // AP §4.3: a device may map every address of every table; the generic profile does, so no address is 02,
 // from the first to the last, and a read running over the top of the space is still answered with data.
 TEST(OpenProfile, EveryAddressIsAnswered) {
-    for_profiles(
-        [](const mb::Profile& p) { return p.open_address_space; },
-        [&](const mb::Profile&, Device& device) {
-            for (int fc : {1, 2, 3, 4}) {
-                for (std::uint16_t a : {0x0000, 0x7FFF, 0xFFFF}) {
-                    SCOPED_TRACE("FC" + std::to_string(fc) + " address " + std::to_string(a));
-                    EXPECT_EQ(bytes(ask(device, quantity_request(u8(fc), a, 1))).size(), fc <= 2 ? 3u : 4u);
-                }
-                EXPECT_EQ(bytes(ask(device, quantity_request(u8(fc), 0xFFF0, 16))).size(),
-                          fc <= 2 ? 4u : 34u);
+    for_profiles(maps_every_address, [&](const mb::Profile&, Device& device) {
+        for (int fc : {1, 2, 3, 4}) {
+            for (std::uint16_t a : {0x0000, 0x7FFF, 0xFFFF}) {
+                SCOPED_TRACE("FC" + std::to_string(fc) + " address " + std::to_string(a));
+                EXPECT_EQ(bytes(ask(device, quantity_request(u8(fc), a, 1))).size(), fc <= 2 ? 3u : 4u);
             }
-            EXPECT_EQ(ask(device, write_single(6, 0xFFFF, 0x1234)), hex(write_single(6, 0xFFFF, 0x1234)));
-            EXPECT_EQ(ask(device, write_single(5, 0xFFFF, 0xFF00)), hex(write_single(5, 0xFFFF, 0xFF00)));
-            EXPECT_EQ(device.image().reg(Table::HoldingRegisters, 0xFFFF), 0x1234);
-        });
+            EXPECT_EQ(bytes(ask(device, quantity_request(u8(fc), 0xFFF0, 16))).size(), fc <= 2 ? 4u : 34u);
+        }
+        EXPECT_EQ(ask(device, write_single(6, 0xFFFF, 0x1234)), hex(write_single(6, 0xFFFF, 0x1234)));
+        EXPECT_EQ(ask(device, write_single(5, 0xFFFF, 0xFF00)), hex(write_single(5, 0xFFFF, 0xFF00)));
+        EXPECT_EQ(device.image().reg(Table::HoldingRegisters, 0xFFFF), 0x1234);
+    });
 }
 
 // MK-BC-02 (000:313), CTH-BC-02 (003:498), SL §2.1: a read sent to unit 0 is neither executed nor answered.
 TEST(EveryProfile, BroadcastReadIsNeverAnswered) {
-    for_profiles(
-        [](const mb::Profile&) { return true; },
-        [&](const mb::Profile& p, Device& device) {
-            for (int fc : {1, 2, 3, 4}) {
-                if (!p.functions.supports(u8(fc))) continue;
-                SCOPED_TRACE("FC" + std::to_string(fc));
-                EXPECT_EQ(ask(device, quantity_request(u8(fc), first_point(p, table_of(fc)), 1), true), "");
-            }
-            EXPECT_EQ(ask(device, {0x08, 0x00, 0x00, 0xA5, 0x37}, true), "");  // even where FC8 is supported
-        });
+    for_profiles(every_profile, [&](const mb::Profile& p, Device& device) {
+        for (int fc : {1, 2, 3, 4}) {
+            if (!p.functions.supports(u8(fc))) continue;
+            SCOPED_TRACE("FC" + std::to_string(fc));
+            EXPECT_EQ(ask(device, quantity_request(u8(fc), first_point(p, table_of(fc)), 1), true), "");
+        }
+        EXPECT_EQ(ask(device, {0x08, 0x00, 0x00, 0xA5, 0x37}, true), "");  // even where FC8 is supported
+    });
 }
 
 // MK-BC-01 (000:248, 285), CTH-BC-01 (003:452, 479), WA-MBAP-05 (002:213, the reading the profile follows):
 // a write the profile allows in broadcast is executed and never answered, even when it is refused.
 TEST(EveryProfile, BroadcastWriteIsExecutedAndNeverAnswered) {
-    for_profiles(
-        [](const mb::Profile&) { return true; },
-        [&](const mb::Profile& p, Device& device) {
-            std::uint16_t address = 0, value = 0x1234;
-            if (!p.open_address_space) {
-                const mb::Point* target = nullptr;
-                for (const auto& pt : p.table(Table::HoldingRegisters)) {
-                    if (!writable_word(pt)) continue;
-                    const std::uint16_t current = device.image().reg(Table::HoldingRegisters, pt.address);
-                    std::vector<std::int64_t> candidates;
-                    for (const auto& ev : pt.encoding.values)
-                        candidates.push_back(ev.value);
-                    if (pt.min) candidates.push_back(*pt.min);
-                    if (pt.max) candidates.push_back(*pt.max);
-                    candidates.insert(candidates.end(), {1, 0x61});
-                    for (std::int64_t c : candidates) {
-                        const auto raw = static_cast<std::uint16_t>(c);
-                        if (raw != current && !mb::check_write(p, Table::HoldingRegisters, pt.address, raw)) {
-                            target = &pt;
-                            value = raw;
-                            break;
-                        }
+    for_profiles(every_profile, [&](const mb::Profile& p, Device& device) {
+        std::uint16_t address = 0, value = 0x1234;
+        if (!p.open_address_space) {
+            const mb::Point* target = nullptr;
+            for (const auto& pt : p.table(Table::HoldingRegisters)) {
+                if (!writable_word(pt)) continue;
+                const std::uint16_t current = device.image().reg(Table::HoldingRegisters, pt.address);
+                std::vector<std::int64_t> candidates;
+                for (const auto& ev : pt.encoding.values)
+                    candidates.push_back(ev.value);
+                if (pt.min) candidates.push_back(*pt.min);
+                if (pt.max) candidates.push_back(*pt.max);
+                candidates.insert(candidates.end(), {1, 0x61});
+                for (std::int64_t c : candidates) {
+                    const auto raw = static_cast<std::uint16_t>(c);
+                    if (raw != current && !mb::check_write(p, Table::HoldingRegisters, pt.address, raw)) {
+                        target = &pt;
+                        value = raw;
+                        break;
                     }
-                    if (target) break;
                 }
-                ASSERT_NE(target, nullptr) << "no writable register";
-                address = target->address;
+                if (target) break;
             }
-            const auto& allowed = p.functions.broadcast;
-            const bool executes = std::find(allowed.begin(), allowed.end(), 6) != allowed.end();
-            const std::uint16_t before = device.image().reg(Table::HoldingRegisters, address);
-            EXPECT_EQ(ask(device, write_single(6, address, value), true), "");
-            EXPECT_EQ(device.image().reg(Table::HoldingRegisters, address), executes ? value : before);
-            EXPECT_EQ(ask(device, write_single(6, 0xFFFF, 0), true), "");  // refused, still silent
-        });
+            ASSERT_NE(target, nullptr) << "no writable register";
+            address = target->address;
+        }
+        const auto& allowed = p.functions.broadcast;
+        const bool executes = std::find(allowed.begin(), allowed.end(), 6) != allowed.end();
+        const std::uint16_t before = device.image().reg(Table::HoldingRegisters, address);
+        EXPECT_EQ(ask(device, write_single(6, address, value), true), "");
+        EXPECT_EQ(device.image().reg(Table::HoldingRegisters, address), executes ? value : before);
+        EXPECT_EQ(ask(device, write_single(6, 0xFFFF, 0), true), "");  // refused, still silent
+    });
 }
 
 // MK-RO-01 (000:493 "Somente leitura"), CTH-MAP-02 (003:598-610), WA-GEN-04 (002:172): a read-only point is
 // not written. No manual gives the code; every profile leaves it to the specification's 02.
 TEST(ProfileWithReadOnly, WriteToReadOnlyPointIsException02) {
-    for_profiles([](const mb::Profile& p) { return read_only_register(p) != nullptr; },
-                 [&](const mb::Profile& p, Device& device) {
-                     const mb::Point* ro = read_only_register(p);
-                     ASSERT_NE(ro, nullptr);
-                     const std::uint16_t before = device.image().reg(Table::HoldingRegisters, ro->address);
-                     SCOPED_TRACE(ro->source);
-                     EXPECT_EQ(
-                         ask(device, write_single(6, ro->address, static_cast<std::uint16_t>(before + 1))),
-                         "86 02");
-                     EXPECT_EQ(device.image().reg(Table::HoldingRegisters, ro->address), before);
-                 });
+    for_profiles(has_read_only_register, [&](const mb::Profile& p, Device& device) {
+        const mb::Point* ro = read_only_register(p);
+        ASSERT_NE(ro, nullptr);
+        const std::uint16_t before = device.image().reg(Table::HoldingRegisters, ro->address);
+        SCOPED_TRACE(ro->source);
+        EXPECT_EQ(ask(device, write_single(6, ro->address, static_cast<std::uint16_t>(before + 1))), "86 02");
+        EXPECT_EQ(device.image().reg(Table::HoldingRegisters, ro->address), before);
+    });
 }
 
 // MK-RNG-01 (every "Faixa de valores"), WA-EXC-04 (002:391), CTH-EXC-01 (003:566-574): a value outside the
 // point's range is exception 03 and not kept; the range's own bound is accepted. 32-bit floats are written
 // whole with FC16 in the profile's word order (WA-ADR-04, 002:499).
 TEST(ProfileWithRange, ValueOutsideTheRangeIsException03) {
-    for_profiles(
-        [](const mb::Profile& p) { return ranged_register(p) || ranged_float(p); },
-        [&](const mb::Profile& p, Device& device) {
-            if (const mb::Point* pt = ranged_register(p)) {
-                SCOPED_TRACE(pt->source + " " + pt->name_en);
-                const auto above = static_cast<std::uint16_t>(*pt->max + 1);
-                EXPECT_EQ(ask(device, write_single(6, pt->address, above)), "86 03");
-                EXPECT_NE(device.image().reg(Table::HoldingRegisters, pt->address), above);
-                const auto top = static_cast<std::uint16_t>(*pt->max);
-                EXPECT_EQ(ask(device, write_single(6, pt->address, top)),
-                          hex(write_single(6, pt->address, top)));
-                return;
-            }
-            const mb::Point* f = ranged_float(p);
-            ASSERT_NE(f, nullptr);
-            SCOPED_TRACE(f->source + " " + f->name_en);
-            const auto order = f->encoding.word_order;
-            EXPECT_EQ(
-                ask(device, write_registers(f->address, float_words(static_cast<float>(*f->max) + 1, order))),
-                "90 03");
-            const std::vector<std::uint8_t> ok =
-                write_registers(f->address, float_words(static_cast<float>(*f->max), order));
-            EXPECT_EQ(ask(device, ok), hex(std::span(ok).first(5)));
-            EXPECT_EQ(device.image().f32(Table::HoldingRegisters, f->address, order),
-                      static_cast<float>(*f->max));
-        });
+    for_profiles(has_range, [&](const mb::Profile& p, Device& device) {
+        if (const mb::Point* pt = ranged_register(p)) {
+            SCOPED_TRACE(pt->source + " " + pt->name_en);
+            const auto above = static_cast<std::uint16_t>(*pt->max + 1);
+            EXPECT_EQ(ask(device, write_single(6, pt->address, above)), "86 03");
+            EXPECT_NE(device.image().reg(Table::HoldingRegisters, pt->address), above);
+            const auto top = static_cast<std::uint16_t>(*pt->max);
+            EXPECT_EQ(ask(device, write_single(6, pt->address, top)), hex(write_single(6, pt->address, top)));
+            return;
+        }
+        const mb::Point* f = ranged_float(p);
+        ASSERT_NE(f, nullptr);
+        SCOPED_TRACE(f->source + " " + f->name_en);
+        const auto order = f->encoding.word_order;
+        EXPECT_EQ(
+            ask(device, write_registers(f->address, float_words(static_cast<float>(*f->max) + 1, order))),
+            "90 03");
+        const std::vector<std::uint8_t> ok =
+            write_registers(f->address, float_words(static_cast<float>(*f->max), order));
+        EXPECT_EQ(ask(device, ok), hex(std::span(ok).first(5)));
+        EXPECT_EQ(device.image().f32(Table::HoldingRegisters, f->address, order),
+                  static_cast<float>(*f->max));
+    });
 }
 
 // MK-ENC-05 (000:1360), MK-CFG-01 (000:218-226), WA-ENC-06: a value outside an enumeration is exception 03.
 TEST(ProfileWithEnumeration, ValueOutsideTheEnumerationIsException03) {
-    for_profiles([](const mb::Profile& p) { return enumerated_register(p) != nullptr; },
-                 [&](const mb::Profile& p, Device& device) {
-                     const mb::Point* pt = enumerated_register(p);
-                     ASSERT_NE(pt, nullptr);
-                     SCOPED_TRACE(pt->source + " " + pt->name_en);
-                     std::int64_t top = 0;
-                     for (const auto& v : pt->encoding.values)
-                         top = std::max(top, v.value);
-                     EXPECT_EQ(ask(device, write_single(6, pt->address, static_cast<std::uint16_t>(top + 1))),
-                               "86 03");
-                     const auto listed = static_cast<std::uint16_t>(pt->encoding.values.back().value);
-                     EXPECT_EQ(ask(device, write_single(6, pt->address, listed)),
-                               hex(write_single(6, pt->address, listed)));
-                 });
+    for_profiles(has_enumeration, [&](const mb::Profile& p, Device& device) {
+        const mb::Point* pt = enumerated_register(p);
+        ASSERT_NE(pt, nullptr);
+        SCOPED_TRACE(pt->source + " " + pt->name_en);
+        std::int64_t top = 0;
+        for (const auto& v : pt->encoding.values)
+            top = std::max(top, v.value);
+        EXPECT_EQ(ask(device, write_single(6, pt->address, static_cast<std::uint16_t>(top + 1))), "86 03");
+        const auto listed = static_cast<std::uint16_t>(pt->encoding.values.back().value);
+        EXPECT_EQ(ask(device, write_single(6, pt->address, listed)),
+                  hex(write_single(6, pt->address, listed)));
+    });
 }
 
 // AP §6.5, MK-FC05-01 (000:371), WA-FC05-01 (002:330): FC5 values other than FF00/0000 are exception 03,
 // checked before the address (so also at an address the map lacks).
 TEST(ProfileWithFc5, Fc5OtherValueIsException03BeforeTheAddress) {
-    for_profiles([](const mb::Profile& p) { return p.functions.supports(5); },
-                 [&](const mb::Profile&, Device& device) {
-                     for (std::uint16_t v : {0x1234, 0x0001, 0x00FF, 0xFFFF}) {
-                         SCOPED_TRACE(v);
-                         EXPECT_EQ(ask(device, write_single(5, 0xFFFF, v)), "85 03");
-                     }
-                 });
+    for_profiles(has_fc5, [&](const mb::Profile&, Device& device) {
+        for (std::uint16_t v : {0x1234, 0x0001, 0x00FF, 0xFFFF}) {
+            SCOPED_TRACE(v);
+            EXPECT_EQ(ask(device, write_single(5, 0xFFFF, v)), "85 03");
+        }
+    });
 }
 
 // MK-FC08-01 (000:411-425), CTH-FC08-01 (003:540-546), AP §6.8.1: sub-function 0 echoes the request, any
 // data; a sub-function the device lacks is exception 01 (the MK and CTH manuals are silent on the code: their
 // profiles take the specification's).
 TEST(ProfileWithFc8, Fc8ReturnQueryDataEchoesAndUnknownSubFunctionIs01) {
-    for_profiles([](const mb::Profile& p) { return p.functions.supports(8); },
-                 [&](const mb::Profile&, Device& device) {
-                     for (const char* echo : {"08 00 00 A5 37", "08 00 00 00 00", "08 00 00 FF FF"})
-                         EXPECT_EQ(ask(device, bytes(echo)), echo);
-                     EXPECT_EQ(ask(device, bytes("08 00 63 A5 37")), "88 01");
-                 });
+    for_profiles(has_fc8, [&](const mb::Profile&, Device& device) {
+        for (const char* echo : {"08 00 00 A5 37", "08 00 00 00 00", "08 00 00 FF FF"})
+            EXPECT_EQ(ask(device, bytes(echo)), echo);
+        EXPECT_EQ(ask(device, bytes("08 00 63 A5 37")), "88 01");
+    });
 }
 
 // The profiles each rule above leaves out, named: a profile that loses its subject (a transcription that
@@ -451,15 +452,12 @@ TEST(EveryProfileList, RulesWithoutASubjectLeaveOutOnlyTheseProfiles) {
         return out;
     };
     using V = std::vector<std::string>;
-    EXPECT_EQ(without([](const mb::Profile& p) { return !p.open_address_space; }), V{"modbus"});
-    EXPECT_EQ(without([](const mb::Profile& p) { return read_only_register(p) != nullptr; }), V{"modbus"});
-    EXPECT_EQ(without([](const mb::Profile& p) { return ranged_register(p) || ranged_float(p); }),
-              (V{"cth2265i", "modbus"}));
-    EXPECT_EQ(without([](const mb::Profile& p) { return enumerated_register(p) != nullptr; }),
-              (V{"cth2265i", "modbus"}));
-    EXPECT_EQ(without([](const mb::Profile& p) { return p.functions.supports(5); }), V{});
-    EXPECT_EQ(without([](const mb::Profile& p) { return p.functions.supports(8); }),
-              (V{"walchem-intuition9", "walchem-w600", "walchem-w900"}));
+    EXPECT_EQ(without(has_unmapped_addresses), V{"modbus"});
+    EXPECT_EQ(without(has_read_only_register), V{"modbus"});
+    EXPECT_EQ(without(has_range), (V{"cth2265i", "modbus"}));
+    EXPECT_EQ(without(has_enumeration), (V{"cth2265i", "modbus"}));
+    EXPECT_EQ(without(has_fc5), V{});
+    EXPECT_EQ(without(has_fc8), (V{"walchem-intuition9", "walchem-w600", "walchem-w900"}));
 }
 
 TEST(EveryProfileList, HoldsTheFortyEightBundledDevices) {

@@ -159,17 +159,32 @@ class RunningServer {
 
     Device& device() noexcept { return device_; }
 
-    // Opens the endpoint and starts serving; the port clients connect to.
-    std::uint16_t start(const std::string& scheme) {
-        auto endpoint = mb::transport::parse_endpoint(scheme + "://127.0.0.1:0");
-        EXPECT_TRUE(endpoint.has_value());
+    // Opens the endpoint ("tcp://127.0.0.1:0", "rtu:pty?baud=38400" with options.create_pty, ...) and
+    // starts serving.
+    Server& serve(const std::string& uri, ServerOptions options = {}) {
+        auto endpoint = mb::transport::parse_endpoint(uri);
+        EXPECT_TRUE(endpoint.has_value()) << uri;
         server_ =
-            std::make_unique<Server>(*endpoint, std::vector<Device*>{&device_}, faults_, ServerOptions{});
+            std::make_unique<Server>(*endpoint, std::vector<Device*>{&device_}, faults_, std::move(options));
         auto opened = server_->open();
-        EXPECT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
+        EXPECT_TRUE(opened.has_value()) << uri << ": " << (opened ? "" : opened.error());
         thread_ = std::thread([this] { (void)server_->run(stop_); });
-        return server_->port();
+        return *server_;
     }
+
+    // Serves over a transport as the peer-client tests name it: "tcp", "udp", "rtu-tcp", "ascii-tcp" on
+    // 127.0.0.1 (a port the system picks), "rtu" and "ascii" on a pseudo-terminal at 38400 baud, 8N1.
+    Server& serve_over(const std::string& transport) {
+        const bool serial = transport == "rtu" || transport == "ascii";
+        ServerOptions o;
+        o.create_pty = serial;
+        return serve(serial ? transport + ":pty?baud=38400&parity=N" : transport + "://127.0.0.1:0", o);
+    }
+
+    // Serves on 127.0.0.1, a port the system picks; the port clients connect to.
+    std::uint16_t start(const std::string& scheme) { return serve(scheme + "://127.0.0.1:0").port(); }
+
+    Server& server() noexcept { return *server_; }
 
     void stop() {
         stop_ = true;
@@ -246,6 +261,20 @@ class Client {
             out.insert(out.end(), buf, buf + n);
         }
         return out;
+    }
+
+    // True when the server closes the connection (a read returns end of file, or a reset) within
+    // `timeout`; what it sends before is read and dropped.
+    bool closed_within(std::chrono::milliseconds timeout) {
+        const auto deadline = std::chrono::steady_clock::now() + timeout;
+        while (std::chrono::steady_clock::now() < deadline) {
+            pollfd p{fd_, POLLIN, 0};
+            if (::poll(&p, 1, 50) <= 0) continue;
+            std::uint8_t buf[256];
+            const ssize_t n = ::recv(fd_, buf, sizeof buf, MSG_DONTWAIT);
+            if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK)) return true;
+        }
+        return false;
     }
 
     // Sends a request and returns the reply's hex: `count` bytes expected; "" when nothing arrives within
