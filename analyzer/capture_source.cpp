@@ -5,28 +5,149 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <array>
 #include <cerrno>
+#include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <mutex>
+#include <thread>
+#include <vector>
 
 #include "analyzer/timestamps.hpp"
 
 namespace mbscope::analyzer {
 
+// What reads the file: libpcap and the bookkeeping of where each record ends. With read-ahead only the
+// reading thread touches it.
 struct CaptureSource::Impl {
     pcap_t* pcap = nullptr;
+    std::string name;
     // Classic pcap records are a fixed header and caplen bytes, so where the next one starts is known
     // without asking the FILE (ftell() was a twentieth of a summary run). record_header is learnt from the
     // first record (16 bytes, 24 in Kuznetzov's format); 0: ask ftell() before every record (pcapng).
     long position = -1;
     long record_header = 0;
-    FILE* memory = nullptr;  // fmemopen'd buffer for open_memory
+    std::uint64_t count = 0;
+    modbus::Timestamp last_time{0};
+    std::string error;  // set when a record could not be read; reading ends there
     ~Impl() {
         if (pcap) pcap_close(pcap);  // closes the FILE too
     }
+    // The next record: its data stay valid until the next call. False at the end or on damage (`error`).
+    bool read(Packet& packet, std::uint64_t& end_offset);
 };
 
-CaptureSource::~CaptureSource() = default;
+// Packets copied out of libpcap's buffer into batches by a reading thread, handed to next() a batch at a
+// time through a ring of `depth` batches: one lock and, at most, one wake-up per batch, not per packet.
+class CaptureSource::ReadAhead {
+  public:
+    explicit ReadAhead(Impl& impl) : impl_(impl), thread_([this] { run(); }) {}
+    ~ReadAhead() {
+        {
+            std::lock_guard lock(mutex_);
+            stop_ = true;
+        }
+        emptied_.notify_one();
+        thread_.join();
+    }
+    ReadAhead(const ReadAhead&) = delete;
+    ReadAhead& operator=(const ReadAhead&) = delete;
+
+    // The next packet (its data valid until the next call), or nullopt at the end, with `error` set when
+    // the file was damaged, and `end_offset` where the packet ends in the file.
+    std::optional<Packet> next(std::string& error, std::uint64_t& end_offset) {
+        for (;;) {
+            if (!current_) {
+                std::unique_lock lock(mutex_);
+                filled_.wait(lock, [this] { return produced_ > consumed_; });
+                current_ = &batches_[consumed_ % depth];
+                index_ = 0;
+            }
+            if (index_ < current_->records.size()) {
+                const Record& r = current_->records[index_++];
+                Packet p = r.packet;
+                p.data = {current_->bytes.data() + r.data_at, r.data_length};
+                end_offset = r.end_offset;
+                return p;
+            }
+            if (current_->last) {
+                error = current_->error;
+                return std::nullopt;
+            }
+            {
+                std::lock_guard lock(mutex_);
+                ++consumed_;  // the batch goes back to the reader, its packets all handed out
+            }
+            emptied_.notify_one();
+            current_ = nullptr;
+        }
+    }
+
+  private:
+    static constexpr std::size_t depth = 4;
+    static constexpr std::size_t batch_packets = 1024;
+    static constexpr std::size_t batch_bytes = 256 * 1024;
+    struct Record {
+        Packet packet;  // data: empty, see data_at
+        std::size_t data_at = 0, data_length = 0;
+        std::uint64_t end_offset = 0;
+    };
+    struct Batch {
+        std::vector<Record> records;
+        std::vector<std::uint8_t> bytes;
+        bool last = false;
+        std::string error;
+    };
+
+    void run() {
+        for (;;) {
+            {
+                std::unique_lock lock(mutex_);
+                emptied_.wait(lock, [this] { return stop_ || produced_ - consumed_ < depth; });
+                if (stop_) return;
+            }
+            Batch& b = batches_[produced_ % depth];  // free: neither side holds it
+            b.records.clear();
+            b.bytes.clear();
+            Packet p;
+            std::uint64_t end_offset = 0;
+            while (b.records.size() < batch_packets && b.bytes.size() < batch_bytes) {
+                if (!impl_.read(p, end_offset)) {
+                    b.last = true;
+                    b.error = impl_.error;
+                    break;
+                }
+                Record r{p, b.bytes.size(), p.data.size(), end_offset};
+                r.packet.data = {};
+                b.bytes.insert(b.bytes.end(), p.data.begin(), p.data.end());
+                b.records.push_back(r);
+            }
+            const bool last = b.last;
+            {
+                std::lock_guard lock(mutex_);
+                ++produced_;
+            }
+            filled_.notify_one();
+            if (last) return;
+        }
+    }
+
+    Impl& impl_;
+    std::array<Batch, depth> batches_;
+    std::mutex mutex_;
+    std::condition_variable filled_, emptied_;
+    std::uint64_t produced_ = 0, consumed_ = 0;  // batches; guarded by mutex_
+    bool stop_ = false;
+    // the consumer's own
+    Batch* current_ = nullptr;
+    std::size_t index_ = 0;
+    std::thread thread_;  // last: started once everything above is made
+};
+
+CaptureSource::~CaptureSource() {
+    ahead_.reset();  // the reading thread ends before what it reads is closed
+}
 
 namespace {
 
@@ -104,7 +225,9 @@ std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path,
     std::unique_ptr<CaptureSource> s(new CaptureSource);
     s->impl_ = std::make_unique<Impl>();
     s->impl_->pcap = p;
-    s->name_ = path;
+    s->impl_->name = s->name_ = path;
+    s->linktype_ = pcap_datalink(p);
+    s->ahead_ = std::make_unique<ReadAhead>(*s->impl_);
     return s;
 }
 
@@ -129,60 +252,59 @@ std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::u
     std::unique_ptr<CaptureSource> s(new CaptureSource);
     s->impl_ = std::make_unique<Impl>();
     s->impl_->pcap = p;
-    s->name_ = "memory";
+    s->impl_->name = s->name_ = "memory";
+    s->linktype_ = pcap_datalink(p);
     return s;
 }
 
-int CaptureSource::linktype() const noexcept {
-    return pcap_datalink(impl_->pcap);
-}
-
-std::uint64_t CaptureSource::offset() const noexcept {
-    FILE* file = pcap_file(impl_->pcap);
-    const long at = file ? std::ftell(file) : -1;
-    return at > 0 ? static_cast<std::uint64_t>(at) : 0;
-}
-
-std::optional<Packet> CaptureSource::next() {
-    if (!error_.empty()) return std::nullopt;
+bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
     pcap_pkthdr* header = nullptr;
     const u_char* data = nullptr;
-    FILE* file = pcap_file(impl_->pcap);
-    const long before = impl_->record_header ? impl_->position : file ? std::ftell(file) : -1;
-    const int rc = pcap_next_ex(impl_->pcap, &header, &data);
+    FILE* file = pcap_file(pcap);
+    const long before = record_header ? position : file ? std::ftell(file) : -1;
+    const int rc = pcap_next_ex(pcap, &header, &data);
     if (rc == 1 && file) {
         const long caplen = header->caplen;
         // A record longer than the snapshot length is cut to it by libpcap, which skips the rest: its size
         // on disk is not known from the header then, and ftell() says.
-        const bool cut = caplen >= pcap_snapshot(impl_->pcap);
-        if (impl_->record_header && !cut) {
-            impl_->position = before + impl_->record_header + caplen;
-        } else if (count_ == 0 && pcap_major_version(impl_->pcap) == 2 && before >= 0 && !cut) {
+        const bool cut = caplen >= pcap_snapshot(pcap);
+        if (record_header && !cut) {
+            position = before + record_header + caplen;
+        } else if (count == 0 && pcap_major_version(pcap) == 2 && before >= 0 && !cut) {
             const long after = std::ftell(file);
             if (after - before - caplen == 16 || after - before - caplen == 24) {
-                impl_->record_header = after - before - caplen;
-                impl_->position = after;
+                record_header = after - before - caplen;
+                position = after;
             }
-        } else if (impl_->record_header) {
-            impl_->position = std::ftell(file);
+        } else if (record_header) {
+            position = std::ftell(file);
         }
+        const long after = record_header ? position : std::ftell(file);
+        end_offset = after > 0 ? static_cast<std::uint64_t>(after) : 0;
     }
     if (rc == 1) {
-        Packet p;
-        p.number = ++count_;
+        packet.number = ++count;
         // Opened with nanosecond precision: tv_usec holds nanoseconds.
         const auto time = timestamp_from(header->ts.tv_sec, header->ts.tv_usec);
-        p.time_out_of_range = !time;
-        p.time = last_time_ = time.value_or(last_time_);
-        p.linktype = pcap_datalink(impl_->pcap);
-        p.data = {data, header->caplen};
-        p.original_length = header->len;
-        return p;
+        packet.time_out_of_range = !time;
+        packet.time = last_time = time.value_or(last_time);
+        packet.linktype = pcap_datalink(pcap);
+        packet.data = {data, header->caplen};
+        packet.original_length = header->len;
+        return true;
     }
-    if (rc == PCAP_ERROR_BREAK) return std::nullopt;  // end of file
-    error_ = name_ + ": packet " + std::to_string(count_ + 1) +
-             (before >= 0 ? " at byte offset " + std::to_string(before) : "") + ": " +
-             pcap_geterr(impl_->pcap);
+    if (rc == PCAP_ERROR_BREAK) return false;  // end of file
+    error = name + ": packet " + std::to_string(count + 1) +
+            (before >= 0 ? " at byte offset " + std::to_string(before) : "") + ": " + pcap_geterr(pcap);
+    return false;
+}
+
+std::optional<Packet> CaptureSource::next() {
+    if (!error_.empty()) return std::nullopt;
+    if (ahead_) return ahead_->next(error_, offset_);
+    Packet p;
+    if (impl_->read(p, offset_)) return p;
+    error_ = impl_->error;
     return std::nullopt;
 }
 

@@ -1,6 +1,10 @@
 #pragma once
 // Captured packets from pcap and pcapng files (or memory), read through libpcap. A damaged file yields every
 // packet before the damage and then an error naming the file, the packet number and the byte offset.
+// A file is read ahead by a thread of its own (libpcap's reading of the file and the kernel's copy of it
+// were a fifth of a summary run, and the analysis behind them is single-threaded): packets are copied into
+// batches, handed over a few at a time, and come out of next() in the file's order exactly as libpcap gave
+// them. Memory is read in the caller's thread (the fuzzer and the tests).
 
 #include <chrono>
 #include <cstdint>
@@ -36,19 +40,21 @@ class CaptureSource {
     // The next packet; nullopt at the end or on damage (then error() says what and where).
     std::optional<Packet> next();
     const std::string& error() const noexcept { return error_; }
-    int linktype() const noexcept;
-    // Byte offset in the file reached so far (the end of the last packet read).
-    std::uint64_t offset() const noexcept;
+    int linktype() const noexcept { return linktype_; }
+    // Byte offset in the file reached so far (the end of the last packet next() returned).
+    std::uint64_t offset() const noexcept { return offset_; }
     const std::string& name() const noexcept { return name_; }
 
   private:
     CaptureSource() = default;
     struct Impl;
+    class ReadAhead;
     std::unique_ptr<Impl> impl_;
+    std::unique_ptr<ReadAhead> ahead_;  // files only
     std::string error_;
     std::string name_;
-    std::uint64_t count_ = 0;
-    modbus::Timestamp last_time_{0};
+    int linktype_ = 0;
+    std::uint64_t offset_ = 0;
 };
 
 }  // namespace mbscope::analyzer
