@@ -65,7 +65,8 @@ const SharedText& Analyzer::device_of(Flow& flow, std::uint8_t unit, DeviceStats
     return flow.units.back().device;
 }
 
-Analyzer::Analyzer(AnalyzerOptions options, Sink& sink) : options_(std::move(options)), sink_(sink) {}
+Analyzer::Analyzer(AnalyzerOptions options, Sink& sink)
+    : options_(std::move(options)), sink_(sink), sink_wants_transactions_(sink.wants_transactions()) {}
 Analyzer::~Analyzer() = default;
 
 void Analyzer::count_finding(FindingCode code) {
@@ -311,6 +312,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
                 report(rule.code, r, rule.message);
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
+        if (!sink_wants_transactions_) return;
         TransactionRecord t(std::move(r));
         t.broadcast = true;
         sink_.transaction(t);
@@ -437,7 +439,16 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
 }
 
 void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out) {
-    TransactionRecord t(std::move(pending.request));
+    // The transaction record is made only when the sink takes transactions (--summary does not): moving
+    // both frames into it and destroying it were a twentieth of a summary run. The checks read the frames
+    // where they are, so that they are the same either way.
+    std::optional<TransactionRecord> made;
+    if (sink_wants_transactions_) {
+        made.emplace(std::move(pending.request));
+        if (response) made->response.emplace(std::move(*response));
+    }
+    const FrameRecord& request = made ? made->request : pending.request;
+    const FrameRecord* rsp_record = !response ? nullptr : made ? &*made->response : response;
     // The transaction is written first, then what was found in it.
     struct Deferred {
         FindingCode code;
@@ -446,88 +457,81 @@ void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out)
         std::vector<std::uint64_t> frames;
     };
     std::vector<Deferred> found;
+    const auto find = [&](FindingCode code, std::string message) {
+        // the frames a finding about the pair names
+        found.push_back({code, rsp_record, std::move(message), {request.index, rsp_record->index}});
+        if (made) made->findings.push_back(code);
+    };
     DeviceStats& stats = *pending.stats;
-    if (response) {
-        t.response.emplace(std::move(*response));
-        const FrameRecord& rsp = *t.response;
+    if (rsp_record) {
+        const FrameRecord& rsp = *rsp_record;
         ++stats.responses;
-        if (rsp.time.count() && t.request.time.count()) {  // raw dumps carry no time: no latency either
-            t.latency = rsp.time - t.request.time;
-            stats.latency.add(*t.latency);
+        if (rsp.time.count() && request.time.count()) {  // raw dumps carry no time: no latency either
+            const Timestamp latency = rsp.time - request.time;
+            stats.latency.add(latency);
+            if (made) made->latency = latency;
         }
-        const std::vector<std::uint64_t> both{t.request.index, rsp.index};
-        if (rsp.frame.unit_id() != t.request.frame.unit_id()) {
-            found.push_back({FindingCode::PairUnitMismatch, &*t.response,
-                             "request to unit " + std::to_string(t.request.frame.unit_id()) +
-                                 ", response from unit " + std::to_string(rsp.frame.unit_id()),
-                             both});
-            t.findings.push_back(FindingCode::PairUnitMismatch);
-        }
-        if (t.request.pdu && rsp.pdu) {
-            const Pdu& q = *t.request.pdu;
+        if (rsp.frame.unit_id() != request.frame.unit_id())
+            find(FindingCode::PairUnitMismatch, "request to unit " + std::to_string(request.frame.unit_id()) +
+                                                    ", response from unit " +
+                                                    std::to_string(rsp.frame.unit_id()));
+        if (request.pdu && rsp.pdu) {
+            const Pdu& q = *request.pdu;
             const Pdu& a = *rsp.pdu;
             if (a.function_code() != q.function_code()) {
-                found.push_back({FindingCode::PairFunctionMismatch, &*t.response,
-                                 "request FC" + std::to_string(q.function_code()) + ", response FC" +
-                                     std::to_string(a.function_code()),
-                                 both});
-                t.findings.push_back(FindingCode::PairFunctionMismatch);
+                find(FindingCode::PairFunctionMismatch, "request FC" + std::to_string(q.function_code()) +
+                                                            ", response FC" +
+                                                            std::to_string(a.function_code()));
             } else if (a.is_exception()) {
                 ++stats.exceptions;
                 const auto code = std::get<ExceptionResponse>(a.body).exception_code;
                 const auto name = exception_name(code);
-                found.push_back({FindingCode::PairExceptionResponse, &*t.response,
-                                 "exception " + std::to_string(code) + " (" +
-                                     (name ? std::string(*name) : "undefined") + ") to " +
-                                     describe_request(q),
-                                 both});
-                t.findings.push_back(FindingCode::PairExceptionResponse);
+                find(FindingCode::PairExceptionResponse, "exception " + std::to_string(code) + " (" +
+                                                             (name ? std::string(*name) : "undefined") +
+                                                             ") to " + describe_request(q));
             } else {
                 auto expected = expected_response_data(q);
                 std::optional<std::size_t> got;
                 if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) got = bits->values.size();
                 if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
                     got = regs->values.size() * 2;
-                if (expected && got && *expected != *got) {
-                    found.push_back({FindingCode::PairResponseSizeMismatch, &*t.response,
-                                     describe_request(q) + " needs " + std::to_string(*expected) +
-                                         " data bytes, the response has " + std::to_string(*got),
-                                     both});
-                    t.findings.push_back(FindingCode::PairResponseSizeMismatch);
-                }
-                if (!echo_matches(q, a)) {
-                    found.push_back({FindingCode::PairEchoMismatch, &*t.response,
-                                     describe_request(q) + ": the response does not echo the request", both});
-                    t.findings.push_back(FindingCode::PairEchoMismatch);
-                }
+                if (expected && got && *expected != *got)
+                    find(FindingCode::PairResponseSizeMismatch,
+                         describe_request(q) + " needs " + std::to_string(*expected) +
+                             " data bytes, the response has " + std::to_string(*got));
+                if (!echo_matches(q, a))
+                    find(FindingCode::PairEchoMismatch,
+                         describe_request(q) + ": the response does not echo the request");
             }
         }
     } else {
-        t.timed_out = timed_out;
+        if (made) made->timed_out = timed_out;
         ++stats.timeouts;
     }
-    if (options_.semantics && t.response && t.request.pdu && t.response->pdu) {
-        const std::string server = t.request.link.str().substr(t.request.link.str().find(" -> ") + 4);
-        if (const Profile* profile = options_.semantics->profile_for(server, t.request.frame.unit_id())) {
-            t.profile = profile;
-            t.values =
-                options_.semantics->values(*profile, t.request.device, *t.request.pdu, *t.response->pdu);
-            for (auto& rule : options_.semantics->check_response(*profile, *t.request.pdu, *t.response->pdu))
+    if (options_.semantics && rsp_record && request.pdu && rsp_record->pdu) {
+        const std::string server = request.link.str().substr(request.link.str().find(" -> ") + 4);
+        if (const Profile* profile = options_.semantics->profile_for(server, request.frame.unit_id())) {
+            if (made) {
+                made->profile = profile;
+                made->values =
+                    options_.semantics->values(*profile, request.device, *request.pdu, *rsp_record->pdu);
+            }
+            for (auto& rule : options_.semantics->check_response(*profile, *request.pdu, *rsp_record->pdu))
                 found.push_back(
-                    {rule.code, &*t.response, std::move(rule.message), {t.request.index, t.response->index}});
+                    {rule.code, rsp_record, std::move(rule.message), {request.index, rsp_record->index}});
         }
     }
-    if (options_.word_order && !t.profile && t.response && t.request.pdu && t.response->pdu) {
-        const auto fc = t.request.pdu->function_code();
-        const auto* read = std::get_if<ReadRequest>(&t.request.pdu->body);
-        const auto* regs = std::get_if<ReadRegistersResponse>(&t.response->pdu->body);
+    if (made && options_.word_order && !made->profile && rsp_record && request.pdu && rsp_record->pdu) {
+        const auto fc = request.pdu->function_code();
+        const auto* read = std::get_if<ReadRequest>(&request.pdu->body);
+        const auto* regs = std::get_if<ReadRegistersResponse>(&rsp_record->pdu->body);
         if ((fc == 3 || fc == 4) && read && regs) {
-            t.word_order = options_.word_order;
-            t.registers32 = registers32(read->starting_address, regs->values, *options_.word_order);
+            made->word_order = options_.word_order;
+            made->registers32 = registers32(read->starting_address, regs->values, *options_.word_order);
         }
     }
     ++summary_.transactions;
-    sink_.transaction(t);
+    if (made) sink_.transaction(*made);
     for (auto& f : found)
         report(f.code, *f.about, std::move(f.message), std::move(f.frames));
 }

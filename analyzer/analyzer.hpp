@@ -147,6 +147,7 @@ class Analyzer {
 
     AnalyzerOptions options_;
     Sink& sink_;
+    const bool sink_wants_transactions_;
     Summary summary_;
     const SharedText& device_of(Flow& flow, std::uint8_t unit, DeviceStats*& stats);
     void set_source(const std::string& source);

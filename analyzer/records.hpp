@@ -126,6 +126,9 @@ class Sink {
     virtual void finding(const FindingRecord&) {}
     virtual void unparsed(const UnparsedRecord&) {}
     virtual void end(const Summary&) {}
+    // False for a sink that never looks at transaction records (a summary): the analyzer then does not
+    // make them, and transaction() is not called. Asked once, when the analyzer is made.
+    virtual bool wants_transactions() const { return true; }
 };
 
 }  // namespace mbscope::analyzer

@@ -1,5 +1,6 @@
 #include "analyzer/sinks.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "analyzer/json_lines.hpp"
@@ -324,6 +325,10 @@ void TeeSink::frame(const FrameRecord& f) {
     for (auto* s : sinks_)
         s->frame(f);
 }
+bool TeeSink::wants_transactions() const {
+    return std::any_of(sinks_.begin(), sinks_.end(), [](const Sink* s) { return s->wants_transactions(); });
+}
+
 void TeeSink::transaction(const TransactionRecord& t) {
     for (auto* s : sinks_)
         s->transaction(t);

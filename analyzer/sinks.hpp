@@ -21,6 +21,7 @@ class TextSink : public Sink {
     void finding(const FindingRecord& f) override;
     void unparsed(const UnparsedRecord& u) override;
     void end(const Summary& s) override;
+    bool wants_transactions() const override { return !summary_only_; }
 
   private:
     std::string time_of(modbus::Timestamp t);
@@ -60,6 +61,7 @@ class TeeSink : public Sink {
     void finding(const FindingRecord& f) override;
     void unparsed(const UnparsedRecord& u) override;
     void end(const Summary& s) override;
+    bool wants_transactions() const override;
 
   private:
     std::vector<Sink*> sinks_;
