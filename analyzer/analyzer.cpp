@@ -37,10 +37,13 @@ struct Analyzer::Flow {
 };
 
 std::size_t Analyzer::FlowKeyHash::operator()(const FlowKey& k) const noexcept {
-    std::uint64_t h = 0x9E3779B97F4A7C15ull;
-    for (auto w : k.words)
-        h = (h ^ w) * 0xBF58476D1CE4E5B9ull;
-    return static_cast<std::size_t>(h ^ (h >> 31));
+    // the words mixed side by side rather than in a chain of multiplications, then folded once
+    const std::uint64_t h = (k.words[0] ^ 0x9E3779B97F4A7C15ull) * 0xBF58476D1CE4E5B9ull +
+                            (k.words[1] ^ 0x94D049BB133111EBull) * 0x9E3779B97F4A7C15ull +
+                            (k.words[2] ^ 0xBF58476D1CE4E5B9ull) * 0x94D049BB133111EBull +
+                            (k.words[3] ^ 0xD6E8FEB86659FD93ull) * 0xC2B2AE3D27D4EB4Full +
+                            (k.words[4] ^ 0xC2B2AE3D27D4EB4Full) * 0xD6E8FEB86659FD93ull;
+    return static_cast<std::size_t>((h ^ (h >> 29)) * 0xBF58476D1CE4E5B9ull);
 }
 
 Analyzer::FlowKey Analyzer::flow_key(Transport transport, const Endpoint& client, const Endpoint& server) {
@@ -97,8 +100,13 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
     to_server = server_port(l4.transport, l4.destination.port);
     const Endpoint& client = to_server ? l4.source : l4.destination;
     const Endpoint& server = to_server ? l4.destination : l4.source;
-    Flow*& known = flow_index_[flow_key(l4.transport, client, server)];
-    if (known) return *known;
+    const FlowKey binary = flow_key(l4.transport, client, server);
+    const std::size_t hash = FlowKeyHash()(binary);
+    FlowCacheEntry& cached = flow_cache_[hash >> (8 * sizeof(std::size_t) - 6)];
+    if (cached.flow && cached.key == binary) return *cached.flow;
+    Flow*& known = flow_index_[binary];
+    cached.key = binary;
+    if (known) return *(cached.flow = known);
     std::string key =
         (l4.transport == Transport::Tcp ? "tcp " : "udp ") + client.to_string() + " -> " + server.to_string();
     auto& slot = flows_[key];
@@ -120,7 +128,7 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
             }
         }
     }
-    known = slot.get();
+    known = cached.flow = slot.get();
     return *slot;
 }
 
@@ -357,10 +365,9 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     const Timestamp timeout = r.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
     // an untimed capture (raw dump) has no clock: its requests expire only when the master moves on
     expiries_.push_back({r.time.count() ? r.time + timeout : Timestamp::max(), key, serial});
-    Pending& slot = pending_.try_emplace(key).first->second;  // any earlier one was completed above
-    slot.request = std::move(r);
-    slot.serial = serial;
-    slot.stats = &stats;
+    // made from the record (any earlier one with the key was completed above): a default-made record would
+    // zero a frame's whole buffer first, a third of this function's time
+    pending_.try_emplace(key, std::move(r), serial, &stats);
     ++flow.pending;
 }
 
@@ -442,13 +449,15 @@ void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out)
     // The transaction record is made only when the sink takes transactions (--summary does not): moving
     // both frames into it and destroying it were a twentieth of a summary run. The checks read the frames
     // where they are, so that they are the same either way.
-    std::optional<TransactionRecord> made;
-    if (sink_wants_transactions_) {
-        made.emplace(std::move(pending.request));
-        if (response) made->response.emplace(std::move(*response));
-    }
-    const FrameRecord& request = made ? made->request : pending.request;
-    const FrameRecord* rsp_record = !response ? nullptr : made ? &*made->response : response;
+    if (!sink_wants_transactions_)
+        return judge(pending.request, response, *pending.stats, timed_out, nullptr);
+    TransactionRecord made(std::move(pending.request));
+    if (response) made.response.emplace(std::move(*response));
+    judge(made.request, made.response ? &*made.response : nullptr, *pending.stats, timed_out, &made);
+}
+
+void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, DeviceStats& stats,
+                     bool timed_out, TransactionRecord* made) {
     // The transaction is written first, then what was found in it.
     struct Deferred {
         FindingCode code;
@@ -462,7 +471,6 @@ void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out)
         found.push_back({code, rsp_record, std::move(message), {request.index, rsp_record->index}});
         if (made) made->findings.push_back(code);
     };
-    DeviceStats& stats = *pending.stats;
     if (rsp_record) {
         const FrameRecord& rsp = *rsp_record;
         ++stats.responses;

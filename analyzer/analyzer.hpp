@@ -7,6 +7,7 @@
 // (USER0..15 with --user-dlt, Wireshark exported PDUs, SEL RTAC serial records) go the way of the serial
 // captures.
 
+#include <array>
 #include <deque>
 #include <functional>
 #include <map>
@@ -110,7 +111,10 @@ class Analyzer {
     // IPv6 flags and the transport): finding a packet's flow must not cost formatting endpoints as text.
     struct FlowKey {
         std::uint64_t words[5];
-        bool operator==(const FlowKey&) const = default;
+        bool operator==(const FlowKey& o) const noexcept {  // word by word: not a call to memcmp
+            return ((words[0] ^ o.words[0]) | (words[1] ^ o.words[1]) | (words[2] ^ o.words[2]) |
+                    (words[3] ^ o.words[3]) | (words[4] ^ o.words[4])) == 0;
+        }
     };
     struct FlowKeyHash {
         std::size_t operator()(const FlowKey& k) const noexcept;
@@ -140,6 +144,10 @@ class Analyzer {
     void on_request(Flow& flow, FrameRecord& record, DeviceStats& stats);
     void on_response(Flow& flow, FrameRecord& record);
     void complete(Pending& pending, FrameRecord* response, bool timed_out);
+    // Counts and finds what a request and its response (or its absence) show; with `made`, fills the
+    // transaction record and gives it to the sink before the findings.
+    void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,
+               TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
     void report(modbus::FindingCode code, const FrameRecord& about, std::string message,
                 std::vector<std::uint64_t> frames = {});
@@ -154,6 +162,14 @@ class Analyzer {
 
     std::map<std::string, std::unique_ptr<Flow>> flows_;  // owner, in a stable order for the end
     std::unordered_map<FlowKey, Flow*, FlowKeyHash> flow_index_;
+    // In front of the index: a direct-mapped cache by the hash's top bits, so that a packet of a known flow
+    // costs a hash and a compare, not the index's division by a prime and its node (the index's lookup was
+    // the largest single item of a summary run).
+    struct FlowCacheEntry {
+        FlowKey key{};
+        Flow* flow = nullptr;
+    };
+    std::array<FlowCacheEntry, 64> flow_cache_{};
     std::map<std::string, std::unique_ptr<SerialLink>> serial_links_;
     std::unordered_map<PendingKey, Pending, PendingHash> pending_;
     std::deque<Expiry> expiries_;
