@@ -190,6 +190,11 @@ void Analyzer::set_source(const std::string& source) {
 
 void Analyzer::packet(const std::string& source, const Packet& p) {
     set_source(source);
+    packet_in_source(p);
+}
+
+void Analyzer::packet_in_source(const Packet& p) {
+    const std::string& source = source_.str();
     packet_number_ = p.number;
     ++summary_.packets;
     if (p.time_out_of_range && time_warned_source_ != source) {
@@ -864,8 +869,9 @@ void Analyzer::rtac_packet(const Packet& p) {
 
 bool Analyzer::read_capture(CaptureSource& capture) {
     constexpr std::uint64_t progress_every = 256;  // packets between two calls: the clock is not free
+    set_source(capture.name());                    // once, not a comparison of names for every packet
     while (auto p = capture.next()) {
-        packet(capture.name(), *p);
+        packet_in_source(*p);
         if (options_.progress && p->number % progress_every == 0)
             options_.progress(summary_, capture.offset());
     }

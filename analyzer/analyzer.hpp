@@ -159,6 +159,7 @@ class Analyzer {
     Summary summary_;
     const SharedText& device_of(Flow& flow, std::uint8_t unit, DeviceStats*& stats);
     void set_source(const std::string& source);
+    void packet_in_source(const Packet& packet);  // packet() from the source set last
 
     std::map<std::string, std::unique_ptr<Flow>> flows_;  // owner, in a stable order for the end
     std::unordered_map<FlowKey, Flow*, FlowKeyHash> flow_index_;

@@ -3,6 +3,7 @@
 #include <pcap/pcap.h>
 
 #include <fcntl.h>
+#include <stdio_ext.h>
 #include <unistd.h>
 
 #include <array>
@@ -93,7 +94,9 @@ class CaptureSource::ReadAhead {
         std::size_t data_at = 0, data_length = 0;
         std::uint64_t end_offset = 0;
     };
-    struct Batch {
+    // A cache line each, and the consumer's state on its own: the reader grows one batch's lists packet by
+    // packet while next() reads another's, and sharing a line made each packet a cache miss on both sides.
+    struct alignas(64) Batch {
         std::vector<Record> records;
         std::vector<std::uint8_t> bytes;
         bool last = false;
@@ -140,7 +143,7 @@ class CaptureSource::ReadAhead {
     std::uint64_t produced_ = 0, consumed_ = 0;  // batches; guarded by mutex_
     bool stop_ = false;
     // the consumer's own
-    Batch* current_ = nullptr;
+    alignas(64) Batch* current_ = nullptr;
     std::size_t index_ = 0;
     std::thread thread_;  // last: started once everything above is made
 };
@@ -159,8 +162,11 @@ struct CountedFile {
     int fd = -1;
     off64_t position = 0;
     // stdio's buffer: glibc's setvbuf() ignores the size asked for unless it is given the buffer, and its
-    // own is 8 KiB (a read() per 8 KiB: 5,000 system calls for a 40 MB capture).
-    static constexpr std::size_t buffer_size = 1 << 18;
+    // own is 8 KiB (a read() per 8 KiB: 5,000 system calls for a 40 MB capture). 64 KiB, not more: with
+    // 256 KiB the read-ahead thread's copying out of the buffer took from one to two and a half times as
+    // long from run to run (perf: glibc's copy loop; likely the buffer, filled by the kernel, no longer
+    // sitting in the core's cache).
+    static constexpr std::size_t buffer_size = 1 << 16;
     std::unique_ptr<char[]> buffer = std::make_unique_for_overwrite<char[]>(buffer_size);
 };
 
@@ -207,6 +213,9 @@ FILE* open_counted(const std::string& path, std::string& error) {
         return nullptr;
     }
     std::setvbuf(file, cookie->buffer.get(), _IOFBF, CountedFile::buffer_size);  // freed by counted_close
+    // One thread at a time reads the file (the read-ahead thread, or the caller): without this, glibc
+    // locks the FILE for each of libpcap's two fread() calls a packet once the process has a second thread.
+    __fsetlocking(file, FSETLOCKING_BYCALLER);
     return file;
 }
 
