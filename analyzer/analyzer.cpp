@@ -332,7 +332,8 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         return;
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
-    if (auto it = pending_.find(key); it != pending_.end() && r.frame.framing != Framing::Tcp) {
+    if (auto it = r.frame.framing == Framing::Tcp ? pending_.end() : pending_.find(key);
+        it != pending_.end()) {
         // The master moved on: the previous request was never answered.
         Pending old = std::move(it->second);
         pending_.erase(it);
