@@ -472,7 +472,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         std::vector<std::uint64_t> frames;
     };
     std::vector<Deferred> found;
-    const auto find = [&](FindingCode code, std::string message) {
+    const auto pair_finding = [&](FindingCode code, std::string message) {
         // the frames a finding about the pair names
         found.push_back({code, rsp_record, std::move(message), {request.index, rsp_record->index}});
         if (made) made->findings.push_back(code);
@@ -486,23 +486,23 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             if (made) made->latency = latency;
         }
         if (rsp.frame.unit_id() != request.frame.unit_id())
-            find(FindingCode::PairUnitMismatch, "request to unit " + std::to_string(request.frame.unit_id()) +
-                                                    ", response from unit " +
-                                                    std::to_string(rsp.frame.unit_id()));
+            pair_finding(FindingCode::PairUnitMismatch,
+                         "request to unit " + std::to_string(request.frame.unit_id()) +
+                             ", response from unit " + std::to_string(rsp.frame.unit_id()));
         if (request.pdu && rsp.pdu) {
             const Pdu& q = *request.pdu;
             const Pdu& a = *rsp.pdu;
             if (a.function_code() != q.function_code()) {
-                find(FindingCode::PairFunctionMismatch, "request FC" + std::to_string(q.function_code()) +
-                                                            ", response FC" +
-                                                            std::to_string(a.function_code()));
+                pair_finding(FindingCode::PairFunctionMismatch,
+                             "request FC" + std::to_string(q.function_code()) + ", response FC" +
+                                 std::to_string(a.function_code()));
             } else if (a.is_exception()) {
                 ++stats.exceptions;
                 const auto code = std::get<ExceptionResponse>(a.body).exception_code;
                 const auto name = exception_name(code);
-                find(FindingCode::PairExceptionResponse, "exception " + std::to_string(code) + " (" +
-                                                             (name ? std::string(*name) : "undefined") +
-                                                             ") to " + describe_request(q));
+                pair_finding(FindingCode::PairExceptionResponse,
+                             "exception " + std::to_string(code) + " (" +
+                                 (name ? std::string(*name) : "undefined") + ") to " + describe_request(q));
             } else {
                 auto expected = expected_response_data(q);
                 std::optional<std::size_t> got;
@@ -510,12 +510,12 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                 if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
                     got = regs->values.size() * 2;
                 if (expected && got && *expected != *got)
-                    find(FindingCode::PairResponseSizeMismatch,
-                         describe_request(q) + " needs " + std::to_string(*expected) +
-                             " data bytes, the response has " + std::to_string(*got));
+                    pair_finding(FindingCode::PairResponseSizeMismatch,
+                                 describe_request(q) + " needs " + std::to_string(*expected) +
+                                     " data bytes, the response has " + std::to_string(*got));
                 if (!echo_matches(q, a))
-                    find(FindingCode::PairEchoMismatch,
-                         describe_request(q) + ": the response does not echo the request");
+                    pair_finding(FindingCode::PairEchoMismatch,
+                                 describe_request(q) + ": the response does not echo the request");
             }
         }
     } else {

@@ -24,9 +24,11 @@ namespace mbscope::analyzer {
 struct CaptureSource::Impl {
     pcap_t* pcap = nullptr;
     std::string name;
+    int linktype = 0;
     // Classic pcap records are a fixed header and caplen bytes, so where the next one starts is known
     // without asking the FILE (ftell() was a twentieth of a summary run). record_header is learnt from the
-    // first record (16 bytes, 24 in Kuznetzov's format); 0: ask ftell() before every record (pcapng).
+    // first record (16 bytes, 24 in Kuznetzov's format); 0: ask ftell() after every record (pcapng).
+    // position: where the last record read ends (-1: not known), so where the next one begins.
     long position = -1;
     long record_header = 0;
     std::uint64_t count = 0;
@@ -231,13 +233,7 @@ std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path,
         error = path + ": " + errbuf;
         return nullptr;
     }
-    std::unique_ptr<CaptureSource> s(new CaptureSource);
-    s->impl_ = std::make_unique<Impl>();
-    s->impl_->pcap = p;
-    s->impl_->name = s->name_ = path;
-    s->linktype_ = pcap_datalink(p);
-    s->ahead_ = std::make_unique<ReadAhead>(*s->impl_);
-    return s;
+    return made(p, path, true);
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::uint8_t> bytes,
@@ -258,11 +254,16 @@ std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::u
         error = std::string("memory: ") + errbuf;
         return nullptr;
     }
+    return made(p, "memory", false);
+}
+
+std::unique_ptr<CaptureSource> CaptureSource::made(pcap_t* pcap, const std::string& name, bool read_ahead) {
     std::unique_ptr<CaptureSource> s(new CaptureSource);
     s->impl_ = std::make_unique<Impl>();
-    s->impl_->pcap = p;
-    s->impl_->name = s->name_ = "memory";
-    s->linktype_ = pcap_datalink(p);
+    s->impl_->pcap = pcap;
+    s->impl_->name = s->name_ = name;
+    s->impl_->linktype = s->linktype_ = pcap_datalink(pcap);
+    if (read_ahead) s->ahead_ = std::make_unique<ReadAhead>(*s->impl_);
     return s;
 }
 
@@ -270,7 +271,7 @@ bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
     pcap_pkthdr* header = nullptr;
     const u_char* data = nullptr;
     FILE* file = pcap_file(pcap);
-    const long before = record_header ? position : file ? std::ftell(file) : -1;
+    const long before = count > 0 && position >= 0 ? position : file ? std::ftell(file) : -1;
     const int rc = pcap_next_ex(pcap, &header, &data);
     if (rc == 1 && file) {
         const long caplen = header->caplen;
@@ -279,17 +280,14 @@ bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
         const bool cut = caplen >= pcap_snapshot(pcap);
         if (record_header && !cut) {
             position = before + record_header + caplen;
-        } else if (count == 0 && pcap_major_version(pcap) == 2 && before >= 0 && !cut) {
-            const long after = std::ftell(file);
-            if (after - before - caplen == 16 || after - before - caplen == 24) {
-                record_header = after - before - caplen;
-                position = after;
-            }
-        } else if (record_header) {
+        } else {
             position = std::ftell(file);
+            const long header_size = position - before - caplen;
+            if (count == 0 && pcap_major_version(pcap) == 2 && before >= 0 && !cut &&
+                (header_size == 16 || header_size == 24))
+                record_header = header_size;
         }
-        const long after = record_header ? position : std::ftell(file);
-        end_offset = after > 0 ? static_cast<std::uint64_t>(after) : 0;
+        end_offset = position > 0 ? static_cast<std::uint64_t>(position) : 0;
     }
     if (rc == 1) {
         packet.number = ++count;
@@ -297,7 +295,7 @@ bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
         const auto time = timestamp_from(header->ts.tv_sec, header->ts.tv_usec);
         packet.time_out_of_range = !time;
         packet.time = last_time = time.value_or(last_time);
-        packet.linktype = pcap_datalink(pcap);
+        packet.linktype = linktype;
         packet.data = {data, header->caplen};
         packet.original_length = header->len;
         return true;

@@ -16,6 +16,8 @@
 
 #include "modbus/frame.hpp"
 
+struct pcap;  // libpcap's pcap_t
+
 namespace mbscope::analyzer {
 
 struct Packet {
@@ -47,6 +49,7 @@ class CaptureSource {
 
   private:
     CaptureSource() = default;
+    static std::unique_ptr<CaptureSource> made(::pcap* pcap, const std::string& name, bool read_ahead);
     struct Impl;
     class ReadAhead;
     std::unique_ptr<Impl> impl_;

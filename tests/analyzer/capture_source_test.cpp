@@ -58,20 +58,32 @@ std::vector<Seen> read_all(an::CaptureSource& source) {
     return seen;
 }
 
+// The same bytes as a file (read ahead) and from memory (read in this thread), each read to its end.
+struct ReadBothWays {
+    std::string path;
+    std::unique_ptr<an::CaptureSource> file, memory;
+    std::vector<Seen> from_file, from_memory;
+    ReadBothWays(const std::vector<std::uint8_t>& bytes, const std::string& name)
+        : path(write_temp(bytes, name)) {
+        std::string error;
+        file = an::CaptureSource::open_file(path, error);
+        EXPECT_TRUE(file) << error;
+        memory = an::CaptureSource::open_memory(bytes, error);
+        EXPECT_TRUE(memory) << error;
+        if (file) from_file = read_all(*file);
+        if (memory) from_memory = read_all(*memory);
+        std::filesystem::remove(path);
+    }
+};
+
 }  // namespace
 
 TEST(CaptureSource, FileReadAheadGivesWhatMemoryGives) {
     const auto bytes = many_records();
-    const auto path = write_temp(bytes, "mbscope-read-ahead");
-    std::string error;
-    auto file = an::CaptureSource::open_file(path, error);
-    ASSERT_TRUE(file) << error;
-    auto memory = an::CaptureSource::open_memory(bytes, error);
-    ASSERT_TRUE(memory) << error;
+    const ReadBothWays read(bytes, "mbscope-read-ahead");
+    ASSERT_TRUE(read.file && read.memory);
+    const auto& [path, file, memory, from_file, from_memory] = read;
     EXPECT_EQ(file->linktype(), memory->linktype());  // DLT_RAW: libpcap names LINKTYPE_RAW by its DLT
-    const auto from_file = read_all(*file);
-    const auto from_memory = read_all(*memory);
-    std::filesystem::remove(path);
     ASSERT_EQ(from_file.size(), 6000u);
     EXPECT_TRUE(from_file == from_memory);
     EXPECT_EQ(from_file.back().offset, bytes.size());  // where each packet ends, the last at the file's end
@@ -88,15 +100,9 @@ TEST(CaptureSource, DamageFarIntoAFileIsReportedAfterEveryPacketBeforeIt) {
         at += 16 + (bytes[at + 8] | bytes[at + 9] << 8);
     const std::size_t record_4001 = at;
     bytes.resize(at + 16 + 1);
-    const auto path = write_temp(bytes, "mbscope-read-ahead-cut");
-    std::string error;
-    auto file = an::CaptureSource::open_file(path, error);
-    ASSERT_TRUE(file) << error;
-    auto memory = an::CaptureSource::open_memory(bytes, error);
-    ASSERT_TRUE(memory) << error;
-    const auto from_file = read_all(*file);
-    const auto from_memory = read_all(*memory);
-    std::filesystem::remove(path);
+    const ReadBothWays read(bytes, "mbscope-read-ahead-cut");
+    ASSERT_TRUE(read.file && read.memory);
+    const auto& [path, file, memory, from_file, from_memory] = read;
     EXPECT_EQ(from_file.size(), 4000u);
     EXPECT_TRUE(from_file == from_memory);
     const std::string where = ": packet 4001 at byte offset " + std::to_string(record_4001) + ": truncated";
