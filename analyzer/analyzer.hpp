@@ -87,6 +87,9 @@ class Analyzer {
   private:
     struct Flow;
     struct Pending {
+        // made from the request's record (clang 14 has no parenthesised aggregate initialisation)
+        Pending(FrameRecord&& r, std::uint64_t s, DeviceStats* d)
+            : request(std::move(r)), serial(s), stats(d) {}
         FrameRecord request;
         std::uint64_t serial = 0;
         DeviceStats* stats = nullptr;  // its device's, in the summary
