@@ -20,18 +20,20 @@ std::vector<std::uint8_t> encode_rtu(std::uint8_t unit_id, std::span<const std::
 
 std::string encode_ascii(std::uint8_t unit_id, std::span<const std::uint8_t> pdu) {
     static constexpr char hex[] = "0123456789ABCDEF";
-    std::vector<std::uint8_t> binary;
-    binary.reserve(pdu.size() + 1);
-    binary.push_back(unit_id);
-    binary.insert(binary.end(), pdu.begin(), pdu.end());
-    binary.push_back(lrc(binary));
+    // One allocation: the LRC of unit and PDU together is the PDU's LRC less the unit (the LRC is the
+    // two's complement of the byte sum, SL §2.5.2.2), so no binary copy of the frame is made.
+    const auto check = static_cast<std::uint8_t>(lrc(pdu) - unit_id);
     std::string out;
-    out.reserve(binary.size() * 2 + 3);
+    out.reserve((pdu.size() + 2) * 2 + 3);
     out.push_back(':');
-    for (auto b : binary) {
+    const auto put = [&](std::uint8_t b) {
         out.push_back(hex[b >> 4]);
         out.push_back(hex[b & 0x0F]);
-    }
+    };
+    put(unit_id);
+    for (auto b : pdu)
+        put(b);
+    put(check);
     out += "\r\n";
     return out;
 }
