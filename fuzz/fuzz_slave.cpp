@@ -54,12 +54,23 @@ struct ResetAtEnd {
     }
 };
 
+// Requests handed to the slave over the whole run: an input holds a sequence of them, so executions per
+// second alone understate the target's rate (bench/fuzz_slave_vs_libmodbus.sh compares it with a harness of
+// one request per input). Printed at exit when MBSCOPE_FUZZ_STATS is set.
+std::uint64_t requests_handled = 0;
+
+void print_requests() {
+    std::fprintf(stderr, "fuzz_slave: requests handled: %llu\n",
+                 static_cast<unsigned long long>(requests_handled));
+}
+
 }  // namespace
 
 // The profiles are loaded before fuzzing starts (about 3 s under the sanitizers), so libFuzzer's time limit
 // and executions per second count fuzzing only. The replay runner loads them with the first input instead.
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
     (void)fuzz::bundled_profiles();
+    if (std::getenv("MBSCOPE_FUZZ_STATS") != nullptr) std::atexit(print_requests);
     return 0;
 }
 
@@ -112,6 +123,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         }
         const auto frame = modbus::decode_adu(framing, adu);
         if (!frame) continue;  // no frame: the server never hands such bytes to a unit
+        ++requests_handled;
 
         std::uint64_t before = 0;
         for (auto* d : units)
