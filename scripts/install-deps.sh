@@ -11,7 +11,7 @@ packages=(
   libcli11-dev                         # command line
   libbenchmark-dev                     # bench/ kernels
   clang libclang-rt-14-dev             # libFuzzer builds (fuzz preset)
-  python3 python3-pymodbus python3-serial-asyncio python3-jsonschema socat tshark  # peers, second decoder, schema validator in tests
+  python3 python3-pymodbus python3-serial-asyncio python3-jsonschema socat jpnevulator tshark  # peers, second decoder, schema validator in tests
 )
 
 missing=()
