@@ -62,6 +62,9 @@ void AsciiDeframer::feed(std::span<const std::uint8_t> chars, Timestamp received
         const std::uint64_t at = offset_++;
         if (c == ':') {
             abandon(UnparsedReason::MissingEnd, out);  // a frame in progress never saw its CR LF
+            // Room for the longest frame once, rather than growing a character at a time (ten
+            // reallocations on the way to 513 characters for each deframer made).
+            if (frame_.capacity() == 0) frame_.reserve(max_ascii_frame_length + 1);
             frame_.push_back(c);
             frame_offset_ = at;
             frame_start_ = last_;
