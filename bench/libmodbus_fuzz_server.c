@@ -22,7 +22,8 @@ struct sender {
     size_t size;
 };
 
-/* The client side: connects (retrying until the server listens) and writes the input, then closes. */
+/* The client side: connects (retrying until the server listens), writes the input, and reads until the
+ * server closes the connection. */
 static void* send_input(void* arg) {
     const struct sender* s = arg;
     struct sockaddr_in to = {0};
