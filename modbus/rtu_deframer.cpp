@@ -208,51 +208,44 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
         consumed = n;
     } else if (at_end && n > 0) {
         // Split by content. Keep the result only if it finds at least one frame; otherwise the
-        // silence-delimited run is one frame with a bad CRC (or too short to be one).
-        DeframeEvents& split = split_;
-        split.clear();
+        // silence-delimited run is one frame with a bad CRC (or too short to be one). The pieces go straight
+        // into `out` and are taken back when no frame verified (they are then unparsed runs only, cheap to
+        // drop): no list of its own to build and copy from.
+        const std::size_t mark = out.size();
         std::size_t pos = 0;
         bool any_frame = false;
-        Unparsed run{};
+        std::size_t run_begin = 0;
+        std::size_t run_length = 0;
+        UnparsedReason run_reason{};
         auto flush_run = [&] {
-            if (run.length) split.emplace_back(run);
-            run = Unparsed{};
+            if (run_length) emit_unparsed(run_begin, run_length, run_reason, out);
+            run_length = 0;
         };
         while (pos < n) {
             const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, true);
             if (step.kind == Kind::Complete) {
                 flush_run();
-                Frame f;
-                f.offset = pos;  // relative; emitted below
-                f.wire_length = static_cast<std::uint32_t>(step.length);
-                split.emplace_back(f);
+                emit_frame(pos, step.length, out);
                 any_frame = true;
                 pos += step.length;
             } else {
                 const std::size_t len = std::max<std::size_t>(step.length, 1);
-                if (run.length && run.reason != step.reason) flush_run();
-                if (!run.length) {
-                    run.offset = pos;
-                    run.reason = step.reason;
+                if (run_length && run_reason != step.reason) flush_run();
+                if (!run_length) {
+                    run_begin = pos;
+                    run_reason = step.reason;
                 }
-                run.length += static_cast<std::uint32_t>(len);
+                run_length += len;
                 pos += len;
             }
         }
         flush_run();
-        if (any_frame) {
-            for (const auto& e : split) {
-                if (const auto* f = std::get_if<Frame>(&e))
-                    emit_frame(f->offset, f->wire_length, out);
-                else {
-                    const auto& u = std::get<Unparsed>(e);
-                    emit_unparsed(u.offset, u.length, u.reason, out);
-                }
-            }
-        } else if (n >= 4 && n <= max_rtu_adu_length) {
-            emit_frame(0, n, out);
-        } else {
-            emit_unparsed(0, n, n < 4 ? UnparsedReason::TooShort : UnparsedReason::TooLong, out);
+        if (!any_frame) {
+            out.erase(out.begin() + static_cast<std::ptrdiff_t>(mark), out.end());
+            if (n >= 4 && n <= max_rtu_adu_length)
+                emit_frame(0, n, out);
+            else
+                emit_unparsed(0, n, n < 4 ? UnparsedReason::TooShort : UnparsedReason::TooLong, out);
         }
         consumed = n;
     } else {
@@ -291,10 +284,12 @@ void RtuTimedDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp recei
                              static_cast<float>(static_cast<double>(silence.count()) / ct.count())});
         }
     }
-    for (std::size_t i = 0; i < n; ++i) {
-        seg_.push_back(bytes[i]);
-        times_.push_back(first_end + ct * static_cast<std::int64_t>(i));
-    }
+    // Grown once per chunk, not a byte at a time (a capacity check per byte and per time stamp).
+    const std::size_t old = seg_.size();
+    seg_.insert(seg_.end(), bytes.begin(), bytes.end());
+    times_.resize(old + n);
+    for (std::size_t i = 0; i < n; ++i)
+        times_[old + i] = first_end + ct * static_cast<std::int64_t>(i);
     last_end_ = times_.back();
     has_last_ = true;
     if (seg_.size() > 4 * max_rtu_adu_length) close_segment(false, out);

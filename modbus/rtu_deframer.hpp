@@ -66,7 +66,6 @@ class RtuTimedDeframer {
     std::vector<std::uint8_t> seg_;  // bytes since the last t3.5 silence
     std::vector<Timestamp> times_;   // end time of each byte in seg_
     std::vector<Gap> gaps_;          // silences above t1.5 inside seg_
-    DeframeEvents split_;            // close_segment's split by content, kept for its capacity
     std::uint64_t seg_offset_ = 0;   // stream offset of seg_[0]
     Timestamp last_end_{0};
     bool has_last_ = false;
