@@ -1,5 +1,8 @@
 #include "modbus/ascii_deframer.hpp"
 
+#include <algorithm>
+#include <cstring>
+
 #include "modbus/adu.hpp"
 
 namespace mbscope::modbus {
@@ -10,32 +13,47 @@ void AsciiDeframer::flush_noise(DeframeEvents& out) {
     noise_ = Unparsed{};
 }
 
-void AsciiDeframer::add_noise(std::uint64_t offset, DeframeEvents& out) {
-    if (noise_.length != 0 && noise_.offset + noise_.length != offset) flush_noise(out);
+void AsciiDeframer::add_noise(std::size_t count, DeframeEvents& out) {
+    if (noise_.length != 0 && noise_.offset + noise_.length != offset_) flush_noise(out);
     if (noise_.length == 0) {
-        noise_.offset = offset;
+        noise_.offset = offset_;
         noise_.reason = UnparsedReason::NoStart;
         noise_.time = last_;
     }
-    ++noise_.length;
+    noise_.length += static_cast<std::uint32_t>(count);
+    offset_ += count;
+}
+
+void AsciiDeframer::start_frame() {
+    frame_[0] = ':';
+    frame_length_ = 1;
+    frame_offset_ = offset_++;
+    frame_start_ = last_;
+}
+
+void AsciiDeframer::append(std::span<const std::uint8_t> run) {
+    // The caller never hands more than the room left (feed's `room`).
+    std::copy(run.begin(), run.end(), frame_.begin() + static_cast<std::ptrdiff_t>(frame_length_));
+    frame_length_ += run.size();
+    offset_ += run.size();
 }
 
 void AsciiDeframer::abandon(UnparsedReason reason, DeframeEvents& out) {
-    if (frame_.empty()) return;
+    if (frame_length_ == 0) return;
     flush_noise(out);
     out.emplace_back(
-        Unparsed{frame_offset_, static_cast<std::uint32_t>(frame_.size()), reason, frame_start_});
-    frame_.clear();
+        Unparsed{frame_offset_, static_cast<std::uint32_t>(frame_length_), reason, frame_start_});
+    frame_length_ = 0;
 }
 
 void AsciiDeframer::complete(DeframeEvents& out) {
     flush_noise(out);
     Frame frame;
     frame.offset = frame_offset_;
-    frame.wire_length = static_cast<std::uint32_t>(frame_.size());
+    frame.wire_length = static_cast<std::uint32_t>(frame_length_);
     frame.start = frame_start_;
     frame.end = last_;
-    auto r = detail::ascii_hex_to_frame({frame_.data() + 1, frame_.size() - 3}, frame);
+    auto r = detail::ascii_hex_to_frame({frame_.data() + 1, frame_length_ - 3}, frame);
     if (r) {
         out.emplace_back(frame);
     } else {
@@ -44,49 +62,76 @@ void AsciiDeframer::complete(DeframeEvents& out) {
         if (r.error().code == ErrorCode::Truncated) reason = UnparsedReason::TooShort;
         if (r.error().code == ErrorCode::TooLong) reason = UnparsedReason::TooLong;
         out.emplace_back(
-            Unparsed{frame_offset_, static_cast<std::uint32_t>(frame_.size()), reason, frame_start_});
+            Unparsed{frame_offset_, static_cast<std::uint32_t>(frame_length_), reason, frame_start_});
     }
-    frame_.clear();
+    frame_length_ = 0;
 }
 
 void AsciiDeframer::feed(std::span<const std::uint8_t> chars, Timestamp received, DeframeEvents& out) {
     if (chars.empty()) return;
     const bool timed = received.count() != 0;
-    if (timed && has_last_ && !frame_.empty() && received - last_ > options_.inter_char_timeout)
+    if (timed && has_last_ && frame_length_ != 0 && received - last_ > options_.inter_char_timeout)
         abandon(UnparsedReason::Timeout, out);
     if (timed) {
         last_ = received;
         has_last_ = true;
     }
-    for (std::uint8_t c : chars) {
-        const std::uint64_t at = offset_++;
-        if (c == ':') {
-            abandon(UnparsedReason::MissingEnd, out);  // a frame in progress never saw its CR LF
-            // Room for the longest frame once, rather than growing a character at a time (ten
-            // reallocations on the way to 513 characters for each deframer made).
-            if (frame_.capacity() == 0) frame_.reserve(max_ascii_frame_length + 1);
-            frame_.push_back(c);
-            frame_offset_ = at;
-            frame_start_ = last_;
+    // Runs of characters are taken whole: noise up to the next ':', a frame's body up to the next ':' or CR
+    // (found by memchr), so the work per character is a copy, not a branch per character.
+    const std::uint8_t* const p = chars.data();
+    const std::size_t n = chars.size();
+    std::size_t i = 0;
+    while (i < n) {
+        if (frame_length_ == 0) {
+            const auto* colon = static_cast<const std::uint8_t*>(std::memchr(p + i, ':', n - i));
+            const std::size_t stop = colon ? static_cast<std::size_t>(colon - p) : n;
+            if (stop > i) {
+                add_noise(stop - i, out);
+                i = stop;
+            }
+            if (i == n) break;
+            start_frame();
+            ++i;
             continue;
         }
-        if (frame_.empty()) {
-            add_noise(at, out);
-            continue;
-        }
-        const bool after_cr = frame_.back() == '\r';
-        frame_.push_back(c);
-        if (after_cr) {
-            if (c == '\n') {
+        if (frame_[frame_length_ - 1] == '\r') {
+            const std::uint8_t c = p[i];
+            if (c == ':') {
+                abandon(UnparsedReason::MissingEnd, out);  // a frame in progress never saw its CR LF
+                start_frame();
+            } else if (c == '\n') {
+                frame_[frame_length_++] = c;  // room: a frame holding its CR is not too long yet
+                ++offset_;
                 complete(out);
             } else {
-                frame_.pop_back();
                 abandon(UnparsedReason::MissingEnd, out);
-                add_noise(at, out);
+                add_noise(1, out);
             }
+            ++i;
             continue;
         }
-        if (frame_.size() > max_ascii_frame_length) abandon(UnparsedReason::TooLong, out);
+        // The frame's body: up to a ':' (a new frame cuts this one), up to and with a CR, or up to the
+        // character that makes it one longer than the longest frame.
+        const std::size_t room = max_ascii_frame_length + 1 - frame_length_;
+        const std::size_t limit = std::min(n - i, room);
+        const auto* colon = static_cast<const std::uint8_t*>(std::memchr(p + i, ':', limit));
+        const auto* cr = static_cast<const std::uint8_t*>(
+            std::memchr(p + i, '\r', colon ? static_cast<std::size_t>(colon - (p + i)) : limit));
+        if (cr) {
+            append({p + i, cr + 1});
+            i = static_cast<std::size_t>(cr - p) + 1;
+        } else if (colon) {
+            append({p + i, colon});
+            i = static_cast<std::size_t>(colon - p);
+            abandon(UnparsedReason::MissingEnd, out);  // a frame in progress never saw its CR LF
+            start_frame();
+            ++i;
+            continue;
+        } else {
+            append({p + i, limit});
+            i += limit;
+        }
+        if (frame_length_ > max_ascii_frame_length) abandon(UnparsedReason::TooLong, out);
     }
 }
 

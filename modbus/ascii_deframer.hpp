@@ -4,10 +4,10 @@
 // ':' ... CR LF, an unfinished frame cut by a new ':', bad characters and odd lengths become Unparsed
 // records; lower-case hex and a wrong LRC still give a Frame, with findings.
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <span>
-#include <vector>
 
 #include "modbus/frame.hpp"
 #include "modbus/serial_line.hpp"
@@ -26,16 +26,21 @@ class AsciiDeframer {
     void feed(std::span<const std::uint8_t> chars, Timestamp received, DeframeEvents& out);
     void feed(std::span<const std::uint8_t> chars, DeframeEvents& out) { feed(chars, Timestamp{0}, out); }
     void finish(DeframeEvents& out);
-    std::size_t buffered() const noexcept { return frame_.size(); }  // characters of an incomplete frame
+    std::size_t buffered() const noexcept { return frame_length_; }  // characters of an incomplete frame
 
   private:
     void abandon(UnparsedReason reason, DeframeEvents& out);
     void complete(DeframeEvents& out);
-    void add_noise(std::uint64_t offset, DeframeEvents& out);
+    void add_noise(std::size_t count, DeframeEvents& out);  // the next `count` characters are noise
+    void start_frame();                                     // the next character, a ':', starts a frame
+    void append(std::span<const std::uint8_t> run);         // the next characters belong to the frame
     void flush_noise(DeframeEvents& out);
 
     Options options_{};
-    std::vector<std::uint8_t> frame_;  // ':' onwards
+    // ':' onwards. The protocol bounds a frame, so its buffer lives in the deframer: no allocation per frame
+    // or per deframer (one character past the longest frame is held before it is abandoned as too long).
+    std::array<std::uint8_t, max_ascii_frame_length + 1> frame_{};
+    std::size_t frame_length_ = 0;
     std::uint64_t frame_offset_ = 0;
     Timestamp frame_start_{0};
     std::uint64_t offset_ = 0;  // stream offset of the next character
