@@ -18,11 +18,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     modbus::AsciiDeframer deframer;
     modbus::DeframeEvents& events = fuzz::reused_events();
     std::uint64_t total = 0;
+    static fuzz::ExactChunks<FuzzedDataProvider> chunks(64);  // the largest chunk below
     modbus::Timestamp now{1'000'000'000};
     while (in.remaining_bytes() > 0) {
         const auto chunk_size = in.ConsumeIntegralInRange<std::size_t>(1, 64);
         const auto pause_ms = in.ConsumeIntegralInRange<std::uint32_t>(0, 1500);
-        const auto chunk = in.ConsumeBytes<std::uint8_t>(chunk_size);
+        const auto chunk = chunks.take(in, chunk_size);
         if (chunk.empty()) break;
         total += chunk.size();
         now += std::chrono::milliseconds(pause_ms);
