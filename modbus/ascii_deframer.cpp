@@ -32,7 +32,7 @@ void AsciiDeframer::start_frame() {
 }
 
 void AsciiDeframer::append(std::span<const std::uint8_t> run) {
-    // The caller never hands more than the room left (feed's `room`).
+    // The caller never hands more than the room left (feed's `limit`).
     std::copy(run.begin(), run.end(), frame_.begin() + static_cast<std::ptrdiff_t>(frame_length_));
     frame_length_ += run.size();
     offset_ += run.size();
@@ -82,25 +82,22 @@ void AsciiDeframer::feed(std::span<const std::uint8_t> chars, Timestamp received
     const std::size_t n = chars.size();
     std::size_t i = 0;
     while (i < n) {
-        if (frame_length_ == 0) {
-            const auto* colon = static_cast<const std::uint8_t*>(std::memchr(p + i, ':', n - i));
-            const std::size_t stop = colon ? static_cast<std::size_t>(colon - p) : n;
-            if (stop > i) {
-                add_noise(stop - i, out);
-                i = stop;
-            }
-            if (i == n) break;
+        if (p[i] == ':') {
+            abandon(UnparsedReason::MissingEnd, out);  // a frame in progress never saw its CR LF
             start_frame();
             ++i;
             continue;
         }
+        if (frame_length_ == 0) {  // noise, up to the next ':'
+            const auto* colon = static_cast<const std::uint8_t*>(std::memchr(p + i, ':', n - i));
+            const std::size_t stop = colon ? static_cast<std::size_t>(colon - p) : n;
+            add_noise(stop - i, out);
+            i = stop;
+            continue;
+        }
         if (frame_[frame_length_ - 1] == '\r') {
-            const std::uint8_t c = p[i];
-            if (c == ':') {
-                abandon(UnparsedReason::MissingEnd, out);  // a frame in progress never saw its CR LF
-                start_frame();
-            } else if (c == '\n') {
-                frame_[frame_length_++] = c;  // room: a frame holding its CR is not too long yet
+            if (p[i] == '\n') {
+                frame_[frame_length_++] = '\n';  // room: a frame holding its CR is not too long yet
                 ++offset_;
                 complete(out);
             } else {
@@ -110,27 +107,15 @@ void AsciiDeframer::feed(std::span<const std::uint8_t> chars, Timestamp received
             ++i;
             continue;
         }
-        // The frame's body: up to a ':' (a new frame cuts this one), up to and with a CR, or up to the
-        // character that makes it one longer than the longest frame.
-        const std::size_t room = max_ascii_frame_length + 1 - frame_length_;
-        const std::size_t limit = std::min(n - i, room);
+        // The frame's body: up to the next ':' (handled above), up to and with a CR, or up to the character
+        // that makes it one longer than the longest frame.
+        const std::size_t limit = std::min(n - i, max_ascii_frame_length + 1 - frame_length_);
         const auto* colon = static_cast<const std::uint8_t*>(std::memchr(p + i, ':', limit));
-        const auto* cr = static_cast<const std::uint8_t*>(
-            std::memchr(p + i, '\r', colon ? static_cast<std::size_t>(colon - (p + i)) : limit));
-        if (cr) {
-            append({p + i, cr + 1});
-            i = static_cast<std::size_t>(cr - p) + 1;
-        } else if (colon) {
-            append({p + i, colon});
-            i = static_cast<std::size_t>(colon - p);
-            abandon(UnparsedReason::MissingEnd, out);  // a frame in progress never saw its CR LF
-            start_frame();
-            ++i;
-            continue;
-        } else {
-            append({p + i, limit});
-            i += limit;
-        }
+        const std::size_t body_end = colon ? static_cast<std::size_t>(colon - p) : i + limit;
+        const auto* cr = static_cast<const std::uint8_t*>(std::memchr(p + i, '\r', body_end - i));
+        const std::size_t stop = cr ? static_cast<std::size_t>(cr - p) + 1 : body_end;
+        append({p + i, p + stop});
+        i = stop;
         if (frame_length_ > max_ascii_frame_length) abandon(UnparsedReason::TooLong, out);
     }
 }
