@@ -62,7 +62,8 @@ Union union_of(const std::vector<mb::Profile>& models, mb::Table table) {
     return u;
 }
 
-std::vector<std::string> seed_lines(const std::string& prefix) {
+// A manual's lines, read once: the tests look up a line for each of thousands of points.
+const std::vector<std::string>& seed_lines(const std::string& prefix) {
     static std::map<std::string, std::vector<std::string>> cache;
     auto it = cache.find(prefix);
     if (it != cache.end()) return it->second;
@@ -240,7 +241,7 @@ TEST(BundledProfiles, EveryPointStandsOnTheLineItCites) {
                     const int line = std::atoi(
                         pt.source.substr(4, dash == std::string::npos ? std::string::npos : dash - 4)
                             .c_str());
-                    const auto lines = seed_lines(prefix);
+                    const auto& lines = seed_lines(prefix);
                     ASSERT_FALSE(lines.empty()) << "seed " << prefix << " not found in " << seeds_dir;
                     if (line < 1 || line > static_cast<int>(lines.size())) {
                         mismatches.push_back(file + ": " + pt.source + " is not a line of the manual");
@@ -301,7 +302,7 @@ TEST(BundledProfiles, AccessAndEncodingAgreeWithTheCitedLine) {
             for (const auto& pt : p.table(table)) {
                 if (pt.reconstructed || pt.source.size() < 5 || pt.source[3] != ':') continue;
                 const std::string prefix = pt.source.substr(0, 3);
-                const auto lines = seed_lines(prefix);
+                const auto& lines = seed_lines(prefix);
                 const int n = line_of(pt.source);
                 if (n < 1 || n > static_cast<int>(lines.size())) continue;
                 const std::string& raw = lines[static_cast<std::size_t>(n - 1)];
