@@ -1,13 +1,13 @@
 // mbscope check: certify a slave against the Modbus specification and its device's manual.
 #include <unistd.h>
 
-#include <csignal>
 #include <fstream>
 #include <iostream>
 #include <memory>
 
 #include "cli/commands.hpp"
 #include "cli/profile_json.hpp"
+#include "cli/stop_signal.hpp"
 #include "conformance/report.hpp"
 #include "conformance/runner.hpp"
 #include "modbus/storage/profile_store.hpp"
@@ -31,11 +31,6 @@ struct CheckCliOptions {
     std::vector<std::string> profile_dirs;
     std::vector<std::string> config;
 };
-
-std::atomic<bool> stop_check{false};
-extern "C" void on_check_signal(int) {
-    stop_check.store(true);
-}
 
 bool write_file(const std::string& path, const std::function<void(std::ostream&)>& writer) {
     std::ofstream out(path, std::ios::binary);
@@ -75,10 +70,8 @@ int run_check_command(const CheckCliOptions& o) {
             std::cerr << "\r\033[K" << ++done << " rules  " << r.rule.id << std::flush;
         };
     }
-    std::signal(SIGINT, on_check_signal);
-    std::signal(SIGTERM, on_check_signal);
-    std::signal(SIGPIPE, SIG_IGN);
-    const auto report = conformance::run_check(*client, *profile, options, &stop_check);
+    auto& stop = stop_on_signals(BrokenPipe::Ignored);
+    const auto report = conformance::run_check(*client, *profile, options, &stop);
     if (done) std::cerr << "\r\033[K";
     if (o.json)
         std::cout << conformance::to_json(report).dump(2, ' ', false,

@@ -2,13 +2,13 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 
 #include "cli/commands.hpp"
 #include "cli/profile_json.hpp"
+#include "cli/stop_signal.hpp"
 #include "fuzz/network/campaign.hpp"
 #include "modbus/transport/endpoint.hpp"
 
@@ -34,11 +34,6 @@ struct FuzzCliOptions {
     std::vector<std::string> profile_dirs;
     std::vector<std::string> config;
 };
-
-std::atomic<bool> stop_fuzz{false};
-extern "C" void on_fuzz_signal(int) {
-    stop_fuzz.store(true);
-}
 
 // "60s", "2m", "500ms", "90" (seconds).
 std::optional<std::chrono::milliseconds> parse_duration(const std::string& text) {
@@ -107,10 +102,7 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     options.max_findings = o.max_findings;
     const bool meter = o.progress && isatty(STDERR_FILENO);
     if (meter) options.progress = show_progress;
-    options.stop = &stop_fuzz;
-    std::signal(SIGINT, on_fuzz_signal);
-    std::signal(SIGTERM, on_fuzz_signal);
-    std::signal(SIGPIPE, SIG_IGN);
+    options.stop = &stop_on_signals(BrokenPipe::Ignored);
 
     const auto summary = fuzz::network::run_campaign(*profile, options);
     if (meter) std::cerr << "\r\033[K";

@@ -1,12 +1,12 @@
 // mbscope slave: serve device profiles over TCP, UDP, serial framing over TCP, a serial port or a
 // pseudo-terminal, with planted faults on demand.
 #include <algorithm>
-#include <csignal>
 #include <iostream>
 #include <memory>
 
 #include "cli/commands.hpp"
 #include "cli/profile_json.hpp"
+#include "cli/stop_signal.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "modbus/transport/endpoint.hpp"
 #include "slave/faults.hpp"
@@ -31,11 +31,6 @@ struct SlaveOptions {
     double idle_timeout_s = 60;
     std::size_t max_clients = 1024;
 };
-
-std::atomic<bool> stop_requested{false};
-extern "C" void on_signal(int) {
-    stop_requested.store(true);
-}
 
 int run_slave(const SlaveOptions& o) {
     auto endpoint = modbus::transport::parse_endpoint(o.listen);
@@ -143,10 +138,7 @@ int run_slave(const SlaveOptions& o) {
         for (const auto& f : o.faults)
             std::cerr << "mbscope slave: planted fault " << f << '\n';
     }
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
-    std::signal(SIGPIPE, SIG_IGN);
-    auto ran = server.run(stop_requested);
+    auto ran = server.run(stop_on_signals(BrokenPipe::Ignored));
     if (!ran) {
         std::cerr << "mbscope slave: " << ran.error() << '\n';
         return exit_failure;

@@ -1,7 +1,6 @@
 // mbscope sniff: live traffic in (a network interface, or one or two serial ports); frames, transactions,
 // findings and a summary out, as mbscope decode prints them (the same output, profile and port options),
 // and optionally a capture file.
-#include <csignal>
 #include <iostream>
 #include <memory>
 
@@ -9,15 +8,10 @@
 #include "analyzer/live_capture.hpp"
 #include "cli/analysis_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/stop_signal.hpp"
 
 namespace mbscope::cli {
 namespace {
-
-std::atomic<bool> stop_requested{false};
-
-extern "C" void on_stop_signal(int) {
-    stop_requested = true;
-}
 
 struct SniffCliOptions {
     AnalysisCliOptions common;
@@ -49,9 +43,7 @@ int run_sniff(SniffCliOptions o) {
         return exit_failure;
     }
     analyzer::Analyzer a(options, outputs.sink());
-    std::signal(SIGINT, on_stop_signal);
-    std::signal(SIGTERM, on_stop_signal);
-    const bool ok = capture->run(a, stop_requested);
+    const bool ok = capture->run(a, stop_on_signals(BrokenPipe::Kills));
     a.finish();
     for (const auto& e : a.summary().input_errors)
         std::cerr << "mbscope sniff: " << e << '\n';

@@ -1,0 +1,17 @@
+#pragma once
+// SIGINT and SIGTERM ask a long run (slave, check, fuzz, sniff) to stop rather than kill it: the run sees the
+// flag, finishes its step (restores what it wrote, writes its report, closes its capture file) and returns.
+
+#include <atomic>
+
+namespace mbscope::cli {
+
+enum class BrokenPipe {
+    Kills,    // output to a pipe: a reader that went away ends the run, as for any filter
+    Ignored,  // a peer closed its socket: a send fails with EPIPE and the run carries on or reports it
+};
+
+// Installs the handlers and returns the flag they set.
+std::atomic<bool>& stop_on_signals(BrokenPipe broken_pipe);
+
+}  // namespace mbscope::cli
