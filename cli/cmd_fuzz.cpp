@@ -1,7 +1,6 @@
 // mbscope fuzz: fuzz any slave over the network or a serial line, with the rules as the oracle.
 #include <unistd.h>
 
-#include <atomic>
 #include <cstdio>
 #include <iostream>
 #include <memory>
