@@ -10,7 +10,9 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <filesystem>
 #include <functional>
+#include <utility>
 
 #include "modbus/function_code.hpp"
 #include "tests/slave/slave_test_support.hpp"
@@ -462,6 +464,20 @@ TEST(EveryProfileList, RulesWithoutASubjectLeaveOutOnlyTheseProfiles) {
 
 TEST(EveryProfileList, HoldsTheFortyEightBundledDevices) {
     EXPECT_EQ(profile_ids().size(), 48u);  // README: 43 MK Controle models, 3 Walchem, CTH2265I, generic
+}
+
+// The tests name their cases from bundled_profiles (slave_test_support.hpp) rather than from the store; the
+// two must agree on every id and on the file that defines it.
+TEST(EveryProfileList, IsTheStoresList) {
+    EXPECT_TRUE(store().errors().empty());
+    std::vector<std::pair<std::string, std::string>> listed, stored;
+    for (const auto& b : bundled_profiles)
+        listed.emplace_back(b.id, b.file);
+    const auto root = std::filesystem::path(MBSCOPE_SOURCE_DIR) / "profiles";
+    for (const auto& e : store().entries())
+        stored.emplace_back(e.id, std::filesystem::path(e.file).lexically_relative(root).generic_string());
+    EXPECT_EQ(listed, stored)
+        << "profiles/ changed: bring bundled_profiles in slave_test_support.hpp up to date";
 }
 
 // ---------------------------------------------------------------------------------------------------------
