@@ -4,11 +4,12 @@
 # and, where it has one, its options (fuzz_<name>.options); and the device profiles beside them
 # ($OUT/profiles, where the targets look first after $MBSCOPE_PROFILE_PATH).
 # Also run by the project's own test command with local values (scripts/run.sh), so it cannot rot.
+# Build type None: the contract's flags alone decide optimisation and debug information (fuzz/README.md).
 SRC_DIR=${SRC_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
 BUILD=${WORK:-/tmp}/mbscope-fuzz-build
 
 cmake -S "$SRC_DIR" -B "$BUILD" \
-  -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_BUILD_TYPE=None \
   -DCMAKE_C_COMPILER="$CC" -DCMAKE_CXX_COMPILER="$CXX" \
   -DCMAKE_C_FLAGS="$CFLAGS" -DCMAKE_CXX_FLAGS="$CXXFLAGS" \
   -DMBSCOPE_FUZZ_ENGINE="$LIB_FUZZING_ENGINE" \
