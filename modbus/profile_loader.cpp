@@ -823,9 +823,15 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
             } else {
                 try {
                     json m = json::parse(*maps_text);
-                    maps =
-                        ModularMaps{m.value("maps", json::object()), m.value("status_codes", json::object()),
-                                    m.value("alarm_bits", json::object())};
+                    // Moved out, not copied: the Walchem type maps are half a megabyte of JSON.
+                    const auto take = [&m](const char* key) {
+                        auto it = m.find(key);
+                        return it == m.end() ? json::object() : std::move(*it);
+                    };
+                    if (!m.is_object())
+                        r.error("/maps_file", *name + " is not a JSON object");
+                    else
+                        maps = ModularMaps{take("maps"), take("status_codes"), take("alarm_bits")};
                 } catch (const json::exception& e) {
                     r.error("/maps_file", *name + " is not valid JSON: " + e.what());
                 }

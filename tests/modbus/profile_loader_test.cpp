@@ -4,6 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <optional>
+#include <string>
+#include <utility>
+
 namespace mb = mbscope::modbus;
 
 namespace {
@@ -228,4 +232,14 @@ TEST(ProfileLoader, ModularDeviceExpandsItsConfiguration) {
     EXPECT_EQ(flow.profiles[0].configuration.at("sensor-1-1"), "flow");
     auto wrong = load(device, include, {{"relay-1", "sensor"}, {"nosuch", "x"}});
     EXPECT_EQ(wrong.errors.size(), 2u);
+    // A maps file that is JSON but not an object, and one that is not JSON: each named on /maps_file.
+    const std::pair<const char*, const char*> broken[] = {{"[1, 2]", "maps.json is not a JSON object"},
+                                                          {R"({"maps": )", "maps.json is not valid JSON"}};
+    for (const auto& [text, message] : broken) {
+        auto b =
+            load(device, [&](const std::string&) -> std::optional<std::string> { return std::string(text); });
+        ASSERT_FALSE(b.errors.empty()) << text;
+        EXPECT_EQ(b.errors[0].pointer, "/maps_file") << text;
+        EXPECT_NE(b.errors[0].message.find(message), std::string::npos) << b.errors[0].message;
+    }
 }
