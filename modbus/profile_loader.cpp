@@ -425,7 +425,12 @@ FunctionRules parse_functions(Reader& r, const json& j) {
                 f.exceptions[it.key()] = (*it)["code"].get<int>();
             else if (it->is_object() && it->contains("code") && (*it)["code"].is_null())
                 f.exceptions[it.key()] = std::nullopt;
-            if (it->is_object() && it->value("implied", false)) f.implied_exceptions.insert(it.key());
+            if (const json* implied = r.child(*it, "implied"); implied) {
+                if (!implied->is_boolean())
+                    r.error("/functions/exceptions/" + it.key() + "/implied", "must be true or false");
+                else if (implied->get<bool>())
+                    f.implied_exceptions.insert(it.key());
+            }
         }
     return f;
 }
@@ -806,9 +811,14 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
     common.functions = parse_functions(r, doc);
     common.open_address_space = r.string(doc, "address_space", "", false).value_or("") == "open";
     if (auto n = r.child(doc, "notes"); n && n->is_array())
-        for (const auto& x : *n)
-            if (x.is_object())
-                common.notes.push_back({x.value("text", ""), x.value("source", ""), x.value("kind", "")});
+        for (std::size_t i = 0; i < n->size(); ++i) {
+            const json& x = (*n)[i];
+            if (!x.is_object()) continue;
+            const std::string ptr = "/notes/" + std::to_string(i);
+            common.notes.push_back({r.string(x, "text", ptr, false).value_or(""),
+                                    r.string(x, "source", ptr, false).value_or(""),
+                                    r.string(x, "kind", ptr, false).value_or("")});
+        }
     common.simulation = parse_simulation(r, doc);
     Tables base;
     parse_tables(r, doc, base);

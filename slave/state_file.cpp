@@ -72,16 +72,20 @@ modbus::Result<void, std::string> load_state(const std::string& path, const std:
     json doc = json::parse(in, nullptr, false);
     if (doc.is_discarded())
         return path + ": not valid JSON (a damaged state file; remove it to start afresh)";
-    if (!doc.is_object() || doc.value("format", "") != "mbscope-slave-state/1" || !doc.contains("units") ||
+    // A string field, or "" when it is missing or of another type (json::value would throw on the latter).
+    const auto text_of = [](const json& j, const char* key) {
+        const auto it = j.is_object() ? j.find(key) : j.end();
+        return it != j.end() && it->is_string() ? it->get<std::string>() : std::string();
+    };
+    if (text_of(doc, "format") != "mbscope-slave-state/1" || !doc.contains("units") ||
         !doc["units"].is_object())
         return path + ": not an mbscope slave state file (format mbscope-slave-state/1)";
     for (Device* d : devices) {
         const auto it = doc["units"].find(std::to_string(d->unit()));
         if (it == doc["units"].end()) continue;
-        if (!it->is_object() || it->value("profile", "") != d->profile().id)
+        if (const auto saved = text_of(*it, "profile"); saved != d->profile().id)
             return path + ": unit " + std::to_string(d->unit()) + " was saved with profile \"" +
-                   (it->is_object() ? it->value("profile", "?") : "?") + "\", now served as \"" +
-                   d->profile().id + "\"";
+                   (saved.empty() ? "?" : saved) + "\", now served as \"" + d->profile().id + "\"";
         for (const auto& [name, values] : it->items()) {
             if (name == "profile") continue;
             const auto table = modbus::parse_table(name);

@@ -173,6 +173,28 @@ TEST(ProfileLoader, ReportsEveryErrorWithItsPointer) {
     EXPECT_GE(l.errors.size(), 8u);
 }
 
+// Fields of the wrong type where the loader used to take a default with nlohmann's value(), which throws on
+// a type mismatch: each is an error with its pointer, and the rest still loads (found by the profile fuzz
+// target, fuzz/regressions/profile/implied-not-a-boolean).
+TEST(ProfileLoader, WrongTypesAreErrorsNotExceptions) {
+    const char* wrong = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y", "line": {"transports": ["rtu"]},
+      "functions": {"supported": [3], "exceptions": {"3": {"code": 2, "implied": "yes"}}},
+      "notes": [{"text": 5, "source": "000:1"}, {"text": "kept", "source": ["000:2"], "kind": {}}],
+      "tables": {"holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "000:1"}]},
+      "models": [{"id": "m"}]
+    })";
+    mb::LoadedProfiles l;
+    ASSERT_NO_THROW(l = load(wrong));
+    std::vector<std::string> pointers;
+    for (const auto& e : l.errors)
+        pointers.push_back(e.pointer);
+    EXPECT_EQ(pointers, (std::vector<std::string>{"/functions/exceptions/3/implied", "/notes/0/text",
+                                                  "/notes/1/source", "/notes/1/kind"}));
+    ASSERT_EQ(l.profiles.size(), 1u);
+    EXPECT_NE(l.profiles[0].find(mb::Table::HoldingRegisters, 1), nullptr);
+}
+
 TEST(ProfileLoader, InvalidJsonAndOtherDocuments) {
     auto bad = load("{ \"format\": ");
     ASSERT_EQ(bad.errors.size(), 1u);

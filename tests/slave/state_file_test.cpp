@@ -134,6 +134,13 @@ INSTANTIATE_TEST_SUITE_P(
                "not an mbscope slave state file"},
         Damage{"UnitsNotAnObject", R"({"format": "mbscope-slave-state/1", "units": []})",
                "not an mbscope slave state file"},
+        // Fields of the wrong type: refused, not thrown (nlohmann's value() throws on a type mismatch).
+        Damage{"FormatNotAString", R"({"format": 1, "units": {}})", "not an mbscope slave state file"},
+        Damage{"NotAnObject", R"(["mbscope-slave-state/1"])", "not an mbscope slave state file"},
+        Damage{"ProfileNotAString", R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": 7}}})",
+               "was saved with profile \"?\""},
+        Damage{"UnitNotAnObject", R"({"format": "mbscope-slave-state/1", "units": {"1": "mmk-2030"}})",
+               "was saved with profile \"?\""},
         Damage{"UnknownTable",
                R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "nope": {}}}})",
                "unknown table \"nope\""},
