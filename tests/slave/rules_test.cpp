@@ -473,9 +473,9 @@ TEST(EveryProfileList, IsTheStoresList) {
     std::vector<std::pair<std::string, std::string>> listed, stored;
     for (const auto& b : bundled_profiles)
         listed.emplace_back(b.id, b.file);
-    const auto root = std::filesystem::path(MBSCOPE_SOURCE_DIR) / "profiles";
     for (const auto& e : store().entries())
-        stored.emplace_back(e.id, std::filesystem::path(e.file).lexically_relative(root).generic_string());
+        stored.emplace_back(
+            e.id, std::filesystem::path(e.file).lexically_relative(profiles_dir()).generic_string());
     EXPECT_EQ(listed, stored)
         << "profiles/ changed: bring bundled_profiles in slave_test_support.hpp up to date";
 }

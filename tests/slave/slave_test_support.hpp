@@ -33,9 +33,13 @@ namespace mbscope::slave::test {
 
 namespace mb = mbscope::modbus;
 
+// The source tree's profiles/, where the bundled profiles live.
+inline std::filesystem::path profiles_dir() {
+    return std::filesystem::path(MBSCOPE_SOURCE_DIR) / "profiles";
+}
+
 inline const mb::storage::ProfileStore& store() {
-    static const mb::storage::ProfileStore s(
-        {(std::filesystem::path(MBSCOPE_SOURCE_DIR) / "profiles").string()});
+    static const mb::storage::ProfileStore s({profiles_dir().string()});
     return s;
 }
 
@@ -108,8 +112,7 @@ inline const mb::Profile& profile(const std::string& id) {
     if (it == cache.end()) {
         for (const auto& b : bundled_profiles) {
             if (b.id != id) continue;
-            auto loaded = mb::storage::load_profile_file(
-                (std::filesystem::path(MBSCOPE_SOURCE_DIR) / "profiles" / b.file).string());
+            auto loaded = mb::storage::load_profile_file((profiles_dir() / b.file).string());
             for (auto& p : loaded.profiles) {
                 std::string key = p.id;  // copied: the profile is moved below
                 if (!cache.contains(key))
