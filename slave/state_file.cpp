@@ -6,7 +6,6 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 
 namespace mbscope::slave {
@@ -34,7 +33,7 @@ modbus::Result<void, std::string> write_all(int fd, const std::string& data, con
 
 }  // namespace
 
-modbus::Result<void, std::string> save_state(const std::string& path, const std::vector<Device*>& devices) {
+std::string state_text(const std::vector<Device*>& devices) {
     json doc{{"format", "mbscope-slave-state/1"}, {"units", json::object()}};
     for (const Device* d : devices) {
         json unit{{"profile", d->profile().id}};
@@ -46,7 +45,11 @@ modbus::Result<void, std::string> save_state(const std::string& path, const std:
         }
         doc["units"][std::to_string(d->unit())] = std::move(unit);
     }
-    const std::string data = doc.dump(1) + "\n";
+    return doc.dump(1) + "\n";
+}
+
+modbus::Result<void, std::string> save_state(const std::string& path, const std::vector<Device*>& devices) {
+    const std::string data = state_text(devices);
     const std::string tmp = path + ".tmp";
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0) return errno_text(tmp + ": open");
@@ -67,11 +70,34 @@ modbus::Result<void, std::string> save_state(const std::string& path, const std:
 }
 
 modbus::Result<void, std::string> load_state(const std::string& path, const std::vector<Device*>& devices) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return {};  // first start: nothing saved yet
-    json doc = json::parse(in, nullptr, false);
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+        if (errno == ENOENT) return {};  // first start: nothing saved yet
+        // Not a first start: starting afresh would overwrite the saved image at the first write.
+        return errno_text(path + ": open");
+    }
+    std::string text;
+    char buffer[65536];
+    for (;;) {
+        const ssize_t n = ::read(fd, buffer, sizeof buffer);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) {
+            const auto error = errno_text(path + ": read");
+            ::close(fd);
+            return error;
+        }
+        if (n == 0) break;
+        text.append(buffer, static_cast<std::size_t>(n));
+    }
+    ::close(fd);
+    return apply_state(text, path, devices);
+}
+
+modbus::Result<void, std::string> apply_state(std::string_view text, const std::string& name,
+                                              const std::vector<Device*>& devices) {
+    const json doc = json::parse(text.begin(), text.end(), nullptr, false);
     if (doc.is_discarded())
-        return path + ": not valid JSON (a damaged state file; remove it to start afresh)";
+        return name + ": not valid JSON (a damaged state file; remove it to start afresh)";
     // A string field, or "" when it is missing or of another type (json::value would throw on the latter).
     const auto text_of = [](const json& j, const char* key) {
         const auto it = j.is_object() ? j.find(key) : j.end();
@@ -79,29 +105,39 @@ modbus::Result<void, std::string> load_state(const std::string& path, const std:
     };
     if (text_of(doc, "format") != "mbscope-slave-state/1" || !doc.contains("units") ||
         !doc["units"].is_object())
-        return path + ": not an mbscope slave state file (format mbscope-slave-state/1)";
+        return name + ": not an mbscope slave state file (format mbscope-slave-state/1)";
+    struct Entry {
+        Device* device;
+        modbus::Table table;
+        std::uint16_t address, value;
+    };
+    std::vector<Entry> entries;
     for (Device* d : devices) {
         const auto it = doc["units"].find(std::to_string(d->unit()));
         if (it == doc["units"].end()) continue;
+        const std::string unit = name + ": unit " + std::to_string(d->unit());
         if (const auto saved = text_of(*it, "profile"); saved != d->profile().id)
-            return path + ": unit " + std::to_string(d->unit()) + " was saved with profile \"" +
-                   (saved.empty() ? "?" : saved) + "\", now served as \"" + d->profile().id + "\"";
-        for (const auto& [name, values] : it->items()) {
-            if (name == "profile") continue;
-            const auto table = modbus::parse_table(name);
-            if (!table || !values.is_object())
-                return path + ": unit " + std::to_string(d->unit()) + ": unknown table \"" + name + "\"";
+            return unit + " was saved with profile \"" + (saved.empty() ? "?" : saved) +
+                   "\", now served as \"" + d->profile().id + "\"";
+        for (const auto& [table_name, values] : it->items()) {
+            if (table_name == "profile") continue;
+            const auto table = modbus::parse_table(table_name);
+            if (!table || !values.is_object()) return unit + ": unknown table \"" + table_name + "\"";
+            // A coil or discrete input holds 0 or 1 (the slave saves bits so, also where they are views of
+            // registers: it saves those as the registers).
+            const unsigned most = modbus::is_bit_table(*table) ? 1 : 65535;
             for (const auto& [address, value] : values.items()) {
                 char* end = nullptr;
                 const unsigned long a = std::strtoul(address.c_str(), &end, 10);
-                if (address.empty() || *end != '\0' || a > 65535 || !value.is_number_unsigned() ||
-                    value.get<unsigned>() > 65535)
-                    return path + ": unit " + std::to_string(d->unit()) + " " + name + "/" + address +
-                           ": bad entry";
-                d->image().set_reg(*table, static_cast<std::uint16_t>(a), value.get<std::uint16_t>());
+                if (address.empty() || address.front() < '0' || address.front() > '9' || *end != '\0' ||
+                    a > 65535 || !value.is_number_unsigned() || value.get<std::uint64_t>() > most)
+                    return unit + " " + table_name + "/" + address + ": bad entry";
+                entries.push_back({d, *table, static_cast<std::uint16_t>(a), value.get<std::uint16_t>()});
             }
         }
     }
+    for (const Entry& e : entries)
+        e.device->image().set_reg(e.table, e.address, e.value);
     return {};
 }
 

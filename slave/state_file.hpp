@@ -6,6 +6,7 @@
 // on disk.
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "modbus/result.hpp"
@@ -16,7 +17,15 @@ namespace mbscope::slave {
 // Writes the changes of every device. Errors name the file and the system call that failed.
 modbus::Result<void, std::string> save_state(const std::string& path, const std::vector<Device*>& devices);
 // Applies a saved image to the devices with the same unit id and profile. A missing file is not an error
-// (first start); a damaged one is, naming the file and what is wrong.
+// (first start); one that exists and cannot be read, or a damaged one, is, naming the file and what is
+// wrong.
 modbus::Result<void, std::string> load_state(const std::string& path, const std::vector<Device*>& devices);
+
+// The two halves without the file system (the fuzz target's way in): the text save_state writes, and the
+// check and application of such a text. A text is applied whole or not at all: every entry is checked
+// before the first is stored, so a refused file leaves every device as it was. Errors start with `name`.
+std::string state_text(const std::vector<Device*>& devices);
+modbus::Result<void, std::string> apply_state(std::string_view text, const std::string& name,
+                                              const std::vector<Device*>& devices);
 
 }  // namespace mbscope::slave

@@ -156,11 +156,61 @@ INSTANTIATE_TEST_SUITE_P(
             "NegativeValue",
             R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"5": -1}}}})",
             "bad entry"},
+        // 2^32 + 5: read as 32 bits it would be 5 and pass.
+        Damage{
+            "ValueBeyond32Bits",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"5": 4294967301}}}})",
+            "bad entry"},
+        // A coil holds 0 or 1; the slave never saves another value for one.
+        Damage{
+            "CoilNotABit",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "coils": {"1": 2}}}})",
+            "unit 1 coils/1: bad entry"},
+        Damage{
+            "AddressWithASign",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"+5": 1}}}})",
+            "bad entry"},
         Damage{
             "AddressNotANumber",
             R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"x5": 1}}}})",
             "bad entry"}),
     [](const auto& info) { return std::string(info.param.name); });
+
+// A file is applied whole or not at all: the good entries before a bad one are not stored either.
+TEST_F(StateFile, RefusedFileChangesNothing) {
+    write_file(R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030",)"
+               R"( "coils": {"1": 1}, "holding_registers": {"23": 10, "24": -1}}}})");
+    Device device(profile("mmk-2030"), 1);
+    const auto made = device.image().modifications();
+    auto loaded = load_state(path_, {&device});
+    ASSERT_FALSE(loaded.has_value());
+    EXPECT_NE(loaded.error().find("holding_registers/24: bad entry"), std::string::npos) << loaded.error();
+    EXPECT_EQ(device.image().modifications(), made);
+    EXPECT_TRUE(device.image().changes().empty());
+}
+
+// A state file that exists but cannot be read is an error, not a first start: starting from the initial
+// image would overwrite the saved one at the first write.
+TEST_F(StateFile, UnreadableFileIsAnError) {
+    fs::create_directories(path_);  // a folder where the file should be: open succeeds, read fails
+    Device device(profile("modbus"), 1);
+    auto loaded = load_state(path_, {&device});
+    ASSERT_FALSE(loaded.has_value());
+    EXPECT_EQ(loaded.error().rfind(path_ + ": read", 0), 0u) << loaded.error();
+}
+
+// state_text is what save_state writes, and apply_state reads it back to the same image.
+TEST_F(StateFile, TextHalvesMatchTheFile) {
+    Device device(profile("walchem-w600"), 1);
+    EXPECT_EQ(ask(device, "10 00 94 00 02 04 00 00 40 E0"), "10 00 94 00 02");
+    ASSERT_TRUE(save_state(path_, {&device}).has_value());
+    EXPECT_EQ(read_file(), state_text({&device}));
+    Device after(profile("walchem-w600"), 1);
+    auto applied = apply_state(read_file(), "saved", {&after});
+    ASSERT_TRUE(applied.has_value()) << applied.error();
+    EXPECT_EQ(after.image().changes(), device.image().changes());
+    EXPECT_FALSE(after.image().changes().empty());
+}
 
 // A unit saved with one profile and now served with another is refused, naming both.
 TEST_F(StateFile, ProfileMismatchIsRefused) {
