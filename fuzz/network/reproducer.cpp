@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -25,6 +26,18 @@ modbus::Result<std::vector<std::uint8_t>, std::string> unhex(const std::string& 
         out.push_back(static_cast<std::uint8_t>(std::stoul(token, nullptr, 16)));
     }
     return out;
+}
+
+// A whole number field, at most `most`, `fallback` when absent. nlohmann's value()/get() convert a float
+// with a cast (1e30 into an int is undefined behaviour) and wrap a negative number into an unsigned type,
+// so the type and the range are checked here and anything else is refused by name.
+modbus::Result<std::uint64_t, std::string> count(const nlohmann::json& j, const char* key, std::uint64_t most,
+                                                 std::uint64_t fallback) {
+    const auto it = j.find(key);
+    if (it == j.end()) return fallback;
+    if (!it->is_number_unsigned() || it->get<std::uint64_t>() > most)
+        return std::string("\"") + key + "\" is not a whole number in 0.." + std::to_string(most);
+    return it->get<std::uint64_t>();
 }
 
 }  // namespace
@@ -68,7 +81,7 @@ nlohmann::json to_json(const Reproducer& r) {
 
 modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::json& j) {
     try {
-        if (!j.is_object() || j.value("mbscope_reproducer", 0) != 1)
+        if (!j.is_object() || !j.contains("mbscope_reproducer") || j["mbscope_reproducer"] != 1)
             return std::string("not an mbscope reproducer (no \"mbscope_reproducer\": 1)");
         Reproducer r;
         r.rule = j.value("rule", "");
@@ -77,14 +90,18 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
         r.observed = j.value("observed", "");
         r.target = j.value("target", "");
         r.profile = j.value("profile", "modbus");
-        const int unit = j.value("unit", 1);
-        if (unit < 0 || unit > 255) return std::string("unit " + std::to_string(unit) + " is not 0..255");
-        r.unit = static_cast<std::uint8_t>(unit);
+        const auto unit = count(j, "unit", 255, 1);
+        const auto seed = count(j, "seed", UINT64_MAX, 0);
+        const auto request = count(j, "request", UINT64_MAX, 0);
+        const auto original = count(j, "original_steps", SIZE_MAX, 0);
+        for (const auto* field : {&unit, &seed, &request, &original})
+            if (!*field) return field->error();
+        r.unit = static_cast<std::uint8_t>(unit.value());
+        r.seed = seed.value();
+        r.request = request.value();
+        r.original_steps = static_cast<std::size_t>(original.value());
         r.framing = j.value("framing", "");
-        r.seed = j.value("seed", std::uint64_t{0});
-        r.request = j.value("request", std::uint64_t{0});
         r.minimised = j.value("minimised", false);
-        r.original_steps = j.value("original_steps", std::size_t{0});
         if (!j.contains("steps") || !j["steps"].is_array()) return std::string("no \"steps\" array");
         std::size_t index = 0;
         for (const auto& s : j["steps"]) {
@@ -98,11 +115,11 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
                 step.parts.push_back(std::move(bytes).value());
             }
             // Microseconds; reproducers written before stream pauses were finer say milliseconds.
-            const std::int64_t pause = s.contains("pause_us") ? s.value("pause_us", std::int64_t{0})
-                                                              : 1000 * s.value("pause_ms", std::int64_t{0});
-            if (pause < 0 || pause > 60'000'000)
-                return std::string("step " + std::to_string(index) + ": pause outside 0..60 s");
-            step.pause = std::chrono::microseconds(pause);
+            const bool micro = s.contains("pause_us");
+            const auto pause = micro ? count(s, "pause_us", 60'000'000, 0) : count(s, "pause_ms", 60'000, 0);
+            if (!pause) return std::string("step " + std::to_string(index) + ": " + pause.error());
+            step.pause =
+                std::chrono::microseconds((micro ? 1 : 1000) * static_cast<std::int64_t>(pause.value()));
             step.reconnect_after = s.value("reconnect_after", false);
             step.void_by_gap = s.value("void_by_gap", false);
             step.recipe = s.value("recipe", "");

@@ -240,6 +240,24 @@ TEST(NetworkFuzzer, DamagedReproducersAreRefusedWithTheReason) {
               std::string::npos);
     EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":[7]}]})").find(path), std::string::npos);
     EXPECT_EQ(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["01 03"]}]})"), "loaded");
+    // Numbers are whole and in range, or refused by name: a float would be cast (undefined behaviour for
+    // 1e30 into an int; the reproducer fuzz target found it in "mbscope_reproducer"), a negative one wrapped.
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"unit":1e30,"steps":[{"parts":["01 03"]}]})").find("\"unit\""),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"unit":256,"steps":[{"parts":["01 03"]}]})").find("0..255"),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"seed":-1,"steps":[{"parts":["01 03"]}]})").find("\"seed\""),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"original_steps":2.5,"steps":[{"parts":["01 03"]}]})")
+                  .find("\"original_steps\""),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["01 03"],"pause_us":-5}]})").find("step 1"),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["01 03"],"pause_ms":60001}]})")
+                  .find("\"pause_ms\" is not a whole number in 0..60000"),
+              std::string::npos);
+    EXPECT_EQ(with(R"({"mbscope_reproducer":1,"seed":18446744073709551615,"steps":[{"parts":["01 03"]}]})"),
+              "loaded");
 }
 
 // ---- the command
