@@ -43,17 +43,6 @@ slave::Device& fresh_device(std::size_t profile, std::uint8_t unit) {
     return *device;
 }
 
-// Resets the input's devices when it ends, not when the next one begins: the pages an input wrote are freed
-// within the input, so libFuzzer's leak check (more mallocs than frees in one run) is not set off by inputs
-// that wrote registers.
-struct ResetAtEnd {
-    const std::vector<slave::Device*>& units;
-    ~ResetAtEnd() {
-        for (auto* d : units)
-            d->reset();
-    }
-};
-
 // Requests handed to the slave over the whole run: an input holds a sequence of them, so executions per
 // second alone understate the target's rate (bench/fuzz_slave_vs_libmodbus.sh compares it with a harness of
 // one request per input). Printed at exit when MBSCOPE_FUZZ_STATS is set.
@@ -93,7 +82,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     units.push_back(&fresh_device(first_index, unit_of(first, 1)));
     if (two_units && unit_of(second, 2) != units.front()->unit())
         units.push_back(&fresh_device(second_index, unit_of(second, 2)));
-    const ResetAtEnd reset_at_end{units};
+    const fuzz::ResetAtEnd reset_at_end{units};
     std::vector<conformance::ExchangeOracle::Unit> oracle_units;
     for (auto* d : units)
         oracle_units.push_back({d->unit(), &d->profile()});

@@ -106,4 +106,19 @@ class StreamAccount {
     std::uint64_t next_ = 0;
 };
 
+// Resets the objects a target reuses across inputs (devices made once per process) when an input ends, not
+// when the next one begins: what an input allocated (register pages it wrote) is freed within the input, so
+// libFuzzer's leak check (more mallocs than frees in one run) is not set off, and the next input meets the
+// objects as made.
+template <class Objects>  // a range of pointers to objects with reset()
+struct ResetAtEnd {
+    const Objects& objects;
+    ~ResetAtEnd() {
+        for (auto* o : objects)
+            o->reset();
+    }
+};
+template <class Objects>
+ResetAtEnd(const Objects&) -> ResetAtEnd<Objects>;  // clang before 17 deduces no aggregate's arguments
+
 }  // namespace mbscope::fuzz

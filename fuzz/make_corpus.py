@@ -2,7 +2,9 @@
 """Builds the seed corpora in corpus/<target>/ from material nobody chose for the fuzzer: the manuals' worked
 example frames (captures/manual-examples.txt), the bundled captures and serial logs, and requests derived from
 every bundled profile's map (first and last valid address of each table, the manual's quantity limits, a value
-inside each writable point's range). Each seed is laid out the way its target reads its input through
+inside each writable point's range), and the files the programs themselves write: a state file of
+`mbscope slave --state` after writes from a client, reproducers that `mbscope fuzz` saved against the
+reference slave with planted faults. Each seed is laid out the way its target reads its input through
 FuzzedDataProvider (control values from the end, data from the front), so the first run already reaches deep.
 
     fuzz/make_corpus.py --mbscope build/release/cli/mbscope            # write the seeds
@@ -21,7 +23,7 @@ import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TARGETS = ["pdu", "rtu_deframer", "ascii_deframer", "tcp_stream", "capture", "serial_log", "profile", "slave",
-           "libmodbus_diff"]
+           "libmodbus_diff", "slave_state", "reproducer"]
 
 
 class Provider:
@@ -150,6 +152,57 @@ def requests_for(profile):
     return pdus
 
 
+class Slave:
+    """`mbscope slave` on a loopback port for the duration of a `with` block; .address is where it listens."""
+
+    def __init__(self, mbscope, *args):
+        env = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
+        self.process = subprocess.Popen([mbscope, "slave", "-q"] + list(args), stdout=subprocess.PIPE, env=env)
+        self.address = self.process.stdout.readline().decode().strip()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *_):
+        self.process.terminate()
+        self.process.wait()
+
+
+def state_files(mbscope):
+    """State files `mbscope slave --state` writes for the four devices the slave_state target serves (units 1-4),
+    after writes a client sends: the first write alone, then all of them."""
+    import socket
+    writes = [(1, "06 00 54 FC 19"), (1, "05 00 01 FF 00"), (2, "10 00 94 00 02 04 00 00 40 E0"),
+              (3, "06 00 02 00 07"), (4, "0F 00 10 00 0A 02 FF 03"), (4, "10 FF FE 00 02 04 12 34 56 78")]
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "state.json")
+        with Slave(mbscope, "--listen", "tcp://127.0.0.1:0", "--state", path, "--unit", "1=mmk-2030", "--unit",
+                   "2=walchem-w600", "--unit", "3=cth2265i", "--unit", "4=modbus") as slave:
+            host, port = slave.address[len("tcp://"):].rsplit(":", 1)
+            with socket.create_connection((host, int(port)), timeout=5) as s:
+                for tid, (unit, pdu) in enumerate(writes):
+                    s.sendall(tcp(tid, unit, bytes.fromhex(pdu)))
+                    s.recv(300)
+                    if tid in (0, len(writes) - 1):
+                        out.append(open(path, "rb").read())
+    return out
+
+
+def reproducers(mbscope):
+    """Reproducers `mbscope fuzz` saves against the reference slave with a planted fault, one per transport."""
+    env = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
+    out = []
+    for endpoint, fault in (("tcp", "wrong-tid"), ("rtu-tcp", "bad-crc"), ("ascii-tcp", "bad-lrc")):
+        with tempfile.TemporaryDirectory() as tmp, Slave(mbscope, "--listen", endpoint + "://127.0.0.1:0",
+                                                          "--fault", fault) as slave:
+            subprocess.run([mbscope, "fuzz", "--target", slave.address, "--profile", "modbus", "--requests", "20",
+                            "--seed", "1", "--artifacts", tmp], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                           env=env, timeout=120)
+            out += [open(os.path.join(tmp, name), "rb").read() for name in sorted(os.listdir(tmp))[:2]]
+    return out
+
+
 def write(target, payload, out_dir):
     directory = os.path.join(out_dir, target)
     os.makedirs(directory, exist_ok=True)
@@ -262,6 +315,12 @@ def build(mbscope, out_dir):
             p.integral(0, 260, len(broken))
             p.data(broken)
             write("slave", p.bytes(), out_dir)
+
+    # slave_state and reproducer: the files as the programs wrote them.
+    for text in state_files(mbscope):
+        write("slave_state", text, out_dir)
+    for text in reproducers(mbscope):
+        write("reproducer", text, out_dir)
     return 0
 
 
