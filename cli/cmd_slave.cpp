@@ -106,13 +106,19 @@ int run_slave(const SlaveOptions& o) {
         units.push_back(d.get());
     for (std::size_t i = 0; i < devices.size(); ++i)
         processes.emplace_back(*devices[i], o.seed + i);
+    slave::ServerOptions options;
     if (!o.state.empty()) {
-        if (auto loaded = slave::load_state(o.state, units); !loaded) {
+        auto loaded = slave::load_state(o.state, units);
+        if (!loaded) {
             std::cerr << "mbscope slave: " << loaded.error() << '\n';
             return exit_failure;
         }
+        options.state_others = std::move(loaded.value());
+        if (!o.quiet && options.state_others.is_object())
+            for (const auto& [unit, saved] : options.state_others.items())
+                std::cerr << "mbscope slave: " << o.state << ": unit " << unit
+                          << " is not served now; its saved values stay in the file\n";
     }
-    slave::ServerOptions options;
     options.state_file = o.state;
     options.create_pty = o.pty;
     options.max_clients = o.max_clients;

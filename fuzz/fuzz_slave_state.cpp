@@ -4,7 +4,8 @@
 // table), 2 a Walchem controller (coils are views of its registers), 3 the CTH2265I (fixed read values),
 // 4 the generic profile (every address exists). Properties: no crash and no exception; a refused file
 // changes no device and its error starts with the file's name; an accepted file holds bits as 0 or 1, and
-// saving what it made and applying that to the devices as made gives the same image and the same text.
+// saving what it made (with the units it holds for no device) and applying that to the devices as made gives
+// the same image, the same other units and the same text.
 #include <map>
 #include <memory>
 #include <string>

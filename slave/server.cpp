@@ -89,7 +89,7 @@ struct Server::Impl {
 
     bool save() {
         if (options.state_file.empty()) return true;
-        auto saved = save_state(options.state_file, units);
+        auto saved = save_state(options.state_file, units, options.state_others);
         if (!saved) std::fprintf(stderr, "mbscope slave: cannot save state: %s\n", saved.error().c_str());
         return bool(saved);
     }

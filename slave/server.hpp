@@ -22,6 +22,7 @@
 #include "modbus/transport/endpoint.hpp"
 #include "slave/device.hpp"
 #include "slave/faults.hpp"
+#include "slave/state_file.hpp"
 
 namespace mbscope::slave {
 
@@ -34,6 +35,7 @@ struct ServerOptions {
     // (a serial gateway's character timeout); what they hold is answered or dropped then.
     std::chrono::milliseconds stream_frame_silence{50};
     std::string state_file;   // saved after every acknowledged write when set
+    OtherUnits state_others;  // the units state_file holds that this run does not serve: kept in it
     bool create_pty = false;  // serial schemes: create a pseudo-terminal instead of opening the device
     // Called between requests with the time, so the simulated process moves while the slave serves.
     std::function<void(std::chrono::steady_clock::time_point)> tick;

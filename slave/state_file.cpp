@@ -33,8 +33,8 @@ modbus::Result<void, std::string> write_all(int fd, const std::string& data, con
 
 }  // namespace
 
-std::string state_text(const std::vector<Device*>& devices) {
-    json doc{{"format", "mbscope-slave-state/1"}, {"units", json::object()}};
+std::string state_text(const std::vector<Device*>& devices, const OtherUnits& others) {
+    json doc{{"format", "mbscope-slave-state/1"}, {"units", others.is_object() ? others : json::object()}};
     for (const Device* d : devices) {
         json unit{{"profile", d->profile().id}};
         for (const auto& [table, values] : d->image().changes()) {
@@ -48,8 +48,9 @@ std::string state_text(const std::vector<Device*>& devices) {
     return doc.dump(1) + "\n";
 }
 
-modbus::Result<void, std::string> save_state(const std::string& path, const std::vector<Device*>& devices) {
-    const std::string data = state_text(devices);
+modbus::Result<void, std::string> save_state(const std::string& path, const std::vector<Device*>& devices,
+                                             const OtherUnits& others) {
+    const std::string data = state_text(devices, others);
     const std::string tmp = path + ".tmp";
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0) return errno_text(tmp + ": open");
@@ -69,10 +70,11 @@ modbus::Result<void, std::string> save_state(const std::string& path, const std:
     return {};
 }
 
-modbus::Result<void, std::string> load_state(const std::string& path, const std::vector<Device*>& devices) {
+modbus::Result<OtherUnits, std::string> load_state(const std::string& path,
+                                                   const std::vector<Device*>& devices) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) {
-        if (errno == ENOENT) return {};  // first start: nothing saved yet
+        if (errno == ENOENT) return OtherUnits{};  // first start: nothing saved yet
         // Not a first start: starting afresh would overwrite the saved image at the first write.
         return errno_text(path + ": open");
     }
@@ -93,8 +95,8 @@ modbus::Result<void, std::string> load_state(const std::string& path, const std:
     return apply_state(text, path, devices);
 }
 
-modbus::Result<void, std::string> apply_state(std::string_view text, const std::string& name,
-                                              const std::vector<Device*>& devices) {
+modbus::Result<OtherUnits, std::string> apply_state(std::string_view text, const std::string& name,
+                                                    const std::vector<Device*>& devices) {
     const json doc = json::parse(text.begin(), text.end(), nullptr, false);
     if (doc.is_discarded())
         return name + ": not valid JSON (a damaged state file; remove it to start afresh)";
@@ -136,9 +138,12 @@ modbus::Result<void, std::string> apply_state(std::string_view text, const std::
             }
         }
     }
+    OtherUnits others = doc["units"];
+    for (const Device* d : devices)
+        others.erase(std::to_string(d->unit()));
     for (const Entry& e : entries)
         e.device->image().set_reg(e.table, e.address, e.value);
-    return {};
+    return others.empty() ? OtherUnits{} : others;
 }
 
 }  // namespace mbscope::slave

@@ -160,6 +160,35 @@ TEST(MultiUnitState, TheStateFileKeepsEachUnitsWritesAcrossARestart) {
     fs::remove_all(dir);
 }
 
+// A run that serves fewer units keeps the others' saved writes in the file: unit 2 alone is written again,
+// and units 1 and 3 still hold theirs when the whole line is served once more.
+TEST(MultiUnitState, UnitsNotServedKeepTheirWrites) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("mbscope-multi-unit-kept-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const std::string state = (dir / "line.json").string();
+    {
+        auto slave = serve("tcp", {"--state", state});
+        Line line("tcp", slave);
+        ASSERT_TRUE(line.open());
+        EXPECT_EQ(line.ask(1, "06 0F AC 00 11"), "06 0F AC 00 11");
+        EXPECT_EQ(line.ask(3, "06 00 1D 00 33"), "06 00 1D 00 33");
+    }
+    {
+        SlaveProcess alone({"--unit", "2=mmk-2030", "--listen", "tcp://127.0.0.1:0", "--state", state});
+        Line line("tcp", alone);
+        ASSERT_TRUE(line.open());
+        EXPECT_EQ(line.ask(2, "06 00 1D 00 22"), "06 00 1D 00 22");
+    }
+    auto again = serve("tcp", {"--state", state});
+    Line line("tcp", again);
+    ASSERT_TRUE(line.open());
+    EXPECT_EQ(line.ask(1, "03 0F AC 00 01"), "03 02 00 11");
+    EXPECT_EQ(line.ask(2, "03 00 1D 00 01"), "03 02 00 22");
+    EXPECT_EQ(line.ask(3, "03 00 1D 00 01"), "03 02 00 33");
+    fs::remove_all(dir);
+}
+
 // libmodbus addresses each unit with modbus_set_slave over TCP and over the RTU pseudo-terminal.
 class MultiUnitLibmodbus : public ::testing::TestWithParam<std::string> {};
 

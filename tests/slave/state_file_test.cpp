@@ -225,6 +225,34 @@ TEST_F(StateFile, ProfileMismatchIsRefused) {
     EXPECT_EQ(now.image().reg(Table::HoldingRegisters, 23), 0);
 }
 
+// A unit the file holds and this run does not serve is written back as it was saved: serving fewer units
+// for a while loses none of the others' values.
+TEST_F(StateFile, UnitsNotServedStayInTheFile) {
+    Device one(profile("modbus"), 1);
+    Device two(profile("mmk-2030"), 2);
+    EXPECT_EQ(ask(one, "06 00 00 00 07"), "06 00 00 00 07");
+    EXPECT_EQ(ask(two, "06 00 17 00 0A"), "06 00 17 00 0A");
+    ASSERT_TRUE(save_state(path_, {&one, &two}).has_value());
+
+    Device alone(profile("modbus"), 1);
+    auto loaded = load_state(path_, {&alone});
+    ASSERT_TRUE(loaded.has_value()) << loaded.error();
+    ASSERT_TRUE(loaded.value().is_object());
+    EXPECT_EQ(loaded.value().size(), 1u);
+    EXPECT_TRUE(loaded.value().contains("2"));
+    EXPECT_EQ(ask(alone, "06 00 01 00 08"), "06 00 01 00 08");
+    ASSERT_TRUE(save_state(path_, {&alone}, loaded.value()).has_value());
+
+    Device one_again(profile("modbus"), 1);
+    Device two_again(profile("mmk-2030"), 2);
+    auto again = load_state(path_, {&one_again, &two_again});
+    ASSERT_TRUE(again.has_value()) << again.error();
+    EXPECT_TRUE(again.value().is_null());
+    EXPECT_EQ(one_again.image().changes(), alone.image().changes());
+    EXPECT_EQ(two_again.image().changes(), two.image().changes());
+    EXPECT_EQ(two_again.image().reg(Table::HoldingRegisters, 23), 10);
+}
+
 // Units are matched by id: a unit the file does not hold starts from the initial image.
 TEST_F(StateFile, UnitsAreMatchedById) {
     Device one(profile("modbus"), 1);
