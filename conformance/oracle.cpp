@@ -378,8 +378,46 @@ void ExchangeOracle::learn(const Request& r, const modbus::Pdu& reply) {
     }
 }
 
+namespace {
+
+// The bytes of an RTU request cut where its function code says it ends, when that is before the end and
+// the cut is a CRC-valid frame; nothing otherwise.
+std::optional<std::vector<std::uint8_t>> rtu_content_frame(const std::vector<std::uint8_t>& sent) {
+    if (sent.size() < 5) return std::nullopt;
+    const std::span<const std::uint8_t> pdu(sent.data() + 1, sent.size() - 3);
+    const auto predicted = modbus::predict_pdu_length(pdu, modbus::Direction::Request);
+    if (predicted.kind != modbus::LengthPrediction::Kind::Known || predicted.length < 1) return std::nullopt;
+    const std::size_t length = 1 + predicted.length + 2;
+    if (length >= sent.size()) return std::nullopt;
+    std::vector<std::uint8_t> cut(sent.begin(), sent.begin() + static_cast<std::ptrdiff_t>(length));
+    const auto frame = modbus::decode_adu(Framing::Rtu, cut);
+    if (!frame || !frame->checksum_ok) return std::nullopt;
+    return cut;
+}
+
+}  // namespace
+
 std::vector<OracleViolation> ExchangeOracle::judge(const tp::Exchange& ex,
                                                    std::optional<bool> state_changed) {
+    if (framing_ == Framing::Rtu && !ex.received.empty()) {
+        if (auto cut = rtu_content_frame(ex.sent)) {
+            // Judged on a copy first: what it learns (writes, listen-only mode) is kept only if the reply
+            // was the cut request's. Rare (a CRC that also holds over a prefix), so the copy costs nothing.
+            ExchangeOracle as_cut = *this;
+            tp::Exchange shorter = ex;
+            shorter.sent = std::move(*cut);
+            auto found = as_cut.judge_frame(shorter, state_changed);
+            if (found.empty()) {
+                *this = std::move(as_cut);
+                return found;
+            }
+        }
+    }
+    return judge_frame(ex, state_changed);
+}
+
+std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
+                                                         std::optional<bool> state_changed) {
     std::vector<OracleViolation> out;
     const auto r = decode_sent(ex.sent);
     if (!r) return out;  // not a frame: nothing the rules say about it

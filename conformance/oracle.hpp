@@ -60,6 +60,10 @@ class ExchangeOracle {
 
     // Judges one exchange. ex.sent is the request as written; ex.received/ex.response the reply (empty:
     // silence). `state_changed`: whether the device's registers changed, when the caller can tell.
+    // An RTU request longer than its function's length whose first bytes are a CRC-valid request of that
+    // length is two requests in one: the frame up to a silence (SL §2.5.1.1), and the frame its function
+    // code ends (what a slave reading a stream, or ending frames by content, takes). A reply that keeps
+    // the rules for either keeps them.
     std::vector<OracleViolation> judge(const modbus::transport::Exchange& ex,
                                        std::optional<bool> state_changed = std::nullopt);
 
@@ -92,6 +96,8 @@ class ExchangeOracle {
         std::string_view rule;         // the rule that decides (silence, or the refusal); a literal
         std::string_view source;       // a literal
     };
+    std::vector<OracleViolation> judge_frame(const modbus::transport::Exchange& ex,
+                                             std::optional<bool> state_changed);
     struct Request;  // the request as decoded from the bytes sent
     std::optional<Request> decode_sent(const std::vector<std::uint8_t>& sent) const;
     const Unit* route(std::uint8_t unit) const;

@@ -315,6 +315,29 @@ TEST(ExchangeOracle, SilenceIsDemandedForABadCrcAndARepliedOneIsAViolation) {
     EXPECT_EQ(v[0].source, "SL §2.5.1.2");
 }
 
+// 01 0C 00 25 00 is two CRC-valid RTU requests at once: FC12 with one data byte up to the silence, and
+// FC12 as its function code ends it after four bytes (CRC 0x2500; the fifth byte 00 keeps the longer
+// frame's CRC valid too). A slave that ends frames by content answers the four bytes normally, one that
+// waits for the silence refuses the five with exception 03: both keep the rules, a reply to neither does
+// not.
+// Found by `mbscope fuzz` against the reference slave over rtu-tcp, reported as reply.malformed_request.
+TEST(ExchangeOracle, AnRtuRequestWithAValidShorterFrameInsideMayBeAnsweredAsEither) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    const auto judge = [&](const std::vector<std::uint8_t>& reply_pdu) {
+        cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+        mbscope::modbus::transport::Exchange ex;
+        ex.sent = {0x01, 0x0C, 0x00, 0x25, 0x00};
+        ex.received = mb::encode_rtu(1, reply_pdu);
+        ex.response = *mb::decode_rtu(ex.received);
+        return oracle.judge(ex);
+    };
+    EXPECT_TRUE(judge({0x0C, 0x06, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01}).empty());  // the four bytes' reply
+    EXPECT_TRUE(judge({0x8C, 0x03}).empty());                                      // the five bytes'
+    const auto v = judge({0x8C, 0x0A});  // neither: the generic profile allows 01-04 for FC12
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].rule, "reply.malformed_request");
+}
+
 TEST(ExchangeOracle, ListenOnlyModeSilencesEverythingUntilAValidRestart) {
     const auto& p = mbscope::slave::test::profile("modbus");
     cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
