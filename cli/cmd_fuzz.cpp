@@ -24,7 +24,7 @@ struct FuzzCliOptions {
     std::string artifacts;
     bool read_only = false;
     int timeout_ms = 1000;
-    int silence_ms = -1;  // -1: the timeout
+    int silence_ms = -1;  // -1: learnt from the target's replies
     int slow_ms = 0;
     int interval_ms = -1;  // -1: the profile's minimum polling interval
     std::size_t minimise = 64;
@@ -92,7 +92,7 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     }
     if (!options.requests && !options.duration) options.duration = std::chrono::seconds(60);
     options.timeout = std::chrono::milliseconds(o.timeout_ms);
-    options.silence_wait = std::chrono::milliseconds(o.silence_ms >= 0 ? o.silence_ms : o.timeout_ms);
+    if (o.silence_ms >= 0) options.silence_wait = std::chrono::milliseconds(o.silence_ms);
     options.slow = std::chrono::milliseconds(o.slow_ms);
     options.interval = std::chrono::milliseconds(
         o.interval_ms >= 0 ? o.interval_ms : profile->line.min_poll_interval_ms.value_or(0));
@@ -168,8 +168,9 @@ void register_fuzz(CLI::App& app, int& exit_code) {
     cmd->add_option("--timeout", o->timeout_ms, "Milliseconds to wait for a reply that is due (default 1000)")
         ->check(CLI::Range(1, 60000));
     cmd->add_option("--silence-wait", o->silence_ms,
-                    "Milliseconds to wait where the rules demand silence (default: --timeout); a reply "
-                    "arriving later is still caught, as reply.late")
+                    "Milliseconds to wait where the rules demand silence (default: learnt from the "
+                    "target's replies, twice TCP's retransmission timeout estimate, at least 0.2 ms, at most "
+                    "--timeout); a reply arriving later is still judged, as that request's")
         ->check(CLI::Range(0, 60000));
     cmd->add_option("--slow", o->slow_ms,
                     "A reply later than this many ms is a finding (default: the profile's response timeout, "

@@ -54,7 +54,8 @@ int run_replay_command(const ReplayCliOptions& o) {
                                        endpoint->scheme == modbus::transport::Scheme::Tcp ||
                                            endpoint->scheme == modbus::transport::Scheme::Udp);
     fuzz::network::ReplayOptions options;
-    options.timeout = options.silence_wait = std::chrono::milliseconds(o.timeout_ms);
+    options.timeout = std::chrono::milliseconds(o.timeout_ms);
+    options.silence_wait = options.timeout;
     const auto steps = fuzz::network::replay(*client, oracle, r.steps, options);
 
     const bool again = fuzz::network::breaks(steps, r.rule);

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "fuzz/network/generator.hpp"
+#include "fuzz/network/reply_latency.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
 
@@ -92,7 +93,9 @@ class Campaign {
                 rewritable_.push_back(&p);
         std::shuffle(rewritable_.begin(), rewritable_.end(), rng_);
         replay_.timeout = options.timeout;
-        replay_.silence_wait = options.silence_wait;
+        // A serial device may keep the line quiet for t3.5 before it answers.
+        if (serial_line_)
+            silence_floor_ += std::chrono::ceil<std::chrono::microseconds>(options.endpoint.line.t3_5());
     }
 
     CampaignSummary run();
@@ -101,6 +104,7 @@ class Campaign {
     std::vector<std::uint8_t> health_request() const;
     Step frame(const Probe& p);
     ReplayedStep send(const Step& step, std::chrono::milliseconds timeout);
+    std::chrono::microseconds silence_wait() const;
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
     bool prepare_writes(const Probe& p);
     std::optional<Probe> round_trip();
@@ -124,6 +128,9 @@ class Campaign {
     Generator generator_;
     ReplayOptions replay_;
     std::chrono::milliseconds slow_{250};
+    ReplyLatency latency_;  // of the target's replies: the silence wait when none was given
+    // At least this: the scheduler's wake-up and a loaded machine's delays are in the tens of microseconds.
+    std::chrono::microseconds silence_floor_{200};
     std::vector<std::uint8_t> health_;
     CampaignSummary s_;
     std::deque<Step> trace_;
@@ -174,9 +181,16 @@ Step Campaign::frame(const Probe& p) {
 ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout) {
     ReplayOptions o = replay_;
     o.timeout = timeout;
+    o.silence_wait = silence_wait();
     auto r = send_step(client_, oracle_, step, o);
     last_send_ = Clock::now();
+    if (!r.exchange.received.empty()) latency_.add(r.exchange.first_byte);
     return r;
+}
+
+std::chrono::microseconds Campaign::silence_wait() const {
+    if (options_.silence_wait) return *options_.silence_wait;
+    return latency_.silence_wait(silence_floor_, options_.timeout);
 }
 
 bool Campaign::healthy(std::chrono::nanoseconds* latency) {
@@ -311,6 +325,7 @@ std::vector<Step> Campaign::minimise(const std::string& rule, bool& reproduced) 
     std::vector<Step> window(trace_.begin(), trace_.end());
     reproduced = false;
     std::size_t budget = options_.minimise_budget;
+    replay_.silence_wait = silence_wait();
     const auto reproduces = [&](const std::vector<Step>& steps) {
         if (budget == 0) return false;
         --budget;
@@ -510,6 +525,7 @@ CampaignSummary Campaign::run() {
     if (options_.stop && options_.stop->load()) s_.stopped = true;
     progress(true);
     s_.elapsed = Clock::now() - start_;  // the fuzzing, not the restore after it
+    s_.silence_wait = silence_wait();
     if (!s_.target_lost && !session_.touched().empty()) s_.restored = session_.restore();
     return s_;
 }
@@ -557,6 +573,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"replies", s.replies},
                      {"exceptions", s.exceptions},
                      {"silences", s.silences},
+                     {"silence_wait_ms", std::chrono::duration<double, std::milli>(s.silence_wait).count()},
                      {"skipped_writes", s.skipped_writes},
                      {"unconfirmed", s.unconfirmed},
                      {"health_checks", s.health_checks},

@@ -52,7 +52,7 @@ struct ReplayedStep {
 
 struct ReplayOptions {
     std::chrono::milliseconds timeout{1000};
-    std::chrono::milliseconds silence_wait{1000};
+    std::chrono::microseconds silence_wait{1'000'000};
 };
 
 // Sends one step (its parts with their pauses) and judges the exchange: the oracle's rules, and for a

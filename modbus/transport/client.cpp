@@ -7,6 +7,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <ctime>
 
 #include "modbus/adu.hpp"
 #include "modbus/rtu_deframer.hpp"
@@ -143,7 +144,7 @@ Exchange Client::transact(std::uint8_t unit, std::span<const std::uint8_t> pdu,
     return raw(adu, timeout, 1);
 }
 
-Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseconds timeout,
+Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseconds timeout,
                      std::size_t frames, std::span<const std::uint8_t> request) {
     Exchange ex;
     if (request.empty()) request = bytes;
@@ -156,11 +157,11 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseco
     const auto start = Clock::now();
     const auto deadline = start + timeout;
     const bool datagram = endpoint_.scheme == Scheme::Udp;
-    const auto silence_window =
+    const std::chrono::microseconds silence_window =
         is_serial(endpoint_.scheme)
-            ? std::chrono::duration_cast<std::chrono::milliseconds>(endpoint_.line.t3_5()) +
+            ? std::chrono::duration_cast<std::chrono::microseconds>(endpoint_.line.t3_5()) +
                   std::chrono::milliseconds(1)
-            : options_.settle;
+            : std::chrono::microseconds(options_.settle);
     // A server on the same machine or a fast network answers within tens of microseconds: polling without
     // sleeping for that long first spares the wake-up of a sleeping thread, which costs about as much as
     // the exchange (the slave's server loop does the same after answering).
@@ -170,12 +171,15 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::milliseco
     for (;;) {
         const auto now = Clock::now();
         if (now >= deadline) break;
-        auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now);
+        auto wait = std::chrono::duration_cast<std::chrono::microseconds>(deadline - now);
         const bool timing_silence = framing() == Framing::Rtu && !ex.received.empty();
         if (timing_silence) wait = std::min(wait, silence_window);
         const bool spin = now < spin_until && ex.received.empty();
         pollfd p{fd_.get(), POLLIN, 0};
-        const int rc = ::poll(&p, 1, spin ? 0 : static_cast<int>(std::max<long>(1, wait.count())));
+        const auto sleep = spin ? std::chrono::microseconds(0) : std::max(wait, std::chrono::microseconds(1));
+        const timespec ts{static_cast<time_t>(sleep.count() / 1'000'000),
+                          static_cast<long>(sleep.count() % 1'000'000) * 1000};
+        const int rc = ::ppoll(&p, 1, &ts, nullptr);
         if (rc < 0 && errno == EINTR) continue;
         bool silence = false;
         if (rc == 0 && spin) {

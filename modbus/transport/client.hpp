@@ -48,10 +48,11 @@ class Client {
     Exchange transact(std::uint8_t unit, std::span<const std::uint8_t> pdu,
                       std::chrono::milliseconds timeout);
     // Sends `bytes` exactly as given (malformed frames, split segments, pipelines) and collects replies for
-    // up to `timeout`; stops early after `frames` complete frames (0: wait the whole time).
+    // up to `timeout` (to the microsecond: the network fuzzer waits less than a millisecond where a fast
+    // target must stay silent); stops early after `frames` complete frames (0: wait the whole time).
     // `request`: the whole request when `bytes` is only its last piece (the rest went out with write()); its
     // transaction id tells this request's reply from late ones, and it is the exchange's `sent`.
-    Exchange raw(std::span<const std::uint8_t> bytes, std::chrono::milliseconds timeout,
+    Exchange raw(std::span<const std::uint8_t> bytes, std::chrono::microseconds timeout,
                  std::size_t frames = 1, std::span<const std::uint8_t> request = {});
     // Sends without waiting (the first part of a split request); errors when the peer is gone.
     Result<void, std::string> write(std::span<const std::uint8_t> bytes);

@@ -16,6 +16,7 @@
 #include <set>
 
 #include "fuzz/network/campaign.hpp"
+#include "fuzz/network/reply_latency.hpp"
 #include "slave/slave_test_support.hpp"
 
 namespace {
@@ -189,6 +190,74 @@ TEST(NetworkFuzzer, TheSameSeedSendsTheSameRequests) {
     };
     EXPECT_EQ(run(3), run(3));
     EXPECT_NE(run(3), run(4));
+}
+
+// ---- the wait where the rules demand silence, learnt from the replies
+
+using std::chrono::microseconds;
+using std::chrono::milliseconds;
+
+TEST(ReplyLatency, TheTimeoutUntilAReplyWasSeen) {
+    fz::ReplyLatency l;
+    EXPECT_EQ(l.silence_wait(milliseconds(1), milliseconds(1000)), milliseconds(1000));
+}
+
+// RFC 6298's estimator, doubled: a first reply of 10 ms gives 2 * (10 + 4 * 5) = 60 ms; steady replies
+// shrink the deviation and the wait with it, to the floor for replies of 50 us.
+TEST(ReplyLatency, FollowsTheRepliesWithinTheFloorAndTheCap) {
+    fz::ReplyLatency l;
+    l.add(milliseconds(10));
+    EXPECT_EQ(l.silence_wait(milliseconds(1), milliseconds(1000)), milliseconds(60));
+    for (int i = 0; i < 200; ++i)
+        l.add(milliseconds(10));
+    EXPECT_EQ(l.silence_wait(milliseconds(1), milliseconds(1000)), milliseconds(20));
+    EXPECT_EQ(l.silence_wait(milliseconds(1), milliseconds(15)), milliseconds(15));
+    fz::ReplyLatency fast;
+    for (int i = 0; i < 50; ++i)
+        fast.add(microseconds(50));
+    EXPECT_EQ(fast.silence_wait(milliseconds(1), milliseconds(1000)), milliseconds(1));
+    EXPECT_EQ(fast.silence_wait(milliseconds(5), milliseconds(1000)), milliseconds(5));
+}
+
+// One slow reply among fast ones raises the wait at once (the deviation), and it comes down again.
+TEST(ReplyLatency, ASlowReplyRaisesTheWaitForAWhile) {
+    fz::ReplyLatency l;
+    for (int i = 0; i < 50; ++i)
+        l.add(microseconds(100));
+    const auto before = l.silence_wait(milliseconds(1), milliseconds(1000));
+    l.add(milliseconds(40));
+    const auto after = l.silence_wait(milliseconds(1), milliseconds(1000));
+    EXPECT_GE(after, milliseconds(80));  // 2 * (smoothed ~5 ms + 4 * deviation ~10 ms)
+    for (int i = 0; i < 100; ++i)
+        l.add(microseconds(100));
+    EXPECT_EQ(l.silence_wait(milliseconds(1), milliseconds(1000)), before);
+}
+
+// Without --silence-wait the campaign waits what the replies teach, not the reply timeout: a clean slave
+// still yields nothing, and a slave that answers broadcasts is still caught.
+TEST(NetworkFuzzer, SilenceWaitIsLearntFromTheReplies) {
+    RunningServer server({}, 7, "mmk-2030");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.silence_wait.reset();
+    o.timeout = milliseconds(2000);
+    o.requests = 400;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    EXPECT_TRUE(s.findings.empty()) << listing(s);
+    EXPECT_GT(s.silences, 0u);
+    EXPECT_LT(s.silence_wait, o.timeout);
+    EXPECT_DOUBLE_EQ(fz::to_json(s)["silence_wait_ms"].get<double>(), s.silence_wait.count() / 1000.0);
+}
+
+TEST(NetworkFuzzer, ABroadcastReplyIsCaughtWithTheLearntSilenceWait) {
+    RunningServer server({"reply-to-broadcast"}, 7, "mmk-2030");
+    auto o = options_for("rtu-tcp", server.start("rtu-tcp"));
+    o.silence_wait.reset();
+    o.max_findings = 1;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    ASSERT_FALSE(s.findings.empty()) << listing(s);
+    EXPECT_EQ(s.findings.front().rule, "silence.broadcast") << listing(s);
 }
 
 TEST(NetworkFuzzer, UnreachableTargetIsReportedNotFuzzed) {
