@@ -253,11 +253,13 @@ TEST(NetworkFuzzer, ABroadcastReplyIsCaughtWithTheLearntSilenceWait) {
     RunningServer server({"reply-to-broadcast"}, 7, "mmk-2030");
     auto o = options_for("rtu-tcp", server.start("rtu-tcp"));
     o.silence_wait.reset();
-    o.max_findings = 1;
+    o.requests = 150;
     const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
     ASSERT_TRUE(s.reachable) << s.error;
-    ASSERT_FALSE(s.findings.empty()) << listing(s);
-    EXPECT_EQ(s.findings.front().rule, "silence.broadcast") << listing(s);
+    // Any of the broadcasts will do: on a loaded machine one reply may come after the wait learnt so far.
+    EXPECT_TRUE(std::any_of(s.findings.begin(), s.findings.end(), [](const auto& f) {
+        return f.rule == "silence.broadcast";
+    })) << listing(s);
 }
 
 TEST(NetworkFuzzer, UnreachableTargetIsReportedNotFuzzed) {
