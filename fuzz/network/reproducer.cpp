@@ -203,6 +203,32 @@ std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& 
     return found;
 }
 
+std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracle& oracle,
+                                                      const modbus::transport::Exchange& previous,
+                                                      const modbus::transport::Exchange& current) {
+    if (current.stale_replies == 0 || previous.response || previous.sent.size() < 7) return {};
+    const auto word = [](const std::uint8_t* b) { return static_cast<std::uint16_t>((b[0] << 8) | b[1]); };
+    const std::uint16_t tid = word(previous.sent.data());
+    const auto& bytes = current.received;
+    for (std::size_t at = 0; at + 7 <= bytes.size();) {
+        const std::size_t length = 6 + std::size_t{word(bytes.data() + at + 4)};
+        if (at + length > bytes.size()) break;
+        if (word(bytes.data() + at) == tid) {
+            modbus::transport::Exchange ex = previous;
+            ex.received.assign(bytes.begin() + static_cast<std::ptrdiff_t>(at),
+                               bytes.begin() + static_cast<std::ptrdiff_t>(at + length));
+            if (auto frame = modbus::decode_adu(modbus::Framing::Tcp, ex.received))
+                ex.response = frame.value();
+            auto found = oracle.judge(ex);
+            for (auto& v : found)
+                v.observed = "during the next request: " + v.observed;
+            return found;
+        }
+        at += length;
+    }
+    return {};
+}
+
 std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
                                  const std::vector<Step>& steps, const ReplayOptions& options) {
     std::vector<ReplayedStep> out;
@@ -214,6 +240,11 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
     for (const auto& step : steps) {
         late();
         out.push_back(send_step(client, oracle, step, options));
+        if (out.size() > 1 && client.framing() == modbus::Framing::Tcp) {
+            auto& previous = out[out.size() - 2];
+            const auto found = stale_reply(oracle, previous.exchange, out.back().exchange);
+            previous.violations.insert(previous.violations.end(), found.begin(), found.end());
+        }
         if (step.reconnect_after) (void)client.reconnect();
     }
     std::this_thread::sleep_for(std::min(options.timeout, std::chrono::milliseconds(50)));

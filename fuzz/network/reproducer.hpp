@@ -67,6 +67,13 @@ std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& 
                                                      conformance::ExchangeOracle& oracle,
                                                      const modbus::transport::Exchange& previous);
 
+// A Modbus/TCP reply to `previous` that came while `current` waited for its own (the client counts it in
+// current.stale_replies and does not take it for current's): judged as `previous`'s, as late_reply judges
+// bytes that came between the two. Nothing when `previous` was answered or no such frame came.
+std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracle& oracle,
+                                                      const modbus::transport::Exchange& previous,
+                                                      const modbus::transport::Exchange& current);
+
 // Sends every step over `client` and judges each exchange with `oracle`. Besides the oracle's rules: a
 // reply to a request voided by a gap (silence.gap_inside_request), and replies that came after their
 // request was given up (late_reply, judged when the next step begins and at the end).

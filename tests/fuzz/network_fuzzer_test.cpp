@@ -17,6 +17,7 @@
 
 #include "fuzz/network/campaign.hpp"
 #include "fuzz/network/reply_latency.hpp"
+#include "modbus/adu.hpp"
 #include "slave/slave_test_support.hpp"
 
 namespace {
@@ -260,6 +261,35 @@ TEST(NetworkFuzzer, ABroadcastReplyIsCaughtWithTheLearntSilenceWait) {
     EXPECT_TRUE(std::any_of(s.findings.begin(), s.findings.end(), [](const auto& f) {
         return f.rule == "silence.broadcast";
     })) << listing(s);
+}
+
+// Over Modbus/TCP a reply to a request that had to go unanswered can come during the next exchange, once
+// the silence wait is short: the client counts it as stale (its transaction id is the previous request's)
+// and does not take it for the next request's; it is judged as the previous request's reply.
+TEST(NetworkFuzzer, AReplyThatComesDuringTheNextRequestIsJudgedAsItsOwn) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    mbscope::conformance::ExchangeOracle oracle(mbscope::modbus::Framing::Tcp, {{1, &p}}, true);
+    const std::vector<std::uint8_t> read{0x03, 0x00, 0x00, 0x00, 0x01};
+    const std::vector<std::uint8_t> reply{0x03, 0x02, 0x00, 0x00};
+    mbscope::modbus::transport::Exchange previous;
+    previous.sent = mbscope::modbus::encode_tcp(5, 1, read);
+    previous.sent[3] = 1;  // protocol id 1: not Modbus, to be discarded (TCP §3.1.3)
+    mbscope::modbus::transport::Exchange current;
+    current.sent = mbscope::modbus::encode_tcp(6, 1, read);
+    auto late = mbscope::modbus::encode_tcp(5, 1, reply);
+    late[3] = 1;
+    const auto own = mbscope::modbus::encode_tcp(6, 1, reply);
+    current.received = late;
+    current.received.insert(current.received.end(), own.begin(), own.end());
+    current.response = *mbscope::modbus::decode_tcp(own);
+    EXPECT_TRUE(fz::stale_reply(oracle, previous, current).empty());  // the client saw none
+    current.stale_replies = 1;
+    const auto found = fz::stale_reply(oracle, previous, current);
+    ASSERT_EQ(found.size(), 1u);
+    EXPECT_EQ(found[0].rule, "silence.protocol_id");
+    EXPECT_EQ(found[0].observed.rfind("during the next request: ", 0), 0u) << found[0].observed;
+    previous.response = current.response;  // answered in time: nothing is late
+    EXPECT_TRUE(fz::stale_reply(oracle, previous, current).empty());
 }
 
 TEST(NetworkFuzzer, UnreachableTargetIsReportedNotFuzzed) {
