@@ -170,8 +170,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
     cmd->add_option("--silence-wait", o->silence_ms,
                     "Milliseconds to wait where the rules demand silence (default: learnt from the "
                     "target's replies, twice TCP's retransmission timeout estimate, at least 0.2 ms, at most "
-                    "--timeout); a reply arriving later, before the next request, is still judged as that "
-                    "request's")
+                    "--timeout); a reply arriving later is still judged as that request's (before the next "
+                    "request, and over Modbus/TCP during it)")
         ->check(CLI::Range(0, 60000));
     cmd->add_option("--slow", o->slow_ms,
                     "A reply later than this many ms is a finding (default: the profile's response timeout, "
