@@ -218,8 +218,9 @@ std::optional<modbus::Pdu> response_pdu(const tp::Exchange& ex) {
 std::string describe(const tp::Exchange& ex) {
     if (ex.closed && ex.received.empty()) return "connection closed, no reply";
     if (ex.received.empty()) return "no reply";
-    if (!ex.response && ex.stale_replies > 0)
-        return "no reply (only " + std::to_string(ex.stale_replies) + " late reply to an earlier request)";
+    if (!ex.response && !ex.stale_replies.empty())
+        return "no reply (only " + std::to_string(ex.stale_replies.size()) +
+               " late reply to an earlier request)";
     if (!ex.response) return std::to_string(ex.received.size()) + " bytes that form no frame";
     if (!ex.response->checksum_ok) return "reply with a bad checksum";
     if (auto fault = envelope_fault(ex); !fault.empty()) return fault;

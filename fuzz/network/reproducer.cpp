@@ -206,25 +206,17 @@ std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& 
 std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracle& oracle,
                                                       const modbus::transport::Exchange& previous,
                                                       const modbus::transport::Exchange& current) {
-    if (current.stale_replies == 0 || previous.response || previous.sent.size() < 7) return {};
-    const auto word = [](const std::uint8_t* b) { return static_cast<std::uint16_t>((b[0] << 8) | b[1]); };
-    const std::uint16_t tid = word(previous.sent.data());
-    const auto& bytes = current.received;
-    for (std::size_t at = 0; at + 7 <= bytes.size();) {
-        const std::size_t length = 6 + std::size_t{word(bytes.data() + at + 4)};
-        if (at + length > bytes.size()) break;
-        if (word(bytes.data() + at) == tid) {
-            modbus::transport::Exchange ex = previous;
-            ex.received.assign(bytes.begin() + static_cast<std::ptrdiff_t>(at),
-                               bytes.begin() + static_cast<std::ptrdiff_t>(at + length));
-            if (auto frame = modbus::decode_adu(modbus::Framing::Tcp, ex.received))
-                ex.response = frame.value();
-            auto found = oracle.judge(ex);
-            for (auto& v : found)
-                v.observed = "during the next request: " + v.observed;
-            return found;
-        }
-        at += length;
+    if (previous.response || previous.sent.size() < 7) return {};
+    const auto tid = static_cast<std::uint16_t>((previous.sent[0] << 8) | previous.sent[1]);
+    for (const auto& frame : current.stale_replies) {
+        if (frame.transaction_id() != tid) continue;
+        modbus::transport::Exchange ex = previous;
+        ex.received.assign(frame.adu().begin(), frame.adu().end());
+        ex.response = frame;
+        auto found = oracle.judge(ex);
+        for (auto& v : found)
+            v.observed = "during the next request: " + v.observed;
+        return found;
     }
     return {};
 }

@@ -67,8 +67,8 @@ std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& 
                                                      conformance::ExchangeOracle& oracle,
                                                      const modbus::transport::Exchange& previous);
 
-// A Modbus/TCP reply to `previous` that came while `current` waited for its own (the client counts it in
-// current.stale_replies and does not take it for current's): judged as `previous`'s, as late_reply judges
+// A Modbus/TCP reply to `previous` that came while `current` waited for its own (the client sets it aside
+// in current.stale_replies, not taking it for current's): judged as `previous`'s, as late_reply judges
 // bytes that came between the two. Nothing when `previous` was answered or no such frame came.
 std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracle& oracle,
                                                       const modbus::transport::Exchange& previous,

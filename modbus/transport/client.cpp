@@ -215,7 +215,7 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
                 const auto sent_tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
                 const auto behind = static_cast<std::uint16_t>(sent_tid - frame->transaction_id());
                 if (behind >= 1 && behind <= 256) {
-                    ++ex.stale_replies;
+                    ex.stale_replies.push_back(std::move(*frame));
                     continue;
                 }
             }

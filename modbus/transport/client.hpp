@@ -29,7 +29,7 @@ struct Exchange {
     std::chrono::nanoseconds first_byte{0};  // from the last byte written to the first byte read
     bool timed_out = false;                  // nothing complete arrived in time
     bool closed = false;                     // the peer closed the connection
-    std::size_t stale_replies = 0;  // Modbus/TCP: late replies to earlier requests, read and set aside
+    std::vector<Frame> stale_replies;  // Modbus/TCP: late replies to earlier requests, read and set aside
 };
 
 struct ClientOptions {

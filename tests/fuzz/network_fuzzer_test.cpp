@@ -283,7 +283,7 @@ TEST(NetworkFuzzer, AReplyThatComesDuringTheNextRequestIsJudgedAsItsOwn) {
     current.received.insert(current.received.end(), own.begin(), own.end());
     current.response = *mbscope::modbus::decode_tcp(own);
     EXPECT_TRUE(fz::stale_reply(oracle, previous, current).empty());  // the client saw none
-    current.stale_replies = 1;
+    current.stale_replies.push_back(*mbscope::modbus::decode_tcp(late));
     const auto found = fz::stale_reply(oracle, previous, current);
     ASSERT_EQ(found.size(), 1u);
     EXPECT_EQ(found[0].rule, "silence.protocol_id");
