@@ -17,11 +17,14 @@ import hashlib
 import json
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# Every program this script runs finds the bundled profiles of this tree.
+ENV = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
 TARGETS = ["pdu", "rtu_deframer", "ascii_deframer", "tcp_stream", "capture", "serial_log", "profile", "slave",
            "libmodbus_diff", "slave_state", "reproducer"]
 
@@ -105,11 +108,10 @@ def pdu_of(framing, frame):
 
 
 def profiles(mbscope):
-    env = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
-    listed = json.loads(subprocess.check_output([mbscope, "profile", "list", "--json"], env=env))
+    listed = json.loads(subprocess.check_output([mbscope, "profile", "list", "--json"], env=ENV))
     out = []
     for entry in listed:
-        shown = json.loads(subprocess.check_output([mbscope, "profile", "show", entry["id"], "--json"], env=env))
+        shown = json.loads(subprocess.check_output([mbscope, "profile", "show", entry["id"], "--json"], env=ENV))
         out.append(shown)
     return out
 
@@ -156,8 +158,7 @@ class Slave:
     """`mbscope slave` on a loopback port for the duration of a `with` block; .address is where it listens."""
 
     def __init__(self, mbscope, *args):
-        env = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
-        self.process = subprocess.Popen([mbscope, "slave", "-q"] + list(args), stdout=subprocess.PIPE, env=env)
+        self.process = subprocess.Popen([mbscope, "slave", "-q"] + list(args), stdout=subprocess.PIPE, env=ENV)
         self.address = self.process.stdout.readline().decode().strip()
 
     def __enter__(self):
@@ -171,7 +172,6 @@ class Slave:
 def state_files(mbscope):
     """State files `mbscope slave --state` writes for the four devices the slave_state target serves (units 1-4),
     after writes a client sends: the first write alone, then all of them."""
-    import socket
     writes = [(1, "06 00 54 FC 19"), (1, "05 00 01 FF 00"), (2, "10 00 94 00 02 04 00 00 40 E0"),
               (3, "06 00 02 00 07"), (4, "0F 00 10 00 0A 02 FF 03"), (4, "10 FF FE 00 02 04 12 34 56 78")]
     out = []
@@ -191,14 +191,13 @@ def state_files(mbscope):
 
 def reproducers(mbscope):
     """Reproducers `mbscope fuzz` saves against the reference slave with a planted fault, one per transport."""
-    env = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
     out = []
     for endpoint, fault in (("tcp", "wrong-tid"), ("rtu-tcp", "bad-crc"), ("ascii-tcp", "bad-lrc")):
         with tempfile.TemporaryDirectory() as tmp, Slave(mbscope, "--listen", endpoint + "://127.0.0.1:0",
                                                           "--fault", fault) as slave:
             subprocess.run([mbscope, "fuzz", "--target", slave.address, "--profile", "modbus", "--requests", "20",
                             "--seed", "1", "--artifacts", tmp], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                           env=env, timeout=120)
+                           env=ENV, timeout=120)
             out += [open(os.path.join(tmp, name), "rb").read() for name in sorted(os.listdir(tmp))[:2]]
     return out
 
@@ -336,7 +335,7 @@ def merge(fuzz_dir, out_dir):
         inputs = [seeds] + ([final] if os.path.isdir(final) else [])
         subprocess.run([binary, "-merge=1", "-max_len=65536", merged] + inputs, check=True,
                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                       env=dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles")))
+                       env=ENV)
         shutil.rmtree(final, ignore_errors=True)
         shutil.copytree(merged, final)
         shutil.rmtree(merged)
