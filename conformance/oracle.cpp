@@ -437,7 +437,9 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
             listen_only_.erase(unit.id);
         }
     }
-    const bool silent = ex.received.empty();
+    // Late replies to earlier requests (Modbus/TCP, told apart by transaction id) are not this request's.
+    const std::size_t own = ex.own_received().size();
+    const bool silent = own == 0;
     const Unit* u = route(r->unit);
     if (u && r->checksum_ok && listen_only_unknown_.count(u->id)) {
         const bool restart = modbus::is_restart_communications(r->pdu);
@@ -499,8 +501,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         fail("reply.malformed", "AP §6", "a well-formed reply");
         return out;
     }
-    if (ex.received.size() > ex.response->wire_length)
-        fail("reply.trailing_bytes", "AP §4.1", "nothing after the reply");
+    if (own > ex.response->wire_length) fail("reply.trailing_bytes", "AP §4.1", "nothing after the reply");
     if (pdu->is_exception()) {
         const auto code = std::get<modbus::ExceptionResponse>(pdu->body).exception_code;
         if (!e.exceptions.count(code)) {

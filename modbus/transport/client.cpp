@@ -5,6 +5,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <ctime>
@@ -229,6 +230,13 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
     ex.timed_out = found == 0;
     if (found == 0) ex.elapsed = Clock::now() - start;
     return ex;
+}
+
+std::span<const std::uint8_t> Exchange::own_received() const noexcept {
+    std::size_t stale = 0;
+    for (const auto& f : stale_replies)
+        stale += f.wire_length;
+    return std::span<const std::uint8_t>(received).subspan(std::min(stale, received.size()));
 }
 
 std::vector<std::uint8_t> Client::drain(std::chrono::milliseconds quiet) {

@@ -30,6 +30,9 @@ struct Exchange {
     bool timed_out = false;                  // nothing complete arrived in time
     bool closed = false;                     // the peer closed the connection
     std::vector<Frame> stale_replies;  // Modbus/TCP: late replies to earlier requests, read and set aside
+
+    // `received` without the stale replies, which come first: what came for this request.
+    std::span<const std::uint8_t> own_received() const noexcept;
 };
 
 struct ClientOptions {

@@ -315,6 +315,39 @@ TEST(ExchangeOracle, SilenceIsDemandedForABadCrcAndARepliedOneIsAViolation) {
     EXPECT_EQ(v[0].source, "SL §2.5.1.2");
 }
 
+// Over Modbus/TCP the client sets aside a late reply to an earlier request (its transaction id) but keeps its
+// bytes in `received`, before this request's own. They are not this request's reply: not trailing bytes
+// after it, and no reply where silence is due.
+TEST(ExchangeOracle, ALateReplyToAnEarlierRequestIsNotThisRequests) {
+    const auto& p = mbscope::slave::test::profile("mmk-2030");
+    cf::ExchangeOracle oracle(Framing::Tcp, {{1, &p}}, true);
+    const auto late = mb::encode_tcp(4, 1, std::vector<std::uint8_t>{0x83, 0x02});
+    mbscope::modbus::transport::Exchange ex;
+    ex.sent = mb::encode_tcp(5, 1, pdu(3, {0, 1}));
+    const auto own = mb::encode_tcp(5, 1, std::vector<std::uint8_t>{0x03, 0x02, 0x00, 0x00});
+    ex.received = late;
+    ex.received.insert(ex.received.end(), own.begin(), own.end());
+    ex.stale_replies.push_back(*mb::decode_tcp(late));
+    ex.response = *mb::decode_tcp(own);
+    EXPECT_TRUE(oracle.judge(ex).empty()) << listing(oracle.judge(ex));
+    ex.received.insert(ex.received.end(), {0xDE, 0xAD});  // after its own reply: trailing bytes
+    auto v = oracle.judge(ex);
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].rule, "reply.trailing_bytes");
+
+    // Protocol id 1 must go unanswered: a late reply to another request is no answer.
+    mbscope::modbus::transport::Exchange silent;
+    silent.sent = mb::encode_tcp(6, 1, pdu(3, {0, 1}), 1);
+    silent.received = late;
+    silent.stale_replies.push_back(*mb::decode_tcp(late));
+    EXPECT_TRUE(oracle.judge(silent).empty()) << listing(oracle.judge(silent));
+    // A due reply that did not come is missing, whatever else came.
+    silent.sent = mb::encode_tcp(6, 1, pdu(3, {0, 1}));
+    v = oracle.judge(silent);
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].rule, "reply.missing");
+}
+
 // 01 0C 00 25 00 is two CRC-valid RTU requests at once: FC12 with one data byte up to the silence, and
 // FC12 as its function code ends it after four bytes (CRC 0x2500; the fifth byte 00 keeps the longer
 // frame's CRC valid too). A slave that ends frames by content answers the four bytes normally, one that
