@@ -26,6 +26,8 @@ constexpr FaultInfo faults[] = {
     {Fault::WrongFunction, "wrong-function", ArgKind::Rate, "the response carries function code + 1"},
     {Fault::WrongTid, "wrong-tid", ArgKind::Rate, "TCP: the response carries transaction id + 1"},
     {Fault::BadProtocolId, "bad-protocol-id", ArgKind::Rate, "TCP: the response's protocol id is 1"},
+    {Fault::AnyProtocolId, "any-protocol-id", ArgKind::Rate,
+     "TCP: requests with a protocol id other than 0 are served as Modbus ones"},
     {Fault::ReplyToBroadcast, "reply-to-broadcast", ArgKind::Rate,
      "broadcasts (unit 0) are executed and answered"},
     {Fault::IgnoreMaxQuantity, "ignore-max-quantity", ArgKind::Rate,

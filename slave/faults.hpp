@@ -26,6 +26,7 @@ enum class Fault : std::uint8_t {
     WrongFunction,      // the response carries another function code
     WrongTid,           // TCP: the response carries another transaction id
     BadProtocolId,      // TCP: the response's protocol id is 1
+    AnyProtocolId,      // TCP: requests with a protocol id other than 0 are served as Modbus ones
     ReplyToBroadcast,   // broadcasts (unit 0) are answered
     IgnoreMaxQuantity,  // the profile's quantity limits are not enforced (the specification's still are)
     WrongException,     // every exception response carries ARG instead of the right code

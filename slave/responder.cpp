@@ -32,7 +32,8 @@ std::vector<std::uint8_t> Responder::respond(const modbus::Frame& f) {
     for (Device* d : units_)
         d->count_frame(f.checksum_ok);
     if (!f.checksum_ok) return {};  // SL §2.5.1.2: a frame with a bad CRC/LRC is not answered
-    if (f.framing == Framing::Tcp && f.protocol_id() != 0) return {};  // not Modbus (TCP §3.1.3): discarded
+    // Not Modbus (TCP §3.1.3): discarded. Stacks that never look at the field serve it all the same.
+    if (f.framing == Framing::Tcp && f.protocol_id() != 0 && !faults_.fires(Fault::AnyProtocolId)) return {};
     const std::uint16_t tid = f.framing == Framing::Tcp ? f.transaction_id() : std::uint16_t{0};
     auto pdu = answer(f.unit_id(), f.pdu());
     if (pdu.empty()) return {};

@@ -377,11 +377,12 @@ struct Server::Impl {
                 ::recvfrom(udp.get(), buf, sizeof buf, 0, reinterpret_cast<sockaddr*>(&peer), &len);
             if (n < 0) return;
             auto f = modbus::decode_tcp(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)));
-            if (!f || f->protocol_id() != 0) {
+            if (!f) {
                 ++stats.bad_frames;
                 continue;
             }
-            ++stats.requests;
+            // Another protocol id is not Modbus: the Responder discards it (unless the fault says otherwise).
+            ++(f->protocol_id() == 0 ? stats.requests : stats.bad_frames);
             auto reply = responder.respond(*f);
             if (!reply.empty()) send(0, &peer, len, std::move(reply));
         }

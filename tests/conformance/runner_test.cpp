@@ -5,7 +5,7 @@
 //    transport (rtu-tcp, ascii-tcp, udp; RTU and ASCII over a pseudo-terminal in serial_line_test.cpp),
 //    certify with no failure,
 //    restore every point they wrote, and leave the slave's register image as they found it.
-//  - PlantedFault: each of the slave's 23 faults makes the run fail (or warn, where only an implied rule
+//  - PlantedFault: each of the slave's 24 faults makes the run fail (or warn, where only an implied rule
 //    of the manual catches it) through the rules that are meant to catch it.
 //  - Reports: the JSON report carries every rule with its evidence and the summary adds up; the JUnit XML
 //    report holds one testcase per rule with matching counts.
@@ -143,6 +143,7 @@ std::vector<FaultCase> fault_cases() {
         {"wrong-function", "mmk-2030", "tcp", "fc.supported.3"},
         {"wrong-tid", "mmk-2030", "tcp", "tcp.tid_echo.*"},
         {"bad-protocol-id", "walchem-w600", "tcp", "fc.supported.3"},
+        {"any-protocol-id", "walchem-w600", "tcp", "tcp.protocol_id_nonzero"},
         {"reply-to-broadcast", "mmk-2030", "rtu-tcp", "broadcast.read.silent"},
         {"ignore-max-quantity", "mmk-2030", "tcp", "quantity.fc3.max_plus_one", true},
         {"wrong-exception=4", "mmk-2030", "tcp", "fc.unsupported.*"},

@@ -70,6 +70,7 @@ std::vector<FaultCase> fault_cases() {
         {"wrong-function", "mmk-2030", "tcp", {"reply.function"}},
         {"wrong-tid", "mmk-2030", "tcp", {"reply.envelope"}},
         {"bad-protocol-id", "walchem-w600", "tcp", {"reply.envelope"}},
+        {"any-protocol-id", "walchem-w600", "tcp", {"silence.protocol_id"}},
         {"reply-to-broadcast", "mmk-2030", "rtu-tcp", {"silence.broadcast", "reply.late"}},
         {"ignore-max-quantity", "mmk-2030", "tcp", {"reply.quantity"}},
         {"wrong-exception=4",

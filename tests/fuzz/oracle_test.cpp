@@ -42,7 +42,7 @@ std::vector<std::uint8_t> pdu(std::uint8_t fc, std::initializer_list<std::uint16
 struct Step {
     std::uint8_t unit;  // 0: broadcast
     std::vector<std::uint8_t> pdu;
-    bool corrupt = false;  // the checksum (RTU CRC / ASCII LRC) is broken
+    bool corrupt = false;  // the checksum (RTU CRC / ASCII LRC) is broken; over TCP, protocol id 1
 };
 
 // Requests derived from the profile's map: what a careful tester sends first.
@@ -106,6 +106,7 @@ std::vector<Step> script(const mb::Profile& p, std::uint8_t unit, Framing framin
     }
     if (p.functions.supports(8)) add(pdu(8, {0x0000, 0xA537}));
     add({0x41, 0x01});
+    if (framing == Framing::Tcp) steps.push_back({unit, pdu(3, {0, 1}), true});  // not Modbus: discarded
     // A broadcast write of the first written value, and a read broadcast (never executed, never answered).
     if (framing != Framing::Tcp) {
         for (const auto& s : std::vector<Step>(steps))
@@ -134,7 +135,7 @@ std::vector<std::uint8_t> frame(Framing framing, std::uint8_t unit, const std::v
             break;
         }
         case Framing::Tcp:
-            adu = mb::encode_tcp(tid, unit, p);
+            adu = mb::encode_tcp(tid, unit, p, corrupt ? 1 : 0);
             break;
     }
     return adu;
@@ -241,6 +242,7 @@ std::vector<FaultCase> fault_cases() {
         {"wrong-function", "mmk-2030", Framing::Tcp, {"reply.function"}},
         {"wrong-tid", "mmk-2030", Framing::Tcp, {"reply.envelope"}},
         {"bad-protocol-id", "walchem-w600", Framing::Tcp, {"reply.envelope"}},
+        {"any-protocol-id", "walchem-w600", Framing::Tcp, {"silence.protocol_id"}},
         {"reply-to-broadcast", "mmk-2030", Framing::Rtu, {"silence.broadcast"}},
         {"ignore-max-quantity", "mmk-2030", Framing::Tcp, {"reply.quantity"}},
         {"wrong-exception=4", "mmk-2030", Framing::Tcp, {"reply.unsupported_function", "reply.quantity"}},

@@ -26,8 +26,8 @@ std::string ascii_hex(std::string_view text) {
     return hex(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
 }
 
-TEST(Faults, TwentyThreeAreDeclaredWithTheirCommandLineNames) {
-    EXPECT_EQ(fault_count, 23u);
+TEST(Faults, TwentyFourAreDeclaredWithTheirCommandLineNames) {
+    EXPECT_EQ(fault_count, 24u);
     std::set<std::string> names;
     for (std::size_t i = 0; i < fault_count; ++i) {
         const std::string name(to_string(static_cast<Fault>(i)));
@@ -236,6 +236,8 @@ const std::vector<WireFaultCase> wire_faults = {
      "02 03 02 00 00 FC 44"},
     {"WrongTid", "wrong-tid", "tcp", tcp_request, tcp_reply, "00 02 00 00 00 05 01 03 02 00 00"},
     {"BadProtocolId", "bad-protocol-id", "tcp", tcp_request, tcp_reply, "00 01 00 01 00 05 01 03 02 00 00"},
+    // Protocol id 1 is not Modbus (TCP §3.1.3): discarded, unless the stack never looks at the field.
+    {"AnyProtocolId", "any-protocol-id", "tcp", "00 01 00 01 00 06 01 03 00 00 00 01", "", tcp_reply},
     {"ShortResponse", "short-response", "tcp", tcp_request, tcp_reply, "00 01 00 00 00 04 01 03 02 00"},
     {"ExtraBytes", "extra-bytes", "tcp", tcp_request, tcp_reply, "00 01 00 00 00 07 01 03 02 00 00 DE AD"},
     {"WrongFunction", "wrong-function", "tcp", tcp_request, tcp_reply, "00 01 00 00 00 05 01 04 02 00 00"},
