@@ -4,7 +4,9 @@
 # loop reading 10 holding registers (bench/slave_load.c, one client), side by side in one run, alternated
 # so drift on the machine hits both alike. The fuzzer runs twice: waiting 0 ms where the rules demand
 # silence (--silence-wait 0: against this slave nothing late can come), so both measure request turnaround,
-# and with its defaults (the wait learnt from the replies, --timeout 1000), what a user gets.
+# and with its defaults (over Modbus/TCP no wait, a late reply matched to its request by transaction id; the
+# wait learnt from the replies only before the connection is dropped after an MBAP length probe), what a
+# user gets.
 #
 #   bench/netfuzz_vs_libmodbus.sh [BUILD_DIR] [SECONDS]     (default build/release, 5 s per measurement)
 set -euo pipefail

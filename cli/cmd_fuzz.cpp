@@ -168,10 +168,12 @@ void register_fuzz(CLI::App& app, int& exit_code) {
     cmd->add_option("--timeout", o->timeout_ms, "Milliseconds to wait for a reply that is due (default 1000)")
         ->check(CLI::Range(1, 60000));
     cmd->add_option("--silence-wait", o->silence_ms,
-                    "Milliseconds to wait where the rules demand silence (default: learnt from the "
-                    "target's replies, twice TCP's retransmission timeout estimate, at least 0.2 ms, at most "
-                    "--timeout); a reply arriving later is still judged as that request's (before the next "
-                    "request, and over Modbus/TCP during it)")
+                    "Milliseconds to wait where the rules demand silence. Default over Modbus/TCP: none, "
+                    "the next request goes out at once and a reply that comes anyway is matched to its "
+                    "request by transaction id for up to --timeout; elsewhere learnt from the target's "
+                    "replies (twice TCP's retransmission timeout estimate, at least 0.2 ms, at most "
+                    "--timeout), and a reply arriving later is judged as that request's when it comes "
+                    "before the next one")
         ->check(CLI::Range(0, 60000));
     cmd->add_option("--slow", o->slow_ms,
                     "A reply later than this many ms is a finding (default: the profile's response timeout, "

@@ -10,6 +10,8 @@
 
 #include "fuzz/network/generator.hpp"
 #include "fuzz/network/reply_latency.hpp"
+#include "fuzz/network/unanswered.hpp"
+#include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
 
@@ -79,7 +81,8 @@ class Campaign {
           session_(client, conformance::SessionOptions{options.unit, options.timeout, options.interval},
                    &profile),
           generator_(profile, GeneratorOptions{framing_, serial_line_, options.endpoint.line.t1_5(),
-                                               options.unit, options.read_only, options.seed}) {
+                                               options.unit, options.read_only, options.seed}),
+          unanswered_(options.timeout) {
         slow_ = options.slow.count()
                     ? options.slow
                     : std::chrono::milliseconds(profile.line.response_timeout_ms.value_or(250));
@@ -105,6 +108,9 @@ class Campaign {
     Step frame(const Probe& p);
     ReplayedStep send(const Step& step, std::chrono::milliseconds timeout);
     std::chrono::microseconds silence_wait() const;
+    std::chrono::microseconds probe_silence_wait(const Step& step) const;
+    bool judge_unanswered(const modbus::Frame& reply, std::string_view when);
+    void judge_arrivals();
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
     bool prepare_writes(const Probe& p);
     std::optional<Probe> round_trip();
@@ -126,6 +132,8 @@ class Campaign {
     conformance::ExchangeOracle oracle_;
     conformance::Session session_;
     Generator generator_;
+    Unanswered unanswered_;        // Modbus/TCP: requests whose reply, if any comes, is still to be judged
+    std::uint64_t minimised_ = 0;  // reproducers minimised (their replays resend old transaction ids)
     ReplayOptions replay_;
     std::chrono::milliseconds slow_{250};
     ReplyLatency latency_;  // of the target's replies: the silence wait when none was given
@@ -181,16 +189,65 @@ Step Campaign::frame(const Probe& p) {
 ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout) {
     ReplayOptions o = replay_;
     o.timeout = timeout;
-    o.silence_wait = silence_wait();
+    o.silence_wait = probe_silence_wait(step);
+    const auto sent = Clock::now();
+    const auto minimised = minimised_;
     auto r = send_step(client_, oracle_, step, o);
     last_send_ = Clock::now();
     if (!r.exchange.received.empty()) latency_.add(r.exchange.first_byte);
+    if (framing_ == modbus::Framing::Tcp) {
+        for (const auto& frame : r.exchange.stale_replies)
+            (void)judge_unanswered(frame, "during a later request: ");
+        if (r.exchange.closed)
+            unanswered_.clear();
+        else if (!r.exchange.response && minimised_ == minimised)
+            unanswered_.add(r.exchange, sent);
+    }
     return r;
 }
 
 std::chrono::microseconds Campaign::silence_wait() const {
     if (options_.silence_wait) return *options_.silence_wait;
     return latency_.silence_wait(silence_floor_, options_.timeout);
+}
+
+// Where the rules demand silence: the wait given; else, over Modbus/TCP, none: a reply that comes anyway is
+// matched to its request by its transaction id when it arrives (unanswered.hpp), unless the connection is
+// dropped after the step; else the wait learnt from the replies.
+std::chrono::microseconds Campaign::probe_silence_wait(const Step& step) const {
+    if (options_.silence_wait) return *options_.silence_wait;
+    if (framing_ == modbus::Framing::Tcp && !step.reconnect_after) return std::chrono::microseconds(0);
+    return silence_wait();
+}
+
+// A Modbus/TCP frame that came after its request was given up, judged as that request's reply while the
+// request is kept; false when no kept request has its transaction id.
+bool Campaign::judge_unanswered(const modbus::Frame& reply, std::string_view when) {
+    auto request = unanswered_.take(reply.transaction_id(), Clock::now());
+    if (!request) return false;
+    const std::uint8_t fc = request->exchange.sent.size() > 7 ? request->exchange.sent[7] : 0;
+    for (const auto& v : judge_late_frame(oracle_, request->exchange, reply, when))
+        record(v, fc, true);
+    return true;
+}
+
+// Whatever arrived since the last exchange ended (nothing is waited for). Over Modbus/TCP each whole frame
+// is the reply of the kept request whose transaction id it carries; what is left is the last exchange's
+// reply, too late.
+void Campaign::judge_arrivals() {
+    auto bytes = client_.drain(std::chrono::milliseconds(0));
+    std::size_t used = 0;
+    while (framing_ == modbus::Framing::Tcp && bytes.size() - used >= 8) {
+        const std::size_t length = 6 + ((std::size_t{bytes[used + 4]} << 8) | bytes[used + 5]);
+        if (bytes.size() - used < length) break;
+        const auto frame =
+            modbus::decode_adu(framing_, std::span<const std::uint8_t>(bytes).subspan(used, length));
+        if (!frame || !judge_unanswered(*frame, "after the request was given up: ")) break;
+        used += length;
+    }
+    bytes.erase(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(used));
+    for (const auto& v : late_bytes(oracle_, framing_, *last_, std::move(bytes)))
+        record(v, last_function_, true);
 }
 
 bool Campaign::healthy(std::chrono::nanoseconds* latency) {
@@ -326,6 +383,10 @@ std::vector<Step> Campaign::minimise(const std::string& rule, bool& reproduced) 
     reproduced = false;
     std::size_t budget = options_.minimise_budget;
     replay_.silence_wait = silence_wait();
+    // The replays resend requests with the transaction ids they had: their replies must not be taken for
+    // those of requests kept unanswered.
+    ++minimised_;
+    unanswered_.clear();
     const auto reproduces = [&](const std::vector<Step>& steps) {
         if (budget == 0) return false;
         --budget;
@@ -448,17 +509,12 @@ CampaignSummary Campaign::run() {
         // for where one can be pending (no whole, valid reply came): a poll per request costs speed.
         if (last_ && (last_->received.empty() || last_->timed_out || !last_->response ||
                       !last_->response->checksum_ok)) {
-            for (const auto& v : late_reply(client_, oracle_, *last_))
-                record(v, last_function_, true);
+            judge_arrivals();
         }
         const Step step = frame(p);
         trace_.push_back(step);
         if (trace_.size() > trace_capacity) trace_.pop_front();
         auto r = send(step, options_.timeout);
-        // A reply to the previous request that came during this one, too late even for the check above.
-        if (last_ && framing_ == modbus::Framing::Tcp)
-            for (const auto& v : stale_reply(oracle_, *last_, r.exchange))
-                record(v, last_function_, true);
         last_ = r.exchange;
         ++s_.requests;
         classify(p, r);
@@ -488,6 +544,7 @@ CampaignSummary Campaign::run() {
         }
         if (step.reconnect_after) {
             (void)client_.reconnect();
+            unanswered_.clear();
             if (!healthy()) s_.target_lost = true;
         }
         if (s_.target_lost) {
@@ -525,6 +582,11 @@ CampaignSummary Campaign::run() {
         // Not while a read-back is due: the write it checks belongs in that reproducer.
         if (std::exchange(health_passed_, false) && !follow_up_) trace_.clear();
         progress();
+    }
+    // Replies still owed over Modbus/TCP: the learnt wait after the last request, then judged.
+    if (!unanswered_.empty() && last_ && !s_.target_lost) {
+        std::this_thread::sleep_until(unanswered_.newest() + silence_wait());
+        judge_arrivals();
     }
     if (options_.stop && options_.stop->load()) s_.stopped = true;
     progress(true);

@@ -37,8 +37,9 @@ struct CampaignOptions {
     std::optional<std::uint64_t> requests;              // stop after this many probes
     std::optional<std::chrono::milliseconds> duration;  // stop after this long
     std::chrono::milliseconds timeout{1000};            // wait for a reply that is due
-    // Wait where the rules demand silence; unset: learnt from the target's replies (reply_latency.hpp),
-    // `timeout` until the first reply.
+    // Wait where the rules demand silence; unset: none over Modbus/TCP (a reply that comes anyway is matched
+    // to its request by transaction id: unanswered.hpp), else learnt from the target's replies
+    // (reply_latency.hpp), `timeout` until the first reply. Replays while minimising use the learnt wait.
     std::optional<std::chrono::milliseconds> silence_wait;
     std::chrono::milliseconds slow{0};      // slower replies are findings (0: from the profile, else 250)
     std::chrono::milliseconds interval{0};  // between requests (the manual's polling interval)
@@ -70,7 +71,7 @@ struct CampaignSummary {
     std::uint64_t unconfirmed = 0;     // failures that did not happen again when checked
     std::uint64_t health_checks = 0;
     std::chrono::nanoseconds elapsed{0};
-    std::chrono::microseconds silence_wait{0};  // where the rules demand silence, when the run ended
+    std::chrono::microseconds silence_wait{0};  // learnt where the rules demand silence, when the run ended
     std::size_t response_classes = 0;
     std::map<std::string, std::uint64_t> outcomes;  // "normal", "exception 02", "silence", each rule broken
     std::vector<CampaignFinding> findings;

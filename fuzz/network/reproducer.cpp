@@ -186,20 +186,39 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
     return r;
 }
 
-std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& client,
-                                                     conformance::ExchangeOracle& oracle,
-                                                     const modbus::transport::Exchange& previous) {
-    const auto bytes = client.drain(std::chrono::milliseconds(0));
+std::vector<conformance::OracleViolation> late_bytes(conformance::ExchangeOracle& oracle,
+                                                     modbus::Framing framing,
+                                                     const modbus::transport::Exchange& previous,
+                                                     std::vector<std::uint8_t> bytes) {
     if (bytes.empty()) return {};
     // Judged as the reply it is: a late answer the rules allow (a gateway's exception 0B) is no finding.
     modbus::transport::Exchange ex = previous;
-    ex.received = bytes;
     ex.response.reset();
-    auto frame = modbus::decode_adu(client.framing(), bytes);
+    auto frame = modbus::decode_adu(framing, bytes);
+    ex.received = std::move(bytes);
     if (frame) ex.response = std::move(frame).value();
     auto found = oracle.judge(ex);
     for (auto& v : found)
         v.observed = "after the request was given up: " + v.observed;
+    return found;
+}
+
+std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& client,
+                                                     conformance::ExchangeOracle& oracle,
+                                                     const modbus::transport::Exchange& previous) {
+    return late_bytes(oracle, client.framing(), previous, client.drain(std::chrono::milliseconds(0)));
+}
+
+std::vector<conformance::OracleViolation> judge_late_frame(conformance::ExchangeOracle& oracle,
+                                                           const modbus::transport::Exchange& request,
+                                                           const modbus::Frame& reply,
+                                                           std::string_view when) {
+    modbus::transport::Exchange ex = request;
+    ex.received.assign(reply.adu().begin(), reply.adu().end());
+    ex.response = reply;
+    auto found = oracle.judge(ex);
+    for (auto& v : found)
+        v.observed = std::string(when) + v.observed;
     return found;
 }
 
@@ -208,16 +227,9 @@ std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracl
                                                       const modbus::transport::Exchange& current) {
     if (previous.response || previous.sent.size() < 7) return {};
     const auto tid = static_cast<std::uint16_t>((previous.sent[0] << 8) | previous.sent[1]);
-    for (const auto& frame : current.stale_replies) {
-        if (frame.transaction_id() != tid) continue;
-        modbus::transport::Exchange ex = previous;
-        ex.received.assign(frame.adu().begin(), frame.adu().end());
-        ex.response = frame;
-        auto found = oracle.judge(ex);
-        for (auto& v : found)
-            v.observed = "during the next request: " + v.observed;
-        return found;
-    }
+    for (const auto& frame : current.stale_replies)
+        if (frame.transaction_id() == tid)
+            return judge_late_frame(oracle, previous, frame, "during the next request: ");
     return {};
 }
 

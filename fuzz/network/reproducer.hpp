@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -66,6 +67,18 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
 std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& client,
                                                      conformance::ExchangeOracle& oracle,
                                                      const modbus::transport::Exchange& previous);
+
+// `bytes` that came after `previous` ended, judged as its reply (what late_reply does with what it drains).
+std::vector<conformance::OracleViolation> late_bytes(conformance::ExchangeOracle& oracle,
+                                                     modbus::Framing framing,
+                                                     const modbus::transport::Exchange& previous,
+                                                     std::vector<std::uint8_t> bytes);
+
+// A whole frame that came after `request` was given up, judged as its reply; every observation begins with
+// `when` ("during the next request: ").
+std::vector<conformance::OracleViolation> judge_late_frame(conformance::ExchangeOracle& oracle,
+                                                           const modbus::transport::Exchange& request,
+                                                           const modbus::Frame& reply, std::string_view when);
 
 // A Modbus/TCP reply to `previous` that came while `current` waited for its own (the client sets it aside
 // in current.stale_replies, not taking it for current's): judged as `previous`'s, as late_reply judges

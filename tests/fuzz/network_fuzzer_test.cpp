@@ -17,6 +17,7 @@
 
 #include "fuzz/network/campaign.hpp"
 #include "fuzz/network/reply_latency.hpp"
+#include "fuzz/network/unanswered.hpp"
 #include "modbus/adu.hpp"
 #include "slave/slave_test_support.hpp"
 
@@ -45,7 +46,11 @@ fz::CampaignOptions options_for(const std::string& scheme, std::uint16_t port) {
     o.requests = 3000;
     o.duration = std::chrono::seconds(60);
     o.timeout = std::chrono::milliseconds(300);
-    o.silence_wait = std::chrono::milliseconds(20);
+    // Over Modbus/TCP the fuzzer's default: no wait where silence is due, a late reply matched to its
+    // request by transaction id (unanswered.hpp). On the serial framings a fixed wait, so that a loaded
+    // machine cannot make a reply late enough to be taken for the next request's.
+    if (mbscope::modbus::transport::framing_of(o.endpoint.scheme) != mbscope::modbus::Framing::Tcp)
+        o.silence_wait = std::chrono::milliseconds(20);
     o.slow = std::chrono::milliseconds(400);
     o.minimise_budget = 8;
     return o;
@@ -233,6 +238,45 @@ TEST(ReplyLatency, ASlowReplyRaisesTheWaitForAWhile) {
     for (int i = 0; i < 100; ++i)
         l.add(microseconds(100));
     EXPECT_EQ(l.silence_wait(milliseconds(1), milliseconds(1000)), before);
+}
+
+// Requests kept for their late reply: taken by transaction id, the newest first, once only; given up after
+// the reply timeout; never more than the capacity.
+TEST(Unanswered, AReplyTakesTheRequestWithItsTransactionIdOnce) {
+    using namespace std::chrono;
+    const auto request = [](std::uint16_t tid, std::uint8_t fc) {
+        mbscope::modbus::transport::Exchange ex;
+        ex.sent = mbscope::modbus::encode_tcp(tid, 1, std::vector<std::uint8_t>{fc, 0, 0, 0, 1});
+        return ex;
+    };
+    fz::Unanswered kept(milliseconds(100));
+    const auto t0 = fz::Unanswered::Clock::time_point{} + hours(1);
+    kept.add(request(7, 3), t0);
+    kept.add(request(8, 4), t0 + milliseconds(10));
+    kept.add(request(7, 1), t0 + milliseconds(20));  // the id again (it wraps every 65,536 requests)
+    mbscope::modbus::transport::Exchange short_one;
+    short_one.sent = {0x00, 0x09, 0x00};
+    kept.add(short_one, t0 + milliseconds(20));  // no MBAP header: nothing a reply could name
+    EXPECT_EQ(kept.size(), 3u);
+    EXPECT_FALSE(kept.take(9, t0 + milliseconds(30)));
+    auto newest = kept.take(7, t0 + milliseconds(30));
+    ASSERT_TRUE(newest);
+    EXPECT_EQ(newest->exchange.sent[7], 1);
+    EXPECT_EQ(newest->sent, t0 + milliseconds(20));
+    auto older = kept.take(7, t0 + milliseconds(30));
+    ASSERT_TRUE(older);
+    EXPECT_EQ(older->exchange.sent[7], 3);
+    EXPECT_FALSE(kept.take(7, t0 + milliseconds(30)));   // a request has one reply
+    EXPECT_FALSE(kept.take(8, t0 + milliseconds(111)));  // given up 100 ms after it was sent
+    EXPECT_TRUE(kept.empty());
+
+    for (std::uint32_t i = 0; i < fz::Unanswered::capacity + 10; ++i)
+        kept.add(request(static_cast<std::uint16_t>(i), 3), t0);
+    EXPECT_EQ(kept.size(), fz::Unanswered::capacity);
+    EXPECT_FALSE(kept.take(0, t0));  // the oldest made room
+    EXPECT_TRUE(kept.take(static_cast<std::uint16_t>(fz::Unanswered::capacity + 9), t0));
+    kept.clear();
+    EXPECT_TRUE(kept.empty());
 }
 
 // Without --silence-wait the campaign waits what the replies teach, not the reply timeout: a clean slave
