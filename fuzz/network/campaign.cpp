@@ -109,8 +109,10 @@ class Campaign {
     ReplayedStep send(const Step& step, std::chrono::milliseconds timeout);
     std::chrono::microseconds silence_wait() const;
     std::chrono::microseconds probe_silence_wait(const Step& step) const;
-    bool judge_unanswered(const modbus::Frame& reply, std::string_view when);
+    bool claim(const modbus::Frame& reply);
+    void judge_claimed(std::string_view when);
     void judge_arrivals();
+    bool last_unanswered() const;
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
     bool prepare_writes(const Probe& p);
     std::optional<Probe> round_trip();
@@ -132,7 +134,10 @@ class Campaign {
     conformance::ExchangeOracle oracle_;
     conformance::Session session_;
     Generator generator_;
-    Unanswered unanswered_;        // Modbus/TCP: requests whose reply, if any comes, is still to be judged
+    Unanswered unanswered_;  // Modbus/TCP: requests whose reply, if any comes, is still to be judged
+    // Late replies matched to their kept requests, to be judged; all are claimed before any is judged, as
+    // judging may minimise a reproducer, which gives up every kept request.
+    std::vector<std::pair<Unanswered::Request, modbus::Frame>> claimed_;
     std::uint64_t minimised_ = 0;  // reproducers minimised (their replays resend old transaction ids)
     ReplayOptions replay_;
     std::chrono::milliseconds slow_{250};
@@ -197,7 +202,8 @@ ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout)
     if (!r.exchange.received.empty()) latency_.add(r.exchange.first_byte);
     if (framing_ == modbus::Framing::Tcp) {
         for (const auto& frame : r.exchange.stale_replies)
-            (void)judge_unanswered(frame, "during a later request: ");
+            (void)claim(frame);
+        judge_claimed("during a later request: ");
         if (r.exchange.closed)
             unanswered_.clear();
         else if (!r.exchange.response && minimised_ == minimised)
@@ -220,15 +226,28 @@ std::chrono::microseconds Campaign::probe_silence_wait(const Step& step) const {
     return silence_wait();
 }
 
-// A Modbus/TCP frame that came after its request was given up, judged as that request's reply while the
-// request is kept; false when no kept request has its transaction id.
-bool Campaign::judge_unanswered(const modbus::Frame& reply, std::string_view when) {
+// A Modbus/TCP frame that came after its request was given up, matched to that request while it is kept;
+// false when no kept request has its transaction id.
+bool Campaign::claim(const modbus::Frame& reply) {
     auto request = unanswered_.take(reply.transaction_id(), Clock::now());
     if (!request) return false;
-    const std::uint8_t fc = request->exchange.sent.size() > 7 ? request->exchange.sent[7] : 0;
-    for (const auto& v : judge_late_frame(oracle_, request->exchange, reply, when))
-        record(v, fc, true);
+    claimed_.emplace_back(std::move(*request), reply);
     return true;
+}
+
+// Each claimed reply judged as its request's.
+void Campaign::judge_claimed(std::string_view when) {
+    for (const auto& [request, reply] : std::exchange(claimed_, {})) {
+        const std::uint8_t fc = request.exchange.sent.size() > 7 ? request.exchange.sent[7] : 0;
+        for (const auto& v : judge_late_frame(oracle_, request.exchange, reply, when))
+            record(v, fc, true);
+    }
+}
+
+// Whether a reply to the last request may still come: no whole, valid one came.
+bool Campaign::last_unanswered() const {
+    return last_ && (last_->own_received().empty() || last_->timed_out || !last_->response ||
+                     !last_->response->checksum_ok);
 }
 
 // Whatever arrived since the last exchange ended (nothing is waited for). Over Modbus/TCP each whole frame
@@ -242,10 +261,12 @@ void Campaign::judge_arrivals() {
         if (bytes.size() - used < length) break;
         const auto frame =
             modbus::decode_adu(framing_, std::span<const std::uint8_t>(bytes).subspan(used, length));
-        if (!frame || !judge_unanswered(*frame, "after the request was given up: ")) break;
+        if (!frame || !claim(*frame)) break;
         used += length;
     }
+    judge_claimed("after the request was given up: ");
     bytes.erase(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(used));
+    if (!last_unanswered()) return;  // answered: the rest is no one's reply the rules can name
     for (const auto& v : late_bytes(oracle_, framing_, *last_, std::move(bytes)))
         record(v, last_function_, true);
 }
@@ -505,12 +526,11 @@ CampaignSummary Campaign::run() {
             continue;
         }
         pace();
-        // Whatever arrived since the last exchange ended is that exchange's reply, too late. Only looked
-        // for where one can be pending (no whole, valid reply came): a poll per request costs speed.
-        if (last_ && (last_->received.empty() || last_->timed_out || !last_->response ||
-                      !last_->response->checksum_ok)) {
-            judge_arrivals();
-        }
+        // Whatever arrived since the last exchange ended: late replies to kept requests, else that
+        // exchange's reply, too late. Only looked for where the last one can be pending (no whole, valid
+        // reply came): a poll per request costs speed, and over Modbus/TCP a later exchange reads the
+        // others' anyway.
+        if (last_unanswered()) judge_arrivals();
         const Step step = frame(p);
         trace_.push_back(step);
         if (trace_.size() > trace_capacity) trace_.pop_front();
