@@ -212,7 +212,7 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
             // A late reply to one of the requests just before this one (a server that sleeps before an
             // exception, as libmodbus does, answers after the client gave up): kept in `received`, counted,
             // and not taken for this request's reply.
-            if (frame && framing() == Framing::Tcp && frames <= 1 && ex.sent.size() >= 7) {
+            if (frame && framing() == Framing::Tcp && frames <= 1 && !ex.response && ex.sent.size() >= 7) {
                 const auto sent_tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
                 const auto behind = static_cast<std::uint16_t>(sent_tid - frame->transaction_id());
                 if (behind >= 1 && behind <= 256) {

@@ -31,7 +31,8 @@ struct Exchange {
     bool closed = false;                     // the peer closed the connection
     std::vector<Frame> stale_replies;  // Modbus/TCP: late replies to earlier requests, read and set aside
 
-    // `received` without the stale replies, which come first: what came for this request.
+    // `received` without the stale replies, which come first (a frame is set aside only before this
+    // request's own reply): what came for this request.
     std::span<const std::uint8_t> own_received() const noexcept;
 };
 

@@ -145,6 +145,30 @@ TEST(Client, PipelinedRepliesAreCountedFrameByFrame) {
     EXPECT_EQ(ex.response->transaction_id(), 7);  // the first frame
 }
 
+// Modbus/TCP: a reply with an earlier request's transaction id before this request's own is a late one,
+// set aside; its bytes stay in `received`, and own_received() is what came for this request. After the own
+// reply nothing is set aside: bytes there are this request's (trailing) whatever they say.
+TEST(Client, ALateReplyToAnEarlierRequestIsSetAsideBeforeTheOwnOnly) {
+    const Bytes late = encode_tcp(4, 1, Bytes{0x83, 0x02});
+    const Bytes own = encode_tcp(5, 1, Bytes{0x03, 0x02, 0x00, 0x07});
+    const Bytes after = encode_tcp(3, 1, Bytes{0x83, 0x02});
+    Bytes all = late;
+    all.insert(all.end(), own.begin(), own.end());
+    all.insert(all.end(), after.begin(), after.end());
+    ScriptedPeer peer({all}, 0ms);
+    auto client = Client::open(endpoint("tcp://127.0.0.1:" + std::to_string(peer.port()))).value();
+    client.set_transaction_id(5);
+    const Exchange ex = client.raw(client.frame(1, read_hr_pdu), 300ms, 0);
+    EXPECT_EQ(ex.received, all);
+    ASSERT_EQ(ex.stale_replies.size(), 1u);
+    EXPECT_EQ(ex.stale_replies[0].transaction_id(), 4);
+    ASSERT_TRUE(ex.response);
+    EXPECT_EQ(ex.response->transaction_id(), 5);
+    Bytes mine = own;
+    mine.insert(mine.end(), after.begin(), after.end());
+    EXPECT_EQ(Bytes(ex.own_received().begin(), ex.own_received().end()), mine);
+}
+
 TEST(Client, UdpDatagramIsOneResponse) {
     auto server = bind_udp("127.0.0.1", 0).value();
     const auto port = bound_port(server.get());
