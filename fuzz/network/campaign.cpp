@@ -14,6 +14,7 @@
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
+#include "modbus/tcp_deframer.hpp"
 
 namespace mbscope::fuzz::network {
 
@@ -256,13 +257,13 @@ bool Campaign::last_unanswered() const {
 void Campaign::judge_arrivals() {
     auto bytes = client_.drain(std::chrono::milliseconds(0));
     std::size_t used = 0;
-    while (framing_ == modbus::Framing::Tcp && bytes.size() - used >= 8) {
-        const std::size_t length = 6 + ((std::size_t{bytes[used + 4]} << 8) | bytes[used + 5]);
-        if (bytes.size() - used < length) break;
-        const auto frame =
-            modbus::decode_adu(framing_, std::span<const std::uint8_t>(bytes).subspan(used, length));
+    while (framing_ == modbus::Framing::Tcp && used < bytes.size()) {
+        const auto rest = std::span<const std::uint8_t>(bytes).subspan(used);
+        const auto step = modbus::tcp_step(rest, true, true);
+        if (step.kind != modbus::DeframeStep::Kind::Complete) break;
+        const auto frame = modbus::decode_adu(framing_, rest.first(step.length));
         if (!frame || !claim(*frame)) break;
-        used += length;
+        used += step.length;
     }
     judge_claimed("after the request was given up: ");
     bytes.erase(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(used));
