@@ -1,12 +1,13 @@
 // mbscope frame: decode one ADU (or a file of them) field by field, or encode one.
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <memory>
 
 #include "cli/commands.hpp"
-#include "cli/frame_text.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/frame_text.hpp"
 
 namespace mbscope::cli {
 namespace {
@@ -166,21 +167,6 @@ Direction chosen_direction(const std::string& d) {
     return Direction::Unknown;
 }
 
-std::optional<std::vector<std::uint8_t>> wire_from_tokens(Framing framing,
-                                                          const std::vector<std::string>& tokens,
-                                                          std::string& error) {
-    if (framing == Framing::Ascii && !tokens.empty() && !tokens[0].empty() && tokens[0][0] == ':') {
-        std::string text;
-        for (const auto& t : tokens)
-            text += t;
-        for (std::size_t pos = 0; (pos = text.find("\\r\\n")) != std::string::npos;)
-            text.replace(pos, 4, "\r\n");
-        if (text.size() < 2 || text.substr(text.size() - 2) != "\r\n") text += "\r\n";
-        return std::vector<std::uint8_t>(text.begin(), text.end());
-    }
-    return parse_hex(tokens, error);
-}
-
 int emit(const std::vector<DecodedFrame>& frames, bool json) {
     int rc = exit_ok;
     nlohmann::json all = nlohmann::json::array();
@@ -202,52 +188,27 @@ int emit(const std::vector<DecodedFrame>& frames, bool json) {
 }
 
 int run_file(const FrameOptions& o) {
-    std::ifstream in(o.file);
+    std::ifstream in(o.file, std::ios::binary);
     if (!in) {
         std::cerr << "mbscope frame: cannot open " << o.file << '\n';
         return exit_failure;
     }
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) {
+        std::cerr << "mbscope frame: cannot read " << o.file << '\n';
+        return exit_failure;
+    }
     std::vector<DecodedFrame> frames;
-    std::string line;
-    int number = 0;
     int errors = 0;
-    while (std::getline(in, line)) {
-        ++number;
-        std::string comment;
-        if (auto hash = line.find('#'); hash != std::string::npos) {
-            comment = line.substr(hash + 1);
-            line.resize(hash);
-            while (!comment.empty() && comment.front() == ' ')
-                comment.erase(0, 1);
-        }
-        std::istringstream words(line);
-        std::string kind;
-        if (!(words >> kind)) continue;
-        std::vector<std::string> tokens;
-        for (std::string t; words >> t;)
-            tokens.push_back(t);
-        Framing framing;
-        if (kind == "rtu")
-            framing = Framing::Rtu;
-        else if (kind == "ascii")
-            framing = Framing::Ascii;
-        else if (kind == "tcp")
-            framing = Framing::Tcp;
-        else {
-            std::cerr << o.file << ":" << number << ": unknown framing '" << kind
-                      << "' (rtu, ascii or tcp)\n";
+    for (auto& line : parse_frames_text(text)) {
+        if (!line.error.empty()) {
+            std::cerr << o.file << ":" << line.number << ": " << line.error << '\n';
             ++errors;
             continue;
         }
-        std::string error;
-        auto wire = wire_from_tokens(framing, tokens, error);
-        if (!wire) {
-            std::cerr << o.file << ":" << number << ": " << error << '\n';
-            ++errors;
-            continue;
-        }
-        auto d = decode_frame(framing, std::move(*wire), chosen_direction(o.direction));
-        d.source = o.file + ":" + std::to_string(number) + (comment.empty() ? "" : " " + comment);
+        auto d = decode_frame(line.framing, std::move(line.wire), chosen_direction(o.direction));
+        d.source =
+            o.file + ":" + std::to_string(line.number) + (line.comment.empty() ? "" : " " + line.comment);
         frames.push_back(std::move(d));
     }
     int rc = emit(frames, o.json);

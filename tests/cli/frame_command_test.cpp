@@ -6,8 +6,6 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "cli/frame_text.hpp"
-
 namespace {
 
 struct Run {
@@ -102,12 +100,4 @@ TEST(FrameCommand, HelpOnTheSubcommand) {
     EXPECT_NE(r.out.find("Exit codes"), std::string::npos);
     EXPECT_EQ(run("--help").exit_code, 0);
     EXPECT_EQ(run("nosuchcommand").exit_code, 2);
-}
-
-TEST(FrameText, ParseHexAcceptsCommonSpellings) {
-    std::string error;
-    auto b = mbscope::cli::parse_hex({"0x11,0x03", "0060", "00-03"}, error);
-    ASSERT_TRUE(b.has_value());
-    EXPECT_EQ(*b, (std::vector<std::uint8_t>{0x11, 0x03, 0x00, 0x60, 0x00, 0x03}));
-    EXPECT_FALSE(mbscope::cli::parse_hex({"123"}, error).has_value());
 }

@@ -1,0 +1,331 @@
+#include "modbus/frame_text.hpp"
+
+#include <sstream>
+
+#include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
+
+namespace mbscope::modbus {
+
+bool DecodedFrame::clean() const {
+    return frame && pdu && frame->checksum_ok && frame->findings.empty() && pdu->violations.empty();
+}
+
+namespace {
+
+bool is_blank(char c) {
+    return c == ' ' || c == '\t' || c == '\v' || c == '\f' || c == '\r';
+}
+
+// A token quoted in an error: printable, and cut short (a hostile line may hold a megabyte in one word).
+std::string quote_token(std::string_view token) {
+    constexpr std::size_t most = 40;
+    std::string s = printable(token.substr(0, most));
+    if (token.size() > most) s += "...";
+    return "'" + s + "'";
+}
+
+int hex_value(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+}  // namespace
+
+std::string printable(std::string_view text) {
+    std::string out;
+    out.reserve(text.size());
+    for (char c : text) {
+        const auto u = static_cast<unsigned char>(c);
+        if (u >= 0x20 && u != 0x7F) {
+            out += c;
+        } else if (c == '\r') {
+            out += "\\r";
+        } else if (c == '\n') {
+            out += "\\n";
+        } else if (c == '\t') {
+            out += "\\t";
+        } else {
+            static constexpr char digits[] = "0123456789ABCDEF";
+            out += "\\x";
+            out += digits[u >> 4];
+            out += digits[u & 0x0F];
+        }
+    }
+    return out;
+}
+
+std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> tokens, std::string& error) {
+    std::vector<std::uint8_t> bytes;
+    int high = -1;  // the first digit of a byte, until its second comes
+    for (const auto& token : tokens) {
+        for (std::size_t i = 0; i < token.size(); ++i) {
+            const char c = token[i];
+            if (c == '0' && i + 1 < token.size() && (token[i + 1] == 'x' || token[i + 1] == 'X')) {
+                ++i;  // a 0x prefix
+                continue;
+            }
+            if (c == ' ' || c == ',' || c == ':' || c == '-' || c == '\t') continue;
+            const int v = hex_value(c);
+            if (v < 0) {
+                error = "not a hex digit: " + quote_token(std::string_view(&c, 1)) + " in " + quote_token(token);
+                return std::nullopt;
+            }
+            if (high < 0) {
+                high = v;
+            } else {
+                bytes.push_back(static_cast<std::uint8_t>(high << 4 | v));
+                high = -1;
+            }
+        }
+    }
+    if (high >= 0) {
+        error = "odd number of hex digits (" + std::to_string(bytes.size() * 2 + 1) + ")";
+        return std::nullopt;
+    }
+    return bytes;
+}
+
+std::optional<std::vector<std::uint8_t>> wire_from_tokens(Framing framing,
+                                                          std::span<const std::string> tokens,
+                                                          std::string& error) {
+    if (framing == Framing::Ascii && !tokens.empty() && !tokens[0].empty() && tokens[0][0] == ':') {
+        std::string joined;
+        for (const auto& t : tokens)
+            joined += t;
+        std::vector<std::uint8_t> text;
+        text.reserve(joined.size() + 2);
+        const std::string_view crlf = "\\r\\n";  // written out, as a shell passes it
+        for (std::size_t i = 0; i < joined.size(); ++i) {
+            if (std::string_view(joined).substr(i, crlf.size()) == crlf) {
+                text.push_back('\r');
+                text.push_back('\n');
+                i += crlf.size() - 1;
+            } else {
+                text.push_back(static_cast<std::uint8_t>(joined[i]));
+            }
+        }
+        if (text.size() < 2 || text[text.size() - 2] != '\r' || text.back() != '\n') {
+            text.push_back('\r');
+            text.push_back('\n');
+        }
+        return text;
+    }
+    return parse_hex(tokens, error);
+}
+
+std::vector<FrameLine> parse_frames_text(std::string_view text) {
+    std::vector<FrameLine> lines;
+    std::size_t number = 0;
+    for (std::size_t begin = 0; begin < text.size();) {
+        std::size_t end = text.find('\n', begin);
+        if (end == std::string_view::npos) end = text.size();
+        std::string_view line = text.substr(begin, end - begin);
+        begin = end + 1;
+        ++number;
+        FrameLine out;
+        out.number = number;
+        if (const auto hash = line.find('#'); hash != std::string_view::npos) {
+            std::string_view comment = line.substr(hash + 1);
+            while (!comment.empty() && is_blank(comment.front()))
+                comment.remove_prefix(1);
+            while (!comment.empty() && is_blank(comment.back()))
+                comment.remove_suffix(1);
+            out.comment = std::string(comment);
+            line = line.substr(0, hash);
+        }
+        std::vector<std::string> words;
+        for (std::size_t i = 0; i < line.size();) {
+            while (i < line.size() && is_blank(line[i]))
+                ++i;
+            std::size_t j = i;
+            while (j < line.size() && !is_blank(line[j]))
+                ++j;
+            if (j > i) words.emplace_back(line.substr(i, j - i));
+            i = j;
+        }
+        if (words.empty()) continue;
+        const std::string& kind = words.front();
+        if (kind == "rtu") {
+            out.framing = Framing::Rtu;
+        } else if (kind == "ascii") {
+            out.framing = Framing::Ascii;
+        } else if (kind == "tcp") {
+            out.framing = Framing::Tcp;
+        } else {
+            out.error = "unknown framing " + quote_token(kind) + " (rtu, ascii or tcp)";
+            lines.push_back(std::move(out));
+            continue;
+        }
+        const std::span<const std::string> tokens(words.data() + 1, words.size() - 1);
+        if (tokens.empty()) {
+            out.error = "no frame bytes after '" + kind + "'";
+        } else if (auto wire = wire_from_tokens(out.framing, tokens, out.error); wire) {
+            out.wire = std::move(*wire);
+            if (out.wire.empty()) out.error = "no frame bytes after '" + kind + "'";
+        }
+        lines.push_back(std::move(out));
+    }
+    return lines;
+}
+
+namespace {
+
+std::string describe_error(const DecodeError& e) {
+    return std::string(to_string(e.code)) + " (at byte " + std::to_string(e.offset) + ")";
+}
+
+void choose_pdu(DecodedFrame& d, Direction direction) {
+    const auto pdu_bytes = d.frame->pdu();
+    if (direction != Direction::Unknown) {
+        auto r = decode_pdu(pdu_bytes, direction);
+        if (r)
+            d.pdu = std::move(r.value());
+        else
+            d.error = "PDU: " + describe_error(r.error());
+        return;
+    }
+    auto request = decode_request(pdu_bytes);
+    auto response = decode_response(pdu_bytes);
+    const bool req_clean = request && request->violations.empty();
+    const bool rsp_clean = response && response->violations.empty();
+    if (req_clean && rsp_clean) {
+        d.pdu = std::move(request.value());
+        d.direction_note = encode_pdu(*d.pdu) == encode_pdu(response.value())
+                               ? "request, or its echo response (identical bytes)"
+                               : "request (also well-formed as a response)";
+    } else if (req_clean || (request && !rsp_clean && !response)) {
+        d.pdu = std::move(request.value());
+        d.direction_note = "request";
+    } else if (response) {
+        d.pdu = std::move(response.value());
+        d.direction_note = "response";
+    } else if (request) {
+        d.pdu = std::move(request.value());
+        d.direction_note = "request";
+    } else {
+        d.error = "PDU: " + describe_error(request.error());
+    }
+}
+
+}  // namespace
+
+DecodedFrame decode_frame(Framing framing, std::vector<std::uint8_t> wire, Direction direction) {
+    DecodedFrame d;
+    d.framing = framing;
+    d.wire = std::move(wire);
+    Result<Frame> frame = decode_adu(framing, d.wire);
+    if (!frame) {
+        d.error = std::string(to_string(framing)) + " ADU: " + describe_error(frame.error());
+        return d;
+    }
+    d.frame = std::move(frame.value());
+    choose_pdu(d, direction);
+    if (d.pdu && direction != Direction::Unknown) d.direction_note = std::string(to_string(direction));
+    return d;
+}
+
+namespace {
+
+std::string value_text(const nlohmann::json& v) {
+    if (v.is_string()) return v.get<std::string>();
+    return v.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+void findings_of(const DecodedFrame& d, std::vector<FindingCode>& out) {
+    if (d.frame)
+        for (auto c : d.frame->findings)
+            out.push_back(c);
+    if (d.pdu)
+        for (auto c : d.pdu->violations)
+            out.push_back(c);
+}
+
+}  // namespace
+
+std::string render_text(const DecodedFrame& d) {
+    std::ostringstream os;
+    const std::string shown =
+        d.framing == Framing::Ascii
+            ? printable(std::string_view(reinterpret_cast<const char*>(d.wire.data()), d.wire.size()))
+            : hex_bytes(d.wire);
+    os << to_string(d.framing) << "  " << shown << "  (" << d.wire.size() << " bytes)";
+    if (!d.source.empty()) os << "  [" << printable(d.source) << "]";
+    os << '\n';
+    std::vector<Field> fields;
+    if (d.frame) fields = describe_framing(*d.frame);
+    std::vector<Field> pdu_fields;
+    if (d.pdu) pdu_fields = describe_pdu(*d.pdu);
+    // unit/MBAP first, then PDU fields, checksum last
+    std::vector<Field> ordered;
+    for (auto& f : fields)
+        if (f.name != "crc" && f.name != "lrc") ordered.push_back(f);
+    if (!d.direction_note.empty()) ordered.insert(ordered.begin(), Field{"direction", d.direction_note, ""});
+    for (auto& f : pdu_fields)
+        ordered.push_back(f);
+    for (auto& f : fields)
+        if (f.name == "crc" || f.name == "lrc") ordered.push_back(f);
+    std::size_t width = 0;
+    for (const auto& f : ordered)
+        width = std::max(width, f.name.size());
+    for (const auto& f : ordered) {
+        const std::string v = printable(value_text(f.value));
+        const std::string meaning = printable(f.meaning);
+        os << "  " << f.name << std::string(width - f.name.size() + 2, ' ') << v;
+        if (!meaning.empty() && meaning != v)
+            os << std::string(v.size() < 12 ? 12 - v.size() : 1, ' ') << meaning;
+        os << '\n';
+    }
+    std::vector<FindingCode> codes;
+    findings_of(d, codes);
+    for (auto c : codes) {
+        const auto& fi = info(c);
+        os << "  ! " << fi.name << " (" << to_string(fi.severity) << "): " << fi.summary << "  [" << fi.rule
+           << "]\n";
+    }
+    if (!d.error.empty()) os << "  ! cannot decode: " << printable(d.error) << '\n';
+    return os.str();
+}
+
+nlohmann::json render_json(const DecodedFrame& d) {
+    nlohmann::json j;
+    j["framing"] = std::string(to_string(d.framing));
+    j["wire"] = d.framing == Framing::Ascii ? std::string(d.wire.begin(), d.wire.end()) : hex_bytes(d.wire);
+    j["length"] = d.wire.size();
+    if (!d.source.empty()) j["source"] = d.source;
+    if (!d.direction_note.empty()) j["direction"] = d.direction_note;
+    if (d.frame) {
+        j["checksum_ok"] = d.frame->checksum_ok;
+        for (const auto& f : describe_framing(*d.frame)) {
+            nlohmann::json field{{"name", f.name}, {"value", f.value}};
+            if (!f.meaning.empty()) field["meaning"] = f.meaning;
+            j["framing_fields"].push_back(field);
+        }
+    }
+    if (d.pdu) {
+        j["function_raw"] = d.pdu->function_raw;
+        j["function_code"] = d.pdu->function_code();
+        j["exception"] = d.pdu->is_exception();
+        for (const auto& f : describe_pdu(*d.pdu)) {
+            nlohmann::json field{{"name", f.name}, {"value", f.value}};
+            if (!f.meaning.empty()) field["meaning"] = f.meaning;
+            j["fields"].push_back(field);
+        }
+    }
+    std::vector<FindingCode> codes;
+    findings_of(d, codes);
+    j["findings"] = nlohmann::json::array();
+    for (auto c : codes) {
+        const auto& fi = info(c);
+        j["findings"].push_back({{"code", std::string(fi.name)},
+                                 {"severity", std::string(to_string(fi.severity))},
+                                 {"summary", std::string(fi.summary)},
+                                 {"rule", std::string(fi.rule)}});
+    }
+    if (!d.error.empty()) j["error"] = d.error;
+    return j;
+}
+
+}  // namespace mbscope::modbus

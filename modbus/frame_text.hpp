@@ -1,0 +1,67 @@
+#pragma once
+// Frames written as text: the hex spellings `mbscope frame` takes on its command line and in a frames file
+// (one frame a line, as captures/manual-examples.txt holds the manuals' worked examples), the decoding of
+// one such frame field by field, and its rendering as text or JSON. Whatever the text holds, the result is a
+// frame or an error naming the line and what is wrong, never an exception; the rendered text holds no
+// control character of the input (a frames file, an ASCII frame or a device's identification strings could
+// otherwise move the cursor or recolour a terminal): those are written as \r, \n, \t or \xNN.
+
+#include <cstddef>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "modbus/frame.hpp"
+#include "modbus/pdu.hpp"
+
+namespace mbscope::modbus {
+
+struct DecodedFrame {
+    Framing framing = Framing::Rtu;
+    std::vector<std::uint8_t> wire;  // the bytes as given
+    std::optional<Frame> frame;      // set when the ADU structure was recovered
+    std::optional<Pdu> pdu;          // set when the PDU structure was recovered
+    std::string direction_note;      // e.g. "request (identical to its echo response)"
+    std::string error;               // why the ADU or PDU could not be decoded
+    std::string source;              // optional label (file line, manual reference)
+
+    bool clean() const;  // decoded, checksum ok, no rule broken
+};
+
+// "11 03 00 60", "1103 0060", "0x11,0x03", "11-03": hex digits two to a byte, with 0x prefixes, blanks,
+// commas, colons and dashes between them ignored. Returns nullopt and sets error on anything else or an odd
+// number of digits.
+std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> tokens, std::string& error);
+
+// The bytes of a frame given as tokens: hex as above, or for ASCII also the frame's text
+// (":1103...", CR LF written as literal \r\n or added when missing).
+std::optional<std::vector<std::uint8_t>> wire_from_tokens(Framing framing,
+                                                          std::span<const std::string> tokens,
+                                                          std::string& error);
+
+// One line of a frames file that holds something: "rtu|ascii|tcp HEX... [# comment]".
+struct FrameLine {
+    std::size_t number = 0;  // 1-based
+    Framing framing = Framing::Rtu;
+    std::vector<std::uint8_t> wire;
+    std::string comment;  // after '#', leading blanks dropped
+    std::string error;    // set when the line is not a frame (then framing and wire mean nothing)
+};
+
+// Every line of a frames file in order; blank lines and lines with only a comment are skipped. Lines end at
+// LF (a CR before it is dropped); a last line without LF counts.
+std::vector<FrameLine> parse_frames_text(std::string_view text);
+
+DecodedFrame decode_frame(Framing framing, std::vector<std::uint8_t> wire, Direction direction);
+
+std::string render_text(const DecodedFrame& d);
+nlohmann::json render_json(const DecodedFrame& d);
+
+// Text safe to print: bytes below 0x20 and 0x7F written as \r, \n, \t or \xNN, a backslash as itself.
+std::string printable(std::string_view text);
+
+}  // namespace mbscope::modbus
