@@ -26,7 +26,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # Every program this script runs finds the bundled profiles of this tree.
 ENV = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
 TARGETS = ["pdu", "rtu_deframer", "ascii_deframer", "tcp_stream", "capture", "serial_log", "profile", "slave",
-           "libmodbus_diff", "slave_state", "reproducer"]
+           "libmodbus_diff", "slave_state", "reproducer", "frame_text"]
 
 
 class Provider:
@@ -315,6 +315,14 @@ def build(mbscope, out_dir):
             p.data(broken)
             write("slave", p.bytes(), out_dir)
 
+    # frame_text: the manuals' examples file as it is, and the same frames as frames-file lines over MBAP and
+    # in ASCII (written as text, CR LF spelled \r\n as on a command line).
+    write("frame_text", open(os.path.join(ROOT, "captures", "manual-examples.txt"), "rb").read(), out_dir)
+    lines = "".join("tcp %s # example %d over MBAP\n" % (adu.hex(" ").upper(), i + 1) for i, adu in enumerate(mbap))
+    lines += "".join("ascii %s\n" % ascii_frame(0x11, pdu_of("rtu", f)).decode().replace("\r\n", "\\r\\n")
+                     for f in rtu_frames)
+    write("frame_text", lines.encode(), out_dir)
+
     # slave_state and reproducer: the files as the programs wrote them.
     for text in state_files(mbscope):
         write("slave_state", text, out_dir)
@@ -323,9 +331,9 @@ def build(mbscope, out_dir):
     return 0
 
 
-def merge(fuzz_dir, out_dir):
+def merge(fuzz_dir, out_dir, targets):
     """Minimise each target's corpus with libFuzzer's -merge=1 into corpus/<target>/."""
-    for target in TARGETS:
+    for target in targets:
         binary = os.path.join(fuzz_dir, "fuzz_" + target)
         seeds = os.path.join(out_dir, target)
         final = os.path.join(ROOT, "corpus", target)
@@ -346,11 +354,13 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mbscope", required=True, help="the mbscope binary (for the profiles' maps)")
     parser.add_argument("--merge", metavar="FUZZ_DIR", help="folder of the fuzz_* binaries: minimise with -merge=1")
+    parser.add_argument("--only", nargs="+", choices=TARGETS, default=TARGETS,
+                        help="merge these targets' corpora only (the others stay as they are)")
     args = parser.parse_args()
     if args.merge:
         with tempfile.TemporaryDirectory() as seeds:
             build(args.mbscope, seeds)
-            merge(args.merge, seeds)
+            merge(args.merge, seeds, args.only)
     else:
         build(args.mbscope, os.path.join(ROOT, "corpus"))
     return 0
