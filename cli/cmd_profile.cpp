@@ -39,13 +39,29 @@ std::optional<ProfileConfig> parse_config(const ProfileOptions& o) {
     ProfileConfig config;
     if (!o.config_file.empty()) {
         std::ifstream in(o.config_file);
+        if (!in) {
+            std::cerr << "mbscope profile: cannot open " << o.config_file << '\n';
+            return std::nullopt;
+        }
+        nlohmann::json j;
         try {
-            auto j = nlohmann::json::parse(in);
-            for (auto it = j.begin(); it != j.end(); ++it)
-                config[it.key()] = it->get<std::string>();
-        } catch (const std::exception& e) {
+            j = nlohmann::json::parse(in);
+        } catch (const nlohmann::json::parse_error& e) {  // says where: line and column
             std::cerr << "mbscope profile: " << o.config_file << ": " << e.what() << '\n';
             return std::nullopt;
+        }
+        if (!j.is_object()) {
+            std::cerr << "mbscope profile: " << o.config_file
+                      << ": must be a JSON object {\"CHANNEL\": \"MAP\"}\n";
+            return std::nullopt;
+        }
+        for (const auto& [channel, map] : j.items()) {
+            if (!map.is_string()) {
+                std::cerr << "mbscope profile: " << o.config_file << ": channel '" << channel
+                          << "': the map must be a string\n";
+                return std::nullopt;
+            }
+            config[channel] = map.get<std::string>();
         }
     }
     for (const auto& kv : o.config) {

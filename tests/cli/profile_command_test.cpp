@@ -86,3 +86,26 @@ TEST(ProfileCommand, HelpOnEverySubcommand) {
     for (const char* sub : {"", " list", " show", " validate", " lookup", " decode"})
         EXPECT_EQ(run(std::string("profile") + sub + " --help").exit_code, 0) << sub;
 }
+
+TEST(ProfileCommand, ABadConfigFileIsNamedWithWhatIsWrong) {
+    const std::string path = ::testing::TempDir() + "profile_command_config.json";
+    const auto with_config = [&](const std::string& text) {
+        FILE* f = std::fopen(path.c_str(), "w");
+        std::fputs(text.c_str(), f);
+        std::fclose(f);
+        return run("profile" + dir + "show test-device --config-file " + path);
+    };
+    auto r = run("profile" + dir + "show test-device --config-file /nonexistent/config.json");
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.out.find("cannot open /nonexistent/config.json"), std::string::npos) << r.out;
+    r = with_config("{\"1\": ");
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.out.find(path + ": [json.exception.parse_error.101] parse error at line 1"), std::string::npos)
+        << r.out;
+    r = with_config("[\"pH\"]");
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.out.find(path + ": must be a JSON object"), std::string::npos) << r.out;
+    r = with_config("{\"1\": 3}");
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.out.find(path + ": channel '1': the map must be a string"), std::string::npos) << r.out;
+}
