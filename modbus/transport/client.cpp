@@ -11,61 +11,12 @@
 #include <ctime>
 
 #include "modbus/adu.hpp"
-#include "modbus/rtu_deframer.hpp"
 #include "modbus/transport/serial_port.hpp"
 #include "modbus/transport/socket.hpp"
 
 namespace mbscope::modbus::transport {
 
 using Clock = std::chrono::steady_clock;
-
-namespace {
-
-struct Span {
-    std::size_t begin = 0, end = 0;  // end == 0: no complete frame
-};
-
-Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silence, bool datagram) {
-    switch (framing) {
-        case Framing::Tcp: {
-            if (datagram) return {0, bytes.size()};
-            if (bytes.size() < 6) return {};
-            const std::size_t total = 6u + ((std::size_t{bytes[4]} << 8) | bytes[5]);
-            return bytes.size() >= total ? Span{0, total} : Span{};
-        }
-        case Framing::Ascii: {
-            for (std::size_t i = 0; i < bytes.size(); ++i) {
-                if (bytes[i] != ':') continue;
-                for (std::size_t j = i + 1; j + 1 < bytes.size(); ++j)
-                    if (bytes[j] == '\r' && bytes[j + 1] == '\n') return {i, j + 2};
-                return {};
-            }
-            return {};
-        }
-        case Framing::Rtu: {
-            std::size_t head = 0;
-            while (head < bytes.size()) {
-                const auto step = rtu_step(bytes.subspan(head), silence);
-                if (step.kind == DeframeStep::Kind::Complete) return {head, head + step.length};
-                if (step.kind == DeframeStep::Kind::NeedMore) break;
-                head += step.length ? step.length : 1;
-            }
-            // Ended by silence without a frame the content explains: all of it is the answer, as a receiver
-            // timing the line would take it.
-            if (silence && bytes.size() >= 4) return {0, bytes.size()};
-            return {};
-        }
-    }
-    return {};
-}
-
-std::optional<Frame> decode(Framing framing, std::span<const std::uint8_t> bytes) {
-    Result<Frame> f = decode_adu(framing, bytes);
-    if (!f) return std::nullopt;
-    return std::move(f).value();
-}
-
-}  // namespace
 
 Result<Client, std::string> Client::open(const Endpoint& endpoint, ClientOptions options) {
     Client c(endpoint, options);
@@ -167,7 +118,7 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
     // sleeping for that long first spares the wake-up of a sleeping thread, which costs about as much as
     // the exchange (the slave's server loop does the same after answering).
     const auto spin_until = start + std::chrono::microseconds(50);
-    std::size_t found = 0, scan_from = 0;
+    ReplyScanner frames_in(framing(), datagram, frames);
     std::uint8_t buf[2048];
     for (;;) {
         const auto now = Clock::now();
@@ -201,42 +152,12 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
             if (ex.received.empty()) ex.first_byte = Clock::now() - start;
             ex.received.insert(ex.received.end(), buf, buf + n);
         }
-        // Count complete frames from where the last one ended.
-        for (;;) {
-            const std::span<const std::uint8_t> rest(ex.received.data() + scan_from,
-                                                     ex.received.size() - scan_from);
-            const Span s = find_frame(framing(), rest, silence, datagram);
-            if (s.end == 0) break;
-            auto frame = decode(framing(), rest.subspan(s.begin, s.end - s.begin));
-            scan_from += s.end;
-            // A late reply to one of the requests just before this one (a server that sleeps before an
-            // exception, as libmodbus does, answers after the client gave up): kept in `received`, counted,
-            // and not taken for this request's reply.
-            if (frame && framing() == Framing::Tcp && frames <= 1 && !ex.response && ex.sent.size() >= 7) {
-                const auto sent_tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
-                const auto behind = static_cast<std::uint16_t>(sent_tid - frame->transaction_id());
-                if (behind >= 1 && behind <= 256) {
-                    ex.stale_replies.push_back(std::move(*frame));
-                    continue;
-                }
-            }
-            if (!ex.response) ex.response = frame;
-            ++found;
-            ex.elapsed = Clock::now() - start;
-            if (datagram || silence) break;
-        }
-        if (frames != 0 && found >= frames) return ex;
+        if (frames_in.scan(ex, silence) > 0) ex.elapsed = Clock::now() - start;
+        if (frames_in.complete()) return ex;
     }
-    ex.timed_out = found == 0;
-    if (found == 0) ex.elapsed = Clock::now() - start;
+    ex.timed_out = frames_in.found() == 0;
+    if (frames_in.found() == 0) ex.elapsed = Clock::now() - start;
     return ex;
-}
-
-std::span<const std::uint8_t> Exchange::own_received() const noexcept {
-    std::size_t stale = 0;
-    for (const auto& f : stale_replies)
-        stale += f.wire_length;
-    return std::span<const std::uint8_t>(received).subspan(std::min(stale, received.size()));
 }
 
 std::vector<std::uint8_t> Client::drain(std::chrono::milliseconds quiet) {

@@ -2,10 +2,7 @@
 // The master side of every endpoint: send a request, collect what comes back, with the bytes and the time.
 // Shared by the conformance runner and the network fuzzer (one implementation of "what did the slave
 // answer"), and by tests that need a client which can also send malformed bytes.
-//
-// A response ends, per framing, where the framing says: Modbus/TCP at the MBAP length, a UDP datagram,
-// RTU when the bytes form a CRC-valid frame of the predicted length or, failing that, at a silence of
-// t3.5 (serial) or `settle` (serial over TCP), ASCII at CR LF. Whatever else arrives is kept as `extra`.
+// Where a response ends and which frame is the request's own: exchange.hpp.
 
 #include <chrono>
 #include <cstdint>
@@ -17,24 +14,10 @@
 #include "modbus/frame.hpp"
 #include "modbus/result.hpp"
 #include "modbus/transport/endpoint.hpp"
+#include "modbus/transport/exchange.hpp"
 #include "modbus/transport/unique_fd.hpp"
 
 namespace mbscope::modbus::transport {
-
-struct Exchange {
-    std::vector<std::uint8_t> sent;          // the bytes written, as on the wire
-    std::vector<std::uint8_t> received;      // every byte read before the exchange ended
-    std::optional<Frame> response;           // the first frame found in `received`
-    std::chrono::nanoseconds elapsed{0};     // from the last byte written to the end of the response
-    std::chrono::nanoseconds first_byte{0};  // from the last byte written to the first byte read
-    bool timed_out = false;                  // nothing complete arrived in time
-    bool closed = false;                     // the peer closed the connection
-    std::vector<Frame> stale_replies;  // Modbus/TCP: late replies to earlier requests, read and set aside
-
-    // `received` without the stale replies, which come first (a frame is set aside only before this
-    // request's own reply): what came for this request.
-    std::span<const std::uint8_t> own_received() const noexcept;
-};
 
 struct ClientOptions {
     std::chrono::milliseconds connect_timeout{2000};
@@ -76,8 +59,6 @@ class Client {
   private:
     Client(Endpoint endpoint, ClientOptions options) : endpoint_(std::move(endpoint)), options_(options) {}
     Result<void, std::string> connect();
-    // Index just past the first complete frame in `bytes`, or 0.
-    std::size_t complete_frame(std::span<const std::uint8_t> bytes, bool silence) const;
 
     Endpoint endpoint_;
     ClientOptions options_;
