@@ -26,7 +26,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # Every program this script runs finds the bundled profiles of this tree.
 ENV = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
 TARGETS = ["pdu", "rtu_deframer", "ascii_deframer", "tcp_stream", "capture", "serial_log", "profile", "slave",
-           "libmodbus_diff", "slave_state", "reproducer", "frame_text"]
+           "libmodbus_diff", "slave_state", "reproducer", "frame_text", "reply"]
 
 
 class Provider:
@@ -322,6 +322,33 @@ def build(mbscope, out_dir):
     lines += "".join("ascii %s\n" % ascii_frame(0x11, pdu_of("rtu", f)).decode().replace("\r\n", "\\r\\n")
                      for f in rtu_frames)
     write("frame_text", lines.encode(), out_dir)
+
+    # reply: the manual's requests and the responses it gives for them (000:330-484), to an MK instrument and
+    # the generic profile, framed for the profile's unit, on each framing; over Modbus/TCP also with a late
+    # reply to the request before in front of each (one transaction id behind).
+    pdus = [pdu_of(f, b) for f, b in examples]
+    pairs = [(0, 1), (2, 3), (4, 4), (5, 5), (6, 6), (7, 8), (9, 10), (0, 11)]
+    for index, pr in enumerate(all_profiles):
+        if pr["id"] not in ("mmk-2030", "modbus"):
+            continue
+        for framing_index, framing in enumerate(framings):
+            for late in ((False, True) if framing == "tcp" else (False,)):
+                p = Provider()
+                p.integral(0, len(all_profiles) - 1, index)
+                p.integral(0, 2, framing_index)
+                if framing == "tcp":
+                    p.boolean(True)   # reached by an IP address
+                    p.boolean(False)  # over a stream, not UDP
+                for request, response in pairs:
+                    p.uint8(0x05)  # framed, to the profile's unit
+                    p.integral(0, 260, len(pdus[request]))
+                    p.data(pdus[request])
+                    p.integral(0, 4, 2 if late else 1)
+                    for kind in ((0x0B, 0x09) if late else (0x09,)):  # framed from the unit; 0x0B: one behind
+                        p.uint8(kind)
+                        p.integral(0, 300, len(pdus[response]))
+                        p.data(pdus[response])
+                write("reply", p.bytes(), out_dir)
 
     # slave_state and reproducer: the files as the programs wrote them.
     for text in state_files(mbscope):
