@@ -1,0 +1,269 @@
+// The conformance runner against a slave that answers anything: a loopback Modbus/TCP server that, drawn
+// from a seeded generator for every request, replies correctly, with a random exception code, a random PDU,
+// another transaction or unit id, a length it never sends, a protocol id other than 0, twice, not at all, or
+// closes the connection. A firmware team's device under development can do any of these. The run must
+// finish, certify nothing, say for every rule what it expected and what it saw, account for every point it
+// wrote (restored, or why not), and write its JSON and JUnit reports whole.
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <random>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+#include "conformance/report.hpp"
+#include "conformance/runner.hpp"
+#include "modbus/storage/profile_store.hpp"
+#include "modbus/transport/client.hpp"
+
+namespace mbscope::conformance {
+namespace {
+
+namespace tp = modbus::transport;
+
+class HostileServer {
+  public:
+    explicit HostileServer(unsigned seed) : random_(seed) {
+        listener_ = ::socket(AF_INET, SOCK_STREAM, 0);
+        sockaddr_in a{};
+        a.sin_family = AF_INET;
+        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        ::bind(listener_, reinterpret_cast<sockaddr*>(&a), sizeof a);
+        ::listen(listener_, 8);
+        socklen_t len = sizeof a;
+        ::getsockname(listener_, reinterpret_cast<sockaddr*>(&a), &len);
+        port_ = ntohs(a.sin_port);
+        thread_ = std::thread([this] { serve(); });
+    }
+    ~HostileServer() {
+        stop_ = true;
+        thread_.join();
+        for (auto& c : connections_)
+            ::close(c.fd);
+        ::close(listener_);
+    }
+    HostileServer(const HostileServer&) = delete;
+    HostileServer& operator=(const HostileServer&) = delete;
+
+    std::uint16_t port() const { return port_; }
+    std::size_t requests() const { return requests_; }
+
+  private:
+    struct Connection {
+        int fd;
+        std::vector<std::uint8_t> in;
+    };
+
+    void serve() {
+        while (!stop_) {
+            std::vector<pollfd> fds{{listener_, POLLIN, 0}};
+            for (const auto& c : connections_)
+                fds.push_back({c.fd, POLLIN, 0});
+            if (::poll(fds.data(), fds.size(), 10) <= 0) continue;
+            if (fds[0].revents & POLLIN) {
+                const int fd = ::accept(listener_, nullptr, nullptr);
+                if (fd >= 0) connections_.push_back({fd, {}});
+            }
+            for (std::size_t i = 1; i < fds.size(); ++i) {
+                if (!(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+                Connection& c = connections_[i - 1];
+                std::uint8_t buf[1024];
+                const ssize_t n = ::read(c.fd, buf, sizeof buf);
+                if (n <= 0) {
+                    ::close(c.fd);
+                    c.fd = -1;
+                    continue;
+                }
+                c.in.insert(c.in.end(), buf, buf + n);
+                answer(c);
+            }
+            std::erase_if(connections_, [](const Connection& c) { return c.fd < 0; });
+        }
+    }
+
+    // Every complete MBAP request in the buffer gets its answer; a connection that sends more than a
+    // request could hold without completing one is closed.
+    void answer(Connection& c) {
+        while (c.fd >= 0 && c.in.size() >= 6) {
+            const std::size_t total = 6u + ((std::size_t{c.in[4]} << 8) | c.in[5]);
+            if (c.in.size() < total) {
+                if (c.in.size() > 300) {
+                    ::close(c.fd);
+                    c.fd = -1;
+                }
+                return;
+            }
+            const std::vector<std::uint8_t> request(c.in.begin(), c.in.begin() + static_cast<long>(total));
+            c.in.erase(c.in.begin(), c.in.begin() + static_cast<long>(total));
+            ++requests_;
+            reply_to(c, request);
+        }
+    }
+
+    std::uint8_t byte() { return static_cast<std::uint8_t>(random_() & 0xFF); }
+
+    void send(Connection& c, std::uint16_t tid, std::uint16_t protocol, std::uint8_t unit,
+              const std::vector<std::uint8_t>& pdu, std::size_t claimed_extra = 0) {
+        const std::size_t length = pdu.size() + 1 + claimed_extra;
+        std::vector<std::uint8_t> adu{static_cast<std::uint8_t>(tid >> 8),
+                                      static_cast<std::uint8_t>(tid),
+                                      static_cast<std::uint8_t>(protocol >> 8),
+                                      static_cast<std::uint8_t>(protocol),
+                                      static_cast<std::uint8_t>(length >> 8),
+                                      static_cast<std::uint8_t>(length),
+                                      unit};
+        adu.insert(adu.end(), pdu.begin(), pdu.end());
+        (void)::send(c.fd, adu.data(), adu.size(), MSG_NOSIGNAL);
+    }
+
+    // A reply a correct slave could give: the read's values (random), a write's echo, anything else echoed.
+    std::vector<std::uint8_t> plausible(const std::vector<std::uint8_t>& pdu) {
+        if (pdu.empty()) return {0x80, 0x01};
+        const std::uint8_t fc = pdu[0];
+        if (fc >= 1 && fc <= 4 && pdu.size() >= 5) {
+            const unsigned quantity = (pdu[3] << 8) | pdu[4];
+            const std::size_t count = fc <= 2 ? (quantity + 7) / 8 : quantity * 2u;
+            std::vector<std::uint8_t> r{fc, static_cast<std::uint8_t>(count)};
+            for (std::size_t i = 0; i < std::min<std::size_t>(count, 250); ++i)
+                r.push_back(byte());
+            return r;
+        }
+        if ((fc == 15 || fc == 16) && pdu.size() >= 5) return {pdu.begin(), pdu.begin() + 5};
+        return pdu;
+    }
+
+    void reply_to(Connection& c, const std::vector<std::uint8_t>& request) {
+        const auto tid = static_cast<std::uint16_t>((request[0] << 8) | request[1]);
+        const std::uint8_t unit = request[6];
+        const std::vector<std::uint8_t> pdu(request.begin() + 7, request.end());
+        switch (random_() % 11) {
+            case 0:
+            case 1:
+            case 2:
+                send(c, tid, 0, unit, plausible(pdu));
+                break;
+            case 3:  // an exception with any code
+                send(c, tid, 0, unit, {static_cast<std::uint8_t>((pdu.empty() ? 0 : pdu[0]) | 0x80), byte()});
+                break;
+            case 4: {  // any PDU
+                std::vector<std::uint8_t> r(random_() % 254);
+                for (auto& b : r)
+                    b = byte();
+                send(c, tid, 0, unit, r);
+                break;
+            }
+            case 5:
+                send(c, static_cast<std::uint16_t>(tid + 1 + random_() % 3), 0, unit, plausible(pdu));
+                break;
+            case 6:
+                send(c, tid, 0, static_cast<std::uint8_t>(unit + 1), plausible(pdu));
+                break;
+            case 7:  // a length it never sends
+                send(c, tid, 0, unit, plausible(pdu), 1 + random_() % 200);
+                break;
+            case 8:
+                send(c, tid, static_cast<std::uint16_t>(1 + random_() % 0xFFFE), unit, plausible(pdu));
+                break;
+            case 9:
+                send(c, tid, 0, unit, plausible(pdu));
+                send(c, tid, 0, unit, plausible(pdu));
+                break;
+            default:
+                if (random_() % 4 == 0) {
+                    ::close(c.fd);
+                    c.fd = -1;
+                }
+                break;  // silence
+        }
+    }
+
+    std::mt19937 random_;
+    int listener_ = -1;
+    std::uint16_t port_ = 0;
+    std::thread thread_;
+    std::atomic<bool> stop_{false};
+    std::vector<Connection> connections_;
+    std::atomic<std::size_t> requests_{0};
+};
+
+const modbus::Profile& profile(const std::string& id) {
+    static modbus::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    static std::map<std::string, modbus::Profile> loaded;
+    auto it = loaded.find(id);
+    if (it == loaded.end()) it = loaded.emplace(id, store.load(id).value()).first;
+    return it->second;
+}
+
+struct Case {
+    std::string profile;
+    unsigned seed;
+};
+
+std::ostream& operator<<(std::ostream& out, const Case& c) {
+    return out << c.profile << " seed " << c.seed;
+}
+
+class AgainstAHostileSlave : public ::testing::TestWithParam<Case> {};
+
+TEST_P(AgainstAHostileSlave, TheRunFinishesCertifiesNothingAndAccountsForEverything) {
+    HostileServer server(GetParam().seed);
+    auto endpoint = tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(server.port()));
+    ASSERT_TRUE(endpoint.has_value());
+    auto client = tp::Client::open(*endpoint);
+    ASSERT_TRUE(client.has_value()) << client.error();
+    CheckOptions options;
+    options.session.unit = 1;
+    // Loopback answers in microseconds; a reply that comes later than this is one the server chose not to
+    // send in time, and the run must cope with that too.
+    options.session.timeout = std::chrono::milliseconds(10);
+    options.session.interval = std::chrono::milliseconds(0);
+    const Report report = run_check(*client, profile(GetParam().profile), options);
+
+    EXPECT_GT(server.requests(), 50u);
+    EXPECT_NE(verdict(report), 0) << "a slave that answers anything was certified";
+    EXPECT_GT(report.count(Outcome::Fail) + report.count(Outcome::Error), 0u);
+    for (const auto& x : report.results) {
+        EXPECT_FALSE(x.rule.id.empty());
+        if (x.outcome == Outcome::Fail) {
+            EXPECT_FALSE(x.expected.empty()) << x.rule.id;
+            EXPECT_FALSE(x.observed.empty()) << x.rule.id;
+        }
+        if (x.outcome == Outcome::Error || x.outcome == Outcome::Skip) {
+            EXPECT_FALSE(x.reason.empty()) << x.rule.id;
+        }
+    }
+    for (const auto& t : report.restored)
+        EXPECT_TRUE(t.restored || !t.problem.empty())
+            << modbus::to_string(t.table) << ' ' << t.address << ": neither restored nor why not";
+
+    // The reports are whole: the JSON reads back, the JUnit XML closes what it opens.
+    const std::string json = to_json(report).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    const auto back = nlohmann::json::parse(json, nullptr, false);
+    ASSERT_FALSE(back.is_discarded());
+    std::ostringstream junit;
+    write_junit(junit, report);
+    const std::string xml = junit.str();
+    EXPECT_NE(xml.find("<testsuites"), std::string::npos);
+    EXPECT_NE(xml.find("</testsuites>"), std::string::npos);
+    std::ostringstream text;
+    write_text(text, report, true);
+    EXPECT_FALSE(text.str().empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, AgainstAHostileSlave,
+                         ::testing::Values(Case{"modbus", 1}, Case{"modbus", 2}, Case{"mmk-2030", 3},
+                                           Case{"cth2265i", 4}),
+                         [](const auto& info) {
+                             std::string n = info.param.profile + "_seed_" + std::to_string(info.param.seed);
+                             for (auto& ch : n)
+                                 if (ch == '-') ch = '_';
+                             return n;
+                         });
+
+}  // namespace
+}  // namespace mbscope::conformance
