@@ -1,6 +1,7 @@
 #include "conformance/session.hpp"
 
 #include <algorithm>
+#include <memory>
 #include <thread>
 #include <utility>
 
@@ -135,53 +136,136 @@ std::optional<std::uint16_t> Session::read_point(Table table, std::uint16_t addr
     return std::nullopt;
 }
 
+void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
+    if (first == last) return;
+    const Table table = first->first.first;
+    if (table != Table::Coils && table != Table::HoldingRegisters) return;
+    const bool coils = table == Table::Coils;
+    const std::uint8_t write_fc = coils ? 15 : 16;
+    const std::uint8_t read_fc = coils ? 1 : 3;
+    int limit = coils ? 1968 : 123;  // AP §6.11, §6.12 without a profile
+    if (profile_) {
+        if (!profile_->functions.supports(write_fc) || !profile_->functions.supports(read_fc)) return;
+        limit = std::min(profile_->functions.max_for(write_fc), profile_->functions.max_for(read_fc));
+    }
+    if (limit < 2) return;
+
+    std::vector<Touched*> run;  // consecutive addresses, each one the map lets be written
+    const auto write_back = [&] {
+        for (std::size_t i = 0; i < run.size();) {
+            std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(limit), run.size() - i);
+            // A 32-bit value is not cut in two between blocks (some devices refuse a lone half).
+            if (!coils && i + n < run.size() && profile_) {
+                const modbus::Point* p = profile_->find(table, run[i + n - 1]->address);
+                if (p && p->encoding.words == 2 && p->address == run[i + n - 1]->address) --n;
+            }
+            if (n < 2) {  // a lone point goes back on its own, below
+                i += std::max<std::size_t>(n, 1);
+                continue;
+            }
+            const std::uint16_t start = run[i]->address;
+            const std::string span = std::to_string(n) + " from " + std::to_string(start);
+            if (coils) {
+                std::unique_ptr<bool[]> bits(new bool[n]);
+                for (std::size_t k = 0; k < n; ++k)
+                    bits[k] = run[i + k]->original != 0;
+                (void)request(modbus::encode_pdu(modbus::make_write_multiple_coils(start, {bits.get(), n})),
+                              "restore the original values, " + span);
+                if (const auto now = read_bits(table, start, static_cast<std::uint16_t>(n),
+                                               "verify the restored values, " + span))
+                    for (std::size_t k = 0; k < n; ++k)
+                        run[i + k]->restored = ((*now)[k] ? 1 : 0) == run[i + k]->original;
+            } else {
+                std::vector<std::uint16_t> words;
+                for (std::size_t k = 0; k < n; ++k)
+                    words.push_back(run[i + k]->original);
+                (void)request(modbus::encode_pdu(modbus::make_write_multiple_registers(start, words)),
+                              "restore the original values, " + span);
+                if (const auto now = read_registers(table, start, static_cast<std::uint16_t>(n),
+                                                    "verify the restored values, " + span))
+                    for (std::size_t k = 0; k < n; ++k)
+                        run[i + k]->restored = (*now)[k] == run[i + k]->original;
+            }
+            i += n;
+        }
+        run.clear();
+    };
+    for (auto it = first; it != last; ++it) {
+        Touched& t = it->second;
+        const modbus::Point* own = profile_ ? profile_->find(table, t.address) : nullptr;
+        if (t.restored || (own && own->access == modbus::Access::Read)) {
+            write_back();
+            continue;
+        }
+        if (!run.empty() && run.back()->address + 1 != t.address) write_back();
+        run.push_back(&t);
+    }
+    write_back();
+}
+
 std::vector<Touched> Session::restore() {
     std::vector<Touched> out;
     std::vector<bool> refused;  // out[i]'s write was answered with an exception
     bool pair_written = false;  // the previous register was restored together with this one
-    for (auto& [key, t] : touched_) {
-        // A point the map makes read-only (a block write can span one) is not written back: a device that
-        // follows its map refuses the write, and its value may move on its own (a process value, a relay
-        // state). It is reported with what it reads, not judged: a device that took a write there already
-        // failed the rule that made it.
-        const modbus::Point* own = profile_ ? profile_->find(t.table, t.address) : nullptr;
-        if (own && own->access == modbus::Access::Read) {
-            const auto now = read_point(t.table, t.address, "read the read-only point");
-            t.restored = true;
-            if (!now || *now != t.original)
-                t.problem = "read-only in the map, not written back; reads " +
-                            (now ? std::to_string(*now) : std::string("nothing")) + ", was " +
-                            std::to_string(t.original);
+    // Table by table, in the ledger's order (coils before registers: where coils are views of registers, the
+    // register must be written last). Consecutive points go back in blocks first; what a block did not
+    // bring back, and every other point, one by one.
+    for (auto table_begin = touched_.begin(); table_begin != touched_.end();) {
+        auto table_end = table_begin;
+        while (table_end != touched_.end() && table_end->first.first == table_begin->first.first)
+            ++table_end;
+        restore_blocks(table_begin, table_end);
+        for (auto it = std::exchange(table_begin, table_end); it != table_end; ++it) {
+            auto& t = it->second;
+            if (t.restored) {  // by a block
+                out.push_back(t);
+                refused.push_back(false);
+                pair_written = false;
+                continue;
+            }
+            // A point the map makes read-only (a block write can span one) is not written back: a device that
+            // follows its map refuses the write, and its value may move on its own (a process value, a relay
+            // state). It is reported with what it reads, not judged: a device that took a write there already
+            // failed the rule that made it.
+            const modbus::Point* own = profile_ ? profile_->find(t.table, t.address) : nullptr;
+            if (own && own->access == modbus::Access::Read) {
+                const auto now = read_point(t.table, t.address, "read the read-only point");
+                t.restored = true;
+                if (!now || *now != t.original)
+                    t.problem = "read-only in the map, not written back; reads " +
+                                (now ? std::to_string(*now) : std::string("nothing")) + ", was " +
+                                std::to_string(t.original);
+                out.push_back(t);
+                refused.push_back(false);
+                continue;
+            }
+            std::vector<std::uint8_t> pdu;
+            const bool skip_write = std::exchange(pair_written, false);
+            if (t.table == Table::Coils)
+                pdu = modbus::encode_pdu(modbus::make_write_single_coil(t.address, t.original != 0));
+            else
+                pdu = modbus::encode_pdu(modbus::make_write_single_register(t.address, t.original));
+            // A 32-bit point is restored with both halves in one FC16 (some devices refuse a lone half); any
+            // other register alone, so a read-only neighbour cannot spoil its write.
+            const auto next = touched_.find({t.table, static_cast<std::uint16_t>(t.address + 1)});
+            const modbus::Point* point = profile_ ? profile_->find(t.table, t.address) : nullptr;
+            const bool first_half = point && point->encoding.words == 2 && point->address == t.address;
+            if (t.table == Table::HoldingRegisters && first_half && next != touched_.end() && !skip_write) {
+                const std::uint16_t pair[2] = {t.original, next->second.original};
+                pdu = modbus::encode_pdu(modbus::make_write_multiple_registers(t.address, pair));
+                pair_written = true;
+            }
+            modbus::transport::Exchange ex;
+            if (!skip_write) ex = request(pdu, "restore the original value");
+            const auto now = read_point(t.table, t.address, "verify the restored value");
+            t.restored = now && *now == t.original;
+            if (!t.restored)
+                t.problem =
+                    now ? "reads " + std::to_string(*now) + " after restoring " + std::to_string(t.original)
+                        : std::string(ex.timed_out ? "no reply while restoring" : "could not read it back");
             out.push_back(t);
-            refused.push_back(false);
-            continue;
+            refused.push_back(!skip_write && is_exception(ex));
         }
-        std::vector<std::uint8_t> pdu;
-        const bool skip_write = std::exchange(pair_written, false);
-        if (t.table == Table::Coils)
-            pdu = modbus::encode_pdu(modbus::make_write_single_coil(t.address, t.original != 0));
-        else
-            pdu = modbus::encode_pdu(modbus::make_write_single_register(t.address, t.original));
-        // A 32-bit point is restored with both halves in one FC16 (some devices refuse a lone half); any
-        // other register alone, so a read-only neighbour cannot spoil its write.
-        const auto next = touched_.find({t.table, static_cast<std::uint16_t>(t.address + 1)});
-        const modbus::Point* point = profile_ ? profile_->find(t.table, t.address) : nullptr;
-        const bool first_half = point && point->encoding.words == 2 && point->address == t.address;
-        if (t.table == Table::HoldingRegisters && first_half && next != touched_.end() && !skip_write) {
-            const std::uint16_t pair[2] = {t.original, next->second.original};
-            pdu = modbus::encode_pdu(modbus::make_write_multiple_registers(t.address, pair));
-            pair_written = true;
-        }
-        modbus::transport::Exchange ex;
-        if (!skip_write) ex = request(pdu, "restore the original value");
-        const auto now = read_point(t.table, t.address, "verify the restored value");
-        t.restored = now && *now == t.original;
-        if (!t.restored)
-            t.problem =
-                now ? "reads " + std::to_string(*now) + " after restoring " + std::to_string(t.original)
-                    : std::string(ex.timed_out ? "no reply while restoring" : "could not read it back");
-        out.push_back(t);
-        refused.push_back(!skip_write && is_exception(ex));
     }
     // Points whose ranges depend on each other (a lower limit that must not exceed its upper limit,
     // MK-RNG-02) refuse their original value until a later point is back: those the device refused are

@@ -72,14 +72,18 @@ class Session {
     std::uint64_t requests() const noexcept { return requests_; }
 
   private:
+    using Ledger = std::map<std::pair<modbus::Table, std::uint16_t>, Touched>;
     void pace();
+    // Writes the remembered values of [first, last) (one table) back in blocks, FC15 or FC16 as long as the
+    // profile's limit and its read allows, and reads each block back: what reads as it was is restored.
+    void restore_blocks(Ledger::iterator first, Ledger::iterator last);
     void log(const modbus::transport::Exchange& ex, const std::string& note);
 
     modbus::transport::Client& client_;
     SessionOptions options_;
     const modbus::Profile* profile_;  // tells which registers are halves of one 32-bit value
     std::vector<Evidence> evidence_;
-    std::map<std::pair<modbus::Table, std::uint16_t>, Touched> touched_;
+    Ledger touched_;
     std::chrono::steady_clock::time_point last_{};
     std::vector<std::chrono::nanoseconds> times_;
     std::uint64_t requests_ = 0;
