@@ -5,6 +5,7 @@
 #include <deque>
 #include <filesystem>
 #include <random>
+#include <ranges>
 #include <set>
 #include <thread>
 
@@ -613,7 +614,18 @@ CampaignSummary Campaign::run() {
     progress(true);
     s_.elapsed = Clock::now() - start_;  // the fuzzing, not the restore after it
     s_.silence_wait = silence_wait();
-    if (!s_.target_lost && !session_.touched().empty()) s_.restored = session_.restore();
+    if (s_.target_lost) {
+        // A target that stopped answering is not written to again (each point would wait out the timeout
+        // twice, an hour for 2,000 points at 1 s): every point written is listed as not restored, so the
+        // summary and the exit code say what was left changed.
+        for (auto t : session_.touched() | std::views::values) {
+            t.restored = false;
+            t.problem = "not restored: the target stopped answering";
+            s_.restored.push_back(std::move(t));
+        }
+    } else if (!session_.touched().empty()) {
+        s_.restored = session_.restore();
+    }
     return s_;
 }
 

@@ -174,6 +174,22 @@ INSTANTIATE_TEST_SUITE_P(Slave, CleanSlave,
                              return n;
                          });
 
+// A target lost mid-run is not written to again, and the points written before are not passed over in
+// silence: each is listed as not restored, with why.
+TEST(NetworkFuzzer, PointsWrittenBeforeTheTargetWasLostAreListedAsNotRestored) {
+    RunningServer server({"crash-after=300"}, 7, "modbus");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.requests = 1500;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("modbus"), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    ASSERT_TRUE(s.target_lost) << listing(s);
+    ASSERT_FALSE(s.restored.empty()) << "nothing was written before the target was lost";
+    for (const auto& t : s.restored) {
+        EXPECT_FALSE(t.restored);
+        EXPECT_EQ(t.problem, "not restored: the target stopped answering");
+    }
+}
+
 TEST(NetworkFuzzer, ReadOnlyNeverChangesTheDevice) {
     RunningServer server({}, 7, "mmk-2030");
     auto o = options_for("tcp", server.start("tcp"));
