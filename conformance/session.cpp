@@ -34,6 +34,7 @@ void Session::pace() {
 void Session::log(const tp::Exchange& ex, const std::string& note) {
     evidence_.push_back({note, ex.sent, ex.received, ex.elapsed, ex.timed_out});
     if (!ex.timed_out) times_.push_back(ex.elapsed);
+    unanswered_in_a_row_ = ex.received.empty() ? unanswered_in_a_row_ + 1 : 0;
 }
 
 tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::string& note,
@@ -159,6 +160,7 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
                 const modbus::Point* p = profile_->find(table, run[i + n - 1]->address);
                 if (p && p->encoding.words == 2 && p->address == run[i + n - 1]->address) --n;
             }
+            if (device_gone()) return;
             if (n < 2) {  // a lone point goes back on its own, below
                 i += std::max<std::size_t>(n, 1);
                 continue;
@@ -204,6 +206,7 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
 }
 
 std::vector<Touched> Session::restore() {
+    unanswered_in_a_row_ = 0;  // the rules before may have asked for silence on purpose
     std::vector<Touched> out;
     std::vector<bool> refused;  // out[i]'s write was answered with an exception
     bool pair_written = false;  // the previous register was restored together with this one
@@ -221,6 +224,12 @@ std::vector<Touched> Session::restore() {
                 out.push_back(t);
                 refused.push_back(false);
                 pair_written = false;
+                continue;
+            }
+            if (device_gone()) {
+                t.problem = "not restored: no reply to " + std::to_string(gone_after) + " requests in a row";
+                out.push_back(t);
+                refused.push_back(false);
                 continue;
             }
             // A point the map makes read-only (a block write can span one) is not written back: a device that
@@ -274,7 +283,7 @@ std::vector<Touched> Session::restore() {
     // original) kept a pass over every unrestored point going once per point brought back, hours for the
     // 2,000 coils of the generic profile's quantity rules.
     constexpr int most_passes = 8;
-    for (int pass = 0; pass < most_passes; ++pass) {
+    for (int pass = 0; pass < most_passes && !device_gone(); ++pass) {
         bool progress = false;
         for (std::size_t i = 0; i < out.size(); ++i) {
             auto& t = out[i];

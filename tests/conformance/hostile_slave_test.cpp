@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -18,6 +19,7 @@
 
 #include "conformance/report.hpp"
 #include "conformance/runner.hpp"
+#include "conformance/session.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "modbus/transport/client.hpp"
 
@@ -28,7 +30,10 @@ namespace tp = modbus::transport;
 
 class HostileServer {
   public:
-    explicit HostileServer(unsigned seed) : random_(seed) {
+    // `honest_for`: answer that many requests as a correct slave would, then none at all (a device that
+    // hung mid-run, its connection still open).
+    explicit HostileServer(unsigned seed, std::optional<std::size_t> honest_for = std::nullopt)
+        : random_(seed), honest_for_(honest_for) {
         listener_ = ::socket(AF_INET, SOCK_STREAM, 0);
         sockaddr_in a{};
         a.sin_family = AF_INET;
@@ -141,6 +146,10 @@ class HostileServer {
         const auto tid = static_cast<std::uint16_t>((request[0] << 8) | request[1]);
         const std::uint8_t unit = request[6];
         const std::vector<std::uint8_t> pdu(request.begin() + 7, request.end());
+        if (honest_for_) {
+            if (requests_ <= *honest_for_) send(c, tid, 0, unit, plausible(pdu));
+            return;
+        }
         switch (random_() % 11) {
             case 0:
             case 1:
@@ -183,6 +192,7 @@ class HostileServer {
     }
 
     std::mt19937 random_;
+    std::optional<std::size_t> honest_for_;
     int listener_ = -1;
     std::uint16_t port_ = 0;
     std::thread thread_;
@@ -253,6 +263,31 @@ TEST_P(AgainstAHostileSlave, TheRunFinishesCertifiesNothingAndAccountsForEveryth
     std::ostringstream text;
     write_text(text, report, true);
     EXPECT_FALSE(text.str().empty());
+}
+
+// A device that stops answering during the restore is not waited for point by point: after eight requests
+// in a row without a byte back the rest are listed as not restored, with why.
+TEST(Restore, StopsWritingToADeviceThatStoppedAnswering) {
+    HostileServer server(1, 2);  // answers the read of the originals and the write, then nothing
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(server.port())));
+    ASSERT_TRUE(client.has_value()) << client.error();
+    SessionOptions options;
+    options.timeout = std::chrono::milliseconds(20);
+    Session session(*client, options, &profile("modbus"));
+    ASSERT_TRUE(session.remember(modbus::Table::HoldingRegisters, 0, 100, 100));
+    const std::vector<std::uint16_t> words(100, 0xBEEF);
+    ASSERT_FALSE(session.request(modbus::encode_pdu(modbus::make_write_multiple_registers(0, words)), "write")
+                     .received.empty());
+    const auto before = session.requests();
+    const auto ledger = session.restore();
+    // The block's write and read, then three points' writes and reads: eight without a reply.
+    EXPECT_EQ(session.requests() - before, 8u);
+    ASSERT_EQ(ledger.size(), 100u);
+    for (const auto& t : ledger) {
+        EXPECT_FALSE(t.restored) << t.address;
+        EXPECT_FALSE(t.problem.empty()) << t.address;
+    }
+    EXPECT_EQ(ledger.back().problem, "not restored: no reply to 8 requests in a row");
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, AgainstAHostileSlave,
