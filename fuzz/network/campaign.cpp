@@ -618,7 +618,8 @@ CampaignSummary Campaign::run() {
         // A target that stopped answering is not written to again (each point would wait out the timeout
         // twice, an hour for 2,000 points at 1 s): every point written is listed as not restored, so the
         // summary and the exit code say what was left changed.
-        for (auto t : session_.touched() | std::views::values) {
+        for (const auto& [key, kept] : session_.touched()) {  // no std::views: clang 14 with libstdc++ 12
+            conformance::Touched t = kept;
             t.restored = false;
             t.problem = "not restored: the target stopped answering";
             s_.restored.push_back(std::move(t));
