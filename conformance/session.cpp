@@ -161,7 +161,7 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
                 if (p && p->encoding.words == 2 && p->address == run[i + n - 1]->address) --n;
             }
             if (device_gone()) break;  // the points left go to the one-by-one path, which says why
-            if (n < 2) {  // a lone point goes back on its own, below
+            if (n < 2) {               // a lone point goes back on its own, below
                 i += std::max<std::size_t>(n, 1);
                 continue;
             }

@@ -53,7 +53,8 @@ void check_scanned(const modbus::transport::Exchange& ex) {
                                    exchange_text(ex));
         const std::span<const std::uint8_t> at(ex.received.data() + std::min(offset, ex.received.size()),
                                                ex.received.size() - std::min(offset, ex.received.size()));
-        const auto again = modbus::decode_adu(Framing::Tcp, at.first(std::min<std::size_t>(at.size(), stale.wire_length)));
+        const auto again =
+            modbus::decode_adu(Framing::Tcp, at.first(std::min<std::size_t>(at.size(), stale.wire_length)));
         if (!again || again->transaction_id() != stale.transaction_id())
             fuzz::fail(target, "a frame set aside is not the received bytes at " + std::to_string(offset) +
                                    exchange_text(ex));

@@ -70,7 +70,8 @@ std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> 
             if (c == ' ' || c == ',' || c == ':' || c == '-' || c == '\t') continue;
             const int v = hex_value(c);
             if (v < 0) {
-                error = "not a hex digit: " + quote_token(std::string_view(&c, 1)) + " in " + quote_token(token);
+                error =
+                    "not a hex digit: " + quote_token(std::string_view(&c, 1)) + " in " + quote_token(token);
                 return std::nullopt;
             }
             if (high < 0) {

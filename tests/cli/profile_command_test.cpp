@@ -100,7 +100,8 @@ TEST(ProfileCommand, ABadConfigFileIsNamedWithWhatIsWrong) {
     EXPECT_NE(r.out.find("cannot open /nonexistent/config.json"), std::string::npos) << r.out;
     r = with_config("{\"1\": ");
     EXPECT_EQ(r.exit_code, 2);
-    EXPECT_NE(r.out.find(path + ": [json.exception.parse_error.101] parse error at line 1"), std::string::npos)
+    EXPECT_NE(r.out.find(path + ": [json.exception.parse_error.101] parse error at line 1"),
+              std::string::npos)
         << r.out;
     r = with_config("[\"pH\"]");
     EXPECT_EQ(r.exit_code, 2);
