@@ -238,22 +238,8 @@ int run_frame(const FrameOptions& o) {
             std::cerr << "mbscope frame: " << error << "\n" << encode_help << '\n';
             return exit_failure;
         }
-        const auto pdu_bytes = encode_pdu(*pdu);
-        std::vector<std::uint8_t> wire;
-        const auto unit = static_cast<std::uint8_t>(o.unit);
-        switch (framing) {
-            case Framing::Rtu:
-                wire = encode_rtu(unit, pdu_bytes);
-                break;
-            case Framing::Ascii: {
-                auto s = encode_ascii(unit, pdu_bytes);
-                wire.assign(s.begin(), s.end());
-                break;
-            }
-            case Framing::Tcp:
-                wire = encode_tcp(static_cast<std::uint16_t>(o.transaction_id), unit, pdu_bytes);
-                break;
-        }
+        auto wire = encode_adu(framing, static_cast<std::uint16_t>(o.transaction_id),
+                               static_cast<std::uint8_t>(o.unit), encode_pdu(*pdu));
         return emit({decode_frame(framing, std::move(wire), pdu->direction)}, o.json);
     }
     auto wire = wire_from_tokens(framing, o.args, error);

@@ -30,11 +30,7 @@ constexpr const char* target = "fuzz_reply";
 
 std::vector<std::uint8_t> framed(Framing framing, std::uint16_t tid, std::uint8_t unit,
                                  std::span<const std::uint8_t> pdu) {
-    pdu = pdu.first(std::min<std::size_t>(pdu.size(), 253));
-    if (framing == Framing::Rtu) return modbus::encode_rtu(unit, pdu);
-    if (framing == Framing::Tcp) return modbus::encode_tcp(tid, unit, pdu);
-    const auto text = modbus::encode_ascii(unit, pdu);
-    return {text.begin(), text.end()};
+    return modbus::encode_adu(framing, tid, unit, pdu.first(std::min<std::size_t>(pdu.size(), 253)));
 }
 
 std::string exchange_text(const modbus::transport::Exchange& ex) {

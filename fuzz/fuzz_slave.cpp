@@ -101,12 +101,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                                                : static_cast<std::uint8_t>(shape >> 3);
             if (framing == Framing::Tcp && (shape & 0x80)) unit = 0xFF;
             const std::span<const std::uint8_t> pdu(body.data(), std::min<std::size_t>(body.size(), 253));
-            if (framing == Framing::Rtu) adu = modbus::encode_rtu(unit, pdu);
-            if (framing == Framing::Tcp) adu = modbus::encode_tcp(++tid, unit, pdu);
-            if (framing == Framing::Ascii) {
-                const auto text = modbus::encode_ascii(unit, pdu);
-                adu.assign(text.begin(), text.end());
-            }
+            adu = modbus::encode_adu(framing, ++tid, unit, pdu);
         } else {
             adu = std::move(body);  // as the input holds it: checksum, MBAP header and all
         }

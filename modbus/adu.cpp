@@ -18,6 +18,21 @@ std::vector<std::uint8_t> encode_rtu(std::uint8_t unit_id, std::span<const std::
     return out;
 }
 
+std::vector<std::uint8_t> encode_adu(Framing framing, std::uint16_t transaction_id, std::uint8_t unit_id,
+                                     std::span<const std::uint8_t> pdu) {
+    switch (framing) {
+        case Framing::Rtu:
+            return encode_rtu(unit_id, pdu);
+        case Framing::Tcp:
+            return encode_tcp(transaction_id, unit_id, pdu);
+        case Framing::Ascii: {
+            const std::string text = encode_ascii(unit_id, pdu);
+            return {text.begin(), text.end()};
+        }
+    }
+    return {};
+}
+
 std::string encode_ascii(std::uint8_t unit_id, std::span<const std::uint8_t> pdu) {
     static constexpr char hex[] = "0123456789ABCDEF";
     // One allocation: the LRC of unit and PDU together is the PDU's LRC less the unit (the LRC is the

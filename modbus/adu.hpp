@@ -30,6 +30,10 @@ std::vector<std::uint8_t> encode_rtu(std::uint8_t unit_id, std::span<const std::
 std::string encode_ascii(std::uint8_t unit_id, std::span<const std::uint8_t> pdu);
 std::vector<std::uint8_t> encode_tcp(std::uint16_t transaction_id, std::uint8_t unit_id,
                                      std::span<const std::uint8_t> pdu, std::uint16_t protocol_id = 0);
+// The ADU of `pdu` in `framing`, as bytes (ASCII: the frame's characters); `transaction_id` is used by
+// Modbus/TCP only.
+std::vector<std::uint8_t> encode_adu(Framing framing, std::uint16_t transaction_id, std::uint8_t unit_id,
+                                     std::span<const std::uint8_t> pdu);
 
 // RTU ADU (unit .. CRC). Errors: Truncated (< 4 bytes), TooLong (> 256 bytes).
 Result<Frame> decode_rtu(std::span<const std::uint8_t> adu) noexcept;

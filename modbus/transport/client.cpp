@@ -57,17 +57,7 @@ Result<void, std::string> Client::reconnect() {
 }
 
 std::vector<std::uint8_t> Client::frame(std::uint8_t unit, std::span<const std::uint8_t> pdu) {
-    switch (framing()) {
-        case Framing::Tcp:
-            return encode_tcp(tid_++, unit, pdu);
-        case Framing::Rtu:
-            return encode_rtu(unit, pdu);
-        case Framing::Ascii: {
-            const std::string text = encode_ascii(unit, pdu);
-            return {text.begin(), text.end()};
-        }
-    }
-    return {};
+    return encode_adu(framing(), framing() == Framing::Tcp ? tid_++ : std::uint16_t{0}, unit, pdu);
 }
 
 Result<void, std::string> Client::write(std::span<const std::uint8_t> bytes) {
