@@ -1,6 +1,24 @@
 #include "analyzer/tcp_reassembler.hpp"
 
+#include <algorithm>
+
 namespace mbscope::analyzer {
+namespace {
+
+// std::push_heap / pop_heap build a max-heap: "later first" as its order puts the lowest position in front.
+constexpr auto later = [](const auto& a, const auto& b) noexcept { return a.at > b.at; };
+
+}  // namespace
+
+void TcpReassembler::reset(std::size_t max_buffered) noexcept {
+    max_buffered_ = max_buffered;
+    next_.reset();
+    pending_.clear();
+    arena_.clear();
+    base_ = 0;
+    buffered_ = 0;
+    retransmitted_ = 0;
+}
 
 void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload,
                              modbus::Timestamp t) {
@@ -22,12 +40,12 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
         retransmitted_ += overlap;
         payload = payload.subspan(overlap);
     } else if (rel > 0) {
-        const std::uint64_t at = base_ + static_cast<std::uint64_t>(rel);
-        auto& slot = pending_[at];
-        if (slot.size() < payload.size()) {
-            buffered_ += payload.size() - slot.size();
-            slot.assign(payload.begin(), payload.end());
-        }
+        // Ahead of a hole: wait. A retransmission of a piece still waiting is kept as a piece of its own
+        // (the heap cannot find the first by position); when drained its bytes count as retransmitted.
+        pending_.push_back({base_ + static_cast<std::uint64_t>(rel), arena_.size(), payload.size()});
+        arena_.insert(arena_.end(), payload.begin(), payload.end());
+        std::push_heap(pending_.begin(), pending_.end(), later);
+        buffered_ += payload.size();
         if (buffered_ > max_buffered_) skip_to_first_buffered(t);  // the hole will not fill: give it up
         return;
     }
@@ -38,29 +56,43 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
 }
 
 void TcpReassembler::drain(modbus::Timestamp t) {
-    while (!pending_.empty()) {
-        auto it = pending_.begin();
-        if (it->first > base_) return;
-        std::vector<std::uint8_t> bytes = std::move(it->second);
-        const std::uint64_t at = it->first;
-        buffered_ -= bytes.size();
-        pending_.erase(it);
-        const std::uint64_t skip = base_ - at;
-        if (skip >= bytes.size()) {
-            retransmitted_ += bytes.size();
+    while (!pending_.empty() && pending_.front().at <= base_) {
+        std::pop_heap(pending_.begin(), pending_.end(), later);
+        const Piece piece = pending_.back();
+        pending_.pop_back();
+        buffered_ -= piece.size;
+        const std::uint64_t skip = base_ - piece.at;
+        if (skip >= piece.size) {
+            retransmitted_ += piece.size;
             continue;
         }
         retransmitted_ += skip;
-        std::span<const std::uint8_t> rest(bytes.data() + skip, bytes.size() - skip);
+        // The arena does not move during the call: only segment() and drain() add or compact.
+        const std::span<const std::uint8_t> rest(arena_.data() + piece.begin + skip,
+                                                 piece.size - static_cast<std::size_t>(skip));
         data_(rest, t);
         *next_ += static_cast<std::uint32_t>(rest.size());
         base_ += rest.size();
     }
+    if (pending_.empty())
+        arena_.clear();
+    else if (arena_.size() > 2 * buffered_ + 4096)
+        compact();
+}
+
+void TcpReassembler::compact() {
+    scratch_.clear();
+    for (Piece& piece : pending_) {
+        const auto from = arena_.begin() + static_cast<std::ptrdiff_t>(piece.begin);
+        piece.begin = scratch_.size();
+        scratch_.insert(scratch_.end(), from, from + static_cast<std::ptrdiff_t>(piece.size));
+    }
+    arena_.swap(scratch_);
 }
 
 void TcpReassembler::skip_to_first_buffered(modbus::Timestamp t) {
     if (pending_.empty()) return;
-    const std::uint64_t missing = pending_.begin()->first - base_;
+    const std::uint64_t missing = pending_.front().at - base_;
     gap_(missing, t);
     *next_ += static_cast<std::uint32_t>(missing);
     base_ += missing;

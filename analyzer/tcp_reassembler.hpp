@@ -5,7 +5,6 @@
 
 #include <cstdint>
 #include <functional>
-#include <map>
 #include <optional>
 #include <span>
 #include <vector>
@@ -26,19 +25,35 @@ class TcpReassembler {
     // End of capture or connection: what is buffered beyond a hole is delivered after a gap.
     void flush(modbus::Timestamp t);
     std::uint64_t retransmitted_bytes() const noexcept { return retransmitted_; }
+    // Back to a new reassembler's state (no sequence number seen yet), keeping the callbacks and the
+    // storage already grown.
+    void reset(std::size_t max_buffered) noexcept;
 
   private:
+    // Bytes that arrived ahead of a hole: arena_[begin, begin + size), to go at stream position `at`.
+    struct Piece {
+        std::uint64_t at;
+        std::size_t begin;
+        std::size_t size;
+    };
     void drain(modbus::Timestamp t);
     void skip_to_first_buffered(modbus::Timestamp t);
+    void compact();
 
     DataFn data_;
     GapFn gap_;
     std::size_t max_buffered_;
     std::optional<std::uint32_t> next_;  // next expected sequence number
-    std::map<std::uint64_t, std::vector<std::uint8_t>>
-        pending_;             // keyed by offset from next_ at insert time (unwrapped)
-    std::uint64_t base_ = 0;  // unwrapped stream position of next_
-    std::size_t buffered_ = 0;
+    // Pieces waiting for a hole to fill: a heap with the lowest `at` in front. Their bytes share one arena
+    // (a segment ahead of a hole used to cost a map node and a vector of its own, and under a fuzzer most
+    // segments are). The arena is emptied whenever nothing waits and compacted when mostly dead, so it
+    // stays within twice what is buffered (and 4 KiB). The callbacks are handed spans into it: they must
+    // not call back into the reassembler.
+    std::vector<Piece> pending_;
+    std::vector<std::uint8_t> arena_;
+    std::vector<std::uint8_t> scratch_;  // compact()'s second arena, kept for its capacity
+    std::uint64_t base_ = 0;             // unwrapped stream position of next_
+    std::size_t buffered_ = 0;           // bytes of the pieces waiting, duplicates included
     std::uint64_t retransmitted_ = 0;
 };
 

@@ -1,0 +1,194 @@
+// The analyzer's TCP reassembler alone: what it delivers and declares lost for segments in and out of order,
+// retransmitted, overlapping, beyond its buffering bound and across the wrap of the sequence space.
+#include "analyzer/tcp_reassembler.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <numeric>
+#include <random>
+#include <vector>
+
+namespace mb = mbscope::modbus;
+using mbscope::analyzer::TcpReassembler;
+
+namespace {
+
+// What came out: the delivered bytes in order, with each declared hole as that many 0xEE bytes (the test
+// streams never hold 0xEE), and the number of calls of each kind.
+struct Out {
+    std::vector<std::uint8_t> stream;
+    int deliveries = 0;
+    int gaps = 0;
+};
+
+struct Harness {
+    Out out;
+    TcpReassembler reassembler;
+    explicit Harness(std::size_t max_buffered = 1 << 20)
+        : reassembler(
+              [this](std::span<const std::uint8_t> b, mb::Timestamp) {
+                  out.stream.insert(out.stream.end(), b.begin(), b.end());
+                  ++out.deliveries;
+              },
+              [this](std::uint64_t missing, mb::Timestamp) {
+                  out.stream.insert(out.stream.end(), missing, 0xEE);
+                  ++out.gaps;
+              },
+              max_buffered) {}
+    void send(std::uint32_t seq, const std::vector<std::uint8_t>& all, std::size_t from, std::size_t n) {
+        reassembler.segment(seq + static_cast<std::uint32_t>(from), false,
+                            std::span<const std::uint8_t>(all.data() + from, n), mb::Timestamp{0});
+    }
+};
+
+std::vector<std::uint8_t> stream_of(std::size_t n) {
+    std::vector<std::uint8_t> s(n);
+    for (std::size_t i = 0; i < n; ++i)
+        s[i] = static_cast<std::uint8_t>(i % 200);
+    return s;
+}
+
+}  // namespace
+
+TEST(TcpReassembler, InOrderSegmentsAreDeliveredAsTheyCome) {
+    Harness h;
+    const auto s = stream_of(30);
+    h.reassembler.segment(999, true, {}, mb::Timestamp{0});  // SYN: the stream starts at 1000
+    h.send(1000, s, 0, 10);
+    h.send(1000, s, 10, 20);
+    EXPECT_EQ(h.out.stream, s);
+    EXPECT_EQ(h.out.deliveries, 2);
+    EXPECT_EQ(h.reassembler.retransmitted_bytes(), 0u);
+}
+
+TEST(TcpReassembler, SegmentsAheadOfAHoleWaitForIt) {
+    Harness h;
+    const auto s = stream_of(40);
+    h.reassembler.segment(99, true, {}, mb::Timestamp{0});
+    h.send(100, s, 30, 10);
+    h.send(100, s, 10, 20);
+    EXPECT_TRUE(h.out.stream.empty());
+    h.send(100, s, 0, 10);  // fills the hole: all three go out, in stream order
+    EXPECT_EQ(h.out.stream, s);
+    EXPECT_EQ(h.out.gaps, 0);
+}
+
+TEST(TcpReassembler, RetransmittedAndOverlappingBytesAreDeliveredOnce) {
+    Harness h;
+    const auto s = stream_of(50);
+    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.send(1, s, 0, 20);
+    h.send(1, s, 10, 20);  // 10 old bytes, 10 new
+    h.send(1, s, 0, 5);    // all old
+    h.send(1, s, 40, 10);  // ahead of a hole
+    h.send(1, s, 40, 10);  // the same again while it waits
+    h.send(1, s, 40, 5);   // and a shorter copy of it
+    h.send(1, s, 30, 10);  // the hole
+    EXPECT_EQ(h.out.stream, s);
+    EXPECT_EQ(h.reassembler.retransmitted_bytes(), 10u + 5u + 10u + 5u);
+}
+
+TEST(TcpReassembler, ALongerRetransmissionOfAWaitingSegmentDeliversItsNewBytes) {
+    Harness h;
+    const auto s = stream_of(30);
+    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.send(1, s, 10, 5);
+    h.send(1, s, 10, 20);
+    h.send(1, s, 0, 10);
+    EXPECT_EQ(h.out.stream, s);
+}
+
+TEST(TcpReassembler, AHoleThatExceedsTheBufferingBoundIsDeclaredLost) {
+    Harness h(100);
+    const auto s = stream_of(400);
+    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.send(1, s, 0, 10);
+    h.send(1, s, 20, 60);  // waits: 60 buffered
+    EXPECT_EQ(h.out.gaps, 0);
+    h.send(1, s, 80, 60);  // 120 buffered: the hole 10..20 is given up, both pieces go out
+    EXPECT_EQ(h.out.gaps, 1);
+    std::vector<std::uint8_t> expected(s.begin(), s.begin() + 140);
+    std::fill(expected.begin() + 10, expected.begin() + 20, 0xEE);
+    EXPECT_EQ(h.out.stream, expected);
+    h.send(1, s, 10, 10);  // the lost bytes arrive late: old now
+    EXPECT_EQ(h.out.stream.size(), 140u);
+    EXPECT_EQ(h.reassembler.retransmitted_bytes(), 10u);
+}
+
+TEST(TcpReassembler, FlushDeclaresEveryHoleAndDeliversWhatFollowsIt) {
+    Harness h;
+    const auto s = stream_of(100);
+    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.send(1, s, 10, 10);
+    h.send(1, s, 50, 30);
+    h.send(1, s, 90, 10);
+    h.reassembler.flush(mb::Timestamp{0});
+    EXPECT_EQ(h.out.gaps, 3);
+    std::vector<std::uint8_t> expected = s;
+    std::fill(expected.begin(), expected.begin() + 10, 0xEE);
+    std::fill(expected.begin() + 20, expected.begin() + 50, 0xEE);
+    std::fill(expected.begin() + 80, expected.begin() + 90, 0xEE);
+    EXPECT_EQ(h.out.stream, expected);
+}
+
+TEST(TcpReassembler, SequenceNumbersThatWrapAreOneStream) {
+    Harness h;
+    const auto s = stream_of(64);
+    const std::uint32_t isn = 0xFFFFFFF0u;
+    h.reassembler.segment(isn, true, {}, mb::Timestamp{0});
+    h.send(isn + 1, s, 32, 32);  // past the wrap, ahead of the hole
+    h.send(isn + 1, s, 0, 32);   // before and across the wrap
+    EXPECT_EQ(h.out.stream, s);
+}
+
+TEST(TcpReassembler, ResetForgetsTheConnection) {
+    Harness h;
+    const auto s = stream_of(40);
+    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.send(1, s, 20, 10);  // waiting ahead of a hole
+    h.reassembler.reset(1 << 20);
+    h.out = Out{};
+    h.reassembler.segment(5000, true, {}, mb::Timestamp{0});
+    h.send(5001, s, 0, 40);
+    h.reassembler.flush(mb::Timestamp{0});
+    EXPECT_EQ(h.out.stream, s);
+    EXPECT_EQ(h.out.gaps, 0);
+    EXPECT_EQ(h.reassembler.retransmitted_bytes(), 0u);
+}
+
+// Many segments in a shuffled order, with copies and overlaps, some never sent; a bound small enough that
+// holes are given up while pieces wait behind others (pieces drained from the middle of what is buffered,
+// the storage compacted): every byte comes out once, as sent, or inside a declared hole, in order.
+TEST(TcpReassembler, ShuffledSegmentsWithHolesComeOutInOrder) {
+    const auto s = stream_of(20000);
+    for (unsigned seed = 1; seed <= 20; ++seed) {
+        std::mt19937 rng(seed);
+        struct Seg {
+            std::size_t from, n;
+        };
+        std::vector<Seg> segs;
+        for (std::size_t at = 0; at < s.size();) {
+            const std::size_t n = std::min<std::size_t>(s.size() - at, 1 + rng() % 300);
+            if (rng() % 20 != 0) segs.push_back({at, n});  // one in twenty never sent
+            if (rng() % 5 == 0) segs.push_back({at, std::min(s.size() - at, n + rng() % 50)});  // a copy
+            at += n;
+        }
+        // Out of order within a window of a few segments, as on a real network.
+        for (std::size_t i = 0; i + 1 < segs.size(); ++i)
+            std::swap(segs[i], segs[std::min(segs.size() - 1, i + rng() % 6)]);
+        Harness h(seed % 2 ? 2000 : 1 << 20);
+        h.reassembler.segment(4000000000u, true, {}, mb::Timestamp{0});
+        for (const Seg& g : segs)
+            h.send(4000000001u, s, g.from, g.n);
+        h.reassembler.flush(mb::Timestamp{0});
+        ASSERT_LE(h.out.stream.size(), s.size()) << "seed " << seed;
+        for (std::size_t i = 0; i < h.out.stream.size(); ++i)
+            ASSERT_TRUE(h.out.stream[i] == s[i] || h.out.stream[i] == 0xEE)
+                << "seed " << seed << ", stream position " << i;
+        std::size_t furthest = 0;
+        for (const Seg& g : segs)
+            furthest = std::max(furthest, g.from + g.n);
+        EXPECT_EQ(h.out.stream.size(), furthest) << "seed " << seed;
+    }
+}
