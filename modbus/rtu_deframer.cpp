@@ -176,7 +176,24 @@ void RtuDeframer::finish(DeframeEvents& out) {
     head_ = 0;
 }
 
+void RtuDeframer::reset() noexcept {
+    buf_.clear();
+    head_ = 0;
+    base_ = 0;
+    pending_ = Unparsed{};
+}
+
 // ---------------------------------------------------------------- timed
+
+void RtuTimedDeframer::reset(SerialLine line) noexcept {
+    line_ = line;
+    seg_.clear();
+    times_.clear();
+    gaps_.clear();
+    seg_offset_ = 0;
+    last_end_ = Timestamp{0};
+    has_last_ = false;
+}
 
 void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, DeframeEvents& out) {
     Frame& frame = std::get<Frame>(out.emplace_back(std::in_place_type<Frame>, Frame::Unfilled{}));

@@ -30,6 +30,8 @@ class RtuDeframer {
     // End of input: whatever is buffered becomes frames or unparsed records.
     void finish(DeframeEvents& out);
     std::uint64_t bytes_in() const noexcept { return base_ + (buf_.size() - head_); }
+    // Back to a new deframer's state at stream offset 0, keeping the buffer's capacity.
+    void reset() noexcept;
 
   private:
     void run(bool at_end, DeframeEvents& out);
@@ -52,6 +54,8 @@ class RtuTimedDeframer {
     void advance(Timestamp now, DeframeEvents& out);
     void finish(DeframeEvents& out);
     const SerialLine& line() const noexcept { return line_; }
+    // Back to a new deframer's state for `line`, keeping the buffers' capacity.
+    void reset(SerialLine line) noexcept;
 
   private:
     struct Gap {

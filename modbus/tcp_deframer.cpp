@@ -144,6 +144,16 @@ void TcpStreamDeframer::gap(std::uint64_t missing, DeframeEvents& out) {
     in_sync_ = false;
 }
 
+void TcpStreamDeframer::reset() noexcept {
+    buf_.clear();
+    head_ = 0;
+    base_ = 0;
+    in_sync_ = true;
+    last_ = Timestamp{0};
+    first_ = Timestamp{0};
+    pending_ = Unparsed{};
+}
+
 void TcpStreamDeframer::finish(DeframeEvents& out) {
     run(true, out);
     buf_.clear();

@@ -283,3 +283,50 @@ TEST(RtuTimedDeframer, LongRunWithoutSilenceIsFramedByContent) {
     expect_every_byte_accounted(events, data.size());
     EXPECT_EQ(events.size(), 200u);
 }
+
+// A deframer reset in the middle of a stream (a frame half received, skipped bytes pending, a silence
+// inside a frame recorded) meets the next stream as a new one: offsets from 0, nothing carried over.
+TEST(RtuDeframer, ResetStartsAFreshStreamAtOffsetZero) {
+    const auto second = concat({hex("AA"), hex("11 03 00 60 00 03 07 45"), hex("11 03 06 02 2B")});
+    mb::DeframeEvents fresh;
+    mb::RtuDeframer made;
+    made.feed(second, fresh);
+    made.finish(fresh);
+
+    mb::RtuDeframer reused;
+    mb::DeframeEvents ignored;
+    reused.feed(hex("FF FE 11 03 06 02"), ignored);  // skipped bytes pending and half a frame buffered
+    reused.reset();
+    EXPECT_EQ(reused.bytes_in(), 0u);
+    mb::DeframeEvents out;
+    reused.feed(second, out);
+    reused.finish(out);
+    expect_every_byte_accounted(out, second.size());
+    EXPECT_EQ(pieces(out).size(), pieces(fresh).size());
+    EXPECT_EQ(frames_bytes(out), frames_bytes(fresh));
+}
+
+TEST(RtuTimedDeframer, ResetStartsAFreshStreamAtOffsetZero) {
+    using namespace std::chrono_literals;
+    const mb::SerialLine line{};
+    const auto ct = line.character_time();
+    mb::RtuTimedDeframer d(mb::SerialLine{1200, 8, mb::Parity::None, 1});
+    mb::DeframeEvents ignored;
+    d.feed(hex("11 03 00"), mb::Timestamp{5s}, ignored);
+    d.feed(hex("60 00"), mb::Timestamp{5s + 20ms}, ignored);  // a silence inside the frame, recorded
+    d.reset(line);
+    EXPECT_EQ(d.line().baud, line.baud);
+
+    const auto frame = hex("11 03 00 60 00 03 07 45");
+    mb::DeframeEvents out;
+    const mb::Timestamp end{1s};
+    d.feed(frame, end, out);
+    d.advance(end + 1s, out);
+    d.finish(out);
+    ASSERT_EQ(out.size(), 1u);
+    const auto& f = std::get<mb::Frame>(out[0]);
+    EXPECT_EQ(f.offset, 0u);
+    EXPECT_TRUE(f.checksum_ok);
+    EXPECT_TRUE(f.findings.empty()) << "the silence recorded before the reset is not this frame's";
+    EXPECT_EQ(f.start, end - ct * 7);  // this line's character time, not the one before the reset
+}

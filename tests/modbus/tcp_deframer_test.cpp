@@ -111,3 +111,19 @@ TEST(TcpStreamDeframer, LongGarbageKeepsEveryByte) {
         ASSERT_EQ(frames_bytes(events).back(), adu);
     }
 }
+
+TEST(TcpStreamDeframer, ResetStartsAFreshStreamAtOffsetZero) {
+    const auto adus = sample_adus();
+    const auto data = concat(adus);
+    mb::TcpStreamDeframer d;
+    mb::DeframeEvents ignored;
+    d.feed(hex("00 01 00 00 FF FF 11"), ignored);  // out of sync, bytes buffered
+    d.reset();
+    EXPECT_EQ(d.offset(), 0u);
+    EXPECT_EQ(d.buffered(), 0u);
+    mb::DeframeEvents out;
+    d.feed(data, out);
+    d.finish(out);
+    expect_every_byte_accounted(out, data.size());
+    EXPECT_EQ(frames_bytes(out), adus);
+}
