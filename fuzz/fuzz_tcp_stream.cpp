@@ -14,37 +14,60 @@
 
 using namespace mbscope;
 
+namespace {
+
+constexpr const char* target = "fuzz_tcp_stream";
+
+// What the reassembler's callbacks check, for the input being run. The reassembler and the deframer are
+// made once and reset for every input, keeping their storage (with ASan every allocation is filled and lands
+// on fresh memory; the fuzzing build's vector annotations still catch a read past a buffer's size), so the
+// callbacks reach the input's state through this.
+struct Run {
+    std::span<const std::uint8_t> stream;
+    std::uint64_t position = 0;  // stream position of the next byte the reassembler must deliver
+    modbus::TcpStreamDeframer deframer;
+    modbus::DeframeEvents* events = nullptr;
+    fuzz::StreamAccount* account = nullptr;
+};
+Run run;
+
+void delivered(std::span<const std::uint8_t> bytes, modbus::Timestamp t) {
+    if (run.position + bytes.size() > run.stream.size())
+        fuzz::fail(target, "bytes delivered past the stream");
+    if (!std::equal(bytes.begin(), bytes.end(), run.stream.begin() + static_cast<long>(run.position)))
+        fuzz::fail(target, "bytes delivered at stream position " + std::to_string(run.position) +
+                               " differ from the stream");
+    run.position += bytes.size();
+    run.events->clear();
+    run.deframer.feed(bytes, t, *run.events);
+    run.account->take(*run.events);
+}
+
+void missing(std::uint64_t n, modbus::Timestamp) {
+    run.position += n;
+    run.events->clear();
+    run.deframer.gap(n, *run.events);
+    run.account->take(*run.events);
+    run.account->skip(n);
+}
+
+}  // namespace
+
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-    constexpr const char* target = "fuzz_tcp_stream";
     FuzzedDataProvider in(data, size);
     const auto isn = in.ConsumeIntegral<std::uint32_t>();
     const auto stream_size = in.ConsumeIntegralInRange<std::size_t>(0, 2048);
-    const auto stream = in.ConsumeBytes<std::uint8_t>(stream_size);
+    static fuzz::ExactChunks<FuzzedDataProvider> stream_buffer(2048);  // the largest stream above
+    const auto stream = stream_buffer.take(in, stream_size);
 
     fuzz::StreamAccount account(target);
-    modbus::TcpStreamDeframer deframer;
-    modbus::DeframeEvents& events = fuzz::reused_events();
-    std::uint64_t position = 0;  // stream position of the next byte the reassembler must deliver
-    analyzer::TcpReassembler reassembler(
-        [&](std::span<const std::uint8_t> bytes, modbus::Timestamp t) {
-            if (position + bytes.size() > stream.size())
-                fuzz::fail(target, "bytes delivered past the stream");
-            if (!std::equal(bytes.begin(), bytes.end(), stream.begin() + static_cast<long>(position)))
-                fuzz::fail(target, "bytes delivered at stream position " + std::to_string(position) +
-                                       " differ from the stream");
-            position += bytes.size();
-            events.clear();
-            deframer.feed(bytes, t, events);
-            account.take(events);
-        },
-        [&](std::uint64_t missing, modbus::Timestamp) {
-            position += missing;
-            events.clear();
-            deframer.gap(missing, events);
-            account.take(events);
-            account.skip(missing);
-        },
-        in.ConsumeIntegralInRange<std::size_t>(64, 4096));
+    run.stream = stream;
+    run.position = 0;
+    run.deframer.reset();
+    run.events = &fuzz::reused_events();
+    run.account = &account;
+    static analyzer::TcpReassembler reassembler(delivered, missing);
+    reassembler.reset(in.ConsumeIntegralInRange<std::size_t>(64, 4096));
 
     modbus::Timestamp t{1'000'000'000};
     reassembler.segment(isn, true, {}, t);
@@ -60,12 +83,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         furthest = std::max(furthest, offset + length);
     }
     reassembler.flush(t);
-    if (position != furthest)
+    if (run.position != furthest)
         fuzz::fail(target, "the stream reached position " + std::to_string(furthest) + " but " +
-                               std::to_string(position) + " positions were delivered or declared missing");
-    events.clear();
-    deframer.finish(events);
-    account.take(events);
-    account.finish(position);
+                               std::to_string(run.position) +
+                               " positions were delivered or declared missing");
+    run.events->clear();
+    run.deframer.finish(*run.events);
+    account.take(*run.events);
+    account.finish(run.position);
     return 0;
 }
