@@ -5,6 +5,8 @@
 #include <charconv>
 #include <chrono>
 
+#include "modbus/hex.hpp"
+
 namespace mbscope::analyzer {
 
 using modbus::Direction;
@@ -28,16 +30,11 @@ std::string_view trim_right(std::string_view s) {
 }
 
 bool is_hex(char c) {
-    return std::isxdigit(static_cast<unsigned char>(c)) != 0;
+    return modbus::hex_digit(c) >= 0;
 }
 
-std::uint8_t hex_pair(char hi, char lo) {
-    auto v = [](char c) {
-        return std::isdigit(static_cast<unsigned char>(c))
-                   ? c - '0'
-                   : std::tolower(static_cast<unsigned char>(c)) - 'a' + 10;
-    };
-    return static_cast<std::uint8_t>(v(hi) * 16 + v(lo));
+std::uint8_t hex_pair(char hi, char lo) {  // both checked with is_hex
+    return static_cast<std::uint8_t>(modbus::hex_digit(hi) * 16 + modbus::hex_digit(lo));
 }
 
 std::optional<int> digits(std::string_view s, std::size_t& pos, std::size_t count) {

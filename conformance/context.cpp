@@ -9,6 +9,7 @@
 #include <map>
 
 #include "modbus/function_code.hpp"
+#include "modbus/hex.hpp"
 
 namespace mbscope::conformance {
 
@@ -161,13 +162,6 @@ bool freely_writable(const modbus::Point& p) {
 
 namespace {
 
-int hex_digit(std::uint8_t ch) {
-    if (ch >= '0' && ch <= '9') return ch - '0';
-    if (ch >= 'A' && ch <= 'F') return ch - 'A' + 10;
-    if (ch >= 'a' && ch <= 'f') return ch - 'a' + 10;
-    return -1;
-}
-
 // The unit a request was addressed to, read from its bytes in the reply's framing.
 std::optional<std::uint8_t> request_unit(const tp::Exchange& ex) {
     const auto& s = ex.sent;
@@ -179,8 +173,8 @@ std::optional<std::uint8_t> request_unit(const tp::Exchange& ex) {
             if (!s.empty()) return s[0];
             break;
         case modbus::Framing::Ascii:
-            if (s.size() > 2 && hex_digit(s[1]) >= 0 && hex_digit(s[2]) >= 0)
-                return static_cast<std::uint8_t>(hex_digit(s[1]) * 16 + hex_digit(s[2]));
+            if (s.size() > 2 && modbus::hex_digit(s[1]) >= 0 && modbus::hex_digit(s[2]) >= 0)
+                return static_cast<std::uint8_t>(modbus::hex_digit(s[1]) * 16 + modbus::hex_digit(s[2]));
             break;
     }
     return std::nullopt;

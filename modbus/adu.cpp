@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "modbus/checksum.hpp"
+#include "modbus/hex.hpp"
 
 namespace mbscope::modbus {
 
@@ -82,30 +83,19 @@ void fill_rtu_frame(std::span<const std::uint8_t> adu, Frame& frame) noexcept {
     if (adu[0] >= 248) frame.findings.add(FindingCode::RtuUnitIdReserved);
 }
 
-namespace {
-int hex_value(std::uint8_t c, bool& lower) noexcept {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    if (c >= 'a' && c <= 'f') {
-        lower = true;
-        return c - 'a' + 10;
-    }
-    return -1;
-}
-}  // namespace
-
 Result<void> ascii_hex_to_frame(std::span<const std::uint8_t> hex, Frame& frame) noexcept {
     frame.framing = Framing::Ascii;
     bool lower = false;
-    for (std::size_t i = 0; i < hex.size(); ++i)
-        if (hex_value(hex[i], lower) < 0) return make_error(ErrorCode::BadHexDigit, i + 1);
+    for (std::size_t i = 0; i < hex.size(); ++i) {
+        if (hex_digit(hex[i]) < 0) return make_error(ErrorCode::BadHexDigit, i + 1);
+        lower |= is_lower_hex_letter(hex[i]);
+    }
     if (hex.size() % 2 != 0) return make_error(ErrorCode::OddHexLength, hex.size());
     const std::size_t n = hex.size() / 2;
     if (n < 3) return make_error(ErrorCode::Truncated, hex.size());
     if (n > max_rtu_adu_length - 1) return make_error(ErrorCode::TooLong, hex.size());
     for (std::size_t i = 0; i < n; ++i)
-        frame.bytes[i] =
-            static_cast<std::uint8_t>((hex_value(hex[2 * i], lower) << 4) | hex_value(hex[2 * i + 1], lower));
+        frame.bytes[i] = static_cast<std::uint8_t>((hex_digit(hex[2 * i]) << 4) | hex_digit(hex[2 * i + 1]));
     frame.length = static_cast<std::uint16_t>(n);
     frame.checksum_ok = lrc({frame.bytes.data(), n - 1}) == frame.bytes[n - 1];
     if (!frame.checksum_ok) frame.findings.add(FindingCode::AsciiLrcMismatch);

@@ -4,6 +4,7 @@
 
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/hex.hpp"
 
 namespace mbscope::modbus {
 
@@ -23,13 +24,6 @@ std::string quote_token(std::string_view token) {
     std::string s = printable(token.substr(0, most));
     if (token.size() > most) s += "...";
     return "'" + s + "'";
-}
-
-int hex_value(char c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
 }
 
 }  // namespace
@@ -68,7 +62,7 @@ std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> 
                 continue;
             }
             if (c == ' ' || c == ',' || c == ':' || c == '-' || c == '\t') continue;
-            const int v = hex_value(c);
+            const int v = hex_digit(c);
             if (v < 0) {
                 error =
                     "not a hex digit: " + quote_token(std::string_view(&c, 1)) + " in " + quote_token(token);
