@@ -36,6 +36,9 @@ struct Harness {
                   ++out.gaps;
               },
               max_buffered) {}
+    void syn(std::uint32_t isn) { reassembler.segment(isn, true, {}, mb::Timestamp{0}); }
+    void flush() { reassembler.flush(mb::Timestamp{0}); }
+    // Bytes [from, from + n) of `all`, a stream whose first byte has sequence number `seq`.
     void send(std::uint32_t seq, const std::vector<std::uint8_t>& all, std::size_t from, std::size_t n) {
         reassembler.segment(seq + static_cast<std::uint32_t>(from), false,
                             std::span<const std::uint8_t>(all.data() + from, n), mb::Timestamp{0});
@@ -54,7 +57,7 @@ std::vector<std::uint8_t> stream_of(std::size_t n) {
 TEST(TcpReassembler, InOrderSegmentsAreDeliveredAsTheyCome) {
     Harness h;
     const auto s = stream_of(30);
-    h.reassembler.segment(999, true, {}, mb::Timestamp{0});  // SYN: the stream starts at 1000
+    h.syn(999);  // SYN: the stream starts at 1000
     h.send(1000, s, 0, 10);
     h.send(1000, s, 10, 20);
     EXPECT_EQ(h.out.stream, s);
@@ -65,7 +68,7 @@ TEST(TcpReassembler, InOrderSegmentsAreDeliveredAsTheyCome) {
 TEST(TcpReassembler, SegmentsAheadOfAHoleWaitForIt) {
     Harness h;
     const auto s = stream_of(40);
-    h.reassembler.segment(99, true, {}, mb::Timestamp{0});
+    h.syn(99);
     h.send(100, s, 30, 10);
     h.send(100, s, 10, 20);
     EXPECT_TRUE(h.out.stream.empty());
@@ -77,7 +80,7 @@ TEST(TcpReassembler, SegmentsAheadOfAHoleWaitForIt) {
 TEST(TcpReassembler, RetransmittedAndOverlappingBytesAreDeliveredOnce) {
     Harness h;
     const auto s = stream_of(50);
-    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.syn(0);
     h.send(1, s, 0, 20);
     h.send(1, s, 10, 20);  // 10 old bytes, 10 new
     h.send(1, s, 0, 5);    // all old
@@ -92,7 +95,7 @@ TEST(TcpReassembler, RetransmittedAndOverlappingBytesAreDeliveredOnce) {
 TEST(TcpReassembler, ALongerRetransmissionOfAWaitingSegmentDeliversItsNewBytes) {
     Harness h;
     const auto s = stream_of(30);
-    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.syn(0);
     h.send(1, s, 10, 5);
     h.send(1, s, 10, 20);
     h.send(1, s, 0, 10);
@@ -102,7 +105,7 @@ TEST(TcpReassembler, ALongerRetransmissionOfAWaitingSegmentDeliversItsNewBytes) 
 TEST(TcpReassembler, AHoleThatExceedsTheBufferingBoundIsDeclaredLost) {
     Harness h(100);
     const auto s = stream_of(400);
-    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.syn(0);
     h.send(1, s, 0, 10);
     h.send(1, s, 20, 60);  // waits: 60 buffered
     EXPECT_EQ(h.out.gaps, 0);
@@ -119,11 +122,11 @@ TEST(TcpReassembler, AHoleThatExceedsTheBufferingBoundIsDeclaredLost) {
 TEST(TcpReassembler, FlushDeclaresEveryHoleAndDeliversWhatFollowsIt) {
     Harness h;
     const auto s = stream_of(100);
-    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.syn(0);
     h.send(1, s, 10, 10);
     h.send(1, s, 50, 30);
     h.send(1, s, 90, 10);
-    h.reassembler.flush(mb::Timestamp{0});
+    h.flush();
     EXPECT_EQ(h.out.gaps, 3);
     std::vector<std::uint8_t> expected = s;
     std::fill(expected.begin(), expected.begin() + 10, 0xEE);
@@ -136,7 +139,7 @@ TEST(TcpReassembler, SequenceNumbersThatWrapAreOneStream) {
     Harness h;
     const auto s = stream_of(64);
     const std::uint32_t isn = 0xFFFFFFF0u;
-    h.reassembler.segment(isn, true, {}, mb::Timestamp{0});
+    h.syn(isn);
     h.send(isn + 1, s, 32, 32);  // past the wrap, ahead of the hole
     h.send(isn + 1, s, 0, 32);   // before and across the wrap
     EXPECT_EQ(h.out.stream, s);
@@ -145,13 +148,13 @@ TEST(TcpReassembler, SequenceNumbersThatWrapAreOneStream) {
 TEST(TcpReassembler, ResetForgetsTheConnection) {
     Harness h;
     const auto s = stream_of(40);
-    h.reassembler.segment(0, true, {}, mb::Timestamp{0});
+    h.syn(0);
     h.send(1, s, 20, 10);  // waiting ahead of a hole
     h.reassembler.reset(1 << 20);
     h.out = Out{};
-    h.reassembler.segment(5000, true, {}, mb::Timestamp{0});
+    h.syn(5000);
     h.send(5001, s, 0, 40);
-    h.reassembler.flush(mb::Timestamp{0});
+    h.flush();
     EXPECT_EQ(h.out.stream, s);
     EXPECT_EQ(h.out.gaps, 0);
     EXPECT_EQ(h.reassembler.retransmitted_bytes(), 0u);
@@ -178,10 +181,10 @@ TEST(TcpReassembler, ShuffledSegmentsWithHolesComeOutInOrder) {
         for (std::size_t i = 0; i + 1 < segs.size(); ++i)
             std::swap(segs[i], segs[std::min(segs.size() - 1, i + rng() % 6)]);
         Harness h(seed % 2 ? 2000 : 1 << 20);
-        h.reassembler.segment(4000000000u, true, {}, mb::Timestamp{0});
+        h.syn(4000000000u);
         for (const Seg& g : segs)
             h.send(4000000001u, s, g.from, g.n);
-        h.reassembler.flush(mb::Timestamp{0});
+        h.flush();
         ASSERT_LE(h.out.stream.size(), s.size()) << "seed " << seed;
         for (std::size_t i = 0; i < h.out.stream.size(); ++i)
             ASSERT_TRUE(h.out.stream[i] == s[i] || h.out.stream[i] == 0xEE)
