@@ -25,6 +25,7 @@ RegisterImage::RegisterImage(const modbus::Profile& profile) : profile_(&profile
         initial_[i] = tables_[i].page;
     }
     written_.clear();
+    modifications_ = 0;  // initialise() stored through set_reg; a new image has changed nothing yet
 }
 
 void RegisterImage::reset() noexcept {

@@ -118,6 +118,16 @@ TEST(Device, InitialImageFollowsTheMap) {
     }
 }
 
+// A new image counts no modifications, though making it stored the map's initial values (a fixed value,
+// a range's minimum): "unchanged since made" is a count of zero, as after reset().
+TEST(Device, NewImageCountsNoModifications) {
+    for (const char* id : {"cth2265i", "walchem-w600", "mmk-2030", "dmy-2017", "modbus"}) {
+        const Device device(profile(id), 1);
+        EXPECT_EQ(device.image().modifications(), 0u) << id;
+        EXPECT_TRUE(device.image().changes().empty()) << id;
+    }
+}
+
 // reset() makes the device as it was made (the fuzz target reuses one device per profile and unit): the
 // written registers read their initial values again, counters are zero, listen-only mode is left.
 TEST(Device, ResetIsAsMade) {
