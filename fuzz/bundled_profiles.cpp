@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
+#include <memory>
 #include <string>
 
 #include "modbus/storage/profile_store.hpp"
@@ -45,6 +47,13 @@ const std::vector<modbus::Profile>& bundled_profiles() {
         return out;
     }();
     return profiles;
+}
+
+slave::Device& bundled_device(std::size_t profile, std::uint8_t unit) {
+    static std::map<std::pair<std::size_t, std::uint8_t>, std::unique_ptr<slave::Device>> made;
+    auto& device = made[{profile, unit}];
+    if (!device) device = std::make_unique<slave::Device>(bundled_profiles().at(profile), unit, nullptr);
+    return *device;
 }
 
 }  // namespace mbscope::fuzz

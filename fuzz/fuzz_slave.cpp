@@ -12,8 +12,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
-#include <map>
-#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -32,16 +30,6 @@ using modbus::Framing;
 namespace {
 
 slave::FaultSet no_faults;  // none: the clean slave must satisfy every rule
-
-// The device for a profile and unit, as made: built on first use, and reset when each input ends (see
-// ResetAtEnd), so it is as made when the next input takes it.
-slave::Device& fresh_device(std::size_t profile, std::uint8_t unit) {
-    static std::map<std::pair<std::size_t, std::uint8_t>, std::unique_ptr<slave::Device>> made;
-    auto& device = made[{profile, unit}];
-    if (!device)
-        device = std::make_unique<slave::Device>(fuzz::bundled_profiles()[profile], unit, &no_faults);
-    return *device;
-}
 
 // Requests handed to the slave over the whole run: an input holds a sequence of them, so executions per
 // second alone understate the target's rate (bench/fuzz_slave_vs_libmodbus.sh compares it with a harness of
@@ -79,9 +67,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
             std::clamp(preferred, std::max(1, p.line.unit_min), std::max(1, p.line.unit_max)));
     };
     std::vector<slave::Device*> units;
-    units.push_back(&fresh_device(first_index, unit_of(first, 1)));
+    units.push_back(&fuzz::bundled_device(first_index, unit_of(first, 1)));
     if (two_units && unit_of(second, 2) != units.front()->unit())
-        units.push_back(&fresh_device(second_index, unit_of(second, 2)));
+        units.push_back(&fuzz::bundled_device(second_index, unit_of(second, 2)));
     const fuzz::ResetAtEnd reset_at_end{units};
     std::vector<conformance::ExchangeOracle::Unit> oracle_units;
     for (auto* d : units)

@@ -26,7 +26,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # Every program this script runs finds the bundled profiles of this tree.
 ENV = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
 TARGETS = ["pdu", "rtu_deframer", "ascii_deframer", "tcp_stream", "capture", "serial_log", "profile", "slave",
-           "libmodbus_diff", "slave_state", "reproducer", "frame_text", "reply"]
+           "libmodbus_diff", "slave_state", "reproducer", "frame_text", "reply", "check"]
 
 
 class Provider:
@@ -349,6 +349,24 @@ def build(mbscope, out_dir):
                         p.integral(0, 300, len(pdus[response]))
                         p.data(pdus[response])
                 write("reply", p.bytes(), out_dir)
+
+    # check: the input is read from the front (profile, scheme, read-only, rule family, then one action per
+    # request the scripted slave receives; fuzz/fuzz_check.cpp). Every family on every scheme against a slave
+    # that answers as the device does (no actions), on profiles in turn; and every family once against a slave
+    # that goes through each action with parameters from a fixed generator.
+    families = 14
+    chosen = [i for i, pr in enumerate(all_profiles)
+              if pr["id"] in ("mmk-2030", "modbus", "cth2265i", "walchem-w600", "dmy-2017")]
+    for family in range(families):
+        for scheme in range(3):
+            profile = chosen[(family + scheme) % len(chosen)]
+            write("check", bytes([profile, scheme, family % 2, family]), out_dir)
+        state = family + 1
+        actions = bytearray()
+        for n in range(96):
+            state = (state * 1103515245 + 12345) & 0x7FFFFFFF
+            actions += bytes([n % 13, (state >> 8) & 0xFF, (state >> 16) & 0x0F, (state >> 20) & 0xFF])
+        write("check", bytes([chosen[family % len(chosen)], family % 3, 0, family]) + bytes(actions), out_dir)
 
     # slave_state and reproducer: the files as the programs wrote them.
     for text in state_files(mbscope):
