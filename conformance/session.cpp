@@ -205,6 +205,32 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
     write_back();
 }
 
+const modbus::Point* Session::pair_of(const Touched& t) const {
+    if (t.table != Table::HoldingRegisters || !profile_) return nullptr;
+    const modbus::Point* point = profile_->find(t.table, t.address);
+    if (!point || point->encoding.words != 2) return nullptr;
+    const bool both_kept = touched_.count({t.table, point->address}) != 0 &&
+                           touched_.count({t.table, static_cast<std::uint16_t>(point->address + 1)}) != 0;
+    return both_kept ? point : nullptr;
+}
+
+bool Session::restore_pair_first(const Touched& t) const {
+    const modbus::Point* point = pair_of(t);
+    return point && point->address == t.address;
+}
+
+std::vector<std::uint8_t> Session::restore_pdu(const Touched& t) const {
+    if (t.table == Table::Coils)
+        return modbus::encode_pdu(modbus::make_write_single_coil(t.address, t.original != 0));
+    if (const modbus::Point* point = pair_of(t)) {
+        const std::uint16_t pair[2] = {
+            touched_.at({t.table, point->address}).original,
+            touched_.at({t.table, static_cast<std::uint16_t>(point->address + 1)}).original};
+        return modbus::encode_pdu(modbus::make_write_multiple_registers(point->address, pair));
+    }
+    return modbus::encode_pdu(modbus::make_write_single_register(t.address, t.original));
+}
+
 std::vector<Touched> Session::restore() {
     unanswered_in_a_row_ = 0;  // the rules before may have asked for silence on purpose
     std::vector<Touched> out;
@@ -248,22 +274,10 @@ std::vector<Touched> Session::restore() {
                 refused.push_back(false);
                 continue;
             }
-            std::vector<std::uint8_t> pdu;
+            // The second register of a pair written just before is not written again.
             const bool skip_write = std::exchange(pair_written, false);
-            if (t.table == Table::Coils)
-                pdu = modbus::encode_pdu(modbus::make_write_single_coil(t.address, t.original != 0));
-            else
-                pdu = modbus::encode_pdu(modbus::make_write_single_register(t.address, t.original));
-            // A 32-bit point is restored with both halves in one FC16 (some devices refuse a lone half); any
-            // other register alone, so a read-only neighbour cannot spoil its write.
-            const auto next = touched_.find({t.table, static_cast<std::uint16_t>(t.address + 1)});
-            const modbus::Point* point = profile_ ? profile_->find(t.table, t.address) : nullptr;
-            const bool first_half = point && point->encoding.words == 2 && point->address == t.address;
-            if (t.table == Table::HoldingRegisters && first_half && next != touched_.end() && !skip_write) {
-                const std::uint16_t pair[2] = {t.original, next->second.original};
-                pdu = modbus::encode_pdu(modbus::make_write_multiple_registers(t.address, pair));
-                pair_written = true;
-            }
+            const auto pdu = restore_pdu(t);
+            pair_written = pdu.front() == 16 && !skip_write && restore_pair_first(t);
             modbus::transport::Exchange ex;
             if (!skip_write) ex = request(pdu, "restore the original value");
             const auto now = read_point(t.table, t.address, "verify the restored value");
@@ -289,9 +303,7 @@ std::vector<Touched> Session::restore() {
             auto& t = out[i];
             if (t.restored || !refused[i]) continue;
             auto& kept = touched_.at({t.table, t.address});
-            const auto pdu = modbus::encode_pdu(
-                t.table == Table::Coils ? modbus::make_write_single_coil(t.address, t.original != 0)
-                                        : modbus::make_write_single_register(t.address, t.original));
+            const auto pdu = restore_pdu(t);
             refused[i] = is_exception(request(pdu, "restore the original value again"));
             const auto now = read_point(t.table, t.address, "verify the restored value");
             if (now && *now == t.original) {

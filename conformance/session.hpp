@@ -77,6 +77,14 @@ class Session {
     // Writes the remembered values of [first, last) (one table) back in blocks, FC15 or FC16 as long as the
     // profile's limit and its read allows, and reads each block back: what reads as it was is restored.
     void restore_blocks(Ledger::iterator first, Ledger::iterator last);
+    // The write that brings one point back: FC5 for a coil; for either register of a 32-bit point whose
+    // two registers are both in the ledger, FC16 of the pair (some devices refuse a lone half; Walchem's
+    // manual wants a 32-bit value written whole, 002:452-459, 499); any other register alone with FC6, so a
+    // read-only neighbour cannot spoil its write.
+    std::vector<std::uint8_t> restore_pdu(const Touched& t) const;
+    const modbus::Point* pair_of(
+        const Touched& t) const;                      // t's 32-bit point when both its registers are kept
+    bool restore_pair_first(const Touched& t) const;  // t is the first register of such a point
     void log(const modbus::transport::Exchange& ex, const std::string& note);
 
     modbus::transport::Client& client_;

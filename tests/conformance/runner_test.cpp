@@ -12,15 +12,19 @@
 #include <gtest/gtest.h>
 
 #include <fnmatch.h>
+#include <poll.h>
+#include <sys/socket.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "conformance/context.hpp"
 #include "conformance/session.hpp"
+#include "modbus/transport/socket.hpp"
 #include "tests/conformance/runner_support.hpp"
 
 namespace mbscope::conformance {
@@ -236,6 +240,106 @@ TEST(Restore, WhatABlockDidNotBringBackIsTriedOneByOne) {
         EXPECT_FALSE(t.restored);
         EXPECT_EQ(t.problem, "reads 7 after restoring 0");
     }
+}
+
+// A Modbus/TCP device with one 32-bit holding value at 148-149 (a Walchem set-point's place) that refuses
+// either half written alone with FC6 (Walchem's manual wants 32-bit values written whole, 002:452-459,
+// 499) and, once, reads back the second half of a block wrong: the device that leaves the one-by-one
+// restore a lone half to bring back.
+class PairOnlyDevice {
+  public:
+    PairOnlyDevice() {
+        auto listener = tp::listen_tcp("127.0.0.1", 0);
+        EXPECT_TRUE(listener.has_value());
+        if (listener) listener_ = std::move(listener).value();
+        thread_ = std::thread([this] { serve(); });
+    }
+    ~PairOnlyDevice() { finish(); }
+    // Waits for the device's end: the client closed its connection (or never came within 5 s).
+    void finish() {
+        if (thread_.joinable()) thread_.join();
+    }
+    PairOnlyDevice(const PairOnlyDevice&) = delete;
+    PairOnlyDevice& operator=(const PairOnlyDevice&) = delete;
+
+    std::uint16_t port() const { return tp::bound_port(listener_.get()); }
+    std::uint16_t reg(std::uint16_t a) const { return regs_[a - 148]; }
+    int lone_writes() const { return lone_writes_; }
+
+  private:
+    void serve() {
+        pollfd incoming{listener_.get(), POLLIN, 0};
+        if (::poll(&incoming, 1, 5000) != 1) return;
+        const tp::UniqueFd fd(::accept(listener_.get(), nullptr, nullptr));
+        std::uint8_t header[7];
+        while (fd && ::recv(fd.get(), header, 7, MSG_WAITALL) == 7) {
+            const std::size_t length = (header[4] << 8) | header[5];
+            std::vector<std::uint8_t> pdu(length > 1 ? length - 1 : 0);
+            if (!pdu.empty() && ::recv(fd.get(), pdu.data(), pdu.size(), MSG_WAITALL) != ssize_t(pdu.size()))
+                return;
+            std::vector<std::uint8_t> reply = answer(pdu);
+            std::vector<std::uint8_t> adu(header, header + 7);
+            adu[4] = static_cast<std::uint8_t>((reply.size() + 1) >> 8);
+            adu[5] = static_cast<std::uint8_t>(reply.size() + 1);
+            adu.insert(adu.end(), reply.begin(), reply.end());
+            (void)::send(fd.get(), adu.data(), adu.size(), MSG_NOSIGNAL);
+        }
+    }
+
+    std::vector<std::uint8_t> answer(const std::vector<std::uint8_t>& pdu) {
+        if (pdu.size() < 5) return {static_cast<std::uint8_t>((pdu.empty() ? 0 : pdu[0]) | 0x80), 0x03};
+        const std::uint8_t fc = pdu[0];
+        const unsigned start = (pdu[1] << 8) | pdu[2];
+        const unsigned n = (pdu[3] << 8) | pdu[4];
+        if (fc == 3 && start >= 148 && start + n <= 150 && n >= 1) {
+            std::vector<std::uint8_t> r{3, static_cast<std::uint8_t>(2 * n)};
+            for (unsigned a = start; a < start + n; ++a) {
+                std::uint16_t v = regs_[a - 148];
+                if (n == 2 && a == 149 && ++block_reads_ == 2) v ^= 1;  // the restore's read-back, once
+                r.push_back(static_cast<std::uint8_t>(v >> 8));
+                r.push_back(static_cast<std::uint8_t>(v));
+            }
+            return r;
+        }
+        if (fc == 16 && start == 148 && n == 2 && pdu.size() >= 10) {
+            regs_[0] = static_cast<std::uint16_t>((pdu[6] << 8) | pdu[7]);
+            regs_[1] = static_cast<std::uint16_t>((pdu[8] << 8) | pdu[9]);
+            return {pdu.begin(), pdu.begin() + 5};
+        }
+        if (fc == 6 && (start == 148 || start == 149)) ++lone_writes_;
+        return {static_cast<std::uint8_t>(fc | 0x80), fc == 6 ? std::uint8_t{0x04} : std::uint8_t{0x02}};
+    }
+
+    tp::UniqueFd listener_;
+    std::thread thread_;
+    std::uint16_t regs_[2] = {0x0000, 0x3F80};  // 1.0f, low word first
+    int block_reads_ = 0;
+    int lone_writes_ = 0;
+};
+
+// What a block did not bring back of a 32-bit value goes back with its other half in one FC16, in the
+// one-by-one path and in the passes that retry refused points: never a lone half.
+TEST(Restore, A32BitValueGoesBackWhole) {
+    PairOnlyDevice device;
+    {
+        auto client =
+            tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(device.port())));
+        ASSERT_TRUE(client.has_value());
+        Session session(*client, options_for().session, &slave::test::profile("walchem-w600"));
+        ASSERT_TRUE(session.remember(modbus::Table::HoldingRegisters, 148, 2, 2));
+        const std::uint16_t other[2] = {0x0000, 0x40E0};  // 7.0f
+        ASSERT_TRUE(is_normal(
+            session.request(modbus::encode_pdu(modbus::make_write_multiple_registers(148, other)), "write"),
+            16));
+        const auto ledger = session.restore();
+        ASSERT_EQ(ledger.size(), 2u);
+        for (const auto& t : ledger)
+            EXPECT_TRUE(t.restored) << t.address << ": " << t.problem;
+    }  // the connection closes, the device ends
+    device.finish();
+    EXPECT_EQ(device.lone_writes(), 0);
+    EXPECT_EQ(device.reg(148), 0x0000);
+    EXPECT_EQ(device.reg(149), 0x3F80);
 }
 
 TEST(Reports, JsonCarriesEveryRuleWithEvidenceAndTheSummaryAddsUp) {
