@@ -139,9 +139,10 @@ class ScriptedSlave {
         }
     }
 
-    // Requests are framed as the reference slave frames them: Modbus/TCP by the MBAP length (a header whose
-    // length no request can have drops what was received), serial framings by what decodes: the bytes
-    // received so far, else the last piece alone (after a frame that never decodes, a bad checksum).
+    // Requests are framed more simply than the reference slave's server frames them (it is the runner under
+    // test here, not the framing): Modbus/TCP by the MBAP length (a header whose length no request can have
+    // drops what was received), serial framings by what decodes: the bytes received so far, else the last
+    // piece alone (after a frame that never decodes, a bad checksum).
     void received(std::span<const std::uint8_t> piece) {
         pending_.insert(pending_.end(), piece.begin(), piece.end());
         if (framing_ == Framing::Tcp) {
