@@ -23,10 +23,12 @@ run_one() {  # target
   local t=$1 corpus="$work/corpus-$1" log="$work/$1.log"
   mkdir -p "$corpus" "$work/artifacts-$t"
   [ -d "corpus/$t" ] && cp -r "corpus/$t/." "$corpus/"
-  # A target's own bound on its input, from fuzz/<target>.options as ClusterFuzzLite reads it; else 64 KiB.
-  local max_len
+  # A target's own bound on its input and on one run's time, from fuzz/<target>.options as ClusterFuzzLite
+  # reads it; else 64 KiB and 10 s.
+  local max_len timeout
   max_len=$(sed -n 's/^max_len *= *\([0-9]*\)/\1/p' "fuzz/$t.options" 2>/dev/null)
-  "$dir/fuzz_$t" "$corpus" -dict="$dir/fuzz_$t.dict" -max_total_time="$seconds" -timeout=10 -seed="$seed" \
+  timeout=$(sed -n 's/^timeout *= *\([0-9]*\)/\1/p' "fuzz/$t.options" 2>/dev/null)
+  "$dir/fuzz_$t" "$corpus" -dict="$dir/fuzz_$t.dict" -max_total_time="$seconds" -timeout="${timeout:-10}" -seed="$seed" \
     -rss_limit_mb=2048 -max_len="${max_len:-65536}" -print_final_stats=1 -artifact_prefix="$work/artifacts-$t/" \
     >"$log" 2>&1
   local rc=$?
