@@ -277,7 +277,7 @@ std::vector<Touched> Session::restore() {
             // The second register of a pair written just before is not written again.
             const bool skip_write = std::exchange(pair_written, false);
             const auto pdu = restore_pdu(t);
-            pair_written = pdu.front() == 16 && !skip_write && restore_pair_first(t);
+            pair_written = !skip_write && restore_pair_first(t);  // restore_pdu wrote the pair
             modbus::transport::Exchange ex;
             if (!skip_write) ex = request(pdu, "restore the original value");
             const auto now = read_point(t.table, t.address, "verify the restored value");

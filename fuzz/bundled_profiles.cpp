@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -54,6 +55,11 @@ slave::Device& bundled_device(std::size_t profile, std::uint8_t unit) {
     auto& device = made[{profile, unit}];
     if (!device) device = std::make_unique<slave::Device>(bundled_profiles().at(profile), unit, nullptr);
     return *device;
+}
+
+std::uint8_t unit_within(const modbus::Profile& profile, int preferred) {
+    return static_cast<std::uint8_t>(
+        std::clamp(preferred, std::max(1, profile.line.unit_min), std::max(1, profile.line.unit_max)));
 }
 
 }  // namespace mbscope::fuzz

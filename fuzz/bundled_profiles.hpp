@@ -20,5 +20,7 @@ const std::vector<modbus::Profile>& bundled_profiles();
 // without faults: made on first use and kept. A target resets the devices it used when an input ends
 // (fuzz::ResetAtEnd), so every input meets them as made without paying to make them.
 slave::Device& bundled_device(std::size_t profile, std::uint8_t unit);
+// The unit id nearest `preferred` that the profile's line allows (at least 1).
+std::uint8_t unit_within(const modbus::Profile& profile, int preferred);
 
 }  // namespace mbscope::fuzz

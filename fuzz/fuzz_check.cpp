@@ -324,8 +324,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const tp::Scheme scheme = schemes[script.byte() % 3];
     const bool read_only = script.byte() & 1;
     const std::string glob = rule_globs[script.byte() % std::size(rule_globs)];
-    const auto unit = static_cast<std::uint8_t>(
-        std::clamp(1, std::max(1, profile.line.unit_min), std::max(1, profile.line.unit_max)));
+    const std::uint8_t unit = fuzz::unit_within(profile, 1);
     slave::Device& device = fuzz::bundled_device(profile_index, unit);
     const std::vector<slave::Device*> units{&device};
     const fuzz::ResetAtEnd reset_at_end{units};

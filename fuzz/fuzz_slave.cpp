@@ -62,14 +62,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const bool two_units = in.ConsumeBool();
     const bool ip_network = framing == Framing::Tcp && in.ConsumeBool();
 
-    const auto unit_of = [](const modbus::Profile& p, int preferred) {
-        return static_cast<std::uint8_t>(
-            std::clamp(preferred, std::max(1, p.line.unit_min), std::max(1, p.line.unit_max)));
-    };
     std::vector<slave::Device*> units;
-    units.push_back(&fuzz::bundled_device(first_index, unit_of(first, 1)));
-    if (two_units && unit_of(second, 2) != units.front()->unit())
-        units.push_back(&fuzz::bundled_device(second_index, unit_of(second, 2)));
+    units.push_back(&fuzz::bundled_device(first_index, fuzz::unit_within(first, 1)));
+    if (two_units && fuzz::unit_within(second, 2) != units.front()->unit())
+        units.push_back(&fuzz::bundled_device(second_index, fuzz::unit_within(second, 2)));
     const fuzz::ResetAtEnd reset_at_end{units};
     std::vector<conformance::ExchangeOracle::Unit> oracle_units;
     for (auto* d : units)
