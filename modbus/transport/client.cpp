@@ -81,13 +81,14 @@ Result<void, std::string> Client::write(std::span<const std::uint8_t> bytes) {
 }
 
 Exchange Client::transact(std::uint8_t unit, std::span<const std::uint8_t> pdu,
-                          std::chrono::milliseconds timeout) {
+                          std::chrono::milliseconds timeout, std::span<const OwedRequest> owed) {
     const auto adu = frame(unit, pdu);
-    return raw(adu, timeout, 1);
+    return raw(adu, timeout, 1, {}, owed);
 }
 
 Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseconds timeout,
-                     std::size_t frames, std::span<const std::uint8_t> request) {
+                     std::size_t frames, std::span<const std::uint8_t> request,
+                     std::span<const OwedRequest> owed) {
     Exchange ex;
     if (request.empty()) request = bytes;
     ex.sent.assign(request.begin(), request.end());
@@ -108,7 +109,7 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
     // sleeping for that long first spares the wake-up of a sleeping thread, which costs about as much as
     // the exchange (the slave's server loop does the same after answering).
     const auto spin_until = start + std::chrono::microseconds(50);
-    ReplyScanner frames_in(framing(), datagram, frames);
+    ReplyScanner frames_in(framing(), datagram, frames, owed);
     std::uint8_t buf[2048];
     for (;;) {
         const auto now = Clock::now();

@@ -32,15 +32,18 @@ class Client {
     static Result<Client, std::string> open(const Endpoint& endpoint, ClientOptions options = {});
 
     // Frames `pdu` for the endpoint (a fresh transaction id on MBAP schemes) and waits up to `timeout`.
-    Exchange transact(std::uint8_t unit, std::span<const std::uint8_t> pdu,
-                      std::chrono::milliseconds timeout);
+    // `owed`: RTU and ASCII, earlier requests still unanswered, whose late replies are set aside
+    // (exchange.hpp).
+    Exchange transact(std::uint8_t unit, std::span<const std::uint8_t> pdu, std::chrono::milliseconds timeout,
+                      std::span<const OwedRequest> owed = {});
     // Sends `bytes` exactly as given (malformed frames, split segments, pipelines) and collects replies for
     // up to `timeout` (to the microsecond: the network fuzzer waits less than a millisecond where a fast
     // target must stay silent); stops early after `frames` complete frames (0: wait the whole time).
     // `request`: the whole request when `bytes` is only its last piece (the rest went out with write()); its
     // transaction id tells this request's reply from late ones, and it is the exchange's `sent`.
     Exchange raw(std::span<const std::uint8_t> bytes, std::chrono::microseconds timeout,
-                 std::size_t frames = 1, std::span<const std::uint8_t> request = {});
+                 std::size_t frames = 1, std::span<const std::uint8_t> request = {},
+                 std::span<const OwedRequest> owed = {});
     // Sends without waiting (the first part of a split request); errors when the peer is gone.
     Result<void, std::string> write(std::span<const std::uint8_t> bytes);
     // Reads whatever arrives until `quiet` passes without a byte (resynchronise between tests; a late reply

@@ -26,25 +26,64 @@ struct Exchange {
     std::chrono::nanoseconds first_byte{0};  // from the last byte written to the first byte read
     bool timed_out = false;                  // nothing complete arrived in time
     bool closed = false;                     // the peer closed the connection
-    std::vector<Frame> stale_replies;  // Modbus/TCP: late replies to earlier requests, read and set aside
+    // Late replies to earlier requests, read and set aside: over Modbus/TCP by transaction id, over RTU and
+    // ASCII by what they answer (see OwedRequest).
+    std::vector<Frame> stale_replies;
 
     // `received` without the stale replies, which come first (a frame is set aside only before this
     // request's own reply, and before anything else that came): what came for this request.
     std::span<const std::uint8_t> own_received() const noexcept;
 };
 
+// A request sent earlier whose reply did not come in time. RTU and ASCII carry no transaction id: a reply
+// that comes after its request was given up, while the next request waits, can be told from that request's
+// own only by what it answers.
+struct OwedRequest {
+    std::uint8_t unit = 0;  // 0: a broadcast, whose reply (a fault in itself) may carry any unit id
+    std::vector<std::uint8_t> pdu;
+};
+
+// Whether `reply` has the shape of an answer to `request_pdu` sent to `unit`: the unit id, the request's
+// function code or its exception, and where a response repeats or implies them, the request's byte count,
+// address, quantity or sub-function. Not whether the answer is right (the rules judge that).
+bool could_answer(std::uint8_t unit, std::span<const std::uint8_t> request_pdu, const Frame& reply) noexcept;
+
+// The requests a client over RTU or ASCII may still hear from: the last four given up with nothing back.
+// Anything that comes for a later request clears them (a device answers in order: what it still owed would
+// have come first); a late reply settles the oldest request it could answer.
+class OwedRequests {
+  public:
+    // After an exchange of a request to `unit` of `pdu` (empty: bytes that are no request): its stale
+    // replies settle what they answer; true when the request is owed now.
+    bool after(const Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu);
+    void settle(const Frame& late);
+    std::span<const OwedRequest> list() const noexcept { return owed_; }
+    bool empty() const noexcept { return owed_.empty(); }
+
+  private:
+    static constexpr std::size_t kept = 4;
+    std::vector<OwedRequest> owed_;
+};
+
+// The whole frames in bytes that arrived with no request waiting (a late reply found before the next
+// request went out), in order; bytes that form none are left out.
+std::vector<Frame> frames_in(Framing framing, std::span<const std::uint8_t> bytes);
+
 // Finds the frames in an exchange's `received` as bytes are appended to it.
 class ReplyScanner {
   public:
     // `datagram`: each read is one whole message (UDP). `frames`: how many frames the caller waits for
-    // (0: as many as come).
-    ReplyScanner(Framing framing, bool datagram, std::size_t frames) noexcept
-        : framing_(framing), datagram_(datagram), frames_(frames) {}
+    // (0: as many as come). `owed`: RTU and ASCII, earlier requests whose replies may still come (kept by
+    // the caller for the scanner's lifetime).
+    ReplyScanner(Framing framing, bool datagram, std::size_t frames,
+                 std::span<const OwedRequest> owed = {}) noexcept
+        : framing_(framing), datagram_(datagram), frames_(frames), owed_(owed) {}
 
     // Looks at the bytes of ex.received not yet framed. `silence`: the line has been quiet long enough to
-    // end an RTU frame. A Modbus/TCP reply whose transaction id is one of the 256 before the request's is
-    // a late reply to an earlier request: when nothing else came before it, it is set aside in
-    // ex.stale_replies; otherwise the first frame becomes ex.response (nullopt when its bytes do not
+    // end an RTU frame. A late reply to an earlier request, when nothing else came before it, is set aside
+    // in ex.stale_replies: over Modbus/TCP a reply whose transaction id is one of the 256 before the
+    // request's; over RTU and ASCII a frame with a good checksum that could answer an owed request and could
+    // not answer this one. Otherwise the first frame becomes ex.response (nullopt when its bytes do not
     // decode). Returns how many frames (not set aside) this call found.
     std::size_t scan(Exchange& ex, bool silence);
 
@@ -57,6 +96,7 @@ class ReplyScanner {
     Framing framing_;
     bool datagram_;
     std::size_t frames_;
+    std::span<const OwedRequest> owed_;
     std::size_t scan_from_ = 0;
     std::size_t found_ = 0;
 };

@@ -1,5 +1,6 @@
 // The client's reply framing without a socket (modbus/transport/exchange.hpp): where a response ends and
-// which Modbus/TCP frames are late replies to earlier requests.
+// which frames are late replies to earlier requests (Modbus/TCP by transaction id, RTU and ASCII by what
+// they answer).
 #include <gtest/gtest.h>
 
 #include "modbus/adu.hpp"
@@ -84,4 +85,162 @@ TEST(ReplyScanner, AsciiEndsAtCrLf) {
     EXPECT_EQ(scanner.scan(ex, false), 1u);
     ASSERT_TRUE(ex.response.has_value());
     EXPECT_TRUE(ex.response->checksum_ok);
+}
+
+// ---- late replies over RTU and ASCII, which carry no transaction id
+
+namespace {
+
+Frame rtu_reply(std::uint8_t unit, const std::vector<std::uint8_t>& pdu) {
+    return *decode_rtu(encode_rtu(unit, pdu));
+}
+
+}  // namespace
+
+TEST(CouldAnswer, TheShapeEachFunctionGivesItsResponse) {
+    using transport::could_answer;
+    const std::vector<std::uint8_t> read_coils{0x01, 0x00, 0x13, 0x00, 0x0A};  // 10 coils: 2 bytes
+    EXPECT_TRUE(could_answer(0x11, read_coils, rtu_reply(0x11, {0x01, 0x02, 0xCD, 0x01})));
+    EXPECT_FALSE(could_answer(0x11, read_coils, rtu_reply(0x11, {0x01, 0x01, 0xCD})));
+    EXPECT_FALSE(could_answer(0x12, read_coils, rtu_reply(0x11, {0x01, 0x02, 0xCD, 0x01})));
+    EXPECT_TRUE(could_answer(0x11, read_coils, rtu_reply(0x11, {0x81, 0x02})));
+    EXPECT_FALSE(could_answer(0x11, read_coils, rtu_reply(0x11, {0x83, 0x02})));
+    // A broadcast's reply (a fault in itself) may carry any unit id.
+    EXPECT_TRUE(could_answer(0x00, read_coils, rtu_reply(0x07, {0x01, 0x02, 0xCD, 0x01})));
+
+    const std::vector<std::uint8_t> read_two{0x03, 0x00, 0x6B, 0x00, 0x02};
+    EXPECT_TRUE(could_answer(0x11, read_two, rtu_reply(0x11, {0x03, 0x04, 0, 1, 0, 2})));
+    EXPECT_FALSE(could_answer(0x11, read_two, rtu_reply(0x11, {0x03, 0x02, 0, 1})));
+    EXPECT_FALSE(could_answer(0x11, read_two, rtu_reply(0x11, {0x04, 0x04, 0, 1, 0, 2})));
+
+    const std::vector<std::uint8_t> write_one{0x06, 0x00, 0x01, 0x00, 0x03};
+    EXPECT_TRUE(could_answer(0x11, write_one, rtu_reply(0x11, write_one)));
+    EXPECT_FALSE(could_answer(0x11, write_one, rtu_reply(0x11, {0x06, 0x00, 0x02, 0x00, 0x03})));
+    const std::vector<std::uint8_t> write_many{0x10, 0x00, 0x01, 0x00, 0x02, 0x04, 0, 0x0A, 0x01, 0x02};
+    EXPECT_TRUE(could_answer(0x11, write_many, rtu_reply(0x11, {0x10, 0x00, 0x01, 0x00, 0x02})));
+    EXPECT_FALSE(could_answer(0x11, write_many, rtu_reply(0x11, {0x10, 0x00, 0x01, 0x00, 0x03})));
+    const std::vector<std::uint8_t> echo{0x08, 0x00, 0x00, 0xA5, 0x37};
+    EXPECT_TRUE(could_answer(0x11, echo, rtu_reply(0x11, echo)));
+    EXPECT_FALSE(could_answer(0x11, echo, rtu_reply(0x11, {0x08, 0x00, 0x0A, 0x00, 0x00})));
+    // Functions whose response repeats nothing of the request: the function code is all there is.
+    EXPECT_TRUE(
+        could_answer(0x11, std::vector<std::uint8_t>{0x11}, rtu_reply(0x11, {0x11, 0x02, 0x11, 0xFF})));
+    EXPECT_FALSE(could_answer(0x11, {}, rtu_reply(0x11, {0x11, 0x02, 0x11, 0xFF})));
+}
+
+// A device slower than the client's timeout: its reply to the FC3 request given up arrives while the FC4
+// request after it waits. It answers only the owed request, so it is set aside, and FC4's own reply after it
+// is the response.
+TEST(ReplyScanner, RtuLateReplyOnlyAnOwedRequestExplainsIsSetAside) {
+    const std::vector<transport::OwedRequest> owed{{0x11, read_pdu}};
+    const std::vector<std::uint8_t> read_input{0x04, 0x00, 0x00, 0x00, 0x01};
+    const std::vector<std::uint8_t> input_reply{0x04, 0x02, 0x56, 0x78};
+    Exchange ex;
+    ex.sent = encode_rtu(0x11, read_input);
+    append(ex, encode_rtu(0x11, reply_pdu));
+    ReplyScanner scanner(Framing::Rtu, false, 1, owed);
+    EXPECT_EQ(scanner.scan(ex, false), 0u);
+    ASSERT_EQ(ex.stale_replies.size(), 1u);
+    EXPECT_FALSE(ex.response.has_value());
+    append(ex, encode_rtu(0x11, input_reply));
+    EXPECT_EQ(scanner.scan(ex, false), 1u);
+    ASSERT_TRUE(ex.response.has_value());
+    EXPECT_EQ(ex.response->pdu()[0], 0x04);
+    EXPECT_EQ(ex.own_received().size(), encode_rtu(0x11, input_reply).size());
+
+    // The same in ASCII.
+    Exchange text;
+    const auto request = encode_ascii(0x11, read_input);
+    text.sent.assign(request.begin(), request.end());
+    const auto late = encode_ascii(0x11, reply_pdu);
+    text.received.assign(late.begin(), late.end());
+    ReplyScanner ascii(Framing::Ascii, false, 1, owed);
+    EXPECT_EQ(ascii.scan(text, false), 0u);
+    EXPECT_EQ(text.stale_replies.size(), 1u);
+}
+
+// What content cannot settle stays the request's: a reply either request could draw (the session waits
+// such a late reply out before sending), one that answers neither (for the rules to judge), one with a bad
+// CRC.
+TEST(ReplyScanner, RtuReplyTheRequestCouldDrawIsNeverSetAside) {
+    const std::vector<transport::OwedRequest> owed{{0x11, read_pdu}};
+    const auto scan = [&](const std::vector<std::uint8_t>& request_pdu, std::vector<std::uint8_t> reply) {
+        Exchange ex;
+        ex.sent = encode_rtu(0x11, request_pdu);
+        ex.received = std::move(reply);
+        ReplyScanner scanner(Framing::Rtu, false, 1, owed);
+        EXPECT_EQ(scanner.scan(ex, true), 1u);
+        EXPECT_TRUE(ex.stale_replies.empty());
+        return ex;
+    };
+    const std::vector<std::uint8_t> other_address{0x03, 0x00, 0x07, 0x00, 0x01};
+    EXPECT_TRUE(scan(other_address, encode_rtu(0x11, reply_pdu)).response->checksum_ok);
+    const std::vector<std::uint8_t> write{0x06, 0x00, 0x01, 0x00, 0x03};
+    EXPECT_EQ(scan(write, encode_rtu(0x11, std::vector<std::uint8_t>{0x05, 0x00, 0x01, 0xFF, 0x00}))
+                  .response->pdu()[0],
+              0x05);
+    auto bad_crc = encode_rtu(0x11, reply_pdu);
+    bad_crc.back() ^= 0xFF;
+    EXPECT_FALSE(scan(write, bad_crc).response->checksum_ok);
+    // Not after bytes that are no frame: what came for the request is counted from the first set aside.
+    Exchange noisy;
+    const auto request = encode_ascii(0x11, write);
+    noisy.sent.assign(request.begin(), request.end());
+    const auto late = "x" + encode_ascii(0x11, reply_pdu);
+    noisy.received.assign(late.begin(), late.end());
+    ReplyScanner after_noise(Framing::Ascii, false, 1, owed);
+    EXPECT_EQ(after_noise.scan(noisy, false), 1u);
+    EXPECT_TRUE(noisy.stale_replies.empty());
+    // Without an owed request nothing is set aside.
+    Exchange ex;
+    ex.sent = encode_rtu(0x11, write);
+    ex.received = encode_rtu(0x11, reply_pdu);
+    ReplyScanner scanner(Framing::Rtu, false, 1);
+    EXPECT_EQ(scanner.scan(ex, true), 1u);
+    EXPECT_TRUE(ex.stale_replies.empty());
+}
+
+// Bytes found waiting before a request (a late reply and whatever else came) split into their frames.
+TEST(FramesIn, SplitsWhatArrivedUnaskedIntoFrames) {
+    auto bytes = encode_rtu(0x11, reply_pdu);
+    const auto second = encode_rtu(0x11, std::vector<std::uint8_t>{0x06, 0x00, 0x01, 0x00, 0x03});
+    bytes.insert(bytes.end(), second.begin(), second.end());
+    const auto rtu = transport::frames_in(Framing::Rtu, bytes);
+    ASSERT_EQ(rtu.size(), 2u);
+    EXPECT_EQ(rtu[1].pdu()[0], 0x06);
+    const auto text = encode_ascii(0x11, reply_pdu) + "noise" + encode_ascii(0x11, reply_pdu);
+    EXPECT_EQ(
+        transport::frames_in(Framing::Ascii, std::vector<std::uint8_t>(text.begin(), text.end())).size(), 2u);
+    EXPECT_TRUE(transport::frames_in(Framing::Rtu, {}).empty());
+}
+
+// The session's and the reply target's bookkeeping of requests given up: the last four that got nothing,
+// cleared by anything that comes for a later one, each settled by the late reply that could answer it.
+TEST(OwedRequests, KeepsTheLastFourUnansweredUntilAReplyComes) {
+    transport::OwedRequests owed;
+    const auto read_at = [](std::uint8_t address) {
+        return std::vector<std::uint8_t>{0x03, 0x00, address, 0x00, 0x01};
+    };
+    Exchange silent;
+    for (std::uint8_t a = 0; a < 6; ++a)
+        EXPECT_TRUE(owed.after(silent, 0x11, read_at(a)));
+    ASSERT_EQ(owed.list().size(), 4u);
+    EXPECT_EQ(owed.list().front().pdu, read_at(2));
+    EXPECT_FALSE(owed.after(silent, 0x11, {}));  // bytes that are no request are owed nothing
+    Exchange closed;
+    closed.closed = true;
+    EXPECT_FALSE(owed.after(closed, 0x11, read_at(9)));
+
+    // A late reply settles the oldest request it could answer.
+    owed.settle(*decode_rtu(encode_rtu(0x11, reply_pdu)));
+    ASSERT_EQ(owed.list().size(), 3u);
+    EXPECT_EQ(owed.list().front().pdu, read_at(3));
+    owed.settle(*decode_rtu(encode_rtu(0x12, reply_pdu)));  // another unit's: answers none
+    EXPECT_EQ(owed.list().size(), 3u);
+
+    // Anything that came for a later request: the device got that far, nothing before it is owed.
+    Exchange answered;
+    answered.received = {0x11};
+    EXPECT_FALSE(owed.after(answered, 0x11, read_at(7)));
+    EXPECT_TRUE(owed.empty());
 }
