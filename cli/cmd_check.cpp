@@ -90,8 +90,12 @@ int run_check_command(const CheckCliOptions& o) {
     if (!o.html.empty())
         written &= write_file(o.html, [&](std::ostream& out) { conformance::write_html(out, report); });
     if (report.response_times.empty()) {
-        std::cerr
-            << "mbscope check: the target never answered (wrong unit id, transport or line settings?)\n";
+        if (report.late_replies)
+            std::cerr << "mbscope check: the target answered only after the " << report.timeout_ms
+                      << " ms timeout (" << report.late_replies << " late replies): raise --timeout\n";
+        else
+            std::cerr
+                << "mbscope check: the target never answered (wrong unit id, transport or line settings?)\n";
         return exit_failure;
     }
     if (!written || report.stopped) return exit_failure;

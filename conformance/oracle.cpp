@@ -437,7 +437,8 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
             listen_only_.erase(unit.id);
         }
     }
-    // Late replies to earlier requests (Modbus/TCP, told apart by transaction id) are not this request's.
+    // Late replies to earlier requests (set aside by the client's ReplyScanner: over Modbus/TCP by
+    // transaction id, over RTU and ASCII by what they answer) are not this request's.
     const std::size_t own = ex.own_received().size();
     const bool silent = own == 0;
     const Unit* u = route(r->unit);

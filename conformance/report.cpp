@@ -21,6 +21,11 @@ std::string hex(const std::vector<std::uint8_t>& bytes) {
     return out;
 }
 
+// What went out: a late reply's evidence sent nothing.
+std::string sent_hex(const std::vector<std::uint8_t>& bytes) {
+    return bytes.empty() ? "(nothing sent)" : hex(bytes);
+}
+
 std::string ms(std::chrono::nanoseconds d) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.3f", static_cast<double>(d.count()) / 1e6);
@@ -105,7 +110,7 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
             if (!r.expected.empty())
                 out << "      expected: " << r.expected << "\n      observed: " << r.observed << '\n';
             for (const auto& e : r.evidence)
-                out << "      > " << hex(e.sent) << "   (" << e.note << ")\n      < "
+                out << "      > " << sent_hex(e.sent) << "   (" << e.note << ")\n      < "
                     << (e.received.empty() ? std::string("(nothing") + (e.timed_out ? ", timed out)" : ")")
                                            : hex(e.received))
                     << "   " << ms(e.elapsed) << " ms\n";
@@ -127,6 +132,10 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
         << report.failures_of(Authority::Implied) << " warnings (rules the manual only implies), "
         << report.count(Outcome::Skip) << " skipped, " << report.count(Outcome::Error) << " errors; "
         << report.requests << " requests in " << ms(report.wall) << " ms\n";
+    if (report.late_replies)
+        out << report.late_replies << " replies came after the " << report.timeout_ms
+            << " ms timeout (\"late\" in the evidence): the rules saw no reply; a longer --timeout may suit "
+               "the device\n";
     out << report.restored.size() << " points written and restored";
     if (not_restored) {
         out << ", " << not_restored << " NOT restored:";
@@ -188,6 +197,7 @@ nlohmann::json to_json(const Report& report) {
             {"started", report.started},
             {"wall_ms", static_cast<double>(report.wall.count()) / 1e6},
             {"requests", report.requests},
+            {"late_replies", report.late_replies},
             {"stopped", report.stopped},
             {"summary",
              {{"rules", report.results.size()},
@@ -232,7 +242,7 @@ void write_junit(std::ostream& out, const Report& report) {
                                std::string(to_string(r->rule.authority)) + ")\nexpected: " + r->expected +
                                "\nobserved: " + r->observed + "\n";
             for (const auto& e : r->evidence)
-                body += "> " + hex(e.sent) + "  (" + e.note + ")\n< " +
+                body += "> " + sent_hex(e.sent) + "  (" + e.note + ")\n< " +
                         (e.received.empty() ? "(nothing)" : hex(e.received)) + "\n";
             const std::string shown = shown_outcome(*r);
             if (shown == "fail")
@@ -332,7 +342,7 @@ void write_html(std::ostream& out, const Report& report) {
                 << esc(r.observed.empty() ? std::to_string(r.evidence.size()) + " exchanges" : r.observed)
                 << "</summary><pre>expected: " << esc(r.expected) << "\n";
             for (const auto& e : r.evidence)
-                out << "&gt; " << hex(e.sent) << "  (" << esc(e.note) << ")\n&lt; "
+                out << "&gt; " << sent_hex(e.sent) << "  (" << esc(e.note) << ")\n&lt; "
                     << (e.received.empty() ? "(nothing)" : hex(e.received)) << "  " << ms(e.elapsed)
                     << " ms\n";
             out << "</pre></details>";

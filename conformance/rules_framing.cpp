@@ -81,7 +81,7 @@ void check_framing(Context& c) {
              "A request with a silence above t1.5 inside it gets no reply.", Authority::Specification, false},
             [&](RuleResult& r) {
                 const std::size_t half = good.size() / 2;
-                (void)c.session.client().write(std::span<const std::uint8_t>(good.data(), half));
+                (void)c.session.send_part(std::span<const std::uint8_t>(good.data(), half));
                 std::this_thread::sleep_for(line.t1_5() * 2);
                 const auto ex =
                     c.session.raw(std::span<const std::uint8_t>(good.data() + half, good.size() - half),

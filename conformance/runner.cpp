@@ -154,6 +154,7 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     report.results = std::move(c.results);
     report.response_times = session.response_times();
     report.requests = session.requests();
+    report.late_replies = session.late_replies();
     report.wall = std::chrono::steady_clock::now() - started;
     return report;
 }

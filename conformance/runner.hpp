@@ -36,7 +36,8 @@ struct Report {
     std::string started;  // UTC, ISO 8601
     std::chrono::nanoseconds wall{0};
     std::uint64_t requests = 0;
-    bool stopped = false;  // interrupted before the end
+    std::uint64_t late_replies = 0;  // came after their request was given up (raise --timeout)
+    bool stopped = false;            // interrupted before the end
     std::vector<RuleResult> results;
     std::vector<Touched> restored;
     std::vector<std::chrono::nanoseconds> response_times;

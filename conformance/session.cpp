@@ -5,6 +5,7 @@
 #include <thread>
 #include <utility>
 
+#include "modbus/adu.hpp"
 #include "modbus/pdu.hpp"
 
 namespace mbscope::conformance {
@@ -32,31 +33,98 @@ void Session::pace() {
 }
 
 void Session::log(const tp::Exchange& ex, const std::string& note) {
+    late_replies_ += ex.stale_replies.size();
     evidence_.push_back({note, ex.sent, ex.received, ex.elapsed, ex.timed_out});
     if (!ex.timed_out) times_.push_back(ex.elapsed);
     unanswered_in_a_row_ = ex.received.empty() ? unanswered_in_a_row_ + 1 : 0;
+}
+
+void Session::log_late(std::vector<std::uint8_t> bytes) {
+    if (bytes.empty()) return;
+    // Each owed request a frame among them answers is settled; the others may still be answered.
+    const auto frames = tp::frames_in(client_.framing(), bytes);
+    for (const auto& frame : frames)
+        owed_.settle(frame);
+    late_replies_ += std::max<std::size_t>(frames.size(), 1);
+    evidence_.push_back({"late: arrived after the last exchange ended, before this request",
+                         {},
+                         std::move(bytes),
+                         {},
+                         false});
+    quiet_waits_ = 0;
+}
+
+void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) {
+    if (client_.framing() == modbus::Framing::Tcp) return;
+    log_late(client_.drain(std::chrono::milliseconds(0)));
+    if (owed_.empty() || pdu.empty() || quiet_waits_ >= quiet_waits_kept) return;
+    const auto owed = owed_.list();
+    const bool same_shape = std::any_of(owed.begin(), owed.end(), [&](const tp::OwedRequest& o) {
+        return !o.pdu.empty() && o.pdu[0] == pdu[0] && (o.unit == unit || o.unit == 0 || unit == 0);
+    });
+    if (!same_shape) return;  // a late reply to an owed request is told from this one's by its content
+    // Another timeout after the owed request was given up: what has not come by then is taken as never.
+    const auto until = owed_given_up_ + options_.timeout;
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= until) return;
+    auto late = client_.drain(std::chrono::ceil<std::chrono::milliseconds>(until - now));
+    if (late.empty()) ++quiet_waits_;
+    log_late(std::move(late));
+}
+
+void Session::account(const tp::Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu) {
+    if (client_.framing() == modbus::Framing::Tcp) return;
+    if (!ex.stale_replies.empty()) quiet_waits_ = 0;
+    if (owed_.after(ex, unit, pdu)) owed_given_up_ = std::chrono::steady_clock::now();
 }
 
 tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::string& note,
                               std::optional<std::uint8_t> unit,
                               std::optional<std::chrono::milliseconds> timeout) {
     pace();
-    auto ex = client_.transact(unit.value_or(options_.unit), pdu, timeout.value_or(options_.timeout));
+    const std::uint8_t to = unit.value_or(options_.unit);
+    settle_late(to, pdu);
+    auto ex = client_.transact(to, pdu, timeout.value_or(options_.timeout), owed_.list());
     if (ex.closed) {
         // The device closed the connection (allowed after some malformed requests): the next rule gets a
         // fresh one.
         (void)client_.reconnect();
     }
     log(ex, note);
+    account(ex, to, pdu);
     return ex;
+}
+
+modbus::Result<void, std::string> Session::send_part(std::span<const std::uint8_t> bytes) {
+    pace();  // the request starts here: no pacing between its parts
+    settle_late(0, {});
+    part_sent_ = true;
+    return client_.write(bytes);
 }
 
 tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string& note, std::size_t frames,
                           std::optional<std::chrono::milliseconds> timeout) {
+    if (std::exchange(part_sent_, false)) {
+        // The rest of a request send_part() began: what arrives now is its reply, whoever it answers.
+        auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames);
+        if (ex.closed) (void)client_.reconnect();
+        log(ex, note);
+        account(ex, 0, {});
+        return ex;
+    }
     pace();
-    auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames);
+    // Bytes that decode as one request (whatever their checksum: a device that skips the check answers
+    // them) are owed a reply like any other; others are no request anyone could answer.
+    std::optional<modbus::Frame> request;
+    if (client_.framing() != modbus::Framing::Tcp && frames == 1)
+        if (auto f = modbus::decode_adu(client_.framing(), bytes)) request = std::move(f).value();
+    const std::uint8_t unit = request ? request->unit_id() : 0;
+    const auto pdu = request ? request->pdu() : std::span<const std::uint8_t>{};
+    settle_late(unit, pdu);
+    auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames, {}, owed_.list());
     if (ex.closed) (void)client_.reconnect();
     log(ex, note);
+    account(ex, unit, pdu);
     return ex;
 }
 

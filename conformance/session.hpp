@@ -14,6 +14,7 @@
 
 #include "conformance/rule.hpp"
 #include "modbus/profile.hpp"
+#include "modbus/result.hpp"
 #include "modbus/transport/client.hpp"
 
 namespace mbscope::conformance {
@@ -42,6 +43,9 @@ class Session {
     modbus::transport::Exchange request(std::span<const std::uint8_t> pdu, const std::string& note,
                                         std::optional<std::uint8_t> unit = std::nullopt,
                                         std::optional<std::chrono::milliseconds> timeout = std::nullopt);
+    // The first part of a request whose rest goes with raw() (a request with a pause inside it): late
+    // bytes are looked for before it, not between it and the rest, where a reply is the request's.
+    modbus::Result<void, std::string> send_part(std::span<const std::uint8_t> bytes);
     // Bytes as given (framing and MBAP rules); `frames` replies awaited.
     modbus::transport::Exchange raw(std::span<const std::uint8_t> bytes, const std::string& note,
                                     std::size_t frames = 1,
@@ -70,6 +74,9 @@ class Session {
     modbus::transport::Client& client() noexcept { return client_; }
     std::vector<std::chrono::nanoseconds>& response_times() noexcept { return times_; }
     std::uint64_t requests() const noexcept { return requests_; }
+    // Replies (or bytes) that came after their request was given up: set aside during a later request, or
+    // found waiting before one.
+    std::uint64_t late_replies() const noexcept { return late_replies_; }
 
   private:
     using Ledger = std::map<std::pair<modbus::Table, std::uint16_t>, Touched>;
@@ -86,6 +93,13 @@ class Session {
         const Touched& t) const;                      // t's 32-bit point when both its registers are kept
     bool restore_pair_first(const Touched& t) const;  // t is the first register of such a point
     void log(const modbus::transport::Exchange& ex, const std::string& note);
+    // RTU and ASCII, before a request to `unit` of `pdu` (empty: bytes that are no request) goes out: what
+    // has arrived since the last exchange is a late reply, logged as such; when the request could draw the
+    // same reply as an owed one, the owed reply is waited for (content could not tell them apart).
+    void settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu);
+    void log_late(std::vector<std::uint8_t> bytes);
+    // After an exchange: a request that got nothing back joins the owed ones (OwedRequests).
+    void account(const modbus::transport::Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu);
 
     modbus::transport::Client& client_;
     SessionOptions options_;
@@ -95,7 +109,16 @@ class Session {
     std::chrono::steady_clock::time_point last_{};
     std::vector<std::chrono::nanoseconds> times_;
     std::uint64_t requests_ = 0;
+    std::uint64_t late_replies_ = 0;
+    bool part_sent_ = false;                 // send_part() began a request that raw() completes
     std::uint32_t unanswered_in_a_row_ = 0;  // requests that got not a byte back, since the last that did
+    // RTU and ASCII: the last requests given up without a reply, and when the newest was.
+    modbus::transport::OwedRequests owed_;
+    std::chrono::steady_clock::time_point owed_given_up_{};
+    // Waits for an owed reply that came to nothing, since one came: a device that is silent, not slow (as
+    // the rules that expect silence make it), stops costing a timeout twice after this many.
+    std::uint32_t quiet_waits_ = 0;
+    static constexpr std::uint32_t quiet_waits_kept = 3;
     // Restoring stops writing to a device that answered none of this many requests in a row (a device
     // that crashed mid-run would otherwise hold the run for the timeout twice per point: over an hour for
     // the generic profile's 2,000 coils at 1 s); the points left are listed as not restored, with why.

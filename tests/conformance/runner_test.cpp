@@ -184,6 +184,68 @@ INSTANTIATE_TEST_SUITE_P(Slave, PlantedFault, ::testing::ValuesIn(fault_cases())
     return n;
 });
 
+// ---- late replies over RTU and ASCII, which carry no transaction id
+
+// A device slower than the runner's timeout over RTU: every reply comes 400 ms after its request, the runner
+// waits 200 ms. Each late reply arrives while a later request waits and must not be taken for that
+// request's: no rule may observe another function's reply (before, FC4 "was answered" by FC3's reply, FC8
+// by FC4's). The report counts the late replies.
+TEST(LateReplies, ASlowSerialDeviceIsNeverJudgedByAnotherRequestsReply) {
+    for (const std::string scheme : {"rtu-tcp", "ascii-tcp"}) {
+        RunningServer server({"slow-reply=400"}, 1, "cth2265i");
+        auto options = options_for(std::chrono::milliseconds(200));
+        options.run.rule_globs = {"fc.supported.*"};
+        const auto run = certify(server, scheme, "cth2265i", options);
+        const Report& r = run.report;
+        std::size_t failed = 0;
+        for (const auto& x : r.results) {
+            if (x.outcome != Outcome::Fail) continue;
+            ++failed;
+            EXPECT_TRUE(x.observed.starts_with("no reply"))
+                << scheme << ' ' << x.rule.id << ": " << x.observed;
+        }
+        EXPECT_GE(failed, 3u) << scheme;  // FC3, FC4, FC8 at least: none answered in time
+        EXPECT_GE(r.late_replies, 2u) << scheme;
+        std::ostringstream text;
+        write_text(text, r, false);
+        EXPECT_NE(text.str().find("came after the 200 ms timeout"), std::string::npos) << text.str();
+        EXPECT_EQ(to_json(r)["late_replies"], r.late_replies);
+    }
+}
+
+// Two reads of the same shape (FC3, one register, other addresses), the first given up before its reply
+// came: content cannot tell the replies apart, so the second waits the first one's reply out (logged as
+// late) before it goes, and gets its own value.
+TEST(LateReplies, ARequestOfTheSameShapeWaitsOutTheOwedReply) {
+    RunningServer server({"slow-reply=400"}, 1, "modbus");
+    const std::uint16_t port = server.start("rtu-tcp");
+    server.device().image().set_reg(modbus::Table::HoldingRegisters, 10, 0x1111);
+    server.device().image().set_reg(modbus::Table::HoldingRegisters, 20, 0x2222);
+    auto client = tp::Client::open(*tp::parse_endpoint("rtu-tcp://127.0.0.1:" + std::to_string(port)));
+    ASSERT_TRUE(client.has_value());
+    SessionOptions options;
+    options.timeout = std::chrono::milliseconds(500);
+    Session session(*client, options, &slave::test::profile("modbus"));
+    const auto read = [](std::uint16_t address) {
+        return modbus::encode_pdu(
+            modbus::make_read_request(modbus::FunctionCode::ReadHoldingRegisters, address, 1));
+    };
+    const auto first = session.request(read(10), "first", std::nullopt, std::chrono::milliseconds(100));
+    EXPECT_TRUE(first.timed_out);
+    const auto second = session.request(read(20), "second", std::nullopt, std::chrono::milliseconds(2000));
+    ASSERT_TRUE(second.response.has_value());
+    EXPECT_TRUE(second.stale_replies.empty());
+    const auto pdu = second.response->pdu();
+    ASSERT_EQ(pdu.size(), 4u);
+    EXPECT_EQ((pdu[2] << 8) | pdu[3], 0x2222);
+    EXPECT_EQ(session.late_replies(), 1u);
+    const auto evidence = session.take_evidence();
+    ASSERT_EQ(evidence.size(), 3u);
+    EXPECT_TRUE(evidence[1].note.starts_with("late")) << evidence[1].note;
+    EXPECT_TRUE(evidence[1].sent.empty());
+    EXPECT_EQ(evidence[1].received, modbus::encode_rtu(1, std::vector<std::uint8_t>{0x03, 0x02, 0x11, 0x11}));
+}
+
 // ---- the reports
 
 // ---- restoring
