@@ -1,13 +1,17 @@
 // What any slave sends back, as `mbscope check` and `mbscope fuzz` meet it: the client's reply framing
-// (modbus/transport/exchange.hpp: where a response ends, which Modbus/TCP frames are late replies set aside)
+// (modbus/transport/exchange.hpp: where a response ends, which frames are late replies set aside)
 // and the exchange oracle's judgement (conformance/oracle.hpp) on bytes nobody here wrote. The input is a
 // bundled profile, a framing, then exchanges: a request (framed correctly or raw, as the slave target's),
 // and its reply in up to four pieces, each raw or framed around the input's bytes (over Modbus/TCP with the
-// request's transaction id or one up to three behind it, a late reply), each followed or not by a silence.
-// Properties: no crash and no exception escapes; the frames set aside are Modbus/TCP replies to one of the
-// 256 requests before, and they are the first bytes received, one after another; the response lies within
-// what came for the request; every violation names its rule ("silence.", "reply." or "state.") and its
-// source; judging is deterministic (a copy of the oracle judges the same exchange the same way).
+// request's transaction id or one up to three behind, a late reply), each followed or not by a silence.
+// Over RTU and ASCII the requests that got nothing back are owed, as the conformance session keeps them
+// (the last four, cleared by any reply), so a framed piece can be a late reply to one of them.
+// Properties: no crash and no exception escapes; the frames set aside are the first bytes received, one
+// after another, and over Modbus/TCP replies to one of the 256 requests before, over RTU and ASCII frames
+// with a good checksum that could answer an owed request and could not answer the request's own; the
+// response lies within what came for the request; every violation names its rule ("silence.", "reply." or
+// "state.") and its source; judging is deterministic (a copy of the oracle judges the same exchange the
+// same way).
 #include <fuzzer/FuzzedDataProvider.h>
 
 #include <algorithm>
@@ -37,21 +41,44 @@ std::string exchange_text(const modbus::transport::Exchange& ex) {
     return "\n  request " + modbus::hex_bytes(ex.sent) + "\n  received " + modbus::hex_bytes(ex.received);
 }
 
-void check_scanned(const modbus::transport::Exchange& ex) {
+// Why a serial frame set aside should not have been, "" when it may be.
+std::string serial_stale_fault(const modbus::transport::Exchange& ex, const modbus::Frame& stale,
+                               std::span<const modbus::transport::OwedRequest> owed) {
+    using modbus::transport::could_answer;
+    if (!stale.checksum_ok) return "a frame with a bad checksum set aside";
+    if (std::none_of(owed.begin(), owed.end(),
+                     [&](const auto& o) { return could_answer(o.unit, o.pdu, stale); }))
+        return "a frame set aside that answers no owed request";
+    const auto own = modbus::decode_adu(stale.framing, ex.sent);
+    if (own && could_answer(own->unit_id(), own->pdu(), stale))
+        return "a frame set aside that could answer the request";
+    return "";
+}
+
+void check_scanned(Framing framing, const modbus::transport::Exchange& ex,
+                   std::span<const modbus::transport::OwedRequest> owed) {
     std::size_t offset = 0;
     for (const auto& stale : ex.stale_replies) {
-        if (stale.framing != Framing::Tcp || ex.sent.size() < 7)
-            fuzz::fail(target, "a frame set aside outside Modbus/TCP" + exchange_text(ex));
-        const auto sent_tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
-        const auto behind = static_cast<std::uint16_t>(sent_tid - stale.transaction_id());
-        if (behind < 1 || behind > 256)
-            fuzz::fail(target, "a frame set aside " + std::to_string(behind) + " requests behind" +
-                                   exchange_text(ex));
+        if (stale.framing != framing)
+            fuzz::fail(target, "a frame set aside of another framing" + exchange_text(ex));
+        if (framing == Framing::Tcp) {
+            if (ex.sent.size() < 7)
+                fuzz::fail(target, "a frame set aside after no request" + exchange_text(ex));
+            const auto sent_tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
+            const auto behind = static_cast<std::uint16_t>(sent_tid - stale.transaction_id());
+            if (behind < 1 || behind > 256)
+                fuzz::fail(target, "a frame set aside " + std::to_string(behind) + " requests behind" +
+                                       exchange_text(ex));
+        } else if (const auto fault = serial_stale_fault(ex, stale, owed); !fault.empty()) {
+            fuzz::fail(target, fault + exchange_text(ex));
+        }
         const std::span<const std::uint8_t> at(ex.received.data() + std::min(offset, ex.received.size()),
                                                ex.received.size() - std::min(offset, ex.received.size()));
         const auto again =
-            modbus::decode_adu(Framing::Tcp, at.first(std::min<std::size_t>(at.size(), stale.wire_length)));
-        if (!again || again->transaction_id() != stale.transaction_id())
+            modbus::decode_adu(framing, at.first(std::min<std::size_t>(at.size(), stale.wire_length)));
+        const auto same = again && again->length == stale.length &&
+                          std::equal(stale.adu().begin(), stale.adu().end(), again->adu().begin());
+        if (!same)
             fuzz::fail(target, "a frame set aside is not the received bytes at " + std::to_string(offset) +
                                    exchange_text(ex));
         offset += stale.wire_length;
@@ -81,6 +108,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     conformance::ExchangeOracle oracle(framing, {{unit, &profile}}, ip_network);
 
     std::uint16_t tid = 0;
+    modbus::transport::OwedRequests owed;  // RTU and ASCII, as conformance::Session keeps them
     while (in.remaining_bytes() > 0) {
         const auto shape = in.ConsumeIntegral<std::uint8_t>();
         auto body = in.ConsumeBytes<std::uint8_t>(in.ConsumeIntegralInRange<std::size_t>(0, 260));
@@ -93,7 +121,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
             ex.sent = std::move(body);
         }
 
-        modbus::transport::ReplyScanner scanner(framing, datagram, 1);
+        modbus::transport::ReplyScanner scanner(framing, datagram, 1, owed.list());
         const auto pieces = in.ConsumeIntegralInRange<int>(0, 4);
         for (int i = 0; i < pieces && !scanner.complete(); ++i) {
             const auto kind = in.ConsumeIntegral<std::uint8_t>();
@@ -111,7 +139,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (!scanner.complete() && framing == Framing::Rtu && !ex.received.empty())
             (void)scanner.scan(ex, true);
         ex.timed_out = scanner.found() == 0;
-        check_scanned(ex);
+        check_scanned(framing, ex, owed.list());
+        if (framing != Framing::Tcp) {
+            const auto request = modbus::decode_adu(framing, ex.sent);
+            (void)owed.after(ex, request ? request->unit_id() : 0,
+                             request ? request->pdu() : std::span<const std::uint8_t>{});
+        }
 
         const std::optional<bool> changed =
             (shape & 0x60) == 0 ? std::nullopt : std::optional<bool>((shape & 0x20) != 0);

@@ -349,6 +349,28 @@ def build(mbscope, out_dir):
                         p.integral(0, 300, len(pdus[response]))
                         p.data(pdus[response])
                 write("reply", p.bytes(), out_dir)
+        # Over RTU and ASCII: every other request left unanswered, its reply arriving late in front of the
+        # next request's own (set aside by what it answers: no transaction id).
+        for framing_index, framing in enumerate(framings):
+            if framing == "tcp":
+                continue
+            p = Provider()
+            p.integral(0, len(all_profiles) - 1, index)
+            p.integral(0, 2, framing_index)
+            for (request, response), (later, later_response) in zip(pairs[0::2], pairs[1::2]):
+                p.uint8(0x05)
+                p.integral(0, 260, len(pdus[request]))
+                p.data(pdus[request])
+                p.integral(0, 4, 0)  # nothing came: owed
+                p.uint8(0x05)
+                p.integral(0, 260, len(pdus[later]))
+                p.data(pdus[later])
+                p.integral(0, 4, 2)
+                for pdu in (pdus[response], pdus[later_response]):
+                    p.uint8(0x09)
+                    p.integral(0, 300, len(pdu))
+                    p.data(pdu)
+            write("reply", p.bytes(), out_dir)
 
     # check: the input is read from the front (profile, scheme, read-only, rule family, then one action per
     # request the scripted slave receives; fuzz/fuzz_check.cpp). Every family on every scheme against a slave
