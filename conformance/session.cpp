@@ -104,24 +104,22 @@ modbus::Result<void, std::string> Session::send_part(std::span<const std::uint8_
 
 tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string& note, std::size_t frames,
                           std::optional<std::chrono::milliseconds> timeout) {
-    if (std::exchange(part_sent_, false)) {
-        // The rest of a request send_part() began: what arrives now is its reply, whoever it answers.
-        auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames);
-        if (ex.closed) (void)client_.reconnect();
-        log(ex, note);
-        account(ex, 0, {});
-        return ex;
-    }
-    pace();
+    // The rest of a request send_part() began is paced and settled there, and what arrives now is its
+    // reply, whoever it answers: its last part alone does not say what it asks.
+    const bool rest = std::exchange(part_sent_, false);
     // Bytes that decode as one request (whatever their checksum: a device that skips the check answers
     // them) are owed a reply like any other; others are no request anyone could answer.
     std::optional<modbus::Frame> request;
-    if (client_.framing() != modbus::Framing::Tcp && frames == 1)
+    if (!rest && client_.framing() != modbus::Framing::Tcp && frames == 1)
         if (auto f = modbus::decode_adu(client_.framing(), bytes)) request = std::move(f).value();
     const std::uint8_t unit = request ? request->unit_id() : 0;
     const auto pdu = request ? request->pdu() : std::span<const std::uint8_t>{};
-    settle_late(unit, pdu);
-    auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames, {}, owed_.list());
+    if (!rest) {
+        pace();
+        settle_late(unit, pdu);
+    }
+    auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames, {},
+                          rest ? std::span<const tp::OwedRequest>{} : owed_.list());
     if (ex.closed) (void)client_.reconnect();
     log(ex, note);
     account(ex, unit, pdu);
