@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -304,29 +305,26 @@ TEST(Restore, WhatABlockDidNotBringBackIsTriedOneByOne) {
     }
 }
 
-// A Modbus/TCP device with one 32-bit holding value at 148-149 (a Walchem set-point's place) that refuses
-// either half written alone with FC6 (Walchem's manual wants 32-bit values written whole, 002:452-459,
-// 499) and, once, reads back the second half of a block wrong: the device that leaves the one-by-one
-// restore a lone half to bring back.
-class PairOnlyDevice {
+// A Modbus/TCP device on loopback that answers each request's PDU as `answer` says (nullopt: silence), one
+// connection, until the client closes it.
+class ScriptedDevice {
   public:
-    PairOnlyDevice() {
+    using Answer = std::function<std::optional<std::vector<std::uint8_t>>(const std::vector<std::uint8_t>&)>;
+    explicit ScriptedDevice(Answer answer) : answer_(std::move(answer)) {
         auto listener = tp::listen_tcp("127.0.0.1", 0);
         EXPECT_TRUE(listener.has_value());
         if (listener) listener_ = std::move(listener).value();
         thread_ = std::thread([this] { serve(); });
     }
-    ~PairOnlyDevice() { finish(); }
+    ~ScriptedDevice() { finish(); }
     // Waits for the device's end: the client closed its connection (or never came within 5 s).
     void finish() {
         if (thread_.joinable()) thread_.join();
     }
-    PairOnlyDevice(const PairOnlyDevice&) = delete;
-    PairOnlyDevice& operator=(const PairOnlyDevice&) = delete;
+    ScriptedDevice(const ScriptedDevice&) = delete;
+    ScriptedDevice& operator=(const ScriptedDevice&) = delete;
 
     std::uint16_t port() const { return tp::bound_port(listener_.get()); }
-    std::uint16_t reg(std::uint16_t a) const { return regs_[a - 148]; }
-    int lone_writes() const { return lone_writes_; }
 
   private:
     void serve() {
@@ -339,15 +337,32 @@ class PairOnlyDevice {
             std::vector<std::uint8_t> pdu(length > 1 ? length - 1 : 0);
             if (!pdu.empty() && ::recv(fd.get(), pdu.data(), pdu.size(), MSG_WAITALL) != ssize_t(pdu.size()))
                 return;
-            std::vector<std::uint8_t> reply = answer(pdu);
+            const auto reply = answer_(pdu);
+            if (!reply) continue;
             std::vector<std::uint8_t> adu(header, header + 7);
-            adu[4] = static_cast<std::uint8_t>((reply.size() + 1) >> 8);
-            adu[5] = static_cast<std::uint8_t>(reply.size() + 1);
-            adu.insert(adu.end(), reply.begin(), reply.end());
+            adu[4] = static_cast<std::uint8_t>((reply->size() + 1) >> 8);
+            adu[5] = static_cast<std::uint8_t>(reply->size() + 1);
+            adu.insert(adu.end(), reply->begin(), reply->end());
             (void)::send(fd.get(), adu.data(), adu.size(), MSG_NOSIGNAL);
         }
     }
 
+    Answer answer_;
+    tp::UniqueFd listener_;
+    std::thread thread_;
+};
+
+// One 32-bit holding value at 148-149 (a Walchem set-point's place): either half written alone with FC6 is
+// refused (Walchem's manual wants 32-bit values written whole, 002:452-459, 499) and, once, the second half
+// of a block reads back wrong: the device that leaves the one-by-one restore a lone half to bring back.
+class PairOnlyDevice {
+  public:
+    std::uint16_t port() const { return device_.port(); }
+    void finish() { device_.finish(); }
+    std::uint16_t reg(std::uint16_t a) const { return regs_[a - 148]; }
+    int lone_writes() const { return lone_writes_; }
+
+  private:
     std::vector<std::uint8_t> answer(const std::vector<std::uint8_t>& pdu) {
         if (pdu.size() < 5) return {static_cast<std::uint8_t>((pdu.empty() ? 0 : pdu[0]) | 0x80), 0x03};
         const std::uint8_t fc = pdu[0];
@@ -372,11 +387,10 @@ class PairOnlyDevice {
         return {static_cast<std::uint8_t>(fc | 0x80), fc == 6 ? std::uint8_t{0x04} : std::uint8_t{0x02}};
     }
 
-    tp::UniqueFd listener_;
-    std::thread thread_;
     std::uint16_t regs_[2] = {0x0000, 0x3F80};  // 1.0f, low word first
     int block_reads_ = 0;
     int lone_writes_ = 0;
+    ScriptedDevice device_{[this](const std::vector<std::uint8_t>& pdu) { return answer(pdu); }};  // last
 };
 
 // What a block did not bring back of a 32-bit value goes back with its other half in one FC16, in the
