@@ -218,6 +218,19 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
     if (limit < 2) return;
 
     std::vector<Touched*> run;  // consecutive addresses, each one the map lets be written
+    // After a block write the device answered, a read-back that got nothing usable is read once more before
+    // the block is given up: one by one its points cost two requests each (minutes on a serial line for a
+    // long block), and a read lost once on a busy line or answered late (the second read waits a late reply
+    // out, see settle_late) is common. After a write nothing came back for, the device may be gone: the
+    // one-by-one path finds out, and stops.
+    const auto read_back = [&](auto read, bool write_answered, std::uint16_t start, std::size_t n,
+                               const std::string& span) {
+        const auto count = static_cast<std::uint16_t>(n);
+        auto now = read(table, start, count, "verify the restored values, " + span);
+        if (!now && write_answered)
+            now = read(table, start, count, "verify the restored values again, " + span);
+        return now;
+    };
     const auto write_back = [&] {
         for (std::size_t i = 0; i < run.size();) {
             std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(limit), run.size() - i);
@@ -237,20 +250,22 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
                 std::unique_ptr<bool[]> bits(new bool[n]);
                 for (std::size_t k = 0; k < n; ++k)
                     bits[k] = run[i + k]->original != 0;
-                (void)request(modbus::encode_pdu(modbus::make_write_multiple_coils(start, {bits.get(), n})),
-                              "restore the original values, " + span);
-                if (const auto now = read_bits(table, start, static_cast<std::uint16_t>(n),
-                                               "verify the restored values, " + span))
+                const auto written =
+                    request(modbus::encode_pdu(modbus::make_write_multiple_coils(start, {bits.get(), n})),
+                            "restore the original values, " + span);
+                if (const auto now = read_back([&](auto... a) { return read_bits(a...); },
+                                               !written.own_received().empty(), start, n, span))
                     for (std::size_t k = 0; k < n; ++k)
                         run[i + k]->restored = ((*now)[k] ? 1 : 0) == run[i + k]->original;
             } else {
                 std::vector<std::uint16_t> words;
                 for (std::size_t k = 0; k < n; ++k)
                     words.push_back(run[i + k]->original);
-                (void)request(modbus::encode_pdu(modbus::make_write_multiple_registers(start, words)),
-                              "restore the original values, " + span);
-                if (const auto now = read_registers(table, start, static_cast<std::uint16_t>(n),
-                                                    "verify the restored values, " + span))
+                const auto written =
+                    request(modbus::encode_pdu(modbus::make_write_multiple_registers(start, words)),
+                            "restore the original values, " + span);
+                if (const auto now = read_back([&](auto... a) { return read_registers(a...); },
+                                               !written.own_received().empty(), start, n, span))
                     for (std::size_t k = 0; k < n; ++k)
                         run[i + k]->restored = (*now)[k] == run[i + k]->original;
             }

@@ -393,6 +393,58 @@ class PairOnlyDevice {
     ScriptedDevice device_{[this](const std::vector<std::uint8_t>& pdu) { return answer(pdu); }};  // last
 };
 
+// A block's read-back that gets no answer is read once more before the block is given up to the one-by-one
+// path (two requests a point).
+TEST(Restore, AReadBackWithoutAnswerIsReadAgain) {
+    std::uint16_t regs[3] = {1, 2, 3};
+    int block_reads = 0;
+    int single_writes = 0;
+    ScriptedDevice device(
+        [&](const std::vector<std::uint8_t>& pdu) -> std::optional<std::vector<std::uint8_t>> {
+            const std::uint8_t fc = pdu.empty() ? 0 : pdu[0];
+            const unsigned start = pdu.size() >= 5 ? (pdu[1] << 8) | pdu[2] : 0;
+            const unsigned n = pdu.size() >= 5 ? (pdu[3] << 8) | pdu[4] : 0;
+            if (fc == 3 && n >= 1 && start >= 10 && start + n <= 13) {
+                if (n == 3 && ++block_reads == 2) return std::nullopt;  // the restore's read-back, once
+                std::vector<std::uint8_t> r{3, static_cast<std::uint8_t>(2 * n)};
+                for (unsigned a = start; a < start + n; ++a) {
+                    r.push_back(static_cast<std::uint8_t>(regs[a - 10] >> 8));
+                    r.push_back(static_cast<std::uint8_t>(regs[a - 10]));
+                }
+                return r;
+            }
+            if (fc == 16 && start == 10 && n == 3 && pdu.size() >= 12) {
+                for (unsigned k = 0; k < 3; ++k)
+                    regs[k] = static_cast<std::uint16_t>((pdu[6 + 2 * k] << 8) | pdu[7 + 2 * k]);
+                return std::vector<std::uint8_t>(pdu.begin(), pdu.begin() + 5);
+            }
+            if (fc == 6) ++single_writes;
+            return std::vector<std::uint8_t>{static_cast<std::uint8_t>(fc | 0x80), 0x02};
+        });
+    {
+        auto client =
+            tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(device.port())));
+        ASSERT_TRUE(client.has_value());
+        Session session(*client, options_for().session, &slave::test::profile("modbus"));
+        ASSERT_TRUE(session.remember(modbus::Table::HoldingRegisters, 10, 3, 3));
+        const std::uint16_t other[3] = {7, 8, 9};
+        ASSERT_TRUE(is_normal(
+            session.request(modbus::encode_pdu(modbus::make_write_multiple_registers(10, other)), "write"),
+            16));
+        const auto before = session.requests();
+        const auto ledger = session.restore();
+        // The block's write, its read-back unanswered, the read again.
+        EXPECT_EQ(session.requests() - before, 3u);
+        ASSERT_EQ(ledger.size(), 3u);
+        for (const auto& t : ledger)
+            EXPECT_TRUE(t.restored) << t.address << ": " << t.problem;
+    }  // the connection closes, the device ends
+    device.finish();
+    EXPECT_EQ(single_writes, 0);
+    EXPECT_EQ(regs[0], 1);
+    EXPECT_EQ(regs[2], 3);
+}
+
 // What a block did not bring back of a 32-bit value goes back with its other half in one FC16, in the
 // one-by-one path and in the passes that retry refused points: never a lone half.
 TEST(Restore, A32BitValueGoesBackWhole) {
