@@ -111,6 +111,8 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
     const auto spin_until = start + std::chrono::microseconds(50);
     ReplyScanner frames_in(framing(), datagram, frames, owed);
     std::uint8_t buf[2048];
+    std::chrono::nanoseconds read_at{0};  // when the last read came, and where its bytes begin
+    std::size_t read_from = 0;
     for (;;) {
         const auto now = Clock::now();
         if (now >= deadline) break;
@@ -140,10 +142,17 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
                 continue;
             }
             if (n < 0) continue;
-            if (ex.received.empty()) ex.first_byte = Clock::now() - start;
+            read_at = Clock::now() - start;
+            read_from = ex.received.size();
+            if (read_from == 0) ex.first_byte = read_at;
             ex.received.insert(ex.received.end(), buf, buf + n);
         }
         if (frames_in.scan(ex, silence) > 0) ex.elapsed = Clock::now() - start;
+        // first_byte is when this request's own reply began: late replies set aside come before it (a slow
+        // device's reply to the request given up would otherwise make its second reply look prompt).
+        if (!silence && ex.received.size() - ex.own_received().size() >= read_from &&
+            !ex.own_received().empty())
+            ex.first_byte = read_at;
         if (frames_in.complete()) return ex;
     }
     ex.timed_out = frames_in.found() == 0;

@@ -40,7 +40,8 @@ class Client {
     // up to `timeout` (to the microsecond: the network fuzzer waits less than a millisecond where a fast
     // target must stay silent); stops early after `frames` complete frames (0: wait the whole time).
     // `request`: the whole request when `bytes` is only its last piece (the rest went out with write()); its
-    // transaction id tells this request's reply from late ones, and it is the exchange's `sent`.
+    // transaction id tells this request's reply from late ones, and it is the exchange's `sent`. Empty
+    // `bytes` write nothing: the exchange listens for the reply to `request`, sent earlier.
     Exchange raw(std::span<const std::uint8_t> bytes, std::chrono::microseconds timeout,
                  std::size_t frames = 1, std::span<const std::uint8_t> request = {},
                  std::span<const OwedRequest> owed = {});

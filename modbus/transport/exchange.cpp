@@ -101,34 +101,73 @@ bool could_answer(std::uint8_t unit, std::span<const std::uint8_t> request, cons
     }
 }
 
-bool OwedRequests::after(const Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu) {
-    for (const auto& stale : ex.stale_replies)
-        settle(stale);
+bool OwedRequests::after(const Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu,
+                         std::vector<SettledRequest>* settled, bool reply_due) {
+    for (const auto& stale : ex.stale_replies) {
+        auto request = settle(stale);
+        if (request && settled) settled->push_back({std::move(*request), stale});
+    }
     // Anything that came for this request, whole or not, means the device got to it.
     if (!ex.own_received().empty()) {
         owed_.clear();
         return false;
     }
     if (ex.closed || pdu.empty()) return false;
-    if (owed_.size() == kept) owed_.erase(owed_.begin());
-    owed_.push_back({unit, std::vector<std::uint8_t>(pdu.begin(), pdu.end())});
+    if (owed_.size() == kept) {
+        // The oldest request no reply was due to goes first: a target slower than the wait sees several
+        // probes it must not answer (waited for briefly) within one due reply's delay.
+        const auto silent =
+            std::find_if(owed_.begin(), owed_.end(), [](const OwedRequest& o) { return !o.reply_due; });
+        owed_.erase(silent != owed_.end() ? silent : owed_.begin());
+    }
+    owed_.push_back({unit, std::vector<std::uint8_t>(pdu.begin(), pdu.end()), ex.sent, reply_due,
+                     std::chrono::steady_clock::now()});
     return true;
 }
 
-void OwedRequests::settle(const Frame& late) {
-    const auto answered = std::find_if(
-        owed_.begin(), owed_.end(), [&](const OwedRequest& o) { return could_answer(o.unit, o.pdu, late); });
-    if (answered != owed_.end()) owed_.erase(answered);
+std::optional<OwedRequest> OwedRequests::settle(const Frame& late) {
+    auto answered = std::find_if(owed_.begin(), owed_.end(), [&](const OwedRequest& o) {
+        return o.reply_due && could_answer(o.unit, o.pdu, late);
+    });
+    if (answered == owed_.end())
+        answered = std::find_if(owed_.begin(), owed_.end(),
+                                [&](const OwedRequest& o) { return could_answer(o.unit, o.pdu, late); });
+    if (answered == owed_.end()) return std::nullopt;
+    OwedRequest request = std::move(*answered);
+    owed_.erase(answered);
+    return request;
+}
+
+std::vector<std::uint8_t> OwedRequests::settle_frames(Framing framing, std::span<const std::uint8_t> bytes,
+                                                      std::vector<SettledRequest>& settled) {
+    std::vector<std::uint8_t> rest;
+    std::size_t kept_from = 0;  // bytes before a settling frame and after the last one are the rest
+    for (const auto& frame : frames_in(framing, bytes)) {
+        if (!frame.checksum_ok) continue;
+        auto request = settle(frame);
+        if (!request) continue;
+        rest.insert(rest.end(), bytes.begin() + static_cast<std::ptrdiff_t>(kept_from),
+                    bytes.begin() + static_cast<std::ptrdiff_t>(frame.offset));
+        kept_from = frame.offset + frame.wire_length;
+        settled.push_back({std::move(*request), frame});
+    }
+    rest.insert(rest.end(), bytes.begin() + static_cast<std::ptrdiff_t>(kept_from), bytes.end());
+    return rest;
 }
 
 std::vector<Frame> frames_in(Framing framing, std::span<const std::uint8_t> bytes) {
     std::vector<Frame> out;
+    std::size_t at = 0;
     while (!bytes.empty()) {
         // The bytes are all there is: the line is silent after them.
         const Span s = find_frame(framing, bytes, true, false);
         if (s.end == 0) break;
-        if (auto f = decode(framing, bytes.subspan(s.begin, s.end - s.begin))) out.push_back(std::move(*f));
+        if (auto f = decode(framing, bytes.subspan(s.begin, s.end - s.begin))) {
+            f->offset = at + s.begin;
+            out.push_back(std::move(*f));
+        }
         bytes = bytes.subspan(s.end);
+        at += s.end;
     }
     return out;
 }

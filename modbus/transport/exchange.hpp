@@ -19,13 +19,15 @@
 namespace mbscope::modbus::transport {
 
 struct Exchange {
-    std::vector<std::uint8_t> sent;          // the bytes written, as on the wire
-    std::vector<std::uint8_t> received;      // every byte read before the exchange ended
-    std::optional<Frame> response;           // the first frame found in `received`
-    std::chrono::nanoseconds elapsed{0};     // from the last byte written to the end of the response
-    std::chrono::nanoseconds first_byte{0};  // from the last byte written to the first byte read
-    bool timed_out = false;                  // nothing complete arrived in time
-    bool closed = false;                     // the peer closed the connection
+    std::vector<std::uint8_t> sent;       // the bytes written, as on the wire
+    std::vector<std::uint8_t> received;   // every byte read before the exchange ended
+    std::optional<Frame> response;        // the first frame found in `received`
+    std::chrono::nanoseconds elapsed{0};  // from the last byte written to the end of the response
+    // From the last byte written to the first byte of the reply to this request (the first byte read when
+    // only late replies to earlier requests came).
+    std::chrono::nanoseconds first_byte{0};
+    bool timed_out = false;  // nothing complete arrived in time
+    bool closed = false;     // the peer closed the connection
     // Late replies to earlier requests, read and set aside: over Modbus/TCP by transaction id, over RTU and
     // ASCII by what they answer (see OwedRequest).
     std::vector<Frame> stale_replies;
@@ -41,6 +43,17 @@ struct Exchange {
 struct OwedRequest {
     std::uint8_t unit = 0;  // 0: a broadcast, whose reply (a fault in itself) may carry any unit id
     std::vector<std::uint8_t> pdu;
+    std::vector<std::uint8_t> sent;  // the bytes as written: a late reply is judged against them
+    // False where the rules want no reply (a broadcast, a bad checksum): a late reply that a request due one
+    // could also draw is taken as that request's.
+    bool reply_due = true;
+    std::chrono::steady_clock::time_point given_up{};  // when the exchange ended without it
+};
+
+// A late reply and the owed request it answers.
+struct SettledRequest {
+    OwedRequest request;
+    Frame reply;
 };
 
 // Whether `reply` has the shape of an answer to `request_pdu` sent to `unit`: the unit id, the request's
@@ -48,17 +61,30 @@ struct OwedRequest {
 // address, quantity or sub-function. Not whether the answer is right (the rules judge that).
 bool could_answer(std::uint8_t unit, std::span<const std::uint8_t> request_pdu, const Frame& reply) noexcept;
 
-// The requests a client over RTU or ASCII may still hear from: the last four given up with nothing back.
+// The requests a client over RTU or ASCII may still hear from: the last four given up with nothing back
+// (when more were, those due a reply are kept before those the rules want unanswered).
 // Anything that comes for a later request clears them (a device answers in order: what it still owed would
 // have come first); a late reply settles the oldest request it could answer.
 class OwedRequests {
   public:
     // After an exchange of a request to `unit` of `pdu` (empty: bytes that are no request): its stale
-    // replies settle what they answer; true when the request is owed now.
-    bool after(const Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu);
-    void settle(const Frame& late);
+    // replies settle what they answer (each appended to `settled` when given, with the request it
+    // answers); true when the request is owed now. `reply_due`: see OwedRequest.
+    bool after(const Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu,
+               std::vector<SettledRequest>* settled = nullptr, bool reply_due = true);
+    // The oldest owed request due a reply that `late` could answer, else the oldest other; taken off the
+    // list. None when it answers none.
+    std::optional<OwedRequest> settle(const Frame& late);
+    // `bytes` that came with no request waiting for them: each whole frame in them with a good checksum
+    // that could answer an owed request settles it (appended to `settled`); returns the other bytes, in
+    // order.
+    std::vector<std::uint8_t> settle_frames(Framing framing, std::span<const std::uint8_t> bytes,
+                                            std::vector<SettledRequest>& settled);
     std::span<const OwedRequest> list() const noexcept { return owed_; }
     bool empty() const noexcept { return owed_.empty(); }
+    void clear() noexcept { owed_.clear(); }
+    // When the newest owed request was given up; only when not empty.
+    std::chrono::steady_clock::time_point newest_given_up() const noexcept { return owed_.back().given_up; }
 
   private:
     static constexpr std::size_t kept = 4;
@@ -66,7 +92,8 @@ class OwedRequests {
 };
 
 // The whole frames in bytes that arrived with no request waiting (a late reply found before the next
-// request went out), in order; bytes that form none are left out.
+// request went out), in order, each frame's `offset` where it begins in `bytes`; bytes that form none are
+// left out.
 std::vector<Frame> frames_in(Framing framing, std::span<const std::uint8_t> bytes);
 
 // Finds the frames in an exchange's `received` as bytes are appended to it.

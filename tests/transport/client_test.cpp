@@ -169,6 +169,37 @@ TEST(Client, ALateReplyToAnEarlierRequestIsSetAsideBeforeTheOwnOnly) {
     EXPECT_EQ(Bytes(ex.own_received().begin(), ex.own_received().end()), mine);
 }
 
+// A slow device's reply to the request given up, then after a pause its reply to this one: the exchange's
+// first_byte is when this one's began (the network fuzzer's latency and --slow judge it), not when the late
+// one came. The peer's pause before the own reply is the lower bound.
+TEST(Client, FirstByteIsWhenTheOwnReplyBeganNotALateOne) {
+    const Bytes late = encode_tcp(4, 1, Bytes{0x83, 0x02});
+    const Bytes own = encode_tcp(5, 1, Bytes{0x03, 0x02, 0x00, 0x07});
+    ScriptedPeer peer({late, own}, 150ms);
+    auto client = Client::open(endpoint("tcp://127.0.0.1:" + std::to_string(peer.port()))).value();
+    client.set_transaction_id(5);
+    const Exchange ex = client.raw(client.frame(1, read_hr_pdu), 2000ms, 1);
+    ASSERT_EQ(ex.stale_replies.size(), 1u);
+    ASSERT_TRUE(ex.response);
+    EXPECT_GE(ex.first_byte, 150ms);
+
+    // RTU: the late reply is told by what it answers (an owed FC4 read), and split from the own reply
+    // mid-frame, so that the set-aside frame completes in the read that brings the own reply's first bytes.
+    const Bytes owed_pdu{0x04, 0x00, 0x00, 0x00, 0x01};
+    const Bytes late_rtu = encode_rtu(1, Bytes{0x04, 0x02, 0x00, 0x09});
+    const Bytes own_rtu = encode_rtu(1, Bytes{0x03, 0x06, 0, 1, 0, 2, 0, 3});
+    Bytes second(late_rtu.begin() + 3, late_rtu.end());
+    second.insert(second.end(), own_rtu.begin(), own_rtu.end());
+    ScriptedPeer serial_peer({Bytes(late_rtu.begin(), late_rtu.begin() + 3), second}, 150ms);
+    auto rtu = Client::open(endpoint("rtu-tcp://127.0.0.1:" + std::to_string(serial_peer.port()))).value();
+    const std::vector<OwedRequest> owed{{1, owed_pdu, {}}};
+    const Exchange serial = rtu.raw(rtu.frame(1, read_hr_pdu), 2000ms, 1, {}, owed);
+    ASSERT_EQ(serial.stale_replies.size(), 1u);
+    ASSERT_TRUE(serial.response);
+    EXPECT_EQ(serial.response->pdu()[0], 0x03);
+    EXPECT_GE(serial.first_byte, 150ms);
+}
+
 TEST(Client, UdpDatagramIsOneResponse) {
     auto server = bind_udp("127.0.0.1", 0).value();
     const auto port = bound_port(server.get());

@@ -19,6 +19,15 @@ void append(Exchange& ex, const std::vector<std::uint8_t>& bytes) {
     ex.received.insert(ex.received.end(), bytes.begin(), bytes.end());
 }
 
+// A list owing the FC3 read of read_pdu to unit 0x11, given up with nothing back.
+transport::OwedRequests owing_a_read() {
+    transport::OwedRequests owed;
+    Exchange silent;
+    silent.sent = encode_rtu(0x11, read_pdu);
+    EXPECT_TRUE(owed.after(silent, 0x11, read_pdu));
+    return owed;
+}
+
 }  // namespace
 
 TEST(ReplyScanner, ALateReplyBeforeTheOwnIsSetAside) {
@@ -132,7 +141,7 @@ TEST(CouldAnswer, TheShapeEachFunctionGivesItsResponse) {
 // request after it waits. It answers only the owed request, so it is set aside, and FC4's own reply after it
 // is the response.
 TEST(ReplyScanner, RtuLateReplyOnlyAnOwedRequestExplainsIsSetAside) {
-    const std::vector<transport::OwedRequest> owed{{0x11, read_pdu}};
+    const std::vector<transport::OwedRequest> owed{{0x11, read_pdu, {}}};
     const std::vector<std::uint8_t> read_input{0x04, 0x00, 0x00, 0x00, 0x01};
     const std::vector<std::uint8_t> input_reply{0x04, 0x02, 0x56, 0x78};
     Exchange ex;
@@ -163,7 +172,7 @@ TEST(ReplyScanner, RtuLateReplyOnlyAnOwedRequestExplainsIsSetAside) {
 // such a late reply out before sending), one that answers neither (for the rules to judge), one with a bad
 // CRC.
 TEST(ReplyScanner, RtuReplyTheRequestCouldDrawIsNeverSetAside) {
-    const std::vector<transport::OwedRequest> owed{{0x11, read_pdu}};
+    const std::vector<transport::OwedRequest> owed{{0x11, read_pdu, {}}};
     const auto scan = [&](const std::vector<std::uint8_t>& request_pdu, std::vector<std::uint8_t> reply) {
         Exchange ex;
         ex.sent = encode_rtu(0x11, request_pdu);
@@ -208,6 +217,8 @@ TEST(FramesIn, SplitsWhatArrivedUnaskedIntoFrames) {
     const auto rtu = transport::frames_in(Framing::Rtu, bytes);
     ASSERT_EQ(rtu.size(), 2u);
     EXPECT_EQ(rtu[1].pdu()[0], 0x06);
+    EXPECT_EQ(rtu[0].offset, 0u);
+    EXPECT_EQ(rtu[1].offset, bytes.size() - second.size());  // where each begins in the bytes
     const auto text = encode_ascii(0x11, reply_pdu) + "noise" + encode_ascii(0x11, reply_pdu);
     EXPECT_EQ(
         transport::frames_in(Framing::Ascii, std::vector<std::uint8_t>(text.begin(), text.end())).size(), 2u);
@@ -231,11 +242,13 @@ TEST(OwedRequests, KeepsTheLastFourUnansweredUntilAReplyComes) {
     closed.closed = true;
     EXPECT_FALSE(owed.after(closed, 0x11, read_at(9)));
 
-    // A late reply settles the oldest request it could answer.
-    owed.settle(*decode_rtu(encode_rtu(0x11, reply_pdu)));
+    // A late reply settles the oldest request it could answer, and says which it was.
+    const auto settled = owed.settle(*decode_rtu(encode_rtu(0x11, reply_pdu)));
+    ASSERT_TRUE(settled);
+    EXPECT_EQ(settled->pdu, read_at(2));
     ASSERT_EQ(owed.list().size(), 3u);
     EXPECT_EQ(owed.list().front().pdu, read_at(3));
-    owed.settle(*decode_rtu(encode_rtu(0x12, reply_pdu)));  // another unit's: answers none
+    EXPECT_FALSE(owed.settle(*decode_rtu(encode_rtu(0x12, reply_pdu))));  // another unit's: answers none
     EXPECT_EQ(owed.list().size(), 3u);
 
     // Anything that came for a later request: the device got that far, nothing before it is owed.
@@ -243,4 +256,86 @@ TEST(OwedRequests, KeepsTheLastFourUnansweredUntilAReplyComes) {
     answered.received = {0x11};
     EXPECT_FALSE(owed.after(answered, 0x11, read_at(7)));
     EXPECT_TRUE(owed.empty());
+}
+
+// Probes the rules want unanswered (waited for briefly) can outnumber the list within one due reply's delay:
+// they go first, so that the due reply is still recognised when it comes.
+TEST(OwedRequests, ARequestDueAReplyOutlastsTheSilentOnes) {
+    auto owed = owing_a_read();
+    Exchange silent;
+    const std::vector<std::uint8_t> bad_checksum_read{0x03, 0x00, 0x09, 0x00, 0x01};
+    for (int i = 0; i < 6; ++i)
+        ASSERT_TRUE(owed.after(silent, 0x11, bad_checksum_read, nullptr, false));
+    ASSERT_EQ(owed.list().size(), 4u);
+    EXPECT_EQ(owed.list().front().pdu, read_pdu);
+    EXPECT_TRUE(owed.list().front().reply_due);
+    // A reply both could draw is the due request's, though the others are owed too.
+    const auto settled = owed.settle(*decode_rtu(encode_rtu(0x11, reply_pdu)));
+    ASSERT_TRUE(settled);
+    EXPECT_TRUE(settled->reply_due);
+    EXPECT_EQ(owed.list().size(), 3u);
+}
+
+// A late reply that comes during a later exchange (set aside there) settles its request, which the caller
+// gets back with the bytes it sent, to judge the reply as that request's.
+TEST(OwedRequests, AStaleReplySettlesItsRequestWithTheBytesItSent) {
+    transport::OwedRequests owed;
+    Exchange given_up;
+    given_up.sent = encode_rtu(0x11, read_pdu);
+    ASSERT_TRUE(owed.after(given_up, 0x11, read_pdu));
+    EXPECT_EQ(owed.list().front().sent, given_up.sent);
+
+    Exchange later;
+    later.sent = encode_rtu(0x11, std::vector<std::uint8_t>{0x04, 0x00, 0x00, 0x00, 0x01});
+    const auto stale = encode_rtu(0x11, reply_pdu);
+    append(later, stale);
+    later.stale_replies.push_back(*decode_rtu(stale));
+    std::vector<transport::SettledRequest> settled;
+    EXPECT_TRUE(owed.after(later, 0x11, std::vector<std::uint8_t>{0x04, 0x00, 0x00, 0x00, 0x01}, &settled));
+    ASSERT_EQ(settled.size(), 1u);
+    EXPECT_EQ(settled[0].request.sent, given_up.sent);
+    EXPECT_EQ(settled[0].reply.pdu()[0], 0x03);
+    ASSERT_EQ(owed.list().size(), 1u);  // the later request, nothing came for it
+    EXPECT_EQ(owed.list().front().pdu[0], 0x04);
+}
+
+// Bytes found waiting with no request out: frames with a good checksum that answer an owed request settle
+// it; noise, a frame with a bad checksum and a frame no owed request explains are the rest, in order.
+TEST(OwedRequests, SettleFramesTakesOutTheLateRepliesAndKeepsTheRest) {
+    auto owed = owing_a_read();
+    Exchange silent;
+    const std::vector<std::uint8_t> write_pdu{0x06, 0x00, 0x01, 0x00, 0x03};
+    silent.sent = encode_rtu(0x11, write_pdu);
+    ASSERT_TRUE(owed.after(silent, 0x11, write_pdu));
+
+    auto bad = encode_rtu(0x11, reply_pdu);
+    bad.back() ^= 0xFF;
+    const auto unexplained = encode_rtu(0x11, std::vector<std::uint8_t>{0x01, 0x01, 0x01});
+    const auto late_read = encode_rtu(0x11, reply_pdu);
+    const auto late_write = encode_rtu(0x11, write_pdu);
+    std::vector<std::uint8_t> bytes = bad;
+    for (const auto* part : {&late_read, &unexplained, &late_write})
+        bytes.insert(bytes.end(), part->begin(), part->end());
+
+    std::vector<transport::SettledRequest> settled;
+    const auto rest = owed.settle_frames(Framing::Rtu, bytes, settled);
+    ASSERT_EQ(settled.size(), 2u);
+    EXPECT_EQ(settled[0].request.pdu, read_pdu);
+    EXPECT_EQ(settled[1].request.pdu, write_pdu);
+    std::vector<std::uint8_t> expected_rest = bad;
+    expected_rest.insert(expected_rest.end(), unexplained.begin(), unexplained.end());
+    EXPECT_EQ(rest, expected_rest);
+    EXPECT_TRUE(owed.empty());
+
+    // ASCII: offsets are in characters.
+    transport::OwedRequests ascii_owed;
+    Exchange ascii_silent;
+    ascii_silent.sent = {':'};
+    ASSERT_TRUE(ascii_owed.after(ascii_silent, 0x11, read_pdu));
+    const std::string text = "junk" + encode_ascii(0x11, reply_pdu) + "tail";
+    settled.clear();
+    const auto ascii_rest = ascii_owed.settle_frames(
+        Framing::Ascii, std::vector<std::uint8_t>(text.begin(), text.end()), settled);
+    ASSERT_EQ(settled.size(), 1u);
+    EXPECT_EQ(std::string(ascii_rest.begin(), ascii_rest.end()), "junktail");
 }
