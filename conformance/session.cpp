@@ -44,7 +44,7 @@ void Session::log_late(std::vector<std::uint8_t> bytes) {
     // Each owed request a frame among them answers is settled; the others may still be answered.
     const auto frames = tp::frames_in(client_.framing(), bytes);
     for (const auto& frame : frames)
-        owed_.settle(frame);
+        (void)owed().settle(frame);
     late_replies_ += std::max<std::size_t>(frames.size(), 1);
     evidence_.push_back({"late: arrived after the last exchange ended, before this request",
                          {},
@@ -57,10 +57,13 @@ void Session::log_late(std::vector<std::uint8_t> bytes) {
 void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) {
     if (client_.framing() == modbus::Framing::Tcp) return;
     log_late(client_.drain(std::chrono::milliseconds(0)));
-    if (owed_.empty() || pdu.empty() || quiet_waits_ >= quiet_waits_kept) return;
-    const auto owed = owed_.list();
-    const bool same_shape = std::any_of(owed.begin(), owed.end(), [&](const tp::OwedRequest& o) {
-        return !o.pdu.empty() && o.pdu[0] == pdu[0] && (o.unit == unit || o.unit == 0 || unit == 0);
+    if (owed().empty() || pdu.empty() || quiet_waits_ >= quiet_waits_kept) return;
+    const auto list = owed().list();
+    // The same function, or one whose exception shares its code (a request of function 0x84 draws the
+    // exception 84 that function 04's can).
+    const bool same_shape = std::any_of(list.begin(), list.end(), [&](const tp::OwedRequest& o) {
+        return !o.pdu.empty() && (o.pdu[0] & 0x7F) == (pdu[0] & 0x7F) &&
+               (o.unit == unit || o.unit == 0 || unit == 0);
     });
     if (!same_shape) return;  // a late reply to an owed request is told from this one's by its content
     // Another timeout after the owed request was given up: what has not come by then is taken as never.
@@ -75,7 +78,7 @@ void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) 
 void Session::account(const tp::Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu) {
     if (client_.framing() == modbus::Framing::Tcp) return;
     if (!ex.stale_replies.empty()) quiet_waits_ = 0;
-    if (owed_.after(ex, unit, pdu)) owed_given_up_ = std::chrono::steady_clock::now();
+    if (owed().after(ex, unit, pdu)) owed_given_up_ = std::chrono::steady_clock::now();
 }
 
 tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::string& note,
@@ -84,7 +87,7 @@ tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::stri
     pace();
     const std::uint8_t to = unit.value_or(options_.unit);
     settle_late(to, pdu);
-    auto ex = client_.transact(to, pdu, timeout.value_or(options_.timeout), owed_.list());
+    auto ex = client_.transact(to, pdu, timeout.value_or(options_.timeout), owed().list());
     if (ex.closed) {
         // The device closed the connection (allowed after some malformed requests): the next rule gets a
         // fresh one.
@@ -119,7 +122,7 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
         settle_late(unit, pdu);
     }
     auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames, {},
-                          rest ? std::span<const tp::OwedRequest>{} : owed_.list());
+                          rest ? std::span<const tp::OwedRequest>{} : owed().list());
     if (ex.closed) (void)client_.reconnect();
     log(ex, note);
     account(ex, unit, pdu);

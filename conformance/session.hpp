@@ -77,6 +77,11 @@ class Session {
     // Replies (or bytes) that came after their request was given up: set aside during a later request, or
     // found waiting before one.
     std::uint64_t late_replies() const noexcept { return late_replies_; }
+    // RTU and ASCII: keep the owed requests in `list` instead of the session's own, so that a caller that
+    // sends its own requests over the same client (the network fuzzer) and the session each set aside the
+    // other's late replies instead of taking them for their own (a value remembered for restoring among
+    // them). `list` must outlive the session's use of it.
+    void share_owed(modbus::transport::OwedRequests& list) noexcept { shared_owed_ = &list; }
 
   private:
     using Ledger = std::map<std::pair<modbus::Table, std::uint16_t>, Touched>;
@@ -114,6 +119,8 @@ class Session {
     std::uint32_t unanswered_in_a_row_ = 0;  // requests that got not a byte back, since the last that did
     // RTU and ASCII: the last requests given up without a reply, and when the newest was.
     modbus::transport::OwedRequests owed_;
+    modbus::transport::OwedRequests* shared_owed_ = nullptr;  // share_owed()
+    modbus::transport::OwedRequests& owed() noexcept { return shared_owed_ ? *shared_owed_ : owed_; }
     std::chrono::steady_clock::time_point owed_given_up_{};
     // Waits for an owed reply that came to nothing, since one came: a device that is silent, not slow (as
     // the rules that expect silence make it), stops costing a timeout twice after this many.
