@@ -27,6 +27,9 @@ using modbus::transport::Exchange;
 
 constexpr std::size_t trace_capacity = 32;  // steps kept since the last known-good state
 constexpr int health_attempts = 3;          // health checks before a target counts as unresponsive
+// RTU and ASCII: waits for an owed reply that saw nothing, in a row, after which the target is taken as one
+// that drops replies rather than one that sends them late (until a late reply shows again).
+constexpr int quiet_waits_kept = 3;
 
 std::uint16_t word(const std::vector<std::uint8_t>& pdu, std::size_t at) {
     return at + 1 < pdu.size() ? static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]) : 0;
@@ -97,6 +100,7 @@ class Campaign {
             if (p.access == modbus::Access::ReadWrite && !p.reserved && !p.fixed_value)
                 rewritable_.push_back(&p);
         std::shuffle(rewritable_.begin(), rewritable_.end(), rng_);
+        session_.share_owed(owed_);
         replay_.timeout = options.timeout;
         // A serial device may keep the line quiet for t3.5 before it answers.
         if (serial_line_)
@@ -113,6 +117,9 @@ class Campaign {
     std::chrono::microseconds probe_silence_wait(const Step& step) const;
     bool claim(const modbus::Frame& reply);
     void judge_claimed(std::string_view when);
+    void judge_settled(std::vector<modbus::transport::SettledRequest> settled, std::string_view when);
+    void wait_out_owed(const modbus::Frame& request, std::chrono::milliseconds timeout);
+    bool await_due_replies(std::chrono::milliseconds timeout);
     void judge_arrivals();
     bool last_unanswered() const;
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
@@ -141,6 +148,16 @@ class Campaign {
     // judging may minimise a reproducer, which gives up every kept request.
     std::vector<std::pair<Unanswered::Request, modbus::Frame>> claimed_;
     std::uint64_t minimised_ = 0;  // reproducers minimised (their replays resend old transaction ids)
+    // RTU and ASCII: no transaction id says which request a reply answers. Requests given up with nothing
+    // back are owed (exchange.hpp): a reply that comes later, between exchanges or during one (the client
+    // sets it aside when it could answer an owed request and not the current one), is judged as the owed
+    // request's. A request that could draw the same reply as an owed one that was due first waits that
+    // reply out, as the conformance session does.
+    modbus::transport::OwedRequests owed_;
+    int quiet_waits_ = 0;
+    // Late replies with their owed requests, to be judged (as claimed_: judging may minimise a reproducer,
+    // which waits out the owed replies first and leaves what it heard here), each with when it came.
+    std::vector<std::pair<modbus::transport::SettledRequest, std::string_view>> settled_;
     ReplayOptions replay_;
     std::chrono::milliseconds slow_{250};
     ReplyLatency latency_;  // of the target's replies: the silence wait when none was given
@@ -197,12 +214,21 @@ ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout)
     ReplayOptions o = replay_;
     o.timeout = timeout;
     o.silence_wait = probe_silence_wait(step);
+    const auto request = step_request(framing_, step);
+    if (request) wait_out_owed(*request, timeout);
     const auto sent = Clock::now();
     const auto minimised = minimised_;
-    auto r = send_step(client_, oracle_, step, o);
+    auto r = send_step(client_, oracle_, step, o, owed_.list());
     last_send_ = Clock::now();
-    if (!r.exchange.received.empty()) latency_.add(r.exchange.first_byte);
-    if (framing_ == modbus::Framing::Tcp) {
+    // The latency of this request's own reply: late replies to earlier ones are not its.
+    if (!r.exchange.own_received().empty()) latency_.add(r.exchange.first_byte);
+    if (framing_ != modbus::Framing::Tcp) {
+        std::vector<modbus::transport::SettledRequest> settled;
+        (void)owed_.after(r.exchange, request ? request->unit_id() : 0,
+                          request ? request->pdu() : std::span<const std::uint8_t>{}, &settled,
+                          reply_due(oracle_, r.exchange.sent));
+        judge_settled(std::move(settled), "during a later request: ");
+    } else {
         for (const auto& frame : r.exchange.stale_replies)
             (void)claim(frame);
         judge_claimed("during a later request: ");
@@ -240,10 +266,61 @@ bool Campaign::claim(const modbus::Frame& reply) {
 // Each claimed reply judged as its request's.
 void Campaign::judge_claimed(std::string_view when) {
     for (const auto& [request, reply] : std::exchange(claimed_, {})) {
+        ++s_.late_replies;
         const std::uint8_t fc = request.exchange.sent.size() > 7 ? request.exchange.sent[7] : 0;
         for (const auto& v : judge_late_frame(oracle_, request.exchange, reply, when))
             record(v, fc, true);
     }
+}
+
+// RTU and ASCII: each late reply judged as the reply of the owed request it answers (`settled`, and any
+// left by a minimisation); `when` says when these came.
+void Campaign::judge_settled(std::vector<modbus::transport::SettledRequest> settled, std::string_view when) {
+    if (!settled.empty()) quiet_waits_ = 0;
+    for (auto& s : settled)
+        settled_.emplace_back(std::move(s), when);
+    for (const auto& [s, came] : std::exchange(settled_, {})) {
+        ++s_.late_replies;
+        modbus::transport::Exchange request;
+        request.sent = s.request.sent;
+        for (const auto& v : judge_late_frame(oracle_, request, s.reply, came))
+            record(v, s.request.pdu.empty() ? 0 : s.request.pdu[0], true);
+    }
+}
+
+// RTU and ASCII: before a request that could draw the same reply as an owed one that was due (the same
+// function, or one whose exception shares its code, as 0x84 does with 04; the same unit or a broadcast),
+// that reply is waited for, up to `timeout` after the owed request was given up:
+// it is told from this request's own only by its timing. After quiet_waits_kept waits that saw nothing in a
+// row the target is taken to drop replies, and this waits no more until a late reply shows again.
+void Campaign::wait_out_owed(const modbus::Frame& request, std::chrono::milliseconds timeout) {
+    const auto pdu = request.pdu();
+    if (owed_.empty() || pdu.empty() || quiet_waits_ >= quiet_waits_kept) return;
+    const auto owed = owed_.list();
+    const bool same_shape =
+        std::any_of(owed.begin(), owed.end(), [&](const modbus::transport::OwedRequest& o) {
+            return !o.pdu.empty() && (o.pdu[0] & 0x7F) == (pdu[0] & 0x7F) &&
+                   (o.unit == request.unit_id() || o.unit == 0 || request.unit_id() == 0) && o.reply_due;
+        });
+    if (!same_shape) return;
+    if (!await_due_replies(timeout)) ++quiet_waits_;
+}
+
+// RTU and ASCII: the replies still due are waited for, up to `timeout` after the newest owed request was
+// given up, and judged as their requests'. Before a request that could draw the same reply (above), and
+// before the session reads a point's original value for restoring (a late FC3 reply and the session's
+// FC3 read of one register have the same shape). Whether anything was heard.
+bool Campaign::await_due_replies(std::chrono::milliseconds timeout) {
+    if (framing_ == modbus::Framing::Tcp || owed_.empty()) return false;
+    std::vector<modbus::transport::SettledRequest> settled;
+    auto rest = await_owed(client_, owed_, owed_.newest_given_up() + timeout, settled);
+    const bool heard = !settled.empty() || !rest.empty();
+    judge_settled(std::move(settled), "after the request was given up: ");
+    // Bytes no owed request accounts for (no whole frame, a bad checksum): the last exchange's, too late.
+    if (!rest.empty() && last_unanswered())
+        for (const auto& v : late_bytes(oracle_, framing_, *last_, std::move(rest)))
+            record(v, last_function_, true);
+    return heard;
 }
 
 // Whether a reply to the last request may still come: no whole, valid one came.
@@ -253,10 +330,15 @@ bool Campaign::last_unanswered() const {
 }
 
 // Whatever arrived since the last exchange ended (nothing is waited for). Over Modbus/TCP each whole frame
-// is the reply of the kept request whose transaction id it carries; what is left is the last exchange's
-// reply, too late.
+// is the reply of the kept request whose transaction id it carries, over RTU and ASCII of the owed request
+// it could answer; what is left is the last exchange's reply, too late.
 void Campaign::judge_arrivals() {
     auto bytes = client_.drain(std::chrono::milliseconds(0));
+    if (framing_ != modbus::Framing::Tcp && !owed_.empty()) {
+        std::vector<modbus::transport::SettledRequest> settled;
+        bytes = owed_.settle_frames(framing_, bytes, settled);
+        judge_settled(std::move(settled), "after the request was given up: ");
+    }
     std::size_t used = 0;
     while (framing_ == modbus::Framing::Tcp && used < bytes.size()) {
         const auto rest = std::span<const std::uint8_t>(bytes).subspan(used);
@@ -274,6 +356,7 @@ void Campaign::judge_arrivals() {
 }
 
 bool Campaign::healthy(std::chrono::nanoseconds* latency) {
+    const auto late_before = s_.late_replies;
     for (int attempt = 0; attempt < health_attempts; ++attempt) {
         ++s_.health_checks;
         Probe p;
@@ -285,9 +368,14 @@ bool Campaign::healthy(std::chrono::nanoseconds* latency) {
             if (!client_.reconnect()) return false;
             continue;
         }
-        // Alive is answering at all: whether the answer keeps the rules is the probes' business.
-        if (!r.exchange.received.empty()) {
-            if (latency) *latency = r.exchange.first_byte;
+        // Alive is answering at all, if late (the reply to an earlier attempt, heard while waiting it out
+        // or during this one): whether the answer keeps the rules is the probes' business. A late reply's
+        // latency is at least the timeout it missed.
+        if (!r.exchange.received.empty() || s_.late_replies > late_before) {
+            if (latency)
+                *latency = !r.exchange.own_received().empty()
+                               ? r.exchange.first_byte
+                               : std::chrono::duration_cast<std::chrono::nanoseconds>(options_.timeout);
             health_passed_ = true;
             return true;
         }
@@ -309,6 +397,7 @@ bool Campaign::prepare_writes(const Probe& p) {
     const int max = profile_.functions.max_for(fc, fc == 23);
     if (!profile_.functions.supports(fc) || (max > 0 && range->count > max)) return true;
     const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range->start} + range->count);
+    (void)await_due_replies(options_.timeout);
     bool ok = true;
     if (profile_.open_address_space) {
         ok = session_.remember(range->table, range->start, static_cast<std::uint16_t>(end - range->start),
@@ -331,6 +420,7 @@ std::optional<Probe> Campaign::round_trip() {
     if (rewritable_.empty()) return std::nullopt;
     const modbus::Point& point = *rewritable_[next_round_trip_++ % rewritable_.size()];
     const std::uint16_t words = point.encoding.words == 2 ? 2 : 1;
+    (void)await_due_replies(options_.timeout);
     const bool ok = session_.remember(Table::HoldingRegisters, point.address, words);
     (void)session_.take_evidence();
     session_.response_times().clear();
@@ -370,7 +460,8 @@ void Campaign::pace() {
 void Campaign::classify(const Probe& p, const ReplayedStep& r) {
     std::string outcome;
     const auto pdu = reply_pdu(r.exchange);
-    if (r.exchange.received.empty()) {
+    // Late replies to earlier requests that came during this exchange are theirs (judge_settled, claim).
+    if (r.exchange.own_received().empty()) {
         outcome = "silence";
         ++s_.silences;
     } else if (!pdu || pdu->empty()) {
@@ -388,7 +479,7 @@ void Campaign::classify(const Probe& p, const ReplayedStep& r) {
     }
     ++s_.outcomes[outcome];
     std::string key = std::to_string(p.pdu.empty() ? 0 : p.pdu[0]) + "|" + outcome;
-    const std::size_t n = r.exchange.received.size();
+    const std::size_t n = r.exchange.own_received().size();
     key += "|" + std::to_string(n < 8 ? n : 8 + n / 16);
     // Latency in two bands only: finer bands would make the feedback (and so the run) depend on the
     // machine's load rather than on the seed.
@@ -410,6 +501,17 @@ std::vector<Step> Campaign::minimise(const std::string& rule, bool& reproduced) 
     // those of requests kept unanswered.
     ++minimised_;
     unanswered_.clear();
+    // RTU and ASCII: the replies still due are waited for first (up to a timeout after the last was given
+    // up), or they would come during a replay and be taken for its requests'; they are judged after the
+    // minimisation (judge_settled). Bytes that answer none are dropped with what the replays drain.
+    if (framing_ != modbus::Framing::Tcp) {
+        std::vector<modbus::transport::SettledRequest> settled;
+        if (!owed_.empty())
+            (void)await_owed(client_, owed_, owed_.newest_given_up() + options_.timeout, settled);
+        for (auto& s : settled)
+            settled_.emplace_back(std::move(s), "after the request was given up: ");
+        owed_.clear();
+    }
     const auto reproduces = [&](const std::vector<Step>& steps) {
         if (budget == 0) return false;
         --budget;
@@ -532,7 +634,7 @@ CampaignSummary Campaign::run() {
         // exchange's reply, too late. Only looked for where the last one can be pending (no whole, valid
         // reply came): a poll per request costs speed, and over Modbus/TCP a later exchange reads the
         // others' anyway.
-        if (last_unanswered()) judge_arrivals();
+        if (last_unanswered() || !owed_.empty()) judge_arrivals();
         const Step step = frame(p);
         trace_.push_back(step);
         if (trace_.size() > trace_capacity) trace_.pop_front();
@@ -551,8 +653,10 @@ CampaignSummary Campaign::run() {
         for (const auto& v : r.violations) {
             if (v.rule == "reply.missing") {
                 // Missing twice, with four times the patience, before it counts.
+                // Over RTU and ASCII the first request's reply, should it come late, is waited out first
+                // (wait_out_owed), or the second would take it for its own and seem prompt.
                 const auto again = send(frame(p), options_.timeout * 4);
-                if (!again.exchange.received.empty()) {
+                if (!again.exchange.own_received().empty()) {
                     // Answered the second time: a slow target when it took longer than --slow, else chance.
                     if (again.exchange.first_byte > slow_)
                         record(slow_reply(again.exchange.first_byte, again.exchange.first_byte), fc, false);
@@ -578,7 +682,7 @@ CampaignSummary Campaign::run() {
                    fc, false);
             break;
         }
-        if (!r.exchange.received.empty() && r.exchange.first_byte > slow_) {
+        if (!r.exchange.own_received().empty() && r.exchange.first_byte > slow_) {
             std::chrono::nanoseconds latency{0};
             if (healthy(&latency) && latency > slow_)
                 record(slow_reply(r.exchange.first_byte, latency), fc, false);
@@ -605,9 +709,13 @@ CampaignSummary Campaign::run() {
         if (std::exchange(health_passed_, false) && !follow_up_) trace_.clear();
         progress();
     }
-    // Replies still owed over Modbus/TCP: the learnt wait after the last request, then judged.
-    if (!unanswered_.empty() && last_ && !s_.target_lost) {
-        std::this_thread::sleep_until(unanswered_.newest() + silence_wait());
+    // Replies still owed: over Modbus/TCP the learnt wait after the last request, over RTU and ASCII up to a
+    // timeout for those due; then judged.
+    if (last_ && !s_.target_lost && (!unanswered_.empty() || !owed_.empty())) {
+        if (framing_ == modbus::Framing::Tcp)
+            std::this_thread::sleep_until(unanswered_.newest() + silence_wait());
+        else
+            (void)await_due_replies(options_.timeout);
         judge_arrivals();
     }
     if (options_.stop && options_.stop->load()) s_.stopped = true;
@@ -673,6 +781,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"replies", s.replies},
                      {"exceptions", s.exceptions},
                      {"silences", s.silences},
+                     {"late_replies", s.late_replies},
                      {"silence_wait_ms", std::chrono::duration<double, std::milli>(s.silence_wait).count()},
                      {"skipped_writes", s.skipped_writes},
                      {"unconfirmed", s.unconfirmed},

@@ -51,7 +51,7 @@ struct CampaignOptions {
 };
 
 struct CampaignFinding {
-    std::string rule;  // an oracle rule, or target.unresponsive, timing.slow_reply, reply.late, ...
+    std::string rule;  // an oracle rule, or target.unresponsive, timing.slow_reply, ...
     std::string source;
     std::string expected;
     std::string observed;
@@ -69,6 +69,9 @@ struct CampaignSummary {
     std::uint64_t replies = 0, exceptions = 0, silences = 0;
     std::uint64_t skipped_writes = 0;  // write probes not sent: the original values could not be read
     std::uint64_t unconfirmed = 0;     // failures that did not happen again when checked
+    // Replies that came after their request was given up (--timeout, or the silence wait), each judged as
+    // that request's: matched by transaction id over Modbus/TCP, by what they answer over RTU and ASCII.
+    std::uint64_t late_replies = 0;
     std::uint64_t health_checks = 0;
     std::chrono::nanoseconds elapsed{0};
     std::chrono::microseconds silence_wait{0};  // learnt where the rules demand silence, when the run ended

@@ -6,7 +6,7 @@
 // timeout for each made a run with the defaults spend over nine tenths of its time waiting (8 requests a
 // second against a slave that answers in 50 us, 4,300 with the wait in whole milliseconds). A reply that
 // comes after the shorter wait is still judged as that request's when it has arrived by the next request
-// (late_reply). Over Modbus/TCP a campaign's probes do not wait at all (unanswered.hpp); the learnt wait is
+// (late_bytes). Over Modbus/TCP a campaign's probes do not wait at all (unanswered.hpp); the learnt wait is
 // then that of the replays that minimise a reproducer, and of the last request before the connection is
 // dropped or the campaign ends.
 

@@ -157,11 +157,12 @@ modbus::Result<void, std::string> save_reproducer(const Reproducer& r, const std
 }
 
 ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
-                       const Step& step, const ReplayOptions& options) {
+                       const Step& step, const ReplayOptions& options,
+                       std::span<const modbus::transport::OwedRequest> owed) {
     ReplayedStep r;
     const auto whole = step.joined();
     // Where the rules demand silence (or have no opinion: no frame, unit 0 over TCP) the wait is short; a
-    // reply after it is judged when the next step begins (late_reply). Where silence is merely allowed (an
+    // reply after it is judged when the next step begins (late_bytes). Where silence is merely allowed (an
     // RTU request whose length its function does not predict, which a slave may end at a silence or drop)
     // a reply may come after the slave's own silence: it is waited for in full, so that it is not taken
     // for the next request's.
@@ -171,7 +172,8 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
         (void)client.write(step.parts[i]);
         std::this_thread::sleep_for(step.pause);
     }
-    r.exchange = client.raw(step.parts.back(), silence ? options.silence_wait : options.timeout, 1, whole);
+    r.exchange =
+        client.raw(step.parts.back(), silence ? options.silence_wait : options.timeout, 1, whole, owed);
     if (step.void_by_gap) {
         // The slave must drop a request with a silence over t1.5 inside it (SL §2.5.1.1); the oracle judges
         // bytes, not their timing, so this rule is judged here.
@@ -184,6 +186,41 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
         r.violations = oracle.judge(r.exchange);
     }
     return r;
+}
+
+bool reply_due(const conformance::ExchangeOracle& oracle, const std::vector<std::uint8_t>& sent) {
+    const auto e = oracle.expectation(sent);
+    return !e.empty() && !e.starts_with("no reply");
+}
+
+std::vector<std::uint8_t> await_owed(modbus::transport::Client& client, modbus::transport::OwedRequests& owed,
+                                     std::chrono::steady_clock::time_point until,
+                                     std::vector<modbus::transport::SettledRequest>& settled) {
+    std::vector<std::uint8_t> rest;
+    for (;;) {
+        const auto list = owed.list();
+        const auto due = std::find_if(list.begin(), list.end(), [](const auto& o) { return o.reply_due; });
+        const auto now = std::chrono::steady_clock::now();
+        if (due == list.end() || now >= until) break;
+        // Listens as for the oldest due request's reply; a reply to another owed request is heard too. The
+        // device answers in order: the oldest first.
+        const auto sent = due->sent;
+        const auto heard =
+            client.raw({}, std::chrono::duration_cast<std::chrono::microseconds>(until - now), 1, sent);
+        if (heard.received.empty()) break;
+        const std::size_t before = settled.size();
+        const auto unexplained = owed.settle_frames(client.framing(), heard.received, settled);
+        rest.insert(rest.end(), unexplained.begin(), unexplained.end());
+        if (settled.size() == before) break;  // nothing owed was answered: the line says something else
+    }
+    return rest;
+}
+
+std::optional<modbus::Frame> step_request(modbus::Framing framing, const Step& step) {
+    if (framing == modbus::Framing::Tcp || step.void_by_gap) return std::nullopt;
+    auto frame = modbus::decode_adu(framing, step.joined());
+    if (!frame) return std::nullopt;
+    return std::move(frame).value();
 }
 
 std::vector<conformance::OracleViolation> late_bytes(conformance::ExchangeOracle& oracle,
@@ -201,12 +238,6 @@ std::vector<conformance::OracleViolation> late_bytes(conformance::ExchangeOracle
     for (auto& v : found)
         v.observed = "after the request was given up: " + v.observed;
     return found;
-}
-
-std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& client,
-                                                     conformance::ExchangeOracle& oracle,
-                                                     const modbus::transport::Exchange& previous) {
-    return late_bytes(oracle, client.framing(), previous, client.drain(std::chrono::milliseconds(0)));
 }
 
 std::vector<conformance::OracleViolation> judge_late_frame(conformance::ExchangeOracle& oracle,
@@ -236,23 +267,56 @@ std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracl
 std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
                                  const std::vector<Step>& steps, const ReplayOptions& options) {
     std::vector<ReplayedStep> out;
+    const auto framing = client.framing();
+    modbus::transport::OwedRequests owed;  // RTU and ASCII: steps given up, whose replies may still come
+    std::vector<modbus::transport::SettledRequest> settled;
+    // Each late reply judged as the reply of the step it answers (the latest step that sent its request).
+    const auto judge_settled = [&](std::string_view when) {
+        for (const auto& s : std::exchange(settled, {})) {
+            const auto step = std::find_if(out.rbegin(), out.rend(), [&](const ReplayedStep& r) {
+                return r.exchange.sent == s.request.sent;
+            });
+            if (step == out.rend()) continue;
+            const auto found = judge_late_frame(oracle, step->exchange, s.reply, when);
+            step->violations.insert(step->violations.end(), found.begin(), found.end());
+        }
+    };
     const auto late = [&] {
         if (out.empty()) return;
-        const auto found = late_reply(client, oracle, out.back().exchange);
+        auto bytes = client.drain(std::chrono::milliseconds(0));
+        if (framing != modbus::Framing::Tcp) {
+            bytes = owed.settle_frames(framing, bytes, settled);
+            judge_settled("after the request was given up: ");
+        }
+        const auto found = late_bytes(oracle, framing, out.back().exchange, std::move(bytes));
         out.back().violations.insert(out.back().violations.end(), found.begin(), found.end());
     };
     for (const auto& step : steps) {
         late();
-        out.push_back(send_step(client, oracle, step, options));
-        if (out.size() > 1 && client.framing() == modbus::Framing::Tcp) {
+        out.push_back(send_step(client, oracle, step, options, owed.list()));
+        if (out.size() > 1 && framing == modbus::Framing::Tcp) {
             auto& previous = out[out.size() - 2];
             const auto found = stale_reply(oracle, previous.exchange, out.back().exchange);
             previous.violations.insert(previous.violations.end(), found.begin(), found.end());
+        } else if (framing != modbus::Framing::Tcp) {
+            const auto request = step_request(framing, step);
+            (void)owed.after(out.back().exchange, request ? request->unit_id() : 0,
+                             request ? request->pdu() : std::span<const std::uint8_t>{}, &settled,
+                             reply_due(oracle, out.back().exchange.sent));
+            judge_settled("during a later request: ");
         }
         if (step.reconnect_after) (void)client.reconnect();
     }
     std::this_thread::sleep_for(std::min(options.timeout, std::chrono::milliseconds(50)));
     late();
+    // RTU and ASCII: replies still due are waited for (up to a timeout), so that none comes during what
+    // follows (the campaign's next request, the next replay while minimising), where nothing could tell it.
+    if (framing != modbus::Framing::Tcp && !out.empty()) {
+        auto rest = await_owed(client, owed, std::chrono::steady_clock::now() + options.timeout, settled);
+        judge_settled("after the request was given up: ");
+        const auto found = late_bytes(oracle, framing, out.back().exchange, std::move(rest));
+        out.back().violations.insert(out.back().violations.end(), found.begin(), found.end());
+    }
     return out;
 }
 

@@ -6,6 +6,8 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -58,17 +60,32 @@ struct ReplayOptions {
 
 // Sends one step (its parts with their pauses) and judges the exchange: the oracle's rules, and for a
 // request voided by a gap on a serial line, silence (silence.gap_inside_request, SL §2.5.1.1). A request the
-// rules want unanswered is waited for `silence_wait`, any other for `timeout`.
+// rules want unanswered is waited for `silence_wait`, any other for `timeout`. `owed`: RTU and ASCII, the
+// earlier requests given up whose late replies are set aside (exchange.stale_replies), not taken for this
+// step's.
 ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
-                       const Step& step, const ReplayOptions& options);
+                       const Step& step, const ReplayOptions& options,
+                       std::span<const modbus::transport::OwedRequest> owed = {});
 
-// Bytes that arrived after `previous` ended (nothing is waited for), judged as its reply: the violations
-// a late reply shows (a reply to a broadcast after the silence wait, a frame with a bad checksum).
-std::vector<conformance::OracleViolation> late_reply(modbus::transport::Client& client,
-                                                     conformance::ExchangeOracle& oracle,
-                                                     const modbus::transport::Exchange& previous);
+// Whether the rules want a reply to `sent` (not one they want silent: a bad checksum, a broadcast, another
+// unit; nor one they have no opinion on).
+bool reply_due(const conformance::ExchangeOracle& oracle, const std::vector<std::uint8_t>& sent);
 
-// `bytes` that came after `previous` ended, judged as its reply (what late_reply does with what it drains).
+// RTU and ASCII: listens (nothing is written) until every owed request due a reply (OwedRequest::reply_due)
+// has had it, or `until`. Each reply heard settles its request (appended to `settled`); returns the bytes
+// heard that no owed request accounts for.
+std::vector<std::uint8_t> await_owed(modbus::transport::Client& client, modbus::transport::OwedRequests& owed,
+                                     std::chrono::steady_clock::time_point until,
+                                     std::vector<modbus::transport::SettledRequest>& settled);
+
+// RTU and ASCII: the step's bytes as the request a late reply may answer (whatever their checksum: a device
+// that skips the check answers them); none over Modbus/TCP (transaction ids say it), for bytes that are no
+// request, and for a request voided by a gap (the device must not answer it at all).
+std::optional<modbus::Frame> step_request(modbus::Framing framing, const Step& step);
+
+// `bytes` that came after `previous` ended (found before the next request went out), judged as its reply:
+// the violations a late reply shows (a reply to a broadcast after the silence wait, a frame with a bad
+// checksum).
 std::vector<conformance::OracleViolation> late_bytes(conformance::ExchangeOracle& oracle,
                                                      modbus::Framing framing,
                                                      const modbus::transport::Exchange& previous,
@@ -81,7 +98,7 @@ std::vector<conformance::OracleViolation> judge_late_frame(conformance::Exchange
                                                            const modbus::Frame& reply, std::string_view when);
 
 // A Modbus/TCP reply to `previous` that came while `current` waited for its own (the client sets it aside
-// in current.stale_replies, not taking it for current's): judged as `previous`'s, as late_reply judges
+// in current.stale_replies, not taking it for current's): judged as `previous`'s, as late_bytes judges
 // bytes that came between the two. Nothing when `previous` was answered or no such frame came.
 std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracle& oracle,
                                                       const modbus::transport::Exchange& previous,
@@ -89,7 +106,9 @@ std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracl
 
 // Sends every step over `client` and judges each exchange with `oracle`. Besides the oracle's rules: a
 // reply to a request voided by a gap (silence.gap_inside_request), and replies that came after their
-// request was given up (late_reply, judged when the next step begins and at the end).
+// request was given up (late_bytes, judged when the next step begins and at the end; over Modbus/TCP a
+// reply to the step before that came during a step, stale_reply; over RTU and ASCII a reply that could
+// answer an earlier step given up and not the current one, judged as that step's).
 std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
                                  const std::vector<Step>& steps, const ReplayOptions& options);
 

@@ -3,6 +3,7 @@
 //    number of requests from a fixed seed (well inside the 60 s the fuzzer is promised to need);
 //  - the clean slave yields nothing in the same budget, on every transport;
 //  - a test enumerates the slave's faults, so a new fault without a case here fails the build;
+//  - a target slower than the timeout is found slow, and no late reply is judged as another request's;
 //  - reproducers replay: saved, loaded, sent again, the same rule broken;
 //  - written points are restored; --read-only writes nothing;
 //  - the command's exit codes (0 nothing found, 1 findings, 2 unreachable) and its JSON summary.
@@ -141,6 +142,13 @@ struct CleanCase {
 
 class CleanSlave : public ::testing::TestWithParam<CleanCase> {};
 
+// A test name from a case's profile and transport: "mmk_2030_rtu_tcp".
+const auto profile_and_scheme = [](const auto& info) {
+    std::string n = info.param.profile + "_" + info.param.scheme;
+    std::replace(n.begin(), n.end(), '-', '_');
+    return n;
+};
+
 // The same budget as the fault cases, against the slave without faults: nothing is found, and every point
 // written is restored.
 TEST_P(CleanSlave, YieldsNoFindingAndRestoresEveryWrite) {
@@ -167,12 +175,7 @@ INSTANTIATE_TEST_SUITE_P(Slave, CleanSlave,
                                            CleanCase{"mmk-2030", "ascii-tcp"},
                                            CleanCase{"cth2265i", "rtu-tcp"}, CleanCase{"walchem-w600", "tcp"},
                                            CleanCase{"modbus", "tcp"}),
-                         [](const auto& info) {
-                             std::string n = info.param.profile + "_" + info.param.scheme;
-                             for (auto& ch : n)
-                                 if (ch == '-') ch = '_';
-                             return n;
-                         });
+                         profile_and_scheme);
 
 // A target lost mid-run is not written to again, and the points written before are not passed over in
 // silence: each is listed as not restored, with why.
@@ -351,6 +354,78 @@ TEST(NetworkFuzzer, AReplyThatComesDuringTheNextRequestIsJudgedAsItsOwn) {
     EXPECT_EQ(found[0].observed.rfind("during the next request: ", 0), 0u) << found[0].observed;
     previous.response = current.response;  // answered in time: nothing is late
     EXPECT_TRUE(fz::stale_reply(oracle, previous, current).empty());
+}
+
+// A target slower than --timeout: its replies come after their requests were given up. Over RTU and ASCII
+// nothing but content and timing tells whose reply a frame is: a late one is set aside when it could
+// answer an owed request and not the current one, waited out before a request that could draw the same
+// reply, and judged as its own request's; the second try of a missing reply measures that request's own
+// reply (not the first try's, which came during it). What is found is that the target is slow, and
+// nothing else: no reply judged against another request's rules, no value taken from another reply for
+// restoring.
+struct SlowCase {
+    std::string profile;
+    std::string scheme;
+};
+
+class SlowTarget : public ::testing::TestWithParam<SlowCase> {};
+
+TEST_P(SlowTarget, IsFoundSlowAndNoReplyIsJudgedAsAnotherRequests) {
+    const auto& c = GetParam();
+    RunningServer server({"slow-reply=450"}, 7, c.profile);
+    auto o = options_for(c.scheme, server.start(c.scheme));
+    o.timeout = milliseconds(300);  // the replies come 150 ms after it, the second try's within its 1.2 s
+    o.slow = milliseconds(350);
+    o.requests = 16;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile(c.profile), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    EXPECT_EQ(s.requests, *o.requests);
+    ASSERT_FALSE(s.findings.empty()) << "the slow target was not found slow";
+    for (const auto& f : s.findings)
+        EXPECT_EQ(f.rule, "timing.slow_reply") << listing(s);
+    // Over Modbus/TCP a reply later than the timeout is not attributed (unanswered.hpp); over RTU and
+    // ASCII each is, and counted.
+    if (c.scheme != "tcp") {
+        EXPECT_GT(s.late_replies, 0u);
+    }
+    EXPECT_EQ(fz::to_json(s)["late_replies"].get<std::uint64_t>(), s.late_replies);
+    for (const auto& t : s.restored)
+        EXPECT_TRUE(t.restored) << mbscope::modbus::to_string(t.table) << " " << t.address << ": "
+                                << t.problem;
+}
+
+INSTANTIATE_TEST_SUITE_P(Slave, SlowTarget,
+                         ::testing::Values(SlowCase{"cth2265i", "rtu-tcp"}, SlowCase{"mmk-2030", "ascii-tcp"},
+                                           SlowCase{"cth2265i", "tcp"}),
+                         profile_and_scheme);
+
+// A replay over RTU keeps owed steps as the campaign does: the first step's reply, late, comes while the
+// second waits and is set aside as the first's; the second's own reply, late too, is waited for after
+// the last step, so that nothing is left to come during what follows.
+TEST(NetworkFuzzer, AReplayOverRtuJudgesALateReplyAsItsOwnSteps) {
+    RunningServer server({"slow-reply=450"}, 7, "cth2265i");
+    auto o = options_for("rtu-tcp", server.start("rtu-tcp"));
+    auto client = mbscope::modbus::transport::Client::open(o.endpoint);
+    ASSERT_TRUE(client);
+    const auto& profile = mbscope::slave::test::profile("cth2265i");
+    mbscope::conformance::ExchangeOracle oracle(mbscope::modbus::Framing::Rtu, {{1, &profile}}, false);
+    const auto read = [&](std::uint8_t fc) {
+        fz::Step step;
+        step.parts.push_back(
+            client->frame(1, std::vector<std::uint8_t>{fc, 0x0F, 0x9F, 0x00, 0x01}));  // 3999
+        return step;
+    };
+    fz::ReplayOptions options;
+    options.timeout = milliseconds(300);
+    options.silence_wait = milliseconds(20);
+    const auto replayed = fz::replay(*client, oracle, {read(3), read(4)}, options);
+    ASSERT_EQ(replayed.size(), 2u);
+    EXPECT_EQ(replayed[1].exchange.stale_replies.size(), 1u);
+    EXPECT_TRUE(replayed[1].exchange.own_received().empty());
+    for (const auto& step : replayed)
+        for (const auto& v : step.violations)
+            EXPECT_EQ(v.rule, "reply.missing") << v.observed;  // missing in time, and nothing else
+    EXPECT_TRUE(client->drain(milliseconds(0)).empty());       // the second step's reply was waited for
 }
 
 TEST(NetworkFuzzer, UnreachableTargetIsReportedNotFuzzed) {
