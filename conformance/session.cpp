@@ -67,7 +67,7 @@ void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) 
     });
     if (!same_shape) return;  // a late reply to an owed request is told from this one's by its content
     // Another timeout after the owed request was given up: what has not come by then is taken as never.
-    const auto until = owed_given_up_ + options_.timeout;
+    const auto until = owed().newest_given_up() + options_.timeout;
     const auto now = std::chrono::steady_clock::now();
     if (now >= until) return;
     auto late = client_.drain(std::chrono::ceil<std::chrono::milliseconds>(until - now));
@@ -78,7 +78,7 @@ void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) 
 void Session::account(const tp::Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu) {
     if (client_.framing() == modbus::Framing::Tcp) return;
     if (!ex.stale_replies.empty()) quiet_waits_ = 0;
-    if (owed().after(ex, unit, pdu)) owed_given_up_ = std::chrono::steady_clock::now();
+    (void)owed().after(ex, unit, pdu);
 }
 
 tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::string& note,

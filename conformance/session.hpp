@@ -117,11 +117,10 @@ class Session {
     std::uint64_t late_replies_ = 0;
     bool part_sent_ = false;                 // send_part() began a request that raw() completes
     std::uint32_t unanswered_in_a_row_ = 0;  // requests that got not a byte back, since the last that did
-    // RTU and ASCII: the last requests given up without a reply, and when the newest was.
+    // RTU and ASCII: the last requests given up without a reply, each with when it was.
     modbus::transport::OwedRequests owed_;
     modbus::transport::OwedRequests* shared_owed_ = nullptr;  // share_owed()
     modbus::transport::OwedRequests& owed() noexcept { return shared_owed_ ? *shared_owed_ : owed_; }
-    std::chrono::steady_clock::time_point owed_given_up_{};
     // Waits for an owed reply that came to nothing, since one came: a device that is silent, not slow (as
     // the rules that expect silence make it), stops costing a timeout twice after this many.
     std::uint32_t quiet_waits_ = 0;
