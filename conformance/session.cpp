@@ -59,11 +59,8 @@ void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) 
     log_late(client_.drain(std::chrono::milliseconds(0)));
     if (owed().empty() || pdu.empty() || quiet_waits_ >= quiet_waits_kept) return;
     const auto list = owed().list();
-    // The same function, or one whose exception shares its code (a request of function 0x84 draws the
-    // exception 84 that function 04's can).
     const bool same_shape = std::any_of(list.begin(), list.end(), [&](const tp::OwedRequest& o) {
-        return !o.pdu.empty() && (o.pdu[0] & 0x7F) == (pdu[0] & 0x7F) &&
-               (o.unit == unit || o.unit == 0 || unit == 0);
+        return tp::could_draw_same_reply(o, unit, pdu);
     });
     if (!same_shape) return;  // a late reply to an owed request is told from this one's by its content
     // Another timeout after the owed request was given up: what has not come by then is taken as never.

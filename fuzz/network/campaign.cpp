@@ -299,8 +299,7 @@ void Campaign::wait_out_owed(const modbus::Frame& request, std::chrono::millisec
     const auto owed = owed_.list();
     const bool same_shape =
         std::any_of(owed.begin(), owed.end(), [&](const modbus::transport::OwedRequest& o) {
-            return !o.pdu.empty() && (o.pdu[0] & 0x7F) == (pdu[0] & 0x7F) &&
-                   (o.unit == request.unit_id() || o.unit == 0 || request.unit_id() == 0) && o.reply_due;
+            return o.reply_due && modbus::transport::could_draw_same_reply(o, request.unit_id(), pdu);
         });
     if (!same_shape) return;
     if (!await_due_replies(timeout)) ++quiet_waits_;

@@ -101,6 +101,12 @@ bool could_answer(std::uint8_t unit, std::span<const std::uint8_t> request, cons
     }
 }
 
+bool could_draw_same_reply(const OwedRequest& owed, std::uint8_t unit,
+                           std::span<const std::uint8_t> pdu) noexcept {
+    return !owed.pdu.empty() && !pdu.empty() && (owed.pdu[0] & 0x7F) == (pdu[0] & 0x7F) &&
+           (owed.unit == unit || owed.unit == 0 || unit == 0);
+}
+
 bool OwedRequests::after(const Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu,
                          std::vector<SettledRequest>* settled, bool reply_due) {
     for (const auto& stale : ex.stale_replies) {

@@ -61,6 +61,12 @@ struct SettledRequest {
 // address, quantity or sub-function. Not whether the answer is right (the rules judge that).
 bool could_answer(std::uint8_t unit, std::span<const std::uint8_t> request_pdu, const Frame& reply) noexcept;
 
+// Whether a request to `unit` of `pdu` could draw the same reply as `owed`: the same function, or one whose
+// exception shares its code (a request of function 0x84 draws the exception 84 that function 04's can), to
+// the same unit or with a broadcast on either side. Content cannot tell such replies apart; only timing can.
+bool could_draw_same_reply(const OwedRequest& owed, std::uint8_t unit,
+                           std::span<const std::uint8_t> pdu) noexcept;
+
 // The requests a client over RTU or ASCII may still hear from: the last four given up with nothing back
 // (when more were, those due a reply are kept before those the rules want unanswered).
 // Anything that comes for a later request clears them (a device answers in order: what it still owed would
