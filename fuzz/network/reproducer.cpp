@@ -244,7 +244,10 @@ std::vector<conformance::OracleViolation> judge_late_frame(conformance::Exchange
                                                            const modbus::transport::Exchange& request,
                                                            const modbus::Frame& reply,
                                                            std::string_view when) {
-    modbus::transport::Exchange ex = request;
+    // The request's exchange with this reply as all it received: not the late replies to earlier requests
+    // that it set aside (own_received() would count them off the front of this reply) nor its time-out.
+    modbus::transport::Exchange ex;
+    ex.sent = request.sent;
     ex.received.assign(reply.adu().begin(), reply.adu().end());
     ex.response = reply;
     auto found = oracle.judge(ex);

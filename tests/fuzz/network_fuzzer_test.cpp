@@ -356,6 +356,30 @@ TEST(NetworkFuzzer, AReplyThatComesDuringTheNextRequestIsJudgedAsItsOwn) {
     EXPECT_TRUE(fz::stale_reply(oracle, previous, current).empty());
 }
 
+// A late reply is judged as its request's whatever that request's own exchange met: a slow target's
+// request given up has often set aside the late reply to the one before it, which is not part of this one.
+TEST(NetworkFuzzer, ALateReplyIsJudgedWithoutTheRepliesItsRequestSetAside) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    mbscope::conformance::ExchangeOracle oracle(mbscope::modbus::Framing::Tcp, {{1, &p}}, true);
+    const std::vector<std::uint8_t> read{0x03, 0x00, 0x00, 0x00, 0x01};
+    const std::vector<std::uint8_t> reply{0x03, 0x02, 0x00, 0x00};
+    mbscope::modbus::transport::Exchange given_up;
+    given_up.sent = mbscope::modbus::encode_tcp(6, 1, read);
+    const auto earlier = mbscope::modbus::encode_tcp(5, 1, reply);  // the reply to request 5, set aside
+    given_up.received = earlier;
+    given_up.stale_replies.push_back(*mbscope::modbus::decode_tcp(earlier));
+    given_up.timed_out = true;
+    const auto late = *mbscope::modbus::decode_tcp(mbscope::modbus::encode_tcp(6, 1, reply));
+    EXPECT_TRUE(fz::judge_late_frame(oracle, given_up, late, "later: ").empty());
+    // And a wrong one is judged wrong, as coming late.
+    const auto wrong = *mbscope::modbus::decode_tcp(
+        mbscope::modbus::encode_tcp(6, 1, std::vector<std::uint8_t>{0x04, 0x02, 0x00, 0x00}));
+    const auto found = fz::judge_late_frame(oracle, given_up, wrong, "later: ");
+    ASSERT_EQ(found.size(), 1u);
+    EXPECT_EQ(found[0].rule, "reply.function");
+    EXPECT_EQ(found[0].observed.rfind("later: ", 0), 0u) << found[0].observed;
+}
+
 // A target slower than --timeout: its replies come after their requests were given up. Over RTU and ASCII
 // nothing but content and timing tells whose reply a frame is: a late one is set aside when it could
 // answer an owed request and not the current one, waited out before a request that could draw the same
