@@ -225,8 +225,7 @@ ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout)
     if (framing_ != modbus::Framing::Tcp) {
         std::vector<modbus::transport::SettledRequest> settled;
         (void)owed_.after(r.exchange, request ? request->unit_id() : 0,
-                          request ? request->pdu() : std::span<const std::uint8_t>{}, &settled,
-                          reply_due(oracle_, r.exchange.sent));
+                          request ? request->pdu() : std::span<const std::uint8_t>{}, &settled, r.reply_due);
         judge_settled(std::move(settled), "during a later request: ");
     } else {
         for (const auto& frame : r.exchange.stale_replies)

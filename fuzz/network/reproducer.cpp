@@ -168,6 +168,7 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
     // for the next request's.
     const auto expected = oracle.expectation(whole);
     const bool silence = step.void_by_gap || expected.empty() || expected.starts_with("no reply");
+    r.reply_due = !silence;
     for (std::size_t i = 0; i + 1 < step.parts.size(); ++i) {
         (void)client.write(step.parts[i]);
         std::this_thread::sleep_for(step.pause);
@@ -186,11 +187,6 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
         r.violations = oracle.judge(r.exchange);
     }
     return r;
-}
-
-bool reply_due(const conformance::ExchangeOracle& oracle, const std::vector<std::uint8_t>& sent) {
-    const auto e = oracle.expectation(sent);
-    return !e.empty() && !e.starts_with("no reply");
 }
 
 std::vector<std::uint8_t> await_owed(modbus::transport::Client& client, modbus::transport::OwedRequests& owed,
@@ -305,7 +301,7 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
             const auto request = step_request(framing, step);
             (void)owed.after(out.back().exchange, request ? request->unit_id() : 0,
                              request ? request->pdu() : std::span<const std::uint8_t>{}, &settled,
-                             reply_due(oracle, out.back().exchange.sent));
+                             out.back().reply_due);
             judge_settled("during a later request: ");
         }
         if (step.reconnect_after) (void)client.reconnect();

@@ -51,6 +51,9 @@ modbus::Result<void, std::string> save_reproducer(const Reproducer& r, const std
 struct ReplayedStep {
     modbus::transport::Exchange exchange;
     std::vector<conformance::OracleViolation> violations;
+    // The rules want a reply (not silence: a bad checksum, a broadcast, another unit, a request voided by a
+    // gap; nor no opinion).
+    bool reply_due = false;
 };
 
 struct ReplayOptions {
@@ -66,10 +69,6 @@ struct ReplayOptions {
 ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
                        const Step& step, const ReplayOptions& options,
                        std::span<const modbus::transport::OwedRequest> owed = {});
-
-// Whether the rules want a reply to `sent` (not one they want silent: a bad checksum, a broadcast, another
-// unit; nor one they have no opinion on).
-bool reply_due(const conformance::ExchangeOracle& oracle, const std::vector<std::uint8_t>& sent);
 
 // RTU and ASCII: listens (nothing is written) until every owed request due a reply (OwedRequest::reply_due)
 // has had it, or `until`. Each reply heard settles its request (appended to `settled`); returns the bytes
