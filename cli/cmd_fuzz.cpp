@@ -119,10 +119,9 @@ int run_fuzz_command(const FuzzCliOptions& o) {
                                            o.target + " " + f.file + ")")
                   << '\n';
     std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
-    if (summary.late_replies > 0)
-        std::cerr << "mbscope fuzz: " << summary.late_replies
-                  << " replies came after their request was given "
-                  << "up (--timeout " << options.timeout.count() << " ms); each was judged as its request's, "
+    if (summary.replies_after_timeout > 0)
+        std::cerr << "mbscope fuzz: " << summary.replies_after_timeout << " replies came after --timeout ("
+                  << options.timeout.count() << " ms); each was judged as its request's, "
                   << "and a longer --timeout may suit the target\n";
     if (!summary.reachable) {
         std::cerr << "mbscope fuzz: cannot reach the target: " << summary.error << '\n';

@@ -86,8 +86,7 @@ class Campaign {
           session_(client, conformance::SessionOptions{options.unit, options.timeout, options.interval},
                    &profile),
           generator_(profile, GeneratorOptions{framing_, serial_line_, options.endpoint.line.t1_5(),
-                                               options.unit, options.read_only, options.seed}),
-          unanswered_(options.timeout) {
+                                               options.unit, options.read_only, options.seed}) {
         slow_ = options.slow.count()
                     ? options.slow
                     : std::chrono::milliseconds(profile.line.response_timeout_ms.value_or(250));
@@ -120,6 +119,8 @@ class Campaign {
     void judge_settled(std::vector<modbus::transport::SettledRequest> settled, std::string_view when);
     void wait_out_owed(const modbus::Frame& request, std::chrono::milliseconds timeout);
     bool await_due_replies(std::chrono::milliseconds timeout);
+    std::vector<std::uint8_t> claim_frames(std::span<const std::uint8_t> bytes);
+    std::vector<std::uint8_t> await_due_claims(std::chrono::milliseconds timeout);
     void judge_arrivals();
     bool last_unanswered() const;
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
@@ -158,6 +159,9 @@ class Campaign {
     // Late replies with their owed requests, to be judged (as claimed_: judging may minimise a reproducer,
     // which waits out the owed replies first and leaves what it heard here), each with when it came.
     std::vector<std::pair<modbus::transport::SettledRequest, std::string_view>> settled_;
+    // Bytes heard while waiting out due replies before a minimisation that answer no request given up: the
+    // last exchange's reply, too late, judged with the next arrivals (judging them there could minimise).
+    std::vector<std::uint8_t> heard_unexplained_;
     ReplayOptions replay_;
     std::chrono::milliseconds slow_{250};
     ReplyLatency latency_;  // of the target's replies: the silence wait when none was given
@@ -234,7 +238,7 @@ ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout)
         if (r.exchange.closed)
             unanswered_.clear();
         else if (!r.exchange.response && minimised_ == minimised)
-            unanswered_.add(r.exchange, sent);
+            unanswered_.add(r.exchange, sent, Clock::now(), r.reply_due);
     }
     return r;
 }
@@ -256,7 +260,7 @@ std::chrono::microseconds Campaign::probe_silence_wait(const Step& step) const {
 // A Modbus/TCP frame that came after its request was given up, matched to that request while it is kept;
 // false when no kept request has its transaction id.
 bool Campaign::claim(const modbus::Frame& reply) {
-    auto request = unanswered_.take(reply.transaction_id(), Clock::now());
+    auto request = unanswered_.take(reply.transaction_id());
     if (!request) return false;
     claimed_.emplace_back(std::move(*request), reply);
     return true;
@@ -266,6 +270,7 @@ bool Campaign::claim(const modbus::Frame& reply) {
 void Campaign::judge_claimed(std::string_view when) {
     for (const auto& [request, reply] : std::exchange(claimed_, {})) {
         ++s_.late_replies;
+        if (request.reply_due) ++s_.replies_after_timeout;
         const std::uint8_t fc = request.exchange.sent.size() > 7 ? request.exchange.sent[7] : 0;
         for (const auto& v : judge_late_frame(oracle_, request.exchange, reply, when))
             record(v, fc, true);
@@ -280,6 +285,7 @@ void Campaign::judge_settled(std::vector<modbus::transport::SettledRequest> sett
         settled_.emplace_back(std::move(s), when);
     for (const auto& [s, came] : std::exchange(settled_, {})) {
         ++s_.late_replies;
+        if (s.request.reply_due) ++s_.replies_after_timeout;
         modbus::transport::Exchange request;
         request.sent = s.request.sent;
         for (const auto& v : judge_late_frame(oracle_, request, s.reply, came))
@@ -327,27 +333,60 @@ bool Campaign::last_unanswered() const {
                      !last_->response->checksum_ok);
 }
 
+// Modbus/TCP: each whole frame in `bytes` that a kept request's transaction id claims (claimed_, judged by
+// judge_claimed); returns the other bytes, in order.
+std::vector<std::uint8_t> Campaign::claim_frames(std::span<const std::uint8_t> bytes) {
+    std::vector<std::uint8_t> rest;
+    std::size_t used = 0;
+    while (used < bytes.size()) {
+        const auto tail = bytes.subspan(used);
+        const auto step = modbus::tcp_step(tail, true, true);
+        if (step.kind != modbus::DeframeStep::Kind::Complete) break;
+        const auto frame = modbus::decode_adu(framing_, tail.first(step.length));
+        if (!frame || !claim(*frame)) rest.insert(rest.end(), tail.begin(), tail.begin() + step.length);
+        used += step.length;
+    }
+    rest.insert(rest.end(), bytes.begin() + static_cast<std::ptrdiff_t>(used), bytes.end());
+    return rest;
+}
+
+// Modbus/TCP: the replies still due to kept requests are waited for, up to `timeout` after the newest such
+// request was given up (as over RTU and ASCII), and claimed as they come. Before minimising (its replays
+// resend old transaction ids: a reply still to come would be taken for a replayed request's) and at the end
+// of the run. Returns the bytes heard that no kept request claims.
+std::vector<std::uint8_t> Campaign::await_due_claims(std::chrono::milliseconds timeout) {
+    std::vector<std::uint8_t> rest;
+    while (const Unanswered::Request* due = unanswered_.newest_due()) {
+        const auto now = Clock::now();
+        const auto until = due->given_up + timeout;
+        if (now >= until) break;
+        // Listens as for that request's reply: replies to the kept requests before it are set aside on the
+        // way.
+        const auto heard = client_.raw({}, std::chrono::duration_cast<std::chrono::microseconds>(until - now),
+                                       1, due->exchange.sent);
+        const auto kept = unanswered_.size();
+        auto unclaimed = claim_frames(heard.received);
+        rest.insert(rest.end(), unclaimed.begin(), unclaimed.end());
+        if (heard.closed) unanswered_.clear();
+        if (heard.received.empty() || unanswered_.size() == kept) break;  // nothing kept was answered
+    }
+    return rest;
+}
+
 // Whatever arrived since the last exchange ended (nothing is waited for). Over Modbus/TCP each whole frame
 // is the reply of the kept request whose transaction id it carries, over RTU and ASCII of the owed request
 // it could answer; what is left is the last exchange's reply, too late.
 void Campaign::judge_arrivals() {
-    auto bytes = client_.drain(std::chrono::milliseconds(0));
+    auto bytes = std::exchange(heard_unexplained_, {});
+    const auto drained = client_.drain(std::chrono::milliseconds(0));
+    bytes.insert(bytes.end(), drained.begin(), drained.end());
     if (framing_ != modbus::Framing::Tcp && !owed_.empty()) {
         std::vector<modbus::transport::SettledRequest> settled;
         bytes = owed_.settle_frames(framing_, bytes, settled);
         judge_settled(std::move(settled), "after the request was given up: ");
     }
-    std::size_t used = 0;
-    while (framing_ == modbus::Framing::Tcp && used < bytes.size()) {
-        const auto rest = std::span<const std::uint8_t>(bytes).subspan(used);
-        const auto step = modbus::tcp_step(rest, true, true);
-        if (step.kind != modbus::DeframeStep::Kind::Complete) break;
-        const auto frame = modbus::decode_adu(framing_, rest.first(step.length));
-        if (!frame || !claim(*frame)) break;
-        used += step.length;
-    }
+    if (framing_ == modbus::Framing::Tcp) bytes = claim_frames(bytes);
     judge_claimed("after the request was given up: ");
-    bytes.erase(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(used));
     if (!last_unanswered()) return;  // answered: the rest is no one's reply the rules can name
     for (const auto& v : late_bytes(oracle_, framing_, *last_, std::move(bytes)))
         record(v, last_function_, true);
@@ -495,21 +534,25 @@ std::vector<Step> Campaign::minimise(const std::string& rule, bool& reproduced) 
     reproduced = false;
     std::size_t budget = options_.minimise_budget;
     replay_.silence_wait = silence_wait();
+    // The replies still due are waited for first (up to a timeout after the last was given up), or they
+    // would come during a replay and be taken for its requests'; they are judged after the minimisation
+    // (judge_claimed, judge_settled), and the bytes heard that answer none with the next arrivals.
     // The replays resend requests with the transaction ids they had: their replies must not be taken for
     // those of requests kept unanswered.
     ++minimised_;
-    unanswered_.clear();
-    // RTU and ASCII: the replies still due are waited for first (up to a timeout after the last was given
-    // up), or they would come during a replay and be taken for its requests'; they are judged after the
-    // minimisation (judge_settled). Bytes that answer none are dropped with what the replays drain.
-    if (framing_ != modbus::Framing::Tcp) {
+    std::vector<std::uint8_t> unexplained;
+    if (framing_ == modbus::Framing::Tcp) {
+        unexplained = await_due_claims(options_.timeout);
+        unanswered_.clear();
+    } else {
         std::vector<modbus::transport::SettledRequest> settled;
         if (!owed_.empty())
-            (void)await_owed(client_, owed_, owed_.newest_given_up() + options_.timeout, settled);
+            unexplained = await_owed(client_, owed_, owed_.newest_given_up() + options_.timeout, settled);
         for (auto& s : settled)
             settled_.emplace_back(std::move(s), "after the request was given up: ");
         owed_.clear();
     }
+    heard_unexplained_.insert(heard_unexplained_.end(), unexplained.begin(), unexplained.end());
     const auto reproduces = [&](const std::vector<Step>& steps) {
         if (budget == 0) return false;
         --budget;
@@ -632,7 +675,7 @@ CampaignSummary Campaign::run() {
         // exchange's reply, too late. Only looked for where the last one can be pending (no whole, valid
         // reply came): a poll per request costs speed, and over Modbus/TCP a later exchange reads the
         // others' anyway.
-        if (last_unanswered() || !owed_.empty()) judge_arrivals();
+        if (last_unanswered() || !owed_.empty() || !heard_unexplained_.empty()) judge_arrivals();
         const Step step = frame(p);
         trace_.push_back(step);
         if (trace_.size() > trace_capacity) trace_.pop_front();
@@ -707,13 +750,17 @@ CampaignSummary Campaign::run() {
         if (std::exchange(health_passed_, false) && !follow_up_) trace_.clear();
         progress();
     }
-    // Replies still owed: over Modbus/TCP the learnt wait after the last request, over RTU and ASCII up to a
-    // timeout for those due; then judged.
-    if (last_ && !s_.target_lost && (!unanswered_.empty() || !owed_.empty())) {
-        if (framing_ == modbus::Framing::Tcp)
+    // Replies still owed: over Modbus/TCP the learnt wait after the last request, and up to a timeout for
+    // those due; over RTU and ASCII up to a timeout for those due; then judged.
+    if (last_ && !s_.target_lost && (!unanswered_.empty() || !owed_.empty() || !heard_unexplained_.empty())) {
+        if (framing_ == modbus::Framing::Tcp && !unanswered_.empty()) {
             std::this_thread::sleep_until(unanswered_.newest() + silence_wait());
-        else
+            judge_arrivals();
+            auto unexplained = await_due_claims(options_.timeout);
+            heard_unexplained_.insert(heard_unexplained_.end(), unexplained.begin(), unexplained.end());
+        } else if (framing_ != modbus::Framing::Tcp) {
             (void)await_due_replies(options_.timeout);
+        }
         judge_arrivals();
     }
     if (options_.stop && options_.stop->load()) s_.stopped = true;
@@ -780,6 +827,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"exceptions", s.exceptions},
                      {"silences", s.silences},
                      {"late_replies", s.late_replies},
+                     {"replies_after_timeout", s.replies_after_timeout},
                      {"silence_wait_ms", std::chrono::duration<double, std::milli>(s.silence_wait).count()},
                      {"skipped_writes", s.skipped_writes},
                      {"unconfirmed", s.unconfirmed},

@@ -72,6 +72,9 @@ struct CampaignSummary {
     // Replies that came after their request was given up (--timeout, or the silence wait), each judged as
     // that request's: matched by transaction id over Modbus/TCP, by what they answer over RTU and ASCII.
     std::uint64_t late_replies = 0;
+    // Of those, replies to requests that were due one: they came after --timeout (a slow target). The
+    // others answered requests the rules want unanswered, which over Modbus/TCP are not waited for at all.
+    std::uint64_t replies_after_timeout = 0;
     std::uint64_t health_checks = 0;
     std::chrono::nanoseconds elapsed{0};
     std::chrono::microseconds silence_wait{0};  // learnt where the rules demand silence, when the run ended

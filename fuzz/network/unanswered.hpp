@@ -3,8 +3,10 @@
 // carries its request's transaction id, so where the rules demand silence the fuzzer need not wait to see
 // whether the target keeps it: it goes on with the next request, and a reply that comes later (between two
 // exchanges, or during one, where the client sets it aside as stale) is matched by its id to the request it
-// answers and judged as that request's reply. A request is kept for as long as a due reply is waited for
-// (the reply timeout); a reply later than that is not attributed, as it would not be to a due request.
+// answers and judged as that request's reply. The same holds for a reply that was due and came after the
+// timeout (a slow target): it is judged, and counted as late. A request is kept while its transaction id is
+// within the window the client sets stale replies aside in (the 256 before the current request's,
+// exchange.hpp): a reply further behind would be taken for the current request's anyway.
 
 #include <chrono>
 #include <cstdint>
@@ -21,31 +23,30 @@ class Unanswered {
 
     struct Request {
         modbus::transport::Exchange exchange;  // `sent` is the request's MBAP frame; nothing received
-        Clock::time_point sent;
+        Clock::time_point sent;                // when it was written
+        Clock::time_point given_up;            // when its exchange ended
+        bool reply_due = false;                // false where the rules want no reply
     };
 
-    explicit Unanswered(std::chrono::nanoseconds keep) : keep_(keep) {}
-
-    // A request whose exchange ended without its reply; ignored unless `sent` holds an MBAP header.
-    void add(const modbus::transport::Exchange& exchange, Clock::time_point sent);
-    // The request a reply with this transaction id answers, taken off the list (a request has one reply):
-    // the newest one kept with that id, none when every such request was answered or given up by `now`.
-    std::optional<Request> take(std::uint16_t transaction_id, Clock::time_point now);
+    // A request whose exchange ended without its reply; ignored unless `sent` holds an MBAP header. Requests
+    // whose transaction ids are more than `window` behind this one's are dropped.
+    void add(const modbus::transport::Exchange& exchange, Clock::time_point sent, Clock::time_point given_up,
+             bool reply_due);
+    // The request a reply with this transaction id answers, taken off the list (a request has one reply);
+    // none when no kept request has that id.
+    std::optional<Request> take(std::uint16_t transaction_id);
     // The connection the requests went over is gone: no reply to them can come.
     void clear() noexcept { requests_.clear(); }
     bool empty() const noexcept { return requests_.empty(); }
     std::size_t size() const noexcept { return requests_.size(); }
     // When the newest kept request was sent; only when not empty.
     Clock::time_point newest() const { return requests_.back().sent; }
+    // The newest kept request that was due a reply; none when no such request is kept.
+    const Request* newest_due() const noexcept;
 
-    // At most this many are kept, whatever the timeout: transaction ids repeat every 65,536 requests, and a
-    // campaign at 30,000 requests a second with a long timeout must not grow without bound.
-    static constexpr std::size_t capacity = 4096;
+    static constexpr std::uint16_t window = 256;
 
   private:
-    void expire(Clock::time_point now);
-
-    std::chrono::nanoseconds keep_;
     std::deque<Request> requests_;  // oldest first
 };
 

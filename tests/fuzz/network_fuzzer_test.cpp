@@ -116,6 +116,13 @@ TEST_P(PlantedFault, IsFoundByTheNetworkFuzzerWithTheRuleItBreaks) {
                                    [&](const auto& f) { return c.rules.count(f.rule); });
     EXPECT_TRUE(named) << "no finding names the fault's effect:" << listing(s);
     EXPECT_FALSE(s.findings.front().reproducer.steps.empty());
+    // No reply came after the timeout (slow-reply's within it): the command must not suggest a longer one.
+    EXPECT_EQ(s.replies_after_timeout, 0u);
+    // Served where the rules want silence, which over Modbus/TCP is not waited for: the replies come after
+    // their requests were given up, and are judged as theirs.
+    if (c.fault == "any-protocol-id") {
+        EXPECT_GT(s.late_replies, 0u);
+    }
 }
 
 INSTANTIATE_TEST_SUITE_P(Slave, PlantedFault, ::testing::ValuesIn(fault_cases()), [](const auto& info) {
@@ -161,6 +168,7 @@ TEST_P(CleanSlave, YieldsNoFindingAndRestoresEveryWrite) {
     const auto s = fz::run_campaign(mbscope::slave::test::profile(c.profile), o);
     ASSERT_TRUE(s.reachable) << s.error;
     EXPECT_TRUE(s.findings.empty()) << listing(s);
+    EXPECT_EQ(s.late_replies, 0u);
     EXPECT_EQ(s.requests, *o.requests);
     EXPECT_GT(s.response_classes, 10u);
     EXPECT_GT(s.exceptions, 0u);
@@ -259,8 +267,8 @@ TEST(ReplyLatency, ASlowReplyRaisesTheWaitForAWhile) {
     EXPECT_EQ(l.silence_wait(milliseconds(1), milliseconds(1000)), before);
 }
 
-// Requests kept for their late reply: taken by transaction id, the newest first, once only; given up after
-// the reply timeout; never more than the capacity.
+// Requests kept for their late reply: taken by transaction id, once only, however late the reply comes;
+// kept while their id is within the window the client sets stale replies aside in.
 TEST(Unanswered, AReplyTakesTheRequestWithItsTransactionIdOnce) {
     using namespace std::chrono;
     const auto request = [](std::uint16_t tid, std::uint8_t fc) {
@@ -268,32 +276,44 @@ TEST(Unanswered, AReplyTakesTheRequestWithItsTransactionIdOnce) {
         ex.sent = mbscope::modbus::encode_tcp(tid, 1, std::vector<std::uint8_t>{fc, 0, 0, 0, 1});
         return ex;
     };
-    fz::Unanswered kept(milliseconds(100));
+    fz::Unanswered kept;
     const auto t0 = fz::Unanswered::Clock::time_point{} + hours(1);
-    kept.add(request(7, 3), t0);
-    kept.add(request(8, 4), t0 + milliseconds(10));
-    kept.add(request(7, 1), t0 + milliseconds(20));  // the id again (it wraps every 65,536 requests)
+    EXPECT_EQ(kept.newest_due(), nullptr);
+    kept.add(request(7, 3), t0, t0 + milliseconds(100), true);
+    kept.add(request(8, 4), t0 + milliseconds(110), t0 + milliseconds(110), false);
+    kept.add(request(9, 1), t0 + milliseconds(120), t0 + milliseconds(120), false);
     mbscope::modbus::transport::Exchange short_one;
-    short_one.sent = {0x00, 0x09, 0x00};
-    kept.add(short_one, t0 + milliseconds(20));  // no MBAP header: nothing a reply could name
+    short_one.sent = {0x00, 0x0A, 0x00};
+    kept.add(short_one, t0 + milliseconds(130), t0 + milliseconds(130), true);  // no MBAP header: no id
     EXPECT_EQ(kept.size(), 3u);
-    EXPECT_FALSE(kept.take(9, t0 + milliseconds(30)));
-    auto newest = kept.take(7, t0 + milliseconds(30));
-    ASSERT_TRUE(newest);
-    EXPECT_EQ(newest->exchange.sent[7], 1);
-    EXPECT_EQ(newest->sent, t0 + milliseconds(20));
-    auto older = kept.take(7, t0 + milliseconds(30));
-    ASSERT_TRUE(older);
-    EXPECT_EQ(older->exchange.sent[7], 3);
-    EXPECT_FALSE(kept.take(7, t0 + milliseconds(30)));   // a request has one reply
-    EXPECT_FALSE(kept.take(8, t0 + milliseconds(111)));  // given up 100 ms after it was sent
+    ASSERT_NE(kept.newest_due(), nullptr);  // the first: the others want no reply
+    EXPECT_EQ(kept.newest_due()->exchange.sent[7], 3);
+    EXPECT_EQ(kept.newest_due()->given_up, t0 + milliseconds(100));
+    EXPECT_EQ(kept.newest(), t0 + milliseconds(120));
+    EXPECT_FALSE(kept.take(10));
+    auto nine = kept.take(9);
+    ASSERT_TRUE(nine);
+    EXPECT_EQ(nine->exchange.sent[7], 1);
+    EXPECT_EQ(nine->sent, t0 + milliseconds(120));
+    EXPECT_FALSE(nine->reply_due);
+    auto seven = kept.take(7);
+    ASSERT_TRUE(seven);
+    EXPECT_EQ(seven->exchange.sent[7], 3);
+    EXPECT_TRUE(seven->reply_due);
+    EXPECT_EQ(kept.newest_due(), nullptr);
+    EXPECT_FALSE(kept.take(7));  // a request has one reply
+    EXPECT_TRUE(kept.take(8));   // however late
     EXPECT_TRUE(kept.empty());
 
-    for (std::uint32_t i = 0; i < fz::Unanswered::capacity + 10; ++i)
-        kept.add(request(static_cast<std::uint16_t>(i), 3), t0);
-    EXPECT_EQ(kept.size(), fz::Unanswered::capacity);
-    EXPECT_FALSE(kept.take(0, t0));  // the oldest made room
-    EXPECT_TRUE(kept.take(static_cast<std::uint16_t>(fz::Unanswered::capacity + 9), t0));
+    // Ids 65,530 to 65,535 and, past the wrap, 0 to 300: a request is dropped once the newest id added is
+    // more than the window ahead of its id.
+    for (std::uint32_t i = 65530; i < 65536 + 301; ++i)
+        kept.add(request(static_cast<std::uint16_t>(i), 3), t0, t0, true);
+    EXPECT_EQ(kept.size(), fz::Unanswered::window + 1u);
+    EXPECT_FALSE(kept.take(43));  // 300 - 257
+    EXPECT_TRUE(kept.take(44));   // 300 - 256
+    EXPECT_FALSE(kept.take(65535));
+    EXPECT_TRUE(kept.take(300));
     kept.clear();
     EXPECT_TRUE(kept.empty());
 }
@@ -407,12 +427,13 @@ TEST_P(SlowTarget, IsFoundSlowAndNoReplyIsJudgedAsAnotherRequests) {
     ASSERT_FALSE(s.findings.empty()) << "the slow target was not found slow";
     for (const auto& f : s.findings)
         EXPECT_EQ(f.rule, "timing.slow_reply") << listing(s);
-    // Over Modbus/TCP a reply later than the timeout is not attributed (unanswered.hpp); over RTU and
-    // ASCII each is, and counted.
-    if (c.scheme != "tcp") {
-        EXPECT_GT(s.late_replies, 0u);
-    }
-    EXPECT_EQ(fz::to_json(s)["late_replies"].get<std::uint64_t>(), s.late_replies);
+    // Each late reply is attributed to its request and counted: over Modbus/TCP by its transaction id,
+    // over RTU and ASCII by what it answers. All were due: none is to a request the rules want unanswered.
+    EXPECT_GT(s.replies_after_timeout, 0u);
+    EXPECT_EQ(s.replies_after_timeout, s.late_replies);
+    const auto j = fz::to_json(s);
+    EXPECT_EQ(j["late_replies"].get<std::uint64_t>(), s.late_replies);
+    EXPECT_EQ(j["replies_after_timeout"].get<std::uint64_t>(), s.replies_after_timeout);
     for (const auto& t : s.restored)
         EXPECT_TRUE(t.restored) << mbscope::modbus::to_string(t.table) << " " << t.address << ": "
                                 << t.problem;
