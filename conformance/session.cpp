@@ -57,12 +57,9 @@ void Session::log_late(std::vector<std::uint8_t> bytes) {
 void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) {
     if (client_.framing() == modbus::Framing::Tcp) return;
     log_late(client_.drain(std::chrono::milliseconds(0)));
-    if (owed().empty() || pdu.empty() || quiet_waits_ >= quiet_waits_kept) return;
-    const auto list = owed().list();
-    const bool same_shape = std::any_of(list.begin(), list.end(), [&](const tp::OwedRequest& o) {
-        return tp::could_draw_same_reply(o, unit, pdu);
-    });
-    if (!same_shape) return;  // a late reply to an owed request is told from this one's by its content
+    if (quiet_waits_ >= tp::OwedRequests::quiet_waits_kept) return;
+    // A late reply to an owed request is told from this one's by its content, unless they look alike.
+    if (!owed().owes_reply_like(unit, pdu)) return;
     // Another timeout after the owed request was given up: what has not come by then is taken as never.
     const auto until = owed().newest_given_up() + options_.timeout;
     const auto now = std::chrono::steady_clock::now();

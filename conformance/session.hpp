@@ -121,10 +121,8 @@ class Session {
     modbus::transport::OwedRequests owed_;
     modbus::transport::OwedRequests* shared_owed_ = nullptr;  // share_owed()
     modbus::transport::OwedRequests& owed() noexcept { return shared_owed_ ? *shared_owed_ : owed_; }
-    // Waits for an owed reply that came to nothing, since one came: a device that is silent, not slow (as
-    // the rules that expect silence make it), stops costing a timeout twice after this many.
-    std::uint32_t quiet_waits_ = 0;
-    static constexpr std::uint32_t quiet_waits_kept = 3;
+    // Waits for an owed reply that came to nothing, since one came (OwedRequests::quiet_waits_kept).
+    unsigned quiet_waits_ = 0;
     // Restoring stops writing to a device that answered none of this many requests in a row (a device
     // that crashed mid-run would otherwise hold the run for the timeout twice per point: over an hour for
     // the generic profile's 2,000 coils at 1 s); the points left are listed as not restored, with why.

@@ -27,9 +27,6 @@ using modbus::transport::Exchange;
 
 constexpr std::size_t trace_capacity = 32;  // steps kept since the last known-good state
 constexpr int health_attempts = 3;          // health checks before a target counts as unresponsive
-// RTU and ASCII: waits for an owed reply that saw nothing, in a row, after which the target is taken as one
-// that drops replies rather than one that sends them late (until a late reply shows again).
-constexpr int quiet_waits_kept = 3;
 
 std::uint16_t word(const std::vector<std::uint8_t>& pdu, std::size_t at) {
     return at + 1 < pdu.size() ? static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]) : 0;
@@ -155,7 +152,7 @@ class Campaign {
     // request's. A request that could draw the same reply as an owed one that was due first waits that
     // reply out, as the conformance session does.
     modbus::transport::OwedRequests owed_;
-    int quiet_waits_ = 0;
+    unsigned quiet_waits_ = 0;  // OwedRequests::quiet_waits_kept
     // Late replies with their owed requests, to be judged (as claimed_: judging may minimise a reproducer,
     // which waits out the owed replies first and leaves what it heard here), each with when it came.
     std::vector<std::pair<modbus::transport::SettledRequest, std::string_view>> settled_;
@@ -299,14 +296,8 @@ void Campaign::judge_settled(std::vector<modbus::transport::SettledRequest> sett
 // it is told from this request's own only by its timing. After quiet_waits_kept waits that saw nothing in a
 // row the target is taken to drop replies, and this waits no more until a late reply shows again.
 void Campaign::wait_out_owed(const modbus::Frame& request, std::chrono::milliseconds timeout) {
-    const auto pdu = request.pdu();
-    if (owed_.empty() || pdu.empty() || quiet_waits_ >= quiet_waits_kept) return;
-    const auto owed = owed_.list();
-    const bool same_shape =
-        std::any_of(owed.begin(), owed.end(), [&](const modbus::transport::OwedRequest& o) {
-            return o.reply_due && modbus::transport::could_draw_same_reply(o, request.unit_id(), pdu);
-        });
-    if (!same_shape) return;
+    if (quiet_waits_ >= modbus::transport::OwedRequests::quiet_waits_kept) return;
+    if (!owed_.owes_reply_like(request.unit_id(), request.pdu())) return;
     if (!await_due_replies(timeout)) ++quiet_waits_;
 }
 

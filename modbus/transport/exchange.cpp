@@ -107,6 +107,12 @@ bool could_draw_same_reply(const OwedRequest& owed, std::uint8_t unit,
            (owed.unit == unit || owed.unit == 0 || unit == 0);
 }
 
+bool OwedRequests::owes_reply_like(std::uint8_t unit, std::span<const std::uint8_t> pdu) const noexcept {
+    return std::any_of(owed_.begin(), owed_.end(), [&](const OwedRequest& o) {
+        return o.reply_due && could_draw_same_reply(o, unit, pdu);
+    });
+}
+
 bool OwedRequests::after(const Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu,
                          std::vector<SettledRequest>* settled, bool reply_due) {
     for (const auto& stale : ex.stale_replies) {

@@ -86,11 +86,20 @@ class OwedRequests {
     // order.
     std::vector<std::uint8_t> settle_frames(Framing framing, std::span<const std::uint8_t> bytes,
                                             std::vector<SettledRequest>& settled);
+    // Whether an owed request due a reply could draw the same reply as a request to `unit` of `pdu`
+    // (could_draw_same_reply): should that reply come late, only its timing tells it from the request's own,
+    // so a client waits it out before sending the request.
+    bool owes_reply_like(std::uint8_t unit, std::span<const std::uint8_t> pdu) const noexcept;
     std::span<const OwedRequest> list() const noexcept { return owed_; }
     bool empty() const noexcept { return owed_.empty(); }
     void clear() noexcept { owed_.clear(); }
     // When the newest owed request was given up; only when not empty.
     std::chrono::steady_clock::time_point newest_given_up() const noexcept { return owed_.back().given_up; }
+
+    // Waits for an owed reply that hear nothing, in a row, after which a client takes the device as one that
+    // drops replies rather than one that sends them late, and waits no more until a late reply shows again:
+    // a silent device would otherwise cost a timeout twice for each request of the same shape.
+    static constexpr unsigned quiet_waits_kept = 3;
 
   private:
     static constexpr std::size_t kept = 4;

@@ -276,6 +276,24 @@ TEST(OwedRequests, ARequestDueAReplyOutlastsTheSilentOnes) {
     EXPECT_EQ(owed.list().size(), 3u);
 }
 
+// A request owes a reply like another's when a reply due to an owed one could be drawn by it too: the same
+// function or its exception, the same unit or a broadcast. Owed requests that want no reply owe none.
+TEST(OwedRequests, OwesAReplyLikeARequestOfTheSameShape) {
+    auto owed = owing_a_read();
+    Exchange silent;
+    const std::vector<std::uint8_t> write{0x06, 0x00, 0x00, 0x00, 0x01};
+    ASSERT_TRUE(owed.after(silent, 0, write, nullptr, false));  // a broadcast: no reply due
+    EXPECT_TRUE(owed.owes_reply_like(0x11, read_pdu));
+    EXPECT_TRUE(owed.owes_reply_like(0x11, std::vector<std::uint8_t>{0x83}));  // draws exception 83 too
+    EXPECT_TRUE(owed.owes_reply_like(0, read_pdu));
+    EXPECT_FALSE(owed.owes_reply_like(0x12, read_pdu));
+    EXPECT_FALSE(owed.owes_reply_like(0x11, std::vector<std::uint8_t>{0x04, 0x00, 0x00, 0x00, 0x01}));
+    EXPECT_FALSE(owed.owes_reply_like(0x11, write));  // the owed write was a broadcast's
+    EXPECT_FALSE(owed.owes_reply_like(0x11, std::vector<std::uint8_t>{}));
+    owed.clear();
+    EXPECT_FALSE(owed.owes_reply_like(0x11, read_pdu));
+}
+
 // A late reply that comes during a later exchange (set aside there) settles its request, which the caller
 // gets back with the bytes it sent, to judge the reply as that request's.
 TEST(OwedRequests, AStaleReplySettlesItsRequestWithTheBytesItSent) {
