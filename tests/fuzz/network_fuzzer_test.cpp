@@ -471,6 +471,18 @@ TEST(NetworkFuzzer, AReplayOverRtuJudgesALateReplyAsItsOwnSteps) {
         for (const auto& v : step.violations)
             EXPECT_EQ(v.rule, "reply.missing") << v.observed;  // missing in time, and nothing else
     EXPECT_TRUE(client->drain(milliseconds(0)).empty());       // the second step's reply was waited for
+
+    // Two steps of the same shape: the first's late reply could answer the second too, so it is waited out
+    // before the second is sent, and the second is not taken to be answered by it.
+    const auto same = fz::replay(*client, oracle, {read(3), read(3)}, options);
+    ASSERT_EQ(same.size(), 2u);
+    for (const auto& step : same) {
+        EXPECT_TRUE(step.exchange.stale_replies.empty());
+        EXPECT_TRUE(step.exchange.own_received().empty()) << "a reply within 300 ms from a 450 ms target";
+        ASSERT_EQ(step.violations.size(), 1u);
+        EXPECT_EQ(step.violations[0].rule, "reply.missing") << step.violations[0].observed;
+    }
+    EXPECT_TRUE(client->drain(milliseconds(0)).empty());
 }
 
 TEST(NetworkFuzzer, UnreachableTargetIsReportedNotFuzzed) {
