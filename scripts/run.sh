@@ -61,9 +61,10 @@ case "${1:-demo}" in
     ;;
   test)
     # The release build is compiled without the tests (its -O2 warnings are errors too, and the demo runs
-    # it); the suite runs once, under the sanitizers, which check more than a release run of the same tests
+    # it) and without the fuzz targets' replay programs (the sanitizer build makes and runs them); the
+    # suite runs once, under the sanitizers, which check more than a release run of the same tests
     # (README.md, "Building by hand"). Twice the cores: many tests wait on timers, not the CPU.
-    build release -DMBSCOPE_BUILD_TESTS=OFF
+    build release -DMBSCOPE_BUILD_TESTS=OFF -DMBSCOPE_BUILD_FUZZ_REPLAYS=OFF
     build asan
     ctest --preset asan -j "$((jobs * 2))"
     fuzz_smoke
