@@ -16,6 +16,25 @@ namespace mbscope::fuzz::network {
 
 namespace {
 
+// `received`, which came after `request` was given up, judged as all the request received: not with the
+// late replies to earlier requests that the request set aside (own_received() would count them off the
+// front of these bytes, and the oracle find the reply missing) nor with its time-out. Every observation
+// begins with `when`.
+std::vector<conformance::OracleViolation> judge_late(conformance::ExchangeOracle& oracle,
+                                                     const modbus::transport::Exchange& request,
+                                                     std::vector<std::uint8_t> received,
+                                                     std::optional<modbus::Frame> response,
+                                                     std::string_view when) {
+    modbus::transport::Exchange ex;
+    ex.sent = request.sent;
+    ex.received = std::move(received);
+    ex.response = std::move(response);
+    auto found = oracle.judge(ex);
+    for (auto& v : found)
+        v.observed = std::string(when) + v.observed;
+    return found;
+}
+
 modbus::Result<std::vector<std::uint8_t>, std::string> unhex(const std::string& text) {
     std::vector<std::uint8_t> out;
     std::istringstream in(text);
@@ -225,31 +244,19 @@ std::vector<conformance::OracleViolation> late_bytes(conformance::ExchangeOracle
                                                      std::vector<std::uint8_t> bytes) {
     if (bytes.empty()) return {};
     // Judged as the reply it is: a late answer the rules allow (a gateway's exception 0B) is no finding.
-    modbus::transport::Exchange ex = previous;
-    ex.response.reset();
     auto frame = modbus::decode_adu(framing, bytes);
-    ex.received = std::move(bytes);
-    if (frame) ex.response = std::move(frame).value();
-    auto found = oracle.judge(ex);
-    for (auto& v : found)
-        v.observed = "after the request was given up: " + v.observed;
-    return found;
+    std::optional<modbus::Frame> response;
+    if (frame) response = std::move(frame).value();
+    return judge_late(oracle, previous, std::move(bytes), std::move(response),
+                      "after the request was given up: ");
 }
 
 std::vector<conformance::OracleViolation> judge_late_frame(conformance::ExchangeOracle& oracle,
                                                            const modbus::transport::Exchange& request,
                                                            const modbus::Frame& reply,
                                                            std::string_view when) {
-    // The request's exchange with this reply as all it received: not the late replies to earlier requests
-    // that it set aside (own_received() would count them off the front of this reply) nor its time-out.
-    modbus::transport::Exchange ex;
-    ex.sent = request.sent;
-    ex.received.assign(reply.adu().begin(), reply.adu().end());
-    ex.response = reply;
-    auto found = oracle.judge(ex);
-    for (auto& v : found)
-        v.observed = std::string(when) + v.observed;
-    return found;
+    return judge_late(oracle, request, std::vector<std::uint8_t>(reply.adu().begin(), reply.adu().end()),
+                      reply, when);
 }
 
 std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracle& oracle,

@@ -377,7 +377,8 @@ TEST(NetworkFuzzer, AReplyThatComesDuringTheNextRequestIsJudgedAsItsOwn) {
 }
 
 // A late reply is judged as its request's whatever that request's own exchange met: a slow target's
-// request given up has often set aside the late reply to the one before it, which is not part of this one.
+// request given up has often set aside the late reply to the one before it, which is not part of this one
+// (a whole frame matched to its request, or bytes found after the request was given up).
 TEST(NetworkFuzzer, ALateReplyIsJudgedWithoutTheRepliesItsRequestSetAside) {
     const auto& p = mbscope::slave::test::profile("modbus");
     mbscope::conformance::ExchangeOracle oracle(mbscope::modbus::Framing::Tcp, {{1, &p}}, true);
@@ -391,6 +392,8 @@ TEST(NetworkFuzzer, ALateReplyIsJudgedWithoutTheRepliesItsRequestSetAside) {
     given_up.timed_out = true;
     const auto late = *mbscope::modbus::decode_tcp(mbscope::modbus::encode_tcp(6, 1, reply));
     EXPECT_TRUE(fz::judge_late_frame(oracle, given_up, late, "later: ").empty());
+    const std::vector<std::uint8_t> bytes(late.adu().begin(), late.adu().end());
+    EXPECT_TRUE(fz::late_bytes(oracle, mbscope::modbus::Framing::Tcp, given_up, bytes).empty());
     // And a wrong one is judged wrong, as coming late.
     const auto wrong = *mbscope::modbus::decode_tcp(
         mbscope::modbus::encode_tcp(6, 1, std::vector<std::uint8_t>{0x04, 0x02, 0x00, 0x00}));
