@@ -5,7 +5,7 @@
 // exchanges, or during one, where the client sets it aside as stale) is matched by its id to the request it
 // answers and judged as that request's reply. The same holds for a reply that was due and came after the
 // timeout (a slow target): it is judged, and counted as late. A request is kept while its transaction id is
-// within the window the client sets stale replies aside in (the 256 before the current request's,
+// within the window the client sets stale replies aside in (stale_transaction_window,
 // exchange.hpp): a reply further behind would be taken for the current request's anyway.
 
 #include <chrono>
@@ -44,7 +44,7 @@ class Unanswered {
     // The newest kept request that was due a reply; none when no such request is kept.
     const Request* newest_due() const noexcept;
 
-    static constexpr std::uint16_t window = 256;
+    static constexpr std::uint16_t window = modbus::transport::stale_transaction_window;
 
   private:
     std::deque<Request> requests_;  // oldest first

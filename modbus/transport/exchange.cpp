@@ -207,7 +207,7 @@ std::size_t ReplyScanner::scan(Exchange& ex, bool silence) {
         if (frame && framing_ == Framing::Tcp && frames_ <= 1 && found_ == 0 && ex.sent.size() >= 7) {
             const auto sent_tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
             const auto behind = static_cast<std::uint16_t>(sent_tid - frame->transaction_id());
-            if (behind >= 1 && behind <= 256) {
+            if (behind >= 1 && behind <= stale_transaction_window) {
                 ex.stale_replies.push_back(std::move(*frame));
                 continue;
             }

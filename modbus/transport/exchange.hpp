@@ -111,6 +111,10 @@ class OwedRequests {
 // left out.
 std::vector<Frame> frames_in(Framing framing, std::span<const std::uint8_t> bytes);
 
+// Over Modbus/TCP a reply whose transaction id is this many or fewer before the request's is a late reply to
+// an earlier request (ReplyScanner sets it aside); one further behind is taken for the request's own.
+constexpr std::uint16_t stale_transaction_window = 256;
+
 // Finds the frames in an exchange's `received` as bytes are appended to it.
 class ReplyScanner {
   public:
@@ -123,10 +127,11 @@ class ReplyScanner {
 
     // Looks at the bytes of ex.received not yet framed. `silence`: the line has been quiet long enough to
     // end an RTU frame. A late reply to an earlier request, when nothing else came before it, is set aside
-    // in ex.stale_replies: over Modbus/TCP a reply whose transaction id is one of the 256 before the
-    // request's; over RTU and ASCII a frame with a good checksum that could answer an owed request and could
-    // not answer this one. Otherwise the first frame becomes ex.response (nullopt when its bytes do not
-    // decode). Returns how many frames (not set aside) this call found.
+    // in ex.stale_replies: over Modbus/TCP a reply whose transaction id is within the
+    // stale_transaction_window before the request's; over RTU and ASCII a frame with a good checksum that
+    // could answer an owed request and could not answer this one. Otherwise the first frame becomes
+    // ex.response (nullopt when its bytes do not decode). Returns how many frames (not set aside) this call
+    // found.
     std::size_t scan(Exchange& ex, bool silence);
 
     // Frames found so far, not counting those set aside.
