@@ -15,7 +15,6 @@
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
-#include "modbus/tcp_deframer.hpp"
 
 namespace mbscope::fuzz::network {
 
@@ -111,13 +110,10 @@ class Campaign {
     ReplayedStep send(const Step& step, std::chrono::milliseconds timeout);
     std::chrono::microseconds silence_wait() const;
     std::chrono::microseconds probe_silence_wait(const Step& step) const;
-    bool claim(const modbus::Frame& reply);
     void judge_claimed(std::string_view when);
     void judge_settled(std::vector<modbus::transport::SettledRequest> settled, std::string_view when);
     void wait_out_owed(const modbus::Frame& request, std::chrono::milliseconds timeout);
     bool await_due_replies(std::chrono::milliseconds timeout);
-    std::vector<std::uint8_t> claim_frames(std::span<const std::uint8_t> bytes);
-    std::vector<std::uint8_t> await_due_claims(std::chrono::milliseconds timeout);
     void judge_arrivals();
     bool last_unanswered() const;
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
@@ -144,7 +140,7 @@ class Campaign {
     Unanswered unanswered_;  // Modbus/TCP: requests whose reply, if any comes, is still to be judged
     // Late replies matched to their kept requests, to be judged; all are claimed before any is judged, as
     // judging may minimise a reproducer, which gives up every kept request.
-    std::vector<std::pair<Unanswered::Request, modbus::Frame>> claimed_;
+    Unanswered::Claims claimed_;
     std::uint64_t minimised_ = 0;  // reproducers minimised (their replays resend old transaction ids)
     // RTU and ASCII: no transaction id says which request a reply answers. Requests given up with nothing
     // back are owed (exchange.hpp): a reply that comes later, between exchanges or during one (the client
@@ -230,7 +226,7 @@ ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout)
         judge_settled(std::move(settled), "during a later request: ");
     } else {
         for (const auto& frame : r.exchange.stale_replies)
-            (void)claim(frame);
+            (void)unanswered_.claim(frame, claimed_);
         judge_claimed("during a later request: ");
         if (r.exchange.closed)
             unanswered_.clear();
@@ -252,15 +248,6 @@ std::chrono::microseconds Campaign::probe_silence_wait(const Step& step) const {
     if (options_.silence_wait) return *options_.silence_wait;
     if (framing_ == modbus::Framing::Tcp && !step.reconnect_after) return std::chrono::microseconds(0);
     return silence_wait();
-}
-
-// A Modbus/TCP frame that came after its request was given up, matched to that request while it is kept;
-// false when no kept request has its transaction id.
-bool Campaign::claim(const modbus::Frame& reply) {
-    auto request = unanswered_.take(reply.transaction_id());
-    if (!request) return false;
-    claimed_.emplace_back(std::move(*request), reply);
-    return true;
 }
 
 // Each claimed reply judged as its request's.
@@ -324,46 +311,6 @@ bool Campaign::last_unanswered() const {
                      !last_->response->checksum_ok);
 }
 
-// Modbus/TCP: each whole frame in `bytes` that a kept request's transaction id claims (claimed_, judged by
-// judge_claimed); returns the other bytes, in order.
-std::vector<std::uint8_t> Campaign::claim_frames(std::span<const std::uint8_t> bytes) {
-    std::vector<std::uint8_t> rest;
-    std::size_t used = 0;
-    while (used < bytes.size()) {
-        const auto tail = bytes.subspan(used);
-        const auto step = modbus::tcp_step(tail, true, true);
-        if (step.kind != modbus::DeframeStep::Kind::Complete) break;
-        const auto frame = modbus::decode_adu(framing_, tail.first(step.length));
-        if (!frame || !claim(*frame)) rest.insert(rest.end(), tail.begin(), tail.begin() + step.length);
-        used += step.length;
-    }
-    rest.insert(rest.end(), bytes.begin() + static_cast<std::ptrdiff_t>(used), bytes.end());
-    return rest;
-}
-
-// Modbus/TCP: the replies still due to kept requests are waited for, up to `timeout` after the newest such
-// request was given up (as over RTU and ASCII), and claimed as they come. Before minimising (its replays
-// resend old transaction ids: a reply still to come would be taken for a replayed request's) and at the end
-// of the run. Returns the bytes heard that no kept request claims.
-std::vector<std::uint8_t> Campaign::await_due_claims(std::chrono::milliseconds timeout) {
-    std::vector<std::uint8_t> rest;
-    while (const Unanswered::Request* due = unanswered_.newest_due()) {
-        const auto now = Clock::now();
-        const auto until = due->given_up + timeout;
-        if (now >= until) break;
-        // Listens as for that request's reply: replies to the kept requests before it are set aside on the
-        // way.
-        const auto heard = client_.raw({}, std::chrono::duration_cast<std::chrono::microseconds>(until - now),
-                                       1, due->exchange.sent);
-        const auto kept = unanswered_.size();
-        auto unclaimed = claim_frames(heard.received);
-        rest.insert(rest.end(), unclaimed.begin(), unclaimed.end());
-        if (heard.closed) unanswered_.clear();
-        if (heard.received.empty() || unanswered_.size() == kept) break;  // nothing kept was answered
-    }
-    return rest;
-}
-
 // Whatever arrived since the last exchange ended (nothing is waited for). Over Modbus/TCP each whole frame
 // is the reply of the kept request whose transaction id it carries, over RTU and ASCII of the owed request
 // it could answer; what is left is the last exchange's reply, too late.
@@ -376,7 +323,7 @@ void Campaign::judge_arrivals() {
         bytes = owed_.settle_frames(framing_, bytes, settled);
         judge_settled(std::move(settled), "after the request was given up: ");
     }
-    if (framing_ == modbus::Framing::Tcp) bytes = claim_frames(bytes);
+    if (framing_ == modbus::Framing::Tcp) bytes = unanswered_.claim_frames(bytes, claimed_);
     judge_claimed("after the request was given up: ");
     if (!last_unanswered()) return;  // answered: the rest is no one's reply the rules can name
     for (const auto& v : late_bytes(oracle_, framing_, *last_, std::move(bytes)))
@@ -488,7 +435,8 @@ void Campaign::pace() {
 void Campaign::classify(const Probe& p, const ReplayedStep& r) {
     std::string outcome;
     const auto pdu = reply_pdu(r.exchange);
-    // Late replies to earlier requests that came during this exchange are theirs (judge_settled, claim).
+    // Late replies to earlier requests that came during this exchange are theirs (judge_settled,
+    // Unanswered::claim).
     if (r.exchange.own_received().empty()) {
         outcome = "silence";
         ++s_.silences;
@@ -533,7 +481,7 @@ std::vector<Step> Campaign::minimise(const std::string& rule, bool& reproduced) 
     ++minimised_;
     std::vector<std::uint8_t> unexplained;
     if (framing_ == modbus::Framing::Tcp) {
-        unexplained = await_due_claims(options_.timeout);
+        unexplained = unanswered_.await_due(client_, options_.timeout, claimed_);
         unanswered_.clear();
     } else {
         std::vector<modbus::transport::SettledRequest> settled;
@@ -747,7 +695,7 @@ CampaignSummary Campaign::run() {
         if (framing_ == modbus::Framing::Tcp && !unanswered_.empty()) {
             std::this_thread::sleep_until(unanswered_.newest() + silence_wait());
             judge_arrivals();
-            auto unexplained = await_due_claims(options_.timeout);
+            auto unexplained = unanswered_.await_due(client_, options_.timeout, claimed_);
             heard_unexplained_.insert(heard_unexplained_.end(), unexplained.begin(), unexplained.end());
         } else if (framing_ != modbus::Framing::Tcp) {
             (void)await_due_replies(options_.timeout);

@@ -12,6 +12,9 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <span>
+#include <utility>
+#include <vector>
 
 #include "modbus/transport/client.hpp"
 
@@ -35,6 +38,19 @@ class Unanswered {
     // The request a reply with this transaction id answers, taken off the list (a request has one reply);
     // none when no kept request has that id.
     std::optional<Request> take(std::uint16_t transaction_id);
+    // Late replies matched to their requests (taken off the list), to be judged as theirs.
+    using Claims = std::vector<std::pair<Request, modbus::Frame>>;
+    // A Modbus/TCP frame that came after its request was given up, matched to that request while it is
+    // kept (appended to `claims`); false when no kept request has its transaction id.
+    bool claim(const modbus::Frame& reply, Claims& claims);
+    // Each whole frame in `bytes` (from their front) that a kept request's transaction id claims; returns
+    // the other bytes, in order.
+    std::vector<std::uint8_t> claim_frames(std::span<const std::uint8_t> bytes, Claims& claims);
+    // Listens (nothing is written) until every kept request due a reply has had it, or until `timeout`
+    // after the newest such request was given up, claiming the replies as they come. Returns the bytes
+    // heard that no kept request claims. A connection closed meanwhile gives up every kept request.
+    std::vector<std::uint8_t> await_due(modbus::transport::Client& client, std::chrono::milliseconds timeout,
+                                        Claims& claims);
     // The connection the requests went over is gone: no reply to them can come.
     void clear() noexcept { requests_.clear(); }
     bool empty() const noexcept { return requests_.empty(); }
