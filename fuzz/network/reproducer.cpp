@@ -1,5 +1,6 @@
 #include "fuzz/network/reproducer.hpp"
 
+#include "fuzz/network/unanswered.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 
@@ -259,23 +260,14 @@ std::vector<conformance::OracleViolation> judge_late_frame(conformance::Exchange
                       reply, when);
 }
 
-std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracle& oracle,
-                                                      const modbus::transport::Exchange& previous,
-                                                      const modbus::transport::Exchange& current) {
-    if (previous.response || previous.sent.size() < 7) return {};
-    const auto tid = static_cast<std::uint16_t>((previous.sent[0] << 8) | previous.sent[1]);
-    for (const auto& frame : current.stale_replies)
-        if (frame.transaction_id() == tid)
-            return judge_late_frame(oracle, previous, frame, "during the next request: ");
-    return {};
-}
-
 std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
                                  const std::vector<Step>& steps, const ReplayOptions& options) {
     std::vector<ReplayedStep> out;
     const auto framing = client.framing();
     modbus::transport::OwedRequests owed;  // RTU and ASCII: steps given up, whose replies may still come
     std::vector<modbus::transport::SettledRequest> settled;
+    Unanswered unanswered;  // Modbus/TCP: the same, told apart by their transaction ids (unanswered.hpp)
+    Unanswered::Claims claimed;
     // Each late reply judged as the reply of the step it answers (the latest step that sent its request).
     const auto judge_settled = [&](std::string_view when) {
         for (const auto& s : std::exchange(settled, {})) {
@@ -284,6 +276,15 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
             });
             if (step == out.rend()) continue;
             const auto found = judge_late_frame(oracle, step->exchange, s.reply, when);
+            step->violations.insert(step->violations.end(), found.begin(), found.end());
+        }
+        for (const auto& claim : std::exchange(claimed, {})) {
+            const auto& request = claim.first.exchange;  // (clang before 16 captures no structured binding)
+            const auto step = std::find_if(out.rbegin(), out.rend(), [&](const ReplayedStep& r) {
+                return r.exchange.sent == request.sent;
+            });
+            if (step == out.rend()) continue;
+            const auto found = judge_late_frame(oracle, request, claim.second, when);
             step->violations.insert(step->violations.end(), found.begin(), found.end());
         }
     };
@@ -295,10 +296,9 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
     const auto late = [&] {
         if (out.empty()) return;
         auto bytes = client.drain(std::chrono::milliseconds(0));
-        if (framing != modbus::Framing::Tcp) {
-            bytes = owed.settle_frames(framing, bytes, settled);
-            judge_settled("after the request was given up: ");
-        }
+        bytes = framing == modbus::Framing::Tcp ? unanswered.claim_frames(bytes, claimed)
+                                                : owed.settle_frames(framing, bytes, settled);
+        judge_settled("after the request was given up: ");
         judge_rest(std::move(bytes));
     };
     unsigned quiet_waits = 0;  // OwedRequests::quiet_waits_kept
@@ -314,25 +314,35 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
             judge_settled("after the request was given up: ");
             judge_rest(std::move(rest));
         }
+        const auto sent = std::chrono::steady_clock::now();
         out.push_back(send_step(client, oracle, step, options, owed.list()));
-        if (out.size() > 1 && framing == modbus::Framing::Tcp) {
-            auto& previous = out[out.size() - 2];
-            const auto found = stale_reply(oracle, previous.exchange, out.back().exchange);
-            previous.violations.insert(previous.violations.end(), found.begin(), found.end());
-        } else if (framing != modbus::Framing::Tcp) {
-            (void)owed.after(out.back().exchange, request ? request->unit_id() : 0,
+        const auto& ex = out.back().exchange;
+        if (framing == modbus::Framing::Tcp) {
+            for (const auto& frame : ex.stale_replies)
+                (void)unanswered.claim(frame, claimed);
+            if (ex.closed || step.reconnect_after)
+                unanswered.clear();  // no reply can come over a connection that is gone
+            else if (!ex.response)
+                unanswered.add(ex, sent, std::chrono::steady_clock::now(), out.back().reply_due);
+        } else {
+            (void)owed.after(ex, request ? request->unit_id() : 0,
                              request ? request->pdu() : std::span<const std::uint8_t>{}, &settled,
                              out.back().reply_due);
-            judge_settled("during a later request: ");
         }
+        judge_settled("during a later request: ");
         if (step.reconnect_after) (void)client.reconnect();
     }
     std::this_thread::sleep_for(std::min(options.timeout, std::chrono::milliseconds(50)));
     late();
-    // RTU and ASCII: replies still due are waited for (up to a timeout), so that none comes during what
-    // follows (the campaign's next request, the next replay while minimising), where nothing could tell it.
-    if (framing != modbus::Framing::Tcp && !out.empty()) {
-        auto rest = await_owed(client, owed, std::chrono::steady_clock::now() + options.timeout, settled);
+    // Replies still due are waited for (up to a timeout), so that none comes during what follows (the
+    // campaign's next request, the next replay while minimising), where nothing could tell it: over RTU and
+    // ASCII nothing tells whose reply a frame is, and over Modbus/TCP the next replay resends the same
+    // transaction ids.
+    if (!out.empty()) {
+        auto rest =
+            framing == modbus::Framing::Tcp
+                ? unanswered.await_due(client, options.timeout, claimed)
+                : await_owed(client, owed, std::chrono::steady_clock::now() + options.timeout, settled);
         judge_settled("after the request was given up: ");
         judge_rest(std::move(rest));
     }

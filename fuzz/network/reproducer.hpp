@@ -96,18 +96,12 @@ std::vector<conformance::OracleViolation> judge_late_frame(conformance::Exchange
                                                            const modbus::transport::Exchange& request,
                                                            const modbus::Frame& reply, std::string_view when);
 
-// A Modbus/TCP reply to `previous` that came while `current` waited for its own (the client sets it aside
-// in current.stale_replies, not taking it for current's): judged as `previous`'s, as late_bytes judges
-// bytes that came between the two. Nothing when `previous` was answered or no such frame came.
-std::vector<conformance::OracleViolation> stale_reply(conformance::ExchangeOracle& oracle,
-                                                      const modbus::transport::Exchange& previous,
-                                                      const modbus::transport::Exchange& current);
-
 // Sends every step over `client` and judges each exchange with `oracle`. Besides the oracle's rules: a
 // reply to a request voided by a gap (silence.gap_inside_request), and replies that came after their
-// request was given up (late_bytes, judged when the next step begins and at the end; over Modbus/TCP a
-// reply to the step before that came during a step, stale_reply; over RTU and ASCII a reply that could
-// answer an earlier step given up and not the current one, judged as that step's).
+// request was given up, judged as the reply of the step it answers: over Modbus/TCP the step whose
+// transaction id it carries (unanswered.hpp), over RTU and ASCII the earlier step given up that it could
+// answer (exchange.hpp); what answers none is judged as the last step's (late_bytes). At the end the replies
+// still due are waited for, up to a timeout.
 std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
                                  const std::vector<Step>& steps, const ReplayOptions& options);
 

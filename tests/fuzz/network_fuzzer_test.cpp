@@ -347,33 +347,77 @@ TEST(NetworkFuzzer, ABroadcastReplyIsCaughtWithTheLearntSilenceWait) {
     })) << listing(s);
 }
 
-// Over Modbus/TCP a reply to a request that had to go unanswered can come during the next exchange, once
-// the silence wait is short: the client counts it as stale (its transaction id is the previous request's)
-// and does not take it for the next request's; it is judged as the previous request's reply.
-TEST(NetworkFuzzer, AReplyThatComesDuringTheNextRequestIsJudgedAsItsOwn) {
-    const auto& p = mbscope::slave::test::profile("modbus");
-    mbscope::conformance::ExchangeOracle oracle(mbscope::modbus::Framing::Tcp, {{1, &p}}, true);
+// Over Modbus/TCP the transaction id tells whose a late reply is: a frame that a kept request's id claims is
+// taken for that request's, whichever came between; anything else is left, in order.
+TEST(Unanswered, FramesAreClaimedByTransactionIdAndTheRestIsLeftInOrder) {
     const std::vector<std::uint8_t> read{0x03, 0x00, 0x00, 0x00, 0x01};
-    const std::vector<std::uint8_t> reply{0x03, 0x02, 0x00, 0x00};
-    mbscope::modbus::transport::Exchange previous;
-    previous.sent = mbscope::modbus::encode_tcp(5, 1, read);
-    previous.sent[3] = 1;  // protocol id 1: not Modbus, to be discarded (TCP §3.1.3)
-    mbscope::modbus::transport::Exchange current;
-    current.sent = mbscope::modbus::encode_tcp(6, 1, read);
-    auto late = mbscope::modbus::encode_tcp(5, 1, reply);
-    late[3] = 1;
-    const auto own = mbscope::modbus::encode_tcp(6, 1, reply);
-    current.received = late;
-    current.received.insert(current.received.end(), own.begin(), own.end());
-    current.response = *mbscope::modbus::decode_tcp(own);
-    EXPECT_TRUE(fz::stale_reply(oracle, previous, current).empty());  // the client saw none
-    current.stale_replies.push_back(*mbscope::modbus::decode_tcp(late));
-    const auto found = fz::stale_reply(oracle, previous, current);
-    ASSERT_EQ(found.size(), 1u);
-    EXPECT_EQ(found[0].rule, "silence.protocol_id");
-    EXPECT_EQ(found[0].observed.rfind("during the next request: ", 0), 0u) << found[0].observed;
-    previous.response = current.response;  // answered in time: nothing is late
-    EXPECT_TRUE(fz::stale_reply(oracle, previous, current).empty());
+    const std::vector<std::uint8_t> reply{0x03, 0x02, 0x00, 0x2A};
+    fz::Unanswered kept;
+    const auto t0 = fz::Unanswered::Clock::now();
+    for (std::uint16_t tid : {5, 6, 7}) {
+        mbscope::modbus::transport::Exchange ex;
+        ex.sent = mbscope::modbus::encode_tcp(tid, 1, read);
+        kept.add(ex, t0, t0, tid != 5);
+    }
+    const auto to_six = mbscope::modbus::encode_tcp(6, 1, reply);
+    const auto to_nine = mbscope::modbus::encode_tcp(9, 1, reply);  // no request kept with that id
+    const auto to_five = mbscope::modbus::encode_tcp(5, 1, reply);
+    const std::vector<std::uint8_t> tail{0x00, 0x05, 0x00};  // part of a header
+    std::vector<std::uint8_t> bytes = to_six;
+    for (const auto* part : {&to_nine, &to_five, &tail})
+        bytes.insert(bytes.end(), part->begin(), part->end());
+    fz::Unanswered::Claims claims;
+    const auto rest = kept.claim_frames(bytes, claims);
+    ASSERT_EQ(claims.size(), 2u);
+    EXPECT_EQ(claims[0].first.exchange.sent, mbscope::modbus::encode_tcp(6, 1, read));
+    EXPECT_TRUE(claims[0].first.reply_due);
+    EXPECT_EQ(claims[1].first.exchange.sent, mbscope::modbus::encode_tcp(5, 1, read));
+    EXPECT_FALSE(claims[1].first.reply_due);
+    EXPECT_EQ(claims[1].second.transaction_id(), 5);
+    std::vector<std::uint8_t> expected = to_nine;
+    expected.insert(expected.end(), tail.begin(), tail.end());
+    EXPECT_EQ(rest, expected);
+    EXPECT_EQ(kept.size(), 1u);                                              // 7 only
+    EXPECT_FALSE(kept.claim(*mbscope::modbus::decode_tcp(to_six), claims));  // a request has one reply
+}
+
+// A Modbus/TCP replay keeps the steps given up as the campaign does: a reply that comes any number of steps
+// later is matched by its transaction id and judged as its own step's. Here the target answers 450 ms after
+// each request, and also answers a request with protocol id 1, which it must discard (TCP §3.1.3): that
+// reply comes two steps later, while the third waits, and is judged as the first step's; the second's
+// comes during the third too, and the third's own is waited for after the last step.
+TEST(NetworkFuzzer, AReplayOverTcpJudgesALateReplyAsItsOwnStepsHoweverLate) {
+    RunningServer server({"slow-reply=450", "any-protocol-id"}, 7, "cth2265i");
+    auto o = options_for("tcp", server.start("tcp"));
+    auto client = mbscope::modbus::transport::Client::open(o.endpoint);
+    ASSERT_TRUE(client);
+    const auto& profile = mbscope::slave::test::profile("cth2265i");
+    mbscope::conformance::ExchangeOracle oracle(mbscope::modbus::Framing::Tcp, {{1, &profile}}, true);
+    const auto read = [&](std::uint16_t tid, std::uint8_t fc, std::uint8_t protocol) {
+        fz::Step step;
+        step.parts.push_back(
+            mbscope::modbus::encode_tcp(tid, 1, std::vector<std::uint8_t>{fc, 0x0F, 0x9F, 0x00, 0x01}));
+        step.parts.back()[3] = protocol;
+        return step;
+    };
+    fz::ReplayOptions options;
+    options.timeout = milliseconds(300);
+    options.silence_wait = milliseconds(20);
+    const auto replayed = fz::replay(*client, oracle, {read(1, 3, 1), read(2, 4, 0), read(3, 3, 0)}, options);
+    ASSERT_EQ(replayed.size(), 3u);
+    for (const auto& step : replayed)
+        EXPECT_TRUE(step.exchange.own_received().empty()) << "a reply within 300 ms from a 450 ms target";
+    EXPECT_TRUE(replayed[1].exchange.stale_replies.empty());
+    EXPECT_EQ(replayed[2].exchange.stale_replies.size(), 2u);
+    ASSERT_EQ(replayed[0].violations.size(), 1u);
+    EXPECT_EQ(replayed[0].violations[0].rule, "silence.protocol_id");
+    EXPECT_EQ(replayed[0].violations[0].observed.rfind("during a later request: ", 0), 0u)
+        << replayed[0].violations[0].observed;
+    for (std::size_t i = 1; i < replayed.size(); ++i) {
+        ASSERT_EQ(replayed[i].violations.size(), 1u) << i;
+        EXPECT_EQ(replayed[i].violations[0].rule, "reply.missing") << replayed[i].violations[0].observed;
+    }
+    EXPECT_TRUE(client->drain(milliseconds(0)).empty());  // the third step's reply was waited for
 }
 
 // A late reply is judged as its request's whatever that request's own exchange met: a slow target's
