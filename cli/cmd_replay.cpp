@@ -5,7 +5,9 @@
 
 #include "cli/commands.hpp"
 #include "cli/profile_json.hpp"
+#include "conformance/report.hpp"
 #include "fuzz/network/reproducer.hpp"
+#include "fuzz/network/written_points.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/transport/endpoint.hpp"
 
@@ -19,6 +21,7 @@ struct ReplayCliOptions {
     int unit = -1;        // -1: the reproducer's
     int timeout_ms = 1000;
     bool json = false;
+    bool no_restore = false;
     std::vector<std::string> profile_dirs;
     std::vector<std::string> config;
 };
@@ -56,7 +59,20 @@ int run_replay_command(const ReplayCliOptions& o) {
     fuzz::network::ReplayOptions options;
     options.timeout = std::chrono::milliseconds(o.timeout_ms);
     options.silence_wait = options.timeout;
+    // What the steps may write is read first and written back after them, as `mbscope fuzz` and
+    // `mbscope check` do: replaying a finding leaves the device as it was.
+    conformance::Session session(*client, {unit, options.timeout, std::chrono::milliseconds(0)}, &*profile);
+    std::vector<fuzz::network::WriteRange> unread;
+    if (!o.no_restore) unread = fuzz::network::remember_writes(session, *profile, r.steps);
     const auto steps = fuzz::network::replay(*client, oracle, r.steps, options);
+    const auto restored = session.touched().empty() ? std::vector<conformance::Touched>{} : session.restore();
+    bool unrestored = !unread.empty();
+    for (const auto& t : restored)
+        unrestored |= !t.restored;
+    nlohmann::json unread_json = nlohmann::json::array();
+    for (const auto& w : unread)
+        unread_json.push_back(
+            {{"table", std::string(modbus::to_string(w.table))}, {"start", w.start}, {"count", w.count}});
 
     const bool again = fuzz::network::breaks(steps, r.rule);
     std::size_t violations = 0;
@@ -83,15 +99,35 @@ int run_replay_command(const ReplayCliOptions& o) {
         }
     }
     if (o.json) {
-        std::cout << nlohmann::json{{"file", o.file}, {"rule", r.rule}, {"reproduced", again}, {"steps", out}}
+        std::cout << nlohmann::json{{"file", o.file},
+                                    {"rule", r.rule},
+                                    {"reproduced", again},
+                                    {"steps", out},
+                                    {"restored", conformance::to_json(restored)},
+                                    {"not_read", unread_json}}
                          .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
                   << '\n';
     } else {
+        for (const auto& w : unread)
+            std::cout << "not read before the replay, not restored: " << modbus::to_string(w.table) << ' '
+                      << w.start << " (" << w.count << (w.count == 1 ? " point)\n" : " points)\n");
+        std::size_t back = 0;
+        for (const auto& t : restored) {
+            if (t.restored)
+                ++back;
+            else
+                std::cout << "not restored: " << modbus::to_string(t.table) << ' ' << t.address << ": "
+                          << t.problem << '\n';
+        }
+        if (!restored.empty())
+            std::cout << "restored " << back << " of " << restored.size()
+                      << " points the steps may have written\n";
         std::cout << (again ? "reproduced: " : "not reproduced: ") << r.rule << " (" << r.source << ")";
         if (!again && violations) std::cout << "; other rules broken: " << violations;
         std::cout << '\n';
     }
-    return again || violations ? exit_findings : exit_ok;
+    if (unrestored) std::cerr << "mbscope replay: some points the steps may have written were not restored\n";
+    return again || violations || unrestored ? exit_findings : exit_ok;
 }
 
 }  // namespace
@@ -103,8 +139,10 @@ void register_replay(CLI::App& app, int& exit_code) {
         "Sends each step exactly as recorded (pieces, pauses, reconnections) and judges every reply with "
         "the\n"
         "rules of `mbscope fuzz` and `mbscope check`.\n"
-        "Exit codes: 0 no rule broken, 1 the recorded rule (or another) broken again, 2 the file or the\n"
-        "target could not be used.\n"
+        "What the steps may write is read before them and written back after them (--no-restore: left as\n"
+        "the steps leave it).\n"
+        "Exit codes: 0 no rule broken, 1 the recorded rule (or another) broken again or a point not\n"
+        "restored, 2 the file or the target could not be used.\n"
         "Example: mbscope replay --target tcp://127.0.0.1:5020 out/reply.checksum-fc3.json");
     cmd->add_option("file", o->file, "Reproducer (JSON) written by mbscope fuzz --artifacts")->required();
     cmd->add_option("--target", o->target, "The slave (URI; default: the one recorded)");
@@ -114,6 +152,8 @@ void register_replay(CLI::App& app, int& exit_code) {
     cmd->add_option("--timeout", o->timeout_ms, "Milliseconds to wait for each reply (default 1000)")
         ->check(CLI::Range(1, 60000));
     cmd->add_flag("--json", o->json, "Print the exchanges as JSON");
+    cmd->add_flag("--no-restore", o->no_restore,
+                  "Leave what the steps write as they leave it (to look at the device afterwards)");
     cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");
     cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");
     cmd->callback([o, &exit_code] { exit_code = run_replay_command(*o); });

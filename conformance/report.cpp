@@ -147,6 +147,17 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
     out << (report.stopped ? "\nstopped before the end (interrupted)\n" : "\n");
 }
 
+nlohmann::json to_json(const std::vector<Touched>& ledger) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& t : ledger)
+        out.push_back({{"table", std::string(modbus::to_string(t.table))},
+                       {"address", t.address},
+                       {"original", t.original},
+                       {"restored", t.restored},
+                       {"problem", t.problem}});
+    return out;
+}
+
 nlohmann::json to_json(const Report& report) {
     using nlohmann::json;
     json rules = json::array();
@@ -172,13 +183,7 @@ nlohmann::json to_json(const Report& report) {
                          {"duration_ms", static_cast<double>(r.duration.count()) / 1e6},
                          {"evidence", evidence}});
     }
-    json restored = json::array();
-    for (const auto& t : report.restored)
-        restored.push_back({{"table", std::string(modbus::to_string(t.table))},
-                            {"address", t.address},
-                            {"original", t.original},
-                            {"restored", t.restored},
-                            {"problem", t.problem}});
+    const json restored = to_json(report.restored);
     json times = json::array();
     for (auto t : report.response_times)
         times.push_back(static_cast<double>(t.count()) / 1e6);

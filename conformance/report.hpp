@@ -12,6 +12,9 @@ namespace mbscope::conformance {
 
 void write_text(std::ostream& out, const Report& report, bool verbose);
 nlohmann::json to_json(const Report& report);
+// The restore ledger (Session::restore), as the JSON of every command that writes lists it: `mbscope check`,
+// `mbscope fuzz` and `mbscope replay`.
+nlohmann::json to_json(const std::vector<Touched>& ledger);
 void write_junit(std::ostream& out, const Report& report);
 void write_html(std::ostream& out, const Report& report);
 

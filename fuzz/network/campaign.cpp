@@ -9,9 +9,11 @@
 #include <set>
 #include <thread>
 
+#include "conformance/report.hpp"
 #include "fuzz/network/generator.hpp"
 #include "fuzz/network/reply_latency.hpp"
 #include "fuzz/network/unanswered.hpp"
+#include "fuzz/network/written_points.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
@@ -26,39 +28,6 @@ using modbus::transport::Exchange;
 
 constexpr std::size_t trace_capacity = 32;  // steps kept since the last known-good state
 constexpr int health_attempts = 3;          // health checks before a target counts as unresponsive
-
-std::uint16_t word(const std::vector<std::uint8_t>& pdu, std::size_t at) {
-    return at + 1 < pdu.size() ? static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]) : 0;
-}
-
-// What a request may write, read from its header bytes whether or not the rest is well formed: a device
-// that executes a malformed write writes there.
-struct WriteRange {
-    Table table = Table::HoldingRegisters;
-    std::uint16_t start = 0;
-    std::uint16_t count = 0;
-};
-std::optional<WriteRange> write_range(const std::vector<std::uint8_t>& pdu) {
-    if (pdu.size() < 3) return std::nullopt;
-    const std::uint16_t a = word(pdu, 1);
-    switch (pdu[0]) {
-        case 5:
-            return WriteRange{Table::Coils, a, 1};
-        case 6:
-        case 22:
-            return WriteRange{Table::HoldingRegisters, a, 1};
-        case 15:
-            return WriteRange{Table::Coils, a, std::min<std::uint16_t>(word(pdu, 3), modbus::max_write_bits)};
-        case 16:
-            return WriteRange{Table::HoldingRegisters, a,
-                              std::min<std::uint16_t>(word(pdu, 3), modbus::max_write_registers)};
-        case 23:
-            return WriteRange{Table::HoldingRegisters, word(pdu, 5),
-                              std::min<std::uint16_t>(word(pdu, 7), modbus::max_rw_write_registers)};
-        default:
-            return std::nullopt;
-    }
-}
 
 // The reply's PDU, when a frame came back.
 std::optional<std::vector<std::uint8_t>> reply_pdu(const Exchange& ex) {
@@ -371,17 +340,8 @@ bool Campaign::prepare_writes(const Probe& p) {
     const std::uint8_t fc = p.pdu[0];
     const int max = profile_.functions.max_for(fc, fc == 23);
     if (!profile_.functions.supports(fc) || (max > 0 && range->count > max)) return true;
-    const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range->start} + range->count);
     (void)await_due_replies(options_.timeout);
-    bool ok = true;
-    if (profile_.open_address_space) {
-        ok = session_.remember(range->table, range->start, static_cast<std::uint16_t>(end - range->start),
-                               100);
-    } else {
-        for (std::uint32_t a = range->start; a < end && ok; ++a)
-            if (profile_.find(range->table, static_cast<std::uint16_t>(a)))
-                ok = session_.remember(range->table, static_cast<std::uint16_t>(a), 1);
-    }
+    const bool ok = remember_range(session_, profile_, *range);
     (void)session_.take_evidence();
     session_.response_times().clear();
     return ok;
@@ -753,13 +713,6 @@ nlohmann::json to_json(const CampaignSummary& s) {
                             {"reproducer", f.file.empty() ? nlohmann::json(nullptr) : nlohmann::json(f.file)},
                             {"steps", f.reproducer.steps.size()},
                             {"minimised", f.reproducer.minimised}});
-    nlohmann::json restored = nlohmann::json::array();
-    for (const auto& t : s.restored)
-        restored.push_back({{"table", std::string(modbus::to_string(t.table))},
-                            {"address", t.address},
-                            {"original", t.original},
-                            {"restored", t.restored},
-                            {"problem", t.problem}});
     nlohmann::json j{{"reachable", s.reachable},
                      {"requests", s.requests},
                      {"replies", s.replies},
@@ -776,7 +729,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"response_classes", s.response_classes},
                      {"outcomes", s.outcomes},
                      {"findings", findings},
-                     {"restored", restored},
+                     {"restored", conformance::to_json(s.restored)},
                      {"stopped", s.stopped},
                      {"target_lost", s.target_lost}};
     if (!s.error.empty()) j["error"] = s.error;

@@ -19,6 +19,7 @@
 #include "fuzz/network/campaign.hpp"
 #include "fuzz/network/reply_latency.hpp"
 #include "fuzz/network/unanswered.hpp"
+#include "fuzz/network/written_points.hpp"
 #include "modbus/adu.hpp"
 #include "slave/slave_test_support.hpp"
 
@@ -654,6 +655,77 @@ TEST(FuzzCommand, ExitCodesSummaryAndReplay) {
     EXPECT_EQ(run("fuzz --help").status, 0);
     EXPECT_EQ(run("replay --help").status, 0);
     EXPECT_EQ(run("replay " + (dir / "missing.json").string()).status, 2);
+}
+
+// A replay sends what its steps write and, as `mbscope fuzz` and `mbscope check` do, puts back after them
+// what those points held before; --no-restore leaves them as the steps left them.
+TEST(FuzzCommand, ReplayRestoresWhatItsStepsWrote) {
+    using mbscope::modbus::Table;
+    const auto file = std::filesystem::path(::testing::TempDir()) / "mbscope-replay-writes.json";
+    RunningServer server({}, 7, "modbus");
+    const auto target = "tcp://127.0.0.1:" + std::to_string(server.start("tcp"));
+    auto& image = server.device().image();
+    image.set_reg(Table::HoldingRegisters, 10, 0x1234);
+    image.set_reg(Table::HoldingRegisters, 11, 0x5678);
+    fz::Reproducer r;
+    r.rule = "reply.function";
+    r.source = "MB §6";
+    r.target = target;
+    r.profile = "modbus";
+    r.framing = "tcp";
+    const auto step = [](std::uint16_t tid, std::vector<std::uint8_t> pdu) {
+        fz::Step s;
+        s.parts.push_back(mbscope::modbus::encode_tcp(tid, 1, pdu));
+        return s;
+    };
+    r.steps = {step(1, {0x10, 0x00, 0x0A, 0x00, 0x02, 0x04, 0xBE, 0xEF, 0xBE, 0xEF}),  // FC16 10-11
+               step(2, {0x05, 0x00, 0x03, 0xFF, 0x00}),                                // FC5 coil 3 on
+               step(3, {0x03, 0x00, 0x0A, 0x00, 0x02})};                               // FC3: writes nothing
+    ASSERT_TRUE(fz::save_reproducer(r, file.string()));
+
+    const auto replayed = run("replay --json " + file.string());
+    EXPECT_EQ(replayed.status, 0) << replayed.out;  // the clean slave breaks no rule and all is put back
+    const auto j = nlohmann::json::parse(replayed.out.substr(replayed.out.find('{')), nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << replayed.out;
+    EXPECT_FALSE(j["reproduced"].get<bool>());
+    ASSERT_EQ(j["restored"].size(), 3u) << replayed.out;
+    for (const auto& t : j["restored"])
+        EXPECT_TRUE(t["restored"].get<bool>()) << t.dump();
+    EXPECT_TRUE(j["not_read"].empty());
+    EXPECT_EQ(j["steps"][2]["received"].get<std::string>(),
+              "00 03 00 00 00 07 01 03 04 BE EF BE EF")  // written, then read
+        << j["steps"][2].dump();
+    EXPECT_EQ(image.reg(Table::HoldingRegisters, 10), 0x1234);
+    EXPECT_EQ(image.reg(Table::HoldingRegisters, 11), 0x5678);
+    EXPECT_EQ(image.reg(Table::Coils, 3), 0);
+
+    const auto kept = run("replay --no-restore " + file.string());
+    EXPECT_EQ(kept.status, 0) << kept.out;
+    EXPECT_EQ(kept.out.find("restored"), std::string::npos) << kept.out;
+    EXPECT_EQ(image.reg(Table::HoldingRegisters, 10), 0xBEEF);
+    EXPECT_EQ(image.reg(Table::Coils, 3), 1);
+}
+
+// What a request may write is read from its header, whatever follows it: the range a device that executes
+// a malformed write would write, bounded by the function's limit.
+TEST(WrittenPoints, TheRangeARequestMayWriteComesFromItsHeader) {
+    using mbscope::modbus::Table;
+    const auto range = [](std::vector<std::uint8_t> pdu) { return fz::write_range(pdu); };
+    const auto fc23 = range({0x17, 0x00, 0x01, 0x00, 0x02, 0x00, 0x20, 0x00, 0x03, 0x06});  // no values
+    ASSERT_TRUE(fc23);
+    EXPECT_EQ(fc23->table, Table::HoldingRegisters);
+    EXPECT_EQ(fc23->start, 0x20);  // the write part, not the read part
+    EXPECT_EQ(fc23->count, 3);
+    const auto fc15 = range({0x0F, 0x00, 0x05, 0x13, 0x88});  // 5,000 coils: more than one request may write
+    ASSERT_TRUE(fc15);
+    EXPECT_EQ(fc15->table, Table::Coils);
+    EXPECT_EQ(fc15->count, mbscope::modbus::max_write_bits);
+    const auto fc22 = range({0x16, 0x00, 0x07});
+    ASSERT_TRUE(fc22);
+    EXPECT_EQ(fc22->start, 7);
+    EXPECT_EQ(fc22->count, 1);
+    EXPECT_FALSE(range({0x03, 0x00, 0x00, 0x00, 0x01}));
+    EXPECT_FALSE(range({0x06, 0x00}));
 }
 
 }  // namespace

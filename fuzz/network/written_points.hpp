@@ -1,0 +1,39 @@
+#pragma once
+// The points a request may write, and their original values kept for restoring: the campaign reads them
+// before a write it sends, and a replay before it sends the steps of a reproducer (which may write), so
+// that the target is left holding what it held before (conformance::Session::restore).
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "conformance/session.hpp"
+#include "fuzz/network/reproducer.hpp"
+#include "modbus/profile.hpp"
+
+namespace mbscope::fuzz::network {
+
+// What a request may write, read from its header bytes whether or not the rest is well formed: a device
+// that executes a malformed write writes there. The count is bounded by the function's limit.
+struct WriteRange {
+    modbus::Table table = modbus::Table::HoldingRegisters;
+    std::uint16_t start = 0;
+    std::uint16_t count = 0;
+};
+std::optional<WriteRange> write_range(std::span<const std::uint8_t> pdu);
+
+// Reads, through `session`, the original values of the points of `range` that exist on the device: those
+// of the profile's map, or every one of an open address space (read in blocks). False when a read failed
+// (the points read before it are kept).
+bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range);
+
+// Before a replay: every step's bytes decoded as a request (whatever its checksum: a device that skips the
+// check executes it), and the points of each write remembered (remember_range) when it can land: addressed
+// to the session's unit or broadcast, or to any unit over Modbus/TCP, where devices that ignore the unit id
+// are common. A step that decodes as no request writes nothing a device would execute. Returns the ranges
+// whose values could not be read: their points are not restored.
+std::vector<WriteRange> remember_writes(conformance::Session& session, const modbus::Profile& profile,
+                                        const std::vector<Step>& steps);
+
+}  // namespace mbscope::fuzz::network
