@@ -1,10 +1,10 @@
 // mbscope replay: send a reproducer saved by `mbscope fuzz` to a target and judge it again.
-#include <csignal>
 #include <iostream>
 #include <memory>
 
 #include "cli/commands.hpp"
 #include "cli/profile_json.hpp"
+#include "cli/stop_signal.hpp"
 #include "conformance/report.hpp"
 #include "fuzz/network/reproducer.hpp"
 #include "fuzz/network/written_points.hpp"
@@ -51,7 +51,6 @@ int run_replay_command(const ReplayCliOptions& o) {
         std::cerr << "mbscope replay: cannot reach the target: " << client.error() << '\n';
         return exit_failure;
     }
-    std::signal(SIGPIPE, SIG_IGN);
     const std::uint8_t unit = o.unit >= 0 ? static_cast<std::uint8_t>(o.unit) : r.unit;
     conformance::ExchangeOracle oracle(framing, {{unit, &*profile}},
                                        endpoint->scheme == modbus::transport::Scheme::Tcp ||
@@ -59,6 +58,8 @@ int run_replay_command(const ReplayCliOptions& o) {
     fuzz::network::ReplayOptions options;
     options.timeout = std::chrono::milliseconds(o.timeout_ms);
     options.silence_wait = options.timeout;
+    // An interrupt stops the steps, not the restore after them.
+    options.stop = &stop_on_signals(BrokenPipe::Ignored);
     // What the steps may write is read first and written back after them, as `mbscope fuzz` and
     // `mbscope check` do: replaying a finding leaves the device as it was.
     conformance::Session session(*client, {unit, options.timeout, std::chrono::milliseconds(0)}, &*profile);
@@ -74,6 +75,7 @@ int run_replay_command(const ReplayCliOptions& o) {
         unread_json.push_back(
             {{"table", std::string(modbus::to_string(w.table))}, {"start", w.start}, {"count", w.count}});
 
+    const bool stopped = steps.size() < r.steps.size();
     const bool again = fuzz::network::breaks(steps, r.rule);
     std::size_t violations = 0;
     nlohmann::json out = nlohmann::json::array();
@@ -99,11 +101,9 @@ int run_replay_command(const ReplayCliOptions& o) {
         }
     }
     if (o.json) {
-        std::cout << nlohmann::json{{"file", o.file},
-                                    {"rule", r.rule},
-                                    {"reproduced", again},
-                                    {"steps", out},
-                                    {"restored", conformance::to_json(restored)},
+        std::cout << nlohmann::json{{"file", o.file},         {"rule", r.rule},
+                                    {"reproduced", again},    {"stopped", stopped},
+                                    {"steps", out},           {"restored", conformance::to_json(restored)},
                                     {"not_read", unread_json}}
                          .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
                   << '\n';
@@ -119,6 +119,9 @@ int run_replay_command(const ReplayCliOptions& o) {
                 std::cout << "not restored: " << modbus::to_string(t.table) << ' ' << t.address << ": "
                           << t.problem << '\n';
         }
+        if (stopped)
+            std::cout << "stopped after step " << steps.size() << " of " << r.steps.size()
+                      << " (interrupted)\n";
         if (!restored.empty())
             std::cout << "restored " << back << " of " << restored.size()
                       << " points the steps may have written\n";
@@ -140,7 +143,7 @@ void register_replay(CLI::App& app, int& exit_code) {
         "the\n"
         "rules of `mbscope fuzz` and `mbscope check`.\n"
         "What the steps may write is read before them and written back after them (--no-restore: left as\n"
-        "the steps leave it).\n"
+        "the steps leave it); an interrupt (Ctrl-C) stops the steps, not the restore.\n"
         "Exit codes: 0 no rule broken, 1 the recorded rule (or another) broken again or a point not\n"
         "restored, 2 the file or the target could not be used.\n"
         "Example: mbscope replay --target tcp://127.0.0.1:5020 out/reply.checksum-fc3.json");

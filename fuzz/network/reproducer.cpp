@@ -303,6 +303,7 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
     };
     unsigned quiet_waits = 0;  // OwedRequests::quiet_waits_kept
     for (const auto& step : steps) {
+        if (options.stop && options.stop->load()) break;
         late();
         const auto request = step_request(framing, step);
         // RTU and ASCII: a late reply that this step's request could draw too is waited out first, as the

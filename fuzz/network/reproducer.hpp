@@ -4,6 +4,7 @@
 // `mbscope replay --target URI FILE` sends the steps to a target and judges them with the same oracle; the
 // fuzzer uses the same replay to shorten a reproducer before saving it.
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <optional>
@@ -59,6 +60,8 @@ struct ReplayedStep {
 struct ReplayOptions {
     std::chrono::milliseconds timeout{1000};
     std::chrono::microseconds silence_wait{1'000'000};
+    // Once set, no further step is sent; the replies still due are awaited and judged as usual.
+    const std::atomic<bool>* stop = nullptr;
 };
 
 // Sends one step (its parts with their pauses) and judges the exchange: the oracle's rules, and for a

@@ -609,14 +609,19 @@ struct Run {
     std::string out;
 };
 
-Run run(const std::string& arguments) {
+// A shell script's output (stdout and stderr) and exit status.
+Run run_script(const std::string& script) {
     Run r;
-    FILE* p = popen((std::string(MBSCOPE_BINARY) + " " + arguments + " 2>&1").c_str(), "r");
+    FILE* p = popen(("{ " + script + "; } 2>&1").c_str(), "r");
     char buf[4096];
     while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
         r.out.append(buf, n);
     r.status = WEXITSTATUS(pclose(p));
     return r;
+}
+
+Run run(const std::string& arguments) {
+    return run_script(std::string(MBSCOPE_BINARY) + " " + arguments);
 }
 
 TEST(FuzzCommand, ExitCodesSummaryAndReplay) {
@@ -657,37 +662,47 @@ TEST(FuzzCommand, ExitCodesSummaryAndReplay) {
     EXPECT_EQ(run("replay " + (dir / "missing.json").string()).status, 2);
 }
 
-// A replay sends what its steps write and, as `mbscope fuzz` and `mbscope check` do, puts back after them
-// what those points held before; --no-restore leaves them as the steps left them.
-TEST(FuzzCommand, ReplayRestoresWhatItsStepsWrote) {
-    using mbscope::modbus::Table;
-    const auto file = std::filesystem::path(::testing::TempDir()) / "mbscope-replay-writes.json";
-    RunningServer server({}, 7, "modbus");
-    const auto target = "tcp://127.0.0.1:" + std::to_string(server.start("tcp"));
-    auto& image = server.device().image();
-    image.set_reg(Table::HoldingRegisters, 10, 0x1234);
-    image.set_reg(Table::HoldingRegisters, 11, 0x5678);
+// A reproducer file of Modbus/TCP requests to unit 1 of the generic profile at `target`, each PDU one step
+// (transaction ids 1, 2, ...).
+std::filesystem::path save_steps(const std::string& name, const std::string& target,
+                                 const std::vector<std::vector<std::uint8_t>>& pdus) {
     fz::Reproducer r;
     r.rule = "reply.function";
     r.source = "MB §6";
     r.target = target;
     r.profile = "modbus";
     r.framing = "tcp";
-    const auto step = [](std::uint16_t tid, std::vector<std::uint8_t> pdu) {
+    for (const auto& pdu : pdus) {
         fz::Step s;
-        s.parts.push_back(mbscope::modbus::encode_tcp(tid, 1, pdu));
-        return s;
-    };
-    r.steps = {step(1, {0x10, 0x00, 0x0A, 0x00, 0x02, 0x04, 0xBE, 0xEF, 0xBE, 0xEF}),  // FC16 10-11
-               step(2, {0x05, 0x00, 0x03, 0xFF, 0x00}),                                // FC5 coil 3 on
-               step(3, {0x03, 0x00, 0x0A, 0x00, 0x02})};                               // FC3: writes nothing
-    ASSERT_TRUE(fz::save_reproducer(r, file.string()));
+        s.parts.push_back(
+            mbscope::modbus::encode_tcp(static_cast<std::uint16_t>(r.steps.size() + 1), 1, pdu));
+        r.steps.push_back(std::move(s));
+    }
+    const auto file = std::filesystem::path(::testing::TempDir()) / name;
+    EXPECT_TRUE(fz::save_reproducer(r, file.string()));
+    return file;
+}
+
+// A replay sends what its steps write and, as `mbscope fuzz` and `mbscope check` do, puts back after them
+// what those points held before; --no-restore leaves them as the steps left them.
+TEST(FuzzCommand, ReplayRestoresWhatItsStepsWrote) {
+    using mbscope::modbus::Table;
+    RunningServer server({}, 7, "modbus");
+    const auto target = "tcp://127.0.0.1:" + std::to_string(server.start("tcp"));
+    auto& image = server.device().image();
+    image.set_reg(Table::HoldingRegisters, 10, 0x1234);
+    image.set_reg(Table::HoldingRegisters, 11, 0x5678);
+    const auto file = save_steps("mbscope-replay-writes.json", target,
+                                 {{0x10, 0x00, 0x0A, 0x00, 0x02, 0x04, 0xBE, 0xEF, 0xBE, 0xEF},  // FC16 10-11
+                                  {0x05, 0x00, 0x03, 0xFF, 0x00},    // FC5 coil 3 on
+                                  {0x03, 0x00, 0x0A, 0x00, 0x02}});  // FC3: writes nothing
 
     const auto replayed = run("replay --json " + file.string());
     EXPECT_EQ(replayed.status, 0) << replayed.out;  // the clean slave breaks no rule and all is put back
     const auto j = nlohmann::json::parse(replayed.out.substr(replayed.out.find('{')), nullptr, false);
     ASSERT_FALSE(j.is_discarded()) << replayed.out;
     EXPECT_FALSE(j["reproduced"].get<bool>());
+    EXPECT_FALSE(j["stopped"].get<bool>());
     ASSERT_EQ(j["restored"].size(), 3u) << replayed.out;
     for (const auto& t : j["restored"])
         EXPECT_TRUE(t["restored"].get<bool>()) << t.dump();
@@ -704,6 +719,27 @@ TEST(FuzzCommand, ReplayRestoresWhatItsStepsWrote) {
     EXPECT_EQ(kept.out.find("restored"), std::string::npos) << kept.out;
     EXPECT_EQ(image.reg(Table::HoldingRegisters, 10), 0xBEEF);
     EXPECT_EQ(image.reg(Table::Coils, 3), 1);
+}
+
+// An interrupt stops a replay's steps, not the restore after them: a replay stopped half-way leaves the
+// device as it was too, and says where it stopped.
+TEST(FuzzCommand, AnInterruptedReplayStillRestores) {
+    using mbscope::modbus::Table;
+    RunningServer server({"slow-reply=250"}, 7, "modbus");
+    const auto target = "tcp://127.0.0.1:" + std::to_string(server.start("tcp"));
+    auto& image = server.device().image();
+    image.set_reg(Table::HoldingRegisters, 20, 0x0042);
+    std::vector<std::vector<std::uint8_t>> pdus{{0x06, 0x00, 0x14, 0x77, 0x77}};
+    pdus.resize(39, {0x03, 0x00, 0x14, 0x00, 0x01});  // then ten seconds of reads at 250 ms each
+    const auto file = save_steps("mbscope-replay-interrupted.json", target, pdus);
+    // SIGINT a second in: the original read (250 ms), the write and a few reads have gone.
+    const auto stopped = run_script(std::string(MBSCOPE_BINARY) + " replay " + file.string() +
+                                    " & pid=$!; sleep 1; kill -INT $pid; wait $pid");
+    EXPECT_EQ(stopped.status, 0) << stopped.out;
+    EXPECT_NE(stopped.out.find("stopped after step "), std::string::npos) << stopped.out;
+    EXPECT_NE(stopped.out.find(" of 39 (interrupted)"), std::string::npos) << stopped.out;
+    EXPECT_NE(stopped.out.find("restored 1 of 1 points"), std::string::npos) << stopped.out;
+    EXPECT_EQ(image.reg(Table::HoldingRegisters, 20), 0x0042);
 }
 
 // What a request may write is read from its header, whatever follows it: the range a device that executes
