@@ -27,6 +27,9 @@ struct ReplayCliOptions {
 };
 
 int run_replay_command(const ReplayCliOptions& o) {
+    // An interrupt stops the steps, not the restore after them (nor the reads before them, which change
+    // nothing).
+    const std::atomic<bool>& stop = stop_on_signals(BrokenPipe::Ignored);
     auto reproducer = fuzz::network::load_reproducer(o.file);
     if (!reproducer) {
         std::cerr << "mbscope replay: " << reproducer.error() << '\n';
@@ -58,8 +61,7 @@ int run_replay_command(const ReplayCliOptions& o) {
     fuzz::network::ReplayOptions options;
     options.timeout = std::chrono::milliseconds(o.timeout_ms);
     options.silence_wait = options.timeout;
-    // An interrupt stops the steps, not the restore after them.
-    options.stop = &stop_on_signals(BrokenPipe::Ignored);
+    options.stop = &stop;
     // What the steps may write is read first and written back after them, as `mbscope fuzz` and
     // `mbscope check` do: replaying a finding leaves the device as it was.
     conformance::Session session(*client, {unit, options.timeout, std::chrono::milliseconds(0)}, &*profile);

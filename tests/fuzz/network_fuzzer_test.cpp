@@ -11,10 +11,12 @@
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <thread>
 
 #include "fuzz/network/campaign.hpp"
 #include "fuzz/network/reply_latency.hpp"
@@ -609,10 +611,9 @@ struct Run {
     std::string out;
 };
 
-// A shell script's output (stdout and stderr) and exit status.
-Run run_script(const std::string& script) {
+// What a command started with popen printed, and its exit status.
+Run finish(FILE* p) {
     Run r;
-    FILE* p = popen(("{ " + script + "; } 2>&1").c_str(), "r");
     char buf[4096];
     while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
         r.out.append(buf, n);
@@ -621,7 +622,7 @@ Run run_script(const std::string& script) {
 }
 
 Run run(const std::string& arguments) {
-    return run_script(std::string(MBSCOPE_BINARY) + " " + arguments);
+    return finish(popen((std::string(MBSCOPE_BINARY) + " " + arguments + " 2>&1").c_str(), "r"));
 }
 
 TEST(FuzzCommand, ExitCodesSummaryAndReplay) {
@@ -732,9 +733,22 @@ TEST(FuzzCommand, AnInterruptedReplayStillRestores) {
     std::vector<std::vector<std::uint8_t>> pdus{{0x06, 0x00, 0x14, 0x77, 0x77}};
     pdus.resize(39, {0x03, 0x00, 0x14, 0x00, 0x01});  // then ten seconds of reads at 250 ms each
     const auto file = save_steps("mbscope-replay-interrupted.json", target, pdus);
-    // SIGINT a second in: the original read (250 ms), the write and a few reads have gone.
-    const auto stopped = run_script(std::string(MBSCOPE_BINARY) + " replay " + file.string() +
-                                    " & pid=$!; sleep 1; kill -INT $pid; wait $pid");
+    // SIGINT once the write has landed: the steps are under way.
+    const auto pid_file = std::filesystem::path(::testing::TempDir()) / "mbscope-replay-interrupted.pid";
+    std::filesystem::remove(pid_file);
+    FILE* p = popen(("{ " + std::string(MBSCOPE_BINARY) + " replay " + file.string() + " & echo $! > " +
+                     pid_file.string() + "; wait $!; } 2>&1")
+                        .c_str(),
+                    "r");
+    ASSERT_NE(p, nullptr);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (image.reg(Table::HoldingRegisters, 20) != 0x7777 && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    pid_t pid = 0;
+    std::ifstream(pid_file) >> pid;
+    EXPECT_EQ(image.reg(Table::HoldingRegisters, 20), 0x7777) << "the write step did not land";
+    if (pid > 0) ::kill(pid, SIGINT);
+    const auto stopped = finish(p);
     EXPECT_EQ(stopped.status, 0) << stopped.out;
     EXPECT_NE(stopped.out.find("stopped after step "), std::string::npos) << stopped.out;
     EXPECT_NE(stopped.out.find(" of 39 (interrupted)"), std::string::npos) << stopped.out;
