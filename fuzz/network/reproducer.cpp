@@ -268,25 +268,20 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
     std::vector<modbus::transport::SettledRequest> settled;
     Unanswered unanswered;  // Modbus/TCP: the same, told apart by their transaction ids (unanswered.hpp)
     Unanswered::Claims claimed;
-    // Each late reply judged as the reply of the step it answers (the latest step that sent its request).
+    // A late reply judged as the reply of the step it answers: the latest step that sent its request.
+    const auto judge_as_step = [&](const auto& sent, const modbus::Frame& reply, std::string_view when) {
+        const auto step = std::find_if(out.rbegin(), out.rend(),
+                                       [&](const ReplayedStep& r) { return r.exchange.sent == sent; });
+        if (step == out.rend()) return;
+        const auto found = judge_late_frame(oracle, step->exchange, reply, when);
+        step->violations.insert(step->violations.end(), found.begin(), found.end());
+    };
+    // Every late reply matched to its request so far: settled (RTU, ASCII) or claimed (Modbus/TCP).
     const auto judge_settled = [&](std::string_view when) {
-        for (const auto& s : std::exchange(settled, {})) {
-            const auto step = std::find_if(out.rbegin(), out.rend(), [&](const ReplayedStep& r) {
-                return r.exchange.sent == s.request.sent;
-            });
-            if (step == out.rend()) continue;
-            const auto found = judge_late_frame(oracle, step->exchange, s.reply, when);
-            step->violations.insert(step->violations.end(), found.begin(), found.end());
-        }
-        for (const auto& claim : std::exchange(claimed, {})) {
-            const auto& request = claim.first.exchange;  // (clang before 16 captures no structured binding)
-            const auto step = std::find_if(out.rbegin(), out.rend(), [&](const ReplayedStep& r) {
-                return r.exchange.sent == request.sent;
-            });
-            if (step == out.rend()) continue;
-            const auto found = judge_late_frame(oracle, request, claim.second, when);
-            step->violations.insert(step->violations.end(), found.begin(), found.end());
-        }
+        for (const auto& s : std::exchange(settled, {}))
+            judge_as_step(s.request.sent, s.reply, when);
+        for (const auto& c : std::exchange(claimed, {}))
+            judge_as_step(c.first.exchange.sent, c.second, when);
     };
     // Bytes no owed step accounts for: the last step's reply, too late.
     const auto judge_rest = [&](std::vector<std::uint8_t> bytes) {
