@@ -502,7 +502,13 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         fail("reply.malformed", "AP §6", "a well-formed reply");
         return out;
     }
-    if (own > ex.response->wire_length) fail("reply.trailing_bytes", "AP §4.1", "nothing after the reply");
+    if (own > ex.response->wire_length) {
+        // The same reply again is a request answered twice (a transmit buffer sent again), not a longer one.
+        if (tp::repeats_response(ex))
+            fail("reply.duplicate", "SL §2.1, AP §4.1", "one reply to one request");
+        else
+            fail("reply.trailing_bytes", "AP §4.1", "nothing after the reply");
+    }
     if (pdu->is_exception()) {
         const auto code = std::get<modbus::ExceptionResponse>(pdu->body).exception_code;
         if (!e.exceptions.count(code)) {

@@ -11,7 +11,8 @@
 //            is not on the line (SL §2.1), a device in listen-only mode (AP §6.8.1 sub-function 04), a
 //            Modbus/TCP header whose protocol identifier is not 0 (TCP §3.1.3);
 //   a reply  to every other request: framed like the request (checksum, unit, transaction and protocol
-//            identifiers), for the request's function, well formed (AP §6 layouts, byte counts);
+//            identifiers), for the request's function, well formed (AP §6 layouts, byte counts), and
+//            once: the same reply again after it is reply.duplicate (SL §2.1; MK-MS-01, 000:246-248);
 //   which    exception 01 for an unsupported function, 03 for a quantity outside 1..max or inconsistent
 //            data, 02 for an address the map lacks, the profile's code for a rejected value, and a normal
 //            response exactly where none of these applies; an echo where the function echoes;

@@ -195,7 +195,9 @@ ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout)
         judge_settled(std::move(settled), "during a later request: ");
     } else {
         for (const auto& frame : r.exchange.stale_replies)
-            (void)unanswered_.claim(frame, claimed_);
+            if (!unanswered_.claim(frame, claimed_) && last_)
+                for (const auto& v : repeated_reply(*last_, frame.adu(), "during a later request: "))
+                    record(v, last_function_, true);
         judge_claimed("during a later request: ");
         if (r.exchange.closed)
             unanswered_.clear();
@@ -276,8 +278,7 @@ bool Campaign::await_due_replies(std::chrono::milliseconds timeout) {
 
 // Whether a reply to the last request may still come: no whole, valid one came.
 bool Campaign::last_unanswered() const {
-    return last_ && (last_->own_received().empty() || last_->timed_out || !last_->response ||
-                     !last_->response->checksum_ok);
+    return last_ && reply_may_come(*last_);
 }
 
 // Whatever arrived since the last exchange ended (nothing is waited for). Over Modbus/TCP each whole frame
@@ -294,7 +295,13 @@ void Campaign::judge_arrivals() {
     }
     if (framing_ == modbus::Framing::Tcp) bytes = unanswered_.claim_frames(bytes, claimed_);
     judge_claimed("after the request was given up: ");
-    if (!last_unanswered()) return;  // answered: the rest is no one's reply the rules can name
+    if (!last_unanswered()) {
+        // Answered: the same reply again is the request answered twice; any other rest is no one's reply
+        // the rules can name (what a step holding more than one request may draw).
+        for (const auto& v : repeated_reply(*last_, bytes, "after the reply: "))
+            record(v, last_function_, true);
+        return;
+    }
     for (const auto& v : late_bytes(oracle_, framing_, *last_, std::move(bytes)))
         record(v, last_function_, true);
 }

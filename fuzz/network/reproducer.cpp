@@ -260,6 +260,18 @@ std::vector<conformance::OracleViolation> judge_late_frame(conformance::Exchange
                       reply, when);
 }
 
+std::vector<conformance::OracleViolation> repeated_reply(const modbus::transport::Exchange& previous,
+                                                         std::span<const std::uint8_t> later,
+                                                         std::string_view when) {
+    if (!previous.response || !modbus::transport::repeats_reply(*previous.response, later)) return {};
+    return {{"reply.duplicate", "SL §2.1, AP §4.1", "one reply to one request",
+             std::string(when) + "the reply again, " + modbus::hex_bytes(previous.response->adu())}};
+}
+
+bool reply_may_come(const modbus::transport::Exchange& ex) {
+    return ex.own_received().empty() || ex.timed_out || !ex.response || !ex.response->checksum_ok;
+}
+
 std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
                                  const std::vector<Step>& steps, const ReplayOptions& options) {
     std::vector<ReplayedStep> out;
@@ -283,10 +295,14 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
         for (const auto& c : std::exchange(claimed, {}))
             judge_as_step(c.first.exchange.sent, c.second, when);
     };
-    // Bytes no owed step accounts for: the last step's reply, too late.
+    // Bytes no owed step accounts for: the last step's reply, too late; after its reply, that reply again
+    // (as the campaign judges them).
     const auto judge_rest = [&](std::vector<std::uint8_t> bytes) {
-        const auto found = late_bytes(oracle, framing, out.back().exchange, std::move(bytes));
-        out.back().violations.insert(out.back().violations.end(), found.begin(), found.end());
+        auto& last = out.back();
+        const auto found = reply_may_come(last.exchange)
+                               ? late_bytes(oracle, framing, last.exchange, std::move(bytes))
+                               : repeated_reply(last.exchange, bytes, "after the reply: ");
+        last.violations.insert(last.violations.end(), found.begin(), found.end());
     };
     const auto late = [&] {
         if (out.empty()) return;
@@ -314,8 +330,12 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
         out.push_back(send_step(client, oracle, step, options, owed.list()));
         const auto& ex = out.back().exchange;
         if (framing == modbus::Framing::Tcp) {
-            for (const auto& frame : ex.stale_replies)
-                (void)unanswered.claim(frame, claimed);
+            for (const auto& frame : ex.stale_replies) {
+                if (unanswered.claim(frame, claimed) || out.size() < 2) continue;
+                auto& previous = out[out.size() - 2];
+                const auto found = repeated_reply(previous.exchange, frame.adu(), "during a later request: ");
+                previous.violations.insert(previous.violations.end(), found.begin(), found.end());
+            }
             if (ex.closed || step.reconnect_after)
                 unanswered.clear();  // no reply can come over a connection that is gone
             else if (!ex.response)

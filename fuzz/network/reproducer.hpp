@@ -99,12 +99,22 @@ std::vector<conformance::OracleViolation> judge_late_frame(conformance::Exchange
                                                            const modbus::transport::Exchange& request,
                                                            const modbus::Frame& reply, std::string_view when);
 
+// `later`, bytes that came after `previous` was answered, when they begin with its reply again: the request
+// answered twice (reply.duplicate; SL §2.1, MK-MS-01: exactly one reply). `when` begins the observation.
+std::vector<conformance::OracleViolation> repeated_reply(const modbus::transport::Exchange& previous,
+                                                         std::span<const std::uint8_t> later,
+                                                         std::string_view when);
+
+// Whether no whole reply with a good checksum came for `ex`: its reply may still come.
+bool reply_may_come(const modbus::transport::Exchange& ex);
+
 // Sends every step over `client` and judges each exchange with `oracle`. Besides the oracle's rules: a
 // reply to a request voided by a gap (silence.gap_inside_request), and replies that came after their
 // request was given up, judged as the reply of the step it answers: over Modbus/TCP the step whose
 // transaction id it carries (unanswered.hpp), over RTU and ASCII the earlier step given up that it could
-// answer (exchange.hpp); what answers none is judged as the last step's (late_bytes). At the end the replies
-// still due are waited for, up to a timeout.
+// answer (exchange.hpp); what answers none is judged as the last step's (late_bytes) when that step is
+// unanswered, and when it was answered only for being its reply again (repeated_reply). At the end the
+// replies still due are waited for, up to a timeout.
 std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance::ExchangeOracle& oracle,
                                  const std::vector<Step>& steps, const ReplayOptions& options);
 

@@ -191,6 +191,37 @@ std::span<const std::uint8_t> Exchange::own_received() const noexcept {
     return std::span<const std::uint8_t>(received).subspan(std::min(stale, received.size()));
 }
 
+namespace {
+
+bool same_frame(const Frame& a, const Frame& b) {
+    return a.checksum_ok == b.checksum_ok && std::ranges::equal(a.adu(), b.adu());
+}
+
+}  // namespace
+
+// Frames are compared decoded: an ASCII frame's adu() is its binary form, not its characters.
+bool repeats_reply(const Frame& reply, std::span<const std::uint8_t> later) {
+    // The bytes are all there is: the line is silent after them.
+    const Span s = find_frame(reply.framing, later, true, false);
+    if (s.end == 0 || s.begin != 0) return false;
+    const auto again = decode(reply.framing, later.first(s.end));
+    return again && same_frame(*again, reply);
+}
+
+bool repeats_response(const Exchange& ex) {
+    if (!ex.response) return false;
+    // Frame by frame, as the scanner found them, up to the response: the copy must follow it.
+    auto own = ex.own_received();
+    while (!own.empty()) {
+        const Span s = find_frame(ex.response->framing, own, true, false);
+        if (s.end == 0) return false;
+        const auto f = decode(ex.response->framing, own.subspan(s.begin, s.end - s.begin));
+        own = own.subspan(s.end);
+        if (f && same_frame(*f, *ex.response)) return repeats_reply(*ex.response, own);
+    }
+    return false;
+}
+
 std::size_t ReplyScanner::scan(Exchange& ex, bool silence) {
     std::size_t found_now = 0;
     for (;;) {

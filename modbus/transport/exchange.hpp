@@ -37,6 +37,14 @@ struct Exchange {
     std::span<const std::uint8_t> own_received() const noexcept;
 };
 
+// Whether `later`, bytes that came after `reply` on the same link, begins with `reply` again, byte for byte:
+// the request answered twice (a device sending its transmit buffer again). A device answers a request
+// once (SL §2.1; MK-MS-01, 000:246-248: exactly one reply). Over Modbus/TCP the copy carries the same
+// transaction id, over RTU and ASCII the same checksum: no other request's reply looks like this.
+bool repeats_reply(const Frame& reply, std::span<const std::uint8_t> later);
+// Whether what came for `ex` holds its response twice in a row (repeats_reply within one exchange).
+bool repeats_response(const Exchange& ex);
+
 // A request sent earlier whose reply did not come in time. RTU and ASCII carry no transaction id: a reply
 // that comes after its request was given up, while the next request waits, can be told from that request's
 // own only by what it answers.

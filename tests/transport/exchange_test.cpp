@@ -106,6 +106,44 @@ Frame rtu_reply(std::uint8_t unit, const std::vector<std::uint8_t>& pdu) {
 
 }  // namespace
 
+// A reply sent twice: the same bytes again (transaction id and checksum too), after a late reply set aside
+// or not; a reply followed by anything else, or by another request's reply of the same shape, is not.
+TEST(RepeatsReply, OnlyTheSameBytesAgainAreTheReplyTwice) {
+    for (const Framing framing : {Framing::Tcp, Framing::Rtu, Framing::Ascii}) {
+        SCOPED_TRACE(std::string(to_string(framing)));
+        const auto frame_of = [&](std::uint16_t tid, const std::vector<std::uint8_t>& pdu) {
+            return encode_adu(framing, tid, 1, pdu);
+        };
+        const auto reply = frame_of(10, reply_pdu);
+        const auto scanned = [&](const std::vector<std::vector<std::uint8_t>>& parts) {
+            Exchange ex;
+            ex.sent = frame_of(10, read_pdu);
+            for (const auto& p : parts)
+                append(ex, p);
+            ReplyScanner(framing, false, 1).scan(ex, true);
+            return ex;
+        };
+        const auto twice = scanned({reply, reply});
+        ASSERT_TRUE(twice.response.has_value());
+        EXPECT_TRUE(transport::repeats_response(twice));
+        EXPECT_TRUE(transport::repeats_reply(*twice.response, reply));
+        EXPECT_FALSE(transport::repeats_response(scanned({reply})));
+        EXPECT_FALSE(transport::repeats_response(scanned({reply, {0xDE, 0xAD}})));
+        // Cut short, the copy is not the reply again.
+        EXPECT_FALSE(transport::repeats_reply(*twice.response, std::span(reply).first(reply.size() - 1)));
+        // Another value in the same shape (over Modbus/TCP, another transaction too).
+        EXPECT_FALSE(transport::repeats_response(scanned({reply, frame_of(11, {0x03, 0x02, 0x12, 0x35})})));
+        if (framing == Framing::Tcp) {
+            // A late reply set aside first: the copy is counted from the request's own reply.
+            const auto late = frame_of(9, reply_pdu);
+            const auto after_late = scanned({late, reply, reply});
+            ASSERT_EQ(after_late.stale_replies.size(), 1u);
+            EXPECT_TRUE(transport::repeats_response(after_late));
+            EXPECT_FALSE(transport::repeats_response(scanned({late, reply})));
+        }
+    }
+}
+
 TEST(CouldAnswer, TheShapeEachFunctionGivesItsResponse) {
     using transport::could_answer;
     const std::vector<std::uint8_t> read_coils{0x01, 0x00, 0x13, 0x00, 0x0A};  // 10 coils: 2 bytes
