@@ -35,6 +35,9 @@ struct RunOptions {
     bool read_only = false;
     std::vector<std::string> rule_globs;  // empty: every rule
     std::uint64_t seed = 1;
+    // How long silence.idle listens with no request out. The manuals' own test idles 10 s (MK-MS-01,
+    // 000:246-248) and 15 s (WA-GEN-02, 002:164); a run defaults to a shorter listen.
+    std::chrono::milliseconds idle{1000};
     std::function<void(const RuleResult&)> progress;  // after each rule (a terminal shows where the run is)
 };
 
@@ -104,5 +107,6 @@ void check_framing(Context& c);
 void check_tcp(Context& c);
 void check_robustness(Context& c);
 void check_response_times(Context& c);
+void check_unsolicited(Context& c);
 
 }  // namespace mbscope::conformance

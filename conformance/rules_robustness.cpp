@@ -5,6 +5,7 @@
 #include <random>
 
 #include "conformance/context.hpp"
+#include "modbus/describe.hpp"
 #include "modbus/transport/client.hpp"
 
 namespace mbscope::conformance {
@@ -96,6 +97,50 @@ void check_response_times(Context& c) {
             r.expected = limit ? "max ≤ " + std::to_string(*limit) + " ms" : "measured";
             r.outcome =
                 !limit || times.back() <= std::chrono::milliseconds(*limit) ? Outcome::Pass : Outcome::Fail;
+        });
+}
+
+// Run last: the first judges every exchange of the run, the second leaves the device alone. A slave only
+// answers, once per request (SL §2.1; MK-MS-01, 000:246-248: "the master always initiates", exactly one
+// reply; CTH-MS-01, 003:450-452; WA-GEN-02, 002:164: a server only, no unsolicited traffic).
+void check_unsolicited(Context& c) {
+    c.run({"reply.once", "robustness", "SL §2.1, AP §4.1",
+           "Every request is answered once: no reply comes twice, in the same read or later.",
+           Authority::Specification, false},
+          [&](RuleResult& r) {
+              const auto& repeated = c.session.repeated_replies();
+              r.expected = "one reply to each request";
+              if (repeated.empty()) {
+                  r.observed = "no reply came twice in " + std::to_string(c.session.requests()) + " requests";
+                  return;
+              }
+              r.observed = std::to_string(repeated.size()) + (repeated.size() == 1 ? " reply" : " replies") +
+                           " came twice (first: " + repeated.front().note + ")";
+              r.outcome = Outcome::Fail;
+              // The first few are evidence enough; the count says how many.
+              c.session.cite({repeated.begin(),
+                              repeated.begin() +
+                                  std::min<std::ptrdiff_t>(8, static_cast<std::ptrdiff_t>(repeated.size()))});
+          });
+    const auto idle = c.options.idle;
+    c.run(
+        {"silence.idle", "robustness", "AP §4.1, SL §2.1",
+         "Left alone for " + std::to_string(idle.count()) +
+             " ms, the device sends nothing: only the master initiates.",
+         Authority::Specification, false},
+        [&](RuleResult& r) {
+            const auto heard = c.session.listen_idle(idle);
+            r.expected = "no byte";
+            r.observed =
+                heard.received.empty()
+                    ? "nothing in " + std::to_string(idle.count()) + " ms"
+                    : std::to_string(heard.received.size()) + " bytes, " +
+                          std::to_string(tp::frames_in(c.session.client().framing(), heard.received).size()) +
+                          " whole frames: " +
+                          modbus::hex_bytes(std::span(heard.received)
+                                                .first(std::min<std::size_t>(heard.received.size(), 32))) +
+                          (heard.received.size() > 32 ? " ..." : "");
+            r.outcome = heard.received.empty() ? Outcome::Pass : Outcome::Fail;
         });
 }
 

@@ -141,7 +141,7 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     const Family families[] = {check_function_codes, check_quantities,     check_addresses,
                                check_values,         check_write_encoding, check_data,
                                check_broadcast,      check_framing,        check_tcp,
-                               check_robustness,     check_response_times};
+                               check_robustness,     check_response_times, check_unsolicited};
     for (Family family : families) {
         if (stop && stop->load()) {
             report.stopped = true;

@@ -32,8 +32,27 @@ void Session::pace() {
     ++requests_;
 }
 
-void Session::log(const tp::Exchange& ex, const std::string& note) {
-    late_replies_ += ex.stale_replies.size();
+void Session::log(const tp::Exchange& ex, const std::string& note, bool one_request) {
+    if (one_request && tp::repeats_response(ex))
+        repeated_.push_back({note + ": the reply came twice", ex.sent, ex.received, ex.elapsed, false});
+    // Over Modbus/TCP a copy of the last reply carries its transaction id: the scanner sets it aside as a
+    // late reply, which it is not. (Over RTU and ASCII a frame is set aside only for an owed request: none
+    // is owed once a reply came.)
+    std::size_t copies = 0;
+    if (last_reply_ && client_.framing() == modbus::Framing::Tcp)
+        for (const auto& f : ex.stale_replies)
+            if (tp::repeats_reply(*last_reply_, f.adu()) && copies++ == 0)
+                repeated_.push_back({"the previous request's reply again, during: " + note,
+                                     last_reply_request_,
+                                     {f.adu().begin(), f.adu().end()},
+                                     ex.elapsed,
+                                     false});
+    last_reply_.reset();
+    if (one_request && ex.response && ex.response->checksum_ok) {
+        last_reply_ = ex.response;
+        last_reply_request_ = ex.sent;
+    }
+    late_replies_ += ex.stale_replies.size() - copies;
     evidence_.push_back({note, ex.sent, ex.received, ex.elapsed, ex.timed_out});
     if (!ex.timed_out) times_.push_back(ex.elapsed);
     unanswered_in_a_row_ = ex.received.empty() ? unanswered_in_a_row_ + 1 : 0;
@@ -41,17 +60,44 @@ void Session::log(const tp::Exchange& ex, const std::string& note) {
 
 void Session::log_late(std::vector<std::uint8_t> bytes) {
     if (bytes.empty()) return;
+    // The last reply again is that request answered twice, not a late reply.
+    const bool again = last_reply_ && tp::repeats_reply(*last_reply_, bytes);
+    if (again)
+        repeated_.push_back(
+            {"the last request's reply again, after it was answered", last_reply_request_, bytes, {}, false});
     // Each owed request a frame among them answers is settled; the others may still be answered.
     const auto frames = tp::frames_in(client_.framing(), bytes);
     for (const auto& frame : frames)
         (void)owed().settle(frame);
-    late_replies_ += std::max<std::size_t>(frames.size(), 1);
-    evidence_.push_back({"late: arrived after the last exchange ended, before this request",
-                         {},
-                         std::move(bytes),
-                         {},
-                         false});
+    late_replies_ += again ? frames.size() - std::min<std::size_t>(frames.size(), 1)
+                           : std::max<std::size_t>(frames.size(), 1);
+    evidence_.push_back(
+        {again ? "the last reply again: arrived after the last exchange ended, before this request"
+               : "late: arrived after the last exchange ended, before this request",
+         {},
+         std::move(bytes),
+         {},
+         false});
     quiet_waits_ = 0;
+}
+
+Evidence Session::listen_idle(std::chrono::milliseconds quiet) {
+    // A reply still owed would come while listening and pass for one nobody asked for.
+    if (unanswered_in_a_row_ > 0 || !owed().empty()) log_late(client_.drain(options_.timeout));
+    const auto start = std::chrono::steady_clock::now();
+    Evidence e{"listening for " + std::to_string(quiet.count()) + " ms with no request out",
+               {},
+               client_.drain(quiet),
+               {},
+               false};
+    e.elapsed = std::chrono::steady_clock::now() - start;
+    e.timed_out = e.received.empty();
+    evidence_.push_back(e);
+    return e;
+}
+
+void Session::cite(const std::vector<Evidence>& evidence) {
+    evidence_.insert(evidence_.end(), evidence.begin(), evidence.end());
 }
 
 void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) {
@@ -87,7 +133,7 @@ tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::stri
         // fresh one.
         (void)client_.reconnect();
     }
-    log(ex, note);
+    log(ex, note, true);
     account(ex, to, pdu);
     return ex;
 }
@@ -118,7 +164,11 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
     auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames, {},
                           rest ? std::span<const tp::OwedRequest>{} : owed().list());
     if (ex.closed) (void)client_.reconnect();
-    log(ex, note);
+    bool one_request = false;
+    if (!rest && frames == 1)
+        if (auto f = modbus::decode_adu(client_.framing(), bytes))
+            one_request = f->wire_length == bytes.size();
+    log(ex, note, one_request);
     account(ex, unit, pdu);
     return ex;
 }

@@ -77,6 +77,16 @@ class Session {
     // Replies (or bytes) that came after their request was given up: set aside during a later request, or
     // found waiting before one.
     std::uint64_t late_replies() const noexcept { return late_replies_; }
+    // Requests answered twice (modbus::transport::repeats_reply): the reply again in the same read, before
+    // the next request, or (Modbus/TCP) set aside by a later one; each with the request's bytes. Counted
+    // for every exchange of one request (request(), and raw() of bytes that are one whole ADU awaiting one
+    // frame): where a rule sends two requests at once, identical replies are both owed.
+    const std::vector<Evidence>& repeated_replies() const noexcept { return repeated_; }
+    // With no request out, listens until `quiet` passes without a byte (replies still owed are waited out
+    // first, up to the timeout, and logged as late); the listening joins the evidence and is returned.
+    Evidence listen_idle(std::chrono::milliseconds quiet);
+    // Adds to the current rule's evidence (what the session kept for a judgement over the whole run).
+    void cite(const std::vector<Evidence>& evidence);
     // RTU and ASCII: keep the owed requests in `list` instead of the session's own, so that a caller that
     // sends its own requests over the same client (the network fuzzer) and the session each set aside the
     // other's late replies instead of taking them for their own (a value remembered for restoring among
@@ -97,7 +107,8 @@ class Session {
     const modbus::Point* pair_of(
         const Touched& t) const;                      // t's 32-bit point when both its registers are kept
     bool restore_pair_first(const Touched& t) const;  // t is the first register of such a point
-    void log(const modbus::transport::Exchange& ex, const std::string& note);
+    // `one_request`: the exchange sent one request and awaited one reply (repeated_replies()).
+    void log(const modbus::transport::Exchange& ex, const std::string& note, bool one_request);
     // RTU and ASCII, before a request to `unit` of `pdu` (empty: bytes that are no request) goes out: what
     // has arrived since the last exchange is a late reply, logged as such; when the request could draw the
     // same reply as an owed one, the owed reply is waited for (content could not tell them apart).
@@ -115,6 +126,11 @@ class Session {
     std::vector<std::chrono::nanoseconds> times_;
     std::uint64_t requests_ = 0;
     std::uint64_t late_replies_ = 0;
+    std::vector<Evidence> repeated_;
+    // The reply to the last exchange of one request, when it came whole, and that request: a copy of it
+    // arriving later is the request answered twice.
+    std::optional<modbus::Frame> last_reply_;
+    std::vector<std::uint8_t> last_reply_request_;
     bool part_sent_ = false;                 // send_part() began a request that raw() completes
     std::uint32_t unanswered_in_a_row_ = 0;  // requests that got not a byte back, since the last that did
     // RTU and ASCII: the last requests given up without a reply, each with when it was.

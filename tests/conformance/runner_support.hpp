@@ -27,6 +27,7 @@ inline CheckOptions options_for(std::chrono::milliseconds timeout = std::chrono:
     o.session.unit = 1;
     o.session.timeout = timeout;
     o.session.interval = std::chrono::milliseconds(0);  // the Walchem manual's 5 s polling is for plants
+    o.run.idle = std::chrono::milliseconds(100);
     return o;
 }
 
