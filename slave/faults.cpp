@@ -53,6 +53,8 @@ constexpr FaultInfo faults[] = {
      "FC5, FC6 and FC8/00 answers carry the request's value inverted"},
     {Fault::CrashAfter, "crash-after", ArgKind::Count,
      "=N: after N answered requests the slave never answers again"},
+    {Fault::DuplicateReply, "duplicate-reply", ArgKind::Rate,
+     "every response is sent twice, back to back (the same bytes)"},
 };
 
 const FaultInfo& info(Fault f) noexcept {

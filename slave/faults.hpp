@@ -41,8 +41,9 @@ enum class Fault : std::uint8_t {
     AcceptOutOfRange,   // values outside the map's ranges and enumerations are accepted
     NoEcho,             // FC5, FC6 and FC8/00 answers do not echo the request
     CrashAfter,         // after ARG answered requests the slave never answers again
+    DuplicateReply,     // every response is sent twice, back to back
 };
-inline constexpr std::size_t fault_count = static_cast<std::size_t>(Fault::CrashAfter) + 1;
+inline constexpr std::size_t fault_count = static_cast<std::size_t>(Fault::DuplicateReply) + 1;
 
 std::string_view to_string(Fault f) noexcept;
 // One line per fault: "bad-crc  RTU: the response's CRC is wrong", for --help and the README.

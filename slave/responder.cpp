@@ -37,7 +37,13 @@ std::vector<std::uint8_t> Responder::respond(const modbus::Frame& f) {
     const std::uint16_t tid = f.framing == Framing::Tcp ? f.transaction_id() : std::uint16_t{0};
     auto pdu = answer(f.unit_id(), f.pdu());
     if (pdu.empty()) return {};
-    return frame(f.unit_id(), tid, pdu);
+    auto adu = frame(f.unit_id(), tid, pdu);
+    // One write holding the reply twice: a transmit buffer sent again (MK-MS-01 wants exactly one reply).
+    if (faults_.fires(Fault::DuplicateReply)) {
+        const auto once = adu;  // a vector cannot insert a range of itself
+        adu.insert(adu.end(), once.begin(), once.end());
+    }
+    return adu;
 }
 
 // The response PDU, or nothing when the request is not answered.

@@ -5,7 +5,7 @@
 //    transport (rtu-tcp, ascii-tcp, udp; RTU and ASCII over a pseudo-terminal in serial_line_test.cpp),
 //    certify with no failure,
 //    restore every point they wrote, and leave the slave's register image as they found it.
-//  - PlantedFault: each of the slave's 24 faults makes the run fail (or warn, where only an implied rule
+//  - PlantedFault: each of the slave's 25 faults makes the run fail (or warn, where only an implied rule
 //    of the manual catches it) through the rules that are meant to catch it.
 //  - Reports: the JSON report carries every rule with its evidence and the summary adds up; the JUnit XML
 //    report holds one testcase per rule with matching counts.
@@ -167,6 +167,7 @@ std::vector<FaultCase> fault_cases() {
         {"accept-out-of-range", "mmk-2030", "tcp", "value.hr*.outside"},
         {"no-echo", "mmk-2030", "tcp", "echo.fc6"},
         {"crash-after=20", "cth2265i", "tcp", "quantity.*", false, {"fc.supported.*", "quantity.*"}},
+        {"duplicate-reply", "mmk-2030", "tcp", "reply.once", false, {"fc.supported.*", "reply.once"}},
     };
 }
 

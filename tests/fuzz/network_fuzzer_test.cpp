@@ -101,6 +101,7 @@ std::vector<FaultCase> fault_cases() {
         {"accept-out-of-range", "mmk-2030", "tcp", {"reply.rejected_write"}},
         {"no-echo", "mmk-2030", "tcp", {"reply.echo"}},
         {"crash-after=200", "cth2265i", "tcp", {"target.unresponsive", "reply.missing"}},
+        {"duplicate-reply", "mmk-2030", "rtu-tcp", {"reply.duplicate"}},
     };
 }
 

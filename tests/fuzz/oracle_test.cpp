@@ -255,6 +255,7 @@ std::vector<FaultCase> fault_cases() {
         {"accept-out-of-range", "mmk-2030", Framing::Tcp, {"reply.rejected_write"}},
         {"no-echo", "mmk-2030", Framing::Tcp, {"reply.echo"}},
         {"crash-after=3", "cth2265i", Framing::Rtu, {"reply.missing"}},
+        {"duplicate-reply", "mmk-2030", Framing::Rtu, {"reply.duplicate"}},
     };
 }
 

@@ -26,8 +26,8 @@ std::string ascii_hex(std::string_view text) {
     return hex(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
 }
 
-TEST(Faults, TwentyFourAreDeclaredWithTheirCommandLineNames) {
-    EXPECT_EQ(fault_count, 24u);
+TEST(Faults, TwentyFiveAreDeclaredWithTheirCommandLineNames) {
+    EXPECT_EQ(fault_count, 25u);
     std::set<std::string> names;
     for (std::size_t i = 0; i < fault_count; ++i) {
         const std::string name(to_string(static_cast<Fault>(i)));
@@ -37,6 +37,7 @@ TEST(Faults, TwentyFourAreDeclaredWithTheirCommandLineNames) {
     EXPECT_EQ(names.size(), fault_count);
     EXPECT_EQ(to_string(Fault::ReplyToBroadcast), "reply-to-broadcast");
     EXPECT_EQ(to_string(Fault::CrashAfter), "crash-after");
+    EXPECT_EQ(to_string(Fault::DuplicateReply), "duplicate-reply");
 }
 
 TEST(Faults, ParseNamesTheProblem) {
@@ -250,6 +251,10 @@ const std::vector<WireFaultCase> wire_faults = {
      "00 06 00 00 12 34 85 6C"},
     {"CrashAfterZero", "crash-after=0", "tcp", tcp_request, tcp_reply, ""},
     {"NoReplyEveryRequest", "no-reply=1", "tcp", tcp_request, tcp_reply, ""},
+    // The same bytes twice in one write: the transaction id too (TCP), the CRC too (RTU).
+    {"DuplicateReply", "duplicate-reply", "tcp", tcp_request, tcp_reply, tcp_reply + " " + tcp_reply},
+    {"DuplicateReplyRtu", "duplicate-reply", "rtu-tcp", "01 03 00 00 00 01 84 0A", "01 03 02 00 00 B8 44",
+     "01 03 02 00 00 B8 44 01 03 02 00 00 B8 44"},
 };
 
 INSTANTIATE_TEST_SUITE_P(Server, WireFault, ::testing::ValuesIn(wire_faults),
