@@ -295,6 +295,7 @@ void Campaign::judge_arrivals() {
     }
     if (framing_ == modbus::Framing::Tcp) bytes = unanswered_.claim_frames(bytes, claimed_);
     judge_claimed("after the request was given up: ");
+    if (!last_) return;  // no exchange yet: nothing the bytes could be judged against
     if (!last_unanswered()) {
         // Answered: the same reply again is the request answered twice; any other rest is no one's reply
         // the rules can name (what a step holding more than one request may draw).
