@@ -26,6 +26,11 @@ struct Analyzer::Flow {
     std::uint64_t rtu_lost[2] = {0, 0};  // stream bytes lost in gaps, so that offsets stay stream offsets
     Timestamp rtu_last[2] = {};          // when each side last sent: the time of a frame closed later
     std::size_t pending = 0;
+    // The last response paired on the link (its ADU, decoded): the same response again, with no request
+    // waiting for it, is that request answered twice rather than a reply nobody asked for.
+    std::array<std::uint8_t, max_frame_bytes> last_response{};
+    std::size_t last_response_length = 0;
+    std::uint64_t last_response_index = 0;
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
     // "server unit N" and its statistics, made once per unit seen on the link rather than once per frame.
     struct Unit {
@@ -427,6 +432,17 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
     auto it = pending_.find(key);
+    if (it == pending_.end() && r.frame.checksum_ok && r.frame.length == flow.last_response_length &&
+        std::memcmp(r.frame.bytes.data(), flow.last_response.data(), r.frame.length) == 0) {
+        // No request waits for it. (Over Modbus/TCP a request that does was found above by its transaction
+        // id; on a serial line with a request waiting, the same bytes may be that request's own reply to the
+        // same question, and are taken as such.)
+        report(FindingCode::PairDuplicateResponse, r,
+               "the response of frame " + std::to_string(flow.last_response_index) +
+                   " again: one request answered twice",
+               {flow.last_response_index, r.index});
+        return;
+    }
     if (it == pending_.end()) {
         // One request outstanding on this link and the reply carries another id: a transaction-id mismatch,
         // not an unsolicited reply.
@@ -447,6 +463,11 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         }
     }
     --flow.pending;
+    if (r.frame.checksum_ok) {
+        flow.last_response_length = r.frame.length;
+        std::memcpy(flow.last_response.data(), r.frame.bytes.data(), r.frame.length);
+        flow.last_response_index = r.index;
+    }
     complete(it->second, &r, false);  // reports and sinks never touch the pending table
     pending_.erase(it);
 }

@@ -102,6 +102,11 @@ constexpr std::array findings{
                 "too many unanswered requests on one link: the oldest were given up", "capture"},
     FindingInfo{PairBroadcastResponse, "pair.broadcast_response", S::Error,
                 "a slave answered a broadcast (unit 0) request", "SL §2.1; 000:248, 285"},
+    FindingInfo{
+        PairDuplicateResponse, "pair.duplicate_response", S::Error,
+        "the last response again, byte for byte, after its request was answered: one request answered "
+        "twice",
+        "AP §4.1; SL §2.1; 000:246-248"},
     FindingInfo{ProfileFunctionUnsupported, "profile.function_unsupported", S::Warning,
                 "request uses a function code the device's manual does not list", "device manual"},
     FindingInfo{

@@ -66,6 +66,7 @@ enum class FindingCode : std::uint16_t {
     PairExceptionResponse = 609,
     PairPendingOverflow = 610,
     PairBroadcastResponse = 611,
+    PairDuplicateResponse = 612,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

@@ -151,6 +151,24 @@ TEST(Analyzer, UnsolicitedResponse) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
 }
 
+// The last response again, transaction id and all, after its request was answered: a device that answered
+// twice. Another response with no request waiting is a reply nobody asked for.
+TEST(Analyzer, DuplicateResponse) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(false, read_response(1), 1s + 1ms);
+    h.send(false, read_response(1), 1s + 2ms);
+    h.send(false, read_response(1, {556, 0, 100}), 1s + 3ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairDuplicateResponse), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    EXPECT_EQ(h.sink.transactions.size(), 1u);
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::PairDuplicateResponse) {
+            EXPECT_EQ(f.frames.size(), 2u);
+        }
+}
+
 TEST(Analyzer, TransactionIdMismatch) {
     Harness h;
     h.send(true, read_request(1), 1s);

@@ -186,7 +186,7 @@ TEST(JpnevulatorLog, BadLinesAreNamedAndTheRestRead) {
     EXPECT_EQ(p.chunks[1].bytes, fc3_response);
 }
 
-TEST(JpnevulatorLog, DecodesIntoTransactionsWithAnUnsolicitedRepeat) {
+TEST(JpnevulatorLog, DecodesIntoTransactionsWithARepeatedResponse) {
     auto r = decode(write_temp("jp.log", jpnevulator_log), an::InputFormat::Auto);
     ASSERT_TRUE(r->ok) << (r->summary.input_errors.empty() ? "" : r->summary.input_errors[0]);
     ASSERT_EQ(r->sink.transactions.size(), 2u);
@@ -194,8 +194,9 @@ TEST(JpnevulatorLog, DecodesIntoTransactionsWithAnUnsolicitedRepeat) {
         EXPECT_TRUE(t.response.has_value());
         EXPECT_EQ(t.request.direction, mb::Direction::Request);
     }
-    // the slave's second answer in the last run has no request
-    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    // the slave's second answer in the last run is the first again: one request answered twice
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 1);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
     EXPECT_EQ(r->sink.count(mb::FindingCode::RtuCrcMismatch), 0);
 }
 
