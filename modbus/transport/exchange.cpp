@@ -209,7 +209,8 @@ bool repeats_reply(const Frame& reply, std::span<const std::uint8_t> later) {
 }
 
 bool repeats_response(const Exchange& ex) {
-    if (!ex.response) return false;
+    // No room for the response and a copy of it (every exchange of a well-behaved device): nothing to decode.
+    if (!ex.response || ex.own_received().size() < 2 * ex.response->wire_length) return false;
     // Frame by frame, as the scanner found them, up to the response: the copy must follow it.
     auto own = ex.own_received();
     while (!own.empty()) {
