@@ -26,7 +26,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # Every program this script runs finds the bundled profiles of this tree.
 ENV = dict(os.environ, MBSCOPE_PROFILE_PATH=os.path.join(ROOT, "profiles"))
 TARGETS = ["pdu", "rtu_deframer", "ascii_deframer", "tcp_stream", "capture", "serial_log", "profile", "slave",
-           "libmodbus_diff", "slave_state", "reproducer", "frame_text", "reply", "check"]
+           "slave_request", "libmodbus_diff", "slave_state", "reproducer", "frame_text", "reply", "check"]
 
 
 class Provider:
@@ -314,6 +314,24 @@ def build(mbscope, out_dir):
             p.integral(0, 260, len(broken))
             p.data(broken)
             write("slave", p.bytes(), out_dir)
+
+    # slave_request: the same requests one per input (framed for the first served unit), and the broken copy.
+    for index, pr in enumerate(all_profiles):
+        unit = max(1, min(pr.get("line", {}).get("unit_min", 1), 247))
+        for framing_index, framing in enumerate(framings):
+            if framing != "tcp" and index % 4 != 0:
+                continue
+            broken = rtu(unit, b"\x03\x00\x00\x00\x01")[:-1] + b"\x00"
+            for shape, body in [(0x05, pdu) for pdu in requests_for(pr)] + [(0x00, broken)]:
+                p = Provider()
+                p.integral(0, len(all_profiles) - 1, index)
+                p.integral(0, 2, framing_index)
+                if framing == "tcp":
+                    p.boolean(True)
+                p.uint8(shape)
+                p.integral(0, 0xFFFF, 1)
+                p.data(body)
+                write("slave_request", p.bytes(), out_dir)
 
     # frame_text: the manuals' examples file as it is, and the same frames as frames-file lines over MBAP and
     # in ASCII (written as text, CR LF spelled \r\n as on a command line).
