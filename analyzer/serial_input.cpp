@@ -144,6 +144,12 @@ bool read_log(Analyzer& a, const std::string& path, InputFormat format, const Se
                                               : read_socat_log(in, path, options, chunk, error);
 }
 
+// Opens and is at its end; a file that cannot be opened is left to the reader, which names that.
+bool holds_no_bytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return in && in.peek() == std::ifstream::traits_type::eof();
+}
+
 }  // namespace
 
 InputFormat detect_input_format(std::span<const std::uint8_t> h) {
@@ -180,6 +186,13 @@ bool read_input(Analyzer& a, const std::string& path, InputFormat format, const 
         in.read(head.data(), static_cast<std::streamsize>(head.size()));
         head.resize(static_cast<std::size_t>(in.gcount()));
         format = detect_input_format({reinterpret_cast<const std::uint8_t*>(head.data()), head.size()});
+    }
+    // A file of no bytes decodes to nothing in every serial format; reporting that as a clean decode would
+    // pass off a tap that recorded nothing (or the wrong file) as a quiet line. libpcap names an empty pcap
+    // itself (a truncated file header).
+    if (format != InputFormat::Pcap && holds_no_bytes(path)) {
+        a.input_error(path + ": empty file, nothing to decode");
+        return false;
     }
     switch (format) {
         case InputFormat::Pcap:

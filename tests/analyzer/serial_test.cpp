@@ -133,3 +133,22 @@ TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
     EXPECT_NE(r->summary.input_errors[1].find("bad.txt:3"), std::string::npos);
     EXPECT_EQ(r->sink.transactions.size(), 1u);
 }
+
+// A tap that recorded nothing, or the wrong file: no format decodes an empty file to "no frames, no faults".
+TEST(SerialInput, AnEmptyFileIsAnInputErrorInEveryFormat) {
+    const auto path = write_temp("empty.bin", "");
+    for (const auto format :
+         {an::InputFormat::Auto, an::InputFormat::Pcap, an::InputFormat::RtuRaw, an::InputFormat::AsciiRaw,
+          an::InputFormat::Text, an::InputFormat::Jpnevulator, an::InputFormat::Socat}) {
+        auto r = decode(path, format);
+        EXPECT_FALSE(r->ok) << static_cast<int>(format);
+        ASSERT_EQ(r->summary.input_errors.size(), 1u) << static_cast<int>(format);
+        EXPECT_NE(r->summary.input_errors[0].find(path), std::string::npos) << r->summary.input_errors[0];
+        EXPECT_EQ(r->summary.frames, 0u);
+    }
+    // One byte is not empty: a raw dump of it is one unparsed byte, reported as such.
+    auto one = decode(write_temp("one.bin", std::string(1, '\x11')), an::InputFormat::RtuRaw);
+    EXPECT_TRUE(one->ok);
+    EXPECT_TRUE(one->summary.input_errors.empty());
+    EXPECT_EQ(one->summary.unparsed_bytes, 1u);
+}
