@@ -8,6 +8,7 @@
 #include "analyzer/word_order.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/frame_text.hpp"
 
 namespace mbscope::analyzer {
 
@@ -912,6 +913,13 @@ bool Analyzer::read_capture(const std::string& path) {
         return false;
     }
     return read_capture(*capture);
+}
+
+void Analyzer::input_error(const std::string& message) {
+    if (summary_.input_errors.size() < max_listed_input_errors)
+        summary_.input_errors.push_back(modbus::printable(message));
+    else
+        ++summary_.input_errors_unlisted;
 }
 
 void Analyzer::finish() {

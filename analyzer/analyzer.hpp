@@ -74,7 +74,11 @@ class Analyzer {
     // read to its end. Everything before the damage is still analysed.
     bool read_capture(const std::string& path);
     bool read_capture(CaptureSource& capture);
-    void input_error(const std::string& message) { summary_.input_errors.push_back(message); }
+    // An input problem, named with its file and place. Control characters are escaped (messages quote input
+    // bytes and end up on terminals). The first max_listed_input_errors are kept; the rest are counted
+    // (Summary::input_errors_unlisted): a file read in the wrong format has an error on every line.
+    void input_error(const std::string& message);
+    static constexpr std::size_t max_listed_input_errors = 100;
     // How far a reader has got in its file, in bytes: passed on to the progress callback. Readers call it
     // every so many records (finding the offset of a stream is not free).
     void reached(std::uint64_t offset) {

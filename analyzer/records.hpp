@@ -116,6 +116,7 @@ struct Summary {
     std::map<std::string, std::uint64_t> findings;  // code name → count
     std::uint64_t errors = 0;                       // error-severity findings
     std::vector<std::string> input_errors;          // files that could not be read (fully)
+    std::uint64_t input_errors_unlisted = 0;        // more of them, beyond Analyzer::max_listed_input_errors
 };
 
 class Sink {

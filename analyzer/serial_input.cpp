@@ -91,7 +91,8 @@ bool read_text(Analyzer& a, const std::string& path) {
         modbus::Timestamp t{0};
         if (!parse_time(time_token, t)) {
             a.input_error(path + ":" + std::to_string(number) +
-                          ": not a time in seconds from 0 to 9.2e9 (year 2262): '" + time_token + "'");
+                          ": not a time in seconds from 0 to 9.2e9 (year 2262): '" +
+                          time_token.substr(0, 40) + (time_token.size() > 40 ? "...'" : "'"));
             ok = false;
             continue;
         }

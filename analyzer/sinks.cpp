@@ -140,6 +140,8 @@ void TextSink::end(const Summary& s) {
     }
     for (const auto& e : s.input_errors)
         out_ << "  input error: " << e << '\n';
+    if (s.input_errors_unlisted)
+        out_ << "  input errors: " << s.input_errors_unlisted << " more, not listed\n";
 }
 
 // ---------------------------------------------------------------- JSON
@@ -318,6 +320,7 @@ json summary_to_json(const Summary& s) {
     }
     j["devices"] = devices;
     if (!s.input_errors.empty()) j["input_errors"] = s.input_errors;
+    if (s.input_errors_unlisted) j["input_errors_unlisted"] = s.input_errors_unlisted;
     return j;
 }
 

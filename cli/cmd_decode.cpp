@@ -89,6 +89,9 @@ int run_decode(const DecodeOptions& o) {
     a.finish();
     for (const auto& e : a.summary().input_errors)
         std::cerr << "mbscope decode: " << e << '\n';
+    if (a.summary().input_errors_unlisted)
+        std::cerr << "mbscope decode: " << a.summary().input_errors_unlisted
+                  << " more input errors, not listed\n";
     if (!any_read) return exit_failure;
     if (!all_read) return exit_failure;
     return a.summary().errors ? exit_findings : exit_ok;

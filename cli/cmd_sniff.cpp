@@ -47,6 +47,9 @@ int run_sniff(SniffCliOptions o) {
     a.finish();
     for (const auto& e : a.summary().input_errors)
         std::cerr << "mbscope sniff: " << e << '\n';
+    if (a.summary().input_errors_unlisted)
+        std::cerr << "mbscope sniff: " << a.summary().input_errors_unlisted
+                  << " more input errors, not listed\n";
     if (!s.write.empty() && !s.serial.empty())
         std::cerr << "mbscope sniff: " << s.write << " holds the serial bytes as USER0 records; read it "
                   << "with mbscope decode --user-dlt " << (capture->direction_header() ? "rtu-dir" : "rtu")

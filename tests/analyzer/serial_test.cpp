@@ -3,6 +3,7 @@
 // examples (000:356-484); the expected findings are written by hand.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include "analyzer/serial_input.hpp"
@@ -151,4 +152,25 @@ TEST(SerialInput, AnEmptyFileIsAnInputErrorInEveryFormat) {
     EXPECT_TRUE(one->ok);
     EXPECT_TRUE(one->summary.input_errors.empty());
     EXPECT_EQ(one->summary.unparsed_bytes, 1u);
+}
+
+// A binary file read as the text format: an error for every line, listed up to the limit and counted beyond,
+// none of them carrying the file's control characters to the terminal.
+TEST(SerialInput, AFileInTheWrongFormatListsAHundredErrorsAndCountsTheRest) {
+    std::string text;
+    for (int i = 0; i < 250; ++i)
+        text += "\x1b[31m\x07" + std::string(100, 'x') + "\r\n";
+    auto r = decode(write_temp("binary.txt", text), an::InputFormat::Text);
+    EXPECT_FALSE(r->ok);
+    ASSERT_EQ(r->summary.input_errors.size(), an::Analyzer::max_listed_input_errors);
+    EXPECT_EQ(r->summary.input_errors_unlisted, 250u - an::Analyzer::max_listed_input_errors);
+    for (const auto& e : r->summary.input_errors) {
+        EXPECT_EQ(
+            std::count_if(e.begin(), e.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20; }), 0)
+            << e;
+        EXPECT_NE(e.find("\\x1B[31m\\x07"), std::string::npos) << e;
+        EXPECT_LT(e.size(), 200u) << e;  // the line is quoted in part
+    }
+    EXPECT_NE(r->summary.input_errors[0].find("binary.txt:1:"), std::string::npos)
+        << r->summary.input_errors[0];
 }
