@@ -4,6 +4,8 @@
 #include <cctype>
 #include <nlohmann/json.hpp>
 
+#include "modbus/frame_text.hpp"  // printable()
+
 namespace mbscope::modbus {
 
 std::string to_string(const ProfileError& e) {
@@ -778,6 +780,64 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
 
 }  // namespace
 
+namespace {
+
+// A JSON pointer's reference token for an object key (RFC 6901: '~' as ~0, '/' as ~1), with control
+// characters written \xNN: the pointer is printed, and a key holding one is the error it names.
+std::string pointer_token(const std::string& key) {
+    std::string out;
+    for (char c : key) {
+        if (c == '~')
+            out += "~0";
+        else if (c == '/')
+            out += "~1";
+        else
+            out += c;
+    }
+    return printable(out);
+}
+
+// The first control character (below 0x20, or 0x7F) of `text`, or -1.
+int control_character(const std::string& text) {
+    for (char c : text) {
+        const auto u = static_cast<unsigned char>(c);
+        if (u < 0x20 || u == 0x7F) return u;
+    }
+    return -1;
+}
+
+// Every string of a profile document, keys included, ends up on a terminal or in a report (names, units,
+// value texts, notes): one holding a control character (an escape sequence, a carriage return that hides
+// what precedes it) is an error at its JSON pointer, not something to print. Profiles nest 11 levels at most
+// (the schema); a document nested deeper than max_depth is refused there rather than walked (a hostile one
+// nests hundreds of thousands deep, and the walk recurses).
+constexpr int max_depth = 32;
+void check_text(Reader& r, const json& j, const std::string& ptr, int depth = 0) {
+    if (depth > max_depth && (j.is_object() || j.is_array())) {
+        r.error(ptr, "nested deeper than " + std::to_string(max_depth) + " levels");
+        return;
+    }
+    const auto complain = [&r](const std::string& where, int c) {
+        static constexpr char digits[] = "0123456789ABCDEF";
+        r.error(where, std::string("holds a control character (\\x") + digits[c >> 4] + digits[c & 0x0F] +
+                           "): profile text is printed as it is");
+    };
+    if (j.is_string()) {
+        if (const int c = control_character(j.get_ref<const std::string&>()); c >= 0) complain(ptr, c);
+    } else if (j.is_object()) {
+        for (auto it = j.begin(); it != j.end(); ++it) {
+            const std::string child = ptr + "/" + pointer_token(it.key());
+            if (const int c = control_character(it.key()); c >= 0) complain(child, c);
+            check_text(r, it.value(), child, depth + 1);
+        }
+    } else if (j.is_array()) {
+        for (std::size_t i = 0; i < j.size(); ++i)
+            check_text(r, j[i], ptr + "/" + std::to_string(i), depth + 1);
+    }
+}
+
+}  // namespace
+
 LoadedProfiles parse_profiles(std::string_view text, const std::string& file, const IncludeFn& include,
                               const ProfileConfig& config) {
     LoadedProfiles out;
@@ -801,6 +861,7 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
                                    std::string(profile_format) + ")");
         return out;
     }
+    check_text(r, doc, "");
     Profile common;
     common.file = file;
     common.family = r.string(doc, "family", "", true).value_or("");
@@ -838,10 +899,13 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
                         auto it = m.find(key);
                         return it == m.end() ? json::object() : std::move(*it);
                     };
-                    if (!m.is_object())
+                    if (!m.is_object()) {
                         r.error("/maps_file", *name + " is not a JSON object");
-                    else
+                    } else {
+                        Reader maps_reader(*name, out.errors);  // errors name the maps file
+                        check_text(maps_reader, m, "");
                         maps = ModularMaps{take("maps"), take("status_codes"), take("alarm_bits")};
+                    }
                 } catch (const json::exception& e) {
                     r.error("/maps_file", *name + " is not valid JSON: " + e.what());
                 }

@@ -195,6 +195,36 @@ TEST(ProfileLoader, WrongTypesAreErrorsNotExceptions) {
     EXPECT_NE(l.profiles[0].find(mb::Table::HoldingRegisters, 1), nullptr);
 }
 
+// Profile text is printed on terminals and in reports: a control character anywhere (a value, a key) is an
+// error at its pointer; a document nested deeper than any profile is refused where it goes too deep.
+TEST(ProfileLoader, ControlCharactersAndDeepNestingAreErrors) {
+    const char* hostile = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y", "line": {"transports": ["rtu"]},
+      "functions": {"supported": [3]},
+      "tables": {"holding_registers": [{"address": 1, "name": "a\u001b[2J", "access": "r", "unit": "\r",
+                                        "source": "000:1"}]},
+      "x-extra": {"a/b\u0007": "", "deep": [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]},
+      "models": [{"id": "m", "name": "caf\u00e9"}]
+    })";
+    auto l = load(hostile);
+    std::vector<std::string> pointers;
+    for (const auto& e : l.errors) {
+        pointers.push_back(e.pointer);
+        EXPECT_EQ(e.file, "test.json");
+        for (char c : e.message)
+            EXPECT_GE(static_cast<unsigned char>(c), 0x20) << e.message;
+    }
+    const std::string deep = "/x-extra/deep" + [] {
+        std::string s;
+        for (int i = 0; i < 31; ++i)
+            s += "/0";
+        return s;
+    }();
+    EXPECT_EQ(pointers,
+              (std::vector<std::string>{"/tables/holding_registers/0/name",
+                                        "/tables/holding_registers/0/unit", "/x-extra/a~1b\\x07", deep}));
+}
+
 TEST(ProfileLoader, InvalidJsonAndOtherDocuments) {
     auto bad = load("{ \"format\": ");
     ASSERT_EQ(bad.errors.size(), 1u);
