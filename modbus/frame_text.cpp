@@ -28,6 +28,14 @@ std::string quote_token(std::string_view token) {
 
 }  // namespace
 
+int first_control_character(std::string_view text) {
+    for (char c : text) {
+        const auto u = static_cast<unsigned char>(c);
+        if (u < 0x20 || u == 0x7F) return u;
+    }
+    return -1;
+}
+
 std::string printable(std::string_view text) {
     std::string out;
     out.reserve(text.size());

@@ -63,5 +63,8 @@ nlohmann::json render_json(const DecodedFrame& d);
 
 // Text safe to print: bytes below 0x20 and 0x7F written as \r, \n, \t or \xNN, a backslash as itself.
 std::string printable(std::string_view text);
+// The first byte printable() escapes (below 0x20, or 0x7F), or -1 when there is none: for readers that refuse
+// such text in a file rather than print it escaped.
+int first_control_character(std::string_view text);
 
 }  // namespace mbscope::modbus

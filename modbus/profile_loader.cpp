@@ -4,7 +4,7 @@
 #include <cctype>
 #include <nlohmann/json.hpp>
 
-#include "modbus/frame_text.hpp"  // printable()
+#include "modbus/frame_text.hpp"  // printable(), first_control_character()
 
 namespace mbscope::modbus {
 
@@ -797,15 +797,6 @@ std::string pointer_token(const std::string& key) {
     return printable(out);
 }
 
-// The first control character (below 0x20, or 0x7F) of `text`, or -1.
-int control_character(const std::string& text) {
-    for (char c : text) {
-        const auto u = static_cast<unsigned char>(c);
-        if (u < 0x20 || u == 0x7F) return u;
-    }
-    return -1;
-}
-
 // Every string of a profile document, keys included, ends up on a terminal or in a report (names, units,
 // value texts, notes): one holding a control character (an escape sequence, a carriage return that hides
 // what precedes it) is an error at its JSON pointer, not something to print. Profiles nest 11 levels at most
@@ -823,11 +814,11 @@ void check_text(Reader& r, const json& j, const std::string& ptr, int depth = 0)
                            "): profile text is printed as it is");
     };
     if (j.is_string()) {
-        if (const int c = control_character(j.get_ref<const std::string&>()); c >= 0) complain(ptr, c);
+        if (const int c = first_control_character(j.get_ref<const std::string&>()); c >= 0) complain(ptr, c);
     } else if (j.is_object()) {
         for (auto it = j.begin(); it != j.end(); ++it) {
             const std::string child = ptr + "/" + pointer_token(it.key());
-            if (const int c = control_character(it.key()); c >= 0) complain(child, c);
+            if (const int c = first_control_character(it.key()); c >= 0) complain(child, c);
             check_text(r, it.value(), child, depth + 1);
         }
     } else if (j.is_array()) {

@@ -3,6 +3,7 @@
 #include "fuzz/network/unanswered.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/frame_text.hpp"
 
 #include <unistd.h>
 
@@ -42,7 +43,8 @@ modbus::Result<std::vector<std::uint8_t>, std::string> unhex(const std::string& 
     for (std::string token; in >> token;) {
         if (token.size() != 2 || !std::isxdigit(static_cast<unsigned char>(token[0])) ||
             !std::isxdigit(static_cast<unsigned char>(token[1])))
-            return std::string("'" + token + "' is not a hex byte");
+            return std::string("'" + modbus::printable(token.substr(0, 16)) +
+                               (token.size() > 16 ? "...'" : "'") + " is not a hex byte");
         out.push_back(static_cast<std::uint8_t>(std::stoul(token, nullptr, 16)));
     }
     return out;
@@ -143,8 +145,22 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
             step.reconnect_after = s.value("reconnect_after", false);
             step.void_by_gap = s.value("void_by_gap", false);
             step.recipe = s.value("recipe", "");
+            if (modbus::first_control_character(step.recipe) >= 0)
+                return std::string("step " + std::to_string(index) +
+                                   ": \"recipe\" holds a control character");
             r.steps.push_back(std::move(step));
         }
+        // `mbscope replay` prints these as they are: a file from elsewhere must not carry escape sequences to
+        // a terminal.
+        for (const auto& [key, text] : {std::pair<const char*, const std::string*>{"rule", &r.rule},
+                                        {"source", &r.source},
+                                        {"expected", &r.expected},
+                                        {"observed", &r.observed},
+                                        {"target", &r.target},
+                                        {"profile", &r.profile},
+                                        {"framing", &r.framing}})
+            if (modbus::first_control_character(*text) >= 0)
+                return std::string("\"") + key + "\" holds a control character";
         return r;
     } catch (const nlohmann::json::exception& e) {
         return std::string(e.what());

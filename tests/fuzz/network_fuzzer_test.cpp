@@ -603,6 +603,16 @@ TEST(NetworkFuzzer, DamagedReproducersAreRefusedWithTheReason) {
               std::string::npos);
     EXPECT_EQ(with(R"({"mbscope_reproducer":1,"seed":18446744073709551615,"steps":[{"parts":["01 03"]}]})"),
               "loaded");
+    // Text `mbscope replay` prints is refused when it holds a control character (a file from elsewhere must
+    // not drive the terminal), and a bad hex token is quoted escaped.
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"rule":"x\u001b[2J","steps":[{"parts":["01 03"]}]})")
+                  .find("\"rule\" holds a control character"),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["01 03"],"recipe":"\r"}]})")
+                  .find("step 1: \"recipe\" holds a control character"),
+              std::string::npos);
+    const auto bad_token = with(R"({"mbscope_reproducer":1,"steps":[{"parts":["\u001b[31m"]}]})");
+    EXPECT_NE(bad_token.find("'\\x1B[31m' is not a hex byte"), std::string::npos) << bad_token;
 }
 
 // ---- the command
