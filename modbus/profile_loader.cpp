@@ -29,8 +29,9 @@ class Reader {
   public:
     Reader(std::string file, std::vector<ProfileError>& errors) : file_(std::move(file)), errors_(errors) {}
 
-    void error(const std::string& pointer, std::string message) {
-        errors_.push_back({file_, pointer, std::move(message)});
+    // Messages quote the document's text (an unknown name): escaped, as the pointer, for the terminal.
+    void error(const std::string& pointer, const std::string& message) {
+        errors_.push_back({file_, printable(pointer), printable(message)});
     }
 
     const json* child(const json& j, const std::string& key) {

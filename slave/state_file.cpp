@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "modbus/frame_text.hpp"  // printable()
+
 namespace mbscope::slave {
 
 using nlohmann::json;
@@ -119,12 +121,13 @@ modbus::Result<OtherUnits, std::string> apply_state(std::string_view text, const
         if (it == doc["units"].end()) continue;
         const std::string unit = name + ": unit " + std::to_string(d->unit());
         if (const auto saved = text_of(*it, "profile"); saved != d->profile().id)
-            return unit + " was saved with profile \"" + (saved.empty() ? "?" : saved) +
+            return unit + " was saved with profile \"" + (saved.empty() ? "?" : modbus::printable(saved)) +
                    "\", now served as \"" + d->profile().id + "\"";
         for (const auto& [table_name, values] : it->items()) {
             if (table_name == "profile") continue;
             const auto table = modbus::parse_table(table_name);
-            if (!table || !values.is_object()) return unit + ": unknown table \"" + table_name + "\"";
+            if (!table || !values.is_object())
+                return unit + ": unknown table \"" + modbus::printable(table_name) + "\"";
             // A coil or discrete input holds 0 or 1 (the slave saves bits so, also where they are views of
             // registers: it saves those as the registers).
             const unsigned most = modbus::is_bit_table(*table) ? 1 : 65535;
@@ -133,7 +136,7 @@ modbus::Result<OtherUnits, std::string> apply_state(std::string_view text, const
                 const unsigned long a = std::strtoul(address.c_str(), &end, 10);
                 if (address.empty() || address.front() < '0' || address.front() > '9' || *end != '\0' ||
                     a > 65535 || !value.is_number_unsigned() || value.get<std::uint64_t>() > most)
-                    return unit + " " + table_name + "/" + address + ": bad entry";
+                    return unit + " " + table_name + "/" + modbus::printable(address) + ": bad entry";
                 entries.push_back({d, *table, static_cast<std::uint16_t>(a), value.get<std::uint16_t>()});
             }
         }

@@ -144,6 +144,14 @@ INSTANTIATE_TEST_SUITE_P(
         Damage{"UnknownTable",
                R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "nope": {}}}})",
                "unknown table \"nope\""},
+        // Quoted text from the file is escaped: a damaged file must not drive the terminal.
+        Damage{
+            "UnknownTableWithAnEscape",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "\u001b[2J": {}}}})",
+            "unknown table \"\\x1B[2J\""},
+        Damage{"ProfileWithAnEscape",
+               R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "\u001b[2J"}}})",
+               "was saved with profile \"\\x1B[2J\""},
         Damage{
             "AddressOutOfRange",
             R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"70000": 1}}}})",
