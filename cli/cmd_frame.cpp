@@ -199,17 +199,27 @@ int run_file(const FrameOptions& o) {
         return exit_failure;
     }
     std::vector<DecodedFrame> frames;
+    // A file that is not a frames file (a capture given by mistake) has an error on every line: the first
+    // hundred are listed, the rest counted, as the analyzer does with its input errors.
+    constexpr int listed_errors = 100;
     int errors = 0;
     for (auto& line : parse_frames_text(text)) {
         if (!line.error.empty()) {
-            std::cerr << o.file << ":" << line.number << ": " << line.error << '\n';
-            ++errors;
+            if (++errors <= listed_errors)
+                std::cerr << o.file << ":" << line.number << ": " << line.error << '\n';
             continue;
         }
         auto d = decode_frame(line.framing, std::move(line.wire), chosen_direction(o.direction));
         d.source =
             o.file + ":" + std::to_string(line.number) + (line.comment.empty() ? "" : " " + line.comment);
         frames.push_back(std::move(d));
+    }
+    if (errors > listed_errors)
+        std::cerr << "mbscope frame: " << o.file << ": " << errors - listed_errors
+                  << " more lines in error, not listed\n";
+    if (frames.empty() && errors == 0) {
+        std::cerr << "mbscope frame: " << o.file << " holds no frames\n";
+        return exit_failure;
     }
     int rc = emit(frames, o.json);
     return errors ? exit_failure : rc;

@@ -101,3 +101,37 @@ TEST(FrameCommand, HelpOnTheSubcommand) {
     EXPECT_EQ(run("--help").exit_code, 0);
     EXPECT_EQ(run("nosuchcommand").exit_code, 2);
 }
+
+// A capture given to --file by mistake is not a frames file: an error for every line, the first hundred
+// listed and the rest counted; a file with no frame at all says so. Both exit 2.
+TEST(FrameCommand, AFileThatIsNotAFramesFileIsNamedNotFlooded) {
+    const std::string dir = ::testing::TempDir();
+    const std::string binary = dir + "/mbscope-not-frames.bin";
+    {
+        std::FILE* f = std::fopen(binary.c_str(), "wb");
+        ASSERT_NE(f, nullptr);
+        static constexpr char line[] = "\xd4\xc3\xb2\xa1\x02\x00\n";  // a pcap's magic, a NUL
+        for (int i = 0; i < 250; ++i)
+            std::fwrite(line, 1, sizeof line - 1, f);
+        std::fclose(f);
+    }
+    auto r = run("frame --file " + binary);
+    EXPECT_EQ(r.exit_code, 2);
+    std::size_t lines = 0;
+    for (char c : r.out)
+        lines += c == '\n';
+    EXPECT_EQ(lines, 101u) << r.out;  // a hundred errors and the count
+    EXPECT_NE(r.out.find("150 more lines in error, not listed"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("\\x02\\x00"), std::string::npos) << r.out;  // escaped, not written to the terminal
+
+    const std::string comments = dir + "/mbscope-no-frames.txt";
+    {
+        std::FILE* f = std::fopen(comments.c_str(), "wb");
+        ASSERT_NE(f, nullptr);
+        std::fputs("# nothing but a comment\n", f);
+        std::fclose(f);
+    }
+    auto none = run("frame --file " + comments);
+    EXPECT_EQ(none.exit_code, 2);
+    EXPECT_NE(none.out.find("holds no frames"), std::string::npos) << none.out;
+}
