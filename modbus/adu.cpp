@@ -85,17 +85,24 @@ void fill_rtu_frame(std::span<const std::uint8_t> adu, Frame& frame) noexcept {
 
 Result<void> ascii_hex_to_frame(std::span<const std::uint8_t> hex, Frame& frame) noexcept {
     frame.framing = Framing::Ascii;
-    bool lower = false;
-    for (std::size_t i = 0; i < hex.size(); ++i) {
-        if (hex_digit(hex[i]) < 0) return make_error(ErrorCode::BadHexDigit, i + 1);
-        lower |= is_lower_hex_letter(hex[i]);
+    // One lookup per character, its flags gathered without a branch (this runs over every character of every
+    // ASCII frame); the first bad digit is looked for only when there is one.
+    std::uint8_t seen = 0;
+    for (const std::uint8_t c : hex)
+        seen |= detail::hex_table[c];
+    if (seen & detail::not_hex) {
+        const auto bad =
+            std::find_if(hex.begin(), hex.end(), [](std::uint8_t c) { return hex_digit(c) < 0; });
+        return make_error(ErrorCode::BadHexDigit, static_cast<std::size_t>(bad - hex.begin()) + 1);
     }
+    const bool lower = (seen & detail::lower_hex) != 0;
     if (hex.size() % 2 != 0) return make_error(ErrorCode::OddHexLength, hex.size());
     const std::size_t n = hex.size() / 2;
     if (n < 3) return make_error(ErrorCode::Truncated, hex.size());
     if (n > max_rtu_adu_length - 1) return make_error(ErrorCode::TooLong, hex.size());
-    for (std::size_t i = 0; i < n; ++i)
-        frame.bytes[i] = static_cast<std::uint8_t>((hex_digit(hex[2 * i]) << 4) | hex_digit(hex[2 * i + 1]));
+    for (std::size_t i = 0; i < n; ++i)  // every character is a digit: its value is the table's low nibble
+        frame.bytes[i] = static_cast<std::uint8_t>(((detail::hex_table[hex[2 * i]] & 0x0F) << 4) |
+                                                   (detail::hex_table[hex[2 * i + 1]] & 0x0F));
     frame.length = static_cast<std::uint16_t>(n);
     frame.checksum_ok = lrc({frame.bytes.data(), n - 1}) == frame.bytes[n - 1];
     if (!frame.checksum_ok) frame.findings.add(FindingCode::AsciiLrcMismatch);

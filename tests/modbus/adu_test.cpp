@@ -95,6 +95,19 @@ TEST(AsciiAdu, StructuralErrorsNameTheCharacter) {
     auto bad = mb::decode_ascii(bytes_of(":1103006G000389\r\n"));
     EXPECT_EQ(bad.error().code, mb::ErrorCode::BadHexDigit);
     EXPECT_EQ(bad.error().offset, 8u);
+    // The first of several bad digits; a lower-case frame decodes and is flagged as such.
+    auto two =
+        mb::decode_ascii(bytes_of(":11\x1b"
+                                  "3006Z000389\r\n"));
+    EXPECT_EQ(two.error().code, mb::ErrorCode::BadHexDigit);
+    EXPECT_EQ(two.error().offset, 3u);
+    auto lower = mb::decode_ascii(bytes_of(":11030060000389\r\n"));
+    ASSERT_TRUE(lower.has_value());
+    EXPECT_FALSE(lower->findings.contains(mb::FindingCode::AsciiLowercaseHex));
+    auto lower_case = mb::decode_ascii(bytes_of(":110300600003890a\r\n"));
+    ASSERT_TRUE(lower_case.has_value());
+    EXPECT_TRUE(lower_case->findings.contains(mb::FindingCode::AsciiLowercaseHex));
+    EXPECT_EQ(lower_case->bytes[7], 0x0A);
     EXPECT_EQ(mb::decode_ascii(bytes_of(":1103006000389\r\n")).error().code, mb::ErrorCode::OddHexLength);
     EXPECT_EQ(mb::decode_ascii(bytes_of(":1103\r\n")).error().code, mb::ErrorCode::Truncated);
 }
