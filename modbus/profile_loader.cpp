@@ -779,12 +779,7 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
     return p;
 }
 
-}  // namespace
-
-namespace {
-
-// A JSON pointer's reference token for an object key (RFC 6901: '~' as ~0, '/' as ~1), with control
-// characters written \xNN: the pointer is printed, and a key holding one is the error it names.
+// A JSON pointer's reference token for an object key (RFC 6901: '~' as ~0, '/' as ~1).
 std::string pointer_token(const std::string& key) {
     std::string out;
     for (char c : key) {
@@ -795,7 +790,7 @@ std::string pointer_token(const std::string& key) {
         else
             out += c;
     }
-    return printable(out);
+    return out;
 }
 
 // Every string of a profile document, keys included, ends up on a terminal or in a report (names, units,
@@ -809,9 +804,8 @@ void check_text(Reader& r, const json& j, const std::string& ptr, int depth = 0)
         r.error(ptr, "nested deeper than " + std::to_string(max_depth) + " levels");
         return;
     }
-    const auto complain = [&r](const std::string& where, int c) {
-        static constexpr char digits[] = "0123456789ABCDEF";
-        r.error(where, std::string("holds a control character (\\x") + digits[c >> 4] + digits[c & 0x0F] +
+    const auto complain = [&r](const std::string& where, int c) {  // Reader::error escapes both
+        r.error(where, "holds a control character (" + std::string(1, static_cast<char>(c)) +
                            "): profile text is printed as it is");
     };
     if (j.is_string()) {
