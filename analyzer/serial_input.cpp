@@ -8,6 +8,7 @@
 
 #include "analyzer/serial_logs.hpp"
 #include "analyzer/timestamps.hpp"
+#include "modbus/frame_text.hpp"  // quote_excerpt()
 
 namespace mbscope::analyzer {
 
@@ -90,9 +91,9 @@ bool read_text(Analyzer& a, const std::string& path) {
         if (!(words >> time_token) || time_token[0] == '#') continue;
         modbus::Timestamp t{0};
         if (!parse_time(time_token, t)) {
-            a.input_error(path + ":" + std::to_string(number) +
-                          ": not a time in seconds from 0 to 9.2e9 (year 2262): '" +
-                          time_token.substr(0, 40) + (time_token.size() > 40 ? "...'" : "'"));
+            a.input_error(
+                path + ":" + std::to_string(number) +
+                ": not a time in seconds from 0 to 9.2e9 (year 2262): " + modbus::quote_excerpt(time_token));
             ok = false;
             continue;
         }

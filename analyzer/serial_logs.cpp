@@ -5,6 +5,7 @@
 #include <charconv>
 #include <chrono>
 
+#include "modbus/frame_text.hpp"  // quote_excerpt()
 #include "modbus/hex.hpp"
 
 namespace mbscope::analyzer {
@@ -111,11 +112,6 @@ Timestamp to_timestamp(const CalendarTime& t, bool nine_is_micro) {
 
 std::string where(const std::string& name, int line) {
     return name + ":" + std::to_string(line) + ": ";
-}
-
-std::string quoted(std::string_view line) {
-    constexpr std::size_t shown = 40;
-    return "'" + std::string(line.substr(0, shown)) + (line.size() > shown ? "...'" : "'");
 }
 
 // ---------------------------------------------------------------- jpnevulator
@@ -256,7 +252,8 @@ bool read_jpnevulator_log(std::istream& in, const std::string& name, const Seria
             run.direction = alias_direction(line, options).value_or(Direction::Unknown);
             continue;
         }
-        error(where(name, number) + "not a jpnevulator timestamp or data line: " + quoted(line));
+        error(where(name, number) +
+              "not a jpnevulator timestamp or data line: " + modbus::quote_excerpt(line));
         ok = false;
     }
     flush();
@@ -325,7 +322,7 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
             }
         }
         if (line == "--" || socat_diagnostic(line)) continue;
-        error(where(name, number) + "not a socat -x line: " + quoted(line));
+        error(where(name, number) + "not a socat -x line: " + modbus::quote_excerpt(line));
         ok = false;
     }
     close();

@@ -18,15 +18,14 @@ bool is_blank(char c) {
     return c == ' ' || c == '\t' || c == '\v' || c == '\f' || c == '\r';
 }
 
-// A token quoted in an error: printable, and cut short (a hostile line may hold a megabyte in one word).
-std::string quote_token(std::string_view token) {
+}  // namespace
+
+std::string quote_excerpt(std::string_view text) {
     constexpr std::size_t most = 40;
-    std::string s = printable(token.substr(0, most));
-    if (token.size() > most) s += "...";
+    std::string s = printable(text.substr(0, most));
+    if (text.size() > most) s += "...";
     return "'" + s + "'";
 }
-
-}  // namespace
 
 int first_control_character(std::string_view text) {
     for (char c : text) {
@@ -72,8 +71,8 @@ std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> 
             if (c == ' ' || c == ',' || c == ':' || c == '-' || c == '\t') continue;
             const int v = hex_digit(c);
             if (v < 0) {
-                error =
-                    "not a hex digit: " + quote_token(std::string_view(&c, 1)) + " in " + quote_token(token);
+                error = "not a hex digit: " + quote_excerpt(std::string_view(&c, 1)) + " in " +
+                        quote_excerpt(token);
                 return std::nullopt;
             }
             if (high < 0) {
@@ -158,7 +157,7 @@ std::vector<FrameLine> parse_frames_text(std::string_view text) {
         } else if (kind == "tcp") {
             out.framing = Framing::Tcp;
         } else {
-            out.error = "unknown framing " + quote_token(kind) + " (rtu, ascii or tcp)";
+            out.error = "unknown framing " + quote_excerpt(kind) + " (rtu, ascii or tcp)";
             lines.push_back(std::move(out));
             continue;
         }

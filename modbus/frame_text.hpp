@@ -63,6 +63,9 @@ nlohmann::json render_json(const DecodedFrame& d);
 
 // Text safe to print: bytes below 0x20 and 0x7F written as \r, \n, \t or \xNN, a backslash as itself.
 std::string printable(std::string_view text);
+// A piece of input quoted in an error: printable, in single quotes, cut at 40 characters with "..." (a
+// hostile line may hold a megabyte in one word).
+std::string quote_excerpt(std::string_view text);
 // The first byte printable() escapes (below 0x20, or 0x7F), or -1 when there is none: for readers that refuse
 // such text in a file rather than print it escaped.
 int first_control_character(std::string_view text);

@@ -43,8 +43,7 @@ modbus::Result<std::vector<std::uint8_t>, std::string> unhex(const std::string& 
     for (std::string token; in >> token;) {
         if (token.size() != 2 || !std::isxdigit(static_cast<unsigned char>(token[0])) ||
             !std::isxdigit(static_cast<unsigned char>(token[1])))
-            return std::string("'" + modbus::printable(token.substr(0, 16)) +
-                               (token.size() > 16 ? "...'" : "'") + " is not a hex byte");
+            return modbus::quote_excerpt(token) + " is not a hex byte";
         out.push_back(static_cast<std::uint8_t>(std::stoul(token, nullptr, 16)));
     }
     return out;
