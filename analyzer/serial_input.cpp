@@ -9,6 +9,7 @@
 #include "analyzer/serial_logs.hpp"
 #include "analyzer/timestamps.hpp"
 #include "modbus/frame_text.hpp"  // quote_excerpt()
+#include "modbus/storage/text_file.hpp"
 
 namespace mbscope::analyzer {
 
@@ -81,11 +82,17 @@ bool read_text(Analyzer& a, const std::string& path) {
         return false;
     }
     bool ok = true;
-    int number = 0;
     Position position(a, in);
-    for (std::string line; std::getline(in, line);) {
-        ++number;
+    modbus::storage::LineReader lines(in);
+    for (std::string line; lines.next(line);) {
+        const auto number = lines.number();
         position.record();
+        if (lines.too_long()) {
+            a.input_error(path + ":" + std::to_string(number) + ": " +
+                          modbus::storage::too_long_line_message(lines));
+            ok = false;
+            continue;
+        }
         std::istringstream words(line);
         std::string time_token;
         if (!(words >> time_token) || time_token[0] == '#') continue;

@@ -7,6 +7,7 @@
 
 #include "modbus/frame_text.hpp"  // quote_excerpt()
 #include "modbus/hex.hpp"
+#include "modbus/storage/text_file.hpp"
 
 namespace mbscope::analyzer {
 
@@ -110,7 +111,7 @@ Timestamp to_timestamp(const CalendarTime& t, bool nine_is_micro) {
     return std::chrono::duration_cast<Timestamp>(t.seconds.time_since_epoch()) + Timestamp(ns);
 }
 
-std::string where(const std::string& name, int line) {
+std::string where(const std::string& name, std::uint64_t line) {
     return name + ":" + std::to_string(line) + ": ";
 }
 
@@ -214,6 +215,17 @@ std::size_t socat_bytes(std::string_view line, std::size_t most, std::vector<std
     return n;
 }
 
+// The next line that fits the bound; a longer one is named as an error and read past.
+bool next_line(modbus::storage::LineReader& lines, std::string& text, const std::string& name,
+               const LogErrorCallback& error, bool& ok) {
+    while (lines.next(text)) {
+        if (!lines.too_long()) return true;
+        error(where(name, lines.number()) + modbus::storage::too_long_line_message(lines));
+        ok = false;
+    }
+    return false;
+}
+
 }  // namespace
 
 bool read_jpnevulator_log(std::istream& in, const std::string& name, const SerialLogOptions& options,
@@ -230,9 +242,9 @@ bool read_jpnevulator_log(std::istream& in, const std::string& name, const Seria
         chunk(run);
         run.bytes.clear();
     };
-    int number = 0;
-    for (std::string text; std::getline(in, text);) {
-        ++number;
+    modbus::storage::LineReader lines(in);
+    for (std::string text; next_line(lines, text, name, error, ok);) {
+        const auto number = lines.number();
         const auto line = trim_right(text);
         if (line.empty()) continue;
         std::string_view alias;
@@ -264,7 +276,8 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
                     const ChunkCallback& chunk, const LogErrorCallback& error) {
     // First pass: do nine-digit fractions hold nanoseconds or socat 1.7.4's microseconds?
     bool nine_is_micro = true;
-    for (std::string text; std::getline(in, text);) {
+    modbus::storage::LineReader first_pass(in);
+    for (std::string text; first_pass.next(text);) {
         const auto h = socat_header(trim_right(text));
         if (h && h->time.fraction.size() == 9 && !h->time.fraction.starts_with("000")) nine_is_micro = false;
     }
@@ -274,7 +287,7 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
     bool ok = true;
     SerialChunk block;
     std::uint64_t announced = 0;
-    int header_line = 0;
+    std::uint64_t header_line = 0;
     bool open = false, any_data = false;
     const auto close = [&] {
         if (!open) return;
@@ -287,9 +300,9 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
         if (!block.bytes.empty()) chunk(block);
         block.bytes.clear();
     };
-    int number = 0;
-    for (std::string text; std::getline(in, text);) {
-        ++number;
+    modbus::storage::LineReader lines(in);
+    for (std::string text; next_line(lines, text, name, error, ok);) {
+        const auto number = lines.number();
         const auto line = trim_right(text);
         if (line.empty()) continue;
         if (const auto h = socat_header(line)) {

@@ -1,5 +1,4 @@
 // mbscope frame: decode one ADU (or a file of them) field by field, or encode one.
-#include <fstream>
 #include <iostream>
 #include <iterator>
 #include <memory>
@@ -8,6 +7,7 @@
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/frame_text.hpp"
+#include "modbus/storage/text_file.hpp"
 
 namespace mbscope::cli {
 namespace {
@@ -188,14 +188,10 @@ int emit(const std::vector<DecodedFrame>& frames, bool json) {
 }
 
 int run_file(const FrameOptions& o) {
-    std::ifstream in(o.file, std::ios::binary);
-    if (!in) {
-        std::cerr << "mbscope frame: cannot open " << o.file << '\n';
-        return exit_failure;
-    }
-    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (in.bad()) {
-        std::cerr << "mbscope frame: cannot read " << o.file << '\n';
+    std::string error;
+    const auto text = modbus::storage::read_text_file(o.file, error);
+    if (!text) {
+        std::cerr << "mbscope frame: " << o.file << ": " << error << '\n';
         return exit_failure;
     }
     std::vector<DecodedFrame> frames;
@@ -203,7 +199,7 @@ int run_file(const FrameOptions& o) {
     // hundred are listed, the rest counted, as the analyzer does with its input errors.
     constexpr int listed_errors = 100;
     int errors = 0;
-    for (auto& line : parse_frames_text(text)) {
+    for (auto& line : parse_frames_text(*text)) {
         if (!line.error.empty()) {
             if (++errors <= listed_errors)
                 std::cerr << o.file << ":" << line.number << ": " << line.error << '\n';

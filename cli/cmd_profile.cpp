@@ -11,6 +11,7 @@
 #include "cli/profile_json.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/storage/profile_store.hpp"
+#include "modbus/storage/text_file.hpp"
 
 namespace mbscope::cli {
 namespace {
@@ -38,14 +39,15 @@ void print_errors(const std::vector<ProfileError>& errors) {
 std::optional<ProfileConfig> parse_config(const ProfileOptions& o) {
     ProfileConfig config;
     if (!o.config_file.empty()) {
-        std::ifstream in(o.config_file);
-        if (!in) {
-            std::cerr << "mbscope profile: cannot open " << o.config_file << '\n';
+        std::string error;
+        const auto text = storage::read_text_file(o.config_file, error);
+        if (!text) {
+            std::cerr << "mbscope profile: " << o.config_file << ": " << error << '\n';
             return std::nullopt;
         }
         nlohmann::json j;
         try {
-            j = nlohmann::json::parse(in);
+            j = nlohmann::json::parse(*text);
         } catch (const nlohmann::json::parse_error& e) {  // says where: line and column
             std::cerr << "mbscope profile: " << o.config_file << ": " << e.what() << '\n';
             return std::nullopt;

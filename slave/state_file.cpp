@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "modbus/frame_text.hpp"  // printable()
+#include "modbus/storage/text_file.hpp"
 
 namespace mbscope::slave {
 
@@ -91,6 +92,11 @@ modbus::Result<OtherUnits, std::string> load_state(const std::string& path,
             return error;
         }
         if (n == 0) break;
+        if (text.size() + static_cast<std::size_t>(n) > modbus::storage::max_document_size) {
+            ::close(fd);
+            return path + ": larger than " + std::to_string(modbus::storage::max_document_size) +
+                   " bytes, the most a state file may hold (not a state file; remove it to start afresh)";
+        }
         text.append(buffer, static_cast<std::size_t>(n));
     }
     ::close(fd);

@@ -4,6 +4,7 @@
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/frame_text.hpp"
+#include "modbus/storage/text_file.hpp"
 
 #include <unistd.h>
 
@@ -167,9 +168,10 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
 }
 
 modbus::Result<Reproducer, std::string> load_reproducer(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) return std::string(path + ": cannot open");
-    const auto j = nlohmann::json::parse(in, nullptr, false);
+    std::string error;
+    const auto text = modbus::storage::read_text_file(path, error);
+    if (!text) return std::string(path + ": " + error);
+    const auto j = nlohmann::json::parse(*text, nullptr, false);
     if (j.is_discarded()) return std::string(path + ": not JSON");
     auto r = reproducer_from_json(j);
     if (!r) return std::string(path + ": " + r.error());

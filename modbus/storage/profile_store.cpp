@@ -3,8 +3,9 @@
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
+
+#include "modbus/storage/text_file.hpp"
 
 namespace mbscope::modbus::storage {
 
@@ -19,11 +20,8 @@ std::string lower(std::string s) {
 }
 
 std::optional<std::string> read_text(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return std::nullopt;
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
+    std::string error;
+    return read_text_file(path.string(), error);
 }
 
 IncludeFn sibling_reader(const fs::path& file) {
@@ -33,10 +31,11 @@ IncludeFn sibling_reader(const fs::path& file) {
 }  // namespace
 
 LoadedProfiles load_profile_file(const std::string& path, const ProfileConfig& config) {
-    auto text = read_text(path);
+    std::string error;
+    auto text = read_text_file(path, error);
     if (!text) {
         LoadedProfiles out;
-        out.errors.push_back({path, "", "cannot read the file"});
+        out.errors.push_back({path, "", error});
         return out;
     }
     return parse_profiles(*text, path, sibling_reader(path), config);

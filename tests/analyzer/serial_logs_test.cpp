@@ -11,6 +11,7 @@
 
 #include "analyzer/serial_input.hpp"
 #include "analyzer/serial_logs.hpp"
+#include "modbus/storage/text_file.hpp"
 #include "test_packets.hpp"
 
 namespace an = mbscope::analyzer;
@@ -310,6 +311,45 @@ TEST(TextLog, TimesThatAreNotRepresentableAreNamedAndTheRestRead) {
         << r->summary.input_errors[0];
     EXPECT_NE(r->summary.input_errors[3].find(":4: not a time"), std::string::npos)
         << r->summary.input_errors[3];
+    ASSERT_EQ(r->sink.frames.size(), 1u);
+    EXPECT_EQ(r->sink.frames[0].time, mb::Timestamp(1'500'000'000));
+}
+
+// A line longer than a line may hold (a file without newlines, a binary file named .log) is a named error,
+// cut and read past, and the lines after it are read: no reader holds a whole hostile file in one string.
+TEST(SerialLogs, LinesLongerThanTheBoundAreNamedAndTheRestRead) {
+    const std::string huge(mbscope::modbus::storage::max_line_length + 5, '7');
+    const auto jp = jpnevulator("2026-11-30 06:22:57.009496: master\n" + huge +
+                                "\n"
+                                "2026-11-30 06:22:57.028670: slave\n"
+                                "11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    EXPECT_FALSE(jp.ok);
+    ASSERT_EQ(jp.errors.size(), 1u);
+    EXPECT_EQ(jp.errors[0].rfind("jp.log:2: line of " + std::to_string(huge.size()) + " bytes is longer", 0),
+              0u)
+        << jp.errors[0].substr(0, 200);
+    ASSERT_EQ(jp.chunks.size(), 1u);
+    EXPECT_EQ(jp.chunks[0].bytes, fc3_response);
+
+    const auto sc = socat(huge +
+                          "\n"
+                          "< 2026/11/30 06:29:31.000451484  length=11 from=0 to=10\n"
+                          " 11 03 06 02 2b 00 00 00 64 c8 ba                 ....+...d..\n");
+    EXPECT_FALSE(sc.ok);
+    ASSERT_EQ(sc.errors.size(), 1u);
+    EXPECT_EQ(sc.errors[0].rfind("socat.log:1: line of ", 0), 0u) << sc.errors[0].substr(0, 200);
+    ASSERT_EQ(sc.chunks.size(), 1u);
+    EXPECT_EQ(sc.chunks[0].bytes, fc3_response);
+
+    const auto path = write_temp("mbscope-text-long-line.txt", "1.0 > " + huge +
+                                                                   "\n"
+                                                                   "1.5 > 11 03 00 6B 00 03 76 87\n");
+    const auto r = decode(path, an::InputFormat::Text);
+    EXPECT_FALSE(r->ok);
+    ASSERT_EQ(r->summary.input_errors.size(), 1u);
+    EXPECT_NE(r->summary.input_errors[0].find(":1: line of "), std::string::npos)
+        << r->summary.input_errors[0].substr(0, 200);
+    EXPECT_LT(r->summary.input_errors[0].size(), 300u);  // the line is not quoted whole
     ASSERT_EQ(r->sink.frames.size(), 1u);
     EXPECT_EQ(r->sink.frames[0].time, mb::Timestamp(1'500'000'000));
 }

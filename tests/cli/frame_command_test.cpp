@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -134,4 +135,15 @@ TEST(FrameCommand, AFileThatIsNotAFramesFileIsNamedNotFlooded) {
     auto none = run("frame --file " + comments);
     EXPECT_EQ(none.exit_code, 2);
     EXPECT_NE(none.out.find("holds no frames"), std::string::npos) << none.out;
+}
+
+// A frames file is read whole, so it is bounded: a file over the limit (here sparse, 65 MiB of zeros) is an
+// error naming it, not memory for all of it.
+TEST(FrameCommand, AFramesFileOverTheLimitIsRefused) {
+    const std::string path = ::testing::TempDir() + "frame_command_huge.txt";
+    ASSERT_EQ(std::system(("truncate -s 65M " + path).c_str()), 0);
+    const auto r = run("frame --file " + path);
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find(path + ": larger than 67108864 bytes"), std::string::npos) << r.out;
+    std::remove(path.c_str());
 }
