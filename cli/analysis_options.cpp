@@ -47,7 +47,8 @@ namespace {
 bool load_semantics(const AnalysisCliOptions& o, const std::string& command,
                     analyzer::AnalyzerOptions& options) {
     if (o.profile.empty() && o.maps.empty()) return true;
-    modbus::storage::ProfileStore store(profile_directories(o.profile_dirs));
+    const auto store = open_profile_store(o.profile_dirs, command.c_str());
+    if (!store) return false;
     modbus::ProfileConfig config;
     for (const auto& kv : o.config) {
         const auto eq = kv.find('=');
@@ -59,7 +60,7 @@ bool load_semantics(const AnalysisCliOptions& o, const std::string& command,
     }
     auto semantics = std::make_shared<analyzer::Semantics>();
     auto add = [&](const analyzer::DeviceSelector& selector, const std::string& id) {
-        auto p = store.load(id, config);
+        auto p = store->load(id, config);
         if (!p) {
             for (const auto& e : p.error())
                 std::cerr << "mbscope " << command << ": " << modbus::to_string(e) << '\n';

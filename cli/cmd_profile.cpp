@@ -78,10 +78,11 @@ std::optional<ProfileConfig> parse_config(const ProfileOptions& o) {
 }
 
 std::optional<Profile> load(const ProfileOptions& o) {
-    ProfileStore store(profile_directories(o.dirs));
+    const auto store = open_profile_store(o.dirs, "profile");
+    if (!store) return std::nullopt;
     auto config = parse_config(o);
     if (!config) return std::nullopt;
-    auto p = store.load(o.id, *config);
+    auto p = store->load(o.id, *config);
     if (!p) {
         print_errors(p.error());
         return std::nullopt;

@@ -49,7 +49,8 @@ int run_slave(const SlaveOptions& o) {
     }
     const auto config = parse_config_options(o.config, "slave");
     if (!config) return exit_failure;
-    modbus::storage::ProfileStore store(profile_directories(o.profile_dirs));
+    const auto store = open_profile_store(o.profile_dirs, "slave");
+    if (!store) return exit_failure;
     // --unit N or N=PROFILE; without --unit, unit 1 with --profile.
     std::vector<std::pair<int, std::string>> wanted;
     for (const auto& u : o.units) {
@@ -75,7 +76,7 @@ int run_slave(const SlaveOptions& o) {
     std::vector<slave::Process> processes;
     slave::FaultSet faults(specs, o.seed);
     for (const auto& [unit, id] : wanted) {
-        auto p = store.load(id, *config);
+        auto p = store->load(id, *config);
         if (!p) {
             for (const auto& e : p.error())
                 std::cerr << "mbscope slave: " << modbus::to_string(e) << '\n';

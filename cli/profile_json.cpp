@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "modbus/frame_text.hpp"  // printable(), quote_excerpt()
 #include "modbus/storage/profile_store.hpp"
 
 namespace mbscope::cli {
@@ -60,6 +61,33 @@ std::vector<std::string> profile_directories(const std::vector<std::string>& ext
     return dirs;
 }
 
+std::optional<storage::ProfileStore> open_profile_store(const std::vector<std::string>& extra,
+                                                        const char* command) {
+    namespace fs = std::filesystem;
+    for (const auto& dir : extra) {
+        std::error_code ec;
+        if (!fs::is_directory(dir, ec)) {
+            std::cerr << "mbscope " << command << ": --profile-dir " << modbus::quote_excerpt(dir)
+                      << ": not a directory\n";
+            return std::nullopt;
+        }
+    }
+    storage::ProfileStore store(profile_directories(extra));
+    const auto& errors = store.errors();
+    for (std::size_t i = 0; i < errors.size();) {
+        std::size_t j = i + 1;
+        while (j < errors.size() && errors[j].file == errors[i].file)
+            ++j;
+        std::cerr << "mbscope " << command << ": warning: " << modbus::to_string(errors[i]);
+        if (j - i > 1)
+            std::cerr << " (and " << j - i - 1 << " more; mbscope profile validate "
+                      << modbus::printable(errors[i].file) << " lists them)";
+        std::cerr << '\n';
+        i = j;
+    }
+    return store;
+}
+
 std::optional<modbus::ProfileConfig> parse_config_options(const std::vector<std::string>& options,
                                                           const char* command) {
     modbus::ProfileConfig config;
@@ -79,8 +107,9 @@ std::optional<modbus::Profile> load_profile_for(const std::string& id, const std
                                                 const char* command) {
     const auto config = parse_config_options(config_options, command);
     if (!config) return std::nullopt;
-    modbus::storage::ProfileStore store(profile_directories(dirs));
-    auto profile = store.load(id, *config);
+    const auto store = open_profile_store(dirs, command);
+    if (!store) return std::nullopt;
+    auto profile = store->load(id, *config);
     if (!profile) {
         for (const auto& e : profile.error())
             std::cerr << "mbscope " << command << ": " << modbus::to_string(e) << '\n';

@@ -9,6 +9,7 @@
 #include "modbus/profile.hpp"
 #include "modbus/profile_json.hpp"
 #include "modbus/profile_loader.hpp"
+#include "modbus/storage/profile_store.hpp"
 
 namespace mbscope::cli {
 
@@ -17,6 +18,14 @@ nlohmann::json profile_to_json(const modbus::Profile& p);
 // --profile-dir entries, then $MBSCOPE_PROFILE_PATH, then the installed profiles (next to the binary:
 // ../share/mbscope/profiles), else the source tree's profiles/ (running from a build directory).
 std::vector<std::string> profile_directories(const std::vector<std::string>& extra);
+
+// The profile store over profile_directories(extra), for a command that loads profiles by id. A --profile-dir
+// that is not a directory is an error (nullopt after a message naming `command`): a mistyped one would
+// otherwise fall back to the bundled profiles without a word. Files in the store that could not be read are
+// warned about (the first problem of each file), since one of them may be the user's edited copy of the
+// profile asked for, shadowed then by the bundled one.
+std::optional<modbus::storage::ProfileStore> open_profile_store(const std::vector<std::string>& extra,
+                                                                const char* command);
 
 // --config CHANNEL=MAP options as a configuration; nullopt (after a message naming `command`) when one is
 // not of that form.

@@ -110,3 +110,29 @@ TEST(ProfileCommand, ABadConfigFileIsNamedWithWhatIsWrong) {
     EXPECT_EQ(r.exit_code, 2);
     EXPECT_NE(r.out.find(path + ": channel '1': the map must be a string"), std::string::npos) << r.out;
 }
+
+// A --profile-dir that is not a directory stops the command: a mistyped one would otherwise leave the bundled
+// profiles to answer. A file in the directories that cannot be read is warned about, once, with its first
+// problem, even when the profile asked for comes from elsewhere: it may be the user's broken copy of it.
+TEST(ProfileCommand, AMissingProfileDirStopsAndABrokenFileIsWarnedAbout) {
+    auto r = run("profile --profile-dir /nonexistent/profiles show mmk-2030");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("mbscope profile: --profile-dir '/nonexistent/profiles': not a directory"),
+              std::string::npos)
+        << r.out;
+    r = run("decode --profile-dir /nonexistent/profiles --profile mmk-2030 " +
+            std::string(MBSCOPE_SOURCE_DIR) + "/captures/pymodbus-socat-rtu.log");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("mbscope decode: --profile-dir"), std::string::npos) << r.out;
+
+    r = run("profile --profile-dir " + fixtures + "/broken show mmk-2030");
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("mbscope profile: warning: " + fixtures +
+                         "/broken/broken.json: /tables/holding_registers/1/access: must be r, w or rw (and "),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("mbscope profile validate " + fixtures + "/broken/broken.json lists them)"),
+              std::string::npos)
+        << r.out;
+    EXPECT_EQ(r.out.find("warning", r.out.find("warning") + 1), std::string::npos) << "once: " << r.out;
+}
