@@ -317,7 +317,9 @@ void register_profile(CLI::App& app, int& exit_code) {
                     "Extra directory of profile files, searched first (repeatable)");
     cmd->footer(
         "Profiles are searched in --profile-dir, then $MBSCOPE_PROFILE_PATH (colon-separated), then the\n"
-        "installed profiles. Ids and aliases are matched case-insensitively.\n"
+        "installed profiles; the first directory that defines an id wins. A --profile-dir that is not a\n"
+        "directory is an error; a file that cannot be read is warned about when a profile is loaded.\n"
+        "Ids and aliases are matched case-insensitively.\n"
         "Exit codes: 0 ok, 1 something is missing or invalid, 2 could not run.");
     auto common = [&](CLI::App* sub) {
         sub->add_flag("--json", o->json, "Machine-readable output");
