@@ -905,9 +905,9 @@ bool Analyzer::read_capture(CaptureSource& capture) {
     return true;
 }
 
-bool Analyzer::read_capture(const std::string& path) {
+bool Analyzer::read_capture(const std::string& path, const std::string& name) {
     std::string error;
-    auto capture = CaptureSource::open_file(path, error);
+    auto capture = CaptureSource::open_file(path, error, name);
     if (!capture) {
         input_error(error);
         return false;

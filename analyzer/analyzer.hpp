@@ -71,8 +71,9 @@ class Analyzer {
     void serial(const std::string& source, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
                 modbus::Direction hint = modbus::Direction::Unknown);
     // Reads a whole capture file; returns false (and records the error in the summary) if it could not be
-    // read to its end. Everything before the damage is still analysed.
-    bool read_capture(const std::string& path);
+    // read to its end. Everything before the damage is still analysed. `name` (the path when empty) is what
+    // the capture is reported as.
+    bool read_capture(const std::string& path, const std::string& name = {});
     bool read_capture(CaptureSource& capture);
     // An input problem, named with its file and place. Control characters are escaped (messages quote input
     // bytes and end up on terminals). The first max_listed_input_errors are kept; the rest are counted

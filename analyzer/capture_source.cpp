@@ -201,16 +201,17 @@ int counted_close(void* cookie) {
     return rc;
 }
 
+// Errors are the system's message alone: the caller names the file.
 FILE* open_counted(const std::string& path, std::string& error) {
     const int fd = path == "-" ? STDIN_FILENO : ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) {
-        error = path + ": " + std::strerror(errno);
+        error = std::strerror(errno);
         return nullptr;
     }
     auto* cookie = new CountedFile{fd, 0};
     FILE* file = fopencookie(cookie, "rb", {counted_read, nullptr, counted_seek, counted_close});
     if (!file) {
-        error = path + ": " + std::strerror(errno);
+        error = std::strerror(errno);
         counted_close(cookie);
         return nullptr;
     }
@@ -223,17 +224,22 @@ FILE* open_counted(const std::string& path, std::string& error) {
 
 }  // namespace
 
-std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path, std::string& error) {
+std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path, std::string& error,
+                                                        const std::string& name) {
+    const std::string& shown = name.empty() ? path : name;
     FILE* file = open_counted(path, error);
-    if (!file) return nullptr;
+    if (!file) {
+        error = shown + ": " + error;
+        return nullptr;
+    }
     char errbuf[PCAP_ERRBUF_SIZE] = {};
     pcap_t* p = pcap_fopen_offline_with_tstamp_precision(file, PCAP_TSTAMP_PRECISION_NANO, errbuf);
     if (!p) {
         std::fclose(file);
-        error = path + ": " + errbuf;
+        error = shown + ": " + errbuf;
         return nullptr;
     }
-    return made(p, path, true);
+    return made(p, shown, true);
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::uint8_t> bytes,

@@ -31,8 +31,10 @@ struct Packet {
 
 class CaptureSource {
   public:
-    // Errors (unreadable file, not a capture) are returned in `error`; nullptr then.
-    static std::unique_ptr<CaptureSource> open_file(const std::string& path, std::string& error);
+    // Errors (unreadable file, not a capture) are returned in `error`; nullptr then. `name` (the path when
+    // empty) is what packets' source and errors are named after: a spooled pipe is read from elsewhere.
+    static std::unique_ptr<CaptureSource> open_file(const std::string& path, std::string& error,
+                                                    const std::string& name = {});
     static std::unique_ptr<CaptureSource> open_memory(std::span<const std::uint8_t> bytes,
                                                       std::string& error);
     ~CaptureSource();

@@ -1,7 +1,14 @@
 #include "analyzer/serial_input.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cctype>
+#include <cerrno>
 #include <charconv>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <vector>
@@ -10,9 +17,11 @@
 #include "analyzer/timestamps.hpp"
 #include "modbus/frame_text.hpp"  // quote_excerpt()
 #include "modbus/storage/text_file.hpp"
+#include "modbus/transport/unique_fd.hpp"
 
 namespace mbscope::analyzer {
 
+namespace transport = modbus::transport;
 using modbus::Direction;
 
 std::optional<InputFormat> parse_input_format(std::string_view n) {
@@ -75,8 +84,61 @@ class Position {
     std::uint64_t count_ = 0;
 };
 
-bool read_text(Analyzer& a, const std::string& path) {
-    std::ifstream in(path);
+// An input to read: where to open it, and what to call it in records and errors.
+struct Input {
+    std::string path;
+    std::string name;
+    transport::UniqueFd spool;  // the temporary copy `path` opens, for a pipe or standard input
+};
+
+// A pipe, FIFO or socket (and "-", standard input) can be read once only, while reading an input opens it
+// more than once: its head tells its format, an empty file is refused, a socat log is read twice. Such an
+// input is copied first to a temporary file, unlinked at once (it goes when the descriptor closes, however
+// the process ends), and read through /proc/self/fd under its own name. Regular files and devices are read
+// where they are.
+std::optional<Input> open_input(const std::string& name, std::string& error) {
+    struct stat st {};
+    if (name != "-" && (::stat(name.c_str(), &st) != 0 || !(S_ISFIFO(st.st_mode) || S_ISSOCK(st.st_mode))))
+        return Input{name, name, {}};
+    transport::UniqueFd source(name == "-" ? ::dup(STDIN_FILENO)
+                                           : ::open(name.c_str(), O_RDONLY | O_CLOEXEC));
+    if (!source) {
+        error = name + ": " + std::strerror(errno);
+        return std::nullopt;
+    }
+    std::string temporary = (std::filesystem::temp_directory_path() / "mbscope-input-XXXXXX").string();
+    transport::UniqueFd spool(::mkstemp(temporary.data()));
+    if (!spool) {
+        error = name + ": cannot make a temporary copy in " + temporary + ": " + std::strerror(errno);
+        return std::nullopt;
+    }
+    ::unlink(temporary.c_str());
+    std::vector<char> buffer(1 << 16);
+    for (;;) {
+        const ssize_t n = ::read(source.get(), buffer.data(), buffer.size());
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) {
+            error = name + ": " + std::strerror(errno);
+            return std::nullopt;
+        }
+        if (n == 0) break;
+        for (ssize_t done = 0; done < n;) {
+            const ssize_t w = ::write(spool.get(), buffer.data() + done, static_cast<std::size_t>(n - done));
+            if (w < 0 && errno == EINTR) continue;
+            if (w < 0) {
+                error = name + ": cannot make a temporary copy: " + std::strerror(errno);
+                return std::nullopt;
+            }
+            done += w;
+        }
+    }
+    const std::string path = "/proc/self/fd/" + std::to_string(spool.get());
+    return Input{path, name, std::move(spool)};
+}
+
+bool read_text(Analyzer& a, const Input& input) {
+    const std::string& path = input.name;
+    std::ifstream in(input.path);
     if (!in) {
         a.input_error(path + ": cannot open");
         return false;
@@ -119,8 +181,9 @@ bool read_text(Analyzer& a, const std::string& path) {
     return ok;
 }
 
-bool read_raw(Analyzer& a, const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
+bool read_raw(Analyzer& a, const Input& input) {
+    const std::string& path = input.name;
+    std::ifstream in(input.path, std::ios::binary);
     if (!in) {
         a.input_error(path + ": cannot open");
         return false;
@@ -137,8 +200,9 @@ bool read_raw(Analyzer& a, const std::string& path) {
     return true;
 }
 
-bool read_log(Analyzer& a, const std::string& path, InputFormat format, const SerialLogOptions& options) {
-    std::ifstream in(path, std::ios::binary);
+bool read_log(Analyzer& a, const Input& input, InputFormat format, const SerialLogOptions& options) {
+    const std::string& path = input.name;
+    std::ifstream in(input.path, std::ios::binary);
     if (!in) {
         a.input_error(path + ": cannot open");
         return false;
@@ -154,8 +218,8 @@ bool read_log(Analyzer& a, const std::string& path, InputFormat format, const Se
 }
 
 // Opens and is at its end; a file that cannot be opened is left to the reader, which names that.
-bool holds_no_bytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
+bool holds_no_bytes(const Input& input) {
+    std::ifstream in(input.path, std::ios::binary);
     return in && in.peek() == std::ifstream::traits_type::eof();
 }
 
@@ -184,9 +248,16 @@ InputFormat detect_input_format(std::span<const std::uint8_t> h) {
     return InputFormat::RtuRaw;
 }
 
-bool read_input(Analyzer& a, const std::string& path, InputFormat format, const SerialLogOptions& options) {
+bool read_input(Analyzer& a, const std::string& name, InputFormat format, const SerialLogOptions& options) {
+    std::string error;
+    const auto input = open_input(name, error);
+    if (!input) {
+        a.input_error(error);
+        return false;
+    }
+    const std::string& path = input->name;
     if (format == InputFormat::Auto) {
-        std::ifstream in(path, std::ios::binary);
+        std::ifstream in(input->path, std::ios::binary);
         if (!in) {
             a.input_error(path + ": cannot open");
             return false;
@@ -199,26 +270,26 @@ bool read_input(Analyzer& a, const std::string& path, InputFormat format, const 
     // A file of no bytes decodes to nothing in every serial format; reporting that as a clean decode would
     // pass off a tap that recorded nothing (or the wrong file) as a quiet line. libpcap names an empty pcap
     // itself (a truncated file header).
-    if (format != InputFormat::Pcap && holds_no_bytes(path)) {
+    if (format != InputFormat::Pcap && holds_no_bytes(*input)) {
         a.input_error(path + ": empty file, nothing to decode");
         return false;
     }
     switch (format) {
         case InputFormat::Pcap:
-            return a.read_capture(path);
+            return a.read_capture(input->path, input->name);
         case InputFormat::Text:
             a.set_serial_framing(modbus::Framing::Rtu);
-            return read_text(a, path);
+            return read_text(a, *input);
         case InputFormat::RtuRaw:
             a.set_serial_framing(modbus::Framing::Rtu);
-            return read_raw(a, path);
+            return read_raw(a, *input);
         case InputFormat::AsciiRaw:
             a.set_serial_framing(modbus::Framing::Ascii);
-            return read_raw(a, path);
+            return read_raw(a, *input);
         case InputFormat::Jpnevulator:
         case InputFormat::Socat:
             a.set_serial_framing(modbus::Framing::Rtu);
-            return read_log(a, path, format, options);
+            return read_log(a, *input, format, options);
         case InputFormat::Auto:
             break;
     }

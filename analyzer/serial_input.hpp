@@ -28,7 +28,9 @@ std::optional<InputFormat> parse_input_format(std::string_view name);
 InputFormat detect_input_format(std::span<const std::uint8_t> head);
 
 // Read a file in the given format into the analyzer; false when it could not be read completely (the
-// analyzer's summary names what went wrong). `logs`: how the other tools' logs map to directions
+// analyzer's summary names what went wrong). "-" is standard input; it, a pipe or a FIFO (a shell's
+// <(command)) is copied to a temporary file first and read from there under its own name, so that its
+// format can be told from its head. `logs`: how the other tools' logs map to directions
 // (analyzer/serial_logs.hpp).
 bool read_input(Analyzer& analyzer, const std::string& path, InputFormat format,
                 const SerialLogOptions& logs = {});

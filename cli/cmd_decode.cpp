@@ -104,9 +104,12 @@ void register_decode(CLI::App& app, int& exit_code) {
     auto* cmd = app.add_subcommand("decode", "Decode captures: every frame, every transaction, every fault");
     add_analysis_options(*cmd, o->common);
     cmd->add_option("files", o->files,
-                    "Captures: pcap, pcapng, raw serial dumps, the text format (analyzer/README.md)")
+                    "Captures: pcap, pcapng, raw serial dumps, the text format (analyzer/README.md); - for "
+                    "standard input (a pipe is read to its end first)")
         ->required()
-        ->check(CLI::ExistingFile);
+        ->check(CLI::Validator(
+            [](std::string& file) { return file == "-" ? std::string() : CLI::ExistingFile(file); },
+            "FILE or -"));
     cmd->add_option("--format", o->format,
                     "auto, pcap, rtu (raw dump), ascii (raw dump), text (TIME [DIR] HEX...), jpnevulator "
                     "(--read --timing-print log), socat (socat -x -v standard error)")

@@ -184,3 +184,26 @@ TEST(DamagedCapture, PcapngTimestampBeyond2262IsNamedAndThePacketStillDecoded) {
     ASSERT_EQ(o.summary.input_errors.size(), 1u);
     EXPECT_NE(o.error.find("packet 1: timestamp beyond April 2262"), std::string::npos) << o.error;
 }
+
+// "-" is standard input: a capture piped in (over ssh, out of an archive) decodes as the file does.
+TEST(DamagedCapture, StandardInputDecodesAsTheFileDoes) {
+    const auto run = [](const std::string& command) {
+        FILE* p = popen((command + " 2>&1").c_str(), "r");
+        std::string out;
+        char buf[4096];
+        while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
+            out.append(buf, n);
+        const int status = pclose(p);
+        return std::make_pair(WEXITSTATUS(status), out);
+    };
+    const std::string decode = std::string(MBSCOPE_BINARY) + " decode --summary ";
+    const auto file = run(decode + sample);
+    const auto piped = run("cat " + sample + " | " + decode + "-");
+    EXPECT_EQ(piped.first, file.first) << piped.second;
+    const auto summary = [](const std::string& out) { return out.substr(0, out.find('\n', 2)); };
+    EXPECT_NE(summary(file.second).find("summary: 99 packets"), std::string::npos) << file.second;
+    EXPECT_EQ(summary(piped.second), summary(file.second));
+    const auto empty = run(decode + "- < /dev/null");
+    EXPECT_EQ(empty.first, 2) << empty.second;
+    EXPECT_NE(empty.second.find("-: empty file, nothing to decode"), std::string::npos) << empty.second;
+}

@@ -3,8 +3,13 @@
 // examples (000:356-484); the expected findings are written by hand.
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
 #include <algorithm>
+
 #include <fstream>
+#include <iterator>
+#include <thread>
 
 #include "analyzer/serial_input.hpp"
 #include "modbus/adu.hpp"
@@ -152,6 +157,54 @@ TEST(SerialInput, AnEmptyFileIsAnInputErrorInEveryFormat) {
     EXPECT_TRUE(one->ok);
     EXPECT_TRUE(one->summary.input_errors.empty());
     EXPECT_EQ(one->summary.unparsed_bytes, 1u);
+}
+
+// A pipe or FIFO (a shell's <(zcat log.gz), a capture piped over ssh) can be read once: the format is told
+// from its head, an empty one refused, a socat log read twice. Each is decoded as the same file on disk is,
+// under the FIFO's own name, in every format that reads it.
+TEST(SerialInput, AFifoDecodesAsTheSameFileDoes) {
+    const std::string dir = std::string(MBSCOPE_SOURCE_DIR) + "/";
+    const std::string text = "1.000 > 11 03 00 6B 00 03 76 87\n1.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n";
+    const struct {
+        std::string file;
+        an::InputFormat format;
+    } cases[] = {
+        {write_temp("fifo-reference.txt", text), an::InputFormat::Auto},
+        {write_temp("fifo-reference.txt", text), an::InputFormat::Text},
+        {dir + "captures/pymodbus-socat-rtu.log", an::InputFormat::Auto},
+        {dir + "captures/suricata-modbus.pcap", an::InputFormat::Auto},
+        {dir + "captures/suricata-modbus.pcap", an::InputFormat::Pcap},
+        {write_temp("fifo-empty.txt", ""), an::InputFormat::Auto},
+    };
+    const std::string fifo = ::testing::TempDir() + "mbscope-input.fifo";
+    for (const auto& c : cases) {
+        std::ifstream in(c.file, std::ios::binary);
+        const std::string content{std::istreambuf_iterator<char>(in), {}};
+        ::unlink(fifo.c_str());
+        ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+        std::thread writer([&] { std::ofstream(fifo, std::ios::binary) << content; });
+        const auto piped = decode(fifo, c.format);
+        writer.join();
+        const auto file = decode(c.file, c.format);
+        EXPECT_EQ(piped->ok, file->ok) << c.file;
+        EXPECT_EQ(piped->summary.frames, file->summary.frames) << c.file;
+        EXPECT_EQ(piped->summary.transactions, file->summary.transactions) << c.file;
+        EXPECT_EQ(piped->summary.unparsed_bytes, file->summary.unparsed_bytes) << c.file;
+        ASSERT_EQ(piped->summary.input_errors.size(), file->summary.input_errors.size()) << c.file;
+        for (std::size_t i = 0; i < file->summary.input_errors.size(); ++i) {
+            auto expected = file->summary.input_errors[i];
+            expected.replace(expected.find(c.file), c.file.size(), fifo);
+            EXPECT_EQ(piped->summary.input_errors[i], expected);
+        }
+        ASSERT_EQ(piped->sink.frames.size(), file->sink.frames.size()) << c.file;
+        for (std::size_t i = 0; i < file->sink.frames.size(); ++i) {
+            const auto got = piped->sink.frames[i].frame.adu(), want = file->sink.frames[i].frame.adu();
+            EXPECT_TRUE(std::equal(got.begin(), got.end(), want.begin(), want.end())) << c.file << " " << i;
+            EXPECT_EQ(piped->sink.frames[i].source.str(), fifo);
+        }
+    }
+    EXPECT_GT(decode(dir + "captures/suricata-modbus.pcap")->summary.frames, 0u);
+    ::unlink(fifo.c_str());
 }
 
 // A binary file read as the text format: an error for every line, listed up to the limit and counted beyond,
