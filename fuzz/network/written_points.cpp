@@ -1,15 +1,61 @@
 #include "fuzz/network/written_points.hpp"
 
 #include <algorithm>
+#include <variant>
 
-#include "modbus/adu.hpp"
+#include "modbus/ascii_deframer.hpp"
 #include "modbus/pdu.hpp"
+#include "modbus/rtu_deframer.hpp"
 
 namespace mbscope::fuzz::network {
 namespace {
 
 std::uint16_t word(std::span<const std::uint8_t> pdu, std::size_t at) {
     return at + 1 < pdu.size() ? static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]) : 0;
+}
+
+struct LooseRequest {
+    std::uint8_t unit = 0;
+    std::vector<std::uint8_t> pdu;
+};
+
+// The requests a step's bytes carry as a device may read them, well formed or not. Over Modbus/TCP the ADUs
+// its MBAP length fields delimit, and, where a length field is out of range or promises more than there
+// is, everything after that header as one PDU: a device that sizes a request by its function code never
+// reads the field (libmodbus does so, fuzz/README.md "Differences from libmodbus") and executes it. Over
+// RTU and ASCII every frame the deframer finds, whatever its checksum (a device that skips the check
+// executes it); unparsed bytes carry no request.
+std::vector<LooseRequest> loose_requests(modbus::Framing framing, std::span<const std::uint8_t> bytes) {
+    std::vector<LooseRequest> out;
+    if (framing == modbus::Framing::Tcp) {
+        constexpr std::size_t header = 7;  // MBAP: transaction, protocol, length, unit
+        for (std::size_t at = 0; at + header < bytes.size();) {
+            const std::size_t length = word(bytes, at + 4);
+            const bool delimited = length >= 2 && length <= 254 && at + 6 + length <= bytes.size();
+            const std::size_t end = delimited ? at + 6 + length : bytes.size();
+            out.push_back({bytes[at + 6],
+                           {bytes.begin() + static_cast<std::ptrdiff_t>(at + header),
+                            bytes.begin() + static_cast<std::ptrdiff_t>(end)}});
+            at = end;
+        }
+        return out;
+    }
+    modbus::DeframeEvents events;
+    if (framing == modbus::Framing::Rtu) {
+        modbus::RtuDeframer deframer;
+        deframer.feed(bytes, events);
+        deframer.finish(events);
+    } else {
+        modbus::AsciiDeframer deframer;
+        deframer.feed(bytes, events);
+        deframer.finish(events);
+    }
+    for (const auto& e : events)
+        if (const auto* frame = std::get_if<modbus::Frame>(&e)) {
+            const auto pdu = frame->pdu();
+            out.push_back({frame->unit_id(), {pdu.begin(), pdu.end()}});
+        }
+    return out;
 }
 
 }  // namespace
@@ -52,16 +98,15 @@ std::vector<WriteRange> remember_writes(conformance::Session& session, const mod
                                         const std::vector<Step>& steps) {
     std::vector<WriteRange> unread;
     const auto framing = session.client().framing();
-    for (const auto& step : steps) {
-        const auto frame = modbus::decode_adu(framing, step.joined());
-        if (!frame) continue;
-        if (framing != modbus::Framing::Tcp && frame->unit_id() != session.options().unit &&
-            frame->unit_id() != 0)
-            continue;
-        const auto range = write_range(frame->pdu());
-        if (!range || range->count == 0) continue;
-        if (!remember_range(session, profile, *range)) unread.push_back(*range);
-    }
+    for (const auto& step : steps)
+        for (const auto& request : loose_requests(framing, step.joined())) {
+            if (framing != modbus::Framing::Tcp && request.unit != session.options().unit &&
+                request.unit != 0)
+                continue;
+            const auto range = write_range(request.pdu);
+            if (!range || range->count == 0) continue;
+            if (!remember_range(session, profile, *range)) unread.push_back(*range);
+        }
     return unread;
 }
 

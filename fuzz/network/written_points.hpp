@@ -28,11 +28,12 @@ std::optional<WriteRange> write_range(std::span<const std::uint8_t> pdu);
 // (the points read before it are kept).
 bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range);
 
-// Before a replay: every step's bytes decoded as a request (whatever its checksum: a device that skips the
-// check executes it), and the points of each write remembered (remember_range) when it can land: addressed
-// to the session's unit or broadcast, or to any unit over Modbus/TCP, where devices that ignore the unit id
-// are common. A step that decodes as no request writes nothing a device would execute. Returns the ranges
-// whose values could not be read: their points are not restored.
+// Before a replay: the requests in every step's bytes, read as a lax device reads them (whatever their
+// checksum; over Modbus/TCP one request a header, or the rest after a header whose length field is wrong; a
+// step may hold several), and the points of each write remembered (remember_range) when it can land:
+// addressed to the session's unit or broadcast, or to any unit over Modbus/TCP, where devices that ignore
+// the unit id are common. Bytes that hold no request write nothing a device would execute. Returns the
+// ranges whose values could not be read: their points are not restored.
 std::vector<WriteRange> remember_writes(conformance::Session& session, const modbus::Profile& profile,
                                         const std::vector<Step>& steps);
 

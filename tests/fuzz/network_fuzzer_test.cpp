@@ -24,6 +24,7 @@
 #include "fuzz/network/written_points.hpp"
 #include "modbus/adu.hpp"
 #include "slave/slave_test_support.hpp"
+#include "tests/support/process_support.hpp"
 
 namespace {
 
@@ -674,25 +675,32 @@ TEST(FuzzCommand, ExitCodesSummaryAndReplay) {
     EXPECT_EQ(run("replay " + (dir / "missing.json").string()).status, 2);
 }
 
-// A reproducer file of Modbus/TCP requests to unit 1 of the generic profile at `target`, each PDU one step
-// (transaction ids 1, 2, ...).
-std::filesystem::path save_steps(const std::string& name, const std::string& target,
-                                 const std::vector<std::vector<std::uint8_t>>& pdus) {
+// A reproducer file of Modbus/TCP steps for unit 1 of the generic profile at `target`, each written whole.
+std::filesystem::path save_adu_steps(const std::string& name, const std::string& target,
+                                     const std::vector<std::vector<std::uint8_t>>& adus) {
     fz::Reproducer r;
     r.rule = "reply.function";
     r.source = "MB §6";
     r.target = target;
     r.profile = "modbus";
     r.framing = "tcp";
-    for (const auto& pdu : pdus) {
+    for (const auto& adu : adus) {
         fz::Step s;
-        s.parts.push_back(
-            mbscope::modbus::encode_tcp(static_cast<std::uint16_t>(r.steps.size() + 1), 1, pdu));
+        s.parts.push_back(adu);
         r.steps.push_back(std::move(s));
     }
     const auto file = std::filesystem::path(::testing::TempDir()) / name;
     EXPECT_TRUE(fz::save_reproducer(r, file.string()));
     return file;
+}
+
+// The same with each PDU one step (transaction ids 1, 2, ...).
+std::filesystem::path save_steps(const std::string& name, const std::string& target,
+                                 const std::vector<std::vector<std::uint8_t>>& pdus) {
+    std::vector<std::vector<std::uint8_t>> adus;
+    for (const auto& pdu : pdus)
+        adus.push_back(mbscope::modbus::encode_tcp(static_cast<std::uint16_t>(adus.size() + 1), 1, pdu));
+    return save_adu_steps(name, target, adus);
 }
 
 // A replay sends what its steps write and, as `mbscope fuzz` and `mbscope check` do, puts back after them
@@ -731,6 +739,62 @@ TEST(FuzzCommand, ReplayRestoresWhatItsStepsWrote) {
     EXPECT_EQ(kept.out.find("restored"), std::string::npos) << kept.out;
     EXPECT_EQ(image.reg(Table::HoldingRegisters, 10), 0xBEEF);
     EXPECT_EQ(image.reg(Table::Coils, 3), 1);
+}
+
+// The requests a replay restores after are read as a lax device reads them. libmodbus's server sizes a
+// request by its function code and never reads the MBAP length (fuzz/README.md, "Differences from
+// libmodbus"): a step whose length field says 0 still writes there, and a step may hold two requests. Both
+// are put back, and with --no-restore the writes are shown to have landed.
+TEST(FuzzCommand, AReplayRestoresWritesALaxServerExecutes) {
+    const std::string port_file = ::testing::TempDir() + "mbscope-libmodbus-port.txt";
+    mbscope::test::Child server({MBSCOPE_LIBMODBUS_SERVER, "0"}, port_file, "/dev/null");
+    ASSERT_TRUE(server.spawned());
+    std::string target;
+    ASSERT_TRUE(mbscope::test::wait_for([&] {
+        target = mbscope::test::slurp(port_file);
+        return target.find('\n') != std::string::npos;
+    }));
+    target.resize(target.find('\n'));
+    const auto reg = [&](std::uint16_t address) {
+        auto client =
+            mbscope::modbus::transport::Client::open(*mbscope::modbus::transport::parse_endpoint(target));
+        EXPECT_TRUE(client.has_value());
+        if (!client) return -1;
+        const std::uint8_t pdu[] = {0x03, static_cast<std::uint8_t>(address >> 8),
+                                    static_cast<std::uint8_t>(address), 0x00, 0x01};
+        const auto ex = client.value().transact(1, pdu, std::chrono::milliseconds(1000));
+        if (!ex.response || ex.response->pdu().size() != 4) return -1;
+        return (ex.response->pdu()[2] << 8) | ex.response->pdu()[3];
+    };
+    // The server's register i holds i.
+    ASSERT_EQ(reg(20), 20);
+    ASSERT_EQ(reg(21), 21);
+    ASSERT_EQ(reg(22), 22);
+
+    // FC6 register 20 = 0xBEEF with MBAP length 0; FC6 registers 21 and 22 = 0xBEEF in one step.
+    auto two = mbscope::modbus::encode_tcp(2, 1, std::vector<std::uint8_t>{0x06, 0x00, 0x15, 0xBE, 0xEF});
+    const auto second =
+        mbscope::modbus::encode_tcp(3, 1, std::vector<std::uint8_t>{0x06, 0x00, 0x16, 0xBE, 0xEF});
+    two.insert(two.end(), second.begin(), second.end());
+    const auto file =
+        save_adu_steps("mbscope-replay-lax.json", target,
+                       {{0x00, 0x01, 0x00, 0x00, 0x00, 0x00, 0x01, 0x06, 0x00, 0x14, 0xBE, 0xEF}, two})
+            .string();
+
+    const auto replayed = run("replay --json --timeout 1000 " + file);
+    const auto j = nlohmann::json::parse(replayed.out.substr(replayed.out.find('{')), nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << replayed.out;
+    ASSERT_EQ(j["restored"].size(), 3u) << replayed.out;
+    for (const auto& t : j["restored"])
+        EXPECT_TRUE(t["restored"].get<bool>()) << t.dump();
+    EXPECT_EQ(reg(20), 20);
+    EXPECT_EQ(reg(21), 21);
+    EXPECT_EQ(reg(22), 22);
+
+    const auto kept = run("replay --no-restore --timeout 1000 " + file);
+    EXPECT_EQ(reg(20), 0xBEEF) << kept.out;
+    EXPECT_EQ(reg(21), 0xBEEF) << kept.out;
+    EXPECT_EQ(reg(22), 0xBEEF) << kept.out;
 }
 
 // An interrupt stops a replay's steps, not the restore after them: a replay stopped half-way leaves the
