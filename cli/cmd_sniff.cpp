@@ -63,7 +63,7 @@ int run_sniff(SniffCliOptions o) {
 void register_sniff(CLI::App& app, int& exit_code) {
     auto o = std::make_shared<SniffCliOptions>();
     auto* cmd = app.add_subcommand("sniff", "Capture live traffic and decode it as it comes");
-    auto* iface = cmd->add_option("--interface", o->sniff.interface,
+    auto* iface = cmd->add_option("-i,--interface", o->sniff.interface,
                                   "Network interface to capture from (libpcap: lo, eth0, any)");
     auto* serial = cmd->add_option("--serial", o->sniff.serial,
                                    "Serial port to read (the whole line, or the master's transmit line "
