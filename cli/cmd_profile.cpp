@@ -284,6 +284,11 @@ int run_decode(const ProfileOptions& o) {
             return exit_failure;
         }
     }
+    if (std::size_t{*start} + words.size() > 0x10000) {
+        std::cerr << "mbscope profile: " << words.size() << " words from address " << *start
+                  << " run past the last address, 65535\n";
+        return exit_failure;
+    }
     auto p = load(o);
     if (!p) return exit_failure;
     auto values = decode_registers(*p, *table, *start, words);

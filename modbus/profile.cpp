@@ -168,7 +168,11 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                                          const std::vector<std::uint16_t>& words,
                                          const std::map<std::uint16_t, std::uint16_t>& context) {
     std::vector<NamedValue> out;
-    for (std::size_t i = 0; i < words.size(); ++i) {
+    // Addresses end at 65535. Words a block holds past it (a reply to a read that ran past the end, itself
+    // a finding of the request) are named by nothing here: wrapped round they would be named as the
+    // registers at 0, 1, ... which they are not.
+    const std::size_t in_space = std::min<std::size_t>(words.size(), std::size_t{0x10000} - start);
+    for (std::size_t i = 0; i < in_space; ++i) {
         const auto address = static_cast<std::uint16_t>(start + i);
         NamedValue v;
         v.address = address;
@@ -247,7 +251,9 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
             case EncodingType::U32:
             case EncodingType::S32:
             case EncodingType::F32: {
-                auto second = word_at(static_cast<std::uint16_t>(address + 1), start, words, context);
+                auto second = address == 0xFFFF
+                                  ? std::nullopt
+                                  : word_at(static_cast<std::uint16_t>(address + 1), start, words, context);
                 if (!second) {
                     v.partial = true;
                     v.number = w;

@@ -219,7 +219,8 @@ struct NamedValue {
 };
 
 // Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.
-// `context` supplies registers outside the block (decimal-point registers), may be empty.
+// `context` supplies registers outside the block (decimal-point registers), may be empty. Words past address
+// 65535 get no value (they are not wrapped round to address 0).
 std::vector<NamedValue> decode_registers(const Profile& profile, Table table, std::uint16_t start,
                                          const std::vector<std::uint16_t>& words,
                                          const std::map<std::uint16_t, std::uint16_t>& context = {});

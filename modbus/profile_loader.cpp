@@ -261,6 +261,9 @@ std::optional<RawPoint> parse_point(Reader& r, const json& j, const std::string&
         p.encoding = parse_encoding(r, *e, ptr + "/encoding", table);
     else if (is_bit_table(table))
         p.encoding.type = EncodingType::Bool;
+    // Addresses end at 65535: a value's second register cannot be past it (it would wrap round to 0).
+    if (p.encoding.words == 2 && p.address == 0xFFFF)
+        r.error(ptr + "/address", "a two-register value at 65535 has no second register");
     apply_range(r, j, ptr, p);
     p.unit = r.string(j, "unit", ptr, false).value_or("");
     if (auto f = r.integer(j, "fixed_value", ptr, false, 0, 65535))
@@ -586,6 +589,14 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
             parsed = templates.emplace(map_id, parse_map_fields(r, map, map_id, block, maps)).first;
         for (const MapField& field : parsed->second) {
             RawPoint rp = field.point;
+            // Placed past 65535 the point would wrap round to a low address another point may hold.
+            const std::int64_t last = *start + rp.point.address + (rp.point.encoding.words == 2 ? 1 : 0);
+            if (last > 0xFFFF) {
+                r.error(ptr + "/start", "channel \"" + *id + "\" at " + std::to_string(*start) + " puts \"" +
+                                            rp.point.name + "\" at " + std::to_string(last) +
+                                            ", past the last address 65535");
+                continue;
+            }
             rp.point.address = static_cast<std::uint16_t>(*start + rp.point.address);
             rp.point.name = *id + ": " + rp.point.name;
             if (!rp.point.name_en.empty()) rp.point.name_en = *id + " " + rp.point.name_en;

@@ -69,6 +69,11 @@ TEST(ProfileCommand, LookupAndDecode) {
     EXPECT_EQ(j[1]["unit"], "m3/h");
     EXPECT_EQ(run("profile" + dir + "decode test-device holding 17 XYZ").exit_code, 2);
     EXPECT_EQ(run("profile" + dir + "decode nosuch holding 0 0000").exit_code, 2);
+    // Two words from 65535 would name the second as register 0: refused.
+    auto past = run("profile" + dir + "decode test-device holding 65535 0001 0002");
+    EXPECT_EQ(past.exit_code, 2) << past.out;
+    EXPECT_NE(past.out.find("2 words from address 65535 run past the last address, 65535"), std::string::npos)
+        << past.out;
 }
 
 TEST(ProfileCommand, ValidateReportsEveryErrorWithPointer) {

@@ -121,6 +121,28 @@ TEST(ProfileLoader, DecodesSplitAndWideValues) {
     EXPECT_EQ(v[0].point, nullptr);
 }
 
+// Addresses end at 65535: a block that runs past it names nothing there (wrapped round, its words would be
+// named as the registers at 0, 1, ...), and a profile cannot place a value's second register past it.
+TEST(ProfileLoader, NothingWrapsRoundPastAddress65535) {
+    auto l = load(mk_like);
+    const auto& p = l.profiles[0];
+    ASSERT_NE(p.find(mb::Table::HoldingRegisters, 0), nullptr);
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 65535, {1234, 5678});
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].address, 65535);
+    EXPECT_EQ(v[0].point, nullptr);
+
+    std::string wide = mk_like;
+    const std::string f32_at_70 = "\"address\": 70";
+    ASSERT_NE(wide.find(f32_at_70), std::string::npos);
+    wide.replace(wide.find(f32_at_70), f32_at_70.size(), "\"address\": 65535");
+    const auto refused = load(wide.c_str());
+    ASSERT_FALSE(refused.errors.empty());
+    EXPECT_NE(mb::to_string(refused.errors[0]).find("a two-register value at 65535 has no second register"),
+              std::string::npos)
+        << mb::to_string(refused.errors[0]);
+}
+
 TEST(ProfileLoader, WriteChecksGiveTheManualsExceptions) {
     auto l = load(mk_like);
     const auto& p = l.profiles[0];
@@ -284,6 +306,16 @@ TEST(ProfileLoader, ModularDeviceExpandsItsConfiguration) {
     EXPECT_EQ(flow.profiles[0].configuration.at("sensor-1-1"), "flow");
     auto wrong = load(device, include, {{"relay-1", "sensor"}, {"nosuch", "x"}});
     EXPECT_EQ(wrong.errors.size(), 2u);
+    // A channel whose map runs past 65535 (the sensor map's float at index 0 at 65535, its status at 65569)
+    // is an error for each point placed there, not points wrapped round onto registers 0, 1, ...
+    std::string high = device;
+    high.replace(high.find("\"start\": 576"), 12, "\"start\": 65535");
+    auto past = load(high.c_str(), include);
+    ASSERT_EQ(past.errors.size(), 3u) << mb::to_string(past.errors[0]);
+    EXPECT_EQ(past.errors[0].pointer, "/modular/channels/0/start");
+    EXPECT_NE(past.errors[0].message.find("puts \"Valor primário\" at 65536, past the last address 65535"),
+              std::string::npos)
+        << past.errors[0].message;
     // A maps file that is JSON but not an object, and one that is not JSON: each named on /maps_file.
     const std::pair<const char*, const char*> broken[] = {{"[1, 2]", "maps.json is not a JSON object"},
                                                           {R"({"maps": )", "maps.json is not valid JSON"}};
