@@ -120,6 +120,33 @@ TEST(Semantics, ValueOutOfRangeAndReadOnlyWrites) {
     }
 }
 
+// Addresses end at 65535. A read or write that runs past it (pdu.address_overflow) answered by a faulty
+// slave: its items past the end are named by nothing and checked against nothing. Wrapped round, the write's
+// would be read-only register 18 and filter 23 (out of range) and the read's would name register 17.
+TEST(Semantics, NothingPastAddress65535IsTakenForTheRegistersAtZero) {
+    Harness h;
+    std::vector<std::uint16_t> words(30, 0xFFFF);
+    h.exchange(mb::make_write_multiple_registers(65530, words),
+               mb::make_write_multiple_response(mb::FunctionCode::WriteMultipleRegisters, 65530, 30));
+    words.resize(25);
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 65530, 25),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, words));
+    h.analyzer->finish();
+    EXPECT_GE(h.sink.count(mb::FindingCode::PduAddressOverflow), 2);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileValueOutOfRange), 0);
+    for (const auto& f : h.sink.findings)
+        EXPECT_EQ(f.message.find(" 17"), std::string::npos) << f.message;
+    ASSERT_EQ(h.sink.transactions.size(), 2u);
+    EXPECT_EQ(h.sink.transactions[0].values.size(), 6u);  // 65530..65535
+    EXPECT_EQ(h.sink.transactions[1].values.size(), 6u);
+    for (const auto& t : h.sink.transactions)
+        for (const auto& v : t.values) {
+            EXPECT_GE(v.address, 65530);
+            EXPECT_EQ(v.point, nullptr) << v.address;
+        }
+}
+
 TEST(Semantics, ExceptionToARequestTheMapSaysIsValid) {
     Harness h;
     h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 17, 2),

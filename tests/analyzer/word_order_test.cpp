@@ -68,6 +68,17 @@ TEST(WordOrder, AnOddLastRegisterIsLeftOut) {
     EXPECT_EQ(an::registers32(0, three, mb::WordOrder::Abcd).size(), 1u);
 }
 
+// A pair whose second register would be past 65535 (a reply to a read that ran past the end) is left out,
+// not labelled with an address wrapped round to the start.
+TEST(WordOrder, NoPairCrossesTheLastAddress) {
+    const std::vector<std::uint16_t> four = {0x3FC0, 0x0000, 0x1234, 0x5678};
+    const auto r = an::registers32(65532, four, mb::WordOrder::Abcd);
+    ASSERT_EQ(r.size(), 2u);
+    EXPECT_EQ(r[1].address, 65534);
+    EXPECT_EQ(an::registers32(65533, four, mb::WordOrder::Abcd).size(), 1u);
+    EXPECT_TRUE(an::registers32(65535, four, mb::WordOrder::Abcd).empty());
+}
+
 TEST(WordOrder, FloatText) {
     EXPECT_EQ(an::float_text(1.5f), "1.5");
     EXPECT_EQ(an::float_text(0.1f), "0.1");

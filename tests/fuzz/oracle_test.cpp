@@ -463,4 +463,24 @@ TEST(ExchangeOracle, AnAcknowledgedWriteMustReadBack) {
     EXPECT_NE(v[0].expected.find("4660"), std::string::npos);
 }
 
+// An acknowledged write that ran past 65535 breaks reply.address; what it held past the end is no
+// register's, so it is not remembered as written at 0, 1, ... (a later read there owes it nothing).
+TEST(ExchangeOracle, AWritePastTheLastAddressIsNotRememberedAtZero) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    cf::ExchangeOracle oracle(Framing::Tcp, {{1, &p}}, true);
+    mbscope::modbus::transport::Exchange write;
+    write.sent = mb::encode_tcp(
+        1, 1, std::vector<std::uint8_t>{0x10, 0xFF, 0xFF, 0x00, 0x02, 0x04, 0x11, 0x11, 0x22, 0x22});
+    write.received = mb::encode_tcp(1, 1, std::vector<std::uint8_t>{0x10, 0xFF, 0xFF, 0x00, 0x02});
+    write.response = *mb::decode_tcp(write.received);
+    const auto refused = oracle.judge(write);
+    ASSERT_EQ(refused.size(), 1u);
+    EXPECT_EQ(refused[0].rule, "reply.address");
+    mbscope::modbus::transport::Exchange read;
+    read.sent = mb::encode_tcp(2, 1, pdu(3, {0, 1}));
+    read.received = mb::encode_tcp(2, 1, std::vector<std::uint8_t>{0x03, 0x02, 0x00, 0x00});
+    read.response = *mb::decode_tcp(read.received);
+    EXPECT_TRUE(oracle.judge(read).empty());
+}
+
 }  // namespace
