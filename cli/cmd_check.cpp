@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
 #include "conformance/report.hpp"
@@ -49,6 +50,12 @@ int run_check_command(const CheckCliOptions& o) {
         std::cerr << "mbscope check: " << endpoint.error() << '\n';
         return exit_failure;
     }
+    for (const auto* file : {&o.report, &o.junit, &o.html})
+        if (!file->empty())
+            if (const auto why = cannot_write_file(*file)) {
+                std::cerr << "mbscope check: cannot write " << *why << '\n';
+                return exit_failure;
+            }
     const auto profile = load_profile_for(o.profile, o.profile_dirs, o.config, "check");
     if (!profile) return exit_failure;
     auto client = modbus::transport::Client::open(*endpoint);

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
 #include "fuzz/network/campaign.hpp"
@@ -73,6 +74,11 @@ int run_fuzz_command(const FuzzCliOptions& o) {
         std::cerr << "mbscope fuzz: " << endpoint.error() << '\n';
         return exit_failure;
     }
+    if (!o.artifacts.empty())
+        if (const auto why = cannot_use_directory(o.artifacts)) {
+            std::cerr << "mbscope fuzz: --artifacts " << *why << '\n';
+            return exit_failure;
+        }
     const auto profile = load_profile_for(o.profile, o.profile_dirs, o.config, "fuzz");
     if (!profile) return exit_failure;
     fuzz::network::CampaignOptions options;
@@ -117,7 +123,7 @@ int run_fuzz_command(const FuzzCliOptions& o) {
                   << (f.file.empty() ? ""
                                      : "\n  reproducer: " + f.file + "  (mbscope replay --target " +
                                            o.target + " " + f.file + ")")
-                  << '\n';
+                  << (f.file_error.empty() ? "" : "\n  reproducer not saved: " + f.file_error) << '\n';
     std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
     if (summary.replies_after_timeout > 0)
         std::cerr << "mbscope fuzz: " << summary.replies_after_timeout << " replies came after --timeout ("

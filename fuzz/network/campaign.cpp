@@ -525,7 +525,10 @@ void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bo
         std::filesystem::create_directories(options_.artifacts, ec);
         std::string name = v.rule + "-fc" + std::to_string(fc) + ".json";
         const std::string path = (std::filesystem::path(options_.artifacts) / name).string();
-        if (auto saved = save_reproducer(r, path); saved) f.file = path;
+        if (auto saved = save_reproducer(r, path); saved)
+            f.file = path;
+        else
+            f.file_error = saved.error();
     }
     finding_index_.emplace(key, s_.findings.size());
     s_.findings.push_back(std::move(f));
@@ -710,7 +713,7 @@ CampaignSummary run_campaign(const modbus::Profile& profile, const CampaignOptio
 
 nlohmann::json to_json(const CampaignSummary& s) {
     nlohmann::json findings = nlohmann::json::array();
-    for (const auto& f : s.findings)
+    for (const auto& f : s.findings) {
         findings.push_back({{"rule", f.rule},
                             {"source", f.source},
                             {"expected", f.expected},
@@ -721,6 +724,8 @@ nlohmann::json to_json(const CampaignSummary& s) {
                             {"reproducer", f.file.empty() ? nlohmann::json(nullptr) : nlohmann::json(f.file)},
                             {"steps", f.reproducer.steps.size()},
                             {"minimised", f.reproducer.minimised}});
+        if (!f.file_error.empty()) findings.back()["reproducer_error"] = f.file_error;
+    }
     nlohmann::json j{{"reachable", s.reachable},
                      {"requests", s.requests},
                      {"replies", s.replies},

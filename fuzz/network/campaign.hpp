@@ -59,7 +59,8 @@ struct CampaignFinding {
     std::uint64_t first_request = 0;
     std::uint64_t count = 0;
     Reproducer reproducer;
-    std::string file;  // where the reproducer was saved; empty when none was
+    std::string file;        // where the reproducer was saved; empty when none was
+    std::string file_error;  // why it could not be saved in --artifacts (then `file` is empty)
 };
 
 struct CampaignSummary {
