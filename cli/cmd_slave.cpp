@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
 #include "modbus/storage/profile_store.hpp"
@@ -109,6 +110,12 @@ int run_slave(const SlaveOptions& o) {
         processes.emplace_back(*devices[i], o.seed + i);
     slave::ServerOptions options;
     if (!o.state.empty()) {
+        // Saved as a file beside it, renamed over it: a directory that cannot take it would make every
+        // write fail (exception 04) from the first one on.
+        if (const auto why = cannot_write_file(o.state + ".tmp")) {
+            std::cerr << "mbscope slave: --state " << o.state << ": cannot be saved (" << *why << ")\n";
+            return exit_failure;
+        }
         auto loaded = slave::load_state(o.state, units);
         if (!loaded) {
             std::cerr << "mbscope slave: " << loaded.error() << '\n';

@@ -29,6 +29,7 @@ RegisterImage::RegisterImage(const modbus::Profile& profile) : profile_(&profile
 }
 
 void RegisterImage::reset() noexcept {
+    keep();
     for (const auto& [table, page] : written_) {
         tables_[table].own[page].reset();
         tables_[table].page[page] = initial_[table][page];
@@ -64,9 +65,30 @@ std::uint16_t RegisterImage::reg(Table t, std::uint16_t address) const noexcept 
 }
 void RegisterImage::set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept {
     Words& w = words(t);
-    if ((*w.page[address / page_words])[address % page_words] == value) return;
-    writable(w, address) = value;
+    const std::uint16_t before = (*w.page[address / page_words])[address % page_words];
+    if (before == value) return;
+    std::uint16_t& word = writable(w, address);
+    if (journaling_) journal_.push_back({&word, before});
+    word = value;
     ++modifications_;
+}
+
+void RegisterImage::begin_undo() {
+    journal_.clear();
+    journaling_ = true;
+    modifications_before_ = modifications_;
+}
+
+void RegisterImage::undo() noexcept {
+    for (auto it = journal_.rbegin(); it != journal_.rend(); ++it)
+        *it->word = it->before;
+    if (journaling_) modifications_ = modifications_before_;
+    keep();
+}
+
+void RegisterImage::keep() noexcept {
+    journal_.clear();
+    journaling_ = false;
 }
 bool RegisterImage::bit(Table t, std::uint16_t address) const noexcept {
     return reg(t, address) != 0;

@@ -44,6 +44,13 @@ class RegisterImage {
     // one image per input instead of building it again).
     void reset() noexcept;
 
+    // Stores made after begin_undo() can be taken back: a write the slave cannot save to its state file is
+    // answered with exception 04, and a refused request must leave the registers as they were (AP §7).
+    // undo() restores them (and the modification count), keep() forgets them; either ends the journal.
+    void begin_undo();
+    void undo() noexcept;
+    void keep() noexcept;
+
   private:
     // Each table is 256 pages of 256 words. A page nobody wrote since the image was made is shared with the
     // initial image (all-zero pages with one static page); a write copies its page first. Making an image
@@ -68,6 +75,13 @@ class RegisterImage {
     std::vector<std::unique_ptr<const Page>> initial_pages_;      // the initial image's non-zero pages
     std::vector<std::pair<std::uint8_t, std::uint8_t>> written_;  // (table, page) of every own page
     std::uint64_t modifications_ = 0;
+    struct Stored {
+        std::uint16_t* word;  // in an own page: kept until reset(), which ends any journal first
+        std::uint16_t before;
+    };
+    bool journaling_ = false;
+    std::vector<Stored> journal_;
+    std::uint64_t modifications_before_ = 0;
 };
 
 }  // namespace mbscope::slave

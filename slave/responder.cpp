@@ -64,11 +64,16 @@ std::vector<std::uint8_t> Responder::answer(std::uint8_t unit, std::span<const s
     } else {
         Device* d = route(unit);
         if (!d || d->unit() == 0) return {};
+        if (save_) d->image().begin_undo();
         Reply r = d->handle({request, false});
         // An acknowledgement promises the write is kept: when it cannot be saved, the device says it failed
-        // (exception 04) instead.
-        if (r.wrote && !r.pdu.empty() && save_ && !save_())
+        // (exception 04) instead, and takes the write back (a refused request changes nothing, AP §7).
+        if (r.wrote && !r.pdu.empty() && save_ && !save_()) {
+            d->image().undo();
             r.pdu = modbus::encode_pdu(modbus::make_exception(request[0], 0x04));
+        } else if (save_) {
+            d->image().keep();
+        }
         pdu = std::move(r.pdu);
     }
     if (pdu.empty()) return {};

@@ -18,7 +18,8 @@ class Responder {
   public:
     // `ip_network`: Modbus/TCP reached by an IP address (tcp://, udp://), where a lone unit also answers
     // unit 0xFF (TCP §4.4.1.2) and a device whose manual says so answers every unit id. `save` persists an
-    // acknowledged write; when it fails the device answers exception 04 instead of acknowledging.
+    // acknowledged write; when it fails the device takes the write back and answers exception 04 instead
+    // of acknowledging.
     Responder(std::vector<Device*> units, FaultSet& faults, modbus::Framing framing, bool ip_network,
               std::function<bool()> save = {});
 

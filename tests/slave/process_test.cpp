@@ -5,6 +5,7 @@
 //    client sending garbage is disconnected without disturbing them.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -26,10 +27,15 @@ std::string mbap(std::uint16_t tid, std::string_view pdu_hex) {
     return std::string(head) + std::string(pdu_hex);
 }
 
-TEST(SlaveProcess, AnAcknowledgedWriteSurvivesKill9) {
-    const fs::path dir = fs::temp_directory_path() / ("mbscope-durability-" + std::to_string(::getpid()));
+// A new directory for one test's state file, and the file's path in it.
+std::pair<fs::path, std::string> state_in_new_directory(const std::string& name) {
+    const fs::path dir = fs::temp_directory_path() / ("mbscope-" + name + "-" + std::to_string(::getpid()));
     fs::create_directories(dir);
-    const std::string state = (dir / "mmk-2030.json").string();
+    return {dir, (dir / "mmk-2030.json").string()};
+}
+
+TEST(SlaveProcess, AnAcknowledgedWriteSurvivesKill9) {
+    const auto [dir, state] = state_in_new_directory("durability");
     // Write values the manual allows, each acknowledged, then kill -9 before the process can do anything
     // else.
     {
@@ -55,9 +61,7 @@ TEST(SlaveProcess, AnAcknowledgedWriteSurvivesKill9) {
 }
 
 TEST(SlaveProcess, KilledInTheMiddleOfAStreamOfWritesLosesNoAcknowledgedOne) {
-    const fs::path dir = fs::temp_directory_path() / ("mbscope-stream-" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    const std::string state = (dir / "mmk-2030.json").string();
+    const auto [dir, state] = state_in_new_directory("stream");
     // Hysteresis registers 29..32 (0-250 each) take turns, each write a new value; the writer remembers the
     // last value acknowledged per register and the one in flight when the process died.
     int acked[4] = {-1, -1, -1, -1}, in_flight[4] = {-1, -1, -1, -1};
@@ -105,6 +109,37 @@ TEST(SlaveProcess, KilledInTheMiddleOfAStreamOfWritesLosesNoAcknowledgedOne) {
             << "register " << 29 + r << ": reads " << now << ", last acknowledged " << acked[r];
     }
     fs::remove_all(dir);
+}
+
+// A write the slave cannot save is not acknowledged (exception 04, slave device failure) and is taken back: a
+// refused request leaves the registers as they were (AP §7), so a master that retries later finds the old
+// value, not one that would vanish at the next restart. A --state whose directory is missing stops the
+// slave at once.
+TEST(SlaveProcess, AWriteThatCannotBeSavedIsRefusedAndTakenBack) {
+    const auto [dir, state] = state_in_new_directory("unsaved");
+    SlaveProcess slave({"--profile", "mmk-2030", "--listen", "tcp://127.0.0.1:0", "--state", state});
+    ASSERT_NE(slave.port(), 0);
+    Client c(slave.port());
+    ASSERT_TRUE(c.connected());
+    EXPECT_EQ(c.exchange(mbap(1, "06 00 1D 00 2A"), 12), "00 01 00 00 00 06 01 06 00 1D 00 2A");
+    fs::remove_all(dir);  // the state file can no longer be saved
+    EXPECT_EQ(c.exchange(mbap(2, "06 00 1D 00 63"), 9), "00 02 00 00 00 03 01 86 04");
+    EXPECT_EQ(c.exchange(mbap(3, "10 00 1D 00 02 04 00 07 00 08"), 9), "00 03 00 00 00 03 01 90 04");
+    EXPECT_EQ(c.exchange(mbap(4, "03 00 1D 00 02"), 13), "00 04 00 00 00 07 01 03 04 00 2A 00 00");
+
+    const std::string missing = (dir / "gone" / "state.json").string();
+    FILE* p = ::popen((std::string(MBSCOPE_BINARY) +
+                       " slave --profile mmk-2030 --listen tcp://127.0.0.1:0 --state " + missing + " 2>&1")
+                          .c_str(),
+                      "r");
+    ASSERT_NE(p, nullptr);
+    std::string refused;
+    char buf[512];
+    while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
+        refused.append(buf, n);
+    EXPECT_EQ(WEXITSTATUS(::pclose(p)), 2) << refused;
+    EXPECT_NE(refused.find("mbscope slave: --state " + missing + ": cannot be saved"), std::string::npos)
+        << refused;
 }
 
 TEST(SlaveProcess, HundredClientsAtOnceAreEachAnsweredWithTheirOwnData) {
