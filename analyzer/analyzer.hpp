@@ -129,6 +129,7 @@ class Analyzer {
     };
     static FlowKey flow_key(Transport transport, const Endpoint& client, const Endpoint& server);
     bool server_port(Transport transport, std::uint16_t port) const;
+    void note_modbus_like(const L4Packet& l4);
     Flow& flow_for(const L4Packet& l4, bool& to_server);
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);

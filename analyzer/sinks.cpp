@@ -142,6 +142,10 @@ void TextSink::end(const Summary& s) {
         out_ << "  input error: " << e << '\n';
     if (s.input_errors_unlisted)
         out_ << "  input errors: " << s.input_errors_unlisted << " more, not listed\n";
+    for (const auto& [where, n] : s.modbus_like_ports)
+        out_ << "  hint: " << n << (where.first ? " UDP" : " TCP") << " packets on port " << where.second
+             << " hold Modbus/TCP ADUs; decode them with " << (where.first ? "--udp-port " : "--tcp-port ")
+             << where.second << '\n';
 }
 
 // ---------------------------------------------------------------- JSON
@@ -321,6 +325,13 @@ json summary_to_json(const Summary& s) {
     j["devices"] = devices;
     if (!s.input_errors.empty()) j["input_errors"] = s.input_errors;
     if (s.input_errors_unlisted) j["input_errors_unlisted"] = s.input_errors_unlisted;
+    if (!s.modbus_like_ports.empty()) {
+        json ports = json::array();
+        for (const auto& [where, n] : s.modbus_like_ports)
+            ports.push_back(
+                {{"transport", where.first ? "udp" : "tcp"}, {"port", where.second}, {"packets", n}});
+        j["modbus_like_ports"] = ports;
+    }
     return j;
 }
 

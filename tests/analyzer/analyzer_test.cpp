@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <sstream>
+
 #include "analyzer/packet_parser.hpp"
+#include "analyzer/sinks.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/pdu.hpp"
 #include "test_packets.hpp"
@@ -269,6 +272,50 @@ TEST(Analyzer, RtuOverUdpIsRecognisedByItsCrc) {
     EXPECT_EQ(sink.frames[0].frame.framing, mb::Framing::Rtu);
     EXPECT_EQ(sink.transactions.size(), 1u);
     EXPECT_TRUE(sink.findings.empty());
+}
+
+// Modbus/TCP on a port nobody named (--tcp-port) decodes to nothing; the summary says which port held
+// whole ADUs so the user can ask for it. Other traffic (HTTP, an RTU frame, an ADU whose length does not fit
+// its segment, an ADU cut across segments) is no hint.
+TEST(Analyzer, ModbusOnAPortNotDecodedIsNamedInTheSummary) {
+    Collect sink;
+    an::Analyzer a({}, sink);
+    std::uint64_t number = 0;
+    const auto send = [&](bool to_server, const std::vector<std::uint8_t>& payload, std::uint16_t port,
+                          bool udp = false) {
+        const auto bytes = packet(to_server, 1, payload, udp, 0x18, port);
+        an::Packet p;
+        p.linktype = link_raw;
+        p.number = ++number;
+        p.time = 1s;
+        p.data = bytes;
+        a.packet("test", p);
+    };
+    send(true, read_request(1), 1502);
+    send(false, read_response(1), 1502);
+    send(true, read_request(2), 5020, true);
+    const std::string http = "GET / HTTP/1.1\r\nHost: plc\r\n\r\n";
+    send(true, std::vector<std::uint8_t>(http.begin(), http.end()), 80);
+    send(true, {0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45}, 8080);
+    auto longer = read_request(3);
+    longer.push_back(0);
+    send(true, longer, 8081);
+    const auto whole = read_request(4);
+    send(true, std::vector<std::uint8_t>(whole.begin(), whole.begin() + 9), 8082);
+    a.finish();
+    EXPECT_TRUE(sink.frames.empty());
+    const auto& ports = a.summary().modbus_like_ports;
+    ASSERT_EQ(ports.size(), 2u);
+    EXPECT_EQ(ports.at({false, 1502}), 2u);
+    EXPECT_EQ(ports.at({true, 5020}), 1u);
+
+    std::ostringstream text;
+    an::TextSink(text, true).end(a.summary());
+    EXPECT_NE(text.str().find("hint: 2 TCP packets on port 1502 hold Modbus/TCP ADUs; decode them with "
+                              "--tcp-port 1502"),
+              std::string::npos)
+        << text.str();
+    EXPECT_NE(text.str().find("--udp-port 5020"), std::string::npos) << text.str();
 }
 
 TEST(LatencyHistogram, QuantilesWithinThreePercent) {
