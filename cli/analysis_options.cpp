@@ -46,18 +46,22 @@ namespace {
 // --profile ID for every device, --map SELECTOR=ID per device (SELECTOR: UNIT, IP or IP:UNIT).
 bool load_semantics(const AnalysisCliOptions& o, const std::string& command,
                     analyzer::AnalyzerOptions& options) {
-    if (o.profile.empty() && o.maps.empty()) return true;
+    if (o.profile.empty() && o.maps.empty()) {
+        if (o.config.empty()) return true;
+        std::cerr << "mbscope " << command
+                  << ": --config configures a device given with --profile or --map\n";
+        return false;
+    }
     const auto store = open_profile_store(o.profile_dirs, command.c_str());
     if (!store) return false;
-    modbus::ProfileConfig config;
-    for (const auto& kv : o.config) {
-        const auto eq = kv.find('=');
-        if (eq == std::string::npos) {
-            std::cerr << "mbscope " << command << ": --config takes CHANNEL=MAP, not '" << kv << "'\n";
-            return false;
-        }
-        config[kv.substr(0, eq)] = kv.substr(eq + 1);
-    }
+    const auto parsed = parse_config_options(o.config, command.c_str());
+    if (!parsed) return false;
+    const modbus::ProfileConfig& config = *parsed;
+    std::vector<std::string> ids;
+    if (!o.profile.empty()) ids.push_back(o.profile);
+    for (const auto& m : o.maps)
+        if (const auto eq = m.find('='); eq != std::string::npos) ids.push_back(m.substr(eq + 1));
+    if (!config_is_for_a_modular_device(*store, ids, config, command.c_str())) return false;
     auto semantics = std::make_shared<analyzer::Semantics>();
     auto add = [&](const analyzer::DeviceSelector& selector, const std::string& id) {
         auto p = store->load(id, config);

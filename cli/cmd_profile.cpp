@@ -81,7 +81,7 @@ std::optional<Profile> load(const ProfileOptions& o) {
     const auto store = open_profile_store(o.dirs, "profile");
     if (!store) return std::nullopt;
     auto config = parse_config(o);
-    if (!config) return std::nullopt;
+    if (!config || !config_is_for_a_modular_device(*store, {o.id}, *config, "profile")) return std::nullopt;
     auto p = store->load(o.id, *config);
     if (!p) {
         print_errors(p.error());

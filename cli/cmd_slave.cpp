@@ -71,6 +71,10 @@ int run_slave(const SlaveOptions& o) {
         wanted.emplace_back(static_cast<int>(n), eq == std::string::npos ? o.profile : u.substr(eq + 1));
     }
     if (wanted.empty()) wanted.emplace_back(1, o.profile);
+    std::vector<std::string> ids;
+    for (const auto& [unit, id] : wanted)
+        ids.push_back(id);
+    if (!config_is_for_a_modular_device(*store, ids, *config, "slave")) return exit_failure;
 
     std::vector<std::unique_ptr<modbus::Profile>> profiles;
     std::vector<std::unique_ptr<slave::Device>> devices;

@@ -88,6 +88,21 @@ std::optional<storage::ProfileStore> open_profile_store(const std::vector<std::s
     return store;
 }
 
+bool config_is_for_a_modular_device(const storage::ProfileStore& store, const std::vector<std::string>& ids,
+                                    const ProfileConfig& config, const char* command) {
+    if (config.empty()) return true;
+    std::string known;
+    for (const auto& id : ids) {
+        const auto* e = store.find(id);
+        if (!e) return true;  // the load names the unknown id
+        if (e->modular) return true;
+        known += (known.empty() ? "" : ", ") + e->id;
+    }
+    std::cerr << "mbscope " << command << ": --config " << modbus::quote_excerpt(config.begin()->first)
+              << ": " << known << " has no modular channels to configure\n";
+    return false;
+}
+
 std::optional<modbus::ProfileConfig> parse_config_options(const std::vector<std::string>& options,
                                                           const char* command) {
     modbus::ProfileConfig config;
@@ -108,7 +123,7 @@ std::optional<modbus::Profile> load_profile_for(const std::string& id, const std
     const auto config = parse_config_options(config_options, command);
     if (!config) return std::nullopt;
     const auto store = open_profile_store(dirs, command);
-    if (!store) return std::nullopt;
+    if (!store || !config_is_for_a_modular_device(*store, {id}, *config, command)) return std::nullopt;
     auto profile = store->load(id, *config);
     if (!profile) {
         for (const auto& e : profile.error())

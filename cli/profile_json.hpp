@@ -27,6 +27,12 @@ std::vector<std::string> profile_directories(const std::vector<std::string>& ext
 std::optional<modbus::storage::ProfileStore> open_profile_store(const std::vector<std::string>& extra,
                                                                 const char* command);
 
+// --config chooses the maps of a modular device's channels. Given when none of the profiles `ids` (those
+// the store knows) is modular, it would be dropped without a word: false after a message naming `command`.
+bool config_is_for_a_modular_device(const modbus::storage::ProfileStore& store,
+                                    const std::vector<std::string>& ids, const modbus::ProfileConfig& config,
+                                    const char* command);
+
 // --config CHANNEL=MAP options as a configuration; nullopt (after a message naming `command`) when one is
 // not of that form.
 std::optional<modbus::ProfileConfig> parse_config_options(const std::vector<std::string>& options,

@@ -191,6 +191,7 @@ struct Profile {
     bool coils_view_registers = false;
     Simulation simulation;  // the process the reference slave runs behind the map (empty: values stay)
     std::vector<ProfileNote> notes;
+    bool modular = false;                              // channels whose maps a configuration chooses
     std::map<std::string, std::string> configuration;  // modular devices: channel → map
 
     // Points per table, sorted by address. A table that serves another one's map (MK FC3/FC4, Walchem

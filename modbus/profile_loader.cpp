@@ -743,6 +743,7 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
             if (x.is_string()) p.aliases.push_back(lower(x.get<std::string>()));
     Tables tables = base;
     if (maps) {
+        p.modular = true;
         if (auto modular = r.child(doc, "modular"))
             expand_modular(r, *modular, *maps, p.id, config, tables, p);
         tables[idx(Table::Coils)].present = tables[idx(Table::HoldingRegisters)].present = true;

@@ -74,8 +74,9 @@ ProfileStore::ProfileStore(std::vector<std::string> directories) : directories_(
                 }
                 ids_here.push_back(p.id);
                 if (find(p.id)) continue;  // shadowed by an earlier directory
-                ProfileEntry e{p.id, p.name, p.aliases, p.vendor, p.family, file.string(), p.line.transports,
-                               0,    0,      0,         0};
+                ProfileEntry e{
+                    p.id,      p.name, p.aliases, p.vendor, p.family, file.string(), p.line.transports,
+                    p.modular, 0,      0,         0,        0};
                 e.coils = p.table(Table::Coils).size();
                 e.discrete_inputs = p.table(Table::DiscreteInputs).size();
                 e.input_registers = p.table(Table::InputRegisters).size();

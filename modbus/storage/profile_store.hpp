@@ -19,6 +19,7 @@ struct ProfileEntry {
     std::string family;
     std::string file;
     std::vector<std::string> transports;
+    bool modular = false;  // a configuration (--config) chooses its channels' maps
     std::size_t coils = 0, discrete_inputs = 0, input_registers = 0, holding_registers = 0;
 };
 

@@ -141,3 +141,23 @@ TEST(ProfileCommand, AMissingProfileDirStopsAndABrokenFileIsWarnedAbout) {
         << r.out;
     EXPECT_EQ(r.out.find("warning", r.out.find("warning") + 1), std::string::npos) << "once: " << r.out;
 }
+
+// --config chooses the maps of a modular device's channels; given for devices that have none (or with no
+// device at all) it would be dropped without a word, so it is refused.
+TEST(ProfileCommand, AConfigurationForADeviceWithoutChannelsIsRefused) {
+    auto r = run("profile" + dir + "show test-device --config sensor-1-1=flow");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("--config 'sensor-1-1': test-device has no modular channels to configure"),
+              std::string::npos)
+        << r.out;
+    const std::string capture = " " + std::string(MBSCOPE_SOURCE_DIR) + "/captures/suricata-modbus.pcap";
+    r = run("decode --summary --config sensor-1-1=flow" + capture);
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("--config configures a device given with --profile or --map"), std::string::npos)
+        << r.out;
+    r = run("decode --summary --profile mmk-2030 --config sensor-1-1=flow" + capture);
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    // One modular device among those given is enough: the channels are its own.
+    r = run("decode --summary --map 1=walchem-w600 --map 2=mmk-2030 --config sensor-1-1=sensor" + capture);
+    EXPECT_NE(r.exit_code, 2) << r.out;
+}

@@ -291,6 +291,8 @@ TEST(ProfileLoader, ModularDeviceExpandsItsConfiguration) {
     ASSERT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
     const auto& p = l.profiles[0];
     EXPECT_EQ(p.functions.address_check, mb::AddressCheck::First);
+    EXPECT_TRUE(p.modular);
+    EXPECT_FALSE(load(mk_like).profiles[0].modular);
     ASSERT_NE(p.find(mb::Table::HoldingRegisters, 576), nullptr);
     EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 577),
               p.find(mb::Table::HoldingRegisters, 576));  // f32 second word
