@@ -98,7 +98,15 @@ int run_check_command(const CheckCliOptions& o) {
         written &= write_file(o.junit, [&](std::ostream& out) { conformance::write_junit(out, report); });
     if (!o.html.empty())
         written &= write_file(o.html, [&](std::ostream& out) { conformance::write_html(out, report); });
-    if (report.response_times.empty()) {
+    if (report.results.empty()) {
+        std::string globs;
+        for (const auto& g : o.rules)
+            globs += (globs.empty() ? "'" : ", '") + g + "'";
+        std::cerr << "mbscope check: --rules " << globs << " match no rule for " << profile->id << '\n';
+        return exit_failure;
+    }
+    // Rules that send nothing (all skipped: broadcast rules over Modbus/TCP) are no sign of a silent target.
+    if (report.response_times.empty() && report.requests > 0) {
         if (report.late_replies)
             std::cerr << "mbscope check: the target answered only after the " << report.timeout_ms
                       << " ms timeout (" << report.late_replies << " late replies): raise --timeout\n";

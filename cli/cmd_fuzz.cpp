@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <memory>
 
 #include "cli/commands.hpp"
@@ -170,7 +171,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
     cmd->add_option("--unit", o->unit, "Unit id of the slave (default 1)")->check(CLI::Range(1, 255));
     cmd->add_option("--duration", o->duration,
                     "Run this long: 60s, 500ms, 5m (default 60s without --requests)");
-    cmd->add_option("--requests", o->requests, "Stop after N requests");
+    cmd->add_option("--requests", o->requests, "Stop after N requests")
+        ->check(CLI::Range(std::uint64_t{1}, std::numeric_limits<std::uint64_t>::max()));
     cmd->add_option("--seed", o->seed, "Seed: the same seed against the same target sends the same requests");
     cmd->add_option("--artifacts", o->artifacts, "Directory for reproducers (created)");
     cmd->add_flag("--read-only", o->read_only,

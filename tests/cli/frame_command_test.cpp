@@ -7,28 +7,16 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/cli/cli_run.hpp"
+
 namespace {
 
-struct Run {
-    int exit_code;
-    std::string out;
-};
-
-Run run(const std::string& args) {
-    const std::string cmd = std::string(MBSCOPE_BINARY) + " " + args + " 2>&1";
-    FILE* p = popen(cmd.c_str(), "r");
-    std::string out;
-    std::array<char, 4096> buf{};
-    while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p))
-        out.append(buf.data(), n);
-    const int status = pclose(p);
-    return {WEXITSTATUS(status), out};
-}
+using mbscope::test::run_mbscope;
 
 }  // namespace
 
 TEST(FrameCommand, DecodesTheManualsFc3Request) {
-    auto r = run("frame --rtu 11 03 00 60 00 03 07 45");
+    auto r = run_mbscope("frame --rtu 11 03 00 60 00 03 07 45");
     EXPECT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(r.out.find("Read Holding Registers"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("starting_address"), std::string::npos);
@@ -37,21 +25,21 @@ TEST(FrameCommand, DecodesTheManualsFc3Request) {
 }
 
 TEST(FrameCommand, BadCrcExitsOneAndSaysWhat) {
-    auto r = run("frame --rtu 11 03 00 60 00 03 07 46");
+    auto r = run_mbscope("frame --rtu 11 03 00 60 00 03 07 46");
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.out.find("rtu.crc_mismatch"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("computed 0x4507"), std::string::npos) << r.out;
 }
 
 TEST(FrameCommand, UndecodableExitsTwo) {
-    EXPECT_EQ(run("frame --rtu 11 03").exit_code, 2);
-    EXPECT_EQ(run("frame --rtu 11 0G").exit_code, 2);
-    EXPECT_EQ(run("frame --tcp 00 01 00 00 00 01 11 03").exit_code, 2);
-    EXPECT_EQ(run("frame 11 03").exit_code, 2);
+    EXPECT_EQ(run_mbscope("frame --rtu 11 03").exit_code, 2);
+    EXPECT_EQ(run_mbscope("frame --rtu 11 0G").exit_code, 2);
+    EXPECT_EQ(run_mbscope("frame --tcp 00 01 00 00 00 01 11 03").exit_code, 2);
+    EXPECT_EQ(run_mbscope("frame 11 03").exit_code, 2);
 }
 
 TEST(FrameCommand, AsciiTextAndJson) {
-    auto r = run("frame --ascii :11100060000204000A01026C --json");
+    auto r = run_mbscope("frame --ascii :11100060000204000A01026C --json");
     ASSERT_EQ(r.exit_code, 0) << r.out;
     auto j = nlohmann::json::parse(r.out);
     EXPECT_EQ(j["framing"], "ascii");
@@ -67,24 +55,25 @@ TEST(FrameCommand, AsciiTextAndJson) {
 }
 
 TEST(FrameCommand, EncodeReadHoldingGivesTheManualsFrame) {
-    auto r = run("frame --encode --rtu --unit 17 read-holding 96 3 --json");
+    auto r = run_mbscope("frame --encode --rtu --unit 17 read-holding 96 3 --json");
     ASSERT_EQ(r.exit_code, 0) << r.out;
     EXPECT_EQ(nlohmann::json::parse(r.out)["wire"], "11 03 00 60 00 03 07 45");
-    auto w = run("frame --encode --rtu --unit 17 write-registers 96 10 258 --json");
+    auto w = run_mbscope("frame --encode --rtu --unit 17 write-registers 96 10 258 --json");
     EXPECT_EQ(nlohmann::json::parse(w.out)["wire"], "11 10 00 60 00 02 04 00 0A 01 02 01 14");
-    auto a = run("frame --encode --ascii --unit 17 write-registers 0x60 0x0A 0x0102 --json");
+    auto a = run_mbscope("frame --encode --ascii --unit 17 write-registers 0x60 0x0A 0x0102 --json");
     EXPECT_EQ(nlohmann::json::parse(a.out)["wire"], ":11100060000204000A01026C\r\n");
-    auto t = run("frame --encode --tcp --tid 1 --unit 17 read-holding 107 3 --json");
+    auto t = run_mbscope("frame --encode --tcp --tid 1 --unit 17 read-holding 107 3 --json");
     EXPECT_EQ(nlohmann::json::parse(t.out)["wire"], "00 01 00 00 00 06 11 03 00 6B 00 03");
 }
 
 TEST(FrameCommand, EchoIsNamedAsSuch) {
-    auto r = run("frame --rtu 11 06 00 54 03 9E 4B D2");
+    auto r = run_mbscope("frame --rtu 11 06 00 54 03 9E 4B D2");
     EXPECT_NE(r.out.find("echo response"), std::string::npos) << r.out;
 }
 
 TEST(FrameCommand, FileOfManualExamplesDecodesClean) {
-    auto r = run(std::string("frame --file ") + MBSCOPE_SOURCE_DIR + "/captures/manual-examples.txt --json");
+    auto r = run_mbscope(std::string("frame --file ") + MBSCOPE_SOURCE_DIR +
+                         "/captures/manual-examples.txt --json");
     ASSERT_EQ(r.exit_code, 0) << r.out;
     auto j = nlohmann::json::parse(r.out);
     ASSERT_EQ(j.size(), 13u);
@@ -95,12 +84,12 @@ TEST(FrameCommand, FileOfManualExamplesDecodesClean) {
 }
 
 TEST(FrameCommand, HelpOnTheSubcommand) {
-    auto r = run("frame --help");
+    auto r = run_mbscope("frame --help");
     EXPECT_EQ(r.exit_code, 0);
     EXPECT_NE(r.out.find("--encode"), std::string::npos);
     EXPECT_NE(r.out.find("Exit codes"), std::string::npos);
-    EXPECT_EQ(run("--help").exit_code, 0);
-    EXPECT_EQ(run("nosuchcommand").exit_code, 2);
+    EXPECT_EQ(run_mbscope("--help").exit_code, 0);
+    EXPECT_EQ(run_mbscope("nosuchcommand").exit_code, 2);
 }
 
 // A capture given to --file by mistake is not a frames file: an error for every line, the first hundred
@@ -116,7 +105,7 @@ TEST(FrameCommand, AFileThatIsNotAFramesFileIsNamedNotFlooded) {
             std::fwrite(line, 1, sizeof line - 1, f);
         std::fclose(f);
     }
-    auto r = run("frame --file " + binary);
+    auto r = run_mbscope("frame --file " + binary);
     EXPECT_EQ(r.exit_code, 2);
     std::size_t lines = 0;
     for (char c : r.out)
@@ -132,7 +121,7 @@ TEST(FrameCommand, AFileThatIsNotAFramesFileIsNamedNotFlooded) {
         std::fputs("# nothing but a comment\n", f);
         std::fclose(f);
     }
-    auto none = run("frame --file " + comments);
+    auto none = run_mbscope("frame --file " + comments);
     EXPECT_EQ(none.exit_code, 2);
     EXPECT_NE(none.out.find("holds no frames"), std::string::npos) << none.out;
 }
@@ -142,7 +131,7 @@ TEST(FrameCommand, AFileThatIsNotAFramesFileIsNamedNotFlooded) {
 TEST(FrameCommand, AFramesFileOverTheLimitIsRefused) {
     const std::string path = ::testing::TempDir() + "frame_command_huge.txt";
     ASSERT_EQ(std::system(("truncate -s 65M " + path).c_str()), 0);
-    const auto r = run("frame --file " + path);
+    const auto r = run_mbscope("frame --file " + path);
     EXPECT_EQ(r.exit_code, 2) << r.out;
     EXPECT_NE(r.out.find(path + ": larger than 67108864 bytes"), std::string::npos) << r.out;
     std::remove(path.c_str());

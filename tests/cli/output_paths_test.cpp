@@ -11,21 +11,11 @@
 #include <fstream>
 #include <string>
 
+#include "tests/cli/cli_run.hpp"
+
 namespace {
 
-struct Run {
-    int exit_code;
-    std::string out;
-};
-
-Run run(const std::string& args) {
-    FILE* p = popen((std::string(MBSCOPE_BINARY) + " " + args + " 2>&1").c_str(), "r");
-    std::string out;
-    std::array<char, 4096> buf{};
-    while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p))
-        out.append(buf.data(), n);
-    return {WEXITSTATUS(pclose(p)), out};
-}
+using mbscope::test::run_mbscope;
 
 const std::string unreachable = " --target tcp://127.0.0.1:1 --profile mmk-2030 ";
 
@@ -43,14 +33,14 @@ TEST(OutputPaths, CheckRefusesReportsItCouldNotWriteBeforeTheRun) {
         {"--html", dir + "/missing/check.html", "no directory"},
     };
     for (const auto& c : cases) {
-        const auto r = run("check" + unreachable + c.option + " " + c.path);
+        const auto r = run_mbscope("check" + unreachable + c.option + " " + c.path);
         EXPECT_EQ(r.exit_code, 2) << r.out;
         EXPECT_NE(r.out.find("mbscope check: cannot write " + c.path), std::string::npos) << r.out;
         EXPECT_NE(r.out.find(c.why), std::string::npos) << r.out;
         EXPECT_EQ(r.out.find("cannot reach the target"), std::string::npos) << r.out;
     }
     // A writable one is no reason to stop: the run goes on to the target (unreachable here).
-    const auto fine = run("check" + unreachable + "--junit " + dir + "/check.xml");
+    const auto fine = run_mbscope("check" + unreachable + "--junit " + dir + "/check.xml");
     EXPECT_EQ(fine.exit_code, 2) << fine.out;
     EXPECT_NE(fine.out.find("cannot reach the target"), std::string::npos) << fine.out;
     EXPECT_FALSE(std::filesystem::exists(dir + "/check.xml"));  // checked, not created
@@ -61,12 +51,14 @@ TEST(OutputPaths, FuzzMakesItsArtifactsDirectoryFirstOrStops) {
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     std::ofstream(dir + "/file") << "x";
-    const auto blocked = run("fuzz" + unreachable + "--requests 10 --artifacts " + dir + "/file/artifacts");
+    const auto blocked =
+        run_mbscope("fuzz" + unreachable + "--requests 10 --artifacts " + dir + "/file/artifacts");
     EXPECT_EQ(blocked.exit_code, 2) << blocked.out;
     EXPECT_NE(blocked.out.find("mbscope fuzz: --artifacts " + dir + "/file/artifacts: "), std::string::npos)
         << blocked.out;
     EXPECT_EQ(blocked.out.find("cannot reach the target"), std::string::npos) << blocked.out;
-    const auto made = run("fuzz" + unreachable + "--requests 10 --artifacts " + dir + "/new/artifacts");
+    const auto made =
+        run_mbscope("fuzz" + unreachable + "--requests 10 --artifacts " + dir + "/new/artifacts");
     EXPECT_EQ(made.exit_code, 2) << made.out;
     EXPECT_NE(made.out.find("cannot reach the target"), std::string::npos) << made.out;
     EXPECT_TRUE(std::filesystem::is_directory(dir + "/new/artifacts"));

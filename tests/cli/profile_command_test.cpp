@@ -6,22 +6,11 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/cli/cli_run.hpp"
+
 namespace {
 
-struct Run {
-    int exit_code;
-    std::string out;
-};
-
-Run run(const std::string& args, const std::string& env = "") {
-    const std::string cmd = env + " " + std::string(MBSCOPE_BINARY) + " " + args + " 2>&1";
-    FILE* p = popen(cmd.c_str(), "r");
-    std::string out;
-    std::array<char, 4096> buf{};
-    while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p))
-        out.append(buf.data(), n);
-    return {WEXITSTATUS(pclose(p)), out};
-}
+using mbscope::test::run_mbscope;
 
 const std::string fixtures = std::string(MBSCOPE_SOURCE_DIR) + "/tests/fixtures";
 const std::string dir = " --profile-dir " + fixtures + "/profiles ";
@@ -29,7 +18,7 @@ const std::string dir = " --profile-dir " + fixtures + "/profiles ";
 }  // namespace
 
 TEST(ProfileCommand, ListShowsTheUsersProfile) {
-    auto r = run("profile" + dir + "list --json");
+    auto r = run_mbscope("profile" + dir + "list --json");
     ASSERT_EQ(r.exit_code, 0) << r.out;
     auto j = nlohmann::json::parse(r.out);
     bool found = false;
@@ -43,53 +32,53 @@ TEST(ProfileCommand, ListShowsTheUsersProfile) {
 }
 
 TEST(ProfileCommand, EnvironmentPathWorksLikeProfileDir) {
-    auto r = run("profile list", "MBSCOPE_PROFILE_PATH=" + fixtures + "/profiles");
+    auto r = run_mbscope("profile list", "MBSCOPE_PROFILE_PATH=" + fixtures + "/profiles");
     EXPECT_NE(r.out.find("test-device"), std::string::npos) << r.out;
 }
 
 TEST(ProfileCommand, ShowByAliasAnyCase) {
-    auto r = run("profile" + dir + "show TD-1");
+    auto r = run_mbscope("profile" + dir + "show TD-1");
     ASSERT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(r.out.find("holding_registers (3 points)"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("input_registers: same map as holding_registers"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("0.0 a 25.0 segundos"), std::string::npos) << r.out;
-    auto j = nlohmann::json::parse(run("profile" + dir + "show test-device --json").out);
+    auto j = nlohmann::json::parse(run_mbscope("profile" + dir + "show test-device --json").out);
     EXPECT_EQ(j["tables"]["holding_registers"][2]["encoding"]["decimals"], 1);
 }
 
 TEST(ProfileCommand, LookupAndDecode) {
-    auto r = run("profile" + dir + "lookup test-device holding 23");
+    auto r = run_mbscope("profile" + dir + "lookup test-device holding 23");
     ASSERT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(r.out.find("Filtro"), std::string::npos);
-    EXPECT_EQ(run("profile" + dir + "lookup test-device holding 99").exit_code, 1);
-    auto d = run("profile" + dir + "decode test-device holding 17 0002 04D2 --json");
+    EXPECT_EQ(run_mbscope("profile" + dir + "lookup test-device holding 99").exit_code, 1);
+    auto d = run_mbscope("profile" + dir + "decode test-device holding 17 0002 04D2 --json");
     ASSERT_EQ(d.exit_code, 0) << d.out;
     auto j = nlohmann::json::parse(d.out);
     EXPECT_EQ(j[1]["text"], "12.34");  // 0x04D2 = 1234 with 2 decimal places from register 17
     EXPECT_EQ(j[1]["unit"], "m3/h");
-    EXPECT_EQ(run("profile" + dir + "decode test-device holding 17 XYZ").exit_code, 2);
-    EXPECT_EQ(run("profile" + dir + "decode nosuch holding 0 0000").exit_code, 2);
+    EXPECT_EQ(run_mbscope("profile" + dir + "decode test-device holding 17 XYZ").exit_code, 2);
+    EXPECT_EQ(run_mbscope("profile" + dir + "decode nosuch holding 0 0000").exit_code, 2);
     // Two words from 65535 would name the second as register 0: refused.
-    auto past = run("profile" + dir + "decode test-device holding 65535 0001 0002");
+    auto past = run_mbscope("profile" + dir + "decode test-device holding 65535 0001 0002");
     EXPECT_EQ(past.exit_code, 2) << past.out;
     EXPECT_NE(past.out.find("2 words from address 65535 run past the last address, 65535"), std::string::npos)
         << past.out;
 }
 
 TEST(ProfileCommand, ValidateReportsEveryErrorWithPointer) {
-    auto r = run("profile validate " + fixtures + "/broken/broken.json");
+    auto r = run_mbscope("profile validate " + fixtures + "/broken/broken.json");
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.out.find("broken.json: /tables/holding_registers/1/access: must be r, w or rw"),
               std::string::npos)
         << r.out;
     EXPECT_NE(r.out.find("/tables/holding_registers/2: missing \"source\""), std::string::npos) << r.out;
-    auto ok = run("profile validate " + fixtures + "/profiles/test-device.json");
+    auto ok = run_mbscope("profile validate " + fixtures + "/profiles/test-device.json");
     EXPECT_EQ(ok.exit_code, 0) << ok.out;
 }
 
 TEST(ProfileCommand, HelpOnEverySubcommand) {
     for (const char* sub : {"", " list", " show", " validate", " lookup", " decode"})
-        EXPECT_EQ(run(std::string("profile") + sub + " --help").exit_code, 0) << sub;
+        EXPECT_EQ(run_mbscope(std::string("profile") + sub + " --help").exit_code, 0) << sub;
 }
 
 TEST(ProfileCommand, ABadConfigFileIsNamedWithWhatIsWrong) {
@@ -98,9 +87,9 @@ TEST(ProfileCommand, ABadConfigFileIsNamedWithWhatIsWrong) {
         FILE* f = std::fopen(path.c_str(), "w");
         std::fputs(text.c_str(), f);
         std::fclose(f);
-        return run("profile" + dir + "show test-device --config-file " + path);
+        return run_mbscope("profile" + dir + "show test-device --config-file " + path);
     };
-    auto r = run("profile" + dir + "show test-device --config-file /nonexistent/config.json");
+    auto r = run_mbscope("profile" + dir + "show test-device --config-file /nonexistent/config.json");
     EXPECT_EQ(r.exit_code, 2);
     EXPECT_NE(r.out.find("/nonexistent/config.json: cannot open"), std::string::npos) << r.out;
     r = with_config("{\"1\": ");
@@ -120,17 +109,17 @@ TEST(ProfileCommand, ABadConfigFileIsNamedWithWhatIsWrong) {
 // profiles to answer. A file in the directories that cannot be read is warned about, once, with its first
 // problem, even when the profile asked for comes from elsewhere: it may be the user's broken copy of it.
 TEST(ProfileCommand, AMissingProfileDirStopsAndABrokenFileIsWarnedAbout) {
-    auto r = run("profile --profile-dir /nonexistent/profiles show mmk-2030");
+    auto r = run_mbscope("profile --profile-dir /nonexistent/profiles show mmk-2030");
     EXPECT_EQ(r.exit_code, 2) << r.out;
     EXPECT_NE(r.out.find("mbscope profile: --profile-dir '/nonexistent/profiles': not a directory"),
               std::string::npos)
         << r.out;
-    r = run("decode --profile-dir /nonexistent/profiles --profile mmk-2030 " +
-            std::string(MBSCOPE_SOURCE_DIR) + "/captures/pymodbus-socat-rtu.log");
+    r = run_mbscope("decode --profile-dir /nonexistent/profiles --profile mmk-2030 " +
+                    std::string(MBSCOPE_SOURCE_DIR) + "/captures/pymodbus-socat-rtu.log");
     EXPECT_EQ(r.exit_code, 2) << r.out;
     EXPECT_NE(r.out.find("mbscope decode: --profile-dir"), std::string::npos) << r.out;
 
-    r = run("profile --profile-dir " + fixtures + "/broken show mmk-2030");
+    r = run_mbscope("profile --profile-dir " + fixtures + "/broken show mmk-2030");
     EXPECT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(r.out.find("mbscope profile: warning: " + fixtures +
                          "/broken/broken.json: /tables/holding_registers/1/access: must be r, w or rw (and "),
@@ -145,19 +134,20 @@ TEST(ProfileCommand, AMissingProfileDirStopsAndABrokenFileIsWarnedAbout) {
 // --config chooses the maps of a modular device's channels; given for devices that have none (or with no
 // device at all) it would be dropped without a word, so it is refused.
 TEST(ProfileCommand, AConfigurationForADeviceWithoutChannelsIsRefused) {
-    auto r = run("profile" + dir + "show test-device --config sensor-1-1=flow");
+    auto r = run_mbscope("profile" + dir + "show test-device --config sensor-1-1=flow");
     EXPECT_EQ(r.exit_code, 2) << r.out;
     EXPECT_NE(r.out.find("--config 'sensor-1-1': test-device has no modular channels to configure"),
               std::string::npos)
         << r.out;
     const std::string capture = " " + std::string(MBSCOPE_SOURCE_DIR) + "/captures/suricata-modbus.pcap";
-    r = run("decode --summary --config sensor-1-1=flow" + capture);
+    r = run_mbscope("decode --summary --config sensor-1-1=flow" + capture);
     EXPECT_EQ(r.exit_code, 2) << r.out;
     EXPECT_NE(r.out.find("--config configures a device given with --profile or --map"), std::string::npos)
         << r.out;
-    r = run("decode --summary --profile mmk-2030 --config sensor-1-1=flow" + capture);
+    r = run_mbscope("decode --summary --profile mmk-2030 --config sensor-1-1=flow" + capture);
     EXPECT_EQ(r.exit_code, 2) << r.out;
     // One modular device among those given is enough: the channels are its own.
-    r = run("decode --summary --map 1=walchem-w600 --map 2=mmk-2030 --config sensor-1-1=sensor" + capture);
+    r = run_mbscope("decode --summary --map 1=walchem-w600 --map 2=mmk-2030 --config sensor-1-1=sensor" +
+                    capture);
     EXPECT_NE(r.exit_code, 2) << r.out;
 }
