@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "analyzer/csv_sink.hpp"
+#include "cli/number_checks.hpp"
 #include "cli/profile_json.hpp"
 #include "modbus/storage/profile_store.hpp"
 
@@ -11,7 +12,9 @@ namespace mbscope::cli {
 void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
     cmd.add_option("--tcp-port", o.tcp_ports, "Modbus/TCP server port besides 502 (repeatable)");
     cmd.add_option("--udp-port", o.udp_ports, "Modbus/UDP server port besides 502 (repeatable)");
-    cmd.add_option("--baud", o.baud, "Serial line: baud rate (for t1.5/t3.5)")->capture_default_str();
+    cmd.add_option("--baud", o.baud, "Serial line: baud rate (for t1.5/t3.5)")
+        ->check(CLI::Range(50u, 10'000'000u))
+        ->capture_default_str();
     cmd.add_option("--parity", o.parity, "Serial line: N, E or O")
         ->check(CLI::IsMember({"N", "E", "O", "n", "e", "o", "none", "even", "odd"}))
         ->capture_default_str();
@@ -23,6 +26,7 @@ void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
         ->capture_default_str();
     cmd.add_option("--timeout", o.timeout_s,
                    "Seconds without a response before a request is reported unanswered")
+        ->check(finite_between(0.001, 86400, "seconds"))
         ->capture_default_str();
     auto* json = cmd.add_flag("--json", o.json, "One JSON document: every record, then the summary");
     auto* jsonl = cmd.add_flag("--jsonl", o.jsonl,

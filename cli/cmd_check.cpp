@@ -150,7 +150,8 @@ void register_check(CLI::App& app, int& exit_code) {
     cmd->add_option("--timeout", o->timeout_ms, "Milliseconds to wait for each reply (default 1000)")
         ->check(CLI::Range(1, 60000));
     cmd->add_option("--interval", o->interval_ms,
-                    "Milliseconds between requests (default: the profile's minimum polling interval)");
+                    "Milliseconds between requests (default: the profile's minimum polling interval)")
+        ->check(CLI::Range(0, 600000));
     cmd->add_option("--idle", o->idle_ms,
                     "Milliseconds silence.idle listens with no request out (default 1000; the MK manual's "
                     "own test idles 10000, the Walchem manual's 15000)")

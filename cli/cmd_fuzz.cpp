@@ -192,7 +192,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
                     "else 250; plus the longest frame's transmission on a serial line)")
         ->check(CLI::Range(0, 600000));
     cmd->add_option("--interval", o->interval_ms,
-                    "Milliseconds between requests (default: the profile's minimum polling interval)");
+                    "Milliseconds between requests (default: the profile's minimum polling interval)")
+        ->check(CLI::Range(0, 600000));
     cmd->add_option("--minimise", o->minimise,
                     "Replays spent shortening each reproducer (default 64, 0: none)");
     cmd->add_option("--max-findings", o->max_findings,

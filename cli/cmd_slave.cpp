@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/number_checks.hpp"
 #include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
@@ -203,8 +204,10 @@ void register_slave(CLI::App& app, int& exit_code) {
     cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");
     cmd->add_flag("--pty", o->pty, "Serial endpoint: create a pseudo-terminal and print its path");
     cmd->add_option("--idle-timeout", o->idle_timeout_s,
-                    "Seconds before a silent TCP client is disconnected (default 60)");
-    cmd->add_option("--max-clients", o->max_clients, "Concurrent TCP clients (default 1024)");
+                    "Seconds before a silent TCP client is disconnected (default 60)")
+        ->check(finite_between(0.001, 86400, "seconds"));
+    cmd->add_option("--max-clients", o->max_clients, "Concurrent TCP clients (default 1024)")
+        ->check(CLI::Range(std::size_t{1}, std::size_t{65536}));
     cmd->add_flag("--quiet,-q", o->quiet, "No messages on stderr");
     cmd->callback([o, &exit_code] { exit_code = run_slave(*o); });
 }

@@ -1,0 +1,35 @@
+// Numeric options are refused outside what they can mean, before anything runs (exit 2, the option named):
+// NaN passed CLI11's range checks, --timeout 1e300 overflowed its conversion to nanoseconds, --baud 0
+// divided by zero for t1.5/t3.5, and --timeout 0 or -1 reported every request as unanswered.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "tests/cli/cli_run.hpp"
+
+using mbscope::test::run_mbscope;
+
+TEST(NumberOptions, ValuesOutsideTheirMeaningAreRefusedBeforeAnythingRuns) {
+    const std::string capture = " " + std::string(MBSCOPE_SOURCE_DIR) + "/captures/zeek-modbusSmall.pcap";
+    const struct {
+        std::string args, message;
+    } cases[] = {
+        {"decode --timeout nan" + capture, "--timeout: seconds from 0.001 to 86400, not 'nan'"},
+        {"decode --timeout 1e300" + capture, "--timeout: seconds from 0.001 to 86400, not '1e300'"},
+        {"decode --timeout 0" + capture, "--timeout: seconds from 0.001 to 86400, not '0'"},
+        {"decode --timeout -1" + capture, "--timeout: seconds from 0.001 to 86400, not '-1'"},
+        {"decode --timeout 3s" + capture, "--timeout: seconds: not a number: '3s'"},
+        {"decode --baud 0" + capture, "--baud: Value 0 not in range 50 to 10000000"},
+        {"slave --profile mmk-2030 --listen tcp://127.0.0.1:0 --idle-timeout inf", "--idle-timeout: seconds"},
+        {"slave --profile mmk-2030 --listen tcp://127.0.0.1:0 --max-clients 0", "--max-clients: Value 0"},
+        {"check --target tcp://127.0.0.1:1 --interval -5", "--interval: Value -5 not in range 0 to 600000"},
+        {"fuzz --target tcp://127.0.0.1:1 --interval -5", "--interval: Value -5 not in range 0 to 600000"},
+        {"fuzz --target tcp://127.0.0.1:1 --requests 0", "--requests: Value 0 not in range 1 to"},
+    };
+    for (const auto& c : cases) {
+        const auto r = run_mbscope(c.args);
+        EXPECT_EQ(r.exit_code, 2) << c.args << "\n" << r.out;
+        EXPECT_NE(r.out.find(c.message), std::string::npos) << c.args << "\n" << r.out;
+    }
+    EXPECT_EQ(run_mbscope("decode --summary --timeout 0.5" + capture).exit_code, 0);
+}
