@@ -23,6 +23,4 @@ TEST(CheckCommand, RulesThatSelectNothingOrSendNothingAreToldApartFromASilentTar
     r = run_mbscope(check + "--rules 'broadcast*'");
     EXPECT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(r.out.find("1 skipped"), std::string::npos) << r.out;
-    EXPECT_NE(run_mbscope("fuzz --target " + slave.address() + " --profile mmk-2030 --requests 0").exit_code,
-              0);
 }
