@@ -1,6 +1,5 @@
 #include "analyzer/semantics.hpp"
 
-#include <algorithm>
 #include <charconv>
 
 #include "modbus/addressing.hpp"
@@ -75,13 +74,6 @@ std::string point_name(const Point& p) {
     return p.name_en.empty() ? p.name : p.name_en;
 }
 
-// How many of `count` items from `start` have an address: addresses end at 65535. A request that runs past
-// it is a finding of the PDU (pdu.address_overflow); its items past the end are no register of the map, and
-// wrapped round they would be taken for the registers at 0, 1, ...
-std::size_t within_space(std::uint16_t start, std::size_t count) {
-    return std::min<std::size_t>(count, std::size_t{0x10000} - start);
-}
-
 void check_write_value(const Profile& profile, Table table, std::uint16_t address, std::uint16_t value,
                        std::vector<RuleBreak>& out) {
     const Point* p = profile.find(table, address);
@@ -149,12 +141,13 @@ std::vector<RuleBreak> Semantics::check_request(const Profile& profile, const Pd
             check_write_value(profile, Table::HoldingRegisters, w->address, w->value, out);
     }
     if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body))
-        for (std::size_t i = 0; i < within_space(w->starting_address, w->values.size()); ++i)
+        for (std::size_t i = 0; i < count_within_address_space(w->starting_address, w->values.size()); ++i)
             check_write_value(profile, Table::HoldingRegisters,
                               static_cast<std::uint16_t>(w->starting_address + i), w->values[i], out);
     if (const auto* w = std::get_if<WriteMultipleCoilsRequest>(&q.body))
         for (std::size_t i = 0;
-             i < within_space(w->starting_address, w->quantity) && i / 8 < w->values.size(); ++i)
+             i < count_within_address_space(w->starting_address, w->quantity) && i / 8 < w->values.size();
+             ++i)
             check_write_value(profile, Table::Coils, static_cast<std::uint16_t>(w->starting_address + i),
                               bit_at(w->values, i) ? 1 : 0, out);
     return out;
@@ -181,7 +174,7 @@ std::vector<NamedValue> Semantics::values(const Profile& profile, const std::str
     if (a.is_exception()) return {};
     auto& seen = registers_[device];
     auto remember = [&](std::uint16_t start, const std::vector<std::uint16_t>& words) {
-        for (std::size_t i = 0; i < within_space(start, words.size()); ++i)
+        for (std::size_t i = 0; i < count_within_address_space(start, words.size()); ++i)
             seen[static_cast<std::uint16_t>(start + i)] = words[i];
     };
     if (auto s = read_span(q)) {
@@ -191,8 +184,8 @@ std::vector<NamedValue> Semantics::values(const Profile& profile, const std::str
         }
         if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) {
             std::vector<NamedValue> out;
-            for (std::size_t i = 0; i < within_space(s->start, s->quantity) && i / 8 < bits->values.size();
-                 ++i) {
+            for (std::size_t i = 0;
+                 i < count_within_address_space(s->start, s->quantity) && i / 8 < bits->values.size(); ++i) {
                 NamedValue v;
                 v.address = static_cast<std::uint16_t>(s->start + i);
                 v.point = profile.find(s->table, v.address);

@@ -5,6 +5,7 @@
 // 100001, 300001, 400001). The manuals mix both (MK uses PDU addresses, Walchem 5-digit references), so
 // the two are distinct types and conversion happens only at the profile and user-interface edge.
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -19,6 +20,13 @@ std::string_view to_string(Table t) noexcept;  // "coils", "discrete_inputs", "i
 std::optional<Table> parse_table(
     std::string_view name) noexcept;  // also accepts "coil", "hr", "ir", "di", "4x"
 bool is_bit_table(Table t) noexcept;
+
+// How many of `count` items from protocol address `start` have an address: addresses end at 65535. The
+// items of a block past it (a request that runs past the end, pdu.address_overflow) are no register of any
+// map; wrapped round to 0, 1, ... they would be taken for registers they are not.
+constexpr std::size_t count_within_address_space(std::uint16_t start, std::size_t count) noexcept {
+    return count < std::size_t{0x10000} - start ? count : std::size_t{0x10000} - start;
+}
 
 struct ProtocolAddress {
     std::uint16_t value = 0;  // as in the PDU, 0-based

@@ -168,10 +168,8 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                                          const std::vector<std::uint16_t>& words,
                                          const std::map<std::uint16_t, std::uint16_t>& context) {
     std::vector<NamedValue> out;
-    // Addresses end at 65535. Words a block holds past it (a reply to a read that ran past the end, itself
-    // a finding of the request) are named by nothing here: wrapped round they would be named as the
-    // registers at 0, 1, ... which they are not.
-    const std::size_t in_space = std::min<std::size_t>(words.size(), std::size_t{0x10000} - start);
+    // Words past address 65535 (a reply to a read that ran past the end) are named by nothing here.
+    const std::size_t in_space = count_within_address_space(start, words.size());
     for (std::size_t i = 0; i < in_space; ++i) {
         const auto address = static_cast<std::uint16_t>(start + i);
         NamedValue v;
