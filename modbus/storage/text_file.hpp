@@ -4,11 +4,11 @@
 // the size of the file (a line reader that grows its string until the newline it never meets runs the
 // machine out of memory).
 
+#include <array>
 #include <cstdint>
 #include <istream>
 #include <optional>
 #include <string>
-#include <vector>
 
 namespace mbscope::modbus::storage {
 
@@ -35,7 +35,7 @@ class LineReader {
   private:
     std::istream& in_;
     std::size_t max_;
-    std::vector<char> buffer_;
+    std::array<char, 4096> piece_;
     std::uint64_t number_ = 0;
     std::uint64_t length_ = 0;
     bool too_long_ = false;

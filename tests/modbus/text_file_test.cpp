@@ -3,6 +3,7 @@
 // is.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -99,6 +100,26 @@ TEST(LineReader, ALongLineThatEndsTheInputIsMeasuredToItsEnd) {
         return st::too_long_line_message(reader);
     }();
     EXPECT_EQ(message, "line of 20 bytes is longer than the 8 a line may hold: skipped");
+}
+
+// Lines are read a piece at a time (4 KiB): lines around and across the pieces' size come out whole, and
+// the bound cuts across pieces.
+TEST(LineReader, LinesLongerThanAPieceComeOutWhole) {
+    std::string text;
+    const std::size_t sizes[] = {4094, 4095, 4096, 4097, 8190, 8191, 9000, 12000};
+    for (std::size_t n : sizes)
+        text += std::string(n, static_cast<char>('a' + n % 26)) + "\n";
+    text += std::string(8191, 'z');  // the last, without LF, a piece's multiple less one
+    const auto lines = read_all(text, 10000);
+    ASSERT_EQ(lines.size(), std::size(sizes) + 1);
+    for (std::size_t i = 0; i < std::size(sizes); ++i) {
+        EXPECT_EQ(lines[i].length, sizes[i]);
+        EXPECT_EQ(lines[i].too_long, sizes[i] > 10000) << sizes[i];
+        EXPECT_EQ(lines[i].text, std::string(std::min<std::size_t>(sizes[i], 10000),
+                                             static_cast<char>('a' + sizes[i] % 26)));
+        EXPECT_EQ(lines[i].number, i + 1);
+    }
+    EXPECT_EQ(lines.back().text, std::string(8191, 'z'));
 }
 
 TEST(ReadTextFile, ReadsWithinTheLimitAndRefusesBeyondIt) {
