@@ -146,15 +146,10 @@ bool read_text(Analyzer& a, const Input& input) {
     bool ok = true;
     Position position(a, in);
     modbus::storage::LineReader lines(in);
-    for (std::string line; lines.next(line);) {
+    const auto error = [&](const std::string& message) { a.input_error(message); };
+    for (std::string line; next_log_line(lines, line, path, error, ok);) {
         const auto number = lines.number();
         position.record();
-        if (lines.too_long()) {
-            a.input_error(path + ":" + std::to_string(number) + ": " +
-                          modbus::storage::too_long_line_message(lines));
-            ok = false;
-            continue;
-        }
         std::istringstream words(line);
         std::string time_token;
         if (!(words >> time_token) || time_token[0] == '#') continue;

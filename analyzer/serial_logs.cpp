@@ -215,9 +215,10 @@ std::size_t socat_bytes(std::string_view line, std::size_t most, std::vector<std
     return n;
 }
 
-// The next line that fits the bound; a longer one is named as an error and read past.
-bool next_line(modbus::storage::LineReader& lines, std::string& text, const std::string& name,
-               const LogErrorCallback& error, bool& ok) {
+}  // namespace
+
+bool next_log_line(modbus::storage::LineReader& lines, std::string& text, const std::string& name,
+                   const LogErrorCallback& error, bool& ok) {
     while (lines.next(text)) {
         if (!lines.too_long()) return true;
         error(where(name, lines.number()) + modbus::storage::too_long_line_message(lines));
@@ -225,8 +226,6 @@ bool next_line(modbus::storage::LineReader& lines, std::string& text, const std:
     }
     return false;
 }
-
-}  // namespace
 
 bool read_jpnevulator_log(std::istream& in, const std::string& name, const SerialLogOptions& options,
                           const ChunkCallback& chunk, const LogErrorCallback& error) {
@@ -243,7 +242,7 @@ bool read_jpnevulator_log(std::istream& in, const std::string& name, const Seria
         run.bytes.clear();
     };
     modbus::storage::LineReader lines(in);
-    for (std::string text; next_line(lines, text, name, error, ok);) {
+    for (std::string text; next_log_line(lines, text, name, error, ok);) {
         const auto number = lines.number();
         const auto line = trim_right(text);
         if (line.empty()) continue;
@@ -301,7 +300,7 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
         block.bytes.clear();
     };
     modbus::storage::LineReader lines(in);
-    for (std::string text; next_line(lines, text, name, error, ok);) {
+    for (std::string text; next_log_line(lines, text, name, error, ok);) {
         const auto number = lines.number();
         const auto line = trim_right(text);
         if (line.empty()) continue;

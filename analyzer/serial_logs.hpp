@@ -46,6 +46,10 @@
 #include "modbus/pdu.hpp"
 #include "modbus/serial_line.hpp"
 
+namespace mbscope::modbus::storage {
+class LineReader;
+}
+
 namespace mbscope::analyzer {
 
 struct SerialLogOptions {
@@ -78,6 +82,11 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
 
 // The text format's direction words, any case: ">", "M", "TX", "REQ", "MASTER" (master → slave) and "<",
 // "S", "RX", "RSP", "SLAVE" (slave → master).
+// The next line of a text log that fits the line bound (modbus/storage/text_file.hpp) into `text`; a longer
+// one is named to `error` ("NAME:LINE: line of N bytes is longer ...") and read past, and `ok` set false.
+bool next_log_line(modbus::storage::LineReader& lines, std::string& text, const std::string& name,
+                   const LogErrorCallback& error, bool& ok);
+
 std::optional<modbus::Direction> direction_word(std::string_view word);
 
 // The head of a file (a few KiB) looks like such a log.

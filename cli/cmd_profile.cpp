@@ -66,14 +66,10 @@ std::optional<ProfileConfig> parse_config(const ProfileOptions& o) {
             config[channel] = map.get<std::string>();
         }
     }
-    for (const auto& kv : o.config) {
-        const auto eq = kv.find('=');
-        if (eq == std::string::npos) {
-            std::cerr << "mbscope profile: --config takes CHANNEL=MAP, not '" << kv << "'\n";
-            return std::nullopt;
-        }
-        config[kv.substr(0, eq)] = kv.substr(eq + 1);
-    }
+    const auto given = parse_config_options(o.config, "profile");
+    if (!given) return std::nullopt;
+    for (const auto& [channel, map] : *given)
+        config[channel] = map;
     return config;
 }
 
