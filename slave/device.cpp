@@ -100,6 +100,12 @@ std::vector<std::uint8_t> Device::exception(std::uint8_t fc, std::uint8_t code) 
     return encode(modbus::make_exception(fc, code));
 }
 
+std::vector<std::uint8_t> Device::refuse_taken_back_write(std::uint8_t fc) {
+    // handle() counted the acknowledgement it made as a completion; that acknowledgement is never sent.
+    --counters_.event_count;  // the exact inverse, wrap-round included
+    return exception(fc & 0x7F, exc_device_failure);
+}
+
 Reply Device::handle(const Request& request) {
     Reply reply;
     if (request.pdu.empty()) return reply;

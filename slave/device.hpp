@@ -47,6 +47,9 @@ class Device {
 
     Reply handle(const Request& request);
     void count_frame(bool checksum_ok) noexcept;  // the server saw a frame on the line (any unit)
+    // The reply to a write whose effect was taken back (it could not be saved): exception 04, counted as an
+    // exception and not as a completed message (FC11 counts successful completions only, AP §6.9).
+    std::vector<std::uint8_t> refuse_taken_back_write(std::uint8_t fc);
     // As the device was made: initial register image, counters zero, not in listen-only mode.
     void reset() noexcept;
 

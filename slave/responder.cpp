@@ -70,7 +70,7 @@ std::vector<std::uint8_t> Responder::answer(std::uint8_t unit, std::span<const s
         // (exception 04) instead, and takes the write back (a refused request changes nothing, AP §7).
         if (r.wrote && !r.pdu.empty() && save_ && !save_()) {
             d->image().undo();
-            r.pdu = modbus::encode_pdu(modbus::make_exception(request[0], 0x04));
+            r.pdu = d->refuse_taken_back_write(request[0]);
         } else if (save_) {
             d->image().keep();
         }

@@ -142,6 +142,22 @@ TEST(SlaveProcess, AWriteThatCannotBeSavedIsRefusedAndTakenBack) {
         << refused;
 }
 
+// The write taken back was never acknowledged: the comm event counter (FC11, AP §6.9: successful
+// completions only) does not count it, and the bus exception count (FC8 sub-function 0x0D) does.
+TEST(SlaveProcess, AWriteTakenBackCountsAsAnExceptionNotAsACompletedMessage) {
+    const auto [dir, state] = state_in_new_directory("uncounted");
+    SlaveProcess slave({"--profile", "modbus", "--listen", "tcp://127.0.0.1:0", "--state", state});
+    ASSERT_NE(slave.port(), 0);
+    Client c(slave.port());
+    ASSERT_TRUE(c.connected());
+    EXPECT_EQ(c.exchange(mbap(1, "06 00 00 00 2A"), 12), "00 01 00 00 00 06 01 06 00 00 00 2A");
+    EXPECT_EQ(c.exchange(mbap(2, "0B"), 12), "00 02 00 00 00 06 01 0B 00 00 00 01");
+    fs::remove_all(dir);  // the state file can no longer be saved
+    EXPECT_EQ(c.exchange(mbap(3, "06 00 00 00 63"), 9), "00 03 00 00 00 03 01 86 04");
+    EXPECT_EQ(c.exchange(mbap(4, "0B"), 12), "00 04 00 00 00 06 01 0B 00 00 00 01");
+    EXPECT_EQ(c.exchange(mbap(5, "08 00 0D 00 00"), 12), "00 05 00 00 00 06 01 08 00 0D 00 01");
+}
+
 TEST(SlaveProcess, HundredClientsAtOnceAreEachAnsweredWithTheirOwnData) {
     SlaveProcess slave({"--profile", "modbus", "--listen", "tcp://127.0.0.1:0"});
     ASSERT_NE(slave.port(), 0);
