@@ -10,8 +10,11 @@
 namespace mbscope::cli {
 
 void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
-    cmd.add_option("--tcp-port", o.tcp_ports, "Modbus/TCP server port besides 502 (repeatable)");
-    cmd.add_option("--udp-port", o.udp_ports, "Modbus/UDP server port besides 502 (repeatable)");
+    // Port 0 is no port a packet is sent to: a typo for another number, not a request to decode nothing.
+    cmd.add_option("--tcp-port", o.tcp_ports, "Modbus/TCP server port besides 502 (repeatable)")
+        ->check(CLI::Range(1, 65535));
+    cmd.add_option("--udp-port", o.udp_ports, "Modbus/UDP server port besides 502 (repeatable)")
+        ->check(CLI::Range(1, 65535));
     cmd.add_option("--baud", o.baud, "Serial line: baud rate (for t1.5/t3.5)")
         ->check(CLI::Range(50u, 10'000'000u))
         ->capture_default_str();

@@ -127,7 +127,8 @@ void register_decode(CLI::App& app, int& exit_code) {
         ->check(CLI::IsMember({"left", "right"}))
         ->capture_default_str();
     cmd->add_option("--rtu-over-tcp", o->rtu_over_tcp_ports,
-                    "TCP port of a serial gateway whose streams carry raw RTU frames, no MBAP (repeatable)");
+                    "TCP port of a serial gateway whose streams carry raw RTU frames, no MBAP (repeatable)")
+        ->check(CLI::Range(1, 65535));
     cmd->add_option(
            "--user-dlt", o->user_dlt,
            "What pcap link types USER0..USER15 (147-162) carry: rtu or ascii serial bytes, one chunk "
