@@ -97,16 +97,6 @@ bool contains(const std::vector<std::uint16_t>& ports, std::uint16_t port) {
 }
 }  // namespace
 
-void Analyzer::note_modbus_like(const L4Packet& l4) {
-    const auto p = l4.payload;
-    if (p.size() < 8 || p[2] != 0 || p[3] != 0) return;
-    const std::size_t length = (std::size_t{p[4]} << 8) | p[5];
-    if (length < 2 || length > 254 || p.size() != 6 + length || !is_public_function(p[7] & 0x7F)) return;
-    // The server's port is usually the lower one (clients take theirs from the ephemeral range).
-    ++summary_
-          .modbus_like_ports[{l4.transport == Transport::Udp, std::min(l4.source.port, l4.destination.port)}];
-}
-
 bool Analyzer::server_port(Transport transport, std::uint16_t port) const {
     if (transport == Transport::Udp) return contains(options_.udp_ports, port);
     return contains(options_.tcp_ports, port) || contains(options_.rtu_over_tcp_ports, port);
@@ -227,7 +217,7 @@ void Analyzer::packet_in_source(const Packet& p) {
     L4Packet l4;
     if (parse_packet(p.linktype, p.data, l4) != ParseStatus::Ok) return;
     if (!server_port(l4.transport, l4.destination.port) && !server_port(l4.transport, l4.source.port)) {
-        note_modbus_like(l4);
+        modbus_like_.note(l4);
         return;
     }
     bool to_server = false;
@@ -960,6 +950,7 @@ void Analyzer::finish() {
         serial_events(*link, events, now_);
     }
     expire(now_, true);
+    summary_.modbus_like_ports = modbus_like_.tally();
     sink_.end(summary_);
 }
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "analyzer/capture_source.hpp"
+#include "analyzer/modbus_like_ports.hpp"
 #include "analyzer/packet_parser.hpp"
 #include "analyzer/records.hpp"
 #include "analyzer/semantics.hpp"
@@ -129,7 +130,6 @@ class Analyzer {
     };
     static FlowKey flow_key(Transport transport, const Endpoint& client, const Endpoint& server);
     bool server_port(Transport transport, std::uint16_t port) const;
-    void note_modbus_like(const L4Packet& l4);
     Flow& flow_for(const L4Packet& l4, bool& to_server);
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);
@@ -172,6 +172,7 @@ class Analyzer {
 
     std::map<std::string, std::unique_ptr<Flow>> flows_;  // owner, in a stable order for the end
     std::unordered_map<FlowKey, Flow*, FlowKeyHash> flow_index_;
+    ModbusLikePorts modbus_like_;  // ADUs on ports not decoded, for the summary's hint
     // In front of the index: a direct-mapped cache by the hash's top bits, so that a packet of a known flow
     // costs a hash and a compare, not the index's division by a prime and its node (the index's lookup was
     // the largest single item of a summary run).

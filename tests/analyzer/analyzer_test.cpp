@@ -293,6 +293,9 @@ TEST(Analyzer, ModbusOnAPortNotDecodedIsNamedInTheSummary) {
     };
     send(true, read_request(1), 1502);
     send(false, read_response(1), 1502);
+    // A server on a port above its client's (40000): the reply's transaction id says which side serves.
+    send(true, read_request(7), 45000);
+    send(false, read_response(7), 45000);
     send(true, read_request(2), 5020, true);
     const std::string http = "GET / HTTP/1.1\r\nHost: plc\r\n\r\n";
     send(true, std::vector<std::uint8_t>(http.begin(), http.end()), 80);
@@ -305,8 +308,9 @@ TEST(Analyzer, ModbusOnAPortNotDecodedIsNamedInTheSummary) {
     a.finish();
     EXPECT_TRUE(sink.frames.empty());
     const auto& ports = a.summary().modbus_like_ports;
-    ASSERT_EQ(ports.size(), 2u);
+    ASSERT_EQ(ports.size(), 3u);
     EXPECT_EQ(ports.at({false, 1502}), 2u);
+    EXPECT_EQ(ports.at({false, 45000}), 2u);
     EXPECT_EQ(ports.at({true, 5020}), 1u);
 
     std::ostringstream text;
@@ -316,6 +320,7 @@ TEST(Analyzer, ModbusOnAPortNotDecodedIsNamedInTheSummary) {
               std::string::npos)
         << text.str();
     EXPECT_NE(text.str().find("--udp-port 5020"), std::string::npos) << text.str();
+    EXPECT_NE(text.str().find("hint: 2 TCP packets on port 45000"), std::string::npos) << text.str();
 }
 
 TEST(LatencyHistogram, QuantilesWithinThreePercent) {
