@@ -73,6 +73,16 @@ std::optional<Pdu> build_pdu(const std::vector<std::string>& a, std::string& err
         return false;
     };
     auto u16 = [](long v) { return static_cast<std::uint16_t>(v); };
+    // One-byte fields (a function code, an exception code, a MEI object): a larger number is refused, not
+    // cut to its low byte.
+    auto bytes_at = [&](std::initializer_list<std::size_t> positions) {
+        for (std::size_t i : positions)
+            if (i < n.size() && n[i] > 0xFF) {
+                error = verb + ": not a number from 0 to 255: '" + a[i + 1] + "'";
+                return false;
+            }
+        return true;
+    };
     auto words_from = [&](std::size_t from) {
         std::vector<std::uint16_t> w;
         for (std::size_t i = from; i < n.size(); ++i)
@@ -99,8 +109,13 @@ std::optional<Pdu> build_pdu(const std::vector<std::string>& a, std::string& err
     if (verb == "write-coils") {
         if (!need(2, true)) return std::nullopt;
         std::vector<bool> bits;
-        for (std::size_t i = 1; i < n.size(); ++i)
+        for (std::size_t i = 1; i < n.size(); ++i) {
+            if (n[i] > 1) {
+                error = "write-coils: a coil is 0 or 1, not '" + a[i + 1] + "'";
+                return std::nullopt;
+            }
             bits.push_back(n[i] != 0);
+        }
         std::unique_ptr<bool[]> arr(new bool[bits.size()]);
         for (std::size_t i = 0; i < bits.size(); ++i)
             arr[i] = bits[i];
@@ -121,9 +136,10 @@ std::optional<Pdu> build_pdu(const std::vector<std::string>& a, std::string& err
                        : std::nullopt;
     if (verb == "read-fifo") return need(1) ? std::optional(make_read_fifo_queue(u16(n[0]))) : std::nullopt;
     if (verb == "read-device-id")
-        return need(2) ? std::optional(make_read_device_id(static_cast<std::uint8_t>(n[0]),
-                                                           static_cast<std::uint8_t>(n[1])))
-                       : std::nullopt;
+        return need(2) && bytes_at({0, 1})
+                   ? std::optional(make_read_device_id(static_cast<std::uint8_t>(n[0]),
+                                                       static_cast<std::uint8_t>(n[1])))
+                   : std::nullopt;
     if (verb == "diagnostics") {
         if (!need(1)) return std::nullopt;
         auto data = hex_data(2);
@@ -139,11 +155,11 @@ std::optional<Pdu> build_pdu(const std::vector<std::string>& a, std::string& err
     for (const auto& [name, fc] : no_data)
         if (verb == name) return need(0) ? std::optional(make_no_data_request(fc)) : std::nullopt;
     if (verb == "exception") {
-        if (!need(2)) return std::nullopt;
+        if (!need(2) || !bytes_at({0, 1})) return std::nullopt;
         return make_exception(static_cast<std::uint8_t>(n[0]), static_cast<std::uint8_t>(n[1]));
     }
     if (verb == "raw") {
-        if (!need(1)) return std::nullopt;
+        if (!need(1) || !bytes_at({0})) return std::nullopt;
         auto data = hex_data(2);
         if (!data) return std::nullopt;
         Pdu p;
@@ -244,8 +260,19 @@ int run_frame(const FrameOptions& o) {
             std::cerr << "mbscope frame: " << error << "\n" << encode_help << '\n';
             return exit_failure;
         }
+        auto bytes = encode_pdu(*pdu);
+        // Past 253 bytes no framing can carry the PDU, and a byte count past 255 would wrap round: the frame
+        // printed would not be the one asked for. Counts beyond the specification's that still fit (1,969
+        // to 1,976 coils, quantities of a read) are encoded, and the decoding below names the limit they
+        // break.
+        if (bytes.size() > modbus::max_pdu_length) {
+            std::cerr << "mbscope frame: " << o.args[0] << ": the PDU would be " << bytes.size()
+                      << " bytes; a Modbus PDU holds at most " << modbus::max_pdu_length
+                      << " (AP §4.1), so fewer values\n";
+            return exit_failure;
+        }
         auto wire = encode_adu(framing, static_cast<std::uint16_t>(o.transaction_id),
-                               static_cast<std::uint8_t>(o.unit), encode_pdu(*pdu));
+                               static_cast<std::uint8_t>(o.unit), std::move(bytes));
         return emit({decode_frame(framing, std::move(wire), pdu->direction)}, o.json);
     }
     auto wire = wire_from_tokens(framing, o.args, error);

@@ -66,6 +66,43 @@ TEST(FrameCommand, EncodeReadHoldingGivesTheManualsFrame) {
     EXPECT_EQ(nlohmann::json::parse(t.out)["wire"], "00 01 00 00 00 06 11 03 00 6B 00 03");
 }
 
+// What --encode cannot encode faithfully is refused (exit 2, the value named): the byte count of 130
+// registers (260) wrapped round to 04 in a 269-byte frame, a coil given as 2 became 1, and a function or
+// exception code past 255 was cut to its low byte. Counts past the specification's that a frame can still
+// carry are encoded, and the decoding names the broken limit (exit 1).
+TEST(FrameCommand, EncodeRefusesWhatTheFrameCannotHold) {
+    std::string many;
+    for (int i = 0; i < 130; ++i)
+        many += " 1";
+    const struct {
+        std::string args, message;
+    } cases[] = {
+        {"write-registers 0" + many,
+         "write-registers: the PDU would be 266 bytes; a Modbus PDU holds at most 253"},
+        {"read-write 0 1 0" + many, "read-write: the PDU would be 270 bytes"},
+        {"write-coils 0 1 0 2", "write-coils: a coil is 0 or 1, not '2'"},
+        {"exception 300 2", "exception: not a number from 0 to 255: '300'"},
+        {"exception 3 256", "exception: not a number from 0 to 255: '256'"},
+        {"raw 0x103", "raw: not a number from 0 to 255: '0x103'"},
+        {"read-device-id 1 999", "read-device-id: not a number from 0 to 255: '999'"},
+    };
+    for (const auto& c : cases) {
+        const auto r = run_mbscope("frame --encode --rtu " + c.args);
+        EXPECT_EQ(r.exit_code, 2) << c.args << "\n" << r.out;
+        EXPECT_NE(r.out.find(c.message), std::string::npos) << c.args << "\n" << r.out;
+    }
+    std::string most;  // 123 registers: the specification's limit, 252 bytes of PDU
+    for (int i = 0; i < 123; ++i)
+        most += " 7";
+    EXPECT_EQ(run_mbscope("frame --encode --tcp write-registers 0" + most).exit_code, 0);
+    std::string coils;  // 1,969 coils: one past the specification's 1,968, in 247 bytes (a 253-byte PDU)
+    for (int i = 0; i < 1969; ++i)
+        coils += " 1";
+    const auto over = run_mbscope("frame --encode --tcp write-coils 0" + coils);
+    EXPECT_EQ(over.exit_code, 1) << over.out;
+    EXPECT_NE(over.out.find("1969"), std::string::npos) << over.out;
+}
+
 TEST(FrameCommand, EchoIsNamedAsSuch) {
     auto r = run_mbscope("frame --rtu 11 06 00 54 03 9E 4B D2");
     EXPECT_NE(r.out.find("echo response"), std::string::npos) << r.out;
