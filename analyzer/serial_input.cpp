@@ -4,7 +4,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <cstring>
@@ -15,7 +14,7 @@
 
 #include "analyzer/serial_logs.hpp"
 #include "analyzer/timestamps.hpp"
-#include "modbus/frame_text.hpp"  // quote_excerpt()
+#include "modbus/frame_text.hpp"  // parse_hex(), quote_excerpt()
 #include "modbus/storage/text_file.hpp"
 #include "modbus/transport/unique_fd.hpp"
 
@@ -36,26 +35,6 @@ std::optional<InputFormat> parse_input_format(std::string_view n) {
 }
 
 namespace {
-
-bool parse_hex_tokens(std::istringstream& words, std::vector<std::uint8_t>& out, std::string first = {}) {
-    std::string digits;
-    auto take = [&](const std::string& token) {
-        for (char c : token) {
-            if (std::isxdigit(static_cast<unsigned char>(c)))
-                digits.push_back(c);
-            else if (c != ',' && c != ':' && c != '-')
-                return false;
-        }
-        return true;
-    };
-    if (!first.empty() && !take(first)) return false;
-    for (std::string t; words >> t;)
-        if (!take(t)) return false;
-    if (digits.size() % 2) return false;
-    for (std::size_t i = 0; i < digits.size(); i += 2)
-        out.push_back(static_cast<std::uint8_t>(std::stoi(digits.substr(i, 2), nullptr, 16)));
-    return true;
-}
 
 bool parse_time(const std::string& token, modbus::Timestamp& t) {
     double seconds = 0;
@@ -164,12 +143,18 @@ bool read_text(Analyzer& a, const Input& input) {
         std::string next;
         words >> next;
         auto dir = direction_word(next);
-        std::vector<std::uint8_t> bytes;
-        if (!parse_hex_tokens(words, bytes, dir ? std::string() : next)) {
-            a.input_error(path + ":" + std::to_string(number) + ": not hex bytes");
+        std::vector<std::string> tokens;
+        if (!dir && !next.empty()) tokens.push_back(std::move(next));
+        for (std::string token; words >> token;)
+            tokens.push_back(std::move(token));
+        std::string hex_error;
+        auto parsed = modbus::parse_hex(tokens, hex_error);
+        if (!parsed) {
+            a.input_error(path + ":" + std::to_string(number) + ": not hex bytes: " + hex_error);
             ok = false;
             continue;
         }
+        std::vector<std::uint8_t>& bytes = *parsed;
         if (t.count() == 0) t = modbus::Timestamp(1);  // zero means "untimed" to the analyzer
         a.serial(path, bytes, t, dir.value_or(Direction::Unknown));
     }

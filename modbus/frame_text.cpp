@@ -60,15 +60,32 @@ std::string printable(std::string_view text) {
 
 std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> tokens, std::string& error) {
     std::vector<std::uint8_t> bytes;
-    int high = -1;  // the first digit of a byte, until its second comes
     for (const auto& token : tokens) {
+        // A group is a run of hex digits between separators: its digits pair up within it, never with the
+        // next group's ("11 3 0 6b" is not 11 30 6B).
+        std::size_t group = 0;  // where the current group starts in the token
+        int high = -1;          // the first digit of a byte, until its second comes
+        const auto end_group = [&](std::size_t at) {
+            if (high < 0) return true;
+            const auto digits = token.substr(group, at - group);
+            error = "odd number of hex digits in " + quote_excerpt(digits) + ": a byte is two digits" +
+                    (digits.size() == 1 ? " (0" + digits + ")" : std::string()) +
+                    (digits.size() != token.size() ? " in " + quote_excerpt(token) : "");
+            return false;
+        };
         for (std::size_t i = 0; i < token.size(); ++i) {
             const char c = token[i];
             if (c == '0' && i + 1 < token.size() && (token[i + 1] == 'x' || token[i + 1] == 'X')) {
+                if (!end_group(i)) return std::nullopt;
                 ++i;  // a 0x prefix
+                group = i + 1;
                 continue;
             }
-            if (c == ' ' || c == ',' || c == ':' || c == '-' || c == '\t') continue;
+            if (c == ' ' || c == ',' || c == ':' || c == '-' || c == '\t') {
+                if (!end_group(i)) return std::nullopt;
+                group = i + 1;
+                continue;
+            }
             const int v = hex_digit(c);
             if (v < 0) {
                 error = "not a hex digit: " + quote_excerpt(std::string_view(&c, 1)) + " in " +
@@ -82,10 +99,7 @@ std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> 
                 high = -1;
             }
         }
-    }
-    if (high >= 0) {
-        error = "odd number of hex digits (" + std::to_string(bytes.size() * 2 + 1) + ")";
-        return std::nullopt;
+        if (!end_group(token.size())) return std::nullopt;
     }
     return bytes;
 }

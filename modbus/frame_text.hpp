@@ -33,8 +33,9 @@ struct DecodedFrame {
 };
 
 // "11 03 00 60", "1103 0060", "0x11,0x03", "11-03": hex digits two to a byte, with 0x prefixes, blanks,
-// commas, colons and dashes between them ignored. Returns nullopt and sets error on anything else or an odd
-// number of digits.
+// commas, colons and dashes between groups of digits. Returns nullopt and sets error on anything else or on
+// a group with an odd number of digits (the digits of a byte stand together: "11 3 0" is an error, not
+// 11 30).
 std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> tokens, std::string& error);
 
 // The bytes of a frame given as tokens: hex as above, or for ASCII also the frame's text

@@ -128,15 +128,17 @@ TEST(SerialInput, TimedTextFindsGapsTimeoutsBroadcastRepliesAndBadCrc) {
 }
 
 TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
-    auto r = decode(
-        write_temp(
-            "bad.txt",
-            "1.0 11 03 00 60 00 03 07 45\nnot-a-time 11\n1.5 zz\n1.02 11 03 06 02 2B 00 00 00 64 C8 BA\n"),
-        an::InputFormat::Text);
+    const auto path = write_temp("bad.txt",
+                                 "1.0 11 03 00 60 00 03 07 45\nnot-a-time 11\n1.5 zz\n1.6 > 11 3 0 60\n"
+                                 "1.02 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path, an::InputFormat::Text);
     EXPECT_FALSE(r->ok);
-    ASSERT_EQ(r->summary.input_errors.size(), 2u);
+    ASSERT_EQ(r->summary.input_errors.size(), 3u);
     EXPECT_NE(r->summary.input_errors[0].find("bad.txt:2"), std::string::npos);
-    EXPECT_NE(r->summary.input_errors[1].find("bad.txt:3"), std::string::npos);
+    EXPECT_EQ(r->summary.input_errors[1], path + ":3: not hex bytes: not a hex digit: 'z' in 'zz'");
+    // A byte's two digits stand together: "11 3 0 60" is not 11 30 60.
+    EXPECT_EQ(r->summary.input_errors[2],
+              path + ":4: not hex bytes: odd number of hex digits in '3': a byte is two digits (03)");
     EXPECT_EQ(r->sink.transactions.size(), 1u);
 }
 

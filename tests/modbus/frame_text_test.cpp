@@ -42,7 +42,14 @@ TEST(FrameText, ParseHexAcceptsCommonSpellings) {
 TEST(FrameText, ParseHexNamesTheDigitAndTheToken) {
     std::string error;
     EXPECT_FALSE(parse_hex(std::vector<std::string>{"123"}, error).has_value());
-    EXPECT_EQ(error, "odd number of hex digits (3)");
+    EXPECT_EQ(error, "odd number of hex digits in '123': a byte is two digits");
+    // A byte's digits stand together: a lone digit is not paired with the next group's first.
+    EXPECT_FALSE(parse_hex(std::vector<std::string>{"11", "3", "0", "6b"}, error).has_value());
+    EXPECT_EQ(error, "odd number of hex digits in '3': a byte is two digits (03)");
+    EXPECT_FALSE(parse_hex(std::vector<std::string>{"11-3-00"}, error).has_value());
+    EXPECT_EQ(error, "odd number of hex digits in '3': a byte is two digits (03) in '11-3-00'");
+    EXPECT_FALSE(parse_hex(std::vector<std::string>{"0x3"}, error).has_value());
+    EXPECT_EQ(error, "odd number of hex digits in '3': a byte is two digits (03) in '0x3'");
     EXPECT_FALSE(parse_hex(std::vector<std::string>{"11", "0G"}, error).has_value());
     EXPECT_EQ(error, "not a hex digit: 'G' in '0G'");
     // A control character is shown escaped, a long token cut short.
