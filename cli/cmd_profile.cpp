@@ -190,15 +190,56 @@ int run_show(const ProfileOptions& o) {
     return exit_ok;
 }
 
-int run_validate(const ProfileOptions& o) {
-    int rc = exit_ok;
-    for (const auto& f : o.files) {
-        auto loaded = storage::load_profile_file(f, parse_config(o).value_or(ProfileConfig{}));
-        if (!loaded.is_profile && loaded.errors.empty()) {
-            std::cout << f << ": not a profile document (no \"format\": \"mbscope-profile/1\")\n";
-            rc = std::max(rc, exit_findings);
+// A file to validate, and whether it was found in a directory rather than named.
+struct ToValidate {
+    std::string path;
+    bool found = false;
+};
+
+// Each file named, and for a directory every .json file under it, in name order (`mbscope profile validate
+// profiles/` in a CI job). A directory without a .json file is reported, not passed.
+std::vector<ToValidate> files_to_validate(const std::vector<std::string>& named, int& rc) {
+    std::vector<ToValidate> files;
+    for (const auto& f : named) {
+        std::error_code ec;
+        if (!std::filesystem::is_directory(f, ec)) {
+            files.push_back({f, false});
             continue;
         }
+        std::vector<std::string> found;
+        const auto skip = std::filesystem::directory_options::skip_permission_denied;
+        for (std::filesystem::recursive_directory_iterator it(f, skip, ec), end; !ec && it != end;
+             it.increment(ec))
+            if (it->path().extension() == ".json" && it->is_regular_file(ec))
+                found.push_back(it->path().string());
+        if (ec) {
+            std::cout << f << ": cannot list: " << ec.message() << '\n';
+            rc = std::max(rc, exit_findings);
+        } else if (found.empty()) {
+            std::cout << f << ": no .json file in this directory\n";
+            rc = std::max(rc, exit_findings);
+        }
+        std::sort(found.begin(), found.end());
+        for (auto& path : found)
+            files.push_back({std::move(path), true});
+    }
+    return files;
+}
+
+int run_validate(const ProfileOptions& o) {
+    int rc = exit_ok;
+    std::size_t documents = 0;  // profile documents among the files, valid or not
+    for (const auto& [f, found] : files_to_validate(o.files, rc)) {
+        auto loaded = storage::load_profile_file(f, parse_config(o).value_or(ProfileConfig{}));
+        if (!loaded.is_profile && loaded.errors.empty()) {
+            // Named, it was meant as a profile; found beside profiles (a JSON schema, a note), it is passed
+            // over as the profile search passes over it.
+            std::cout << f << ": not a profile document (no \"format\": \"mbscope-profile/1\")"
+                      << (found ? ", skipped" : "") << '\n';
+            if (!found) rc = std::max(rc, exit_findings);
+            continue;
+        }
+        ++documents;
         print_errors(loaded.errors);
         if (!loaded.errors.empty()) {
             rc = std::max(rc, exit_findings);
@@ -208,6 +249,10 @@ int run_validate(const ProfileOptions& o) {
         for (const auto& p : loaded.profiles)
             std::cout << f << ": " << p.id << " ok (" << p.point_count(Table::Coils) << " coils, "
                       << p.point_count(Table::HoldingRegisters) << " holding registers)\n";
+    }
+    if (documents == 0 && rc == exit_ok) {
+        std::cout << "no profile document among the files\n";
+        rc = exit_findings;
     }
     return rc;
 }
@@ -336,7 +381,9 @@ void register_profile(CLI::App& app, int& exit_code) {
     show->callback([o, &exit_code] { exit_code = run_show(*o); });
     auto* validate =
         cmd->add_subcommand("validate", "Check profile files, reporting every error with its JSON pointer");
-    validate->add_option("files", o->files, "Profile files")->required();
+    validate
+        ->add_option("files", o->files, "Profile files, or directories of them (every .json file under it)")
+        ->required();
     common(validate);
     validate->callback([o, &exit_code] { exit_code = run_validate(*o); });
     auto* lookup =

@@ -1,6 +1,7 @@
 #include "modbus/storage/text_file.hpp"
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 
 namespace mbscope::modbus::storage {
@@ -58,7 +59,9 @@ std::optional<std::string> read_text_file(const std::string& path, std::string& 
         text.append(buffer, n);
     }
     if (in.bad()) {
-        error = "read error";
+        // A directory opens but cannot be read: say so rather than blame the disk.
+        std::error_code ec;
+        error = std::filesystem::is_directory(path, ec) ? "is a directory, not a file" : "read error";
         return std::nullopt;
     }
     return text;

@@ -76,6 +76,33 @@ TEST(ProfileCommand, ValidateReportsEveryErrorWithPointer) {
     EXPECT_EQ(ok.exit_code, 0) << ok.out;
 }
 
+// A CI job validates a directory of profiles: every .json file under it, a broken one failing the run;
+// JSON that is no profile (a schema beside them) is passed over, but a run that found no profile at all
+// fails. A directory named as a file said "read error".
+TEST(ProfileCommand, ValidateADirectoryChecksEveryProfileUnderIt) {
+    const auto all = run_mbscope("profile validate " + fixtures);
+    EXPECT_EQ(all.exit_code, 1) << all.out;
+    EXPECT_NE(all.out.find("/tables/holding_registers/1/access: must be r, w or rw"), std::string::npos)
+        << all.out;
+    EXPECT_NE(all.out.find("test-device.json: test-device ok"), std::string::npos) << all.out;
+
+    const auto bundled = run_mbscope("profile validate " + std::string(MBSCOPE_SOURCE_DIR) + "/profiles");
+    EXPECT_EQ(bundled.exit_code, 0) << bundled.out;
+    EXPECT_NE(bundled.out.find("profile.schema.json: not a profile document"), std::string::npos)
+        << bundled.out;
+    EXPECT_NE(bundled.out.find("walchem-w600.json: walchem-w600 ok"), std::string::npos) << bundled.out;
+
+    const auto schema_only =
+        run_mbscope("profile validate " + std::string(MBSCOPE_SOURCE_DIR) + "/profiles/schema");
+    EXPECT_EQ(schema_only.exit_code, 1) << schema_only.out;
+    EXPECT_NE(schema_only.out.find("no profile document among the files"), std::string::npos)
+        << schema_only.out;
+
+    const auto frames = run_mbscope("frame --file " + fixtures);
+    EXPECT_EQ(frames.exit_code, 2) << frames.out;
+    EXPECT_NE(frames.out.find(fixtures + ": is a directory, not a file"), std::string::npos) << frames.out;
+}
+
 TEST(ProfileCommand, HelpOnEverySubcommand) {
     for (const char* sub : {"", " list", " show", " validate", " lookup", " decode"})
         EXPECT_EQ(run_mbscope(std::string("profile") + sub + " --help").exit_code, 0) << sub;
