@@ -1,6 +1,8 @@
 #include "modbus/transport/endpoint.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <vector>
 
 namespace mbscope::modbus::transport {
 
@@ -107,6 +109,7 @@ Result<Endpoint, std::string> parse_serial(Scheme scheme, std::string_view rest,
     if (ep.device.empty()) return std::string("missing device in ") + std::string(uri);
     if (q == std::string_view::npos) return ep;
     std::string_view query = rest.substr(q + 1);
+    std::vector<std::string_view> given;  // a key given twice is a mistake, not "the last one wins"
     while (!query.empty()) {
         const auto amp = query.find('&');
         const std::string_view kv = query.substr(0, amp);
@@ -115,6 +118,9 @@ Result<Endpoint, std::string> parse_serial(Scheme scheme, std::string_view rest,
         if (eq == std::string_view::npos)
             return std::string("expected KEY=VALUE, got '") + std::string(kv) + "'";
         const std::string_view key = kv.substr(0, eq), value = kv.substr(eq + 1);
+        if (std::find(given.begin(), given.end(), key) != given.end())
+            return std::string(key) + " given twice in " + std::string(uri);
+        given.push_back(key);
         const auto bad = [&] {
             return std::string("bad ") + std::string(key) + " '" + std::string(value) + "' in " +
                    std::string(uri);

@@ -148,7 +148,9 @@ INSTANTIATE_TEST_SUITE_P(
                       ErrorCase{"BadData", "ascii:/dev/x?data=9", "bad data '9'"},
                       ErrorCase{"DataTooFew", "ascii:/dev/x?data=6", "bad data '6'"},
                       ErrorCase{"UnknownOption", "rtu:/dev/x?speed=9600", "unknown option 'speed'"},
-                      ErrorCase{"OptionWithoutValue", "rtu:/dev/x?baud", "expected KEY=VALUE, got 'baud'"}),
+                      ErrorCase{"OptionWithoutValue", "rtu:/dev/x?baud", "expected KEY=VALUE, got 'baud'"},
+                      ErrorCase{"OptionTwice", "rtu:/dev/x?baud=9600&parity=N&baud=19200",
+                                "baud given twice in rtu:/dev/x?baud=9600&parity=N&baud=19200"}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(EndpointScheme, NamesAreTheUriSchemes) {
