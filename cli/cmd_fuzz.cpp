@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/number_checks.hpp"
 #include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
@@ -36,31 +37,6 @@ struct FuzzCliOptions {
     std::vector<std::string> config;
 };
 
-// "60s", "2m", "500ms", "90" (seconds).
-std::optional<std::chrono::milliseconds> parse_duration(const std::string& text) {
-    std::size_t used = 0;
-    double value = 0;
-    try {
-        value = std::stod(text, &used);
-    } catch (const std::exception&) {
-        return std::nullopt;
-    }
-    const std::string unit = text.substr(used);
-    double ms = 0;
-    if (unit.empty() || unit == "s")
-        ms = value * 1000;
-    else if (unit == "ms")
-        ms = value;
-    else if (unit == "m" || unit == "min")
-        ms = value * 60000;
-    else if (unit == "h")
-        ms = value * 3600000;
-    else
-        return std::nullopt;
-    if (!(ms > 0) || ms > 1e12) return std::nullopt;
-    return std::chrono::milliseconds(static_cast<std::int64_t>(ms));
-}
-
 void show_progress(const fuzz::network::CampaignSummary& s) {
     std::fprintf(stderr,
                  "\r\033[K%llu requests  %.0f/s  %zu findings  %zu response classes  %zu rule outcomes",
@@ -89,14 +65,7 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     options.read_only = o.read_only;
     options.seed = o.seed;
     if (o.requests) options.requests = o.requests;
-    if (!o.duration.empty()) {
-        options.duration = parse_duration(o.duration);
-        if (!options.duration) {
-            std::cerr << "mbscope fuzz: --duration takes a time such as 60s, 500ms or 5m, not '" << o.duration
-                      << "'\n";
-            return exit_failure;
-        }
-    }
+    if (!o.duration.empty()) options.duration = parse_duration(o.duration);  // checked by duration_text()
     if (!options.requests && !options.duration) options.duration = std::chrono::seconds(60);
     options.timeout = std::chrono::milliseconds(o.timeout_ms);
     if (o.silence_ms >= 0) options.silence_wait = std::chrono::milliseconds(o.silence_ms);
@@ -170,7 +139,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
                     "Device profile id or alias (default: modbus, the specification only)");
     cmd->add_option("--unit", o->unit, "Unit id of the slave (default 1)")->check(CLI::Range(1, 255));
     cmd->add_option("--duration", o->duration,
-                    "Run this long: 60s, 500ms, 5m (default 60s without --requests)");
+                    "Run this long: 60s, 500ms, 5m (default 60s without --requests)")
+        ->check(duration_text());
     cmd->add_option("--requests", o->requests, "Stop after N requests")
         ->check(CLI::Range(std::uint64_t{1}, std::numeric_limits<std::uint64_t>::max()));
     cmd->add_option("--seed", o->seed, "Seed: the same seed against the same target sends the same requests");

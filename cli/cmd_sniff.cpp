@@ -2,12 +2,14 @@
 // findings and a summary out, as mbscope decode prints them (the same output, profile and port options),
 // and optionally a capture file.
 #include <iostream>
+#include <limits>
 #include <memory>
 
 #include "analyzer/analyzer.hpp"
 #include "analyzer/live_capture.hpp"
 #include "cli/analysis_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/number_checks.hpp"
 #include "cli/stop_signal.hpp"
 
 namespace mbscope::cli {
@@ -16,7 +18,7 @@ namespace {
 struct SniffCliOptions {
     AnalysisCliOptions common;
     analyzer::SniffOptions sniff;
-    double duration_s = 0;
+    std::string duration;  // checked by duration_text()
     std::uint64_t count = 0;
 };
 
@@ -27,7 +29,7 @@ int run_sniff(SniffCliOptions o) {
     s.tcp_ports = options.tcp_ports;
     s.udp_ports = options.udp_ports;
     s.line = options.serial_line;
-    if (o.duration_s > 0) s.duration = std::chrono::duration<double>(o.duration_s);
+    if (!o.duration.empty()) s.duration = *parse_duration(o.duration);
     if (o.count > 0) s.count = o.count;
     Outputs outputs;
     if (!outputs.open(o.common, "sniff")) return exit_failure;
@@ -77,8 +79,10 @@ void register_sniff(CLI::App& app, int& exit_code) {
                     "ends in .pcapng, in any case; classic pcap otherwise. Serial bytes are USER0 records: "
                     "read back with mbscope decode --user-dlt rtu, or --user-dlt rtu-dir with --serial2 "
                     "(a direction byte leads each record)");
-    cmd->add_option("--duration", o->duration_s, "Stop after this many seconds");
-    cmd->add_option("--count", o->count, "Stop after this many packets (serial: reads)");
+    cmd->add_option("--duration", o->duration, "Stop after this long: 60 (seconds), 60s, 500ms, 5m")
+        ->check(duration_text());
+    cmd->add_option("--count", o->count, "Stop after this many packets (serial: reads)")
+        ->check(CLI::Range(std::uint64_t{1}, std::numeric_limits<std::uint64_t>::max()));
     cmd->footer(
         "Stops at --duration, --count, SIGINT or SIGTERM, then prints the summary.\n"
         "Exit codes: 0 no error-severity finding, 1 faults found, 2 the capture could not be opened "

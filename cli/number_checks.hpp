@@ -2,7 +2,9 @@
 // Checks for numeric options that CLI11's Range lets through: NaN compares false with both bounds, and a
 // value past what a duration can hold (--timeout 1e300) overflowed its conversion to nanoseconds.
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cmath>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -31,6 +33,42 @@ inline CLI::Validator finite_between(double low, double high, const std::string&
             return {};
         },
         "NUMBER in " + range);
+}
+
+// "60s", "2m", "500ms", "1.5h", "90" (seconds): a positive time of at most 1e12 ms. NaN, infinity, zero and
+// negative times are none (a run bounded by them would never stop, or never start).
+inline std::optional<std::chrono::milliseconds> parse_duration(const std::string& text) {
+    std::size_t used = 0;
+    double value = 0;
+    try {
+        value = std::stod(text, &used);
+    } catch (const std::exception&) {
+        return std::nullopt;
+    }
+    const std::string unit = text.substr(used);
+    double ms = 0;
+    if (unit.empty() || unit == "s")
+        ms = value * 1000;
+    else if (unit == "ms")
+        ms = value;
+    else if (unit == "m" || unit == "min")
+        ms = value * 60000;
+    else if (unit == "h")
+        ms = value * 3600000;
+    else
+        return std::nullopt;
+    if (!(ms >= 1) || ms > 1e12) return std::nullopt;
+    return std::chrono::milliseconds(static_cast<std::int64_t>(ms));
+}
+
+// A --duration option: refused at parse time unless parse_duration takes it.
+inline CLI::Validator duration_text() {
+    return CLI::Validator(
+        [](std::string& text) -> std::string {
+            if (parse_duration(text)) return {};
+            return "a time such as 60s, 500ms or 5m (a bare number is seconds), not '" + text + "'";
+        },
+        "TIME");
 }
 
 }  // namespace mbscope::cli

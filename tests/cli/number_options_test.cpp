@@ -29,6 +29,15 @@ TEST(NumberOptions, ValuesOutsideTheirMeaningAreRefusedBeforeAnythingRuns) {
         {"check --target tcp://127.0.0.1:1 --interval -5", "--interval: Value -5 not in range 0 to 600000"},
         {"fuzz --target tcp://127.0.0.1:1 --interval -5", "--interval: Value -5 not in range 0 to 600000"},
         {"fuzz --target tcp://127.0.0.1:1 --requests 0", "--requests: Value 0 not in range 1 to"},
+        // A run bounded by nothing: sniff took --duration nan, -1, 0 and inf and --count 0 as "no bound".
+        {"sniff -i lo --duration nan",
+         "--duration: a time such as 60s, 500ms or 5m (a bare number is seconds), not 'nan'"},
+        {"sniff -i lo --duration -1", "--duration: a time such as 60s"},
+        {"sniff -i lo --duration 0", "--duration: a time such as 60s"},
+        {"sniff -i lo --duration inf", "--duration: a time such as 60s"},
+        {"sniff -i lo --count 0", "--count: Value 0 not in range 1 to"},
+        {"fuzz --target tcp://127.0.0.1:1 --duration 0s", "--duration: a time such as 60s"},
+        {"fuzz --target tcp://127.0.0.1:1 --duration 10x", "--duration: a time such as 60s"},
     };
     for (const auto& c : cases) {
         const auto r = run_mbscope(c.args);
