@@ -1,6 +1,7 @@
 #include "slave/faults.hpp"
 
 #include <charconv>
+#include <cmath>
 
 namespace mbscope::slave {
 
@@ -94,7 +95,8 @@ modbus::Result<FaultSpec, std::string> parse_fault(std::string_view text) {
         }
         double v = 0;
         auto [p, ec] = std::from_chars(value.data(), value.data() + value.size(), v);
-        if (ec != std::errc{} || p != value.data() + value.size())
+        // from_chars reads "nan" and "inf": no rate, delay or count, and NaN passes every comparison below.
+        if (ec != std::errc{} || p != value.data() + value.size() || !std::isfinite(v))
             return "--fault " + std::string(text) + ": '" + std::string(value) + "' is not a number";
         const bool is_rate = f.arg == ArgKind::Rate || f.arg == ArgKind::RequiredRate;
         if (is_rate && (v <= 0 || v > 1)) return "--fault " + std::string(text) + ": rate must be in (0, 1]";
@@ -105,6 +107,15 @@ modbus::Result<FaultSpec, std::string> parse_fault(std::string_view text) {
         if ((f.arg == ArgKind::Milliseconds || f.arg == ArgKind::Characters || f.arg == ArgKind::Count) &&
             v < 0)
             return "--fault " + std::string(text) + ": must not be negative";
+        // Upper bounds keep each argument's conversion (to milliseconds, a duration, a request count)
+        // defined: slow-reply=1e300 or crash-after=1e300 overflowed it. An hour of delay and 100,000
+        // character times are past any master's timeout; a count is a whole number.
+        if (f.arg == ArgKind::Milliseconds && v > 3'600'000)
+            return "--fault " + std::string(text) + ": at most 3600000 ms (an hour)";
+        if (f.arg == ArgKind::Characters && v > 100'000)
+            return "--fault " + std::string(text) + ": at most 100000 character times";
+        if (f.arg == ArgKind::Count && (v > 1e15 || v != static_cast<double>(static_cast<std::uint64_t>(v))))
+            return "--fault " + std::string(text) + ": a whole number of requests up to 1e15";
         spec.arg = v;
         return spec;
     }

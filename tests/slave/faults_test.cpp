@@ -54,6 +54,16 @@ TEST(Faults, ParseNamesTheProblem) {
     EXPECT_NE(parse_fault("wrong-exception=0").error().find("1..255"), std::string::npos);
     EXPECT_NE(parse_fault("stuck-value=70000").error().find("0..65535"), std::string::npos);
     EXPECT_NE(parse_fault("crash-after=-1").error().find("negative"), std::string::npos);
+    // NaN passed every range check (no-reply=nan was planted); huge values overflowed their conversions.
+    for (const char* text : {"no-reply=nan", "bad-crc=nan", "wrong-exception=nan", "slow-reply=inf",
+                             "stuck-value=-inf", "crash-after=nan"})
+        EXPECT_NE(parse_fault(text).error().find("is not a number"), std::string::npos) << text;
+    EXPECT_NE(parse_fault("slow-reply=1e300").error().find("at most 3600000 ms"), std::string::npos);
+    EXPECT_NE(parse_fault("gap-inside-frame=1e9").error().find("at most 100000"), std::string::npos);
+    EXPECT_NE(parse_fault("crash-after=1e300").error().find("whole number"), std::string::npos);
+    EXPECT_NE(parse_fault("crash-after=2.5").error().find("whole number"), std::string::npos);
+    EXPECT_DOUBLE_EQ(parse_fault("crash-after=40")->arg, 40.0);
+    EXPECT_DOUBLE_EQ(parse_fault("gap-inside-frame=3.5")->arg, 3.5);
 }
 
 // A rate draws from the seeded generator: the same seed gives the same sequence of outcomes.
