@@ -1,0 +1,36 @@
+// A repeatable option takes one value each time it is given, wherever it stands: the natural
+// `mbscope decode --tcp-port 5020 plant.pcap` read the capture's name as a second port (exit 2), and
+// `--map 1=mmk-2030 plant.pcap` swallowed the file ("files is required").
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "tests/cli/cli_run.hpp"
+
+using mbscope::test::run_mbscope;
+
+TEST(RepeatableOptions, TakeOneValueEachAndLeaveTheFilesAlone) {
+    const std::string capture = std::string(MBSCOPE_SOURCE_DIR) + "/captures/zeek-modbusSmall.pcap";
+    const char* spellings[] = {
+        "decode --tcp-port 5020 ",
+        "decode --map 1=mmk-2030 ",
+        "decode --profile-dir /tmp --config 1=none --map 1=mmk-2030 ",
+        "decode --tcp-port 5020 --tcp-port 5021 --udp-port 5020 --rtu-over-tcp 4001 ",
+    };
+    for (const char* s : spellings) {
+        const auto r = run_mbscope(std::string(s) + capture + " --summary");
+        if (std::string(s).find("--config") != std::string::npos) {
+            // Reaches the --config check (mmk-2030 has no channels): the file was not taken as a value.
+            EXPECT_NE(r.out.find("--config"), std::string::npos) << s << "\n" << r.out;
+            EXPECT_EQ(r.out.find("files is required"), std::string::npos) << s << "\n" << r.out;
+            continue;
+        }
+        EXPECT_EQ(r.exit_code, 0) << s << "\n" << r.out;
+        EXPECT_NE(r.out.find("166 packets, 32 frames, 16 transactions"), std::string::npos) << s << "\n"
+                                                                                            << r.out;
+    }
+    // Two values after one option: the second is a file, and a missing one is named.
+    const auto two = run_mbscope("decode --tcp-port 5020 5021 " + capture + " --summary");
+    EXPECT_EQ(two.exit_code, 2) << two.out;
+    EXPECT_NE(two.out.find("5021"), std::string::npos) << two.out;
+}
