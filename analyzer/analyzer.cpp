@@ -461,8 +461,13 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                        std::to_string(only->tid),
                    {it->second.request.index, r.index});
         } else {
+            // A serial line has no transaction ids: name the unit whose reply nobody asked for.
             report(FindingCode::PairUnsolicitedResponse, r,
-                   "no outstanding request with transaction id " + std::to_string(key.tid) + " on this link");
+                   r.frame.framing == Framing::Tcp
+                       ? "no outstanding request with transaction id " + std::to_string(key.tid) +
+                             " on this link"
+                       : "no request to unit " + std::to_string(r.frame.unit_id()) +
+                             " waits for a reply on this link");
             return;
         }
     }

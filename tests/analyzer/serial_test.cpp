@@ -142,6 +142,18 @@ TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
     EXPECT_EQ(r->sink.transactions.size(), 1u);
 }
 
+// A reply nobody asked for on a serial line is named by its unit: a serial line has no transaction ids (the
+// message spoke of "transaction id 0").
+TEST(SerialInput, AnUnsolicitedReplyIsNamedByItsUnit) {
+    const auto path = write_temp("unsolicited.txt", "1.02 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    for (const auto& f : r->sink.findings)
+        if (f.code == mb::FindingCode::PairUnsolicitedResponse) {
+            EXPECT_EQ(f.message, "no request to unit 17 waits for a reply on this link");
+        }
+}
+
 // A tap that recorded nothing, or the wrong file: no format decodes an empty file to "no frames, no faults".
 TEST(SerialInput, AnEmptyFileIsAnInputErrorInEveryFormat) {
     const auto path = write_temp("empty.bin", "");
