@@ -356,15 +356,27 @@ LineRules parse_line(Reader& r, const json& j) {
                 l.transports.push_back(s);
             }
     if (l.transports.empty()) r.error("/line", "\"transports\" must list rtu, ascii and/or tcp");
+    // Anything else in these lists was dropped without a word (a baud rate written "9600", a parity "E").
     if (auto b = r.child(*line, "baud_rates"); b && b->is_array())
-        for (const auto& x : *b)
-            if (x.is_number_unsigned()) l.baud_rates.push_back(x.get<std::uint32_t>());
+        for (std::size_t i = 0; i < b->size(); ++i) {
+            const auto& x = (*b)[i];
+            if (x.is_number_integer() && x.get<std::int64_t>() >= 50 && x.get<std::int64_t>() <= 10'000'000)
+                l.baud_rates.push_back(x.get<std::uint32_t>());
+            else
+                r.error("/line/baud_rates/" + std::to_string(i), "must be a baud rate from 50 to 10000000");
+        }
     if (auto p = r.child(*line, "parity"); p && p->is_array())
-        for (const auto& x : *p)
-            if (x.is_string()) l.parity.push_back(x.get<std::string>());
+        for (std::size_t i = 0; i < p->size(); ++i) {
+            const auto& x = (*p)[i];
+            if (x.is_string() && (x == "none" || x == "even" || x == "odd"))
+                l.parity.push_back(x.get<std::string>());
+            else
+                r.error("/line/parity/" + std::to_string(i), "must be \"none\", \"even\" or \"odd\"");
+        }
     if (auto u = r.child(*line, "unit_id"); u && u->is_object()) {
         l.unit_min = static_cast<int>(r.integer(*u, "min", "/line/unit_id", false, 0, 255).value_or(1));
         l.unit_max = static_cast<int>(r.integer(*u, "max", "/line/unit_id", false, 0, 255).value_or(247));
+        if (l.unit_min > l.unit_max) r.error("/line/unit_id", "min is above max");
         if (auto d = r.child(*u, "disabled"); d && d->is_array())
             for (const auto& x : *d)
                 if (x.is_number_integer()) l.unit_disabled.push_back(x.get<int>());
@@ -410,10 +422,33 @@ FunctionRules parse_functions(Reader& r, const json& j) {
     codes("diagnostics", f.diagnostics, 65535);
     if (auto m = r.child(*fn, "max_quantity"); m && m->is_object())
         for (auto it = m->begin(); it != m->end(); ++it) {
-            if (!it->is_number_integer() || it->get<int>() < 1)
-                r.error("/functions/max_quantity/" + it.key(), "must be a positive integer");
+            const std::string where = "/functions/max_quantity/" + it.key();
+            // The key is a function with a quantity ("3"), or "23w" for FC23's write part. A limit past the
+            // specification's is kept when a manual prints it (Walchem's FC16 125, noted as a contradiction),
+            // but not past what the one-byte byte count can describe: 127 registers or 2040 bits. The slave
+            // serving 200 registers wrapped the byte count to 144 in a 403-byte reply.
+            const std::string& key = it.key();
+            const bool write_part = !key.empty() && key.back() == 'w';
+            const std::string digits = write_part ? key.substr(0, key.size() - 1) : key;
+            const bool numeric = !digits.empty() && digits.size() <= 3 &&
+                                 digits.find_first_not_of("0123456789") == std::string::npos;
+            const int fc = numeric ? std::stoi(digits) : 0;
+            const int specification = numeric && fc <= 127 && (!write_part || fc == 23)
+                                          ? FunctionRules{}.max_for(static_cast<std::uint8_t>(fc), write_part)
+                                          : 0;
+            const int capacity = fc == 1 || fc == 2 || fc == 15 ? 255 * 8 : 255 / 2;
+            if (specification == 0)
+                r.error(where,
+                        "not a function with a quantity (1, 2, 3, 4, 15, 16, 23, or 23w for FC23's write)");
+            else if (!it->is_number_integer() || it->get<std::int64_t>() < 1)
+                r.error(where, "must be a positive integer");
+            else if (it->get<std::int64_t>() > capacity)
+                r.error(where,
+                        "above " + std::to_string(capacity) +
+                            ", the most a one-byte byte count can describe (the specification allows " +
+                            std::to_string(specification) + ")");
             else
-                f.max_quantity[it.key()] = it->get<int>();
+                f.max_quantity[key] = it->get<int>();
         }
     if (auto a = r.string(*fn, "address_check", "/functions", false)) {
         if (*a == "first")

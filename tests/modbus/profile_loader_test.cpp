@@ -195,6 +195,46 @@ TEST(ProfileLoader, ReportsEveryErrorWithItsPointer) {
     EXPECT_GE(l.errors.size(), 8u);
 }
 
+// Line and function limits that cannot be: a quantity past what the one-byte byte count describes (the
+// reference slave served 200 registers with a byte count of 144 in a 403-byte reply), a key that is no
+// function with a quantity, baud rates and parities that were dropped without a word, a unit range upside
+// down. A limit past the specification's that a frame can still carry (Walchem's FC16 125) is kept.
+TEST(ProfileLoader, LimitsNoFrameCanCarryAreErrors) {
+    const char* wrong = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y",
+      "line": {"transports": ["rtu"], "baud_rates": [9600, "19200", 0], "parity": ["even", "E"],
+               "unit_id": {"min": 50, "max": 10}},
+      "functions": {"supported": [1, 3, 16], "max_quantity": {"3": 500, "1": 2041, "16": 125, "5": 1, "16w": 2,
+                                                             "x": 3, "15": 2040}},
+      "tables": {"holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "000:1"}]},
+      "models": [{"id": "m"}]
+    })";
+    const auto l = load(wrong);
+    std::vector<std::pair<std::string, std::string>> errors;
+    for (const auto& e : l.errors)
+        errors.emplace_back(e.pointer, e.message);
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/line/baud_rates/1", "must be a baud rate from 50 to 10000000"},
+        {"/line/baud_rates/2", "must be a baud rate from 50 to 10000000"},
+        {"/line/parity/1", "must be \"none\", \"even\" or \"odd\""},
+        {"/line/unit_id", "min is above max"},
+        {"/functions/max_quantity/1",
+         "above 2040, the most a one-byte byte count can describe (the specification allows 2000)"},
+        {"/functions/max_quantity/16w",
+         "not a function with a quantity (1, 2, 3, 4, 15, 16, 23, or 23w for FC23's write)"},
+        {"/functions/max_quantity/3",
+         "above 127, the most a one-byte byte count can describe (the specification allows 125)"},
+        {"/functions/max_quantity/5",
+         "not a function with a quantity (1, 2, 3, 4, 15, 16, 23, or 23w for FC23's write)"},
+        {"/functions/max_quantity/x",
+         "not a function with a quantity (1, 2, 3, 4, 15, 16, 23, or 23w for FC23's write)"},
+    };
+    EXPECT_EQ(errors, expected);
+    ASSERT_EQ(l.profiles.size(), 1u);
+    EXPECT_EQ(l.profiles[0].functions.max_for(16), 125);
+    EXPECT_EQ(l.profiles[0].functions.max_for(15), 2040);
+}
+
 // Fields of the wrong type where the loader used to take a default with nlohmann's value(), which throws on
 // a type mismatch: each is an error with its pointer, and the rest still loads (found by the profile fuzz
 // target, fuzz/regressions/profile/implied-not-a-boolean).
