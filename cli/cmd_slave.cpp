@@ -152,6 +152,13 @@ int run_slave(const SlaveOptions& o) {
     // The address first and alone on stdout, so scripts and tests can read where to connect.
     std::cout << server.address() << std::endl;
     if (!o.quiet) {
+        // A serial address printed is a device path (what libmodbus and pyserial open); the mbscope commands
+        // want it with its scheme and line settings, which the path alone does not carry.
+        if (modbus::transport::is_serial(endpoint->scheme)) {
+            auto target = *endpoint;
+            target.device = server.address();
+            std::cerr << "mbscope slave: mbscope commands reach it as --target '" << target.text() << "'\n";
+        }
         for (const auto* d : units)
             std::cerr << "mbscope slave: unit " << int(d->unit()) << " serves " << d->profile().id << '\n';
         for (const auto& f : o.faults)
@@ -181,7 +188,8 @@ void register_slave(CLI::App& app, int& exit_code) {
         "  rtu:DEVICE?baud=9600&parity=E&stop=1   ascii:DEVICE?...   (--pty: rtu:pty creates a "
         "pseudo-terminal)\n"
         "The address clients connect to is printed on stdout (the real port when PORT is 0, the pty's "
-        "path).\n\n"
+        "path);\nfor a serial one, standard error also gives the --target that check, fuzz and replay "
+        "take.\n\n"
         "Units (a multi-drop line is several devices on one endpoint):\n"
         "  --unit 1=cth2265i --unit 2=mmk-2030 --unit 3   each unit with its own profile (3: --profile's)\n"
         "  A unit no --unit names gets no reply, on every transport (the slave is no gateway). Unit 0 is\n"
