@@ -44,6 +44,21 @@ bool write_file(const std::string& path, const std::function<void(std::ostream&)
     return bool(out);
 }
 
+// The --report, --junit and --html files asked for; false when one could not be written.
+bool write_reports(const CheckCliOptions& o, const conformance::Report& report) {
+    bool written = true;
+    if (!o.report.empty())
+        written &= write_file(o.report, [&](std::ostream& out) {
+            out << conformance::to_json(report).dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+                << '\n';
+        });
+    if (!o.junit.empty())
+        written &= write_file(o.junit, [&](std::ostream& out) { conformance::write_junit(out, report); });
+    if (!o.html.empty())
+        written &= write_file(o.html, [&](std::ostream& out) { conformance::write_html(out, report); });
+    return written;
+}
+
 int run_check_command(const CheckCliOptions& o) {
     auto endpoint = modbus::transport::parse_endpoint(o.target);
     if (!endpoint) {
@@ -58,11 +73,6 @@ int run_check_command(const CheckCliOptions& o) {
             }
     const auto profile = load_profile_for(o.profile, o.profile_dirs, o.config, "check");
     if (!profile) return exit_failure;
-    auto client = modbus::transport::Client::open(*endpoint);
-    if (!client) {
-        std::cerr << "mbscope check: cannot reach the target: " << client.error() << '\n';
-        return exit_failure;
-    }
     conformance::CheckOptions options;
     options.target = o.target;
     options.session.unit = static_cast<std::uint8_t>(o.unit);
@@ -79,6 +89,14 @@ int run_check_command(const CheckCliOptions& o) {
             std::cerr << "\r\033[K" << ++done << " rules  " << r.rule.id << std::flush;
         };
     }
+    auto client = modbus::transport::Client::open(*endpoint);
+    if (!client) {
+        // The reports asked for are still written, one rule in error saying why: a CI job that publishes
+        // them finds the reason instead of no file.
+        std::cerr << "mbscope check: cannot reach the target: " << client.error() << '\n';
+        write_reports(o, conformance::unreachable_report(*profile, options, client.error()));
+        return exit_failure;
+    }
     auto& stop = stop_on_signals(BrokenPipe::Ignored);
     const auto report = conformance::run_check(*client, *profile, options, &stop);
     if (done) std::cerr << "\r\033[K";
@@ -88,16 +106,7 @@ int run_check_command(const CheckCliOptions& o) {
                   << '\n';
     else
         conformance::write_text(std::cout, report, o.verbose);
-    bool written = true;
-    if (!o.report.empty())
-        written &= write_file(o.report, [&](std::ostream& out) {
-            out << conformance::to_json(report).dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
-                << '\n';
-        });
-    if (!o.junit.empty())
-        written &= write_file(o.junit, [&](std::ostream& out) { conformance::write_junit(out, report); });
-    if (!o.html.empty())
-        written &= write_file(o.html, [&](std::ostream& out) { conformance::write_html(out, report); });
+    const bool written = write_reports(o, report);
     if (report.results.empty()) {
         std::string globs;
         for (const auto& g : o.rules)

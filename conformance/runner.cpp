@@ -103,9 +103,10 @@ void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f) {
 
 }  // namespace
 
-Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,
-                 const CheckOptions& options, const std::atomic<bool>* stop) {
-    const auto started = std::chrono::steady_clock::now();
+namespace {
+
+// What every report says of its run before a rule is tried.
+Report report_heading(const modbus::Profile& profile, const CheckOptions& options) {
     Report report;
     report.mbscope_version = MBSCOPE_VERSION;
     report.profile_id = profile.id;
@@ -119,6 +120,35 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     report.interval_ms = options.session.interval.count();
     report.timeout_ms = options.session.timeout.count();
     report.started = utc_now();
+    return report;
+}
+
+}  // namespace
+
+Report unreachable_report(const modbus::Profile& profile, const CheckOptions& options,
+                          const std::string& why) {
+    Report report = report_heading(profile, options);
+    RuleResult r;
+    r.rule = {
+        "target.reachable",
+        "target",
+        "TCP §4.2; SL §2.5",
+        "The target can be reached: its connection opens (TCP) or its serial device opens and takes the "
+        "line settings.",
+        Authority::Specification,
+        false};
+    r.outcome = Outcome::Error;
+    r.expected = "the connection or device opens";
+    r.observed = why;
+    r.reason = "cannot reach the target: " + why;
+    report.results.push_back(std::move(r));
+    return report;
+}
+
+Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,
+                 const CheckOptions& options, const std::atomic<bool>* stop) {
+    const auto started = std::chrono::steady_clock::now();
+    Report report = report_heading(profile, options);
 
     Session session(client, options.session, &profile);
     Context c{session, profile, options.run, {}, {}, stop};

@@ -54,4 +54,10 @@ int verdict(const Report& report);
 Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,
                  const CheckOptions& options, const std::atomic<bool>* stop = nullptr);
 
+// The report of a run that could not begin: the target's connection or device did not open. One rule,
+// target.reachable, in error with the reason, so the JSON, JUnit and HTML files a CI job publishes say why
+// instead of being missing.
+Report unreachable_report(const modbus::Profile& profile, const CheckOptions& options,
+                          const std::string& why);
+
 }  // namespace mbscope::conformance

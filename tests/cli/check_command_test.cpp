@@ -1,7 +1,12 @@
 // `mbscope check` end to end against the reference slave (the mbscope binary in another process): what it
-// says when the rules asked for select nothing, or select only rules that send nothing.
+// says when the rules asked for select nothing, or select only rules that send nothing, and what it reports
+// when the target cannot be reached.
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "tests/cli/cli_run.hpp"
@@ -23,4 +28,30 @@ TEST(CheckCommand, RulesThatSelectNothingOrSendNothingAreToldApartFromASilentTar
     r = run_mbscope(check + "--rules 'broadcast*'");
     EXPECT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(r.out.find("1 skipped"), std::string::npos) << r.out;
+}
+
+// A target that cannot be reached still gets the reports asked for (a CI job publishing the JUnit file found
+// none): one rule, target.reachable, in error with the reason; exit 2 as before.
+TEST(CheckCommand, AnUnreachableTargetIsReportedInEveryFileAskedFor) {
+    const std::string dir = ::testing::TempDir() + "mbscope-unreachable-";
+    for (const char* f : {"r.json", "j.xml", "h.html"})
+        std::remove((dir + f).c_str());
+    const auto r = run_mbscope("check --target rtu:/nonexistent/ttyUSB9 --report " + dir + "r.json --junit " +
+                               dir + "j.xml --html " + dir + "h.html");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("cannot reach the target"), std::string::npos) << r.out;
+    const auto read = [](const std::string& path) {
+        std::ifstream in(path);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    const auto report = nlohmann::json::parse(read(dir + "r.json"));
+    EXPECT_EQ(report["summary"]["verdict"], "fail");
+    ASSERT_EQ(report["rules"].size(), 1u);
+    EXPECT_EQ(report["rules"][0]["id"], "target.reachable");
+    EXPECT_EQ(report["rules"][0]["outcome"], "error");
+    const std::string junit = read(dir + "j.xml");
+    EXPECT_NE(junit.find("errors=\"1\""), std::string::npos) << junit;
+    EXPECT_NE(junit.find("<error message=\"cannot reach the target: "), std::string::npos) << junit;
+    EXPECT_NE(junit.find("/nonexistent/ttyUSB9"), std::string::npos) << junit;
+    EXPECT_NE(read(dir + "h.html").find("target.reachable"), std::string::npos);
 }
