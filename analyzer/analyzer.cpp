@@ -131,6 +131,10 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
                         stream_bytes(f, dir, bytes, t);
                     },
                     [this, &f, dir](std::uint64_t missing, Timestamp t) { stream_gap(f, dir, missing, t); });
+                f.reassembler[dir]->on_conflict(
+                    [this, &f, dir](std::uint64_t at, std::size_t differing, Timestamp t) {
+                        retransmission_conflict(f, dir, at, differing, t);
+                    });
             }
         }
     }
@@ -169,6 +173,16 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
     deframed(f, dir == 0, events, t);
 }
 
+// What a finding about a flow's stream, rather than one of its frames, is attached to.
+FrameRecord Analyzer::about_stream(const Flow& f, Timestamp t) const {
+    FrameRecord about;
+    about.time = t;
+    about.source = source_;
+    about.link = f.link;
+    about.packet = packet_number_;
+    return about;
+}
+
 void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) {
     DeframeEvents events;
     if (f.rtu_over_tcp) {
@@ -178,16 +192,22 @@ void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) 
     } else {
         f.deframer[dir].gap(missing, events);
     }
-    FrameRecord about;
-    about.time = t;
-    about.source = source_;
-    about.link = f.link;
-    about.packet = packet_number_;
-    report(FindingCode::StreamGap, about,
+    report(FindingCode::StreamGap, about_stream(f, t),
            std::to_string(missing) + " bytes of the " + (dir == 0 ? "request" : "response") +
                " stream were not captured; decoding resumes at the next " +
                (f.rtu_over_tcp ? "RTU frame" : "plausible MBAP header"));
     deframed(f, dir == 0, events, t);
+}
+
+// Two copies of the same stream bytes that disagree: a broken TCP stack, a middlebox rewriting the stream,
+// or an attempt to make a monitor decode something other than what the device received.
+void Analyzer::retransmission_conflict(Flow& f, int dir, std::uint64_t at, std::size_t differing,
+                                       Timestamp t) {
+    report(FindingCode::StreamRetransmissionConflict, about_stream(f, t),
+           std::string("a retransmission of the ") + (dir == 0 ? "request" : "response") +
+               " stream differs from the first copy in " + std::to_string(differing) +
+               (differing == 1 ? " byte" : " bytes") + ", the first at stream offset " + std::to_string(at) +
+               "; the first copy was decoded, and the receiver may have kept the other");
 }
 
 void Analyzer::set_source(const std::string& source) {

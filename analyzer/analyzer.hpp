@@ -132,7 +132,10 @@ class Analyzer {
     bool server_port(Transport transport, std::uint16_t port) const;
     Flow& flow_for(const L4Packet& l4, bool& to_server);
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
+    FrameRecord about_stream(const Flow& flow, modbus::Timestamp t) const;
     void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);
+    void retransmission_conflict(Flow& flow, int dir, std::uint64_t at, std::size_t differing,
+                                 modbus::Timestamp t);
     void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);
     // Records pass by reference down the pipeline (a frame record is over 500 bytes): the request is moved
     // once into the pending table, and both frames once into their transaction.

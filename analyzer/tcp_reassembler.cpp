@@ -18,6 +18,7 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     base_ = 0;
     buffered_ = 0;
     retransmitted_ = 0;
+    recent_from_ = 0;
 }
 
 void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload,
@@ -33,6 +34,10 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
     const auto rel = static_cast<std::int32_t>(seq - *next_);
     if (rel < 0) {
         const auto overlap = static_cast<std::size_t>(-static_cast<std::int64_t>(rel));
+        // base_ counts delivered bytes since the first; a retransmission from before the first is not ours
+        // to compare.
+        if (overlap <= base_)
+            compare_retransmission(base_ - overlap, payload.first(std::min(overlap, payload.size())), t);
         if (overlap >= payload.size()) {
             retransmitted_ += payload.size();
             return;
@@ -49,10 +54,40 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
         if (buffered_ > max_buffered_) skip_to_first_buffered(t);  // the hole will not fill: give it up
         return;
     }
-    data_(payload, t);
-    *next_ += static_cast<std::uint32_t>(payload.size());
-    base_ += payload.size();
+    deliver(payload, t);
     drain(t);
+}
+
+void TcpReassembler::deliver(std::span<const std::uint8_t> bytes, modbus::Timestamp t) {
+    data_(bytes, t);
+    // Kept for comparison: the last recent_size bytes, each at its offset modulo the size.
+    const auto kept = bytes.last(std::min(bytes.size(), recent_size));
+    std::uint64_t at = base_ + (bytes.size() - kept.size());
+    for (std::size_t done = 0; done < kept.size();) {
+        const std::size_t slot = static_cast<std::size_t>(at % recent_size);
+        const std::size_t n = std::min(kept.size() - done, recent_size - slot);
+        std::copy_n(kept.begin() + static_cast<std::ptrdiff_t>(done), n,
+                    recent_.begin() + static_cast<std::ptrdiff_t>(slot));
+        done += n;
+        at += n;
+    }
+    *next_ += static_cast<std::uint32_t>(bytes.size());
+    base_ += bytes.size();
+}
+
+void TcpReassembler::compare_retransmission(std::uint64_t at, std::span<const std::uint8_t> bytes,
+                                            modbus::Timestamp t) {
+    if (!conflict_) return;
+    const std::uint64_t oldest = std::max(recent_from_, base_ > recent_size ? base_ - recent_size : 0);
+    std::size_t differing = 0;
+    std::uint64_t first = 0;
+    for (std::size_t i = 0; i < bytes.size(); ++i) {
+        const std::uint64_t position = at + i;
+        if (position < oldest) continue;
+        if (recent_[static_cast<std::size_t>(position % recent_size)] != bytes[i] && differing++ == 0)
+            first = position;
+    }
+    if (differing) conflict_(first, differing, t);
 }
 
 void TcpReassembler::drain(modbus::Timestamp t) {
@@ -62,6 +97,10 @@ void TcpReassembler::drain(modbus::Timestamp t) {
         pending_.pop_back();
         buffered_ -= piece.size;
         const std::uint64_t skip = base_ - piece.at;
+        compare_retransmission(piece.at,
+                               {arena_.data() + piece.begin,
+                                static_cast<std::size_t>(std::min<std::uint64_t>(skip, piece.size))},
+                               t);
         if (skip >= piece.size) {
             retransmitted_ += piece.size;
             continue;
@@ -70,9 +109,7 @@ void TcpReassembler::drain(modbus::Timestamp t) {
         // The arena does not move during the call: only segment() and drain() add or compact.
         const std::span<const std::uint8_t> rest(arena_.data() + piece.begin + skip,
                                                  piece.size - static_cast<std::size_t>(skip));
-        data_(rest, t);
-        *next_ += static_cast<std::uint32_t>(rest.size());
-        base_ += rest.size();
+        deliver(rest, t);
     }
     if (pending_.empty())
         arena_.clear();
@@ -96,6 +133,7 @@ void TcpReassembler::skip_to_first_buffered(modbus::Timestamp t) {
     gap_(missing, t);
     *next_ += static_cast<std::uint32_t>(missing);
     base_ += missing;
+    recent_from_ = base_;
     drain(t);
 }
 

@@ -2,7 +2,10 @@
 // One direction of a TCP connection, put back in order independently of segment boundaries: retransmitted
 // and overlapping bytes are delivered once, out-of-order segments wait for the hole to fill, and a hole that
 // never fills (lost in the capture) is delivered as a gap of known size so the deframer can resynchronise.
+// A retransmission whose bytes differ from the copy already delivered is reported (the first copy is kept:
+// a receiver may have kept the other, so the decoded stream may not be the one the device acted on).
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -17,6 +20,9 @@ class TcpReassembler {
   public:
     using DataFn = std::function<void(std::span<const std::uint8_t>, modbus::Timestamp)>;
     using GapFn = std::function<void(std::uint64_t missing, modbus::Timestamp)>;
+    // `differing` bytes of a retransmission disagree with what was delivered; the first at stream offset
+    // `at`.
+    using ConflictFn = std::function<void(std::uint64_t at, std::size_t differing, modbus::Timestamp)>;
 
     TcpReassembler(DataFn data, GapFn gap, std::size_t max_buffered = 1 << 20)
         : data_(std::move(data)), gap_(std::move(gap)), max_buffered_(max_buffered) {}
@@ -25,6 +31,7 @@ class TcpReassembler {
     // End of capture or connection: what is buffered beyond a hole is delivered after a gap.
     void flush(modbus::Timestamp t);
     std::uint64_t retransmitted_bytes() const noexcept { return retransmitted_; }
+    void on_conflict(ConflictFn conflict) { conflict_ = std::move(conflict); }
     // Back to a new reassembler's state (no sequence number seen yet), keeping the callbacks and the
     // storage already grown.
     void reset(std::size_t max_buffered) noexcept;
@@ -36,6 +43,10 @@ class TcpReassembler {
         std::size_t begin;
         std::size_t size;
     };
+    void deliver(std::span<const std::uint8_t> bytes, modbus::Timestamp t);
+    // Compares bytes retransmitted at stream offset `at` (all before base_) with the ones delivered there,
+    // as far back as recent_ reaches.
+    void compare_retransmission(std::uint64_t at, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     void drain(modbus::Timestamp t);
     void skip_to_first_buffered(modbus::Timestamp t);
     void compact();
@@ -55,6 +66,12 @@ class TcpReassembler {
     std::uint64_t base_ = 0;             // unwrapped stream position of next_
     std::size_t buffered_ = 0;           // bytes of the pieces waiting, duplicates included
     std::uint64_t retransmitted_ = 0;
+    ConflictFn conflict_;
+    // The last bytes delivered, by stream offset modulo its size: a retransmission is compared with them.
+    // Retransmissions repeat the last segment or few; 4 KiB reaches past any Modbus ADU.
+    static constexpr std::size_t recent_size = 4096;
+    std::array<std::uint8_t, recent_size> recent_{};
+    std::uint64_t recent_from_ = 0;  // recent_ holds nothing before this offset (a gap was skipped to it)
 };
 
 }  // namespace mbscope::analyzer

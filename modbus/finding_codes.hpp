@@ -53,6 +53,7 @@ enum class FindingCode : std::uint16_t {
     StreamUnparsedBytes = 500,
     StreamGap = 501,
     StreamLineError = 502,
+    StreamRetransmissionConflict = 503,
     // pair: a request and its response, judged together
     PairNoResponse = 600,
     PairNoResponseAtEnd = 601,

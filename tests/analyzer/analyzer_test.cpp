@@ -278,19 +278,11 @@ TEST(Analyzer, RtuOverUdpIsRecognisedByItsCrc) {
 // whole ADUs so the user can ask for it. Other traffic (HTTP, an RTU frame, an ADU whose length does not fit
 // its segment, an ADU cut across segments) is no hint.
 TEST(Analyzer, ModbusOnAPortNotDecodedIsNamedInTheSummary) {
-    Collect sink;
-    an::Analyzer a({}, sink);
-    std::uint64_t number = 0;
+    Harness h;
+    auto& sink = h.sink;
+    auto& a = h.analyzer;
     const auto send = [&](bool to_server, const std::vector<std::uint8_t>& payload, std::uint16_t port,
-                          bool udp = false) {
-        const auto bytes = packet(to_server, 1, payload, udp, 0x18, port);
-        an::Packet p;
-        p.linktype = link_raw;
-        p.number = ++number;
-        p.time = 1s;
-        p.data = bytes;
-        a.packet("test", p);
-    };
+                          bool udp = false) { h.raw(packet(to_server, 1, payload, udp, 0x18, port), 1s); };
     send(true, read_request(1), 1502);
     send(false, read_response(1), 1502);
     // A server on a port above its client's (40000): the reply's transaction id says which side serves.
@@ -321,6 +313,34 @@ TEST(Analyzer, ModbusOnAPortNotDecodedIsNamedInTheSummary) {
         << text.str();
     EXPECT_NE(text.str().find("--udp-port 5020"), std::string::npos) << text.str();
     EXPECT_NE(text.str().find("hint: 2 TCP packets on port 45000"), std::string::npos) << text.str();
+}
+
+// A retransmitted request whose bytes differ from the first copy (the quantity rewritten): the first copy
+// is decoded, once, and the disagreement is a finding naming the stream and where it starts.
+TEST(Analyzer, ARetransmissionWithOtherBytesIsAFinding) {
+    Harness h;
+    auto& sink = h.sink;
+    auto& a = h.analyzer;
+    const auto send = [&](bool to_server, std::uint32_t seq, const std::vector<std::uint8_t>& payload) {
+        h.raw(packet(to_server, seq, payload), 1s);
+    };
+    const auto request = read_request(1);
+    auto forged = request;
+    forged.back() ^= 0x7F;  // the quantity's low byte
+    send(true, 1, request);
+    send(true, 1, forged);
+    send(false, 1, read_response(1));
+    a.finish();
+    EXPECT_EQ(sink.frames.size(), 2u);
+    EXPECT_EQ(sink.transactions.size(), 1u);
+    ASSERT_EQ(sink.count(mb::FindingCode::StreamRetransmissionConflict), 1);
+    for (const auto& f : sink.findings)
+        if (f.code == mb::FindingCode::StreamRetransmissionConflict) {
+            EXPECT_EQ(
+                f.message,
+                "a retransmission of the request stream differs from the first copy in 1 byte, the first "
+                "at stream offset 11; the first copy was decoded, and the receiver may have kept the other");
+        }
 }
 
 TEST(LatencyHistogram, QuantilesWithinThreePercent) {

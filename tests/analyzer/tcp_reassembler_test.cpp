@@ -20,6 +20,7 @@ struct Out {
     std::vector<std::uint8_t> stream;
     int deliveries = 0;
     int gaps = 0;
+    std::vector<std::pair<std::uint64_t, std::size_t>> conflicts;  // (stream offset, differing bytes)
 };
 
 struct Harness {
@@ -35,7 +36,11 @@ struct Harness {
                   out.stream.insert(out.stream.end(), missing, 0xEE);
                   ++out.gaps;
               },
-              max_buffered) {}
+              max_buffered) {
+        reassembler.on_conflict([this](std::uint64_t at, std::size_t differing, mb::Timestamp) {
+            out.conflicts.emplace_back(at, differing);
+        });
+    }
     void syn(std::uint32_t isn) { reassembler.segment(isn, true, {}, mb::Timestamp{0}); }
     void flush() { reassembler.flush(mb::Timestamp{0}); }
     // Bytes [from, from + n) of `all`, a stream whose first byte has sequence number `seq`.
@@ -90,6 +95,47 @@ TEST(TcpReassembler, RetransmittedAndOverlappingBytesAreDeliveredOnce) {
     h.send(1, s, 30, 10);  // the hole
     EXPECT_EQ(h.out.stream, s);
     EXPECT_EQ(h.reassembler.retransmitted_bytes(), 10u + 5u + 10u + 5u);
+    EXPECT_TRUE(h.out.conflicts.empty());  // honest copies
+}
+
+// A retransmission that carries other bytes than the first copy: the first copy is decoded, the new bytes
+// past it are delivered, and the disagreement is reported with where it starts and how many bytes differ,
+// whether the copies meet in order or while waiting for a hole.
+TEST(TcpReassembler, ARetransmissionThatDiffersFromTheFirstCopyIsReported) {
+    Harness h;
+    const auto s = stream_of(60);
+    auto forged = s;
+    forged[12] ^= 0xFF;
+    forged[15] ^= 0xFF;
+    forged[45] ^= 0xFF;
+    h.syn(0);
+    h.send(1, s, 0, 20);
+    h.send(1, forged, 10, 20);  // bytes 12 and 15 disagree; 20..29 are new
+    ASSERT_EQ(h.out.conflicts.size(), 1u);
+    EXPECT_EQ(h.out.conflicts[0], (std::pair<std::uint64_t, std::size_t>{12, 2}));
+    h.send(1, s, 40, 10);       // ahead of a hole
+    h.send(1, forged, 40, 10);  // another copy of it, byte 45 changed
+    h.send(1, s, 30, 10);       // the hole fills: the first copy goes out, the second is compared
+    ASSERT_EQ(h.out.conflicts.size(), 2u);
+    EXPECT_EQ(h.out.conflicts[1], (std::pair<std::uint64_t, std::size_t>{45, 1}));
+    h.send(1, s, 50, 10);
+    EXPECT_EQ(h.out.stream, s);
+}
+
+// Offsets of a hole declared lost were never delivered: bytes that arrive for them later are not compared
+// with whatever the comparison buffer held there before.
+TEST(TcpReassembler, BytesOfALostHoleAreNotComparedWithOldOnes) {
+    Harness h(16);
+    const auto s = stream_of(100);
+    auto other = s;
+    for (auto& b : other)
+        b ^= 0x55;
+    h.syn(0);
+    h.send(1, s, 0, 10);
+    h.send(1, s, 40, 20);  // past the bound: 10..39 are declared lost
+    EXPECT_EQ(h.out.gaps, 1);
+    h.send(1, other, 20, 10);  // late bytes of the lost hole
+    EXPECT_TRUE(h.out.conflicts.empty());
 }
 
 TEST(TcpReassembler, ALongerRetransmissionOfAWaitingSegmentDeliversItsNewBytes) {
