@@ -236,7 +236,8 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
         return false;
     }
     const std::string& path = input->name;
-    if (format == InputFormat::Auto) {
+    bool capture_read_as_serial = false;
+    if (format != InputFormat::Pcap) {
         std::ifstream in(input->path, std::ios::binary);
         if (!in) {
             a.input_error(path + ": cannot open");
@@ -245,7 +246,16 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
         std::vector<char> head(4096);  // socat -d writes a few diagnostic lines before the first block
         in.read(head.data(), static_cast<std::streamsize>(head.size()));
         head.resize(static_cast<std::size_t>(in.gcount()));
-        format = detect_input_format({reinterpret_cast<const std::uint8_t*>(head.data()), head.size()});
+        const InputFormat detected =
+            detect_input_format({reinterpret_cast<const std::uint8_t*>(head.data()), head.size()});
+        // A capture file read as serial bytes decodes to thousands of unparsed bytes and no error finding
+        // (exit 0): say what the file is. It is still decoded as asked.
+        capture_read_as_serial = format != InputFormat::Auto && detected == InputFormat::Pcap;
+        if (capture_read_as_serial)
+            a.input_error(path +
+                          ": holds a pcap or pcapng capture (its magic number) but --format reads it as "
+                          "serial bytes; leave --format out to decode the capture");
+        if (format == InputFormat::Auto) format = detected;
     }
     // A file of no bytes decodes to nothing in every serial format; reporting that as a clean decode would
     // pass off a tap that recorded nothing (or the wrong file) as a quiet line. libpcap names an empty pcap
@@ -259,17 +269,17 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
             return a.read_capture(input->path, input->name);
         case InputFormat::Text:
             a.set_serial_framing(modbus::Framing::Rtu);
-            return read_text(a, *input);
+            return read_text(a, *input) && !capture_read_as_serial;
         case InputFormat::RtuRaw:
             a.set_serial_framing(modbus::Framing::Rtu);
-            return read_raw(a, *input);
+            return read_raw(a, *input) && !capture_read_as_serial;
         case InputFormat::AsciiRaw:
             a.set_serial_framing(modbus::Framing::Ascii);
-            return read_raw(a, *input);
+            return read_raw(a, *input) && !capture_read_as_serial;
         case InputFormat::Jpnevulator:
         case InputFormat::Socat:
             a.set_serial_framing(modbus::Framing::Rtu);
-            return read_log(a, *input, format, options);
+            return read_log(a, *input, format, options) && !capture_read_as_serial;
         case InputFormat::Auto:
             break;
     }

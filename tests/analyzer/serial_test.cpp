@@ -154,6 +154,22 @@ TEST(SerialInput, AnUnsolicitedReplyIsNamedByItsUnit) {
         }
 }
 
+// A capture file given with a serial --format decoded to thousands of unparsed bytes, no error finding and
+// exit 0. It is still decoded as asked, and the run fails naming what the file is.
+TEST(SerialInput, ACaptureReadAsSerialBytesIsNamed) {
+    const auto pcap = std::string(MBSCOPE_SOURCE_DIR) + "/captures/zeek-modbusSmall.pcap";
+    for (auto format : {an::InputFormat::RtuRaw, an::InputFormat::AsciiRaw, an::InputFormat::Text}) {
+        auto r = decode(pcap, format);
+        EXPECT_FALSE(r->ok);
+        ASSERT_FALSE(r->summary.input_errors.empty());
+        EXPECT_EQ(r->summary.input_errors[0],
+                  pcap +
+                      ": holds a pcap or pcapng capture (its magic number) but --format reads it as serial "
+                      "bytes; leave --format out to decode the capture");
+    }
+    EXPECT_TRUE(decode(pcap)->ok);
+}
+
 // A tap that recorded nothing, or the wrong file: no format decodes an empty file to "no frames, no faults".
 TEST(SerialInput, AnEmptyFileIsAnInputErrorInEveryFormat) {
     const auto path = write_temp("empty.bin", "");
