@@ -75,7 +75,7 @@ std::optional<Pdu> build_pdu(const std::vector<std::string>& a, std::string& err
     auto u16 = [](long v) { return static_cast<std::uint16_t>(v); };
     // One-byte fields (a function code, an exception code, a MEI object): a larger number is refused, not
     // cut to its low byte.
-    auto bytes_at = [&](std::initializer_list<std::size_t> positions) {
+    auto one_byte_fields = [&](std::initializer_list<std::size_t> positions) {
         for (std::size_t i : positions)
             if (i < n.size() && n[i] > 0xFF) {
                 error = verb + ": not a number from 0 to 255: '" + a[i + 1] + "'";
@@ -136,7 +136,7 @@ std::optional<Pdu> build_pdu(const std::vector<std::string>& a, std::string& err
                        : std::nullopt;
     if (verb == "read-fifo") return need(1) ? std::optional(make_read_fifo_queue(u16(n[0]))) : std::nullopt;
     if (verb == "read-device-id")
-        return need(2) && bytes_at({0, 1})
+        return need(2) && one_byte_fields({0, 1})
                    ? std::optional(make_read_device_id(static_cast<std::uint8_t>(n[0]),
                                                        static_cast<std::uint8_t>(n[1])))
                    : std::nullopt;
@@ -155,11 +155,11 @@ std::optional<Pdu> build_pdu(const std::vector<std::string>& a, std::string& err
     for (const auto& [name, fc] : no_data)
         if (verb == name) return need(0) ? std::optional(make_no_data_request(fc)) : std::nullopt;
     if (verb == "exception") {
-        if (!need(2) || !bytes_at({0, 1})) return std::nullopt;
+        if (!need(2) || !one_byte_fields({0, 1})) return std::nullopt;
         return make_exception(static_cast<std::uint8_t>(n[0]), static_cast<std::uint8_t>(n[1]));
     }
     if (verb == "raw") {
-        if (!need(1) || !bytes_at({0})) return std::nullopt;
+        if (!need(1) || !one_byte_fields({0})) return std::nullopt;
         auto data = hex_data(2);
         if (!data) return std::nullopt;
         Pdu p;
