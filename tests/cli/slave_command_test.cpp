@@ -5,18 +5,16 @@
 
 #include <string>
 
-#include "tests/cli/cli_run.hpp"
-
-using mbscope::test::run_mbscope;
+#include "tests/slave/slave_process.hpp"
 
 TEST(SlaveCommand, APseudoTerminalIsNamedAsATargetTheOtherCommandsTake) {
-    const auto r = run_mbscope("slave --profile mmk-2030 --listen 'ascii:pty?baud=19200&parity=N' --pty",
-                               "timeout --preserve-status -s INT 1");
-    EXPECT_EQ(r.exit_code, 0) << r.out;
-    ASSERT_EQ(r.out.rfind("/dev/pts/", 0), 0u) << r.out;
-    const std::string path = r.out.substr(0, r.out.find('\n'));
-    EXPECT_NE(r.out.find("mbscope slave: mbscope commands reach it as --target 'ascii:" + path +
-                         "?baud=19200&parity=N&stop=1&data=7'"),
+    mbscope::slave::test::SlaveProcess slave(
+        {"--profile", "mmk-2030", "--listen", "ascii:pty?baud=19200&parity=N", "--pty"}, true);
+    const std::string& path = slave.address();
+    ASSERT_EQ(path.rfind("/dev/pts/", 0), 0u) << path;
+    const std::string said = slave.read_until("reach it as");
+    EXPECT_NE(said.find("mbscope slave: mbscope commands reach it as --target 'ascii:" + path +
+                        "?baud=19200&parity=N&stop=1&data=7'"),
               std::string::npos)
-        << r.out;
+        << said;
 }

@@ -15,10 +15,11 @@ extern char** environ;
 
 namespace mbscope::slave::test {
 
-// `mbscope slave ...` with its stdout read for the address it prints first.
+// `mbscope slave ...` with its stdout read for the address it prints first. With `with_stderr`, standard
+// error goes to the same pipe, kept open for read_until().
 class SlaveProcess {
   public:
-    explicit SlaveProcess(std::vector<std::string> args) {
+    explicit SlaveProcess(std::vector<std::string> args, bool with_stderr = false) {
         args.insert(args.begin(), {MBSCOPE_BINARY, "slave"});
         std::vector<char*> argv;
         for (auto& a : args)
@@ -29,6 +30,7 @@ class SlaveProcess {
         posix_spawn_file_actions_t actions;
         posix_spawn_file_actions_init(&actions);
         posix_spawn_file_actions_adddup2(&actions, out[1], 1);
+        if (with_stderr) posix_spawn_file_actions_adddup2(&actions, out[1], 2);
         posix_spawn_file_actions_addclose(&actions, out[0]);
         spawned_ = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) == 0;
         posix_spawn_file_actions_destroy(&actions);
@@ -38,18 +40,37 @@ class SlaveProcess {
         pollfd p{out[0], POLLIN, 0};
         while (spawned_ && ::poll(&p, 1, 10'000) > 0 && ::read(out[0], &ch, 1) == 1 && ch != '\n')
             address_ += ch;
-        ::close(out[0]);
+        if (with_stderr)
+            output_fd_ = out[0];
+        else
+            ::close(out[0]);
         const auto colon = address_.rfind(':');
         if (colon != std::string::npos && address_.find("://") != std::string::npos)
             port_ = static_cast<std::uint16_t>(std::stoi(address_.substr(colon + 1)));
     }
-    ~SlaveProcess() { kill(SIGTERM); }
+    ~SlaveProcess() {
+        kill(SIGTERM);
+        if (output_fd_ >= 0) ::close(output_fd_);
+    }
     SlaveProcess(const SlaveProcess&) = delete;
     SlaveProcess& operator=(const SlaveProcess&) = delete;
 
     std::uint16_t port() const noexcept { return port_; }
     // What the slave printed first: the URI clients connect to, or the pseudo-terminal's path.
     const std::string& address() const noexcept { return address_; }
+    // With with_stderr: what the slave writes after its first line, read until `text` has appeared or 30 s
+    // have passed (a sanitizer build starts slowly).
+    std::string read_until(const std::string& text) {
+        std::string got;
+        char buf[512];
+        pollfd p{output_fd_, POLLIN, 0};
+        while (output_fd_ >= 0 && got.find(text) == std::string::npos && ::poll(&p, 1, 30'000) > 0) {
+            const ssize_t n = ::read(output_fd_, buf, sizeof buf);
+            if (n <= 0) break;
+            got.append(buf, static_cast<std::size_t>(n));
+        }
+        return got;
+    }
     // Sends `sig` and reaps the process.
     void kill(int sig) {
         if (!spawned_ || pid_ <= 0) return;
@@ -64,6 +85,7 @@ class SlaveProcess {
     bool spawned_ = false;
     std::uint16_t port_ = 0;
     std::string address_;
+    int output_fd_ = -1;
 };
 
 }  // namespace mbscope::slave::test
