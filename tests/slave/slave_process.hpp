@@ -58,13 +58,18 @@ class SlaveProcess {
     std::uint16_t port() const noexcept { return port_; }
     // What the slave printed first: the URI clients connect to, or the pseudo-terminal's path.
     const std::string& address() const noexcept { return address_; }
-    // With with_stderr: what the slave writes after its first line, read until `text` has appeared or 30 s
-    // have passed (a sanitizer build starts slowly).
+    // With with_stderr: what the slave writes after its first line, read until the whole line holding `text`
+    // has come (standard error is unbuffered: a line may arrive in pieces) or 30 s have passed (a sanitizer
+    // build starts slowly).
     std::string read_until(const std::string& text) {
         std::string got;
         char buf[512];
         pollfd p{output_fd_, POLLIN, 0};
-        while (output_fd_ >= 0 && got.find(text) == std::string::npos && ::poll(&p, 1, 30'000) > 0) {
+        const auto line_complete = [&] {
+            const auto at = got.find(text);
+            return at != std::string::npos && got.find('\n', at) != std::string::npos;
+        };
+        while (output_fd_ >= 0 && !line_complete() && ::poll(&p, 1, 30'000) > 0) {
             const ssize_t n = ::read(output_fd_, buf, sizeof buf);
             if (n <= 0) break;
             got.append(buf, static_cast<std::size_t>(n));
