@@ -119,6 +119,14 @@ std::uint32_t join_words(std::uint16_t first, std::uint16_t second, WordOrder or
     return 0;
 }
 
+std::optional<RawLimits> raw_limits(const Encoding& e) noexcept {
+    if (e.type == EncodingType::F32) return std::nullopt;
+    if (e.type == EncodingType::Bool) return RawLimits{0, 1};
+    const bool is_signed = e.type == EncodingType::S16 || e.type == EncodingType::S32 || e.is_signed;
+    if (e.words == 2) return is_signed ? RawLimits{INT32_MIN, INT32_MAX} : RawLimits{0, UINT32_MAX};
+    return is_signed ? RawLimits{INT16_MIN, INT16_MAX} : RawLimits{0, UINT16_MAX};
+}
+
 std::array<std::uint16_t, 2> split_words(std::uint32_t value, WordOrder order) noexcept {
     const auto high = static_cast<std::uint16_t>(value >> 16), low = static_cast<std::uint16_t>(value);
     switch (order) {

@@ -83,6 +83,15 @@ struct Encoding {
     std::string expr;           // Formula, as the manual gives it
 };
 
+// The raw values a point's register or registers can hold: 0..65535 (-32768..32767 signed) for one
+// register, the 32-bit ranges for two, 0..1 for a bit. nullopt for a float, whose range is given in
+// engineering units.
+struct RawLimits {
+    std::int64_t min = 0;
+    std::int64_t max = 0;
+};
+std::optional<RawLimits> raw_limits(const Encoding& e) noexcept;
+
 struct Point {
     Table table = Table::HoldingRegisters;
     std::uint16_t address = 0;

@@ -136,12 +136,24 @@ std::vector<std::string> notes_of(const json& j) {
 
 Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table table) {
     Encoding e;
-    if (j.is_string()) {  // shorthand "u16"
+    const auto wide = [](EncodingType t) {
+        return t == EncodingType::U32 || t == EncodingType::S32 || t == EncodingType::F32;
+    };
+    if (j.is_string()) {  // shorthand "u16": a type that needs no other field
         auto t = parse_encoding_type(j.get<std::string>());
-        if (!t)
+        if (!t) {
             r.error(ptr, "unknown encoding \"" + j.get<std::string>() + "\"");
-        else
-            e.type = *t;
+            return e;
+        }
+        e.type = *t;
+        e.words = wide(e.type) ? 2 : 1;  // "u32" was read as one register
+        if (e.type == EncodingType::Scaled || e.type == EncodingType::Enum ||
+            e.type == EncodingType::Digits4High || e.type == EncodingType::Digits4Low ||
+            e.type == EncodingType::U32Low || e.type == EncodingType::U32High)
+            r.error(ptr, "\"" + std::string(to_string(e.type)) + "\" needs an object with its " +
+                             (e.type == EncodingType::Scaled ? "\"decimals_from\""
+                              : e.type == EncodingType::Enum ? "\"values\""
+                                                             : "\"pair\""));
         return e;
     }
     if (!j.is_object()) {
@@ -189,9 +201,8 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
         else
             e.word_order = *order;
     }
-    const bool wide =
-        e.type == EncodingType::U32 || e.type == EncodingType::S32 || e.type == EncodingType::F32;
-    e.words = static_cast<int>(r.integer(j, "words", ptr, false, 1, 2).value_or(wide ? 2 : 1));
+    e.words = static_cast<int>(r.integer(j, "words", ptr, false, 1, 2).value_or(wide(e.type) ? 2 : 1));
+    if (wide(e.type) && e.words != 2) r.error(ptr + "/words", "a 32-bit value takes two registers");
     if (auto b = r.child(j, "bits"); b && b->is_array()) {
         for (std::size_t i = 0; i < b->size(); ++i) {
             const auto& item = (*b)[i];
@@ -812,6 +823,22 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
             apply_override(r, o, ptr, p.points[idx(*t)], *t);
         }
     keep_simulation_of(p);
+    // A range is in raw units: a limit the point's registers cannot hold would be written cut to 16 bits
+    // (70000 on one register is 4464) by whoever trusts the profile, and judged against a value no reply
+    // can carry. Checked here, after the overrides, which may give a point its range.
+    for (Table t : all_tables)
+        for (const auto& pt : p.points[idx(t)]) {
+            const auto limits = raw_limits(pt.encoding);
+            if (!limits) continue;
+            for (const auto& [limit, which] : {std::pair{pt.min, "minimum"}, std::pair{pt.max, "maximum"}})
+                if (limit && (*limit < limits->min || *limit > limits->max))
+                    r.error(mptr, p.id + ": " + std::string(to_string(t)) + " " + std::to_string(pt.address) +
+                                      " has the range " + which + " " + std::to_string(*limit) +
+                                      ", which its " + std::string(to_string(pt.encoding.type)) +
+                                      " register" + (pt.encoding.words == 2 ? "s" : "") + " cannot hold (" +
+                                      std::to_string(limits->min) + " to " + std::to_string(limits->max) +
+                                      ")");
+        }
     // references to other points must exist in this model
     for (Table t : all_tables)
         for (const auto& pt : p.points[idx(t)]) {

@@ -235,6 +235,86 @@ TEST(ProfileLoader, LimitsNoFrameCanCarryAreErrors) {
     EXPECT_EQ(l.profiles[0].functions.max_for(15), 2040);
 }
 
+// A range is in raw units, so each limit must fit the point's registers: a maximum of 70000 on one register
+// was accepted, and the conformance runner then wrote it as 4464 and called that "the maximum". Checked
+// after a model's overrides, which may give a point its range; a float's range is in engineering units.
+// (Address 5 is written "u32", the shorthand, which used to make a one-register value of it.)
+TEST(ProfileLoader, RangesPastWhatThePointsRegistersHoldAreErrors) {
+    const char* wrong = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y", "line": {"transports": ["rtu"]},
+      "functions": {"supported": [3, 6, 16]},
+      "tables": {"holding_registers": [
+        {"address": 1, "name": "a", "access": "rw", "range": {"min": 0, "max": 70000}, "source": "000:1"},
+        {"address": 2, "name": "b", "access": "rw", "range": {"min": -5, "max": 9}, "source": "000:2"},
+        {"address": 3, "name": "c", "access": "rw", "encoding": "s16", "range": {"min": -32768, "max": 32767},
+         "source": "000:3"},
+        {"address": 4, "name": "d", "access": "rw", "encoding": {"type": "fixed", "decimals": 1, "signed": true},
+         "range": {"min": -40000, "max": 0}, "source": "000:4"},
+        {"address": 5, "name": "e", "access": "rw", "encoding": "u32", "range": {"min": 0, "max": 4294967295},
+         "source": "000:5"},
+        {"address": 7, "name": "f", "access": "rw", "encoding": "s32", "range": {"min": -1, "max": 4294967295},
+         "source": "000:7"},
+        {"address": 9, "name": "g", "access": "rw", "encoding": "f32", "range": {"min": -1, "max": 1000000000},
+         "source": "000:9"},
+        {"address": 11, "name": "h", "access": "rw", "source": "000:11"}
+      ]},
+      "models": [{"id": "m", "overrides": [{"table": "holding_registers", "address": 11,
+                                            "range": {"min": 0, "max": 65536}}]}]
+    })";
+    const auto l = load(wrong);
+    std::vector<std::string> messages;
+    for (const auto& e : l.errors)
+        messages.push_back(e.message);
+    const std::vector<std::string> expected{
+        "m: holding_registers 1 has the range maximum 70000, which its u16 register cannot hold (0 to 65535)",
+        "m: holding_registers 2 has the range minimum -5, which its u16 register cannot hold (0 to 65535)",
+        "m: holding_registers 4 has the range minimum -40000, which its fixed register cannot hold "
+        "(-32768 to 32767)",
+        "m: holding_registers 7 has the range maximum 4294967295, which its s32 registers cannot hold "
+        "(-2147483648 to 2147483647)",
+        "m: holding_registers 11 has the range maximum 65536, which its u16 register cannot hold (0 to "
+        "65535)",
+    };
+    EXPECT_EQ(messages, expected);
+    for (const auto& e : l.errors)
+        EXPECT_EQ(e.pointer, "/models/0");
+}
+
+// The shorthand "u32" made a one-register value, and "scaled", "enum" and the paired halves were taken
+// without the fields they cannot work without.
+TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
+    const char* text = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y", "line": {"transports": ["rtu"]},
+      "functions": {"supported": [3]},
+      "tables": {"holding_registers": [
+        {"address": 1, "name": "a", "access": "r", "encoding": "u32", "source": "000:1"},
+        {"address": 3, "name": "b", "access": "r", "encoding": "f32", "source": "000:3"},
+        {"address": 5, "name": "c", "access": "r", "encoding": "scaled", "source": "000:5"},
+        {"address": 6, "name": "d", "access": "r", "encoding": "enum", "source": "000:6"},
+        {"address": 7, "name": "e", "access": "r", "encoding": "u32_low", "source": "000:7"},
+        {"address": 8, "name": "f", "access": "r", "encoding": {"type": "s32", "words": 1}, "source": "000:8"}
+      ]},
+      "models": [{"id": "m"}]
+    })";
+    const auto l = load(text);
+    std::vector<std::pair<std::string, std::string>> errors;
+    for (const auto& e : l.errors)
+        errors.emplace_back(e.pointer, e.message);
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/tables/holding_registers/2/encoding", "\"scaled\" needs an object with its \"decimals_from\""},
+        {"/tables/holding_registers/3/encoding", "\"enum\" needs an object with its \"values\""},
+        {"/tables/holding_registers/4/encoding", "\"u32_low\" needs an object with its \"pair\""},
+        {"/tables/holding_registers/5/encoding/words", "a 32-bit value takes two registers"},
+    };
+    EXPECT_EQ(errors, expected);
+    ASSERT_EQ(l.profiles.size(), 1u);
+    const auto& p = l.profiles[0];
+    ASSERT_NE(p.find(mb::Table::HoldingRegisters, 1), nullptr);
+    EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 1)->encoding.words, 2);
+    EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 2), p.find(mb::Table::HoldingRegisters, 1));
+    EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 4), p.find(mb::Table::HoldingRegisters, 3));
+}
+
 // Fields of the wrong type where the loader used to take a default with nlohmann's value(), which throws on
 // a type mismatch: each is an error with its pointer, and the rest still loads (found by the profile fuzz
 // target, fuzz/regressions/profile/implied-not-a-boolean).
