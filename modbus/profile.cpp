@@ -170,6 +170,15 @@ std::optional<std::uint16_t> word_at(std::uint16_t address, std::uint16_t start,
     return std::nullopt;
 }
 
+// A value no encoding put into words is shown as its number. A partial one has no number: its text says
+// what the word is, and a reader of the JSON must not take one half of a float, or a value not yet
+// scaled, for the value.
+NamedValue with_text(NamedValue v) {
+    if (v.text.empty() && v.number)
+        v.text = format_number(*v.number, std::floor(*v.number) == *v.number ? 0 : 3);
+    if (v.partial) v.number.reset();
+    return v;
+}
 }  // namespace
 
 std::vector<NamedValue> decode_registers(const Profile& profile, Table table, std::uint16_t start,
@@ -193,7 +202,33 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
         }
         const Point& p = *v.point;
         const Encoding& e = p.encoding;
-        if (e.words == 2 && p.address != address) continue;  // second half, consumed with the first
+        const auto whole_32 = [&](std::uint16_t first, std::uint16_t second) {
+            v.raw = {first, second};
+            const std::uint32_t u = join_words(first, second, e.word_order);
+            if (e.type == EncodingType::S32) {
+                v.number = static_cast<std::int32_t>(u);
+            } else if (e.type == EncodingType::F32) {
+                float f;
+                std::memcpy(&f, &u, sizeof f);
+                v.number = f;
+            } else {
+                v.number = u;
+            }
+        };
+        if (e.words == 2 && p.address != address) {
+            // A second half. Taken with its first when the block holds that (it then starts before this
+            // word); a block that starts here (a read from the middle of a value, a write of one register)
+            // still shows it: whole when the first half is known from elsewhere, else alone.
+            if (address != start) continue;
+            if (auto first = word_at(p.address, start, words, context)) {
+                whole_32(*first, w);
+            } else {
+                v.partial = true;
+                v.text = std::to_string(w) + " (second half only)";
+            }
+            out.push_back(with_text(std::move(v)));
+            continue;
+        }
         switch (e.type) {
             case EncodingType::U16:
                 v.number = w;
@@ -216,7 +251,8 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                         v.partial = true;  // decimal point register not known: shown unscaled
                 }
                 v.number = raw / std::pow(10.0, decimals);
-                v.text = format_number(*v.number, decimals);
+                v.text = format_number(*v.number, decimals) +
+                         (v.partial ? " (unscaled: decimal point unknown)" : "");
                 break;
             }
             case EncodingType::Enum:
@@ -243,15 +279,15 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 const bool digits = e.type == EncodingType::Digits4High || e.type == EncodingType::Digits4Low;
                 if (!other) {
                     v.partial = true;
-                    v.number = w;
+                    v.text = std::to_string(w) + " (one half only)";
                 } else {
                     const std::uint16_t hi = high_first ? w : *other, lo = high_first ? *other : w;
                     const double whole =
                         digits ? hi * 10000.0 + lo : static_cast<double>((std::uint32_t{hi} << 16) | lo);
                     v.number = whole / std::pow(10.0, e.decimals);
                     v.raw = {hi, lo};
+                    v.text = format_number(*v.number, e.decimals);
                 }
-                v.text = format_number(*v.number, v.partial ? 0 : e.decimals);
                 break;
             }
             case EncodingType::U32:
@@ -262,19 +298,10 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                                   : word_at(static_cast<std::uint16_t>(address + 1), start, words, context);
                 if (!second) {
                     v.partial = true;
-                    v.number = w;
                     v.text = std::to_string(w) + " (first half only)";
                     break;
                 }
-                v.raw = {w, *second};
-                const std::uint32_t u = join_words(w, *second, e.word_order);
-                if (e.type == EncodingType::U32) v.number = u;
-                if (e.type == EncodingType::S32) v.number = static_cast<std::int32_t>(u);
-                if (e.type == EncodingType::F32) {
-                    float f;
-                    std::memcpy(&f, &u, sizeof f);
-                    v.number = f;
-                }
+                whole_32(w, *second);
                 break;
             }
             case EncodingType::Bits: {
@@ -294,9 +321,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 v.number = w;
                 break;
         }
-        if (v.text.empty() && v.number)
-            v.text = format_number(*v.number, std::floor(*v.number) == *v.number ? 0 : 3);
-        out.push_back(std::move(v));
+        out.push_back(with_text(std::move(v)));
     }
     return out;
 }

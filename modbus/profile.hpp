@@ -223,9 +223,10 @@ struct NamedValue {
     const Point* point = nullptr;  // nullptr: address not in the map
     std::uint16_t address = 0;
     std::vector<std::uint16_t> raw;  // the register(s) the value was built from
-    std::optional<double> number;    // scaled numeric value
+    std::optional<double> number;    // scaled numeric value; none when partial (its text says why)
     std::string text;                // enumeration text, characters, bits, or the number formatted
-    bool partial = false;            // a 32-bit or paired value whose other half is outside the block
+    bool partial = false;  // a 32-bit or paired value whose other half, or a scaled one whose decimal
+                           // point register, is outside the block and not known from elsewhere
 };
 
 // Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.

@@ -117,8 +117,47 @@ TEST(ProfileLoader, DecodesSplitAndWideValues) {
     EXPECT_DOUBLE_EQ(*v[0].number, 1.5);
     v = mb::decode_registers(p, mb::Table::HoldingRegisters, 70, {0x0000});
     EXPECT_TRUE(v[0].partial);
+    EXPECT_EQ(v[0].text, "0 (first half only)");
+    EXPECT_EQ(v[0].number, std::nullopt);
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 60, {1234});
+    EXPECT_TRUE(v[0].partial);
+    EXPECT_EQ(v[0].text, "1234 (one half only)");
+    EXPECT_EQ(v[0].number, std::nullopt);
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 0, {1234});  // decimal point register 17 unknown
+    EXPECT_TRUE(v[0].partial);
+    EXPECT_EQ(v[0].text, "1234 (unscaled: decimal point unknown)");
+    EXPECT_EQ(v[0].number, std::nullopt);
     v = mb::decode_registers(p, mb::Table::HoldingRegisters, 100, {7});
     EXPECT_EQ(v[0].point, nullptr);
+}
+
+// A block that starts at a value's second register (a read from the middle of a float, a write of one
+// register) dropped that word without a trace; it is shown alone, or whole when the first half is known.
+TEST(ProfileLoader, ABlockStartingAtASecondHalfShowsIt) {
+    auto l = load(mk_like);
+    const auto& p = l.profiles[0];
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 71, {0x3FC0, 7});
+    ASSERT_EQ(v.size(), 2u);
+    EXPECT_EQ(v[0].address, 71);
+    ASSERT_NE(v[0].point, nullptr);
+    EXPECT_EQ(v[0].point->address, 70);
+    EXPECT_TRUE(v[0].partial);
+    EXPECT_EQ(v[0].text, "16320 (second half only)");
+    EXPECT_EQ(v[0].number, std::nullopt);  // half a float is no value (its JSON had "value": 16320)
+    EXPECT_EQ(v[0].raw, (std::vector<std::uint16_t>{0x3FC0}));
+    EXPECT_EQ(v[1].address, 72);
+    EXPECT_EQ(v[1].point, nullptr);
+    // The first half known from elsewhere (an earlier read): the whole value, 1.5 in cdab order.
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 71, {0x3FC0}, {{70, 0x0000}});
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_FALSE(v[0].partial);
+    EXPECT_DOUBLE_EQ(*v[0].number, 1.5);
+    EXPECT_EQ(v[0].raw, (std::vector<std::uint16_t>{0x0000, 0x3FC0}));
+    // Inside a block that holds the first half, the second is still taken with it.
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 69, {1, 0x0000, 0x3FC0});
+    ASSERT_EQ(v.size(), 2u);
+    EXPECT_EQ(v[1].address, 70);
+    EXPECT_DOUBLE_EQ(*v[1].number, 1.5);
 }
 
 // Addresses end at 65535: a block that runs past it names nothing there (wrapped round, its words would be
