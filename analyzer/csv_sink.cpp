@@ -97,7 +97,7 @@ std::string named_values(const std::vector<NamedValue>& values) {
         else
             s += std::to_string(v.address);
         s += "=" + v.text;
-        if (v.point && !v.point->unit.empty()) s += " " + v.point->unit;
+        if (v.point && !v.point->unit.empty() && v.number) s += " " + v.point->unit;  // not after a raw half
         if (v.partial) s += " (partial)";
     }
     return s;

@@ -93,7 +93,8 @@ void TextSink::transaction(const TransactionRecord& t) {
         else
             out_ << "(not in the map)";
         out_ << " = " << v.text;
-        if (v.point && !v.point->unit.empty()) out_ << ' ' << v.point->unit;
+        if (v.point && !v.point->unit.empty() && v.number)
+            out_ << ' ' << v.point->unit;  // not after a raw half
         if (v.partial) out_ << "  (partial)";
         out_ << '\n';
     }

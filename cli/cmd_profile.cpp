@@ -343,7 +343,7 @@ int run_decode(const ProfileOptions& o) {
             std::string name =
                 v.point ? (v.point->name_en.empty() ? v.point->name : v.point->name_en) : "(not in map)";
             std::printf("  %5u  %-44s %s%s%s\n", v.address, name.c_str(), v.text.c_str(),
-                        v.point && !v.point->unit.empty() ? (" " + v.point->unit).c_str() : "",
+                        v.point && !v.point->unit.empty() && v.number ? (" " + v.point->unit).c_str() : "",
                         v.partial ? "  (partial: other half or scale outside the block)" : "");
         }
     }

@@ -65,6 +65,33 @@ TEST(ProfileCommand, LookupAndDecode) {
         << past.out;
 }
 
+// Walchem's processor temperature is a float at 42-43 (cdab). Words from 43 began with the float's second
+// half, which was not shown at all; a lone half now shows as the raw word, without the unit and, in JSON,
+// without a "value" (it said 17096 °C).
+TEST(ProfileCommand, DecodeShowsALoneHalfAsARawWord) {
+    auto r = run_mbscope("profile decode walchem-w600 holding 43 42C8 0000");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find(
+                  "     43  system controller processor temperature      17096 (second half only)  (partial"),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(
+        r.out.find("     44  system network board temperature             0 (first half only)  (partial"),
+        std::string::npos)
+        << r.out;
+    r = run_mbscope("profile decode walchem-w600 holding 43 42C8 0000 --json");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    const auto j = nlohmann::json::parse(r.out);
+    ASSERT_EQ(j.size(), 2u);
+    EXPECT_EQ(j[0]["address"], 43);
+    EXPECT_EQ(j[0]["partial"], true);
+    EXPECT_EQ(j[0]["raw"], nlohmann::json::array({0x42C8}));
+    EXPECT_FALSE(j[0].contains("value")) << j.dump();
+    // From 42 the float is whole: 0x42C80000 = 100 °C.
+    r = run_mbscope("profile decode walchem-w600 holding 42 0000 42C8");
+    EXPECT_NE(r.out.find("system controller processor temperature      100 °C"), std::string::npos) << r.out;
+}
+
 TEST(ProfileCommand, ValidateReportsEveryErrorWithPointer) {
     auto r = run_mbscope("profile validate " + fixtures + "/broken/broken.json");
     EXPECT_EQ(r.exit_code, 1);
