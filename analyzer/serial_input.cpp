@@ -264,26 +264,29 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
         a.input_error(path + ": empty file, nothing to decode");
         return false;
     }
+    bool read = false;
     switch (format) {
         case InputFormat::Pcap:
             return a.read_capture(input->path, input->name);
         case InputFormat::Text:
             a.set_serial_framing(modbus::Framing::Rtu);
-            return read_text(a, *input) && !capture_read_as_serial;
+            read = read_text(a, *input);
+            break;
         case InputFormat::RtuRaw:
-            a.set_serial_framing(modbus::Framing::Rtu);
-            return read_raw(a, *input) && !capture_read_as_serial;
         case InputFormat::AsciiRaw:
-            a.set_serial_framing(modbus::Framing::Ascii);
-            return read_raw(a, *input) && !capture_read_as_serial;
+            a.set_serial_framing(format == InputFormat::AsciiRaw ? modbus::Framing::Ascii
+                                                                 : modbus::Framing::Rtu);
+            read = read_raw(a, *input);
+            break;
         case InputFormat::Jpnevulator:
         case InputFormat::Socat:
             a.set_serial_framing(modbus::Framing::Rtu);
-            return read_log(a, *input, format, options) && !capture_read_as_serial;
+            read = read_log(a, *input, format, options);
+            break;
         case InputFormat::Auto:
             break;
     }
-    return false;
+    return read && !capture_read_as_serial;
 }
 
 }  // namespace mbscope::analyzer
