@@ -259,9 +259,14 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
             case EncodingType::Status: {
                 v.number = w;
                 v.text = std::to_string(w);
+                // A manual may give a value two meanings (by the device's type or mode, as Walchem's alarm
+                // bits): every one is shown, not whichever was listed last.
+                std::string meanings;
                 for (const auto& ev : e.values)
                     if (ev.value == w)
-                        v.text = ev.text_en.empty() ? ev.text : ev.text + " (" + ev.text_en + ")";
+                        meanings += (meanings.empty() ? "" : " or ") +
+                                    (ev.text_en.empty() ? ev.text : ev.text + " (" + ev.text_en + ")");
+                if (!meanings.empty()) v.text = meanings;
                 break;
             }
             case EncodingType::AsciiChar:

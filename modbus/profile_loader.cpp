@@ -421,6 +421,9 @@ FunctionRules parse_functions(Reader& r, const json& j) {
                 if (!x.is_number_integer() || x.get<int>() < 0 || x.get<int>() > hi)
                     r.error(std::string("/functions/") + key,
                             "holds a value that is not a number from 0 to " + std::to_string(hi));
+                else if (std::find(out.begin(), out.end(), x.get<int>()) != out.end())
+                    r.error(std::string("/functions/") + key,
+                            std::to_string(x.get<int>()) + " is listed twice");
                 else
                     out.push_back(
                         static_cast<typename std::decay_t<decltype(out)>::value_type>(x.get<int>()));

@@ -319,6 +319,36 @@ TEST(ProfileLoader, RangesPastWhatThePointsRegistersHoldAreErrors) {
         EXPECT_EQ(e.pointer, "/models/0");
 }
 
+// A function code listed twice is a slip of the transcription. An enumeration value listed twice has two
+// meanings (a manual may give one by the device's type or mode, as Walchem's alarm bits): the decoding
+// showed only whichever came last; it shows both.
+TEST(ProfileLoader, FunctionsListedTwiceAreErrorsAndAValueWithTwoMeaningsShowsBoth) {
+    const char* text = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y", "line": {"transports": ["rtu"]},
+      "functions": {"supported": [3, 6, 3], "broadcast": [6, 6]},
+      "tables": {"holding_registers": [
+        {"address": 1, "name": "a", "access": "rw", "source": "000:1",
+         "encoding": {"type": "enum", "values": [{"value": 0, "text": "desligado"}, {"value": 1, "text": "ligado"},
+                                                 {"value": 1, "text": "alarme", "text_en": "alarm"}]}}
+      ]},
+      "models": [{"id": "m"}]
+    })";
+    const auto l = load(text);
+    std::vector<std::pair<std::string, std::string>> errors;
+    for (const auto& e : l.errors)
+        errors.emplace_back(e.pointer, e.message);
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/functions/supported", "3 is listed twice"},
+        {"/functions/broadcast", "6 is listed twice"},
+    };
+    EXPECT_EQ(errors, expected);
+    ASSERT_EQ(l.profiles.size(), 1u);
+    EXPECT_EQ(l.profiles[0].functions.supported, (std::vector<std::uint8_t>{3, 6}));
+    const auto v = mb::decode_registers(l.profiles[0], mb::Table::HoldingRegisters, 1, {1});
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].text, "ligado or alarme (alarm)");
+}
+
 // The shorthand "u32" made a one-register value, and "scaled", "enum" and the paired halves were taken
 // without the fields they cannot work without.
 TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
