@@ -135,6 +135,13 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
                     [this, &f, dir](std::uint64_t at, std::size_t differing, Timestamp t) {
                         retransmission_conflict(f, dir, at, differing, t);
                     });
+                f.reassembler[dir]->on_before_start([this, &f, dir](std::size_t bytes, Timestamp t) {
+                    DeframeEvents events;
+                    events.emplace_back(
+                        std::in_place_type<Unparsed>,
+                        Unparsed{0, static_cast<std::uint32_t>(bytes), UnparsedReason::BeforeStreamStart, t});
+                    deframed(f, dir == 0, events, t);
+                });
             }
         }
     }
@@ -243,7 +250,10 @@ void Analyzer::packet_in_source(const Packet& p) {
     bool to_server = false;
     Flow& flow = flow_for(l4, to_server);
     if (l4.transport == Transport::Tcp) {
-        flow.reassembler[to_server ? 0 : 1]->segment(l4.seq, l4.syn, l4.payload, p.time);
+        auto& stream = *flow.reassembler[to_server ? 0 : 1];
+        stream.segment(l4.seq, l4.syn, l4.payload, p.time);
+        if (l4.fin) stream.finished_at(l4.seq + static_cast<std::uint32_t>(l4.payload.size()));
+        if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
         return;
     }
     // Modbus/UDP: one ADU per datagram (no stream to resynchronise). Serial gateways send RTU frames in
@@ -284,10 +294,15 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
             const FindingCode code = u->reason == UnparsedReason::BadHeader
                                          ? FindingCode::TcpLengthInvalid
                                          : FindingCode::StreamUnparsedBytes;
+            const std::string stream = to_server ? "request" : "response";
             report(code, about,
-                   std::to_string(u->length) + " bytes at stream offset " + std::to_string(u->offset) +
-                       " of the " + (to_server ? "request" : "response") + " stream formed no frame (" +
-                       std::string(to_string(u->reason)) + ")");
+                   u->reason == UnparsedReason::BeforeStreamStart
+                       ? std::to_string(u->length) + " bytes of the " + stream +
+                             " stream came after later ones at the start of the capture (it began "
+                             "mid-connection): they precede the first byte decoded and are not decoded"
+                       : std::to_string(u->length) + " bytes at stream offset " + std::to_string(u->offset) +
+                             " of the " + stream + " stream formed no frame (" +
+                             std::string(to_string(u->reason)) + ")");
             continue;
         }
         FrameRecord r(std::get<Frame>(e));

@@ -27,6 +27,8 @@ ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4P
         out.source.port = be16(d.data());
         out.destination.port = be16(d.data() + 2);
         out.seq = be32(d.data() + 4);
+        out.ack = be32(d.data() + 8);
+        out.has_ack = d[13] & 0x10;
         out.fin = d[13] & 0x01;
         out.syn = d[13] & 0x02;
         out.rst = d[13] & 0x04;

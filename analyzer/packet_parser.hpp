@@ -30,7 +30,8 @@ struct L4Packet {
     Endpoint source;
     Endpoint destination;
     std::uint32_t seq = 0;  // TCP only
-    bool syn = false, fin = false, rst = false;
+    std::uint32_t ack = 0;  // TCP only, when has_ack
+    bool syn = false, fin = false, rst = false, has_ack = false;
     std::span<const std::uint8_t> payload;
     bool truncated = false;  // the capture holds less than the IP header says (snap length)
 };

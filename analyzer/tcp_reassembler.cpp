@@ -13,6 +13,7 @@ constexpr auto later = [](const auto& a, const auto& b) noexcept { return a.at >
 void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     max_buffered_ = max_buffered;
     next_.reset();
+    fin_at_.reset();
     pending_.clear();
     arena_.clear();
     base_ = 0;
@@ -34,15 +35,19 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
     const auto rel = static_cast<std::int32_t>(seq - *next_);
     if (rel < 0) {
         const auto overlap = static_cast<std::size_t>(-static_cast<std::int64_t>(rel));
-        // base_ counts delivered bytes since the first; a retransmission from before the first is not ours
-        // to compare.
-        if (overlap <= base_)
-            compare_retransmission(base_ - overlap, payload.first(std::min(overlap, payload.size())), t);
-        if (overlap >= payload.size()) {
-            retransmitted_ += payload.size();
-            return;
+        // base_ counts delivered bytes since the first seen. Bytes before that one were never delivered:
+        // not a retransmission (it used to count them as one, and they vanished without a word).
+        std::size_t early = 0;
+        if (overlap > base_) {
+            early = std::min(overlap - static_cast<std::size_t>(base_), payload.size());
+            if (before_start_) before_start_(early, t);
         }
-        retransmitted_ += overlap;
+        const std::size_t old = std::min(overlap, payload.size());  // [early, old): delivered before
+        if (old > early) {
+            compare_retransmission(base_ + early - overlap, payload.subspan(early, old - early), t);
+            retransmitted_ += old - early;
+        }
+        if (overlap >= payload.size()) return;
         payload = payload.subspan(overlap);
     } else if (rel > 0) {
         // Ahead of a hole: wait. A retransmission of a piece still waiting is kept as a piece of its own
@@ -129,12 +134,27 @@ void TcpReassembler::compact() {
 
 void TcpReassembler::skip_to_first_buffered(modbus::Timestamp t) {
     if (pending_.empty()) return;
-    const std::uint64_t missing = pending_.front().at - base_;
+    skip(pending_.front().at - base_, t);
+}
+
+void TcpReassembler::skip(std::uint64_t missing, modbus::Timestamp t) {
     gap_(missing, t);
     *next_ += static_cast<std::uint32_t>(missing);
     base_ += missing;
     recent_from_ = base_;
     drain(t);
+}
+
+void TcpReassembler::acknowledged(std::uint32_t ack, modbus::Timestamp t) {
+    if (!next_) return;
+    if (fin_at_ && static_cast<std::int32_t>(ack - *fin_at_) > 0) ack = *fin_at_;
+    // Wrap-aware; an acknowledgement more than 1 GiB ahead is no acknowledgement of this stream (a
+    // mid-stream capture's first segments, a port reused by another connection).
+    const auto rel = static_cast<std::int32_t>(ack - *next_);
+    if (rel <= 0 || rel > (1 << 30)) return;
+    std::uint64_t missing = static_cast<std::uint64_t>(rel);
+    if (!pending_.empty()) missing = std::min(missing, pending_.front().at - base_);
+    if (missing > 0) skip(missing, t);
 }
 
 void TcpReassembler::flush(modbus::Timestamp t) {

@@ -23,15 +23,27 @@ class TcpReassembler {
     // `differing` bytes of a retransmission disagree with what was delivered; the first at stream offset
     // `at`.
     using ConflictFn = std::function<void(std::uint64_t at, std::size_t differing, modbus::Timestamp)>;
+    // `bytes` that precede the first byte seen of a stream with no SYN (a capture begun mid-connection whose
+    // first segment overtook an earlier one): they cannot go before what was delivered already.
+    using BeforeStartFn = std::function<void(std::size_t bytes, modbus::Timestamp)>;
 
     TcpReassembler(DataFn data, GapFn gap, std::size_t max_buffered = 1 << 20)
         : data_(std::move(data)), gap_(std::move(gap)), max_buffered_(max_buffered) {}
 
     void segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload, modbus::Timestamp t);
+    // The peer acknowledged this direction's bytes up to `ack`: bytes before it that the capture never
+    // showed (a segment the tap lost, a record cut by the snap length) will not be sent again, so a hole
+    // below it is given up now. Waiting for it stalled the direction until the end of the capture (or a
+    // megabyte later): one lost segment made every later request unanswered.
+    void acknowledged(std::uint32_t ack, modbus::Timestamp t);
+    // A FIN at sequence number `seq` (after its segment's payload): it takes one number of its own, which
+    // the peer's acknowledgement covers without any byte having been lost.
+    void finished_at(std::uint32_t seq) noexcept { fin_at_ = seq; }
     // End of capture or connection: what is buffered beyond a hole is delivered after a gap.
     void flush(modbus::Timestamp t);
     std::uint64_t retransmitted_bytes() const noexcept { return retransmitted_; }
     void on_conflict(ConflictFn conflict) { conflict_ = std::move(conflict); }
+    void on_before_start(BeforeStartFn before_start) { before_start_ = std::move(before_start); }
     // Back to a new reassembler's state (no sequence number seen yet), keeping the callbacks and the
     // storage already grown.
     void reset(std::size_t max_buffered) noexcept;
@@ -49,12 +61,14 @@ class TcpReassembler {
     void compare_retransmission(std::uint64_t at, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     void drain(modbus::Timestamp t);
     void skip_to_first_buffered(modbus::Timestamp t);
+    void skip(std::uint64_t missing, modbus::Timestamp t);
     void compact();
 
     DataFn data_;
     GapFn gap_;
     std::size_t max_buffered_;
     std::optional<std::uint32_t> next_;  // next expected sequence number
+    std::optional<std::uint32_t> fin_at_;
     // Pieces waiting for a hole to fill: a heap with the lowest `at` in front. Their bytes share one arena
     // (a segment ahead of a hole used to cost a map node and a vector of its own, and under a fuzzer most
     // segments are). The arena is emptied whenever nothing waits and compacted when mostly dead, so it
@@ -67,6 +81,7 @@ class TcpReassembler {
     std::size_t buffered_ = 0;           // bytes of the pieces waiting, duplicates included
     std::uint64_t retransmitted_ = 0;
     ConflictFn conflict_;
+    BeforeStartFn before_start_;
     // The last bytes delivered, by stream offset modulo its size: a retransmission is compared with them.
     // Retransmissions repeat the last segment or few; 4 KiB reaches past any Modbus ADU.
     static constexpr std::size_t recent_size = 4096;

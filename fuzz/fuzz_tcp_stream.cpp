@@ -1,8 +1,9 @@
 // Modbus/TCP stream reassembly: one consistent byte stream cut into segments that arrive out of order,
-// retransmitted, overlapping or never (holes), with sequence numbers that may wrap, through the analyzer's
-// TcpReassembler into the MBAP deframer. Properties: the reassembler delivers each stream byte at most once,
-// with the content it had in the stream, and accounts for every position up to the end of the furthest
-// segment as data or as a declared gap; the deframer accounts for every byte delivered, in order.
+// retransmitted, overlapping or never (holes), acknowledged past holes or not, with sequence numbers that
+// may wrap, through the analyzer's TcpReassembler into the MBAP deframer. Properties: the reassembler
+// delivers each stream byte at most once, with the content it had in the stream, and accounts for every
+// position up to the end of the furthest segment as data or as a declared gap; the deframer accounts for
+// every byte delivered, in order.
 #include <fuzzer/FuzzedDataProvider.h>
 
 #include <algorithm>
@@ -77,9 +78,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const auto length =
             in.ConsumeIntegralInRange<std::size_t>(1, std::min<std::size_t>(300, stream.size() - offset));
         // One byte per segment at least (a range of one value consumes none): the loop always ends.
-        t += std::chrono::milliseconds(1 + in.ConsumeIntegral<std::uint8_t>());
+        const auto pause = in.ConsumeIntegral<std::uint8_t>();
+        t += std::chrono::milliseconds(1 + (pause & 0x7F));
         reassembler.segment(isn + 1 + static_cast<std::uint32_t>(offset), false,
                             std::span<const std::uint8_t>(stream.data() + offset, length), t);
+        // Its high bit: the receiver acknowledges up to this segment's end, as if every byte before it had
+        // reached it (those the input never sent were lost by the tap, and are given up as a gap).
+        if (pause & 0x80) reassembler.acknowledged(isn + 1 + static_cast<std::uint32_t>(offset + length), t);
         furthest = std::max(furthest, offset + length);
     }
     reassembler.flush(t);

@@ -40,6 +40,8 @@ std::string_view to_string(UnparsedReason r) noexcept {
             return "too_long";
         case UnparsedReason::BadHeader:
             return "bad_header";
+        case UnparsedReason::BeforeStreamStart:
+            return "before_stream_start";
     }
     return "?";
 }

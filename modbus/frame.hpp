@@ -102,17 +102,18 @@ static_assert(sizeof(void*) != 8 || sizeof(Frame) == 336,
               "Frame changed: copy the new field in Frame::operator=");
 
 enum class UnparsedReason : std::uint8_t {
-    Garbage = 0,          // no frame could start here
-    TooShort = 1,         // a silence-delimited run too short to be a frame
-    Truncated = 2,        // the input ended inside a frame
-    UnknownFunction = 3,  // RTU without timing: unknown function code, length cannot be predicted
-    NoStart = 4,          // ASCII: characters outside ':' ... CR LF
-    MissingEnd = 5,       // ASCII: a new ':' or a bad character before CR LF
-    Timeout = 6,          // ASCII: inter-character timeout inside a frame
-    BadCharacter = 7,     // ASCII: a character that is not a hex digit
-    OddLength = 8,        // ASCII: odd number of hex digits
-    TooLong = 9,          // longer than the framing's maximum
-    BadHeader = 10,       // TCP: MBAP length field impossible, stream resynchronised
+    Garbage = 0,             // no frame could start here
+    TooShort = 1,            // a silence-delimited run too short to be a frame
+    Truncated = 2,           // the input ended inside a frame
+    UnknownFunction = 3,     // RTU without timing: unknown function code, length cannot be predicted
+    NoStart = 4,             // ASCII: characters outside ':' ... CR LF
+    MissingEnd = 5,          // ASCII: a new ':' or a bad character before CR LF
+    Timeout = 6,             // ASCII: inter-character timeout inside a frame
+    BadCharacter = 7,        // ASCII: a character that is not a hex digit
+    OddLength = 8,           // ASCII: odd number of hex digits
+    TooLong = 9,             // longer than the framing's maximum
+    BadHeader = 10,          // TCP: MBAP length field impossible, stream resynchronised
+    BeforeStreamStart = 11,  // TCP: bytes before the first one captured of their stream, arriving after it
 };
 std::string_view to_string(UnparsedReason r) noexcept;
 

@@ -40,7 +40,9 @@ struct Harness {
     std::uint32_t seq[2] = {1000, 5000};
     Harness(an::AnalyzerOptions o = {}) : analyzer(o, sink) {}
     void send(bool to_server, const std::vector<std::uint8_t>& payload, mb::Timestamp t) {
-        auto bytes = packet(to_server, seq[to_server ? 0 : 1], payload);
+        // Each segment acknowledges everything the other side has sent.
+        auto bytes =
+            packet(to_server, seq[to_server ? 0 : 1], payload, false, 0x18, 502, seq[to_server ? 1 : 0]);
         seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
         raw(bytes, t);
     }
@@ -126,6 +128,60 @@ TEST(Analyzer, MissingSegmentIsAGapOfKnownSize) {
         }
     }
     EXPECT_EQ(h.sink.frames.size(), 2u);
+}
+
+// A polling master whose request 2 and response 5 the tap lost (a mirror port drops packets under load).
+// The peer's acknowledgement past each hole gives it up at once: before, the reassembler waited for the
+// lost bytes until the end of the capture, and every later request went unanswered while its response
+// was unsolicited.
+TEST(Analyzer, ALostSegmentCostsOneTransactionNotTheRestOfTheCapture) {
+    Harness h;
+    for (std::uint16_t i = 1; i <= 10; ++i) {
+        const auto t = std::chrono::seconds(i);
+        if (i == 2)
+            h.seq[0] += static_cast<std::uint32_t>(read_request(i).size());
+        else
+            h.send(true, read_request(i), t);
+        if (i == 5)
+            h.seq[1] += static_cast<std::uint32_t>(read_response(i).size());
+        else
+            h.send(false, read_response(i), t + 2ms);
+    }
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::StreamGap), 2);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);  // response 2
+    EXPECT_EQ(
+        h.sink.count(mb::FindingCode::PairNoResponse) + h.sink.count(mb::FindingCode::PairNoResponseAtEnd),
+        1);  // request 5
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.requests, 9u);
+    EXPECT_EQ(device.responses, 8u);  // response 2 answers no request seen: unsolicited
+    std::size_t answered = 0;
+    for (const auto& t : h.sink.transactions) {
+        if (t.response) {
+            ++answered;
+            EXPECT_EQ(*t.latency, 2ms);  // each delivered at its own packet's time
+        }
+    }
+    EXPECT_EQ(answered, 8u);
+}
+
+// The capture began mid-connection and its first request segment overtook the one before it: those bytes
+// cannot be decoded before what was already, and are reported as unparsed instead of vanishing.
+TEST(Analyzer, BytesBeforeAMidStreamCapturesFirstAreReportedUnparsed) {
+    Harness h;
+    const auto a = read_request(1), b = read_request(2);
+    h.raw(packet(true, 1000 + static_cast<std::uint32_t>(a.size()), b), 1s);  // no SYN: b is seen first
+    h.raw(packet(true, 1000, a), 1s + 1ms);
+    h.seq[0] = 1000 + static_cast<std::uint32_t>(a.size() + b.size());
+    h.send(false, read_response(2), 1s + 3ms);
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.unparsed_records.size(), 1u);
+    EXPECT_EQ(h.sink.unparsed_records[0].length, a.size());
+    EXPECT_EQ(h.sink.unparsed_records[0].reason, mb::UnparsedReason::BeforeStreamStart);
+    EXPECT_EQ(h.analyzer.summary().unparsed_bytes, a.size());
+    ASSERT_EQ(h.sink.count(mb::FindingCode::StreamUnparsedBytes), 1);
+    EXPECT_EQ(h.sink.transactions.size(), 1u);
 }
 
 TEST(Analyzer, NoResponseWithinTimeout) {

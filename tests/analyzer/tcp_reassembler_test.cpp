@@ -165,6 +165,65 @@ TEST(TcpReassembler, AHoleThatExceedsTheBufferingBoundIsDeclaredLost) {
     EXPECT_EQ(h.reassembler.retransmitted_bytes(), 10u);
 }
 
+// The peer acknowledging bytes the capture never showed: they will not be sent again, so the hole below the
+// acknowledgement is given up at once (one lost segment used to hold every later byte of the direction
+// until the end of the capture). Bytes not acknowledged yet may still come; a FIN's own sequence number,
+// acknowledged, is no lost byte.
+TEST(TcpReassembler, AnAcknowledgementPastAHoleGivesItUp) {
+    Harness h;
+    const auto s = stream_of(100);
+    h.syn(0);
+    h.send(1, s, 0, 10);
+    h.reassembler.acknowledged(11, mb::Timestamp{0});  // all seen: nothing to give up
+    h.send(1, s, 20, 10);                              // 10..20 not captured
+    h.send(1, s, 40, 10);                              // nor 30..40
+    h.reassembler.acknowledged(1 + 20, mb::Timestamp{0});
+    EXPECT_EQ(h.out.gaps, 1);
+    EXPECT_EQ(h.out.stream.size(), 30u);                   // 0..10, the lost 10, 20..30
+    h.reassembler.acknowledged(1 + 35, mb::Timestamp{0});  // up to 35 only: 35..40 may still come
+    EXPECT_EQ(h.out.gaps, 2);
+    EXPECT_EQ(h.out.stream.size(), 35u);
+    h.send(1, s, 35, 5);
+    std::vector<std::uint8_t> expected(s.begin(), s.begin() + 50);
+    std::fill(expected.begin() + 10, expected.begin() + 20, 0xEE);
+    std::fill(expected.begin() + 30, expected.begin() + 35, 0xEE);
+    EXPECT_EQ(h.out.stream, expected);
+    // Nothing waiting and a segment lost at the end: given up when acknowledged, so the next one is in order.
+    h.reassembler.acknowledged(1 + 60, mb::Timestamp{0});
+    EXPECT_EQ(h.out.gaps, 3);
+    h.send(1, s, 60, 10);
+    EXPECT_EQ(h.out.stream.size(), 70u);
+    EXPECT_EQ(h.out.deliveries, 5);
+    // Old and absurd acknowledgements change nothing.
+    h.reassembler.acknowledged(1 + 5, mb::Timestamp{0});
+    h.reassembler.acknowledged(1 + 70 + (1u << 31), mb::Timestamp{0});
+    EXPECT_EQ(h.out.gaps, 3);
+    // The FIN after byte 80 takes sequence number 81; its acknowledgement, 82, loses nothing.
+    h.send(1, s, 70, 10);
+    h.reassembler.finished_at(1 + 80);
+    h.reassembler.acknowledged(1 + 81, mb::Timestamp{0});
+    EXPECT_EQ(h.out.gaps, 3);
+    EXPECT_EQ(h.out.stream.size(), 80u);
+}
+
+// A capture begun mid-connection (no SYN) whose first segment overtook an earlier one: the earlier bytes
+// precede the first delivered and cannot be put before it. They were counted as retransmitted and vanished;
+// they are named, and only bytes delivered before count as retransmitted.
+TEST(TcpReassembler, BytesBeforeTheFirstSeenOfAStreamWithoutSynAreNamed) {
+    Harness h;
+    std::vector<std::size_t> early;
+    h.reassembler.on_before_start([&early](std::size_t n, mb::Timestamp) { early.push_back(n); });
+    const auto s = stream_of(40);
+    h.send(1000, s, 12, 10);  // the first seen: the stream starts here for the reassembler
+    h.send(1000, s, 0, 12);   // all before it
+    h.send(1000, s, 8, 8);    // 4 before it, 4 delivered already
+    h.send(1000, s, 22, 10);
+    EXPECT_EQ(early, (std::vector<std::size_t>{12, 4}));
+    EXPECT_EQ(h.out.stream, std::vector<std::uint8_t>(s.begin() + 12, s.begin() + 32));
+    EXPECT_EQ(h.reassembler.retransmitted_bytes(), 4u);
+    EXPECT_TRUE(h.out.conflicts.empty());
+}
+
 TEST(TcpReassembler, FlushDeclaresEveryHoleAndDeliversWhatFollowsIt) {
     Harness h;
     const auto s = stream_of(100);

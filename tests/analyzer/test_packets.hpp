@@ -35,10 +35,12 @@ struct Collect : an::Sink {
     }
 };
 
-// IPv4 + TCP (or UDP) packet from client 10.0.0.1:40000 to server 10.0.0.2:502, or back.
+// IPv4 + TCP (or UDP) packet from client 10.0.0.1:40000 to server 10.0.0.2:502, or back. `ack` is the
+// acknowledgement number (with flags 0x18, PSH and ACK).
 inline std::vector<std::uint8_t> packet(bool to_server, std::uint32_t seq,
                                         const std::vector<std::uint8_t>& payload, bool udp = false,
-                                        std::uint8_t flags = 0x18, std::uint16_t server_port = 502) {
+                                        std::uint8_t flags = 0x18, std::uint16_t server_port = 502,
+                                        std::uint32_t ack = 0) {
     std::vector<std::uint8_t> p;
     const std::size_t l4 = udp ? 8 : 20;
     const std::size_t total = 20 + l4 + payload.size();
@@ -57,8 +59,10 @@ inline std::vector<std::uint8_t> packet(bool to_server, std::uint32_t seq,
         p.insert(p.end(), {static_cast<std::uint8_t>(len >> 8), static_cast<std::uint8_t>(len), 0, 0});
     } else {
         p.insert(p.end(), {static_cast<std::uint8_t>(seq >> 24), static_cast<std::uint8_t>(seq >> 16),
-                           static_cast<std::uint8_t>(seq >> 8), static_cast<std::uint8_t>(seq), 0, 0, 0, 0,
-                           0x50, flags, 0xFF, 0xFF, 0, 0, 0, 0});
+                           static_cast<std::uint8_t>(seq >> 8), static_cast<std::uint8_t>(seq),
+                           static_cast<std::uint8_t>(ack >> 24), static_cast<std::uint8_t>(ack >> 16),
+                           static_cast<std::uint8_t>(ack >> 8), static_cast<std::uint8_t>(ack), 0x50, flags,
+                           0xFF, 0xFF, 0, 0, 0, 0});
     }
     p.insert(p.end(), payload.begin(), payload.end());
     return p;
@@ -94,12 +98,18 @@ inline std::vector<std::uint8_t> pcap_file(std::uint32_t linktype, const std::ve
 }
 
 // TCP segments between the client and a server port, sequence numbers kept per direction, as a pcap file.
+// Each segment acknowledges everything the other side has sent.
 struct Conversation {
     std::uint16_t server_port = 502;
     std::vector<PcapRecord> records;
     std::uint32_t seq[2] = {1000, 5000};
     void send(bool to_server, const std::vector<std::uint8_t>& payload, mb::Timestamp t) {
-        records.push_back({t, packet(to_server, seq[to_server ? 0 : 1], payload, false, 0x18, server_port)});
+        records.push_back({t, packet(to_server, seq[to_server ? 0 : 1], payload, false, 0x18, server_port,
+                                     seq[to_server ? 1 : 0])});
+        seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
+    }
+    // Sent, received by the other side, and not captured.
+    void lose(bool to_server, const std::vector<std::uint8_t>& payload) {
         seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
     }
     std::vector<std::uint8_t> file() const { return pcap_file(link_raw, records); }
