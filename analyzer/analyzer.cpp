@@ -537,6 +537,18 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         std::vector<std::uint64_t> frames;
     };
     std::vector<Deferred> found;
+    // A transaction's findings include its frames' own (a response with a bad CRC, a request breaking the
+    // specification): a CSV row or a transaction record alone must not pass for a clean exchange.
+    if (made)
+        for (const FrameRecord* frame : {&request, rsp_record}) {
+            if (!frame) continue;
+            made->findings.insert(made->findings.end(), frame->frame.findings.begin(),
+                                  frame->frame.findings.end());
+            if (frame->pdu)
+                made->findings.insert(made->findings.end(), frame->pdu->violations.begin(),
+                                      frame->pdu->violations.end());
+            if (!frame->error.empty()) made->findings.push_back(FindingCode::PduMalformed);
+        }
     const auto pair_finding = [&](FindingCode code, std::string message) {
         // the frames a finding about the pair names
         found.push_back({code, rsp_record, std::move(message), {request.index, rsp_record->index}});

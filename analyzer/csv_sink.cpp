@@ -107,6 +107,8 @@ std::string status_of(const TransactionRecord& t) {
     if (t.broadcast) return "broadcast";
     if (!t.response) return t.timed_out ? "timeout" : "unanswered";
     if (!t.response->pdu) return "malformed";
+    // The master discards a reply whose CRC or LRC fails (serial line §2.5.1.2): decoded, but no answer.
+    if (!t.response->frame.checksum_ok) return "bad_checksum";
     return t.response->pdu->is_exception() ? "exception" : "ok";
 }
 

@@ -3,6 +3,7 @@
 #include "analyzer/csv_sink.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <cstdio>
 #include <fstream>
@@ -73,6 +74,18 @@ std::vector<Row> rows_of(const std::string& text) {
 
 std::vector<std::uint8_t> adu(std::uint16_t tid, const mb::Pdu& pdu) {
     return mb::encode_tcp(tid, 1, mb::encode_pdu(pdu));
+}
+
+// `mbscope decode ARGS`: its exit code and standard output.
+std::pair<int, std::string> decode(const std::string& args) {
+    const std::string command = std::string(MBSCOPE_BINARY) + " decode " + args;
+    FILE* pipe = popen(command.c_str(), "r");
+    if (!pipe) return {-1, ""};
+    std::string out;
+    char buf[4096];
+    for (std::size_t n; (n = fread(buf, 1, sizeof buf, pipe)) > 0;)
+        out.append(buf, n);
+    return {WEXITSTATUS(pclose(pipe)), out};
 }
 
 mb::Pdu response(mb::Pdu p) {
@@ -190,19 +203,35 @@ TEST(CsvSink, NamedValuesWithAProfileAndAQuotedSourceName) {
 }
 
 TEST(CsvSink, DecodeWritesCsvToStandardOutput) {
-    const std::string command = std::string(MBSCOPE_BINARY) + " decode --csv - " + MBSCOPE_SOURCE_DIR +
-                                "/captures/suricata-modbus.pcap";
-    FILE* pipe = popen(command.c_str(), "r");
-    ASSERT_NE(pipe, nullptr);
-    std::string out;
-    char buf[4096];
-    for (std::size_t n; (n = fread(buf, 1, sizeof buf, pipe)) > 0;)
-        out.append(buf, n);
-    EXPECT_EQ(pclose(pipe), 1 << 8 /* exit 1: the capture has error findings */) << out;
+    const auto [exit_code, out] =
+        decode("--csv - " + std::string(MBSCOPE_SOURCE_DIR) + "/captures/suricata-modbus.pcap");
+    EXPECT_EQ(exit_code, 1 /* the capture has error findings */) << out;
     const auto rows = rows_of(out);
     ASSERT_EQ(rows.size(), 18u);  // analyzer/README.md: 18 transactions in this capture
     EXPECT_EQ(rows[0].at("link"), "10.0.0.57:2578 -> 10.0.0.3:502");
     EXPECT_EQ(rows[0].at("status"), "exception");
     EXPECT_EQ(rows[0].at("exception_code"), "11");
     EXPECT_EQ(out.find("summary"), std::string::npos);  // nothing but CSV on standard output
+}
+
+// A serial reply whose CRC fails: the analyzer decodes and pairs it (the device did answer), but a master
+// discards it (serial line §2.5.1.2). Its row said status ok with an empty findings column.
+TEST(CsvSink, AReplyWithABadCrcIsNotOk) {
+    const std::string path = testing::TempDir() + "csv_bad_crc.txt";
+    {
+        std::ofstream f(path);
+        f << "0.000 > 01 03 00 00 00 03 05 cb\n"           // read 3 registers from 0
+          << "0.050 < 01 03 06 02 2b 00 00 00 64 05 7b\n"  // the reply with a bit of its CRC flipped
+          << "1.000 > 01 03 00 00 00 03 05 cb\n"
+          << "1.050 < 01 03 06 02 2b 00 00 00 64 05 7a\n";
+    }
+    const auto [exit_code, out] = decode("--format text --csv - " + path);
+    EXPECT_EQ(exit_code, 1 /* a CRC mismatch is an error finding */) << out;
+    const auto rows = rows_of(out);
+    ASSERT_EQ(rows.size(), 2u) << out;
+    EXPECT_EQ(rows[0].at("status"), "bad_checksum");
+    EXPECT_EQ(rows[0].at("findings"), "rtu.crc_mismatch");
+    EXPECT_EQ(rows[1].at("status"), "ok");
+    EXPECT_EQ(rows[1].at("findings"), "");
+    std::remove(path.c_str());
 }
