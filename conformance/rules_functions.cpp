@@ -1,6 +1,7 @@
 // Function codes: every supported one answers with its own function code; every other one, reserved and
 // user-defined ranges included, gets exception 01 (AP §7).
 #include <algorithm>
+#include <optional>
 
 #include "conformance/context.hpp"
 #include "modbus/function_code.hpp"
@@ -149,6 +150,19 @@ std::vector<std::uint8_t> shaped_request(std::uint8_t fc) {
     }
 }
 
+// The table a write-type function's shaped_request() writes at address 0, were the device to execute it
+// although it does not support the function; nullopt for functions that write nothing (FC21 writes a file
+// record: written, but by no table this runner can read back).
+std::optional<Table> written_by_shaped_request(int fc) {
+    if (fc == 5 || fc == 15) return Table::Coils;
+    if (fc == 6 || fc == 16 || fc == 22 || fc == 23) return Table::HoldingRegisters;
+    return std::nullopt;
+}
+
+bool shaped_request_writes(int fc) {
+    return written_by_shaped_request(fc) || fc == 21;
+}
+
 }  // namespace
 
 void check_function_codes(Context& c) {
@@ -203,8 +217,12 @@ void check_function_codes(Context& c) {
                "AP §7 (exception 01); " + c.profile.source,
                "The " + kind + "function code " + std::to_string(fc) +
                    ", which the device does not support, gets " + exception_text(code) + ".",
-               authority_for(c.profile, "unsupported_function"), false},
+               authority_for(c.profile, "unsupported_function"), shaped_request_writes(fc)},
               [&](RuleResult& r) {
+                  // A device that executes a write it says it does not support changes address 0: read
+                  // first, so that the end of the run writes it back (a table that cannot be read holds
+                  // nothing to restore). It ran under --read-only and was never restored.
+                  if (const auto table = written_by_shaped_request(fc)) c.session.remember(*table, 0, 1);
                   const auto pdu = shaped_request(static_cast<std::uint8_t>(fc));
                   const auto ex = c.session.request(pdu, "function code " + std::to_string(fc));
                   expect_exception(r, ex, static_cast<std::uint8_t>(fc), code);

@@ -386,13 +386,17 @@ std::vector<Touched> Session::restore() {
                 refused.push_back(false);
                 continue;
             }
-            // A point the map makes read-only (a block write can span one) is not written back: a device that
-            // follows its map refuses the write, and its value may move on its own (a process value, a relay
-            // state). It is reported with what it reads, not judged: a device that took a write there already
-            // failed the rule that made it.
+            // A point the map makes read-only (a block write can span one, a function the device should not
+            // have executed can write one) is written back only when it changed: a device that follows its
+            // map refuses the write, and its value may move on its own (a process value, a relay state),
+            // while a device that took a write there (it failed the rule that made it) takes the original
+            // back as well; it used to keep the rule's value. It is reported with what it reads, not judged.
             const modbus::Point* own = profile_ ? profile_->find(t.table, t.address) : nullptr;
             if (own && own->access == modbus::Access::Read) {
-                const auto now = read_point(t.table, t.address, "read the read-only point");
+                auto now = read_point(t.table, t.address, "read the read-only point");
+                if (now && *now != t.original &&
+                    !is_exception(request(restore_pdu(t), "write back the read-only point, changed")))
+                    now = read_point(t.table, t.address, "verify the restored value");
                 t.restored = true;
                 if (!now || *now != t.original)
                     t.problem = "read-only in the map, not written back; reads " +

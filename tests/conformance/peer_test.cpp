@@ -132,6 +132,51 @@ TEST(Peer, LibmodbusServerFailsExactlyWhereItDepartsFromTheSpecification) {
     EXPECT_GT(report.count(Outcome::Pass), 50u);
 }
 
+// A function the profile says the device lacks, executed anyway: libmodbus implements FC23 (read/write
+// multiple registers), which the MMK-2030 does not, and the rule's request writes 0 at register 0. Under
+// --read-only the rule was run all the same (it changed the register), and without it the write was never
+// restored while the report said every point was.
+TEST(Peer, AnUnsupportedWriteTheDeviceExecutesIsRestoredAndNotSentUnderReadOnly) {
+    const auto port = free_port();
+    Peer peer({MBSCOPE_LIBMODBUS_SERVER, std::to_string(port)});
+    ASSERT_TRUE(peer.spawned());
+    auto client = connect("tcp://127.0.0.1:" + std::to_string(port));
+    ASSERT_TRUE(client.has_value());
+    modbus::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    const auto mk = store.load("mmk-2030");
+    ASSERT_TRUE(mk.has_value());
+    ASSERT_FALSE(mk->functions.supports(23));
+    const auto register_0 = [&client] {
+        const std::vector<std::uint8_t> read = {0x03, 0x00, 0x00, 0x00, 0x01};
+        const auto ex = client->transact(1, read, std::chrono::milliseconds(1000));
+        if (!ex.response || ex.response->pdu().size() != 4) return -1;
+        return (ex.response->pdu()[2] << 8) | ex.response->pdu()[3];
+    };
+    const std::vector<std::uint8_t> set = {0x06, 0x00, 0x00, 0x12, 0x34};
+    ASSERT_TRUE(client->transact(1, set, std::chrono::milliseconds(1000)).response);
+    ASSERT_EQ(register_0(), 0x1234);
+
+    CheckOptions o;
+    o.session.timeout = std::chrono::milliseconds(1000);
+    o.run.rule_globs = {"fc.unsupported.23"};
+    o.run.read_only = true;
+    auto report = run_check(*client, *mk, o);
+    ASSERT_EQ(report.results.size(), 1u);
+    EXPECT_EQ(report.results[0].outcome, Outcome::Skip) << report.results[0].observed;
+    EXPECT_EQ(register_0(), 0x1234);  // nothing sent
+
+    o.run.read_only = false;
+    report = run_check(*client, *mk, o);
+    ASSERT_EQ(report.results.size(), 1u);
+    EXPECT_EQ(report.results[0].outcome, Outcome::Fail);  // executed: a normal FC23 reply, not exception 01
+    EXPECT_TRUE(report.all_restored());
+    ASSERT_EQ(report.restored.size(), 1u);
+    EXPECT_EQ(report.restored[0].address, 0);
+    EXPECT_EQ(report.restored[0].original, 0x1234);
+    EXPECT_EQ(report.restored[0].problem, "") << "it said: read-only in the map, not written back";
+    EXPECT_EQ(register_0(), 0x1234);  // written back (read-only in the map, but the device took the write)
+}
+
 // The same libmodbus server judged as an MK Controle MMK-2030: libmodbus serves whatever its mapping
 // holds, so the manual's limits (15 registers, 30 coils per request) and its map's holes are not there.
 TEST(Peer, LibmodbusServerAsAnMk2030BreaksTheManualsLimits) {
