@@ -1,6 +1,8 @@
 // mbscope check: certify a slave against the Modbus specification and its device's manual.
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -41,7 +43,14 @@ bool write_file(const std::string& path, const std::function<void(std::ostream&)
         return false;
     }
     writer(out);
-    return bool(out);
+    // A full disk (or /dev/full) fails the writes or the close, not the open: say so, or the run ends with
+    // exit 2 and no word about the report it did not leave.
+    out.close();
+    if (!out) {
+        std::cerr << "mbscope check: writing " << path << " failed: " << std::strerror(errno) << '\n';
+        return false;
+    }
+    return true;
 }
 
 // The --report, --junit and --html files asked for; false when one could not be written.

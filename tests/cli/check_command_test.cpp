@@ -55,3 +55,18 @@ TEST(CheckCommand, AnUnreachableTargetIsReportedInEveryFileAskedFor) {
     EXPECT_NE(junit.find("/nonexistent/ttyUSB9"), std::string::npos) << junit;
     EXPECT_NE(read(dir + "h.html").find("target.reachable"), std::string::npos);
 }
+
+// A report file that opens but cannot be written (a full disk; /dev/full) ended the run with exit 2 and no
+// word about it: the reason is said, naming the file.
+TEST(CheckCommand, AReportThatCannotBeWrittenIsSaidWithItsReason) {
+    std::ofstream probe("/dev/full");
+    if (!probe) GTEST_SKIP() << "this system has no /dev/full";
+    mbscope::slave::test::SlaveProcess slave({"--profile", "mmk-2030", "--listen", "tcp://127.0.0.1:0"});
+    ASSERT_NE(slave.port(), 0);
+    const auto r = run_mbscope("check --target " + slave.address() +
+                               " --profile mmk-2030 --interval 0 --rules fc.supported.3 --report /dev/full");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("mbscope check: writing /dev/full failed: No space left on device"),
+              std::string::npos)
+        << r.out;
+}
