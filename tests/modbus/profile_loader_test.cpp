@@ -56,6 +56,14 @@ mb::LoadedProfiles load(const char* text, const mb::IncludeFn& include = {},
     return mb::parse_profiles(text, "test.json", include, config);
 }
 
+// Each error as (JSON pointer, message), in the order reported.
+std::vector<std::pair<std::string, std::string>> pointers_and_messages(const mb::LoadedProfiles& l) {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& e : l.errors)
+        out.emplace_back(e.pointer, e.message);
+    return out;
+}
+
 }  // namespace
 
 TEST(ProfileLoader, ModelsResolveWithExclusionsAndOverrides) {
@@ -249,9 +257,7 @@ TEST(ProfileLoader, LimitsNoFrameCanCarryAreErrors) {
       "models": [{"id": "m"}]
     })";
     const auto l = load(wrong);
-    std::vector<std::pair<std::string, std::string>> errors;
-    for (const auto& e : l.errors)
-        errors.emplace_back(e.pointer, e.message);
+    const auto errors = pointers_and_messages(l);
     const std::vector<std::pair<std::string, std::string>> expected{
         {"/line/baud_rates/1", "must be a baud rate from 50 to 10000000"},
         {"/line/baud_rates/2", "must be a baud rate from 50 to 10000000"},
@@ -334,9 +340,7 @@ TEST(ProfileLoader, FunctionsListedTwiceAreErrorsAndAValueWithTwoMeaningsShowsBo
       "models": [{"id": "m"}]
     })";
     const auto l = load(text);
-    std::vector<std::pair<std::string, std::string>> errors;
-    for (const auto& e : l.errors)
-        errors.emplace_back(e.pointer, e.message);
+    const auto errors = pointers_and_messages(l);
     const std::vector<std::pair<std::string, std::string>> expected{
         {"/functions/supported", "3 is listed twice"},
         {"/functions/broadcast", "6 is listed twice"},
@@ -366,9 +370,7 @@ TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
       "models": [{"id": "m"}]
     })";
     const auto l = load(text);
-    std::vector<std::pair<std::string, std::string>> errors;
-    for (const auto& e : l.errors)
-        errors.emplace_back(e.pointer, e.message);
+    const auto errors = pointers_and_messages(l);
     const std::vector<std::pair<std::string, std::string>> expected{
         {"/tables/holding_registers/2/encoding", "\"scaled\" needs an object with its \"decimals_from\""},
         {"/tables/holding_registers/3/encoding", "\"enum\" needs an object with its \"values\""},
