@@ -170,6 +170,19 @@ std::optional<std::uint16_t> word_at(std::uint16_t address, std::uint16_t start,
     return std::nullopt;
 }
 
+// The number two registers hold as a 32-bit value of the encoding's type and word order: decoding a read
+// and judging a write take it the same way.
+double value_32(const Encoding& e, std::uint16_t first, std::uint16_t second) {
+    const std::uint32_t u = join_words(first, second, e.word_order);
+    if (e.type == EncodingType::S32) return static_cast<std::int32_t>(u);
+    if (e.type == EncodingType::F32) {
+        float f;
+        std::memcpy(&f, &u, sizeof f);
+        return f;
+    }
+    return u;
+}
+
 // A value no encoding put into words is shown as its number. A partial one has no number: its text says
 // what the word is, and a reader of the JSON must not take one half of a float, or a value not yet
 // scaled, for the value.
@@ -204,16 +217,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
         const Encoding& e = p.encoding;
         const auto whole_32 = [&](std::uint16_t first, std::uint16_t second) {
             v.raw = {first, second};
-            const std::uint32_t u = join_words(first, second, e.word_order);
-            if (e.type == EncodingType::S32) {
-                v.number = static_cast<std::int32_t>(u);
-            } else if (e.type == EncodingType::F32) {
-                float f;
-                std::memcpy(&f, &u, sizeof f);
-                v.number = f;
-            } else {
-                v.number = u;
-            }
+            v.number = value_32(e, first, second);
         };
         if (e.words == 2 && p.address != address) {
             // A second half. Taken with its first when the block holds that (it then starts before this
@@ -420,21 +424,12 @@ std::optional<WriteRejection> check_writes(const Profile& profile, Table table, 
         const Encoding& e = p->encoding;
         if (e.words == 2) {
             if (p->address != address || i + 1 >= values.size()) continue;  // a lone half
-            const std::uint32_t u = join_words(values[i], values[i + 1], e.word_order);
-            double v = u;
-            std::string shown = std::to_string(u);
-            if (e.type == EncodingType::S32) {
-                v = static_cast<std::int32_t>(u);
-                shown = std::to_string(static_cast<std::int32_t>(u));
-            } else if (e.type == EncodingType::F32) {
-                float f;
-                std::memcpy(&f, &u, sizeof f);
-                if (!std::isfinite(f))
-                    return WriteRejection{exception_for(profile, "bad_value", 3), address,
-                                          "value is not a finite number"};
-                v = f;
-                shown = format_limit(f);
-            }
+            const double v = value_32(e, values[i], values[i + 1]);
+            if (!std::isfinite(v))  // a float's NaN or infinity
+                return WriteRejection{exception_for(profile, "bad_value", 3), address,
+                                      "value is not a finite number"};
+            const std::string shown =
+                e.type == EncodingType::F32 ? format_limit(v) : std::to_string(static_cast<std::int64_t>(v));
             if (auto r = check_range(profile, *p, address, v, shown)) return r;
             ++i;
             continue;
