@@ -30,6 +30,20 @@ bool plausible_header(std::span<const std::uint8_t> b) noexcept {
     return true;
 }
 
+// Whether the PDU bytes seen so far can start a PDU of `length` bytes in either direction. An incomplete
+// candidate header is only waited for while this holds: a length of 257 read from the middle of a stream
+// ("00 00 | 01 01") would otherwise hold back the next 263 bytes, and every request in them would be
+// decoded only after its response had already been called unsolicited. FC8's data is left open: the
+// diagnostics sub-functions carry data of any length.
+bool length_consistent(std::span<const std::uint8_t> prefix, std::size_t length) noexcept {
+    if (prefix.empty() || (prefix[0] & 0x7F) == 0x08) return true;
+    for (const Direction direction : {Direction::Request, Direction::Response}) {
+        const LengthPrediction p = predict_pdu_length(prefix, direction);
+        if (p.kind != LengthPrediction::Kind::Known || p.length == length) return true;
+    }
+    return false;
+}
+
 bool plausible_pdu(std::span<const std::uint8_t> pdu) noexcept {
     auto request = decode_request(pdu);
     if (request && request->violations.empty()) return true;
@@ -58,7 +72,7 @@ DeframeStep tcp_step(std::span<const std::uint8_t> buf, bool at_end, bool in_syn
         if (!plausible_header(at)) continue;
         const std::size_t total = 6 + length_field(at);
         if (at.size() < total) {
-            if (at_end) continue;
+            if (at_end || !length_consistent(at.subspan(7), total - 7)) continue;
             if (j == 0) return {Kind::NeedMore, total};
             return {Kind::Skip, j, true, UnparsedReason::BadHeader};
         }

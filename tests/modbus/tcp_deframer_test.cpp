@@ -70,6 +70,29 @@ TEST(TcpStreamDeframer, ImpossibleLengthResynchronisesOnTheNextHeader) {
     EXPECT_EQ(bad_headers, 2);
 }
 
+TEST(TcpStreamDeframer, AHeaderWhoseFunctionContradictsItsLengthDoesNotHoldTheStream) {
+    // A header of length 1 ("00 00 00 00 00 01 01"), then polls: from its second byte the stream reads as a
+    // header of length 257 with function code 1, whose byte count (0) says the PDU has 2 bytes, not 256.
+    // Each poll must come out as soon as its segment arrives, not 263 bytes later.
+    mb::TcpStreamDeframer d;
+    mb::DeframeEvents out;
+    d.feed(hex("00 00 00 00 00 01 01"), out);
+    for (std::uint8_t tid = 1; tid <= 3; ++tid) {
+        const auto poll = concat({{0x00, tid}, hex("00 00 00 06 01 03 00 00 00 02")});
+        d.feed(poll, out);
+        ASSERT_FALSE(out.empty());
+        const auto* frame = std::get_if<mb::Frame>(&out.back());
+        ASSERT_NE(frame, nullptr) << "poll " << int{tid} << " held back";
+        EXPECT_EQ(frame->transaction_id(), tid);
+    }
+    d.finish(out);
+    ASSERT_EQ(out.size(), 4u);
+    const auto& skipped = std::get<mb::Unparsed>(out[0]);
+    EXPECT_EQ(skipped.offset, 0u);
+    EXPECT_EQ(skipped.length, 7u);
+    EXPECT_EQ(skipped.reason, mb::UnparsedReason::BadHeader);
+}
+
 TEST(TcpStreamDeframer, ProtocolIdNonZeroInSyncIsAFlaggedFrame) {
     const auto data = hex("00 01 00 01 00 06 11 03 00 6B 00 03");
     auto events = run(data, {data.size()});
