@@ -597,7 +597,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         }
     } else {
         if (made) made->timed_out = timed_out;
-        ++stats.timeouts;
+        ++(timed_out ? stats.timeouts : stats.unanswered_at_end);
     }
     if (options_.semantics && rsp_record && request.pdu && rsp_record->pdu) {
         const std::string server = request.link.str().substr(request.link.str().find(" -> ") + 4);

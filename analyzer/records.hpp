@@ -106,6 +106,8 @@ class LatencyHistogram {
 
 struct DeviceStats {
     std::uint64_t requests = 0, responses = 0, exceptions = 0, timeouts = 0, checksum_errors = 0;
+    // Requests still waiting, within their timeout, when the capture ended: not timeouts, nor answered.
+    std::uint64_t unanswered_at_end = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests
 };

@@ -125,6 +125,7 @@ void TextSink::end(const Summary& s) {
     for (const auto& [device, d] : s.devices) {
         out_ << "  " << device << ": " << d.requests << " requests, " << d.responses << " responses, "
              << d.exceptions << " exceptions, " << d.timeouts << " timeouts";
+        if (d.unanswered_at_end) out_ << ", " << d.unanswered_at_end << " unanswered at the end";
         if (d.latency.count())
             out_ << "; latency min " << ms(d.latency.min()) << " / median " << ms(d.latency.quantile(0.5))
                  << " / p99 " << ms(d.latency.quantile(0.99)) << " / max " << ms(d.latency.max());
@@ -309,7 +310,8 @@ json summary_to_json(const Summary& s) {
         json dev{{"requests", d.requests},
                  {"responses", d.responses},
                  {"exceptions", d.exceptions},
-                 {"timeouts", d.timeouts}};
+                 {"timeouts", d.timeouts},
+                 {"unanswered_at_end", d.unanswered_at_end}};
         json fcs = json::object();
         for (const auto& [fc, n] : d.functions)
             fcs[std::to_string(fc)] = n;

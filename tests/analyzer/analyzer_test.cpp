@@ -201,6 +201,12 @@ TEST(Analyzer, UnansweredAtTheEndOfTheCaptureIsANoteNotATimeout) {
     h.analyzer.finish();
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 1);
+    // The summary agrees with the transaction record: not a timeout.
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.timeouts, 0u);
+    EXPECT_EQ(device.unanswered_at_end, 1u);
+    ASSERT_EQ(h.sink.transactions.size(), 1u);
+    EXPECT_FALSE(h.sink.transactions[0].timed_out);
 }
 
 TEST(Analyzer, UnsolicitedResponse) {

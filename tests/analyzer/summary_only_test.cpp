@@ -71,6 +71,7 @@ void expect_same(const std::string& what, const std::string& path,
         EXPECT_EQ(d.responses, e.responses) << name;
         EXPECT_EQ(d.exceptions, e.exceptions) << name;
         EXPECT_EQ(d.timeouts, e.timeouts) << name;
+        EXPECT_EQ(d.unanswered_at_end, e.unanswered_at_end) << name;
         EXPECT_EQ(d.checksum_errors, e.checksum_errors) << name;
         EXPECT_EQ(d.functions, e.functions) << name;
         EXPECT_EQ(d.latency.count(), e.latency.count()) << name;
