@@ -559,8 +559,18 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         ++stats.responses;
         if (rsp.time.count() && request.time.count()) {  // raw dumps carry no time: no latency either
             const Timestamp latency = rsp.time - request.time;
-            stats.latency.add(latency);
-            if (made) made->latency = latency;
+            if (latency >= Timestamp{0}) {
+                stats.latency.add(latency);
+                if (made) made->latency = latency;
+            } else {
+                // A device cannot answer before it is asked: the clock is wrong, not the device.
+                pair_finding(
+                    FindingCode::PairResponseBeforeRequest,
+                    "the response is stamped " +
+                        std::to_string(
+                            std::chrono::duration_cast<std::chrono::microseconds>(-latency).count()) +
+                        " µs before its request: the capture's clock went back");
+            }
         }
         if (rsp.frame.unit_id() != request.frame.unit_id())
             pair_finding(FindingCode::PairUnitMismatch,

@@ -110,6 +110,11 @@ constexpr std::array findings{
         "the last response again, byte for byte, after its request was answered: one request answered "
         "twice",
         "AP §4.1; SL §2.1; 000:246-248"},
+    FindingInfo{
+        PairResponseBeforeRequest, "pair.response_before_request", S::Warning,
+        "the response is stamped earlier than its request: the capture's clock went back (a merged or "
+        "re-stamped capture), so no latency is measured",
+        "capture"},
     FindingInfo{ProfileFunctionUnsupported, "profile.function_unsupported", S::Warning,
                 "request uses a function code the device's manual does not list", "device manual"},
     FindingInfo{

@@ -68,6 +68,7 @@ enum class FindingCode : std::uint16_t {
     PairPendingOverflow = 610,
     PairBroadcastResponse = 611,
     PairDuplicateResponse = 612,
+    PairResponseBeforeRequest = 613,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

@@ -209,6 +209,25 @@ TEST(Analyzer, UnansweredAtTheEndOfTheCaptureIsANoteNotATimeout) {
     EXPECT_FALSE(h.sink.transactions[0].timed_out);
 }
 
+// Timestamps going back (merged captures, a clock step): the latency was reported as -1000 ms and pulled
+// the device's minimum below zero.
+TEST(Analyzer, AResponseStampedBeforeItsRequestHasNoLatency) {
+    Harness h;
+    h.send(true, read_request(1), 2s);
+    h.send(false, read_response(1), 1s);
+    h.send(true, read_request(2), 3s);
+    h.send(false, read_response(2), 3s + 10ms);
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.count(mb::FindingCode::PairResponseBeforeRequest), 1);
+    ASSERT_EQ(h.sink.transactions.size(), 2u);
+    EXPECT_FALSE(h.sink.transactions[0].latency.has_value());
+    EXPECT_EQ(h.sink.transactions[1].latency, 10ms);
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.latency.count(), 1u);
+    EXPECT_EQ(device.latency.min(), 10ms);
+    EXPECT_EQ(device.responses, 2u);
+}
+
 TEST(Analyzer, UnsolicitedResponse) {
     Harness h;
     h.send(false, read_response(9), 1s);
