@@ -28,9 +28,9 @@ void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
         ->check(CLI::Range(1, 2))
         ->capture_default_str();
     cmd.add_option("--timeout", o.timeout_s,
-                   "Seconds without a response before a request is reported unanswered")
-        ->check(finite_between(0.001, 86400, "seconds"))
-        ->capture_default_str();
+                   "Seconds without a response before a request is reported unanswered, on TCP and serial "
+                   "lines alike (default 3 on TCP, 1 on a serial line)")
+        ->check(finite_between(0.001, 86400, "seconds"));
     auto* json = cmd.add_flag("--json", o.json, "One JSON document: every record, then the summary");
     auto* jsonl = cmd.add_flag("--jsonl", o.jsonl,
                                "One JSON object per line (frame, transaction, finding, unparsed, summary)");
@@ -102,8 +102,11 @@ bool apply_analysis_options(const AnalysisCliOptions& o, const std::string& comm
     options.tcp_ports.insert(options.tcp_ports.end(), o.tcp_ports.begin(), o.tcp_ports.end());
     options.udp_ports.insert(options.udp_ports.end(), o.udp_ports.begin(), o.udp_ports.end());
     if (!o.word_order.empty()) options.word_order = modbus::parse_word_order(o.word_order);
-    options.timeout =
-        std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(o.timeout_s));
+    if (o.timeout_s > 0) {
+        options.timeout =
+            std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(o.timeout_s));
+        options.serial_timeout = options.timeout;
+    }
     options.serial_line = {o.baud, static_cast<std::uint8_t>(o.data_bits), *modbus::parse_parity(o.parity),
                            static_cast<std::uint8_t>(o.stop_bits)};
     return load_semantics(o, command, options);

@@ -21,7 +21,7 @@ struct AnalysisCliOptions {
     std::uint32_t baud = 9600;
     std::string parity = "N";
     int data_bits = 8, stop_bits = 1;
-    double timeout_s = 3.0;
+    double timeout_s = 0;  // --timeout; 0: not given, each carrier keeps its default (TCP 3 s, serial 1 s)
     std::string profile;
     std::vector<std::string> maps, profile_dirs, config;
     std::string word_order;

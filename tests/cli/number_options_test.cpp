@@ -3,6 +3,7 @@
 // divided by zero for t1.5/t3.5, and --timeout 0 or -1 reported every request as unanswered.
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <string>
 
 #include "tests/cli/cli_run.hpp"
@@ -45,4 +46,21 @@ TEST(NumberOptions, ValuesOutsideTheirMeaningAreRefusedBeforeAnythingRuns) {
         EXPECT_NE(r.out.find(c.message), std::string::npos) << c.args << "\n" << r.out;
     }
     EXPECT_EQ(run_mbscope("decode --summary --timeout 0.5" + capture).exit_code, 0);
+}
+
+// --timeout was applied to TCP only: a serial line kept its 1 s default whatever was asked.
+TEST(NumberOptions, TimeoutAppliesToSerialLinesToo) {
+    const std::string path = testing::TempDir() + "/slow_slave.txt";
+    {
+        std::ofstream f(path);
+        f << "1.000000 > 11 03 00 60 00 03 07 45\n"            // MK manual's FC3 request
+          << "2.500000 < 11 03 06 02 2B 00 00 00 64 C8 BA\n";  // its answer, 1.5 s later
+    }
+    const auto by_default = run_mbscope("decode " + path);
+    EXPECT_EQ(by_default.exit_code, 1) << by_default.out;
+    EXPECT_NE(by_default.out.find("1 timeouts"), std::string::npos) << by_default.out;
+    const auto longer = run_mbscope("decode --timeout 5 " + path);
+    EXPECT_EQ(longer.exit_code, 0) << longer.out;
+    EXPECT_NE(longer.out.find("1 responses, 0 exceptions, 0 timeouts"), std::string::npos) << longer.out;
+    EXPECT_NE(longer.out.find("1500.000 ms"), std::string::npos) << longer.out;
 }
