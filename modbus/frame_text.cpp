@@ -1,5 +1,6 @@
 #include "modbus/frame_text.hpp"
 
+#include <algorithm>
 #include <sstream>
 
 #include "modbus/adu.hpp"
@@ -18,6 +19,57 @@ bool is_blank(char c) {
     return c == ' ' || c == '\t' || c == '\v' || c == '\f' || c == '\r';
 }
 
+// The byte length of the well-formed UTF-8 character at text[i] (RFC 3629: no overlong forms, no
+// surrogates, nothing past U+10FFFF) and its code point; length 0 when the byte there starts none.
+struct Utf8Char {
+    char32_t code = 0;
+    std::size_t length = 0;
+};
+
+Utf8Char utf8_at(std::string_view text, std::size_t i) noexcept {
+    const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(text[k]); };
+    const unsigned char lead = byte(i);
+    if (lead < 0x80) return {lead, 1};
+    std::size_t length = 0;
+    unsigned char low = 0x80, high = 0xBF;  // the range of the second byte
+    if (lead >= 0xC2 && lead <= 0xDF) {
+        length = 2;
+    } else if (lead >= 0xE0 && lead <= 0xEF) {
+        length = 3;
+        if (lead == 0xE0) low = 0xA0;
+        if (lead == 0xED) high = 0x9F;
+    } else if (lead >= 0xF0 && lead <= 0xF4) {
+        length = 4;
+        if (lead == 0xF0) low = 0x90;
+        if (lead == 0xF4) high = 0x8F;
+    } else {
+        return {};
+    }
+    if (i + length > text.size()) return {};
+    char32_t code = lead & (0x7F >> length);
+    for (std::size_t k = 1; k < length; ++k) {
+        const unsigned char b = byte(i + k);
+        if (b < (k == 1 ? low : 0x80) || b > (k == 1 ? high : 0xBF)) return {};
+        code = (code << 6) | (b & 0x3F);
+    }
+    return {code, length};
+}
+
+// Characters a terminal acts on instead of showing: C0 and C1 controls (U+009B is an 8-bit CSI that some
+// terminals take as ESC [), DEL, the line and paragraph separators, and the bidirectional overrides and
+// isolates that make a line show in another order than it reads.
+bool acts_on_terminal(char32_t c) noexcept {
+    return c < 0x20 || (c >= 0x7F && c <= 0x9F) || c == 0x2028 || c == 0x2029 ||
+           (c >= 0x202A && c <= 0x202E) || (c >= 0x2066 && c <= 0x2069);
+}
+
+// The length of the next piece of text printable() keeps as it is (a whole character), or 0 when its next
+// byte is escaped.
+std::size_t kept_length(std::string_view text, std::size_t i) noexcept {
+    const Utf8Char c = utf8_at(text, i);
+    return c.length == 0 || acts_on_terminal(c.code) ? 0 : c.length;
+}
+
 }  // namespace
 
 std::string quote_excerpt(std::string_view text) {
@@ -27,33 +79,47 @@ std::string quote_excerpt(std::string_view text) {
     return "'" + s + "'";
 }
 
-int first_control_character(std::string_view text) {
-    for (char c : text) {
-        const auto u = static_cast<unsigned char>(c);
-        if (u < 0x20 || u == 0x7F) return u;
+std::optional<std::string> first_unprintable(std::string_view text) {
+    for (std::size_t i = 0; i < text.size();) {
+        if (const std::size_t n = kept_length(text, i)) {
+            i += n;
+            continue;
+        }
+        const Utf8Char c = utf8_at(text, i);
+        return printable(text.substr(i, std::max<std::size_t>(c.length, 1)));
     }
-    return -1;
+    return std::nullopt;
 }
 
 std::string printable(std::string_view text) {
     std::string out;
     out.reserve(text.size());
-    for (char c : text) {
-        const auto u = static_cast<unsigned char>(c);
-        if (u >= 0x20 && u != 0x7F) {
-            out += c;
-        } else if (c == '\r') {
-            out += "\\r";
-        } else if (c == '\n') {
-            out += "\\n";
-        } else if (c == '\t') {
-            out += "\\t";
-        } else {
-            static constexpr char digits[] = "0123456789ABCDEF";
-            out += "\\x";
-            out += digits[u >> 4];
-            out += digits[u & 0x0F];
+    for (std::size_t i = 0; i < text.size();) {
+        if (const std::size_t n = kept_length(text, i)) {
+            out.append(text.substr(i, n));
+            i += n;
+            continue;
         }
+        // Escaped byte by byte: a control character of one byte, each byte of a C1 control or bidirectional
+        // override, and each byte that is not well-formed UTF-8 (Latin-1 text from a device, garbage).
+        const Utf8Char whole = utf8_at(text, i);
+        const std::size_t length = std::max<std::size_t>(whole.length, 1);
+        for (const char c : text.substr(i, length)) {
+            const auto u = static_cast<unsigned char>(c);
+            if (c == '\r') {
+                out += "\\r";
+            } else if (c == '\n') {
+                out += "\\n";
+            } else if (c == '\t') {
+                out += "\\t";
+            } else {
+                static constexpr char digits[] = "0123456789ABCDEF";
+                out += "\\x";
+                out += digits[u >> 4];
+                out += digits[u & 0x0F];
+            }
+        }
+        i += length;
     }
     return out;
 }

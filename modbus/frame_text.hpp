@@ -62,13 +62,15 @@ DecodedFrame decode_frame(Framing framing, std::vector<std::uint8_t> wire, Direc
 std::string render_text(const DecodedFrame& d);
 nlohmann::json render_json(const DecodedFrame& d);
 
-// Text safe to print: bytes below 0x20 and 0x7F written as \r, \n, \t or \xNN, a backslash as itself.
+// Text safe to print: well-formed UTF-8 as it is, except what a terminal acts on (C0 and C1 controls, DEL,
+// U+2028/U+2029, bidirectional overrides and isolates), written byte by byte as \r, \n, \t or \xNN; bytes
+// that are not well-formed UTF-8 as \xNN too. A backslash stays itself.
 std::string printable(std::string_view text);
 // A piece of input quoted in an error: printable, in single quotes, cut at 40 characters with "..." (a
 // hostile line may hold a megabyte in one word).
 std::string quote_excerpt(std::string_view text);
-// The first byte printable() escapes (below 0x20, or 0x7F), or -1 when there is none: for readers that refuse
-// such text in a file rather than print it escaped.
-int first_control_character(std::string_view text);
+// The first character printable() escapes, as printable() writes it ("\x1B", "\xC2\x9B"), or nothing when
+// there is none: for readers that refuse such text in a file rather than print it escaped.
+std::optional<std::string> first_unprintable(std::string_view text);
 
 }  // namespace mbscope::modbus

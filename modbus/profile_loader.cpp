@@ -4,7 +4,7 @@
 #include <cctype>
 #include <nlohmann/json.hpp>
 
-#include "modbus/frame_text.hpp"  // printable(), first_control_character()
+#include "modbus/frame_text.hpp"  // printable(), first_unprintable()
 
 namespace mbscope::modbus {
 
@@ -881,16 +881,15 @@ void check_text(Reader& r, const json& j, const std::string& ptr, int depth = 0)
         r.error(ptr, "nested deeper than " + std::to_string(max_depth) + " levels");
         return;
     }
-    const auto complain = [&r](const std::string& where, int c) {  // Reader::error escapes both
-        r.error(where, "holds a control character (" + std::string(1, static_cast<char>(c)) +
-                           "): profile text is printed as it is");
+    const auto complain = [&r](const std::string& where, const std::string& escaped) {
+        r.error(where, "holds a control character (" + escaped + "): profile text is printed as it is");
     };
     if (j.is_string()) {
-        if (const int c = first_control_character(j.get_ref<const std::string&>()); c >= 0) complain(ptr, c);
+        if (const auto c = first_unprintable(j.get_ref<const std::string&>())) complain(ptr, *c);
     } else if (j.is_object()) {
         for (auto it = j.begin(); it != j.end(); ++it) {
             const std::string child = ptr + "/" + pointer_token(it.key());
-            if (const int c = first_control_character(it.key()); c >= 0) complain(child, c);
+            if (const auto c = first_unprintable(it.key())) complain(child, *c);
             check_text(r, it.value(), child, depth + 1);
         }
     } else if (j.is_array()) {

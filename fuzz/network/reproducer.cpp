@@ -145,7 +145,7 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
             step.reconnect_after = s.value("reconnect_after", false);
             step.void_by_gap = s.value("void_by_gap", false);
             step.recipe = s.value("recipe", "");
-            if (modbus::first_control_character(step.recipe) >= 0)
+            if (modbus::first_unprintable(step.recipe))
                 return std::string("step " + std::to_string(index) +
                                    ": \"recipe\" holds a control character");
             r.steps.push_back(std::move(step));
@@ -159,7 +159,7 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
                                         {"target", &r.target},
                                         {"profile", &r.profile},
                                         {"framing", &r.framing}})
-            if (modbus::first_control_character(*text) >= 0)
+            if (modbus::first_unprintable(*text))
                 return std::string("\"") + key + "\" holds a control character";
         return r;
     } catch (const nlohmann::json::exception& e) {

@@ -129,6 +129,36 @@ TEST(FrameText, PrintableEscapesControlCharactersOnly) {
     EXPECT_EQ(printable(std::string("a\0b", 3)), "a\\x00b");
 }
 
+// A hostile capture's text reached the terminal with its C1 controls: "\xC2\x9B" is U+009B, an 8-bit CSI
+// that terminals may take as ESC [. Bytes that are not UTF-8 (a Latin-1 device name) were written raw.
+TEST(FrameText, PrintableEscapesC1ControlsOverridesAndBytesThatAreNotUtf8) {
+    EXPECT_EQ(printable("\xc2\x9b"
+                        "31mRED\xc2\x9d"
+                        "0;x"),
+              "\\xC2\\x9B31mRED\\xC2\\x9D0;x");
+    EXPECT_EQ(printable("a\xe2\x80\xae"
+                        "b"),
+              "a\\xE2\\x80\\xAEb");  // U+202E right-to-left override
+    EXPECT_EQ(printable("a\xe2\x80\xa8"
+                        "b"),
+              "a\\xE2\\x80\\xA8b");                           // U+2028 line separator
+    EXPECT_EQ(printable("Press\xe3o"), "Press\\xE3o");        // Latin-1 ã
+    EXPECT_EQ(printable("\xc0\xaf"), "\\xC0\\xAF");           // overlong '/'
+    EXPECT_EQ(printable("\xed\xa0\x80"), "\\xED\\xA0\\x80");  // a surrogate
+    EXPECT_EQ(printable("\xe2\x82"), "\\xE2\\x82");           // cut short
+    EXPECT_EQ(printable("\xc2\xb0"
+                        "C \xe2\x82\xac \xf0\x9f\x98\x80"),
+              "\xc2\xb0"
+              "C \xe2\x82\xac \xf0\x9f\x98\x80");  // °C, €, an emoji: as they are
+    EXPECT_EQ(first_unprintable("ok \xc2\xb0"
+                                "C"),
+              std::nullopt);
+    EXPECT_EQ(first_unprintable("a\xc2\x9b"
+                                "b\x1b"),
+              "\\xC2\\x9B");
+    EXPECT_EQ(first_unprintable("a\x07"), "\\x07");
+}
+
 TEST(FrameText, RenderedTextCarriesNoControlCharacterOfTheInput) {
     // A device identification response whose vendor name holds an escape sequence (FC43/14, object 0).
     const auto pdu = bytes({0x2B, 0x0E, 0x01, 0x01, 0x00, 0x00, 0x01, 0x00, 0x05, 'A', 0x1b, '[', '2', 'J'});

@@ -416,7 +416,7 @@ TEST(ProfileLoader, ControlCharactersAndDeepNestingAreErrors) {
       "functions": {"supported": [3]},
       "tables": {"holding_registers": [{"address": 1, "name": "a\u001b[2J", "access": "r", "unit": "\r",
                                         "source": "000:1"}]},
-      "x-extra": {"a/b\u0007": "", "deep": [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]},
+      "x-extra": {"a/b\u0007": "", "c1": "a\u009b2J", "deep": [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]},
       "models": [{"id": "m", "name": "caf\u00e9"}]
     })";
     auto l = load(hostile);
@@ -433,9 +433,9 @@ TEST(ProfileLoader, ControlCharactersAndDeepNestingAreErrors) {
             s += "/0";
         return s;
     }();
-    EXPECT_EQ(pointers,
-              (std::vector<std::string>{"/tables/holding_registers/0/name",
-                                        "/tables/holding_registers/0/unit", "/x-extra/a~1b\\x07", deep}));
+    EXPECT_EQ(pointers, (std::vector<std::string>{"/tables/holding_registers/0/name",
+                                                  "/tables/holding_registers/0/unit", "/x-extra/a~1b\\x07",
+                                                  "/x-extra/c1", deep}));
 }
 
 TEST(ProfileLoader, InvalidJsonAndOtherDocuments) {
