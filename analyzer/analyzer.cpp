@@ -242,7 +242,16 @@ void Analyzer::packet_in_source(const Packet& p) {
     if (p.linktype == link_upper_pdu) return exported_pdu(p);
     if (p.linktype == link_rtac_serial) return rtac_packet(p);
     L4Packet l4;
-    if (parse_packet(p.linktype, p.data, l4) != ParseStatus::Ok) return;
+    IpFragment fragment;
+    std::optional<IpDatagram> whole;  // a reassembled datagram: l4's payload points into it
+    ip_fragments_.expire(now_, false);
+    const ParseStatus status = parse_packet(p.linktype, p.data, l4, &fragment);
+    if (status == ParseStatus::Fragment) {
+        whole = ip_fragments_.add(fragment, p.time);
+        if (!whole || parse_datagram(*whole, l4) != ParseStatus::Ok) return;
+    } else if (status != ParseStatus::Ok) {
+        return;
+    }
     if (!server_port(l4.transport, l4.destination.port) && !server_port(l4.transport, l4.source.port)) {
         modbus_like_.note(l4);
         return;
@@ -988,6 +997,10 @@ void Analyzer::input_error(const std::string& message) {
 }
 
 void Analyzer::finish() {
+    ip_fragments_.expire(now_, true);
+    summary_.ip_datagrams_incomplete = ip_fragments_.incomplete_datagrams();
+    summary_.ip_fragments_incomplete = ip_fragments_.incomplete_fragments();
+    summary_.ip_fragments_invalid = ip_fragments_.invalid_fragments();
     for (auto& [key, f] : flows_) {
         if (f->carrier != Carrier::Tcp) continue;
         for (int dir = 0; dir < 2; ++dir) {

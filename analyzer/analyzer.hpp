@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "analyzer/capture_source.hpp"
+#include "analyzer/ip_reassembly.hpp"
 #include "analyzer/modbus_like_ports.hpp"
 #include "analyzer/packet_parser.hpp"
 #include "analyzer/records.hpp"
@@ -176,6 +177,7 @@ class Analyzer {
     std::map<std::string, std::unique_ptr<Flow>> flows_;  // owner, in a stable order for the end
     std::unordered_map<FlowKey, Flow*, FlowKeyHash> flow_index_;
     ModbusLikePorts modbus_like_;  // ADUs on ports not decoded, for the summary's hint
+    IpReassembler ip_fragments_;
     // In front of the index: a direct-mapped cache by the hash's top bits, so that a packet of a known flow
     // costs a hash and a compare, not the index's division by a prime and its node (the index's lookup was
     // the largest single item of a summary run).

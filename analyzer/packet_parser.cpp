@@ -49,7 +49,18 @@ ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4P
     return ParseStatus::NotTcpUdp;
 }
 
-ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out) {
+// IPv6 extension headers before the transport header: hop-by-hop (0), routing (43), destination options
+// (60). `pos` moves past them; false when one runs past the packet.
+bool skip_v6_extensions(std::span<const std::uint8_t> d, std::uint8_t& next, std::size_t& pos) {
+    while (next == 0 || next == 43 || next == 60) {
+        if (pos + 8 > d.size()) return false;
+        next = d[pos];
+        pos += (d[pos + 1] + 1u) * 8u;
+    }
+    return pos <= d.size();
+}
+
+ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment) {
     if (d.empty()) return ParseStatus::Malformed;
     const int version = d[0] >> 4;
     if (version == 4) {
@@ -57,13 +68,26 @@ ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out) {
         const std::size_t header = (d[0] & 0x0F) * 4u;
         const std::size_t total = be16(d.data() + 2);
         if (header < 20 || header > d.size() || total < header) return ParseStatus::Malformed;
-        if ((be16(d.data() + 6) & 0x3FFF) != 0) return ParseStatus::Fragment;  // MF or offset set
         out.source = Endpoint{};
         out.destination = Endpoint{};
         std::memcpy(out.source.address.data(), d.data() + 12, 4);
         std::memcpy(out.destination.address.data(), d.data() + 16, 4);
         out.truncated = total > d.size();
-        return parse_l4(d[9], d.subspan(header, std::min(d.size(), total) - header), out);
+        const auto payload = d.subspan(header, std::min(d.size(), total) - header);
+        if (const std::uint16_t flags = be16(d.data() + 6); (flags & 0x3FFF) != 0) {  // MF or offset set
+            if (fragment) {
+                *fragment = IpFragment{};
+                fragment->source = out.source.address;
+                fragment->destination = out.destination.address;
+                fragment->id = be16(d.data() + 4);
+                fragment->protocol = d[9];
+                fragment->offset = (flags & 0x1FFFu) * 8u;
+                fragment->more = (flags & 0x2000) != 0;
+                fragment->data = payload;
+            }
+            return ParseStatus::Fragment;
+        }
+        return parse_l4(d[9], payload, out);
     }
     if (version == 6) {
         if (d.size() < 40) return ParseStatus::Malformed;
@@ -76,21 +100,32 @@ ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out) {
         out.truncated = 40 + payload > d.size();
         std::uint8_t next = d[6];
         std::size_t pos = 40;
-        // skip hop-by-hop, routing and destination options headers; fragments are not followed
-        while (next == 0 || next == 43 || next == 60) {
-            if (pos + 8 > d.size()) return ParseStatus::Malformed;
-            next = d[pos];
-            pos += (d[pos + 1] + 1u) * 8u;
+        if (!skip_v6_extensions(d, next, pos)) return ParseStatus::Malformed;
+        const std::size_t end = std::min(d.size(), 40 + payload);
+        if (pos > end) return ParseStatus::Malformed;
+        if (next == 44) {  // fragment header: next header, reserved, offset and M flag, identification
+            if (pos + 8 > end) return ParseStatus::Malformed;
+            if (fragment) {
+                *fragment = IpFragment{};
+                fragment->source = out.source.address;
+                fragment->destination = out.destination.address;
+                fragment->v6 = true;
+                fragment->protocol = d[pos];
+                fragment->offset = (be16(d.data() + pos + 2) & 0xFFF8u);
+                fragment->more = (d[pos + 3] & 0x01) != 0;
+                fragment->id = be32(d.data() + pos + 4);
+                fragment->data = d.subspan(pos + 8, end - pos - 8);
+            }
+            return ParseStatus::Fragment;
         }
-        if (next == 44) return ParseStatus::Fragment;
-        if (pos > d.size()) return ParseStatus::Malformed;
-        return parse_l4(next, d.subspan(pos, std::min(d.size(), 40 + payload) - pos), out);
+        return parse_l4(next, d.subspan(pos, end - pos), out);
     }
     return ParseStatus::NotIp;
 }
 
-ParseStatus by_ethertype(std::uint16_t type, std::span<const std::uint8_t> d, L4Packet& out) {
-    if (type == 0x0800 || type == 0x86DD) return parse_ip(d, out);
+ParseStatus by_ethertype(std::uint16_t type, std::span<const std::uint8_t> d, L4Packet& out,
+                         IpFragment* fragment) {
+    if (type == 0x0800 || type == 0x86DD) return parse_ip(d, out, fragment);
     return ParseStatus::NotIp;
 }
 
@@ -111,7 +146,20 @@ std::string Endpoint::to_string() const {
     return s + "]:" + std::to_string(port);
 }
 
-ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> d, L4Packet& out) noexcept {
+ParseStatus parse_datagram(const IpDatagram& datagram, L4Packet& out) noexcept {
+    out = L4Packet{};
+    out.source.address = datagram.source;
+    out.destination.address = datagram.destination;
+    out.source.v6 = out.destination.v6 = datagram.v6;
+    const std::span<const std::uint8_t> d(datagram.bytes);
+    std::uint8_t next = datagram.protocol;
+    std::size_t pos = 0;
+    if (datagram.v6 && !skip_v6_extensions(d, next, pos)) return ParseStatus::Malformed;
+    return parse_l4(next, d.subspan(pos), out);
+}
+
+ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> d, L4Packet& out,
+                         IpFragment* fragment) noexcept {
     switch (linktype) {
         case link_ethernet: {
             if (d.size() < 14) return ParseStatus::Malformed;
@@ -122,25 +170,25 @@ ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> d, L4Packet
                 if (pos + 2 > d.size()) return ParseStatus::Malformed;
                 type = be16(d.data() + pos);
             }
-            return by_ethertype(type, d.subspan(pos + 2), out);
+            return by_ethertype(type, d.subspan(pos + 2), out, fragment);
         }
         case link_sll:
             if (d.size() < 16) return ParseStatus::Malformed;
-            return by_ethertype(be16(d.data() + 14), d.subspan(16), out);
+            return by_ethertype(be16(d.data() + 14), d.subspan(16), out, fragment);
         case link_sll2:
             if (d.size() < 20) return ParseStatus::Malformed;
-            return by_ethertype(be16(d.data()), d.subspan(20), out);
+            return by_ethertype(be16(d.data()), d.subspan(20), out, fragment);
         case link_raw_dlt:
         case link_raw_dlt_openbsd:
         case link_raw:
         case link_ipv4:
         case link_ipv6:
-            return parse_ip(d, out);
+            return parse_ip(d, out, fragment);
         case link_null:
         case link_loop:
             if (d.size() < 4) return ParseStatus::Malformed;
-            return parse_ip(d.subspan(4),
-                            out);  // the family word's byte order varies; the IP version decides
+            return parse_ip(d.subspan(4), out,
+                            fragment);  // the family word's byte order varies; the IP version decides
         default:
             return ParseStatus::UnsupportedLink;
     }

@@ -8,6 +8,8 @@
 #include <span>
 #include <string>
 
+#include "analyzer/ip_reassembly.hpp"
+
 namespace mbscope::analyzer {
 
 // Link types that carry no IP (pcap/dlt.h values): the analyzer takes them before parse_packet.
@@ -38,6 +40,11 @@ struct L4Packet {
 
 enum class ParseStatus : std::uint8_t { Ok, UnsupportedLink, NotIp, NotTcpUdp, Fragment, Malformed };
 
-ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> data, L4Packet& out) noexcept;
+// A fragment of an IP datagram is ParseStatus::Fragment; with `fragment` given, it is described there for
+// IpReassembler (its data pointing into `data`).
+ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> data, L4Packet& out,
+                         IpFragment* fragment = nullptr) noexcept;
+// The transport layer of a reassembled datagram (its payload pointing into `datagram`).
+ParseStatus parse_datagram(const IpDatagram& datagram, L4Packet& out) noexcept;
 
 }  // namespace mbscope::analyzer

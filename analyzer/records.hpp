@@ -119,6 +119,9 @@ struct Summary {
     std::uint64_t errors = 0;                       // error-severity findings
     std::vector<std::string> input_errors;          // files that could not be read (fully)
     std::uint64_t input_errors_unlisted = 0;        // more of them, beyond Analyzer::max_listed_input_errors
+    // IP datagrams whose fragments never all arrived (ip_reassembly.hpp), the fragments they had, and
+    // fragments reaching past the largest datagram: captured packets that could not be decoded.
+    std::uint64_t ip_datagrams_incomplete = 0, ip_fragments_incomplete = 0, ip_fragments_invalid = 0;
     // Packets on ports not decoded as Modbus whose payload is one whole Modbus/TCP ADU (protocol 0, a length
     // that fits the payload, a public function code), by (UDP?, the lower of the two ports): a server port a
     // user may have left out (--tcp-port, --udp-port), told rather than decoding to nothing.

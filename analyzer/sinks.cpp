@@ -144,6 +144,12 @@ void TextSink::end(const Summary& s) {
         out_ << "  input error: " << e << '\n';
     if (s.input_errors_unlisted)
         out_ << "  input errors: " << s.input_errors_unlisted << " more, not listed\n";
+    if (s.ip_datagrams_incomplete)
+        out_ << "  not decoded: " << s.ip_datagrams_incomplete << " IP datagrams missing fragments ("
+             << s.ip_fragments_incomplete << " fragments captured)\n";
+    if (s.ip_fragments_invalid)
+        out_ << "  not decoded: " << s.ip_fragments_invalid
+             << " IP fragments reaching past the largest datagram (65,535 bytes)\n";
     for (const auto& [where, n] : s.modbus_like_ports)
         out_ << "  hint: " << n << (where.first ? " UDP" : " TCP") << " packets on port " << where.second
              << " hold Modbus/TCP ADUs; decode them with " << (where.first ? "--udp-port " : "--tcp-port ")
@@ -328,6 +334,10 @@ json summary_to_json(const Summary& s) {
     j["devices"] = devices;
     if (!s.input_errors.empty()) j["input_errors"] = s.input_errors;
     if (s.input_errors_unlisted) j["input_errors_unlisted"] = s.input_errors_unlisted;
+    if (s.ip_datagrams_incomplete || s.ip_fragments_invalid)
+        j["ip_fragments_not_decoded"] = {{"datagrams_incomplete", s.ip_datagrams_incomplete},
+                                         {"fragments_incomplete", s.ip_fragments_incomplete},
+                                         {"fragments_invalid", s.ip_fragments_invalid}};
     if (!s.modbus_like_ports.empty()) {
         json ports = json::array();
         for (const auto& [where, n] : s.modbus_like_ports)
