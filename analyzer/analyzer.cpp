@@ -260,9 +260,12 @@ void Analyzer::packet_in_source(const Packet& p) {
     Flow& flow = flow_for(l4, to_server);
     if (l4.transport == Transport::Tcp) {
         auto& stream = *flow.reassembler[to_server ? 0 : 1];
+        if (l4.syn && stream.opens_new_connection(l4.seq)) end_connection(flow, p.time);
         stream.segment(l4.seq, l4.syn, l4.payload, p.time);
         if (l4.fin) stream.finished_at(l4.seq + static_cast<std::uint32_t>(l4.payload.size()));
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
+        // A reset connection sends nothing more: half an ADU in either direction will never complete.
+        if (l4.rst) end_connection(flow, p.time);
         return;
     }
     // Modbus/UDP: one ADU per datagram (no stream to resynchronise). Serial gateways send RTU frames in
@@ -996,26 +999,41 @@ void Analyzer::input_error(const std::string& message) {
         ++summary_.input_errors_unlisted;
 }
 
+void Analyzer::close_streams(Flow& f, Timestamp t) {
+    for (int dir = 0; dir < 2; ++dir) {
+        f.reassembler[dir]->flush(t);
+        DeframeEvents events;
+        if (f.rtu_over_tcp) {
+            f.rtu_deframer[dir].finish(events);
+            shift_offsets(events, f.rtu_lost[dir]);
+            deframed(f, dir == 0, events, f.rtu_last[dir]);
+            continue;
+        }
+        f.deframer[dir].finish(events);
+        deframed(f, dir == 0, events, t);
+    }
+}
+
+void Analyzer::end_connection(Flow& f, Timestamp t) {
+    // What the connection left unfinished is reported now, at its end; the next connection on the same
+    // addresses and ports starts at stream offset 0 with nothing buffered. Before this, a half ADU cut by a
+    // reset took the first bytes of the next connection's request into it.
+    close_streams(f, t);
+    for (int dir = 0; dir < 2; ++dir) {
+        f.reassembler[dir]->reset(TcpReassembler::default_max_buffered);
+        f.deframer[dir].reset();
+        f.rtu_deframer[dir].reset();
+        f.rtu_lost[dir] = 0;
+    }
+}
+
 void Analyzer::finish() {
     ip_fragments_.expire(now_, true);
     summary_.ip_datagrams_incomplete = ip_fragments_.incomplete_datagrams();
     summary_.ip_fragments_incomplete = ip_fragments_.incomplete_fragments();
     summary_.ip_fragments_invalid = ip_fragments_.invalid_fragments();
-    for (auto& [key, f] : flows_) {
-        if (f->carrier != Carrier::Tcp) continue;
-        for (int dir = 0; dir < 2; ++dir) {
-            f->reassembler[dir]->flush(now_);
-            DeframeEvents events;
-            if (f->rtu_over_tcp) {
-                f->rtu_deframer[dir].finish(events);
-                shift_offsets(events, f->rtu_lost[dir]);
-                deframed(*f, dir == 0, events, f->rtu_last[dir]);
-                continue;
-            }
-            f->deframer[dir].finish(events);
-            deframed(*f, dir == 0, events, now_);
-        }
-    }
+    for (auto& [key, f] : flows_)
+        if (f->carrier == Carrier::Tcp) close_streams(*f, now_);
     for (auto& [name, link] : serial_links_) {
         source_ = link->source;
         DeframeEvents events;

@@ -135,6 +135,11 @@ class Analyzer {
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     FrameRecord about_stream(const Flow& flow, modbus::Timestamp t) const;
     void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);
+    // Both directions' buffered bytes delivered and deframed to the end (at the end of the capture).
+    void close_streams(Flow& flow, modbus::Timestamp t);
+    // A connection reset, or replaced by a new one on the same addresses and ports: its streams closed,
+    // then started afresh.
+    void end_connection(Flow& flow, modbus::Timestamp t);
     void retransmission_conflict(Flow& flow, int dir, std::uint64_t at, std::size_t differing,
                                  modbus::Timestamp t);
     void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);

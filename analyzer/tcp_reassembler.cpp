@@ -14,6 +14,7 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     max_buffered_ = max_buffered;
     next_.reset();
     fin_at_.reset();
+    syn_at_.reset();
     pending_.clear();
     arena_.clear();
     base_ = 0;
@@ -25,6 +26,8 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
 void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload,
                              modbus::Timestamp t) {
     if (syn) {
+        if (next_ && syn_at_ == seq) return;  // the SYN again: the stream has already moved past it
+        syn_at_ = seq;
         next_ = seq + 1;
         payload = {};  // data on a SYN is legal but never used by Modbus clients
         return;

@@ -27,10 +27,14 @@ class TcpReassembler {
     // first segment overtook an earlier one): they cannot go before what was delivered already.
     using BeforeStartFn = std::function<void(std::size_t bytes, modbus::Timestamp)>;
 
-    TcpReassembler(DataFn data, GapFn gap, std::size_t max_buffered = 1 << 20)
+    static constexpr std::size_t default_max_buffered = 1 << 20;
+    TcpReassembler(DataFn data, GapFn gap, std::size_t max_buffered = default_max_buffered)
         : data_(std::move(data)), gap_(std::move(gap)), max_buffered_(max_buffered) {}
 
     void segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload, modbus::Timestamp t);
+    // A SYN at `seq` opens a new connection on this stream's addresses and ports: the stream has seen
+    // another connection (or the middle of one), and this is not that connection's SYN again.
+    bool opens_new_connection(std::uint32_t seq) const noexcept { return next_ && syn_at_ != seq; }
     // The peer acknowledged this direction's bytes up to `ack`: bytes before it that the capture never
     // showed (a segment the tap lost, a record cut by the snap length) will not be sent again, so a hole
     // below it is given up now. Waiting for it stalled the direction until the end of the capture (or a
@@ -69,6 +73,7 @@ class TcpReassembler {
     std::size_t max_buffered_;
     std::optional<std::uint32_t> next_;  // next expected sequence number
     std::optional<std::uint32_t> fin_at_;
+    std::optional<std::uint32_t> syn_at_;  // the sequence number of this connection's SYN, when seen
     // Pieces waiting for a hole to fill: a heap with the lowest `at` in front. Their bytes share one arena
     // (a segment ahead of a hole used to cost a map node and a vector of its own, and under a fuzzer most
     // segments are). The arena is emptied whenever nothing waits and compacted when mostly dead, so it

@@ -228,6 +228,52 @@ TEST(Analyzer, AResponseStampedBeforeItsRequestHasNoLatency) {
     EXPECT_EQ(device.responses, 2u);
 }
 
+// A connection reset in the middle of a request, then a new connection on the same addresses and ports: the
+// half ADU took the first bytes of the next connection's request, which was lost with it, and its response
+// was called unsolicited.
+TEST(Analyzer, AResetConnectionsHalfAduDoesNotSwallowTheNextConnectionsRequest) {
+    for (const bool reset_seen : {true, false}) {
+        Harness h;
+        const auto first = read_request(1);
+        h.raw(packet(true, 999, {}, false, 0x02), 1s);  // SYN
+        h.send(true, {first.begin(), first.begin() + 7}, 1s + 1ms);
+        if (reset_seen) h.raw(packet(true, 1007, {}, false, 0x04), 1s + 2ms);  // RST
+        h.raw(packet(true, 70000, {}, false, 0x02), 2s);  // a new connection's SYN, another sequence number
+        h.raw(packet(false, 90000, {}, false, 0x12, 502, 70001), 2s);  // SYN-ACK
+        h.seq[0] = 70001;
+        h.seq[1] = 90001;
+        h.send(true, read_request(2), 2s + 1ms);
+        h.send(false, read_response(2), 2s + 3ms);
+        h.analyzer.finish();
+        ASSERT_EQ(h.sink.transactions.size(), 1u) << reset_seen;
+        EXPECT_EQ(h.sink.transactions[0].request.frame.transaction_id(), 2);
+        EXPECT_TRUE(h.sink.transactions[0].response.has_value());
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+        ASSERT_EQ(h.sink.unparsed_records.size(), 1u);
+        const auto& cut = h.sink.unparsed_records[0];
+        EXPECT_EQ(cut.length, 7u);
+        EXPECT_EQ(cut.offset, 0u);
+        EXPECT_EQ(cut.reason, mb::UnparsedReason::Truncated);
+        EXPECT_EQ(cut.time, reset_seen ? 1s + 2ms : 2s);  // reported when the connection ended
+        EXPECT_EQ(h.analyzer.summary().unparsed_bytes, 7u);
+    }
+}
+
+// A SYN sent again (the same sequence number) is the same connection: nothing is cut.
+TEST(Analyzer, ARetransmittedSynIsNotANewConnection) {
+    Harness h;
+    const auto request = read_request(1);
+    h.raw(packet(true, 999, {}, false, 0x02), 1s);
+    h.send(true, {request.begin(), request.begin() + 7}, 1s + 1ms);
+    h.raw(packet(true, 999, {}, false, 0x02), 1s + 2ms);
+    h.send(true, {request.begin() + 7, request.end()}, 1s + 3ms);
+    h.send(false, read_response(1), 1s + 4ms);
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.transactions.size(), 1u);
+    EXPECT_TRUE(h.sink.unparsed_records.empty());
+    EXPECT_TRUE(h.sink.findings.empty());
+}
+
 TEST(Analyzer, UnsolicitedResponse) {
     Harness h;
     h.send(false, read_response(9), 1s);
