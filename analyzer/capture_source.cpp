@@ -307,8 +307,17 @@ bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
         return true;
     }
     if (rc == PCAP_ERROR_BREAK) return false;  // end of file
-    error = name + ": packet " + std::to_string(count + 1) +
-            (before >= 0 ? " at byte offset " + std::to_string(before) : "") + ": " + pcap_geterr(pcap);
+    const std::string why = pcap_geterr(pcap);
+    const std::string at = before >= 0 ? " at byte offset " + std::to_string(before) : "";
+    if (why.find("different from the type of the first interface") != std::string::npos) {
+        // Not damage, and not a packet: an interface block libpcap will not take. The file is fine;
+        // libpcap (1.10) reads pcapng only while every interface has the first one's link type.
+        error = name + ": after " + std::to_string(count) + " packets, an interface block" + at + ": " + why +
+                "; libpcap reads a pcapng file only when all its interfaces share one link type: split it "
+                "by interface (tshark -r FILE -Y frame.interface_id==N -w PART.pcapng) and decode the parts";
+        return false;
+    }
+    error = name + ": packet " + std::to_string(count + 1) + at + ": " + why;
     return false;
 }
 
