@@ -189,9 +189,16 @@ std::uint16_t Device::read_word(Table t, std::uint16_t address) const noexcept {
     const modbus::Point* p = profile_->open_address_space ? nullptr : profile_->find(t, address);
     if (p && p->access == modbus::Access::Write)
         return 0;  // write-only points read as zero (manuals are silent)
-    if (p && p->encoding.words == 2 && faults_->enabled(Fault::WordSwap)) {
-        const auto other = static_cast<std::uint16_t>(address == p->address ? address + 1 : address - 1);
-        return image_.reg(t, other);
+    if (p && faults_->enabled(Fault::WordSwap)) {
+        if (p->encoding.words == 2) {
+            const auto other = static_cast<std::uint16_t>(address == p->address ? address + 1 : address - 1);
+            return image_.reg(t, other);
+        }
+        // A 32-bit value the map gives as two points, its low and high words (CTH2265I's totals).
+        const auto type = p->encoding.type;
+        if ((type == modbus::EncodingType::U32Low || type == modbus::EncodingType::U32High) &&
+            p->encoding.pair)
+            return image_.reg(t, *p->encoding.pair);
     }
     return image_.reg(t, address);
 }

@@ -43,7 +43,8 @@ constexpr FaultInfo faults[] = {
     {Fault::GapInsideFrame, "gap-inside-frame", ArgKind::Characters,
      "=CHARS: RTU/ASCII: a silence of CHARS character times in the middle of each response"},
     {Fault::WordSwap, "word-swap", ArgKind::Rate,
-     "32-bit points are served with their two registers swapped"},
+     "32-bit points, and 32-bit values the map gives as low and high words, are served with their two "
+     "registers swapped"},
     {Fault::OffByOneAddress, "off-by-one-address", ArgKind::Rate, "every request is served at address + 1"},
     {Fault::StuckValue, "stuck-value", ArgKind::Address,
      "=ADDR: the register at ADDR never changes (writes acknowledged, process frozen)"},

@@ -161,6 +161,16 @@ const std::vector<PduFaultCase> pdu_faults = {
      "walchem-w600",
      {{"03 00 94 00 02", "03 04 00 00 40 E0", "03 04 40 E0 00 00"}},
      [](RegisterImage& i) { i.set_f32(HR, 148, 7.0f, mb::WordOrder::Cdab); }},
+    // CTH2265I's total is two points, low word at 4002 and high word at 4003: swapped the same way.
+    {"WordSwapOfLowAndHighWords",
+     "word-swap",
+     "cth2265i",
+     {{"03 0F A2 00 02", "03 04 00 02 00 01", "03 04 00 01 00 02"},
+      {"03 0F A3 00 01", "03 02 00 01", "03 02 00 02"}},
+     [](RegisterImage& i) {
+         i.set_reg(HR, 4002, 2);
+         i.set_reg(HR, 4003, 1);
+     }},
     {"OffByOneAddress",
      "off-by-one-address",
      "modbus",
