@@ -72,7 +72,9 @@ DeframeStep tcp_step(std::span<const std::uint8_t> buf, bool at_end, bool in_syn
         if (!plausible_header(at)) continue;
         const std::size_t total = 6 + length_field(at);
         if (at.size() < total) {
-            if (at_end || !length_consistent(at.subspan(7), total - 7)) continue;
+            // The PDU's bytes so far (none while the unit id is the last byte there is).
+            const auto pdu_so_far = at.size() > 7 ? at.subspan(7) : std::span<const std::uint8_t>{};
+            if (at_end || !length_consistent(pdu_so_far, total - 7)) continue;
             if (j == 0) return {Kind::NeedMore, total};
             return {Kind::Skip, j, true, UnparsedReason::BadHeader};
         }
