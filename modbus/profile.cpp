@@ -119,6 +119,51 @@ std::uint32_t join_words(std::uint16_t first, std::uint16_t second, WordOrder or
     return 0;
 }
 
+std::string_view to_string(LineSetting s) noexcept {
+    switch (s) {
+        case LineSetting::UnitId:
+            return "unit_id";
+        case LineSetting::Framing:
+            return "framing";
+        case LineSetting::Baud:
+            return "baud";
+        case LineSetting::Parity:
+            return "parity";
+    }
+    return "?";
+}
+
+std::optional<LineSetting> parse_line_setting(std::string_view text) noexcept {
+    for (const auto s : {LineSetting::UnitId, LineSetting::Framing, LineSetting::Baud, LineSetting::Parity})
+        if (to_string(s) == text) return s;
+    return std::nullopt;
+}
+
+std::optional<std::uint16_t> mirrored_value(const Point& p, const LineState& line) {
+    if (!p.mirrors) return std::nullopt;
+    std::string wanted;
+    switch (*p.mirrors) {
+        case LineSetting::UnitId:
+            return line.unit;
+        case LineSetting::Framing:
+            if (!line.framing || *line.framing == Framing::Tcp) return std::nullopt;
+            wanted = *line.framing == Framing::Rtu ? "rtu" : "ascii";
+            break;
+        case LineSetting::Baud:
+            if (!line.baud) return std::nullopt;
+            wanted = std::to_string(*line.baud);
+            break;
+        case LineSetting::Parity:
+            if (!line.parity) return std::nullopt;
+            wanted = *line.parity == Parity::None ? "none" : *line.parity == Parity::Even ? "even" : "odd";
+            break;
+    }
+    for (const auto& v : p.encoding.values)
+        if (v.means == wanted && v.value >= 0 && v.value <= 0xFFFF)
+            return static_cast<std::uint16_t>(v.value);
+    return std::nullopt;
+}
+
 std::optional<RawLimits> raw_limits(const Encoding& e) noexcept {
     if (e.type == EncodingType::F32) return std::nullopt;
     if (e.type == EncodingType::Bool) return RawLimits{0, 1};

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "modbus/addressing.hpp"
+#include "modbus/serial_line.hpp"  // LineState
 
 namespace mbscope::modbus {
 
@@ -61,6 +62,9 @@ struct EnumValue {
     std::int64_t value = 0;
     std::string text;
     std::string text_en;
+    // On a point that mirrors a line setting, the setting this code stands for: "rtu" or "ascii", a baud
+    // rate ("9600"), "none", "even" or "odd".
+    std::string means;
 };
 
 struct BitName {
@@ -92,6 +96,12 @@ struct RawLimits {
 };
 std::optional<RawLimits> raw_limits(const Encoding& e) noexcept;
 
+// A line setting a register reads back (MK-CFG-01: ENDER, PROT, BAUD and PARID mirror the front panel's
+// RS level; CTH-ADR-01: register 3999 holds the configured address).
+enum class LineSetting : std::uint8_t { UnitId, Framing, Baud, Parity };
+std::string_view to_string(LineSetting s) noexcept;  // "unit_id", "framing", "baud", "parity"
+std::optional<LineSetting> parse_line_setting(std::string_view text) noexcept;
+
 struct Point {
     Table table = Table::HoldingRegisters;
     std::uint16_t address = 0;
@@ -111,7 +121,13 @@ struct Point {
     std::string source;  // "000:493"
     std::vector<std::string> notes;
     std::string ref;  // the manual's printed reference when it differs from the address
+    std::optional<LineSetting> mirrors;
 };
+
+// What a point mirroring a line setting reads under `line`: the unit id itself, or the code the map gives
+// the setting. nullopt when the point mirrors nothing, when the line has no such setting (a baud rate over
+// TCP) or when the map has no code for it.
+std::optional<std::uint16_t> mirrored_value(const Point& p, const LineState& line);
 
 struct ProfileNote {
     std::string text;

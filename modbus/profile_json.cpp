@@ -28,6 +28,7 @@ json point_to_json(const Point& p) {
     for (const auto& v : p.encoding.values) {
         json x{{"value", v.value}, {"text", v.text}};
         if (!v.text_en.empty()) x["text_en"] = v.text_en;
+        if (!v.means.empty()) x["means"] = v.means;
         e["values"].push_back(x);
     }
     for (const auto& b : p.encoding.bits)
@@ -44,6 +45,7 @@ json point_to_json(const Point& p) {
     if (p.reconstructed) j["reconstructed"] = true;
     if (!p.notes.empty()) j["notes"] = p.notes;
     if (!p.ref.empty()) j["ref"] = p.ref;
+    if (p.mirrors) j["mirrors"] = std::string(to_string(*p.mirrors));
     return j;
 }
 

@@ -185,6 +185,7 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
                 if (auto val = r.integer(item, "value", p, true)) ev.value = *val;
                 ev.text = r.string(item, "text", p, false).value_or("");
                 ev.text_en = r.string(item, "text_en", p, false).value_or("");
+                ev.means = r.string(item, "means", p, false).value_or("");
                 e.values.push_back(std::move(ev));
             }
     }
@@ -285,6 +286,20 @@ std::optional<RawPoint> parse_point(Reader& r, const json& j, const std::string&
     if (p.source.empty()) r.error(ptr, "missing \"source\" (the manual line it comes from)");
     p.notes = notes_of(j);
     p.ref = r.string(j, "ref", ptr, false).value_or("");
+    if (auto m = r.string(j, "mirrors", ptr, false)) {
+        p.mirrors = parse_line_setting(*m);
+        if (!p.mirrors) {
+            r.error(ptr + "/mirrors", "must be unit_id, framing, baud or parity");
+        } else if (*p.mirrors != LineSetting::UnitId) {
+            // The codes are the map's: each says which setting it stands for.
+            const auto& values = p.encoding.values;
+            if (p.encoding.type != EncodingType::Enum ||
+                std::any_of(values.begin(), values.end(), [](const EnumValue& v) { return v.means.empty(); }))
+                r.error(ptr + "/mirrors", "a mirrored " + *m +
+                                              " needs an \"enum\" encoding whose every value says what it "
+                                              "\"means\"");
+        }
+    }
     if (auto m = r.child(j, "models"); m && m->is_array())
         for (const auto& id : *m)
             if (id.is_string()) rp.models.push_back(lower(id.get<std::string>()));

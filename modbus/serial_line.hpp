@@ -9,6 +9,8 @@
 #include <optional>
 #include <string_view>
 
+#include "modbus/frame.hpp"
+
 namespace mbscope::modbus {
 
 enum class Parity : std::uint8_t { None = 0, Even = 1, Odd = 2 };
@@ -35,6 +37,15 @@ struct SerialLine {
         if (baud > 19200) return std::chrono::microseconds(1750);
         return character_time() * 7 / 2;
     }
+};
+
+// The settings of the line a device is reached on, as far as they are known: the unit always; the framing
+// on serial lines and serial framings carried over TCP; baud rate and parity on a serial line only.
+struct LineState {
+    std::uint8_t unit = 1;
+    std::optional<Framing> framing;
+    std::optional<std::uint32_t> baud;
+    std::optional<Parity> parity;
 };
 
 }  // namespace mbscope::modbus
