@@ -105,8 +105,11 @@ int run_slave(const SlaveOptions& o) {
             return exit_failure;
         }
         profiles.push_back(std::make_unique<modbus::Profile>(std::move(p.value())));
-        devices.push_back(
-            std::make_unique<slave::Device>(*profiles.back(), static_cast<std::uint8_t>(unit), &faults));
+        // What the registers mirroring the line read: the framing served, and on a serial line its speed
+        // and parity.
+        devices.push_back(std::make_unique<slave::Device>(
+            *profiles.back(), modbus::transport::line_state(*endpoint, static_cast<std::uint8_t>(unit)),
+            &faults));
     }
     std::vector<slave::Device*> units;
     for (auto& d : devices)

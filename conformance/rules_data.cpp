@@ -165,6 +165,46 @@ void check_data(Context& c) {
                   r.outcome = v && (*v)[0] == *p.fixed_value ? Outcome::Pass : Outcome::Fail;
               });
     }
+    // Registers that mirror the line settings (MK-CFG-01: ENDER, PROT, BAUD, PARID; CTH-ADR-01: 3999) read
+    // what the runner is using: its unit, its framing, and on a serial line its speed and parity.
+    const auto line = modbus::transport::line_state(c.session.client().endpoint(), c.session.options().unit);
+    for (const auto& p : c.profile.table(Table::HoldingRegisters)) {
+        if (!p.mirrors || !c.profile.functions.supports(3)) continue;
+        const std::string setting(modbus::to_string(*p.mirrors));
+        c.run({"data.mirror.hr" + std::to_string(p.address), "echoes and data",
+               p.source.empty() ? c.profile.source : p.source,
+               "Register " + std::to_string(p.address) + " reads back the line's " + setting +
+                   " the runner is using.",
+               Authority::Manual, false},
+              [&](RuleResult& r) {
+                  const auto expected = modbus::mirrored_value(p, line);
+                  if (!expected) {
+                      // Framing over Modbus/TCP, speed and parity over any network scheme: the device's line
+                      // is on the far side of a gateway, its settings are not the runner's.
+                      const bool known =
+                          *p.mirrors == modbus::LineSetting::Framing ? c.serial_framing() : c.true_serial();
+                      r.outcome = Outcome::Skip;
+                      r.reason = known ? "the map has no code for this line's " + setting
+                                       : "over " +
+                                             std::string(modbus::transport::to_string(
+                                                 c.session.client().endpoint().scheme)) +
+                                             " the device's " + setting + " is a gateway's, not the runner's";
+                      return;
+                  }
+                  auto v =
+                      c.session.read_registers(Table::HoldingRegisters, p.address, 1, "read the " + setting);
+                  const auto named = [&](std::uint16_t value) {
+                      for (const auto& e : p.encoding.values)
+                          if (e.value == value)
+                              return std::to_string(value) + " (" + (e.text_en.empty() ? e.text : e.text_en) +
+                                     ")";
+                      return std::to_string(value);
+                  };
+                  r.expected = named(*expected);
+                  r.observed = v ? named((*v)[0]) : "no normal reply";
+                  r.outcome = v && (*v)[0] == *expected ? Outcome::Pass : Outcome::Fail;
+              });
+    }
 }
 
 }  // namespace mbscope::conformance

@@ -71,7 +71,10 @@ std::optional<modbus::WriteRejection> check_linked_limits(const modbus::Profile&
 }  // namespace
 
 Device::Device(const modbus::Profile& profile, std::uint8_t unit, FaultSet* faults)
-    : profile_(&profile), unit_(unit), faults_(faults ? faults : &no_faults_), image_(profile) {}
+    : Device(profile, modbus::LineState{unit, std::nullopt, std::nullopt, std::nullopt}, faults) {}
+
+Device::Device(const modbus::Profile& profile, const modbus::LineState& line, FaultSet* faults)
+    : profile_(&profile), unit_(line.unit), faults_(faults ? faults : &no_faults_), image_(profile, line) {}
 
 void Device::reset() noexcept {
     image_.reset();

@@ -44,6 +44,8 @@ struct Reply {
 class Device {
   public:
     Device(const modbus::Profile& profile, std::uint8_t unit, FaultSet* faults = nullptr);
+    // Served on `line`: the registers that mirror its settings read them (MK-CFG-01, CTH-ADR-01).
+    Device(const modbus::Profile& profile, const modbus::LineState& line, FaultSet* faults = nullptr);
 
     Reply handle(const Request& request);
     void count_frame(bool checksum_ok) noexcept;  // the server saw a frame on the line (any unit)

@@ -14,7 +14,8 @@ namespace {
 const std::array<std::uint16_t, 256> zero_page{};
 }  // namespace
 
-RegisterImage::RegisterImage(const modbus::Profile& profile) : profile_(&profile) {
+RegisterImage::RegisterImage(const modbus::Profile& profile, std::optional<modbus::LineState> line)
+    : profile_(&profile), line_(line) {
     for (auto& w : tables_)
         w.page.fill(&zero_page);
     initialise();
@@ -142,6 +143,8 @@ void RegisterImage::initialise() {
                                                                                         : e.allowed.front());
             if (p.min && *p.min > 0) v = *p.min;
             if (p.max && *p.max < 0) v = *p.max;
+            if (line_)
+                if (const auto mirrored = modbus::mirrored_value(p, *line_)) v = *mirrored;
             if (e.words == 2) {
                 if (e.type == EncodingType::F32)
                     set_f32(t, p.address, static_cast<float>(v), e.word_order);

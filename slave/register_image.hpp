@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -20,7 +21,10 @@ using modbus::Table;
 
 class RegisterImage {
   public:
-    explicit RegisterImage(const modbus::Profile& profile);
+    // With `line`, the points that mirror a line setting (MK ENDER/PROT/BAUD/PARID, CTH register 3999)
+    // start at the settings the device is served with.
+    explicit RegisterImage(const modbus::Profile& profile,
+                           std::optional<modbus::LineState> line = std::nullopt);
 
     std::uint16_t reg(Table t, std::uint16_t address) const noexcept;
     void set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept;
@@ -69,6 +73,7 @@ class RegisterImage {
     void initialise();
 
     const modbus::Profile* profile_;
+    std::optional<modbus::LineState> line_;
     // Indexed by the resolved table's value; bits are kept one per word for simple, uniform storage.
     Words tables_[5];
     std::array<const Page*, page_count> initial_[5]{};

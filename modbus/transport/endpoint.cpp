@@ -41,6 +41,17 @@ bool is_serial(Scheme s) noexcept {
     return s == Scheme::RtuSerial || s == Scheme::AsciiSerial;
 }
 
+LineState line_state(const Endpoint& e, std::uint8_t unit) noexcept {
+    LineState line;
+    line.unit = unit;
+    if (const Framing f = framing_of(e.scheme); f != Framing::Tcp) line.framing = f;
+    if (is_serial(e.scheme)) {
+        line.baud = e.line.baud;
+        line.parity = e.line.parity;
+    }
+    return line;
+}
+
 std::string Endpoint::text() const {
     if (is_serial(scheme)) {
         std::string out =

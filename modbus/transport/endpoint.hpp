@@ -37,6 +37,10 @@ struct Endpoint {
     std::string text() const;
 };
 
+// The line a device reached at `e` as `unit` is on, as far as the endpoint tells: the framing of serial
+// schemes (carried over TCP too), and the speed and parity of a serial line.
+LineState line_state(const Endpoint& e, std::uint8_t unit) noexcept;
+
 // Errors carry a message naming the offending part of the URI.
 Result<Endpoint, std::string> parse_endpoint(std::string_view uri);
 

@@ -97,6 +97,28 @@ INSTANTIATE_TEST_SUITE_P(OneProfilePerManual, EveryTransport, ::testing::ValuesI
                              return n;
                          });
 
+// MK-CFG-01: the registers mirroring the line read what the runner uses. A device whose PROT says ASCII
+// while it speaks RTU fails; speed and parity, which a gateway's serial side decides, are skipped over TCP.
+TEST(LineMirrors, APortReadingAnotherFramingThanItSpeaksFails) {
+    RunningServer server({}, 1, "mmk-2030");
+    server.keep_image = true;  // made without a line: ENDER reads the unit, PROT its first code, ASCII
+    auto options = options_for();
+    options.run.rule_globs = {"data.mirror.*"};
+    const auto run = certify(server, "rtu-tcp", "mmk-2030", options);
+    std::map<std::string, Outcome> outcomes;
+    for (const auto& x : run.report.results)
+        outcomes[x.rule.id] = x.outcome;
+    EXPECT_EQ(outcomes, (std::map<std::string, Outcome>{{"data.mirror.hr7", Outcome::Pass},
+                                                        {"data.mirror.hr8", Outcome::Fail},
+                                                        {"data.mirror.hr9", Outcome::Skip},
+                                                        {"data.mirror.hr10", Outcome::Skip}}));
+    for (const auto& x : run.report.results)
+        if (x.rule.id == "data.mirror.hr8") {
+            EXPECT_EQ(x.expected, "1 (RTU)");
+            EXPECT_EQ(x.observed, "0 (ASCII)");
+        }
+}
+
 // ---- every planted fault is caught
 
 struct FaultCase {

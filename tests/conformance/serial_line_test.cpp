@@ -19,9 +19,9 @@ class OverPseudoTerminal : public ::testing::TestWithParam<std::string> {};
 TEST_P(OverPseudoTerminal, CertifiesWithNoFailureAndRestoresEverything) {
     const std::string framing = GetParam();
     slave::FaultSet faults;
-    slave::Device device(slave::test::profile("mmk-2030"), 1, &faults);
     auto listen = tp::parse_endpoint(framing + ":pty?baud=38400");
     ASSERT_TRUE(listen.has_value());
+    slave::Device device(slave::test::profile("mmk-2030"), tp::line_state(*listen, 1), &faults);
     slave::ServerOptions so;
     so.create_pty = true;
     slave::Server server(*listen, {&device}, faults, so);

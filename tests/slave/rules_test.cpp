@@ -972,3 +972,26 @@ TEST(WalchemRules, WA_ADR_04_W600_HalfAFloatIsNotRangeChecked) {
 
 }  // namespace
 }  // namespace mbscope::slave::test
+
+namespace mbscope::slave::test {
+
+// MK-CFG-01 (000:218-226, 500-503): ENDER, PROT, BAUD and PARID mirror the settings the device is on;
+// CTH-ADR-01 (003:435, 599): register 3999 holds the configured address. The slave served them as 0.
+TEST(LineMirrors, MK_CFG_01_RegistersReadTheLineTheDeviceIsOn) {
+    mb::LineState rtu{17, mb::Framing::Rtu, 9600, mb::Parity::Even};
+    Device on_rtu(profile("mmk-2030"), rtu);
+    EXPECT_EQ(ask(on_rtu, "03 00 07 00 04"), "03 08 00 11 00 01 00 05 00 01");  // 17, RTU, 9600, even
+    mb::LineState ascii{5, mb::Framing::Ascii, 300, mb::Parity::Odd};
+    Device on_ascii(profile("mmk-2030"), ascii);
+    EXPECT_EQ(ask(on_ascii, "03 00 07 00 04"), "03 08 00 05 00 00 00 00 00 02");  // 5, ASCII, 300, odd
+    // A speed the map has no code for, and a line reached over TCP: those registers keep their start value.
+    mb::LineState fast{1, mb::Framing::Rtu, 38400, mb::Parity::None};
+    Device on_fast(profile("mmk-2030"), fast);
+    EXPECT_EQ(ask(on_fast, "03 00 07 00 04"), "03 08 00 01 00 01 00 00 00 00");
+    Device cth(profile("cth2265i"), mb::LineState{200, mb::Framing::Rtu, 9600, mb::Parity::None});
+    EXPECT_EQ(ask(cth, "03 0F 9F 00 01"), "03 02 00 C8");
+    // The image's start: what a state file compares with, so the mirrors are not saved as changes.
+    EXPECT_TRUE(on_rtu.image().changes().empty());
+}
+
+}  // namespace mbscope::slave::test

@@ -222,12 +222,19 @@ class RunningServer {
     ~RunningServer() { stop(); }
 
     Device& device() noexcept { return device_; }
+    // Serve the image as the test made it, without the line's settings in the registers that mirror them.
+    bool keep_image = false;
 
     // Opens the endpoint ("tcp://127.0.0.1:0", "rtu:pty?baud=38400" with options.create_pty, ...) and
     // starts serving.
     Server& serve(const std::string& uri, ServerOptions options = {}) {
         auto endpoint = mb::transport::parse_endpoint(uri);
         EXPECT_TRUE(endpoint.has_value()) << uri;
+        // The registers mirroring the line read the line served, as mbscope slave makes them (MK-CFG-01),
+        // unless the test has set the image itself.
+        if (endpoint && !keep_image && device_.image().modifications() == 0)
+            device_.image() =
+                RegisterImage(device_.profile(), mb::transport::line_state(*endpoint, device_.unit()));
         server_ =
             std::make_unique<Server>(*endpoint, std::vector<Device*>{&device_}, faults_, std::move(options));
         auto opened = server_->open();
