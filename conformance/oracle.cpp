@@ -226,6 +226,8 @@ ExchangeOracle::Expected ExchangeOracle::expect_pdu(const Request& r, const modb
                 e.silence = true;
                 e.rule = "silence.listen_only";
                 e.source = "AP §6.8.1";
+                // Data other than 00 00 may be refused (AP §6.8's state diagram); silence is then the mode.
+                if (!modbus::diagnostic_request_data_defined(d.sub_function, d.data)) e.exceptions = {0x03};
                 return e;
             }
             e.normal = true;

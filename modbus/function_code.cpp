@@ -143,4 +143,18 @@ std::optional<std::string_view> diagnostic_name(std::uint16_t sub_function) noex
     }
 }
 
+bool diagnostic_request_data_defined(std::uint16_t sub_function,
+                                     std::span<const std::uint8_t> data) noexcept {
+    if (sub_function == 0x00 || !diagnostic_name(sub_function)) return true;
+    if (data.size() != 2) return false;
+    switch (sub_function) {
+        case 0x01:
+            return (data[0] == 0x00 || data[0] == 0xFF) && data[1] == 0x00;
+        case 0x03:
+            return data[1] == 0x00;
+        default:
+            return data[0] == 0x00 && data[1] == 0x00;
+    }
+}
+
 }  // namespace mbscope::modbus

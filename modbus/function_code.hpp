@@ -62,6 +62,11 @@ std::optional<std::string_view> exception_name(std::uint8_t exception_code) noex
 // FC8 sub-functions (AP §6.8.1).
 std::optional<std::string_view> diagnostic_name(std::uint16_t sub_function) noexcept;
 
+// Whether an FC8 request's data field is the one AP §6.8.1 gives its sub-function: any data for 00, 00 00 or
+// FF 00 for 01, a character and 00 for 03, 00 00 for the others. A value the device does not accept is
+// exception 03 in AP §6.8's state diagram. True for sub-functions the specification does not define.
+bool diagnostic_request_data_defined(std::uint16_t sub_function, std::span<const std::uint8_t> data) noexcept;
+
 // MEI types of FC43 (AP §6.19-6.21).
 inline constexpr std::uint8_t mei_canopen_general_reference = 0x0D;
 inline constexpr std::uint8_t mei_read_device_identification = 0x0E;

@@ -404,6 +404,10 @@ std::vector<std::uint8_t> Device::diagnostics(const Pdu& req) {
     // data, exception 03.
     if (req.violations.contains(modbus::FindingCode::PduDiagnosticDataLength))
         return exception(8, exc_illegal_value);
+    // AP §6.8's state diagram: data the sub-function does not define (a counter's query is 00 00) is
+    // exception 03.
+    if (!modbus::diagnostic_request_data_defined(d.sub_function, d.data))
+        return exception(8, exc_illegal_value);
     modbus::Diagnostics rsp = d;
     const auto counter = [&](std::uint16_t v) {
         rsp.data = {static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v)};
@@ -415,8 +419,6 @@ std::vector<std::uint8_t> Device::diagnostics(const Pdu& req) {
                     b = static_cast<std::uint8_t>(~b);
             break;
         case 0x01:  // restart communications option (outside listen-only mode): clear the counters
-            if (d.data.size() != 2 || (d.data[0] != 0x00 && d.data[0] != 0xFF) || d.data[1] != 0x00)
-                return exception(8, exc_illegal_value);
             counters_ = Counters{};
             break;
         case 0x02:

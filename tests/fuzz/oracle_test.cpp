@@ -39,6 +39,19 @@ std::vector<std::uint8_t> pdu(std::uint8_t fc, std::initializer_list<std::uint16
     return out;
 }
 
+// An RTU request to `unit` and its reply (none when empty), judged.
+std::vector<cf::OracleViolation> judge_rtu(cf::ExchangeOracle& oracle, std::uint8_t unit,
+                                           const std::vector<std::uint8_t>& request,
+                                           const std::vector<std::uint8_t>& reply) {
+    mbscope::modbus::transport::Exchange ex;
+    ex.sent = mb::encode_rtu(unit, request);
+    if (!reply.empty()) {
+        ex.received = mb::encode_rtu(unit, reply);
+        ex.response = *mb::decode_rtu(ex.received);
+    }
+    return oracle.judge(ex);
+}
+
 struct Step {
     std::uint8_t unit;  // 0: broadcast
     std::vector<std::uint8_t> pdu;
@@ -378,13 +391,7 @@ TEST(ExchangeOracle, ListenOnlyModeSilencesEverythingUntilAValidRestart) {
     const auto& p = mbscope::slave::test::profile("modbus");
     cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
     const auto send = [&](const std::vector<std::uint8_t>& request, const std::vector<std::uint8_t>& reply) {
-        mbscope::modbus::transport::Exchange ex;
-        ex.sent = mb::encode_rtu(1, request);
-        if (!reply.empty()) {
-            ex.received = mb::encode_rtu(1, reply);
-            ex.response = *mb::decode_rtu(ex.received);
-        }
-        return oracle.judge(ex);
+        return judge_rtu(oracle, 1, request, reply);
     };
     EXPECT_TRUE(send(pdu(8, {4, 0}), {}).empty());
     EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "no reply");
@@ -403,6 +410,24 @@ TEST(ExchangeOracle, ListenOnlyModeSilencesEverythingUntilAValidRestart) {
     EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "a normal response");
 }
 
+// Force listen-only mode with data other than 00 00 may be refused with exception 03 (AP §6.8's state
+// diagram; the reference slave does) or obeyed: silence, and the mode follows.
+TEST(ExchangeOracle, ListenOnlyWithOtherDataMayBeRefusedOrObeyed) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+    const auto send = [&](const std::vector<std::uint8_t>& request, const std::vector<std::uint8_t>& reply) {
+        return judge_rtu(oracle, 1, request, reply);
+    };
+    EXPECT_TRUE(send(pdu(8, {4, 1}), {0x88, 0x03}).empty());
+    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "a normal response");
+    const auto wrong = send(pdu(8, {4, 1}), {0x88, 0x02});
+    ASSERT_EQ(wrong.size(), 1u);
+    EXPECT_EQ(wrong[0].rule, "silence.listen_only");
+    EXPECT_TRUE(send(pdu(8, {4, 0}), {0x88, 0x03}).size() == 1u);  // 00 00 is the mode's own data
+    EXPECT_TRUE(send(pdu(8, {4, 1}), {}).empty());
+    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "no reply");
+}
+
 // Whether a broadcast FC8 01/04 acts is said nowhere (SL §2.1 lets a broadcast carry writes, AP §6.8.1
 // speaks of the addressed device): after one the device's mode is unknown and neither its silence nor its
 // reply is judged, until it answers or is sent an addressed restart. The reference slave ignores both
@@ -412,13 +437,7 @@ TEST(ExchangeOracle, ABroadcastListenOnlyDiagnosticsLeavesTheModeUnknownUntilThe
     cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
     const auto send = [&](std::uint8_t unit, const std::vector<std::uint8_t>& request,
                           const std::vector<std::uint8_t>& reply) {
-        mbscope::modbus::transport::Exchange ex;
-        ex.sent = mb::encode_rtu(unit, request);
-        if (!reply.empty()) {
-            ex.received = mb::encode_rtu(unit, reply);
-            ex.response = *mb::decode_rtu(ex.received);
-        }
-        return oracle.judge(ex);
+        return judge_rtu(oracle, unit, request, reply);
     };
     const auto read = mb::encode_rtu(1, pdu(3, {0, 1}));
     // A device that obeyed a broadcast 04: silent, and not reported.

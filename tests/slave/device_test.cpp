@@ -83,6 +83,22 @@ TEST(Device, RestartCommunicationsChecksItsData) {
     EXPECT_EQ(ask(device, "08 00 01 FF 00"), "08 00 01 FF 00");
 }
 
+// A sub-function's query data is 00 00 (a counter, listen-only, clear), 00 00 or FF 00 (restart), a
+// character and 00 (ASCII delimiter); other data is exception 03 (AP §6.8's state diagram) and does nothing.
+TEST(Device, Fc8SubFunctionsRefuseDataTheyDoNotDefine) {
+    Device device(profile("modbus"), 1);
+    EXPECT_EQ(ask(device, "02 FF FF 00 02"), "82 02");
+    EXPECT_EQ(ask(device, "08 00 0B 12 34"), "88 03");
+    EXPECT_EQ(ask(device, "08 00 0D 00 01"), "88 03");
+    EXPECT_EQ(ask(device, "08 00 0A 01 00"), "88 03");  // not cleared: four exceptions now
+    EXPECT_EQ(ask(device, "08 00 0D 00 00"), "08 00 0D 00 04");
+    EXPECT_EQ(ask(device, "08 00 04 00 01"), "88 03");
+    EXPECT_FALSE(device.listen_only());
+    EXPECT_EQ(ask(device, "08 00 03 3A 01"), "88 03");
+    EXPECT_EQ(ask(device, "08 00 03 3A 00"), "08 00 03 3A 00");
+    EXPECT_EQ(ask(device, "08 00 00 12 34"), "08 00 00 12 34");  // the echo takes any data
+}
+
 // AP §6.8.1 sub-functions 0x0B..0x0F, 0x0A clears them (SL §6.1 counters).
 TEST(Device, Fc8CountersCountWhatTheServerAndDeviceSaw) {
     Device device(profile("modbus"), 1);
