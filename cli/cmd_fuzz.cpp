@@ -103,11 +103,16 @@ int run_fuzz_command(const FuzzCliOptions& o) {
         std::cerr << "mbscope fuzz: cannot reach the target: " << summary.error << '\n';
         return exit_failure;
     }
-    bool unrestored = false;
+    bool unrestored = !summary.not_read.empty();
     for (const auto& t : summary.restored)
         unrestored |= !t.restored;
+    for (const auto& w : summary.not_read)
+        std::cerr << "mbscope fuzz: written without being read first, not restored: "
+                  << modbus::to_string(w.table) << ' ' << w.start << " (" << w.count
+                  << (w.count == 1 ? " point)\n" : " points)\n");
     if (unrestored)
-        std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\")\n";
+        std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\" and "
+                     "\"not_read\")\n";
     return summary.findings.empty() && !unrestored ? exit_ok : exit_findings;
 }
 

@@ -72,10 +72,6 @@ int run_replay_command(const ReplayCliOptions& o) {
     bool unrestored = !unread.empty();
     for (const auto& t : restored)
         unrestored |= !t.restored;
-    nlohmann::json unread_json = nlohmann::json::array();
-    for (const auto& w : unread)
-        unread_json.push_back(
-            {{"table", std::string(modbus::to_string(w.table))}, {"start", w.start}, {"count", w.count}});
 
     const bool stopped = steps.size() < r.steps.size();
     const bool again = fuzz::network::breaks(steps, r.rule);
@@ -103,10 +99,13 @@ int run_replay_command(const ReplayCliOptions& o) {
         }
     }
     if (o.json) {
-        std::cout << nlohmann::json{{"file", o.file},         {"rule", r.rule},
-                                    {"reproduced", again},    {"stopped", stopped},
-                                    {"steps", out},           {"restored", conformance::to_json(restored)},
-                                    {"not_read", unread_json}}
+        std::cout << nlohmann::json{{"file", o.file},
+                                    {"rule", r.rule},
+                                    {"reproduced", again},
+                                    {"stopped", stopped},
+                                    {"steps", out},
+                                    {"restored", conformance::to_json(restored)},
+                                    {"not_read", fuzz::network::to_json(unread)}}
                          .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
                   << '\n';
     } else {

@@ -23,6 +23,7 @@ namespace mbscope::fuzz::network {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using Location = std::pair<modbus::Table, std::uint16_t>;  // a table and an address
 using modbus::Table;
 using modbus::transport::Exchange;
 
@@ -87,6 +88,9 @@ class Campaign {
     bool last_unanswered() const;
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
     bool prepare_writes(const Probe& p);
+    std::vector<Location> unknown_in(const WriteRange& range) const;
+    void mark_doubtful(const std::vector<Location>& unknown);
+    void note_unread(const modbus::transport::Exchange& ex);
     std::optional<Probe> round_trip();
     void pace();
     void classify(const Probe& p, const ReplayedStep& r);
@@ -138,6 +142,14 @@ class Campaign {
     std::optional<Probe> follow_up_;
     std::mt19937_64 rng_;
     std::vector<const modbus::Point*> rewritable_;  // holding registers a master may read and write
+    // Points the probe about to be sent may write that were not read first (outside the map, a read that
+    // failed); write-only points are not among them (written_points.hpp, remember_range).
+    std::vector<Location> unread_;
+    // Points a write not refused may have changed before they were read: a value read there later may be
+    // one the fuzzer wrote, not the device's own, so restoring it would not put the device back.
+    std::set<Location> unknown_;
+    std::set<Location> doubtful_;  // read for the first time after such a write
+    std::set<Location> not_read_;  // reached by writes the device acknowledged (CampaignSummary::not_read)
     std::size_t next_round_trip_ = 0;
     std::uint8_t last_function_ = 0;
     std::optional<modbus::transport::Exchange> last_;  // the previous probe's exchange
@@ -337,22 +349,62 @@ bool Campaign::healthy(std::chrono::nanoseconds* latency) {
 }
 
 bool Campaign::prepare_writes(const Probe& p) {
+    unread_.clear();
     const auto range = write_range(p.pdu);
     if (!range || range->count == 0) return true;
     // Only where the write can land: the unit, a broadcast, or any unit over Modbus/TCP (devices that
     // ignore the unit id are common there).
     if (framing_ != modbus::Framing::Tcp && p.unit != options_.unit && p.unit != 0) return true;
-    // Only a write the device's own rules let through: a function it supports, a quantity within its limits.
-    // Any other the device must refuse; one that it executes anyway is a finding already (reply.*,
-    // state.*), and its points are left as the device wrote them, as the summary's findings say.
+    // A write the device's own rules let through (a function it supports, a quantity within its limits) is
+    // sent only once its points are read. One they forbid is sent whatever (the device must refuse it: that
+    // is the test), its points read first all the same where the device lets them be read, so that a device
+    // executing it anyway is put back too, not only reported.
     const std::uint8_t fc = p.pdu[0];
     const int max = profile_.functions.max_for(fc, fc == 23);
-    if (!profile_.functions.supports(fc) || (max > 0 && range->count > max)) return true;
+    const bool allowed = profile_.functions.supports(fc) && !(max > 0 && range->count > max);
     (void)await_due_replies(options_.timeout);
+    const auto unknown = unknown_in(*range);
     const bool ok = remember_range(session_, profile_, *range);
+    mark_doubtful(unknown);
     (void)session_.take_evidence();
     session_.response_times().clear();
-    return ok;
+    if (!ok && allowed) return false;
+    const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range->start} + range->count);
+    for (std::uint32_t a = range->start; a < end; ++a) {
+        const Location point{range->table, static_cast<std::uint16_t>(a)};
+        const auto* own = profile_.open_address_space ? nullptr : profile_.find(point.first, point.second);
+        if (!session_.touched().count(point) && !(own && own->access == modbus::Access::Write))
+            unread_.push_back(point);
+    }
+    return true;
+}
+
+std::vector<Location> Campaign::unknown_in(const WriteRange& range) const {
+    std::vector<Location> out;
+    const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range.start} + range.count);
+    for (std::uint32_t a = range.start; a < end && !unknown_.empty(); ++a) {
+        const Location point{range.table, static_cast<std::uint16_t>(a)};
+        if (unknown_.count(point) && !session_.touched().count(point)) out.push_back(point);
+    }
+    return out;
+}
+
+void Campaign::mark_doubtful(const std::vector<Location>& unknown) {
+    for (const auto& point : unknown)
+        if (session_.touched().count(point)) doubtful_.insert(point);
+}
+
+// After a probe whose points were not all read first: unless the device refused it, those points may have
+// changed; where it acknowledged it, they did, and the summary lists them.
+void Campaign::note_unread(const modbus::transport::Exchange& ex) {
+    if (unread_.empty()) return;
+    const auto reply = reply_pdu(ex);
+    const bool answered = reply && !reply->empty();
+    if (answered && (reply->front() & 0x80)) return;
+    for (const auto& point : unread_) {
+        unknown_.insert(point);
+        if (answered) not_read_.insert(point);
+    }
 }
 
 // A write to one point a master may read and write, read just before: either the value it holds (always
@@ -364,7 +416,9 @@ std::optional<Probe> Campaign::round_trip() {
     const modbus::Point& point = *rewritable_[next_round_trip_++ % rewritable_.size()];
     const std::uint16_t words = point.encoding.words == 2 ? 2 : 1;
     (void)await_due_replies(options_.timeout);
+    const auto unknown = unknown_in({Table::HoldingRegisters, point.address, words});
     const bool ok = session_.remember(Table::HoldingRegisters, point.address, words);
+    mark_doubtful(unknown);
     (void)session_.take_evidence();
     session_.response_times().clear();
     if (!ok) return std::nullopt;
@@ -590,6 +644,7 @@ CampaignSummary Campaign::run() {
         trace_.push_back(step);
         if (trace_.size() > trace_capacity) trace_.pop_front();
         auto r = send(step, options_.timeout);
+        note_unread(r.exchange);
         last_ = r.exchange;
         ++s_.requests;
         classify(p, r);
@@ -607,6 +662,7 @@ CampaignSummary Campaign::run() {
                 // Over RTU and ASCII the first request's reply, should it come late, is waited out first
                 // (wait_out_owed), or the second would take it for its own and seem prompt.
                 const auto again = send(frame(p), options_.timeout * 4);
+                note_unread(again.exchange);
                 if (!again.exchange.own_received().empty()) {
                     // Answered the second time: a slow target when it took longer than --slow, else chance.
                     if (again.exchange.first_byte > slow_)
@@ -689,7 +745,16 @@ CampaignSummary Campaign::run() {
         }
     } else if (!session_.touched().empty()) {
         s_.restored = session_.restore();
+        for (auto& t : s_.restored)
+            if (doubtful_.count({t.table, t.address})) {
+                t.restored = false;
+                t.problem =
+                    "not restored: first read after a write that reached it unread, so the value put back "
+                    "may "
+                    "be one the fuzzer wrote";
+            }
     }
+    s_.not_read = ranges_of(not_read_);
     return s_;
 }
 
@@ -743,6 +808,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"outcomes", s.outcomes},
                      {"findings", findings},
                      {"restored", conformance::to_json(s.restored)},
+                     {"not_read", to_json(s.not_read)},
                      {"stopped", s.stopped},
                      {"target_lost", s.target_lost}};
     if (!s.error.empty()) j["error"] = s.error;

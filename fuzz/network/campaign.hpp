@@ -23,6 +23,7 @@
 
 #include "conformance/session.hpp"
 #include "fuzz/network/reproducer.hpp"
+#include "fuzz/network/written_points.hpp"
 #include "modbus/profile.hpp"
 #include "modbus/transport/endpoint.hpp"
 
@@ -69,7 +70,7 @@ struct CampaignSummary {
     std::uint64_t requests = 0;
     std::uint64_t replies = 0, exceptions = 0, silences = 0;
     std::uint64_t skipped_writes = 0;  // write probes not sent: the original values could not be read
-    std::uint64_t unconfirmed = 0;     // failures that did not happen again when checked
+    std::uint64_t unconfirmed = 0;  // failures that did not happen again when checked
     // Replies that came after their request was given up (--timeout, or the silence wait), each judged as
     // that request's: matched by transaction id over Modbus/TCP, by what they answer over RTU and ASCII.
     std::uint64_t late_replies = 0;
@@ -83,6 +84,9 @@ struct CampaignSummary {
     std::map<std::string, std::uint64_t> outcomes;  // "normal", "exception 02", "silence", each rule broken
     std::vector<CampaignFinding> findings;
     std::vector<conformance::Touched> restored;
+    // Points a write the device acknowledged reached before their values could be read (outside the map,
+    // or the read failed): what they held before the run is unknown, so they are not restored.
+    std::vector<WriteRange> not_read;
     bool stopped = false;      // interrupted
     bool target_lost = false;  // the run ended because the target stopped answering
     double requests_per_second() const;

@@ -83,13 +83,35 @@ std::optional<WriteRange> write_range(std::span<const std::uint8_t> pdu) {
     }
 }
 
+std::vector<WriteRange> ranges_of(const std::set<std::pair<modbus::Table, std::uint16_t>>& points) {
+    std::vector<WriteRange> out;
+    for (const auto& [table, address] : points) {
+        if (!out.empty() && out.back().table == table &&
+            std::uint32_t{out.back().start} + out.back().count == address) {
+            ++out.back().count;
+            continue;
+        }
+        out.push_back({table, address, 1});
+    }
+    return out;
+}
+
+nlohmann::json to_json(const std::vector<WriteRange>& ranges) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& w : ranges)
+        out.push_back(
+            {{"table", std::string(modbus::to_string(w.table))}, {"start", w.start}, {"count", w.count}});
+    return out;
+}
+
 bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range) {
     const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range.start} + range.count);
     if (profile.open_address_space)
         return session.remember(range.table, range.start, static_cast<std::uint16_t>(end - range.start), 100);
     bool ok = true;
     for (std::uint32_t a = range.start; a < end && ok; ++a)
-        if (profile.find(range.table, static_cast<std::uint16_t>(a)))
+        if (const auto* point = profile.find(range.table, static_cast<std::uint16_t>(a));
+            point && point->access != modbus::Access::Write)
             ok = session.remember(range.table, static_cast<std::uint16_t>(a), 1);
     return ok;
 }

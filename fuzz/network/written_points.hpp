@@ -5,8 +5,11 @@
 
 #include <cstdint>
 #include <optional>
+#include <set>
 #include <span>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "conformance/session.hpp"
 #include "fuzz/network/reproducer.hpp"
@@ -23,9 +26,16 @@ struct WriteRange {
 };
 std::optional<WriteRange> write_range(std::span<const std::uint8_t> pdu);
 
+// The ranges that hold `points` (each a table and an address), contiguous runs joined.
+std::vector<WriteRange> ranges_of(const std::set<std::pair<modbus::Table, std::uint16_t>>& points);
+// [{"table", "start", "count"}, ...]
+nlohmann::json to_json(const std::vector<WriteRange>& ranges);
+
 // Reads, through `session`, the original values of the points of `range` that exist on the device: those
 // of the profile's map, or every one of an open address space (read in blocks). False when a read failed
-// (the points read before it are kept).
+// (the points read before it are kept). A write-only point is not read: what a read returns there is not
+// what it holds (the reference slave answers 0), and writing it is a command (an alarm acknowledge), not
+// a value to put back.
 bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range);
 
 // Before a replay: the requests in every step's bytes, read as a lax device reads them (whatever their

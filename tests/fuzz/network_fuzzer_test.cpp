@@ -23,6 +23,7 @@
 #include "fuzz/network/unanswered.hpp"
 #include "fuzz/network/written_points.hpp"
 #include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
 #include "slave/slave_test_support.hpp"
 #include "tests/support/process_support.hpp"
 
@@ -30,6 +31,7 @@ namespace {
 
 namespace fz = mbscope::fuzz::network;
 namespace sl = mbscope::slave;
+using mbscope::modbus::Table;
 using mbscope::slave::test::RunningServer;
 
 struct FaultCase {
@@ -203,6 +205,59 @@ TEST(NetworkFuzzer, PointsWrittenBeforeTheTargetWasLostAreListedAsNotRestored) {
     for (const auto& t : s.restored) {
         EXPECT_FALSE(t.restored);
         EXPECT_EQ(t.problem, "not restored: the target stopped answering");
+    }
+}
+
+// A lax device executes writes its manual says it refuses (here: quantities over the manual's limits). Their
+// points are read before they are sent too, so they are put back; and nothing is called restored that
+// does not hold what it held before the run. Every point the run left changed is in the summary, as not
+// restored or in a range whose values could not be read first.
+TEST(NetworkFuzzer, WritesALaxDeviceShouldHaveRefusedAreRestoredOrListed) {
+    RunningServer server({"ignore-max-quantity", "accept-out-of-range"}, 7, "mmk-2030");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.requests = 1500;
+    const auto& profile = mbscope::slave::test::profile("mmk-2030");
+    ASSERT_TRUE(server.device().image().changes().empty());
+    const sl::RegisterImage before(profile, mbscope::modbus::transport::line_state(o.endpoint, 1));
+    const auto s = fz::run_campaign(profile, o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    ASSERT_FALSE(s.target_lost) << listing(s);
+    EXPECT_NE(listing(s).find("reply.quantity"), std::string::npos) << listing(s);
+    const auto& after = server.device().image();
+    const auto value = [](const sl::RegisterImage& image, Table t, std::uint16_t a) {
+        return mbscope::modbus::is_bit_table(t) ? static_cast<std::uint16_t>(image.bit(t, a))
+                                                : image.reg(t, a);
+    };
+    std::set<std::pair<Table, std::uint16_t>> listed;
+    for (const auto& t : s.restored) {
+        if (t.restored) {
+            EXPECT_EQ(value(after, t.table, t.address), t.original)
+                << "called restored: " << mbscope::modbus::to_string(t.table) << " " << t.address;
+            EXPECT_EQ(value(before, t.table, t.address), t.original)
+                << "original misread: " << mbscope::modbus::to_string(t.table) << " " << t.address;
+        } else {
+            listed.insert({t.table, t.address});
+        }
+    }
+    // What the simulated process moves (process values, a relay) is the process's; a write-only point (an
+    // alarm acknowledge) is a command with no value to read or put back.
+    std::set<std::pair<Table, std::uint16_t>> not_state;
+    for (const auto& signal : profile.simulation.signals)
+        not_state.insert({profile.resolve(signal.point.table), signal.point.address});
+    for (const Table t : {Table::Coils, Table::HoldingRegisters})
+        for (const auto& pt : profile.table(t))
+            if (pt.access == mbscope::modbus::Access::Write) not_state.insert({t, pt.address});
+    for (const auto& r : s.not_read)
+        for (std::uint32_t a = r.start; a < std::uint32_t{r.start} + r.count; ++a)
+            listed.insert({r.table, static_cast<std::uint16_t>(a)});
+    for (const auto& [t, changed] : after.changes()) {
+        if (t != Table::Coils && t != Table::HoldingRegisters) continue;
+        for (const auto& [address, now] : changed)
+            if (!not_state.count({t, address})) {
+                EXPECT_TRUE(listed.count({t, address}))
+                    << "changed and not listed: " << mbscope::modbus::to_string(t) << " " << address << ": "
+                    << value(before, t, address) << " -> " << now;
+            }
     }
 }
 
