@@ -75,16 +75,14 @@ ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment*
         out.truncated = total > d.size();
         const auto payload = d.subspan(header, std::min(d.size(), total) - header);
         if (const std::uint16_t flags = be16(d.data() + 6); (flags & 0x3FFF) != 0) {  // MF or offset set
-            if (fragment) {
-                *fragment = IpFragment{};
-                fragment->source = out.source.address;
-                fragment->destination = out.destination.address;
-                fragment->id = be16(d.data() + 4);
-                fragment->protocol = d[9];
-                fragment->offset = (flags & 0x1FFFu) * 8u;
-                fragment->more = (flags & 0x2000) != 0;
-                fragment->data = payload;
-            }
+            if (fragment)
+                *fragment = IpFragment{.source = out.source.address,
+                                       .destination = out.destination.address,
+                                       .id = be16(d.data() + 4),
+                                       .protocol = d[9],
+                                       .offset = (flags & 0x1FFFu) * 8u,
+                                       .more = (flags & 0x2000) != 0,
+                                       .data = payload};
             return ParseStatus::Fragment;
         }
         return parse_l4(d[9], payload, out);
@@ -105,17 +103,15 @@ ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment*
         if (pos > end) return ParseStatus::Malformed;
         if (next == 44) {  // fragment header: next header, reserved, offset and M flag, identification
             if (pos + 8 > end) return ParseStatus::Malformed;
-            if (fragment) {
-                *fragment = IpFragment{};
-                fragment->source = out.source.address;
-                fragment->destination = out.destination.address;
-                fragment->v6 = true;
-                fragment->protocol = d[pos];
-                fragment->offset = (be16(d.data() + pos + 2) & 0xFFF8u);
-                fragment->more = (d[pos + 3] & 0x01) != 0;
-                fragment->id = be32(d.data() + pos + 4);
-                fragment->data = d.subspan(pos + 8, end - pos - 8);
-            }
+            if (fragment)
+                *fragment = IpFragment{.source = out.source.address,
+                                       .destination = out.destination.address,
+                                       .v6 = true,
+                                       .id = be32(d.data() + pos + 4),
+                                       .protocol = d[pos],
+                                       .offset = be16(d.data() + pos + 2) & 0xFFF8u,
+                                       .more = (d[pos + 3] & 0x01) != 0,
+                                       .data = d.subspan(pos + 8, end - pos - 8)};
             return ParseStatus::Fragment;
         }
         return parse_l4(next, d.subspan(pos, end - pos), out);

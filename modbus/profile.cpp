@@ -147,7 +147,7 @@ std::optional<std::uint16_t> mirrored_value(const Point& p, const LineState& lin
             return line.unit;
         case LineSetting::Framing:
             if (!line.framing || *line.framing == Framing::Tcp) return std::nullopt;
-            wanted = *line.framing == Framing::Rtu ? "rtu" : "ascii";
+            wanted = to_string(*line.framing);
             break;
         case LineSetting::Baud:
             if (!line.baud) return std::nullopt;
@@ -155,7 +155,7 @@ std::optional<std::uint16_t> mirrored_value(const Point& p, const LineState& lin
             break;
         case LineSetting::Parity:
             if (!line.parity) return std::nullopt;
-            wanted = *line.parity == Parity::None ? "none" : *line.parity == Parity::Even ? "even" : "odd";
+            wanted = to_string(*line.parity);
             break;
     }
     for (const auto& v : p.encoding.values)
