@@ -88,6 +88,7 @@ class Campaign {
     bool last_unanswered() const;
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
     bool prepare_writes(const Probe& p);
+    void keep_line_settings(Probe& p);
     std::vector<Location> unknown_in(const WriteRange& range) const;
     void mark_doubtful(const std::vector<Location>& unknown);
     void note_unread(const modbus::transport::Exchange& ex);
@@ -379,6 +380,25 @@ bool Campaign::prepare_writes(const Probe& p) {
     return true;
 }
 
+// A point mirroring a line setting (the unit address, the speed, the framing) given another value takes
+// the device off the line, the fuzzer's and its real master's: a real MK device obeys a valid one at once.
+// Like FC8 03 and 04 (Generator::allowed), such a value is never sent; the write goes out with the value
+// the point holds, read just before (prepare_writes), so its shape is still tried.
+void Campaign::keep_line_settings(Probe& p) {
+    if (profile_.open_address_space) return;
+    const auto kept = keep_registers(p.pdu, [&](std::uint16_t address) -> std::optional<std::uint16_t> {
+        const auto* point = profile_.find(Table::HoldingRegisters, address);
+        if (!point || !point->mirrors) return std::nullopt;
+        const auto held = session_.touched().find({Table::HoldingRegisters, address});
+        if (held == session_.touched().end()) return std::nullopt;
+        return held->second.original;
+    });
+    if (kept) {
+        p.recipe += " (line settings kept)";
+        ++s_.line_settings_kept;
+    }
+}
+
 std::vector<Location> Campaign::unknown_in(const WriteRange& range) const {
     std::vector<Location> out;
     const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range.start} + range.count);
@@ -634,6 +654,7 @@ CampaignSummary Campaign::run() {
             ++s_.skipped_writes;
             continue;
         }
+        keep_line_settings(p);
         pace();
         // Whatever arrived since the last exchange ended: late replies to kept requests, else that
         // exchange's reply, too late. Only looked for where the last one can be pending (no whole, valid
@@ -800,6 +821,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"replies_after_timeout", s.replies_after_timeout},
                      {"silence_wait_ms", std::chrono::duration<double, std::milli>(s.silence_wait).count()},
                      {"skipped_writes", s.skipped_writes},
+                     {"line_settings_kept", s.line_settings_kept},
                      {"unconfirmed", s.unconfirmed},
                      {"health_checks", s.health_checks},
                      {"seconds", std::chrono::duration<double>(s.elapsed).count()},

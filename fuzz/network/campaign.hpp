@@ -70,6 +70,9 @@ struct CampaignSummary {
     std::uint64_t requests = 0;
     std::uint64_t replies = 0, exceptions = 0, silences = 0;
     std::uint64_t skipped_writes = 0;  // write probes not sent: the original values could not be read
+    // Write probes sent with the values the line-setting points they reach hold (Campaign's
+    // keep_line_settings).
+    std::uint64_t line_settings_kept = 0;
     std::uint64_t unconfirmed = 0;  // failures that did not happen again when checked
     // Replies that came after their request was given up (--timeout, or the silence wait), each judged as
     // that request's: matched by transaction id over Modbus/TCP, by what they answer over RTU and ASCII.

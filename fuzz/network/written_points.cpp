@@ -83,6 +83,33 @@ std::optional<WriteRange> write_range(std::span<const std::uint8_t> pdu) {
     }
 }
 
+std::size_t keep_registers(std::vector<std::uint8_t>& pdu,
+                           const std::function<std::optional<std::uint16_t>(std::uint16_t)>& held) {
+    const auto range = write_range(pdu);
+    if (!range || range->table != modbus::Table::HoldingRegisters) return 0;
+    // Where the values lie in the PDU (AP §6.6, §6.12, §6.17): after the address; after the address,
+    // quantity and byte count; after the read and write ranges and the byte count.
+    const std::size_t values = pdu[0] == 6 ? 3 : pdu[0] == 16 ? 6 : pdu[0] == 23 ? 10 : 0;
+    std::size_t kept = 0;
+    for (std::uint32_t i = 0; i < range->count && range->start + i < 0x10000; ++i) {
+        const auto value = held(static_cast<std::uint16_t>(range->start + i));
+        if (!value) continue;
+        if (pdu[0] == 22) {  // AP §6.16: (current AND and_mask) OR (or_mask AND NOT and_mask)
+            if (pdu.size() < 7) continue;
+            pdu[3] = pdu[4] = 0xFF;
+            pdu[5] = pdu[6] = 0x00;
+            ++kept;
+            continue;
+        }
+        const std::size_t at = values + 2 * i;
+        if (values == 0 || at + 1 >= pdu.size()) continue;
+        pdu[at] = static_cast<std::uint8_t>(*value >> 8);
+        pdu[at + 1] = static_cast<std::uint8_t>(*value);
+        ++kept;
+    }
+    return kept;
+}
+
 std::vector<WriteRange> ranges_of(const std::set<std::pair<modbus::Table, std::uint16_t>>& points) {
     std::vector<WriteRange> out;
     for (const auto& [table, address] : points) {

@@ -4,6 +4,7 @@
 // that the target is left holding what it held before (conformance::Session::restore).
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <set>
 #include <span>
@@ -25,6 +26,13 @@ struct WriteRange {
     std::uint16_t count = 0;
 };
 std::optional<WriteRange> write_range(std::span<const std::uint8_t> pdu);
+
+// Rewrites a write request so that the holding registers for which `held` gives a value keep it: the value
+// an FC6, FC16 or FC23 request would store there becomes that value, and an FC22 mask there becomes the one
+// that changes nothing (AND FFFF, OR 0000). Values the PDU is too short to carry are left alone. Returns how
+// many registers it rewrote.
+std::size_t keep_registers(std::vector<std::uint8_t>& pdu,
+                           const std::function<std::optional<std::uint16_t>(std::uint16_t)>& held);
 
 // The ranges that hold `points` (each a table and an address), contiguous runs joined.
 std::vector<WriteRange> ranges_of(const std::set<std::pair<modbus::Table, std::uint16_t>>& points);

@@ -261,6 +261,21 @@ TEST(NetworkFuzzer, WritesALaxDeviceShouldHaveRefusedAreRestoredOrListed) {
     }
 }
 
+// A register mirroring a line setting is never given another value: a real MK device would leave the line.
+// The slave is made to show it: with the unit address (7) or the framing (8) stuck, a write that changed
+// either would be found lost when read back (state.lost_write).
+TEST(NetworkFuzzer, LineSettingsAreNeverChanged) {
+    for (const char* fault : {"stuck-value=7", "stuck-value=8"}) {
+        RunningServer server({fault}, 7, "mmk-2030");
+        auto o = options_for("tcp", server.start("tcp"));
+        o.requests = 1500;
+        const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+        ASSERT_TRUE(s.reachable) << s.error;
+        EXPECT_TRUE(s.findings.empty()) << fault << listing(s);
+        EXPECT_GT(s.line_settings_kept, 0u) << fault;
+    }
+}
+
 TEST(NetworkFuzzer, ReadOnlyNeverChangesTheDevice) {
     RunningServer server({}, 7, "mmk-2030");
     auto o = options_for("tcp", server.start("tcp"));
@@ -906,6 +921,28 @@ TEST(WrittenPoints, TheRangeARequestMayWriteComesFromItsHeader) {
     EXPECT_EQ(fc22->count, 1);
     EXPECT_FALSE(range({0x03, 0x00, 0x00, 0x00, 0x01}));
     EXPECT_FALSE(range({0x06, 0x00}));
+}
+
+// A write keeps the value of the registers the campaign protects (the line-setting mirrors): the rest of
+// the request, and every other register it writes, are sent as made.
+TEST(WrittenPoints, AWriteCanBeMadeToKeepChosenRegisters) {
+    const auto keep = [](std::vector<std::uint8_t> pdu) {
+        fz::keep_registers(pdu, [](std::uint16_t address) -> std::optional<std::uint16_t> {
+            if (address == 0x28) return 0x0011;
+            return std::nullopt;
+        });
+        return mbscope::modbus::hex_bytes(pdu);
+    };
+    EXPECT_EQ(keep({0x06, 0x00, 0x28, 0x00, 0x05}), "06 00 28 00 11");
+    EXPECT_EQ(keep({0x06, 0x00, 0x29, 0x00, 0x05}), "06 00 29 00 05");
+    EXPECT_EQ(keep({0x10, 0x00, 0x27, 0x00, 0x03, 0x06, 0xAA, 0xAA, 0xBB, 0xBB, 0xCC, 0xCC}),
+              "10 00 27 00 03 06 AA AA 00 11 CC CC");
+    EXPECT_EQ(keep({0x10, 0x00, 0x27, 0x00, 0x03, 0x06, 0xAA, 0xAA, 0xBB}),  // too short to carry it
+              "10 00 27 00 03 06 AA AA BB");
+    EXPECT_EQ(keep({0x16, 0x00, 0x28, 0x00, 0xF0, 0x12, 0x34}), "16 00 28 FF FF 00 00");
+    EXPECT_EQ(keep({0x17, 0x00, 0x28, 0x00, 0x01, 0x00, 0x28, 0x00, 0x01, 0x02, 0x12, 0x34}),
+              "17 00 28 00 01 00 28 00 01 02 00 11");
+    EXPECT_EQ(keep({0x05, 0x00, 0x28, 0xFF, 0x00}), "05 00 28 FF 00");  // a coil is not a register
 }
 
 }  // namespace
