@@ -264,8 +264,16 @@ void Analyzer::packet_in_source(const Packet& p) {
         stream.segment(l4.seq, l4.syn, l4.payload, p.time);
         if (l4.fin) stream.finished_at(l4.seq + static_cast<std::uint32_t>(l4.payload.size()));
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
-        // A reset connection sends nothing more: half an ADU in either direction will never complete.
-        if (l4.rst) end_connection(flow, p.time);
+        // A reset connection sends nothing more: half an ADU in either direction will never complete. Not a
+        // reset far outside the stream, which its receiver ignores: it ended a live connection's decoding.
+        if (l4.rst && stream.reset_in_window(l4.seq)) {
+            end_connection(flow, p.time);
+        } else if (l4.rst) {
+            report(FindingCode::StreamResetOutsideWindow, about_stream(flow, p.time),
+                   std::string("a TCP reset from the ") + (to_server ? "client" : "server") +
+                       " with a sequence number far outside its stream (sequence number " +
+                       std::to_string(l4.seq) + "); a receiver ignores it, and the connection is decoded on");
+        }
         return;
     }
     // Modbus/UDP: one ADU per datagram (no stream to resynchronise). Serial gateways send RTU frames in

@@ -23,6 +23,13 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     recent_from_ = 0;
 }
 
+bool TcpReassembler::reset_in_window(std::uint32_t seq) const noexcept {
+    if (!next_) return true;
+    const std::int64_t rel = static_cast<std::int32_t>(seq - *next_);  // wrap-aware, as segment() is
+    constexpr std::int64_t slack = 65536;
+    return rel >= -slack && rel <= static_cast<std::int64_t>(max_buffered_) + slack;
+}
+
 void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload,
                              modbus::Timestamp t) {
     if (syn) {

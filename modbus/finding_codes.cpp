@@ -80,6 +80,11 @@ constexpr std::array findings{
     FindingInfo{StreamRetransmissionConflict, "stream.retransmission_conflict", S::Error,
                 "a TCP retransmission carries other bytes than the first copy of the same stream offsets",
                 "RFC 9293 §3.4"},
+    FindingInfo{
+        StreamResetOutsideWindow, "stream.reset_outside_window", S::Warning,
+        "a TCP reset whose sequence number lies far outside the stream it would end: a receiver ignores "
+        "it, and the connection is decoded on",
+        "RFC 9293 §3.10.7.3; RFC 5961 §3.2"},
     FindingInfo{PairNoResponse, "pair.no_response", S::Error, "request got no response within the timeout",
                 "AP §4.1; SL §2.4.1; TCP §4.3.1.3"},
     FindingInfo{PairNoResponseAtEnd, "pair.no_response_at_end", S::Note,

@@ -54,6 +54,7 @@ enum class FindingCode : std::uint16_t {
     StreamGap = 501,
     StreamLineError = 502,
     StreamRetransmissionConflict = 503,
+    StreamResetOutsideWindow = 504,
     // pair: a request and its response, judged together
     PairNoResponse = 600,
     PairNoResponseAtEnd = 601,

@@ -259,6 +259,29 @@ TEST(Analyzer, AResetConnectionsHalfAduDoesNotSwallowTheNextConnectionsRequest) 
     }
 }
 
+// A reset far outside the stream's sequence numbers (a stray or forged segment) does not end the
+// connection: a receiver ignores it (RFC 5961 §3.2), and the request it would have cut still pairs with its
+// response. It is reported. One at the stream's next sequence number ends it.
+TEST(Analyzer, AResetOutsideTheStreamsWindowDoesNotEndTheConnection) {
+    Harness h;
+    const auto request = read_request(1);
+    h.raw(packet(true, 999, {}, false, 0x02), 1s);
+    h.send(true, {request.begin(), request.begin() + 7}, 1s + 1ms);
+    h.raw(packet(true, 1007 + 0x40000000u, {}, false, 0x04), 1s + 2ms);  // RST, a quarter of the space away
+    h.send(true, {request.begin() + 7, request.end()}, 1s + 3ms);
+    h.send(false, read_response(1), 1s + 4ms);
+    ASSERT_EQ(h.sink.transactions.size(), 1u);
+    EXPECT_TRUE(h.sink.transactions[0].response.has_value());
+    EXPECT_TRUE(h.sink.unparsed_records.empty());
+    ASSERT_EQ(h.sink.count(mb::FindingCode::StreamResetOutsideWindow), 1);
+    // At the next sequence number: the connection's end, half a request cut by it reported.
+    h.send(true, {request.begin(), request.begin() + 5}, 2s);
+    h.raw(packet(true, h.seq[0], {}, false, 0x04), 2s + 1ms);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::StreamResetOutsideWindow), 1);
+    ASSERT_EQ(h.sink.unparsed_records.size(), 1u);
+    EXPECT_EQ(h.sink.unparsed_records[0].length, 5u);
+}
+
 // A SYN sent again (the same sequence number) is the same connection: nothing is cut.
 TEST(Analyzer, ARetransmittedSynIsNotANewConnection) {
     Harness h;
