@@ -103,7 +103,12 @@ int run_check_command(const CheckCliOptions& o) {
         // The reports asked for are still written, one rule in error saying why: a CI job that publishes
         // them finds the reason instead of no file.
         std::cerr << "mbscope check: cannot reach the target: " << client.error() << '\n';
-        write_reports(o, conformance::unreachable_report(*profile, options, client.error()));
+        const auto report = conformance::unreachable_report(*profile, options, client.error());
+        if (o.json)
+            std::cout << conformance::to_json(report).dump(2, ' ', false,
+                                                           nlohmann::json::error_handler_t::replace)
+                      << '\n';
+        write_reports(o, report);
         return exit_failure;
     }
     auto& stop = stop_on_signals(BrokenPipe::Ignored);
@@ -116,7 +121,7 @@ int run_check_command(const CheckCliOptions& o) {
     else
         conformance::write_text(std::cout, report, o.verbose);
     const bool written = write_reports(o, report);
-    if (report.results.empty()) {
+    if (report.results.empty() && !report.stopped) {
         std::string globs;
         for (const auto& g : o.rules)
             globs += (globs.empty() ? "'" : ", '") + g + "'";

@@ -87,6 +87,12 @@ void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& 
     }
     const auto start = std::chrono::steady_clock::now();
     body(r);
+    // Ctrl-C cuts a wait short (a silence listened for, a reply waited for): a pass is then not proven.
+    // What failed before the stop did fail.
+    if (stop && stop->load() && r.outcome == Outcome::Pass) {
+        r.outcome = Outcome::Skip;
+        r.reason = "interrupted before the rule finished: not judged";
+    }
     r.duration = std::chrono::steady_clock::now() - start;
     r.evidence = session.take_evidence();
     if (options.progress) options.progress(r);

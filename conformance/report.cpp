@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <map>
 
+#include "modbus/frame_text.hpp"
 #include "modbus/function_code.hpp"
 
 namespace mbscope::conformance {
@@ -38,9 +39,22 @@ std::string shown_outcome(const RuleResult& r) {
     return std::string(to_string(r.outcome));
 }
 
+// Text an XML 1.0 parser takes (§2.2): bytes that are not UTF-8 (a target or profile text may hold any) and
+// U+FFFE/U+FFFF become U+FFFD; control characters other than tab and newline, a space.
 std::string xml_escape(const std::string& s) {
+    constexpr std::string_view replacement = "\xEF\xBF\xBD";
     std::string out;
-    for (char ch : s) {
+    for (std::size_t i = 0; i < s.size();) {
+        const auto c = modbus::utf8_at(s, i);
+        if (c.length != 1) {
+            if (c.length == 0 || c.code == 0xFFFE || c.code == 0xFFFF)
+                out += replacement;
+            else
+                out.append(s, i, c.length);
+            i += c.length == 0 ? 1 : c.length;
+            continue;
+        }
+        const char ch = s[i++];
         switch (ch) {
             case '&':
                 out += "&amp;";
@@ -213,7 +227,7 @@ nlohmann::json to_json(const Report& report) {
               {"skip", report.count(Outcome::Skip)},
               {"error", report.count(Outcome::Error)},
               {"all_restored", report.all_restored()},
-              {"verdict", verdict(report) == 0 ? "pass" : "fail"}}},
+              {"verdict", verdict_text(report)}}},
             {"rules", rules},
             {"restored", restored},
             {"response_times_ms", times}};
@@ -225,10 +239,18 @@ void write_junit(std::ostream& out, const Report& report) {
         suites[r.rule.family].push_back(&r);
     out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
     out << "<testsuites name=\"" << xml_escape("mbscope check " + report.profile_id + " " + report.target)
-        << "\" tests=\"" << report.results.size() << "\" failures=\""
+        << "\" tests=\"" << report.results.size() + (report.stopped ? 1 : 0) << "\" failures=\""
         << report.failures_of(Authority::Specification) + report.failures_of(Authority::Manual)
-        << "\" errors=\"" << report.count(Outcome::Error) << "\" skipped=\"" << report.count(Outcome::Skip)
-        << "\" time=\"" << static_cast<double>(report.wall.count()) / 1e9 << "\">\n";
+        << "\" errors=\"" << report.count(Outcome::Error) + (report.stopped ? 1 : 0) << "\" skipped=\""
+        << report.count(Outcome::Skip) << "\" time=\"" << static_cast<double>(report.wall.count()) / 1e9
+        << "\">\n";
+    // An interrupted run certifies nothing: one testcase in error says so, so that a CI job fails on it.
+    if (report.stopped)
+        out << "  <testsuite name=\"run\" tests=\"1\" failures=\"0\" errors=\"1\" skipped=\"0\" time=\"0\">\n"
+            << "    <testcase classname=\"" << xml_escape("mbscope." + report.profile_id + ".run")
+            << "\" name=\"run.interrupted\" time=\"0\">\n"
+            << "      <error message=\"the run was interrupted before every rule ran\"/>\n    </testcase>\n"
+            << "  </testsuite>\n";
     for (const auto& [family, rules] : suites) {
         Tally t;
         double seconds = 0;
@@ -300,9 +322,9 @@ void write_html(std::ostream& out, const Report& report) {
         << " (FNV-1a " << esc(report.profile_hash) << "), unit " << int(report.unit) << ", seed "
         << report.seed << (report.read_only ? ", read-only" : "") << ", started " << esc(report.started)
         << ", " << report.requests << " requests in " << ms(report.wall) << " ms.</p>\n";
-    out << "<p><b>Verdict: " << (verdict(report) == 0 ? "pass" : "fail") << "</b> — "
-        << report.count(Outcome::Pass) << " passed, " << report.failures_of(Authority::Specification)
-        << " failed the specification, " << report.failures_of(Authority::Manual) << " failed the manual, "
+    out << "<p><b>Verdict: " << verdict_text(report) << "</b> — " << report.count(Outcome::Pass)
+        << " passed, " << report.failures_of(Authority::Specification) << " failed the specification, "
+        << report.failures_of(Authority::Manual) << " failed the manual, "
         << report.failures_of(Authority::Implied) << " warnings, " << report.count(Outcome::Skip)
         << " skipped, " << report.count(Outcome::Error) << " errors; " << report.restored.size()
         << " points written, " << (report.all_restored() ? "all restored" : "NOT all restored")

@@ -65,8 +65,17 @@ void check_broadcast(Context& c) {
                       r.reason = "the register could not be read, so nothing was written";
                       return;
                   }
-                  const auto before = c.session.touched().at({Table::HoldingRegisters, address}).original;
-                  const auto alternative = valid_alternative(target, before);
+                  // The value it holds now, not the one before the run: an earlier rule (echo.fc6) may have
+                  // written the very value this one would pick, and a device that ignored the broadcast
+                  // would then read back as having taken it.
+                  const auto held = c.session.read_registers(Table::HoldingRegisters, address, 1,
+                                                             "read the value it holds now");
+                  if (!held) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the register could not be read, so nothing was written";
+                      return;
+                  }
+                  const auto alternative = valid_alternative(target, (*held)[0]);
                   if (!alternative) {
                       r.outcome = Outcome::Skip;
                       r.reason = "the register documents no other valid value";

@@ -37,6 +37,11 @@ int verdict(const Report& report) {
     return failed ? 1 : 0;
 }
 
+std::string_view verdict_text(const Report& report) {
+    if (report.stopped) return "interrupted";
+    return verdict(report) == 0 ? "pass" : "fail";
+}
+
 namespace {
 
 std::string fnv1a_of_file(const std::string& path) {
@@ -77,7 +82,7 @@ void facts_from_profile(const modbus::Profile& p, TableFacts& f) {
 }
 
 // The generic profile names no addresses: find how far the table reaches from 0 by bisection.
-void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f) {
+void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f, const std::atomic<bool>* stop) {
     const auto readable = [&](std::uint16_t a) {
         const auto ex = s.request(
             modbus::encode_pdu(modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), a, 1)),
@@ -92,6 +97,7 @@ void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f) {
     }
     hi = 0xFFFF;
     while (hi - lo > 1) {
+        if (stop && stop->load()) return;  // Ctrl-C: the run ends before its rules
         const auto mid = (lo + hi) / 2;
         if (readable(static_cast<std::uint16_t>(mid)))
             lo = mid;
@@ -153,6 +159,7 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     Session session(client, options.session, &profile);
     Context c{session, profile, options.run, {}, {}, stop};
     for (Table t : {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters}) {
+        if (stop && stop->load()) break;
         TableFacts& f = c.tables[static_cast<int>(t)];
         f.table = t;
         const std::uint8_t read_fc = t == Table::Coils            ? 1
@@ -162,7 +169,7 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
         f.present = profile.functions.supports(read_fc);
         if (!f.present) continue;
         if (profile.open_address_space)
-            facts_by_probing(session, read_fc, f);
+            facts_by_probing(session, read_fc, f, stop);
         else
             facts_from_profile(profile, f);
     }
@@ -179,6 +186,8 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
         }
         family(c);
     }
+    // A stop during the last family, or before the first (while the address space was probed).
+    if (stop && stop->load()) report.stopped = true;
     // Nothing lost: every point a rule wrote goes back to its original value, even after a stop.
     report.restored = session.restore();
     report.results = std::move(c.results);

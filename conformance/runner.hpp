@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "conformance/context.hpp"
@@ -50,6 +51,9 @@ struct Report {
 // Exit-code view of a report: 0 nothing failed, 1 a rule of the specification or the manual failed (implied
 // rules are warnings) or a point could not be restored.
 int verdict(const Report& report);
+// "pass" or "fail" as verdict() says; "interrupted" for a run stopped before every rule ran, which
+// certifies nothing whatever its rules said.
+std::string_view verdict_text(const Report& report);
 
 Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,
                  const CheckOptions& options, const std::atomic<bool>* stop = nullptr);

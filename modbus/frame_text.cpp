@@ -19,12 +19,22 @@ bool is_blank(char c) {
     return c == ' ' || c == '\t' || c == '\v' || c == '\f' || c == '\r';
 }
 
-// The byte length of the well-formed UTF-8 character at text[i] (RFC 3629: no overlong forms, no
-// surrogates, nothing past U+10FFFF) and its code point; length 0 when the byte there starts none.
-struct Utf8Char {
-    char32_t code = 0;
-    std::size_t length = 0;
-};
+// Characters a terminal acts on instead of showing: C0 and C1 controls (U+009B is an 8-bit CSI that some
+// terminals take as ESC [), DEL, the line and paragraph separators, and the bidirectional overrides and
+// isolates that make a line show in another order than it reads.
+bool acts_on_terminal(char32_t c) noexcept {
+    return c < 0x20 || (c >= 0x7F && c <= 0x9F) || c == 0x2028 || c == 0x2029 ||
+           (c >= 0x202A && c <= 0x202E) || (c >= 0x2066 && c <= 0x2069);
+}
+
+// The length of the next piece of text printable() keeps as it is (a whole character), or 0 when its next
+// byte is escaped.
+std::size_t kept_length(std::string_view text, std::size_t i) noexcept {
+    const Utf8Char c = utf8_at(text, i);
+    return c.length == 0 || acts_on_terminal(c.code) ? 0 : c.length;
+}
+
+}  // namespace
 
 Utf8Char utf8_at(std::string_view text, std::size_t i) noexcept {
     const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(text[k]); };
@@ -54,23 +64,6 @@ Utf8Char utf8_at(std::string_view text, std::size_t i) noexcept {
     }
     return {code, length};
 }
-
-// Characters a terminal acts on instead of showing: C0 and C1 controls (U+009B is an 8-bit CSI that some
-// terminals take as ESC [), DEL, the line and paragraph separators, and the bidirectional overrides and
-// isolates that make a line show in another order than it reads.
-bool acts_on_terminal(char32_t c) noexcept {
-    return c < 0x20 || (c >= 0x7F && c <= 0x9F) || c == 0x2028 || c == 0x2029 ||
-           (c >= 0x202A && c <= 0x202E) || (c >= 0x2066 && c <= 0x2069);
-}
-
-// The length of the next piece of text printable() keeps as it is (a whole character), or 0 when its next
-// byte is escaped.
-std::size_t kept_length(std::string_view text, std::size_t i) noexcept {
-    const Utf8Char c = utf8_at(text, i);
-    return c.length == 0 || acts_on_terminal(c.code) ? 0 : c.length;
-}
-
-}  // namespace
 
 std::string quote_excerpt(std::string_view text) {
     constexpr std::size_t most = 40;

@@ -62,6 +62,14 @@ DecodedFrame decode_frame(Framing framing, std::vector<std::uint8_t> wire, Direc
 std::string render_text(const DecodedFrame& d);
 nlohmann::json render_json(const DecodedFrame& d);
 
+// The well-formed UTF-8 character at text[i] (RFC 3629: no overlong forms, no surrogates, nothing past
+// U+10FFFF): its code point and byte length; length 0 when the byte there starts none.
+struct Utf8Char {
+    char32_t code = 0;
+    std::size_t length = 0;
+};
+Utf8Char utf8_at(std::string_view text, std::size_t i) noexcept;
+
 // Text safe to print: well-formed UTF-8 as it is, except what a terminal acts on (C0 and C1 controls, DEL,
 // U+2028/U+2029, bidirectional overrides and isolates), written byte by byte as \r, \n, \t or \xNN; bytes
 // that are not well-formed UTF-8 as \xNN too. A backslash stays itself.

@@ -54,6 +54,13 @@ TEST(CheckCommand, AnUnreachableTargetIsReportedInEveryFileAskedFor) {
     EXPECT_NE(junit.find("<error message=\"cannot reach the target: "), std::string::npos) << junit;
     EXPECT_NE(junit.find("/nonexistent/ttyUSB9"), std::string::npos) << junit;
     EXPECT_NE(read(dir + "h.html").find("target.reachable"), std::string::npos);
+    // And on standard output when --json asks for it there (it printed nothing).
+    const auto json = run_mbscope("check --target tcp://127.0.0.1:1 --json");
+    EXPECT_EQ(json.exit_code, 2) << json.out;
+    const auto printed =
+        nlohmann::json::parse(json.out.substr(std::min(json.out.find('{'), json.out.size())), nullptr, false);
+    ASSERT_FALSE(printed.is_discarded()) << json.out;
+    EXPECT_EQ(printed["rules"][0]["id"], "target.reachable");
 }
 
 // A report file that opens but cannot be written (a full disk; /dev/full) ended the run with exit 2 and no

@@ -119,6 +119,56 @@ TEST(LineMirrors, APortReadingAnotherFramingThanItSpeaksFails) {
         }
 }
 
+// The broadcast rules write a value other than the one the register holds when they run. They took it from
+// the value read before the run, which echo.fc6 had already written to the same register: a device that
+// ignored the broadcast read back the value "written", and passed .executed (or failed .refused).
+TEST(Broadcast, WritesAreJudgedAgainstTheValueTheRegisterHoldsThen) {
+    // A firmware that executes only FC5 and FC15 broadcasts.
+    slave::test::profile_variant("mmk-2030-broadcast-5-15", "mmk-2030", [](modbus::Profile& p) {
+        p.functions.broadcast = {5, 15};
+    });
+    auto options = options_for();
+    options.run.rule_globs = {"echo.fc6", "broadcast.fc*"};
+    for (const char* manual : {"mmk-2030", "mmk-2030-broadcast-5-15"}) {
+        RunningServer server({}, 1, "mmk-2030-broadcast-5-15");
+        const auto run = certify(server, "rtu-tcp", manual, options);
+        std::map<std::string, Outcome> outcomes;
+        for (const auto& x : run.report.results)
+            outcomes[x.rule.id] = x.outcome;
+        // Certified against the bundled manual (broadcast FC6 and FC16 executed), the firmware fails.
+        const bool bundled = std::string(manual) == "mmk-2030";
+        EXPECT_EQ(outcomes, (std::map<std::string, Outcome>{
+                                {"echo.fc6", Outcome::Pass},
+                                {bundled ? "broadcast.fc6.executed" : "broadcast.fc6.refused",
+                                 bundled ? Outcome::Fail : Outcome::Pass},
+                                {bundled ? "broadcast.fc16.executed" : "broadcast.fc16.refused",
+                                 bundled ? Outcome::Fail : Outcome::Pass}}))
+            << manual << failures(run.report);
+        EXPECT_TRUE(run.report.all_restored()) << failures(run.report);
+    }
+}
+
+// A stop during the last family (here its only rule) was not recorded: the report said "pass", the exit
+// code was 0. Every report now says the run was interrupted; the JUnit file has an error for it.
+TEST(Runner, AStopDuringTheLastFamilyIsAnInterruptedRun) {
+    RunningServer server({}, 1, "mmk-2030");
+    const std::uint16_t port = server.start("tcp");
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+    ASSERT_TRUE(client.has_value());
+    std::atomic<bool> stop{false};
+    auto options = options_for();
+    options.run.rule_globs = {"silence.idle"};
+    options.run.progress = [&stop](const RuleResult&) { stop = true; };
+    const auto report = run_check(*client, slave::test::profile("mmk-2030"), options, &stop);
+    EXPECT_TRUE(report.stopped);
+    EXPECT_EQ(verdict_text(report), "interrupted");
+    EXPECT_EQ(to_json(report)["summary"]["verdict"], "interrupted");
+    std::ostringstream junit;
+    write_junit(junit, report);
+    EXPECT_NE(junit.str().find("name=\"run.interrupted\""), std::string::npos) << junit.str();
+    EXPECT_NE(junit.str().find("errors=\"1\""), std::string::npos) << junit.str();
+}
+
 // ---- every planted fault is caught
 
 struct FaultCase {
@@ -517,6 +567,31 @@ TEST(Reports, JsonCarriesEveryRuleWithEvidenceAndTheSummaryAddsUp) {
     EXPECT_EQ(fail, run.report.count(Outcome::Fail));
     EXPECT_GT(fail, 0u);
     EXPECT_EQ(j["restored"].size(), run.report.restored.size());
+}
+
+// A target and a profile's text may hold any bytes: the JUnit report stays XML an XML parser takes (bytes
+// that are not UTF-8, and U+FFFE, were copied in, and Python's expat refused the file).
+TEST(Reports, JunitIsWellFormedWhateverTheTextsHold) {
+    Report report;
+    report.target = "tcp://<b>x\xff&\"\x01:502";
+    report.profile_id = "hostile\xEF\xBF\xBE\xEF\xBF\xBF\xED\xA0\x80 \xC3\xA9";
+    std::ostringstream out;
+    write_junit(out, report);
+    const auto path = std::filesystem::temp_directory_path() /
+                      ("mbscope-junit-hostile-" + std::to_string(::getpid()) + ".xml");
+    {
+        std::ofstream f(path, std::ios::binary);
+        f << out.str();
+    }
+    const std::string check =
+        "python3 -c \"import sys, xml.etree.ElementTree as E\n"
+        "root = E.parse(sys.argv[1]).getroot()\n"
+        "name = root.get('name')\n"
+        "assert '\\u00e9' in name and '<b>x\\ufffd&' in name, ascii(name)\n"
+        "\" " +
+        path.string();
+    EXPECT_EQ(std::system(check.c_str()), 0) << out.str();
+    std::filesystem::remove(path);
 }
 
 TEST(Reports, JunitHasOneTestcasePerRuleAndMatchingCounts) {

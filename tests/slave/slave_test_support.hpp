@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <ostream>
@@ -104,10 +105,15 @@ inline constexpr BundledProfile bundled_profiles[] = {
     {"walchem-w900", "walchem/walchem-w900.json"},
 };
 
+inline std::map<std::string, std::unique_ptr<mb::Profile>>& profile_cache() {
+    static std::map<std::string, std::unique_ptr<mb::Profile>> cache;
+    return cache;
+}
+
 // A bundled profile with its default configuration, loaded once and kept for the life of the test binary
 // (a Device keeps a pointer to its profile). A file is read once for all the models it describes.
 inline const mb::Profile& profile(const std::string& id) {
-    static std::map<std::string, std::unique_ptr<mb::Profile>> cache;
+    auto& cache = profile_cache();
     auto it = cache.find(id);
     if (it == cache.end()) {
         for (const auto& b : bundled_profiles) {
@@ -126,6 +132,18 @@ inline const mb::Profile& profile(const std::string& id) {
         }
     }
     return *it->second;
+}
+
+// A device that differs from a bundled one as `change` says (a manual's other edition, a firmware that
+// behaves otherwise), kept under `id` like the bundled ones, so that profile(id) and RunningServer find it.
+inline const mb::Profile& profile_variant(const std::string& id, const std::string& base,
+                                          const std::function<void(mb::Profile&)>& change) {
+    auto& cache = profile_cache();
+    if (auto it = cache.find(id); it != cache.end()) return *it->second;
+    auto variant = std::make_unique<mb::Profile>(profile(base));
+    variant->id = id;
+    change(*variant);
+    return *cache.emplace(id, std::move(variant)).first->second;
 }
 
 // Every bundled device id, in the store's order.
