@@ -122,12 +122,17 @@ TEST(Peer, LibmodbusServerFailsExactlyWhereItDepartsFromTheSpecification) {
                                           "tcp.*", "precedence.*", "broadcast.*"});
     const std::set<std::string> departures = {
         "value.fc15.byte_count",    // FC15 byte count 2 for 1 coil is executed, not refused with 03
-        "echo.fc8.0",               // FC8 is not implemented (exception 01); the echo rule needs it
         "tcp.protocol_id_nonzero",  // MBAP protocol id 1 is answered as if it were 0
         "tcp.length_too_large",     // the MBAP length field is not checked against the PDU
         "tcp.length_too_small",
     };
     EXPECT_EQ(failing(report), departures) << "failing:" << listed(failing(report));
+    // FC8 is not implemented (exception 01, as AP §7 allows of a device the generic profile knows nothing
+    // of): the echo rule has nothing to judge. It used to fail.
+    for (const auto& x : report.results)
+        if (x.rule.id == "echo.fc8.0") {
+            EXPECT_EQ(x.outcome, Outcome::Skip) << x.observed;
+        }
     EXPECT_TRUE(report.all_restored());
     EXPECT_GT(report.count(Outcome::Pass), 50u);
 }
