@@ -52,7 +52,8 @@ class Campaign {
           session_(client, conformance::SessionOptions{options.unit, options.timeout, options.interval},
                    &profile),
           generator_(profile, GeneratorOptions{framing_, serial_line_, options.endpoint.line.t1_5(),
-                                               options.unit, options.read_only, options.seed}) {
+                                               options.unit, options.read_only, options.seed,
+                                               options.endpoint.scheme == modbus::transport::Scheme::Udp}) {
         slow_ = options.slow.count()
                     ? options.slow
                     : std::chrono::milliseconds(profile.line.response_timeout_ms.value_or(250));
@@ -88,7 +89,7 @@ class Campaign {
     bool last_unanswered() const;
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
     bool prepare_writes(const Probe& p);
-    void keep_line_settings(Probe& p);
+    bool keep_line_settings(Probe& p);
     std::vector<Location> unknown_in(const WriteRange& range) const;
     void mark_doubtful(const std::vector<Location>& unknown);
     void note_unread(const modbus::transport::Exchange& ex);
@@ -184,7 +185,10 @@ Step Campaign::frame(const Probe& p) {
     step.pause = w.pause;
     step.reconnect_after = p.envelope == Envelope::MbapLength && !serial_line_ &&
                            options_.endpoint.scheme != modbus::transport::Scheme::Udp;
-    step.void_by_gap = serial_line_ && w.parts.size() > 1 && w.pause > options_.endpoint.line.t1_5();
+    // Only RTU delimits frames by silence (SL §2.5.1.1): an ASCII frame may pause up to a second between
+    // characters (SL §2.5.2.1), so a split one is a request the device must answer.
+    step.void_by_gap = serial_line_ && framing_ == modbus::Framing::Rtu && w.parts.size() > 1 &&
+                       w.pause > options_.endpoint.line.t1_5();
     step.recipe = p.recipe;
     return step;
 }
@@ -384,8 +388,17 @@ bool Campaign::prepare_writes(const Probe& p) {
 // the device off the line, the fuzzer's and its real master's: a real MK device obeys a valid one at once.
 // Like FC8 03 and 04 (Generator::allowed), such a value is never sent; the write goes out with the value
 // the point holds, read just before (prepare_writes), so its shape is still tried.
-void Campaign::keep_line_settings(Probe& p) {
-    if (profile_.open_address_space) return;
+bool Campaign::keep_line_settings(Probe& p) {
+    if (profile_.open_address_space) return true;
+    // A mirror whose value could not be read first: what to keep is unknown, and the write is not sent.
+    if (const auto range = write_range(p.pdu); range && range->table == Table::HoldingRegisters)
+        for (std::uint32_t a = range->start; a < std::uint32_t{range->start} + range->count && a < 0x10000;
+             ++a) {
+            const auto* point = profile_.find(Table::HoldingRegisters, static_cast<std::uint16_t>(a));
+            if (point && point->mirrors &&
+                !session_.touched().count({Table::HoldingRegisters, static_cast<std::uint16_t>(a)}))
+                return false;
+        }
     const auto kept = keep_registers(p.pdu, [&](std::uint16_t address) -> std::optional<std::uint16_t> {
         const auto* point = profile_.find(Table::HoldingRegisters, address);
         if (!point || !point->mirrors) return std::nullopt;
@@ -397,6 +410,7 @@ void Campaign::keep_line_settings(Probe& p) {
         p.recipe += " (line settings kept)";
         ++s_.line_settings_kept;
     }
+    return true;
 }
 
 std::vector<Location> Campaign::unknown_in(const WriteRange& range) const {
@@ -650,11 +664,10 @@ CampaignSummary Campaign::run() {
         std::optional<Probe> chosen = std::exchange(follow_up_, std::nullopt);
         if (!chosen && !options_.read_only && rng_() % 100 < 5) chosen = round_trip();
         Probe p = chosen ? std::move(*chosen) : generator_.next();
-        if (!prepare_writes(p)) {
+        if (!prepare_writes(p) || !keep_line_settings(p)) {
             ++s_.skipped_writes;
             continue;
         }
-        keep_line_settings(p);
         pace();
         // Whatever arrived since the last exchange ended: late replies to kept requests, else that
         // exchange's reply, too late. Only looked for where the last one can be pending (no whole, valid

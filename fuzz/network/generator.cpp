@@ -278,8 +278,10 @@ void Generator::envelope(Probe& p) {
     // Splits: on a stream, pieces written apart test reassembly: up to 100 µs, long enough for a slave that
     // answers in tens of microseconds to read the first piece alone (the writes are not coalesced: the
     // client sets TCP_NODELAY), short enough to keep the slave busy (millisecond pauses made them most of
-    // the fuzzer's time). On a real serial line a pause beyond t1.5 makes the request void (SL §2.5.1.1).
-    if (below(100) < 6) {
+    // the fuzzer's time). On a real serial line a pause beyond t1.5 makes an RTU request void (SL §2.5.1.1);
+    // an ASCII one allows a second between characters (SL §2.5.2.1). Over UDP each piece would be a datagram
+    // of its own, which a device rightly drops.
+    if (below(100) < 6 && !options_.datagrams) {
         p.split = static_cast<std::uint8_t>(2 + below(2));
         if (options_.serial_line) {
             const auto t = std::chrono::duration_cast<std::chrono::microseconds>(options_.t1_5 * 2);

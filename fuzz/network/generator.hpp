@@ -27,6 +27,7 @@ struct GeneratorOptions {
     std::uint8_t unit = 1;
     bool read_only = false;
     std::uint64_t seed = 1;
+    bool datagrams = false;  // Modbus/UDP: a request is one datagram, and a piece of one is no request
 };
 
 class Generator {
