@@ -213,6 +213,31 @@ TEST(NetworkFuzzer, CleanSlaveOnASerialLineYieldsNothing) {
     }
 }
 
+// The fuzzer makes its pause inside an RTU request on this host: the scheduler, the kernel's tty buffers or
+// a USB adapter can close it before it reaches the line, and the device then rightly answers one whole
+// request. A device timing the line as at 1200 baud (t1.5 13.75 ms) hears the fuzzer's 2 ms pause (38400
+// baud) as no pause at all, as a device hears a pause this host failed to make, and the 50 ms one of the
+// confirmation as a pause: no finding, the first reply counted unconfirmed.
+TEST(NetworkFuzzer, AGapTheDeviceDidNotHearCountsOnlyWhenALongerOneIsAnsweredToo) {
+    RunningServer server({}, 7, "mmk-2030");
+    mbscope::slave::ServerOptions so;
+    so.create_pty = true;
+    server.serve("rtu:pty?baud=1200&parity=N", so);
+    auto o = options_for("tcp", 1);
+    o.target = "rtu:" + server.server().address() + "?baud=38400";
+    o.endpoint = *mbscope::modbus::transport::parse_endpoint(o.target);
+    // The device waits t3.5 at 1200 baud (32 ms) before it answers.
+    o.silence_wait = std::chrono::milliseconds(150);
+    o.timeout = std::chrono::milliseconds(600);
+    o.requests = 120;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    EXPECT_TRUE(std::none_of(s.findings.begin(), s.findings.end(), [](const auto& f) {
+        return f.rule == "silence.gap_inside_request";
+    })) << listing(s);
+    EXPECT_GT(s.unconfirmed, 0u) << listing(s);
+}
+
 // A target lost mid-run is not written to again, and the points written before are not passed over in
 // silence: each is listed as not restored, with why.
 TEST(NetworkFuzzer, PointsWrittenBeforeTheTargetWasLostAreListedAsNotRestored) {
