@@ -4,7 +4,9 @@
 // run alone (RUN_SERIAL in tests/CMakeLists.txt), never beside tests that keep both cores busy.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <memory>
 #include <thread>
 
 #include "tests/conformance/runner_support.hpp"
@@ -14,37 +16,79 @@ namespace {
 
 using namespace mbscope::conformance::test;
 
+// The reference slave serving mmk-2030 on a pseudo-terminal it creates, the line timed at `baud`.
+class SlaveOnPty {
+  public:
+    SlaveOnPty(const std::string& framing, int baud) {
+        auto listen = tp::parse_endpoint(framing + ":pty?baud=" + std::to_string(baud));
+        EXPECT_TRUE(listen.has_value());
+        if (!listen) return;
+        device_ = std::make_unique<slave::Device>(slave::test::profile("mmk-2030"),
+                                                  tp::line_state(*listen, 1), &faults_);
+        slave::ServerOptions so;
+        so.create_pty = true;
+        server_ =
+            std::make_unique<slave::Server>(*listen, std::vector<slave::Device*>{device_.get()}, faults_, so);
+        auto opened = server_->open();
+        EXPECT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
+        if (opened) thread_ = std::thread([this] { (void)server_->run(stop_); });
+    }
+    ~SlaveOnPty() { stop(); }
+    void stop() {
+        stop_ = true;
+        if (thread_.joinable()) thread_.join();
+    }
+    std::string address() const { return server_ ? server_->address() : std::string(); }
+    slave::Device& device() { return *device_; }
+
+  private:
+    slave::FaultSet faults_;
+    std::unique_ptr<slave::Device> device_;
+    std::unique_ptr<slave::Server> server_;
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+};
+
 class OverPseudoTerminal : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(OverPseudoTerminal, CertifiesWithNoFailureAndRestoresEverything) {
     const std::string framing = GetParam();
-    slave::FaultSet faults;
-    auto listen = tp::parse_endpoint(framing + ":pty?baud=38400");
-    ASSERT_TRUE(listen.has_value());
-    slave::Device device(slave::test::profile("mmk-2030"), tp::line_state(*listen, 1), &faults);
-    slave::ServerOptions so;
-    so.create_pty = true;
-    slave::Server server(*listen, {&device}, faults, so);
-    auto opened = server.open();
-    ASSERT_TRUE(opened.has_value()) << (opened ? "" : opened.error());
-    std::atomic<bool> stop{false};
-    std::thread thread([&] { (void)server.run(stop); });
-    auto target = tp::parse_endpoint(framing + ":" + server.address() + "?baud=38400");
+    SlaveOnPty slave(framing, 38400);
+    auto target = tp::parse_endpoint(framing + ":" + slave.address() + "?baud=38400");
     ASSERT_TRUE(target.has_value());
     auto client = tp::Client::open(*target);
     ASSERT_TRUE(client.has_value()) << (client ? "" : client.error());
     CheckRun run;
     run.report =
         run_check(*client, slave::test::profile("mmk-2030"), options_for(std::chrono::milliseconds(500)));
-    stop = true;
-    thread.join();
-    run.changes_after = device.image().changes();
+    slave.stop();
+    run.changes_after = slave.device().image().changes();
     expect_clean(run, 150);
     // The serial framing rules ran, with the line's timing.
     std::size_t framing_rules = 0;
     for (const auto& x : run.report.results)
         if (x.rule.id.starts_with("framing.") && x.outcome == Outcome::Pass) ++framing_rules;
     EXPECT_GE(framing_rules, 3u);
+}
+
+// The runner makes the pause inside a request on this host, where the scheduler, the kernel's tty buffers or
+// a USB adapter can close it: a device that answers is asked again with a pause it cannot miss before it is
+// failed. A device timing its line as at 1200 baud (t1.5 13.75 ms) hears the runner's 1.5 ms pause (38400
+// baud) as none, as a device hears a pause this host failed to make, and the 50 ms one as a pause.
+TEST(SerialLine, APauseTheDeviceDidNotHearIsTriedLongerBeforeTheDeviceFails) {
+    SlaveOnPty slave("rtu", 1200);
+    auto target = tp::parse_endpoint("rtu:" + slave.address() + "?baud=38400");
+    ASSERT_TRUE(target.has_value());
+    auto client = tp::Client::open(*target);
+    ASSERT_TRUE(client.has_value()) << (client ? "" : client.error());
+    auto options = options_for(std::chrono::milliseconds(500));
+    options.run.rule_globs = {"framing.gap_inside"};
+    const auto report = run_check(*client, slave::test::profile("mmk-2030"), options);
+    const auto gap = std::find_if(report.results.begin(), report.results.end(),
+                                  [](const RuleResult& x) { return x.rule.id == "framing.gap_inside"; });
+    ASSERT_NE(gap, report.results.end());
+    EXPECT_EQ(gap->outcome, Outcome::Pass) << gap->observed;
+    EXPECT_NE(gap->observed.find("after 50 ms"), std::string::npos) << gap->observed;
 }
 
 INSTANTIATE_TEST_SUITE_P(Serial, OverPseudoTerminal, ::testing::Values("rtu", "ascii"));
