@@ -5,6 +5,7 @@
 #include <thread>
 #include <utility>
 
+#include "conformance/context.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/pdu.hpp"
 
@@ -19,6 +20,17 @@ bool is_exception(const tp::Exchange& ex) {
     if (!ex.response || !ex.response->checksum_ok) return false;
     const auto pdu = ex.response->pdu();
     return !pdu.empty() && (pdu[0] & 0x80) != 0;
+}
+
+// The read's answer as the rules accept it (response_pdu: framed, its checksum right, the request's
+// transaction, protocol and unit identifiers) and of the read's function. The values remembered for
+// restoring and the read-backs that call a point restored come from here: a reply to another transaction or
+// unit, or another function's of the same shape, holds no value of these points.
+std::optional<modbus::Pdu> read_answer(const tp::Exchange& ex, modbus::FunctionCode fc) {
+    auto pdu = response_pdu(ex);
+    if (!pdu || pdu->is_exception() || pdu->function_code() != static_cast<std::uint8_t>(fc))
+        return std::nullopt;
+    return pdu;
 }
 
 }  // namespace
@@ -179,10 +191,8 @@ std::optional<std::vector<std::uint16_t>> Session::read_registers(Table table, s
     const auto fc = table == Table::InputRegisters ? modbus::FunctionCode::ReadInputRegisters
                                                    : modbus::FunctionCode::ReadHoldingRegisters;
     const auto pdu = modbus::encode_pdu(modbus::make_read_request(fc, start, quantity));
-    auto ex = request(pdu, note);
-    if (!ex.response || !ex.response->checksum_ok) return std::nullopt;
-    auto rsp = modbus::decode_response(ex.response->pdu());
-    if (!rsp || rsp->is_exception()) return std::nullopt;
+    const auto rsp = read_answer(request(pdu, note), fc);
+    if (!rsp) return std::nullopt;
     const auto* regs = std::get_if<modbus::ReadRegistersResponse>(&rsp->body);
     if (!regs || regs->values.size() != quantity) return std::nullopt;
     return regs->values;
@@ -193,10 +203,8 @@ std::optional<std::vector<bool>> Session::read_bits(Table table, std::uint16_t s
     const auto fc = table == Table::DiscreteInputs ? modbus::FunctionCode::ReadDiscreteInputs
                                                    : modbus::FunctionCode::ReadCoils;
     const auto pdu = modbus::encode_pdu(modbus::make_read_request(fc, start, quantity));
-    auto ex = request(pdu, note);
-    if (!ex.response || !ex.response->checksum_ok) return std::nullopt;
-    auto rsp = modbus::decode_response(ex.response->pdu());
-    if (!rsp || rsp->is_exception()) return std::nullopt;
+    const auto rsp = read_answer(request(pdu, note), fc);
+    if (!rsp) return std::nullopt;
     const auto* bits = std::get_if<modbus::ReadBitsResponse>(&rsp->body);
     if (!bits || bits->values.size() * 8 < quantity) return std::nullopt;
     std::vector<bool> out(quantity);

@@ -357,6 +357,31 @@ TEST(Restore, ConsecutivePointsGoBackInBlocks) {
     EXPECT_TRUE(server.device().image().changes().empty());
 }
 
+// The values kept for restoring and the read-backs that call a point restored come only from replies the
+// rules accept as the read's answer: one carrying another transaction id, another unit or another
+// function's code (of the same shape: FC4 for FC3) answers some other request and is no value of these
+// points.
+TEST(Restore, OnlyRepliesTheRulesAcceptAsTheReadsAnswerAreValues) {
+    for (const std::string fault : {"wrong-tid", "wrong-unit", "wrong-function", "bad-protocol-id"}) {
+        RunningServer server({fault}, 1, "modbus");
+        const std::uint16_t port = server.start("tcp");
+        auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+        ASSERT_TRUE(client.has_value());
+        Session session(*client, options_for().session, &slave::test::profile("modbus"));
+        EXPECT_FALSE(session.read_registers(modbus::Table::HoldingRegisters, 0, 2, "read")) << fault;
+        EXPECT_FALSE(session.read_bits(modbus::Table::Coils, 0, 2, "read")) << fault;
+        EXPECT_FALSE(session.remember(modbus::Table::HoldingRegisters, 0, 2)) << fault;
+        EXPECT_TRUE(session.touched().empty()) << fault;
+    }
+    RunningServer clean({}, 1, "modbus");
+    const std::uint16_t port = clean.start("tcp");
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+    ASSERT_TRUE(client.has_value());
+    Session session(*client, options_for().session, &slave::test::profile("modbus"));
+    EXPECT_TRUE(session.read_registers(modbus::Table::HoldingRegisters, 0, 2, "read"));
+    EXPECT_TRUE(session.read_bits(modbus::Table::Coils, 0, 2, "read"));
+}
+
 // A block the device does not keep falls back to the points one by one, and the ledger says why each one
 // is not back.
 TEST(Restore, WhatABlockDidNotBringBackIsTriedOneByOne) {
