@@ -65,9 +65,13 @@ int run_replay_command(const ReplayCliOptions& o) {
     // What the steps may write is read first and written back after them, as `mbscope fuzz` and
     // `mbscope check` do: replaying a finding leaves the device as it was.
     conformance::Session session(*client, {unit, options.timeout, std::chrono::milliseconds(0)}, &*profile);
-    std::vector<fuzz::network::WriteRange> unread;
-    if (!o.no_restore) unread = fuzz::network::remember_writes(session, *profile, r.steps);
+    fuzz::network::RememberedWrites remembered;
+    if (!o.no_restore) remembered = fuzz::network::remember_writes(session, *profile, r.steps);
     const auto steps = fuzz::network::replay(*client, oracle, r.steps, options);
+    // Writes to points outside the map were not read first: a device that acknowledged one changed them.
+    auto unread = remembered.unread;
+    for (const auto& w : fuzz::network::acknowledged_unchecked(remembered.unchecked, framing, steps))
+        unread.push_back(w);
     const auto restored = session.touched().empty() ? std::vector<conformance::Touched>{} : session.restore();
     bool unrestored = !unread.empty();
     for (const auto& t : restored)
@@ -144,7 +148,8 @@ void register_replay(CLI::App& app, int& exit_code) {
         "the\n"
         "rules of `mbscope fuzz` and `mbscope check`.\n"
         "What the steps may write is read before them and written back after them (--no-restore: left as\n"
-        "the steps leave it); an interrupt (Ctrl-C) stops the steps, not the restore.\n"
+        "the steps leave it); an interrupt (Ctrl-C) stops the steps, not the restore. Points outside the\n"
+        "profile's map are not read; a write there the device acknowledges is listed as not restored.\n"
         "Exit codes: 0 no rule broken, 1 the recorded rule (or another) broken again or a point not\n"
         "restored, 2 the file or the target could not be used.\n"
         "Example: mbscope replay --target tcp://127.0.0.1:5020 out/reply.checksum-fc3.json");

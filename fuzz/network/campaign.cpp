@@ -374,13 +374,8 @@ bool Campaign::prepare_writes(const Probe& p) {
     (void)session_.take_evidence();
     session_.response_times().clear();
     if (!ok && allowed) return false;
-    const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range->start} + range->count);
-    for (std::uint32_t a = range->start; a < end; ++a) {
-        const Location point{range->table, static_cast<std::uint16_t>(a)};
-        const auto* own = profile_.open_address_space ? nullptr : profile_.find(point.first, point.second);
-        if (!session_.touched().count(point) && !(own && own->access == modbus::Access::Write))
-            unread_.push_back(point);
-    }
+    const auto missing = points_not_read(session_, profile_, *range);
+    unread_.insert(unread_.end(), missing.begin(), missing.end());
     return true;
 }
 
@@ -392,8 +387,7 @@ bool Campaign::keep_line_settings(Probe& p) {
     if (profile_.open_address_space) return true;
     // A mirror whose value could not be read first: what to keep is unknown, and the write is not sent.
     if (const auto range = write_range(p.pdu); range && range->table == Table::HoldingRegisters)
-        for (std::uint32_t a = range->start; a < std::uint32_t{range->start} + range->count && a < 0x10000;
-             ++a) {
+        for (std::uint32_t a = range->start; a < range->end(); ++a) {
             const auto* point = profile_.find(Table::HoldingRegisters, static_cast<std::uint16_t>(a));
             if (point && point->mirrors &&
                 !session_.touched().count({Table::HoldingRegisters, static_cast<std::uint16_t>(a)}))
@@ -415,8 +409,7 @@ bool Campaign::keep_line_settings(Probe& p) {
 
 std::vector<Location> Campaign::unknown_in(const WriteRange& range) const {
     std::vector<Location> out;
-    const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range.start} + range.count);
-    for (std::uint32_t a = range.start; a < end && !unknown_.empty(); ++a) {
+    for (std::uint32_t a = range.start; a < range.end() && !unknown_.empty(); ++a) {
         const Location point{range.table, static_cast<std::uint16_t>(a)};
         if (unknown_.count(point) && !session_.touched().count(point)) out.push_back(point);
     }

@@ -91,7 +91,7 @@ std::size_t keep_registers(std::vector<std::uint8_t>& pdu,
     // quantity and byte count; after the read and write ranges and the byte count.
     const std::size_t values = pdu[0] == 6 ? 3 : pdu[0] == 16 ? 6 : pdu[0] == 23 ? 10 : 0;
     std::size_t kept = 0;
-    for (std::uint32_t i = 0; i < range->count && range->start + i < 0x10000; ++i) {
+    for (std::uint32_t i = 0; range->start + i < range->end(); ++i) {
         const auto value = held(static_cast<std::uint16_t>(range->start + i));
         if (!value) continue;
         if (pdu[0] == 22) {  // AP §6.16: (current AND and_mask) OR (or_mask AND NOT and_mask)
@@ -132,7 +132,7 @@ nlohmann::json to_json(const std::vector<WriteRange>& ranges) {
 }
 
 bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range) {
-    const std::uint32_t end = std::min<std::uint32_t>(0x10000, std::uint32_t{range.start} + range.count);
+    const std::uint32_t end = range.end();
     if (profile.open_address_space)
         return session.remember(range.table, range.start, static_cast<std::uint16_t>(end - range.start), 100);
     bool ok = true;
@@ -143,20 +143,57 @@ bool remember_range(conformance::Session& session, const modbus::Profile& profil
     return ok;
 }
 
-std::vector<WriteRange> remember_writes(conformance::Session& session, const modbus::Profile& profile,
-                                        const std::vector<Step>& steps) {
-    std::vector<WriteRange> unread;
+std::vector<std::pair<modbus::Table, std::uint16_t>> points_not_read(const conformance::Session& session,
+                                                                     const modbus::Profile& profile,
+                                                                     const WriteRange& range) {
+    std::vector<std::pair<modbus::Table, std::uint16_t>> out;
+    for (std::uint32_t a = range.start; a < range.end(); ++a) {
+        const std::pair<modbus::Table, std::uint16_t> point{range.table, static_cast<std::uint16_t>(a)};
+        const auto* own = profile.open_address_space ? nullptr : profile.find(point.first, point.second);
+        if (!session.touched().count(point) && !(own && own->access == modbus::Access::Write))
+            out.push_back(point);
+    }
+    return out;
+}
+
+RememberedWrites remember_writes(conformance::Session& session, const modbus::Profile& profile,
+                                 const std::vector<Step>& steps) {
+    RememberedWrites out;
     const auto framing = session.client().framing();
-    for (const auto& step : steps)
-        for (const auto& request : loose_requests(framing, step.joined())) {
+    for (std::size_t i = 0; i < steps.size(); ++i)
+        for (const auto& request : loose_requests(framing, steps[i].joined())) {
             if (framing != modbus::Framing::Tcp && request.unit != session.options().unit &&
                 request.unit != 0)
                 continue;
             const auto range = write_range(request.pdu);
             if (!range || range->count == 0) continue;
-            if (!remember_range(session, profile, *range)) unread.push_back(*range);
+            if (!remember_range(session, profile, *range)) {
+                out.unread.push_back(*range);
+                continue;
+            }
+            const auto missing = points_not_read(session, profile, *range);
+            if (missing.empty()) continue;
+            out.unchecked.push_back({i, request.pdu[0], ranges_of({missing.begin(), missing.end()})});
         }
-    return unread;
+    return out;
+}
+
+std::vector<WriteRange> acknowledged_unchecked(const std::vector<UncheckedWrite>& unchecked,
+                                               modbus::Framing framing,
+                                               const std::vector<ReplayedStep>& steps) {
+    std::set<std::pair<modbus::Table, std::uint16_t>> changed;
+    for (const auto& w : unchecked) {
+        if (w.step >= steps.size()) continue;  // the replay stopped before it
+        const auto replies = loose_requests(framing, steps[w.step].exchange.received);
+        const bool acknowledged = std::any_of(replies.begin(), replies.end(), [&](const LooseRequest& r) {
+            return !r.pdu.empty() && r.pdu[0] == w.function;
+        });
+        if (!acknowledged) continue;
+        for (const auto& range : w.points)
+            for (std::uint32_t a = range.start; a < range.end(); ++a)
+                changed.insert({range.table, static_cast<std::uint16_t>(a)});
+    }
+    return ranges_of(changed);
 }
 
 }  // namespace mbscope::fuzz::network

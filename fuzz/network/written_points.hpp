@@ -3,6 +3,7 @@
 // before a write it sends, and a replay before it sends the steps of a reproducer (which may write), so
 // that the target is left holding what it held before (conformance::Session::restore).
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -24,6 +25,11 @@ struct WriteRange {
     modbus::Table table = modbus::Table::HoldingRegisters;
     std::uint16_t start = 0;
     std::uint16_t count = 0;
+    // One past the last address, clipped at the end of the address space (a count from a hostile header may
+    // run past it).
+    std::uint32_t end() const noexcept {
+        return std::min<std::uint32_t>(0x10000, std::uint32_t{start} + count);
+    }
 };
 std::optional<WriteRange> write_range(std::span<const std::uint8_t> pdu);
 
@@ -45,14 +51,33 @@ nlohmann::json to_json(const std::vector<WriteRange>& ranges);
 // what it holds (the reference slave answers 0), and writing it is a command (an alarm acknowledge), not
 // a value to put back.
 bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range);
+// The points of `range` a write may change whose values `session` holds no original of: outside the map of
+// a closed one, or a read that failed. Write-only points are not among them (remember_range).
+std::vector<std::pair<modbus::Table, std::uint16_t>> points_not_read(const conformance::Session& session,
+                                                                     const modbus::Profile& profile,
+                                                                     const WriteRange& range);
 
 // Before a replay: the requests in every step's bytes, read as a lax device reads them (whatever their
 // checksum; over Modbus/TCP one request a header, or the rest after a header whose length field is wrong; a
 // step may hold several), and the points of each write remembered (remember_range) when it can land:
 // addressed to the session's unit or broadcast, or to any unit over Modbus/TCP, where devices that ignore
-// the unit id are common. Bytes that hold no request write nothing a device would execute. Returns the
-// ranges whose values could not be read: their points are not restored.
-std::vector<WriteRange> remember_writes(conformance::Session& session, const modbus::Profile& profile,
-                                        const std::vector<Step>& steps);
+// the unit id are common. Bytes that hold no request write nothing a device would execute.
+struct UncheckedWrite {
+    std::size_t step = 0;            // index into the steps
+    std::uint8_t function = 0;       // the write's function code
+    std::vector<WriteRange> points;  // the points a write may change that were not read (points_not_read)
+};
+struct RememberedWrites {
+    std::vector<WriteRange> unread;  // ranges whose read failed: not restored, whatever the device does
+    std::vector<UncheckedWrite> unchecked;  // outside the map: they changed if the device acknowledged them
+};
+RememberedWrites remember_writes(conformance::Session& session, const modbus::Profile& profile,
+                                 const std::vector<Step>& steps);
+// After the replay: the points of the unchecked writes whose step drew a normal reply of their function
+// (an acknowledgement, as a lax device gives to a write outside the map it holds after all). They may hold
+// the steps' values now and are not restored.
+std::vector<WriteRange> acknowledged_unchecked(const std::vector<UncheckedWrite>& unchecked,
+                                               modbus::Framing framing,
+                                               const std::vector<ReplayedStep>& steps);
 
 }  // namespace mbscope::fuzz::network

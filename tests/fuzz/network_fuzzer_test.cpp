@@ -857,23 +857,38 @@ TEST(FuzzCommand, ReplayRestoresWhatItsStepsWrote) {
     EXPECT_EQ(image.reg(Table::Coils, 3), 1);
 }
 
-// The requests a replay restores after are read as a lax device reads them. libmodbus's server sizes a
-// request by its function code and never reads the MBAP length (fuzz/README.md, "Differences from
-// libmodbus"): a step whose length field says 0 still writes there, and a step may hold two requests. Both
-// are put back, and with --no-restore the writes are shown to have landed.
-TEST(FuzzCommand, AReplayRestoresWritesALaxServerExecutes) {
-    const std::string port_file = ::testing::TempDir() + "mbscope-libmodbus-port.txt";
-    mbscope::test::Child server({MBSCOPE_LIBMODBUS_SERVER, "0"}, port_file, "/dev/null");
-    ASSERT_TRUE(server.spawned());
-    std::string target;
-    ASSERT_TRUE(mbscope::test::wait_for([&] {
-        target = mbscope::test::slurp(port_file);
-        return target.find('\n') != std::string::npos;
-    }));
-    target.resize(target.find('\n'));
-    const auto reg = [&](std::uint16_t address) {
+// The JSON object in a command's output, between the first '{' and the last '}' (the command's messages on
+// standard error follow it).
+nlohmann::json json_in(const std::string& out) {
+    const auto first = out.find('{');
+    const auto last = out.rfind('}');
+    if (first == std::string::npos || last == std::string::npos || last < first)
+        return nlohmann::json::value_t::discarded;
+    return nlohmann::json::parse(out.substr(first, last - first + 1), nullptr, false);
+}
+
+// libmodbus's own Modbus/TCP server (bench/libmodbus_server.c), a lax device: it sizes a request by its
+// function code, and holds 10,000 registers (register i holds i) whatever a profile's map says.
+class LaxServer {
+  public:
+    LaxServer()
+        : port_file_(::testing::TempDir() + "mbscope-libmodbus-port.txt"),
+          server_({MBSCOPE_LIBMODBUS_SERVER, "0"}, port_file_, "/dev/null") {
+        if (!server_.spawned()) return;
+        (void)mbscope::test::wait_for([&] {
+            target_ = mbscope::test::slurp(port_file_);
+            return target_.find('\n') != std::string::npos;
+        });
+        if (target_.find('\n') == std::string::npos) return;
+        target_.resize(target_.find('\n'));
+        started_ = true;
+    }
+    bool started() const { return started_; }
+    const std::string& target() const { return target_; }
+    // Holding register `address` as FC3 reads it, -1 when no read worked.
+    int reg(std::uint16_t address) const {
         auto client =
-            mbscope::modbus::transport::Client::open(*mbscope::modbus::transport::parse_endpoint(target));
+            mbscope::modbus::transport::Client::open(*mbscope::modbus::transport::parse_endpoint(target_));
         EXPECT_TRUE(client.has_value());
         if (!client) return -1;
         const std::uint8_t pdu[] = {0x03, static_cast<std::uint8_t>(address >> 8),
@@ -881,7 +896,24 @@ TEST(FuzzCommand, AReplayRestoresWritesALaxServerExecutes) {
         const auto ex = client.value().transact(1, pdu, std::chrono::milliseconds(1000));
         if (!ex.response || ex.response->pdu().size() != 4) return -1;
         return (ex.response->pdu()[2] << 8) | ex.response->pdu()[3];
-    };
+    }
+
+  private:
+    std::string port_file_;
+    mbscope::test::Child server_;
+    std::string target_;
+    bool started_ = false;
+};
+
+// The requests a replay restores after are read as a lax device reads them. libmodbus's server sizes a
+// request by its function code and never reads the MBAP length (fuzz/README.md, "Differences from
+// libmodbus"): a step whose length field says 0 still writes there, and a step may hold two requests. Both
+// are put back, and with --no-restore the writes are shown to have landed.
+TEST(FuzzCommand, AReplayRestoresWritesALaxServerExecutes) {
+    LaxServer server;
+    ASSERT_TRUE(server.started());
+    const std::string target = server.target();
+    const auto reg = [&](std::uint16_t address) { return server.reg(address); };
     // The server's register i holds i.
     ASSERT_EQ(reg(20), 20);
     ASSERT_EQ(reg(21), 21);
@@ -911,6 +943,40 @@ TEST(FuzzCommand, AReplayRestoresWritesALaxServerExecutes) {
     EXPECT_EQ(reg(20), 0xBEEF) << kept.out;
     EXPECT_EQ(reg(21), 0xBEEF) << kept.out;
     EXPECT_EQ(reg(22), 0xBEEF) << kept.out;
+}
+
+// A write to a point outside the profile's map is not read first (there is nothing the map says to read);
+// a lax device that acknowledges it changed the point all the same, and the replay lists it as not read,
+// not restored (exit 1), where it changed it silently. A device that refuses it (the reference slave,
+// exception 02) leaves nothing to list.
+TEST(FuzzCommand, AReplayListsAWriteOutsideTheMapTheDeviceAcknowledged) {
+    LaxServer server;
+    ASSERT_TRUE(server.started());
+    // FC6 register 5000 (outside mmk-2030's map) = 0xBEEF; FC6 register 2 (TAG character 1) = 'A'.
+    const auto steps = std::vector<std::vector<std::uint8_t>>{{0x06, 0x13, 0x88, 0xBE, 0xEF},
+                                                              {0x06, 0x00, 0x02, 0x00, 0x41}};
+    const auto file = save_steps("mbscope-replay-outside-map.json", server.target(), steps).string();
+    const auto lax = run("replay --json --profile mmk-2030 --timeout 1000 " + file);
+    EXPECT_EQ(lax.status, 1) << lax.out;
+    const auto j = json_in(lax.out);
+    ASSERT_FALSE(j.is_discarded()) << lax.out;
+    ASSERT_EQ(j["not_read"].size(), 1u) << lax.out;
+    EXPECT_EQ(j["not_read"][0]["start"], 5000);
+    EXPECT_EQ(j["not_read"][0]["count"], 1);
+    ASSERT_EQ(j["restored"].size(), 1u) << lax.out;
+    EXPECT_EQ(j["restored"][0]["address"], 2);
+    EXPECT_TRUE(j["restored"][0]["restored"].get<bool>()) << lax.out;
+    EXPECT_EQ(server.reg(2), 2);
+    EXPECT_EQ(server.reg(5000), 0xBEEF);
+
+    RunningServer reference({}, 1, "mmk-2030");
+    const auto port = reference.start("tcp");
+    const auto strict = run("replay --json --profile mmk-2030 --timeout 1000 --target tcp://127.0.0.1:" +
+                            std::to_string(port) + " " + file);
+    EXPECT_EQ(strict.status, 0) << strict.out;
+    const auto k = json_in(strict.out);
+    ASSERT_FALSE(k.is_discarded()) << strict.out;
+    EXPECT_TRUE(k["not_read"].empty()) << strict.out;
 }
 
 // An interrupt stops a replay's steps, not the restore after them: a replay stopped half-way leaves the
