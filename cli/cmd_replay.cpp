@@ -27,9 +27,6 @@ struct ReplayCliOptions {
 };
 
 int run_replay_command(const ReplayCliOptions& o) {
-    // An interrupt stops the steps, not the restore after them (nor the reads before them, which change
-    // nothing).
-    const std::atomic<bool>& stop = stop_on_signals(BrokenPipe::Ignored);
     auto reproducer = fuzz::network::load_reproducer(o.file);
     if (!reproducer) {
         std::cerr << "mbscope replay: " << reproducer.error() << '\n';
@@ -54,6 +51,10 @@ int run_replay_command(const ReplayCliOptions& o) {
         std::cerr << "mbscope replay: cannot reach the target: " << client.error() << '\n';
         return exit_failure;
     }
+    // Until the target is open an interrupt ends the command as it would any other (a file that never ends,
+    // a FIFO no one writes to, a connection that hangs): nothing has been written yet. From here on it stops
+    // the steps, not the restore after them (nor the reads before them, which change nothing).
+    const std::atomic<bool>& stop = stop_on_signals(BrokenPipe::Ignored);
     const std::uint8_t unit = o.unit >= 0 ? static_cast<std::uint8_t>(o.unit) : r.unit;
     conformance::ExchangeOracle oracle(framing, {{unit, &*profile}},
                                        endpoint->scheme == modbus::transport::Scheme::Tcp ||

@@ -62,6 +62,23 @@ modbus::Result<std::uint64_t, std::string> count(const nlohmann::json& j, const 
     return it->get<std::uint64_t>();
 }
 
+// Sleeps `pause`, looking at `stop` every 20 ms at most (a step's pause may be up to a minute). False when
+// stopped.
+bool pause_unless_stopped(std::chrono::microseconds pause, const std::atomic<bool>* stop) {
+    if (!stop) {
+        std::this_thread::sleep_for(pause);
+        return true;
+    }
+    const auto until = std::chrono::steady_clock::now() + pause;
+    for (;;) {
+        if (stop->load()) return false;
+        const auto now = std::chrono::steady_clock::now();
+        if (now >= until) return true;
+        std::this_thread::sleep_for(
+            std::min<std::chrono::steady_clock::duration>(until - now, std::chrono::milliseconds(20)));
+    }
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> Step::joined() const {
@@ -125,12 +142,19 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
         r.framing = j.value("framing", "");
         r.minimised = j.value("minimised", false);
         if (!j.contains("steps") || !j["steps"].is_array()) return std::string("no \"steps\" array");
+        if (j["steps"].size() > max_reproducer_steps)
+            return std::string(std::to_string(j["steps"].size()) + " steps, more than the " +
+                               std::to_string(max_reproducer_steps) + " a reproducer may hold");
         std::size_t index = 0;
         for (const auto& s : j["steps"]) {
             ++index;
             Step step;
             if (!s.contains("parts") || !s["parts"].is_array() || s["parts"].empty())
                 return std::string("step " + std::to_string(index) + ": no \"parts\"");
+            if (s["parts"].size() > max_step_parts)
+                return std::string("step " + std::to_string(index) + ": " +
+                                   std::to_string(s["parts"].size()) + " parts, more than the " +
+                                   std::to_string(max_step_parts) + " a step may hold");
             for (const auto& p : s["parts"]) {
                 auto bytes = unhex(p.get<std::string>());
                 if (!bytes) return std::string("step " + std::to_string(index) + ": " + bytes.error());
@@ -169,7 +193,7 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
 
 modbus::Result<Reproducer, std::string> load_reproducer(const std::string& path) {
     std::string error;
-    const auto text = modbus::storage::read_text_file(path, error);
+    const auto text = modbus::storage::read_text_file(path, error, max_reproducer_size);
     if (!text) return std::string(path + ": " + error);
     const auto j = nlohmann::json::parse(*text, nullptr, false);
     if (j.is_discarded()) return std::string(path + ": not JSON");
@@ -208,7 +232,11 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
     r.reply_due = !silence;
     for (std::size_t i = 0; i + 1 < step.parts.size(); ++i) {
         (void)client.write(step.parts[i]);
-        std::this_thread::sleep_for(step.pause);
+        if (!pause_unless_stopped(step.pause, options.stop)) {
+            r.interrupted = true;
+            r.reply_due = false;
+            return r;
+        }
     }
     r.exchange =
         client.raw(step.parts.back(), silence ? options.silence_wait : options.timeout, 1, whole, owed);
@@ -344,7 +372,15 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
             judge_rest(std::move(rest));
         }
         const auto sent = std::chrono::steady_clock::now();
-        out.push_back(send_step(client, oracle, step, options, owed.list()));
+        auto done = send_step(client, oracle, step, options, owed.list());
+        if (done.interrupted) {
+            // Stopped between the step's pieces. Over Modbus/TCP the piece sent would run into the next
+            // request on the connection (the restore's): a new connection drops it. A serial device drops it
+            // at the silence that follows.
+            if (framing == modbus::Framing::Tcp) (void)client.reconnect();
+            break;
+        }
+        out.push_back(std::move(done));
         const auto& ex = out.back().exchange;
         if (framing == modbus::Framing::Tcp) {
             for (const auto& frame : ex.stale_replies) {

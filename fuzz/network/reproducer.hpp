@@ -43,6 +43,12 @@ struct Reproducer {
     std::vector<Step> steps;
 };
 
+// What a reproducer may hold. The campaign saves at most 32 steps of two or three pieces; a file from
+// elsewhere is refused past these, by name, instead of being parsed into memory it has no use for.
+inline constexpr std::size_t max_reproducer_steps = 10'000;
+inline constexpr std::size_t max_step_parts = 256;
+inline constexpr std::uintmax_t max_reproducer_size = std::uintmax_t{4} << 20;
+
 nlohmann::json to_json(const Reproducer& r);
 modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::json& j);
 modbus::Result<Reproducer, std::string> load_reproducer(const std::string& path);
@@ -51,6 +57,9 @@ modbus::Result<void, std::string> save_reproducer(const Reproducer& r, const std
 
 struct ReplayedStep {
     modbus::transport::Exchange exchange;
+    // ReplayOptions::stop came during a pause between the step's pieces: the rest was not sent, and the
+    // exchange holds nothing to judge.
+    bool interrupted = false;
     std::vector<conformance::OracleViolation> violations;
     // The rules want a reply (not silence: a bad checksum, a broadcast, another unit, a request voided by a
     // gap; nor no opinion).
@@ -60,7 +69,8 @@ struct ReplayedStep {
 struct ReplayOptions {
     std::chrono::milliseconds timeout{1000};
     std::chrono::microseconds silence_wait{1'000'000};
-    // Once set, no further step is sent; the replies still due are awaited and judged as usual.
+    // Once set, no further step is sent, nor the rest of a step paused between its pieces; the replies still
+    // due are awaited and judged as usual.
     const std::atomic<bool>* stop = nullptr;
 };
 

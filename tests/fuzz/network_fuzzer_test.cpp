@@ -8,6 +8,7 @@
 //  - written points are restored; --read-only writes nothing;
 //  - the command's exit codes (0 nothing found, 1 findings, 2 unreachable) and its JSON summary.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -730,6 +731,28 @@ TEST(NetworkFuzzer, DamagedReproducersAreRefusedWithTheReason) {
               std::string::npos);
     const auto bad_token = with(R"({"mbscope_reproducer":1,"steps":[{"parts":["\u001b[31m"]}]})");
     EXPECT_NE(bad_token.find("'\\x1B[31m' is not a hex byte"), std::string::npos) << bad_token;
+    // Sizes: a file from elsewhere is refused past what a reproducer may hold, by name, not parsed into
+    // memory it has no use for (a million steps took half a gigabyte).
+    const auto steps = [](std::size_t n, std::size_t parts) {
+        std::string out = R"({"mbscope_reproducer":1,"steps":[)";
+        for (std::size_t i = 0; i < n; ++i) {
+            out += i ? R"(,{"parts":[)" : R"({"parts":[)";
+            for (std::size_t k = 0; k < parts; ++k)
+                out += k ? R"(,"01")" : R"("01")";
+            out += "]}";
+        }
+        return out + "]}";
+    };
+    EXPECT_EQ(with(steps(fz::max_reproducer_steps, 1)), "loaded");
+    EXPECT_NE(with(steps(fz::max_reproducer_steps + 1, 1)).find("10001 steps, more than the 10000"),
+              std::string::npos);
+    EXPECT_EQ(with(steps(1, fz::max_step_parts)), "loaded");
+    EXPECT_NE(with(steps(2, fz::max_step_parts + 1)).find("step 1: 257 parts, more than the 256"),
+              std::string::npos);
+    const auto large = with(std::string(R"({"mbscope_reproducer":1,"recipe":")") +
+                            std::string(fz::max_reproducer_size, 'x') + R"(","steps":[{"parts":["01"]}]})");
+    EXPECT_NE(large.find(path), std::string::npos) << large.substr(0, 200);
+    EXPECT_NE(large.find("larger than"), std::string::npos) << large.substr(0, 200);
 }
 
 // ---- the command
@@ -979,6 +1002,56 @@ TEST(FuzzCommand, AReplayListsAWriteOutsideTheMapTheDeviceAcknowledged) {
     EXPECT_TRUE(k["not_read"].empty()) << strict.out;
 }
 
+// `mbscope ARGUMENTS` started in the background, its process id known, what it prints collected.
+class Background {
+  public:
+    Background(const std::string& arguments, const std::string& name)
+        : pid_file_(std::filesystem::path(::testing::TempDir()) / (name + ".pid")) {
+        std::filesystem::remove(pid_file_);
+        pipe_ = popen(("{ " + std::string(MBSCOPE_BINARY) + " " + arguments + " & echo $! > " +
+                       pid_file_.string() + "; wait $!; } 2>&1")
+                          .c_str(),
+                      "r");
+    }
+    ~Background() {
+        if (pipe_) (void)::finish(std::exchange(pipe_, nullptr));
+    }
+    bool started() const { return pipe_ != nullptr; }
+    pid_t pid() {
+        if (pid_ <= 0)
+            (void)mbscope::test::wait_for([&] {
+                std::ifstream(pid_file_) >> pid_;
+                return pid_ > 0;
+            });
+        return pid_;
+    }
+    void signal(int number) {
+        if (pid() > 0) ::kill(pid_, number);
+    }
+    Run finish() { return ::finish(std::exchange(pipe_, nullptr)); }
+
+  private:
+    std::filesystem::path pid_file_;
+    FILE* pipe_ = nullptr;
+    pid_t pid_ = 0;
+};
+
+// A replay whose first step writes holding register 20 = 0x7777, interrupted (SIGINT) `after` that write
+// has landed; what it printed.
+Run interrupt_after_the_write(const std::string& file, const std::string& name,
+                              mbscope::slave::RegisterImage& image, std::chrono::milliseconds after) {
+    using mbscope::modbus::Table;
+    Background replay("replay " + file, name);
+    EXPECT_TRUE(replay.started());
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (image.reg(Table::HoldingRegisters, 20) != 0x7777 && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    std::this_thread::sleep_for(after);
+    EXPECT_EQ(image.reg(Table::HoldingRegisters, 20), 0x7777) << "the write step did not land";
+    replay.signal(SIGINT);
+    return replay.finish();
+}
+
 // An interrupt stops a replay's steps, not the restore after them: a replay stopped half-way leaves the
 // device as it was too, and says where it stopped.
 TEST(FuzzCommand, AnInterruptedReplayStillRestores) {
@@ -991,26 +1064,70 @@ TEST(FuzzCommand, AnInterruptedReplayStillRestores) {
     pdus.resize(39, {0x03, 0x00, 0x14, 0x00, 0x01});  // then ten seconds of reads at 250 ms each
     const auto file = save_steps("mbscope-replay-interrupted.json", target, pdus);
     // SIGINT once the write has landed: the steps are under way.
-    const auto pid_file = std::filesystem::path(::testing::TempDir()) / "mbscope-replay-interrupted.pid";
-    std::filesystem::remove(pid_file);
-    FILE* p = popen(("{ " + std::string(MBSCOPE_BINARY) + " replay " + file.string() + " & echo $! > " +
-                     pid_file.string() + "; wait $!; } 2>&1")
-                        .c_str(),
-                    "r");
-    ASSERT_NE(p, nullptr);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
-    while (image.reg(Table::HoldingRegisters, 20) != 0x7777 && std::chrono::steady_clock::now() < deadline)
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    pid_t pid = 0;
-    std::ifstream(pid_file) >> pid;
-    EXPECT_EQ(image.reg(Table::HoldingRegisters, 20), 0x7777) << "the write step did not land";
-    if (pid > 0) ::kill(pid, SIGINT);
-    const auto stopped = finish(p);
+    const auto stopped = interrupt_after_the_write(file.string(), "mbscope-replay-interrupted", image,
+                                                   std::chrono::milliseconds(0));
     EXPECT_EQ(stopped.status, 0) << stopped.out;
     EXPECT_NE(stopped.out.find("stopped after step "), std::string::npos) << stopped.out;
     EXPECT_NE(stopped.out.find(" of 39 (interrupted)"), std::string::npos) << stopped.out;
     EXPECT_NE(stopped.out.find("restored 1 of 1 points"), std::string::npos) << stopped.out;
     EXPECT_EQ(image.reg(Table::HoldingRegisters, 20), 0x0042);
+}
+
+// A pause inside a step (up to a minute, as many as the step has pieces) is cut short by an interrupt: the
+// rest of the step is not sent, and what the steps wrote goes back. Over Modbus/TCP the piece sent would run
+// into the restore's first request: the connection is opened again first.
+TEST(FuzzCommand, AnInterruptCutsAPauseInsideAStep) {
+    using mbscope::modbus::Table;
+    RunningServer server({}, 7, "modbus");
+    const auto target = "tcp://127.0.0.1:" + std::to_string(server.start("tcp"));
+    auto& image = server.device().image();
+    image.set_reg(Table::HoldingRegisters, 20, 0x0042);
+    fz::Reproducer r;
+    r.rule = "reply.function";
+    r.target = target;
+    r.profile = "modbus";
+    r.framing = "tcp";
+    fz::Step write;
+    write.parts.push_back(
+        mbscope::modbus::encode_tcp(1, 1, std::vector<std::uint8_t>{0x06, 0x00, 0x14, 0x77, 0x77}));
+    r.steps.push_back(write);
+    fz::Step paused;  // a read in three pieces, a minute apart
+    const auto read =
+        mbscope::modbus::encode_tcp(2, 1, std::vector<std::uint8_t>{0x03, 0x00, 0x14, 0x00, 0x01});
+    paused.parts = {{read.begin(), read.begin() + 4},
+                    {read.begin() + 4, read.begin() + 8},
+                    {read.begin() + 8, read.end()}};
+    paused.pause = std::chrono::seconds(60);
+    r.steps.push_back(paused);
+    const auto file = (std::filesystem::path(::testing::TempDir()) / "mbscope-replay-paused.json").string();
+    ASSERT_TRUE(fz::save_reproducer(r, file));
+    // Into the pause after the first piece.
+    const auto stopped =
+        interrupt_after_the_write(file, "mbscope-replay-paused", image, std::chrono::milliseconds(100));
+    EXPECT_EQ(stopped.status, 0) << stopped.out;
+    EXPECT_NE(stopped.out.find("stopped after step 1 of 2 (interrupted)"), std::string::npos) << stopped.out;
+    EXPECT_NE(stopped.out.find("restored 1 of 1 points"), std::string::npos) << stopped.out;
+    EXPECT_EQ(image.reg(Table::HoldingRegisters, 20), 0x0042);
+}
+
+// Until the target is open an interrupt or SIGTERM ends `mbscope replay` as any command: reading a FIFO no
+// one writes to, it waited for ever and ignored both. (SIGTERM here: a command started in the background by
+// a shell ignores SIGINT until it installs its own handler.)
+TEST(FuzzCommand, AnInterruptEndsAReplayWaitingForItsFile) {
+    const auto fifo = std::filesystem::path(::testing::TempDir()) / "mbscope-replay-fifo";
+    std::filesystem::remove(fifo);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    Background replay("replay " + fifo.string(), "mbscope-replay-fifo");
+    ASSERT_TRUE(replay.started());
+    const pid_t pid = replay.pid();
+    ASSERT_GT(pid, 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));  // into the open() of the FIFO
+    replay.signal(SIGTERM);
+    // Should it not end, a writer gives it an empty document, and it ends refusing that (exit 2).
+    if (!mbscope::test::wait_for([&] { return ::kill(pid, 0) != 0; })) std::ofstream(fifo) << "{}";
+    const auto ended = replay.finish();
+    EXPECT_EQ(ended.status, 128 + SIGTERM) << ended.out;
+    std::filesystem::remove(fifo);
 }
 
 // What a request may write is read from its header, whatever follows it: the range a device that executes
