@@ -49,7 +49,7 @@ std::optional<std::string_view> function_name(std::uint8_t function_code) noexce
 
 bool is_restart_communications(std::span<const std::uint8_t> pdu) noexcept {
     return pdu.size() == 5 && pdu[0] == 0x08 && pdu[1] == 0x00 && pdu[2] == 0x01 &&
-           (pdu[3] == 0x00 || pdu[3] == 0xFF) && pdu[4] == 0x00;
+           diagnostic_request_data_defined(0x01, pdu.subspan(3));
 }
 
 bool is_public_function(std::uint8_t function_code) noexcept {

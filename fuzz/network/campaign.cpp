@@ -90,8 +90,7 @@ class Campaign {
     bool healthy(std::chrono::nanoseconds* latency = nullptr);
     bool prepare_writes(const Probe& p);
     bool keep_line_settings(Probe& p);
-    std::vector<Location> unknown_in(const WriteRange& range) const;
-    void mark_doubtful(const std::vector<Location>& unknown);
+    bool remember_before_write(const WriteRange& range, const std::function<bool()>& read);
     void note_unread(const modbus::transport::Exchange& ex);
     std::optional<Probe> round_trip();
     void pace();
@@ -367,12 +366,7 @@ bool Campaign::prepare_writes(const Probe& p) {
     const std::uint8_t fc = p.pdu[0];
     const int max = profile_.functions.max_for(fc, fc == 23);
     const bool allowed = profile_.functions.supports(fc) && !(max > 0 && range->count > max);
-    (void)await_due_replies(options_.timeout);
-    const auto unknown = unknown_in(*range);
-    const bool ok = remember_range(session_, profile_, *range);
-    mark_doubtful(unknown);
-    (void)session_.take_evidence();
-    session_.response_times().clear();
+    const bool ok = remember_before_write(*range, [&] { return remember_range(session_, profile_, *range); });
     if (!ok && allowed) return false;
     const auto missing = points_not_read(session_, profile_, *range);
     unread_.insert(unread_.end(), missing.begin(), missing.end());
@@ -407,18 +401,22 @@ bool Campaign::keep_line_settings(Probe& p) {
     return true;
 }
 
-std::vector<Location> Campaign::unknown_in(const WriteRange& range) const {
-    std::vector<Location> out;
+// Reads, with `read`, the original values of what a write to `range` may change, once no reply is due that
+// the read could take for its own. A point first read now after an unread write may have reached it
+// (unknown_) holds the fuzzer's value, not the device's: doubtful, never called restored.
+bool Campaign::remember_before_write(const WriteRange& range, const std::function<bool()>& read) {
+    (void)await_due_replies(options_.timeout);
+    std::vector<Location> unknown;
     for (std::uint32_t a = range.start; a < range.end() && !unknown_.empty(); ++a) {
         const Location point{range.table, static_cast<std::uint16_t>(a)};
-        if (unknown_.count(point) && !session_.touched().count(point)) out.push_back(point);
+        if (unknown_.count(point) && !session_.touched().count(point)) unknown.push_back(point);
     }
-    return out;
-}
-
-void Campaign::mark_doubtful(const std::vector<Location>& unknown) {
+    const bool ok = read();
     for (const auto& point : unknown)
         if (session_.touched().count(point)) doubtful_.insert(point);
+    (void)session_.take_evidence();
+    session_.response_times().clear();
+    return ok;
 }
 
 // After a probe whose points were not all read first: unless the device refused it, those points may have
@@ -442,12 +440,9 @@ std::optional<Probe> Campaign::round_trip() {
     if (rewritable_.empty()) return std::nullopt;
     const modbus::Point& point = *rewritable_[next_round_trip_++ % rewritable_.size()];
     const std::uint16_t words = point.encoding.words == 2 ? 2 : 1;
-    (void)await_due_replies(options_.timeout);
-    const auto unknown = unknown_in({Table::HoldingRegisters, point.address, words});
-    const bool ok = session_.remember(Table::HoldingRegisters, point.address, words);
-    mark_doubtful(unknown);
-    (void)session_.take_evidence();
-    session_.response_times().clear();
+    const bool ok = remember_before_write({Table::HoldingRegisters, point.address, words}, [&] {
+        return session_.remember(Table::HoldingRegisters, point.address, words);
+    });
     if (!ok) return std::nullopt;
     std::vector<std::uint16_t> values;
     for (std::uint16_t i = 0; i < words; ++i)
