@@ -163,9 +163,13 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
 std::vector<std::uint8_t> Client::drain(std::chrono::milliseconds quiet) {
     std::vector<std::uint8_t> out;
     std::uint8_t buf[2048];
+    const auto deadline = std::chrono::steady_clock::now() + 2 * quiet + std::chrono::milliseconds(500);
     for (;;) {
+        const auto left =
+            std::chrono::ceil<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+        if (left.count() <= 0) return out;
         pollfd p{fd_.get(), POLLIN, 0};
-        if (::poll(&p, 1, static_cast<int>(quiet.count())) <= 0) return out;
+        if (::poll(&p, 1, static_cast<int>(std::min(quiet, left).count())) <= 0) return out;
         const ssize_t n = ::read(fd_.get(), buf, sizeof buf);
         if (n <= 0) return out;
         out.insert(out.end(), buf, buf + n);

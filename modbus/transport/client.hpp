@@ -48,7 +48,8 @@ class Client {
     // Sends without waiting (the first part of a split request); errors when the peer is gone.
     Result<void, std::string> write(std::span<const std::uint8_t> bytes);
     // Reads whatever arrives until `quiet` passes without a byte (resynchronise between tests; a late reply
-    // to the previous request); returns it.
+    // to the previous request); returns it. No longer than twice `quiet` and half a second in all: a device
+    // that never falls silent (a chattering line, a flood of bytes) cannot hold the caller.
     std::vector<std::uint8_t> drain(std::chrono::milliseconds quiet);
     // Closes and connects again (after the slave closed the connection).
     Result<void, std::string> reconnect();

@@ -88,6 +88,17 @@ TEST(Client, SilenceIsATimeoutWithNothingReceived) {
     EXPECT_GE(ex.elapsed, 150ms);
 }
 
+// A device that never falls silent cannot hold a drain: it waits for `quiet` without a byte, and no longer
+// than twice that and half a second in all. This one sends a byte every 10 ms for three seconds.
+TEST(Client, ADrainEndsWhileTheDeviceChattersOn) {
+    ScriptedPeer peer(std::vector<Bytes>(300, Bytes{0x55}), 10ms);
+    auto client = Client::open(endpoint("tcp://127.0.0.1:" + std::to_string(peer.port()))).value();
+    ASSERT_TRUE(client.write(Bytes{0x00}));
+    const auto heard = client.drain(50ms);
+    EXPECT_FALSE(heard.empty());
+    EXPECT_LT(heard.size(), 300u);
+}
+
 TEST(Client, PeerClosingIsReported) {
     ScriptedPeer peer({}, 0ms, true);
     auto client = Client::open(endpoint("tcp://127.0.0.1:" + std::to_string(peer.port()))).value();
