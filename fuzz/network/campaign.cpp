@@ -92,6 +92,7 @@ class Campaign {
     bool keep_line_settings(Probe& p);
     bool remember_before_write(const WriteRange& range, const std::function<bool()>& read);
     void note_unread(const modbus::transport::Exchange& ex);
+    void note_late_acknowledgement(std::span<const std::uint8_t> request_pdu, const modbus::Frame& reply);
     std::optional<Probe> round_trip();
     void pace();
     void classify(const Probe& p, const ReplayedStep& r);
@@ -243,6 +244,8 @@ void Campaign::judge_claimed(std::string_view when) {
         ++s_.late_replies;
         if (request.reply_due) ++s_.replies_after_timeout;
         const std::uint8_t fc = request.exchange.sent.size() > 7 ? request.exchange.sent[7] : 0;
+        if (request.exchange.sent.size() > 7)
+            note_late_acknowledgement(std::span<const std::uint8_t>(request.exchange.sent).subspan(7), reply);
         for (const auto& v : judge_late_frame(oracle_, request.exchange, reply, when))
             record(v, fc, true);
     }
@@ -259,6 +262,7 @@ void Campaign::judge_settled(std::vector<modbus::transport::SettledRequest> sett
         if (s.request.reply_due) ++s_.replies_after_timeout;
         modbus::transport::Exchange request;
         request.sent = s.request.sent;
+        note_late_acknowledgement(s.request.pdu, s.reply);
         for (const auto& v : judge_late_frame(oracle_, request, s.reply, came))
             record(v, s.request.pdu.empty() ? 0 : s.request.pdu[0], true);
     }
@@ -429,6 +433,22 @@ void Campaign::note_unread(const modbus::transport::Exchange& ex) {
     for (const auto& point : unread_) {
         unknown_.insert(point);
         if (answered) not_read_.insert(point);
+    }
+}
+
+// A write's acknowledgement that came after its exchange ended (matched to it by transaction id, over RTU
+// and ASCII by what it answers): a reply after --timeout, or over Modbus/TCP one to a request the rules want
+// unanswered (another unit, which a device ignoring the unit id executes), which is not waited for at all.
+// The points it reached that were not read first changed as surely as with a prompt acknowledgement.
+void Campaign::note_late_acknowledgement(std::span<const std::uint8_t> request_pdu,
+                                         const modbus::Frame& reply) {
+    if (unknown_.empty() || !reply.checksum_ok) return;
+    const auto range = write_range(request_pdu);
+    const auto pdu = reply.pdu();
+    if (!range || pdu.empty() || pdu[0] != request_pdu[0]) return;
+    for (std::uint32_t a = range->start; a < range->end(); ++a) {
+        const Location point{range->table, static_cast<std::uint16_t>(a)};
+        if (unknown_.count(point) && !session_.touched().count(point)) not_read_.insert(point);
     }
 }
 

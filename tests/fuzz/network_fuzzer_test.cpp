@@ -8,6 +8,8 @@
 //  - written points are restored; --read-only writes nothing;
 //  - the command's exit codes (0 nothing found, 1 findings, 2 unreachable) and its JSON summary.
 #include <gtest/gtest.h>
+#include <poll.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 
@@ -16,6 +18,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <thread>
 
@@ -25,6 +28,7 @@
 #include "fuzz/network/written_points.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/transport/socket.hpp"
 #include "slave/slave_test_support.hpp"
 #include "tests/support/process_support.hpp"
 
@@ -1000,6 +1004,111 @@ TEST(FuzzCommand, AReplayListsAWriteOutsideTheMapTheDeviceAcknowledged) {
     const auto k = json_in(strict.out);
     ASSERT_FALSE(k.is_discarded()) << strict.out;
     EXPECT_TRUE(k["not_read"].empty()) << strict.out;
+}
+
+// A Modbus/TCP relay in front of port `upstream` (a device serving unit 1) that makes it a device ignoring
+// the unit id, as many are: each request goes on for unit 1, and its reply comes back with the unit the
+// request named. One client connection at a time, as many in turn as the client opens.
+class IgnoresTheUnitId {
+  public:
+    explicit IgnoresTheUnitId(std::uint16_t upstream)
+        : listener_(std::move(mbscope::modbus::transport::listen_tcp("127.0.0.1", 0).value())) {
+        port_ = mbscope::modbus::transport::bound_port(listener_.get());
+        thread_ = std::thread([this, upstream] {
+            while (!stop_) {
+                pollfd p{listener_.get(), POLLIN, 0};
+                if (::poll(&p, 1, 50) != 1) continue;
+                mbscope::modbus::transport::UniqueFd client(::accept(listener_.get(), nullptr, nullptr));
+                auto device = mbscope::modbus::transport::connect_tcp("127.0.0.1", upstream,
+                                                                      std::chrono::milliseconds(1000));
+                if (client.get() >= 0 && device) relay(client.get(), device.value().get());
+            }
+        });
+    }
+    ~IgnoresTheUnitId() {
+        stop_ = true;
+        thread_.join();
+    }
+    std::uint16_t port() const { return port_; }
+
+  private:
+    // Whole MBAP frames off the front of `bytes`, each passed to `each` (which may change it) and sent to
+    // `to`; a length field out of range passes the rest on as it is.
+    template <typename Each>
+    static void forward(std::vector<std::uint8_t>& bytes, int to, Each each) {
+        while (bytes.size() >= 7) {
+            const std::size_t length = (bytes[4] << 8) | bytes[5];
+            const std::size_t size = length >= 2 && length <= 254 ? 6 + length : bytes.size();
+            if (bytes.size() < size) break;
+            std::vector<std::uint8_t> frame(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(size));
+            bytes.erase(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(size));
+            each(frame);
+            (void)::send(to, frame.data(), frame.size(), MSG_NOSIGNAL);
+        }
+    }
+    void relay(int client, int device) {
+        std::vector<std::uint8_t> requests, replies;
+        std::map<std::uint16_t, std::uint8_t> unit_of;  // by transaction id
+        std::uint8_t buf[4096];
+        while (!stop_) {
+            pollfd p[2] = {{client, POLLIN, 0}, {device, POLLIN, 0}};
+            if (::poll(p, 2, 20) <= 0) continue;
+            for (int k = 0; k < 2; ++k) {
+                if (!p[k].revents) continue;
+                const ssize_t n = ::read(p[k].fd, buf, sizeof buf);
+                if (n <= 0) return;
+                (k == 0 ? requests : replies).insert((k == 0 ? requests : replies).end(), buf, buf + n);
+            }
+            forward(requests, device, [&](std::vector<std::uint8_t>& f) {
+                unit_of[static_cast<std::uint16_t>((f[0] << 8) | f[1])] = f[6];
+                f[6] = 1;
+            });
+            forward(replies, client, [&](std::vector<std::uint8_t>& f) {
+                const auto it = unit_of.find(static_cast<std::uint16_t>((f[0] << 8) | f[1]));
+                if (it != unit_of.end()) f[6] = it->second;
+            });
+        }
+    }
+
+    mbscope::modbus::transport::UniqueFd listener_;
+    std::uint16_t port_ = 0;
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+};
+
+// Over Modbus/TCP a write to another unit is read first too (a device ignoring the unit id executes it), but
+// its reply, which the rules do not want, is not waited for: it is matched to the write by transaction id
+// when it comes. A device that executes it changed the points it reached that were not read first (outside
+// the map), and they are listed as not read, as after a prompt acknowledgement; they were in neither list.
+// The device: the reference slave serving the generic map (registers the MMK's manual does not list),
+// ignoring the unit id, fuzzed as an MMK-2030.
+TEST(NetworkFuzzer, AWriteAcknowledgedAfterItsExchangeListsThePointsItReachedUnread) {
+    RunningServer server({}, 1, "modbus");
+    IgnoresTheUnitId relay(server.start("tcp"));
+    auto o = options_for("tcp", relay.port());
+    o.requests = 1500;
+    o.minimise_budget = 0;
+    const auto& mmk = mbscope::slave::test::profile("mmk-2030");
+    const auto s = fz::run_campaign(mmk, o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    ASSERT_FALSE(s.target_lost) << listing(s);
+    std::set<std::pair<Table, std::uint16_t>> listed;
+    for (const auto& r : s.not_read)
+        for (std::uint32_t a = r.start; a < r.end(); ++a)
+            listed.insert({r.table, static_cast<std::uint16_t>(a)});
+    for (const auto& t : s.restored)
+        if (!t.restored) listed.insert({t.table, t.address});
+    std::size_t outside = 0;
+    for (const auto& [t, changed] : server.device().image().changes()) {
+        if (t != Table::Coils && t != Table::HoldingRegisters) continue;
+        for (const auto& [address, now] : changed) {
+            if (mmk.find(t, address)) continue;  // in the map: read first, restored
+            ++outside;
+            EXPECT_TRUE(listed.count({t, address})) << mbscope::modbus::to_string(t) << " " << address
+                                                    << " changed to " << now << " and not listed";
+        }
+    }
+    EXPECT_GT(outside, 0u) << "no write outside the map was executed";
 }
 
 // `mbscope ARGUMENTS` started in the background, its process id known, what it prints collected.
