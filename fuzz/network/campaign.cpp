@@ -619,8 +619,12 @@ void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bo
     if (!options_.artifacts.empty()) {
         std::error_code ec;
         std::filesystem::create_directories(options_.artifacts, ec);
-        std::string name = v.rule + "-fc" + std::to_string(fc) + ".json";
-        const std::string path = (std::filesystem::path(options_.artifacts) / name).string();
+        // A reproducer an earlier run left in the directory is kept: this one takes the next free name.
+        const std::string stem = v.rule + "-fc" + std::to_string(fc);
+        std::string path = (std::filesystem::path(options_.artifacts) / (stem + ".json")).string();
+        for (int n = 2; std::filesystem::exists(path, ec) && n < 10'000; ++n)
+            path = (std::filesystem::path(options_.artifacts) / (stem + "-" + std::to_string(n) + ".json"))
+                       .string();
         if (auto saved = save_reproducer(r, path); saved)
             f.file = path;
         else

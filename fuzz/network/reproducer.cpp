@@ -14,6 +14,7 @@
 #include <fstream>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 namespace mbscope::fuzz::network {
 
@@ -60,6 +61,28 @@ modbus::Result<std::uint64_t, std::string> count(const nlohmann::json& j, const 
     if (!it->is_number_unsigned() || it->get<std::uint64_t>() > most)
         return std::string("\"") + key + "\" is not a whole number in 0.." + std::to_string(most);
     return it->get<std::uint64_t>();
+}
+
+// A text field into `out`, `fallback` when absent; a value of another type is refused by name (it used to
+// end as the JSON library's own message, naming no field). The error, if any.
+std::optional<std::string> text(const nlohmann::json& j, const char* key, const char* fallback,
+                                std::string& out) {
+    const auto it = j.find(key);
+    if (it == j.end()) {
+        out = fallback;
+        return std::nullopt;
+    }
+    if (!it->is_string()) return std::string("\"") + key + "\" is not a string";
+    out = it->get<std::string>();
+    return std::nullopt;
+}
+
+// A true/false field, false when absent.
+modbus::Result<bool, std::string> flag(const nlohmann::json& j, const char* key) {
+    const auto it = j.find(key);
+    if (it == j.end()) return false;
+    if (!it->is_boolean()) return std::string("\"") + key + "\" is not true or false";
+    return it->get<bool>();
 }
 
 // Sleeps `pause`, looking at `stop` every 20 ms at most (a step's pause may be up to a minute). False when
@@ -123,12 +146,16 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
         if (!j.is_object() || !j.contains("mbscope_reproducer") || j["mbscope_reproducer"] != 1)
             return std::string("not an mbscope reproducer (no \"mbscope_reproducer\": 1)");
         Reproducer r;
-        r.rule = j.value("rule", "");
-        r.source = j.value("source", "");
-        r.expected = j.value("expected", "");
-        r.observed = j.value("observed", "");
-        r.target = j.value("target", "");
-        r.profile = j.value("profile", "modbus");
+        for (const auto& [key, field, fallback] :
+             {std::tuple<const char*, std::string*, const char*>{"rule", &r.rule, ""},
+              {"source", &r.source, ""},
+              {"expected", &r.expected, ""},
+              {"observed", &r.observed, ""},
+              {"target", &r.target, ""},
+              {"profile", &r.profile, "modbus"},
+              {"framing", &r.framing, ""}}) {
+            if (auto error = text(j, key, fallback, *field)) return *error;
+        }
         const auto unit = count(j, "unit", 255, 1);
         const auto seed = count(j, "seed", UINT64_MAX, 0);
         const auto request = count(j, "request", UINT64_MAX, 0);
@@ -139,9 +166,11 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
         r.seed = seed.value();
         r.request = request.value();
         r.original_steps = static_cast<std::size_t>(original.value());
-        r.framing = j.value("framing", "");
-        r.minimised = j.value("minimised", false);
+        const auto minimised = flag(j, "minimised");
+        if (!minimised) return minimised.error();
+        r.minimised = minimised.value();
         if (!j.contains("steps") || !j["steps"].is_array()) return std::string("no \"steps\" array");
+        if (j["steps"].empty()) return std::string("\"steps\" is empty: nothing to replay");
         if (j["steps"].size() > max_reproducer_steps)
             return std::string(std::to_string(j["steps"].size()) + " steps, more than the " +
                                std::to_string(max_reproducer_steps) + " a reproducer may hold");
@@ -149,6 +178,7 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
         for (const auto& s : j["steps"]) {
             ++index;
             Step step;
+            if (!s.is_object()) return std::string("step " + std::to_string(index) + ": not an object");
             if (!s.contains("parts") || !s["parts"].is_array() || s["parts"].empty())
                 return std::string("step " + std::to_string(index) + ": no \"parts\"");
             if (s["parts"].size() > max_step_parts)
@@ -156,6 +186,9 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
                                    std::to_string(s["parts"].size()) + " parts, more than the " +
                                    std::to_string(max_step_parts) + " a step may hold");
             for (const auto& p : s["parts"]) {
+                if (!p.is_string())
+                    return std::string("step " + std::to_string(index) +
+                                       ": a part is not a string of hex bytes");
                 auto bytes = unhex(p.get<std::string>());
                 if (!bytes) return std::string("step " + std::to_string(index) + ": " + bytes.error());
                 step.parts.push_back(std::move(bytes).value());
@@ -166,9 +199,14 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
             if (!pause) return std::string("step " + std::to_string(index) + ": " + pause.error());
             step.pause =
                 std::chrono::microseconds((micro ? 1 : 1000) * static_cast<std::int64_t>(pause.value()));
-            step.reconnect_after = s.value("reconnect_after", false);
-            step.void_by_gap = s.value("void_by_gap", false);
-            step.recipe = s.value("recipe", "");
+            const auto reconnect = flag(s, "reconnect_after");
+            const auto gap = flag(s, "void_by_gap");
+            const auto recipe = text(s, "recipe", "", step.recipe);
+            for (const auto* field : {&reconnect, &gap})
+                if (!*field) return std::string("step " + std::to_string(index) + ": " + field->error());
+            if (recipe) return std::string("step " + std::to_string(index) + ": " + *recipe);
+            step.reconnect_after = reconnect.value();
+            step.void_by_gap = gap.value();
             if (modbus::first_unprintable(step.recipe))
                 return std::string("step " + std::to_string(index) +
                                    ": \"recipe\" holds a control character");

@@ -691,6 +691,14 @@ TEST(NetworkFuzzer, ReproducerIsSavedMinimisedAndReplaysTheSameRule) {
                                                 {{1, &mbscope::slave::test::profile("mmk-2030")}}, true);
     const auto replayed = fz::replay(*client, oracle, loaded->steps, {});
     EXPECT_TRUE(fz::breaks(replayed, "reply.echo"));
+
+    // A second run into the same directory keeps the first run's reproducer: its own takes the next name.
+    const auto again = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+    ASSERT_EQ(again.findings.size(), 1u) << listing(again);
+    EXPECT_EQ(std::filesystem::path(again.findings.front().file).filename(),
+              std::filesystem::path(f.file).stem().string() + "-2.json");
+    EXPECT_TRUE(std::filesystem::exists(f.file));
+    EXPECT_TRUE(fz::load_reproducer(again.findings.front().file));
 }
 
 TEST(NetworkFuzzer, DamagedReproducersAreRefusedWithTheReason) {
@@ -733,6 +741,26 @@ TEST(NetworkFuzzer, DamagedReproducersAreRefusedWithTheReason) {
     EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["01 03"],"recipe":"\r"}]})")
                   .find("step 1: \"recipe\" holds a control character"),
               std::string::npos);
+    // A field of the wrong type is refused by name, not with the JSON library's message; a file with no
+    // steps has nothing to replay.
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"rule":5,"steps":[{"parts":["01 03"]}]})")
+                  .find("\"rule\" is not a string"),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"minimised":"yes","steps":[{"parts":["01 03"]}]})")
+                  .find("\"minimised\" is not true or false"),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["01 03"],"reconnect_after":1}]})")
+                  .find("step 1: \"reconnect_after\" is not true or false"),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[{"parts":["01 03"],"recipe":[]}]})")
+                  .find("step 1: \"recipe\" is not a string"),
+              std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[7]})").find("step 1: not an object"),
+              std::string::npos);
+    EXPECT_NE(
+        with(R"({"mbscope_reproducer":1,"steps":[{"parts":[7]}]})").find("step 1: a part is not a string"),
+        std::string::npos);
+    EXPECT_NE(with(R"({"mbscope_reproducer":1,"steps":[]})").find("nothing to replay"), std::string::npos);
     const auto bad_token = with(R"({"mbscope_reproducer":1,"steps":[{"parts":["\u001b[31m"]}]})");
     EXPECT_NE(bad_token.find("'\\x1B[31m' is not a hex byte"), std::string::npos) << bad_token;
     // Sizes: a file from elsewhere is refused past what a reproducer may hold, by name, not parsed into
