@@ -158,6 +158,11 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
                 out << "\n  " << modbus::to_string(t.table) << " " << t.address << ": original " << t.original
                     << ", " << t.problem;
     }
+    // Read-only points a rule's range reached count as restored when the device refused to take their
+    // original back (a process value moves on its own); what they read now is said, not hidden.
+    for (const auto& t : report.restored)
+        if (t.restored && !t.problem.empty())
+            out << "\n  note: " << modbus::to_string(t.table) << " " << t.address << ": " << t.problem;
     out << (report.stopped ? "\nstopped before the end (interrupted)\n" : "\n");
 }
 
@@ -382,7 +387,9 @@ void write_html(std::ostream& out, const Report& report) {
     for (const auto& t : report.restored)
         out << "<tr><td>" << modbus::to_string(t.table) << "</td><td>" << t.address << "</td><td>"
             << t.original << "</td><td class=\"" << (t.restored ? "pass" : "fail") << "\">"
-            << (t.restored ? "yes" : esc("no: " + t.problem)) << "</td></tr>\n";
+            << (t.restored ? (t.problem.empty() ? std::string("yes") : esc("yes; " + t.problem))
+                           : esc("no: " + t.problem))
+            << "</td></tr>\n";
     out << "</table></body></html>\n";
 }
 

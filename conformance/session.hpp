@@ -29,8 +29,10 @@ struct Touched {
     modbus::Table table = modbus::Table::HoldingRegisters;
     std::uint16_t address = 0;
     std::uint16_t original = 0;
-    bool restored = false;  // written back and read back equal
-    std::string problem;    // why not
+    // Written back and read back equal; or a point the map makes read-only, which the device refused to take
+    // back (its value may move on its own), with what it reads now in `problem`.
+    bool restored = false;
+    std::string problem;  // why not; for a read-only point counted restored, what it reads now
 };
 
 class Session {

@@ -689,5 +689,32 @@ TEST(Reports, HtmlIsOneSelfContainedPageWithEveryRuleAndTheResponseTimes) {
     EXPECT_NE(html.find("echo.fc6"), std::string::npos);
 }
 
+// A read-only point a rule's range reached is counted restored when the device refused to take its original
+// back, but what it reads now is said in every report, not shown as a plain "yes".
+TEST(Reports, AReadOnlyPointThatMovedIsShownWithWhatItReads) {
+    Report report;
+    report.restored.push_back({modbus::Table::HoldingRegisters, 5, 7, true, ""});
+    report.restored.push_back({modbus::Table::HoldingRegisters, 0, 120, true,
+                               "read-only in the map, not written back; reads 133, was 120"});
+    report.restored.push_back({modbus::Table::Coils, 3, 1, false, "reads 0 after restoring 1"});
+    std::ostringstream text;
+    write_text(text, report, false);
+    EXPECT_NE(text.str().find("1 NOT restored:\n  coils 3: original 1, reads 0 after restoring 1"),
+              std::string::npos)
+        << text.str();
+    EXPECT_NE(text.str().find(
+                  "note: holding_registers 0: read-only in the map, not written back; reads 133, was 120"),
+              std::string::npos)
+        << text.str();
+    std::ostringstream html;
+    write_html(html, report);
+    EXPECT_NE(html.str().find(">yes; read-only in the map, not written back; reads 133, was 120<"),
+              std::string::npos)
+        << html.str();
+    EXPECT_NE(html.str().find(">yes<"), std::string::npos);
+    const auto json = to_json(report.restored);
+    EXPECT_EQ(json[1]["problem"], "read-only in the map, not written back; reads 133, was 120");
+}
+
 }  // namespace
 }  // namespace mbscope::conformance
