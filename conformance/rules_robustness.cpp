@@ -42,9 +42,13 @@ void check_robustness(Context& c) {
               expect_normal(r, ex, fc);
           });
     if (!c.true_serial()) {
-        c.run({"robustness.pipeline_after_exception", "robustness", "AP §7",
+        // Over RTU on a stream nothing but content ends a frame, and an unsupported function's frame has no
+        // length its content tells (see framing.back_to_back): a warning there, not a failure.
+        const bool rtu_stream = c.session.client().framing() == modbus::Framing::Rtu;
+        c.run({"robustness.pipeline_after_exception", "robustness",
+               rtu_stream ? "AP §7 (RTU over a stream: common practice)" : "AP §7",
                "A valid request sent right behind one that earns an exception is answered too.",
-               Authority::Specification, false},
+               rtu_stream ? Authority::Implied : Authority::Specification, false},
               [&](RuleResult& r) {
                   const std::uint8_t bad[5] = {0x7F, 0x00, 0x00, 0x00, 0x01};
                   auto both = c.session.client().frame(c.session.options().unit, bad);

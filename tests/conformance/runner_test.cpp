@@ -231,7 +231,14 @@ std::vector<FaultCase> fault_cases() {
         {"exception-for-valid=0.5", "mmk-2030", "tcp", "fc.supported.*"},
         {"no-reply=0.3", "mmk-2030", "tcp", "*", false, {"fc.supported.*", "quantity.*"}},
         {"slow-reply=600", "cth2265i", "tcp", "fc.supported.3", false, {"fc.supported.*"}},
-        {"gap-inside-frame=5", "mmk-2030", "rtu-tcp", "*", false, {"fc.*", "robustness.*"}},
+        // Over RTU on a stream a pause inside a reply shows only where two frames share one write (the reply
+        // to the first is taken as ended at the pause): robustness.pipeline_after_exception, a warning there.
+        {"gap-inside-frame=5",
+         "mmk-2030",
+         "rtu-tcp",
+         "robustness.pipeline_after_exception",
+         true,
+         {"fc.*", "robustness.*"}},
         {"word-swap", "walchem-w600", "tcp", "data.word_order.*"},
         {"off-by-one-address", "mmk-2030", "tcp", "address.fc3.last"},
         {"stuck-value=21", "mmk-2030", "tcp", "value.hr21.limits"},
