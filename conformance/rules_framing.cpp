@@ -98,11 +98,8 @@ void check_framing(Context& c) {
                 const auto ex = paused(pause, "second half after a pause of 2 × t1.5");
                 expect_silence(r, ex);
                 if (r.outcome == Outcome::Pass) return;
-                // The pause is made on this host: its scheduler, the kernel's tty buffers or a USB adapter
-                // can close it before it reaches the line, and the device then rightly answers one whole
-                // request. Sent again with a pause it cannot miss before the device is failed.
-                const auto longer =
-                    std::max<std::chrono::microseconds>(pause * 10, std::chrono::milliseconds(50));
+                // Sent again with a pause the host cannot miss before the device is failed.
+                const auto longer = confirming_pause(pause);
                 const std::string again_note =
                     "second half after a pause of " + std::to_string(longer.count() / 1000) + " ms";
                 const auto again = paused(longer, again_note);

@@ -4,6 +4,7 @@
 // forgotten. Before the first write to a point its original value is read and kept; restore() writes every
 // kept value back and reads it again to verify.
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <map>
@@ -24,6 +25,14 @@ struct SessionOptions {
     std::chrono::milliseconds timeout{1000};
     std::chrono::milliseconds interval{0};
 };
+
+// A pause inside a request is made on this host, whose scheduler, tty buffers or USB adapter can close it
+// before it reaches the line; a device that then answers one whole request is right. Before it is blamed for
+// answering a request paused `pause` inside, the request is sent again paused this long: ten times as long,
+// 50 ms at least (the fuzzer's silence.gap_inside_request, check's framing.gap_inside).
+inline std::chrono::microseconds confirming_pause(std::chrono::microseconds pause) noexcept {
+    return std::max<std::chrono::microseconds>(pause * 10, std::chrono::milliseconds(50));
+}
 
 struct Touched {
     modbus::Table table = modbus::Table::HoldingRegisters;

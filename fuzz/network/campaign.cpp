@@ -444,8 +444,7 @@ void Campaign::note_late_acknowledgement(std::span<const std::uint8_t> request_p
                                          const modbus::Frame& reply) {
     if (unknown_.empty() || !reply.checksum_ok) return;
     const auto range = write_range(request_pdu);
-    const auto pdu = reply.pdu();
-    if (!range || pdu.empty() || pdu[0] != request_pdu[0]) return;
+    if (!range || !acknowledges(request_pdu, reply.pdu())) return;
     for (std::uint32_t a = range->start; a < range->end(); ++a) {
         const Location point{range->table, static_cast<std::uint16_t>(a)};
         if (unknown_.count(point) && !session_.touched().count(point)) not_read_.insert(point);
@@ -719,12 +718,9 @@ CampaignSummary Campaign::run() {
                 }
                 if (!healthy()) s_.target_lost = true;
             } else if (v.rule == "silence.gap_inside_request") {
-                // The pause is made by this host: its scheduler, the kernel's tty buffers or a USB adapter
-                // can close it before it reaches the line, and the device rightly answers one whole request.
-                // Sent again with a pause it cannot miss before it counts.
+                // Sent again with a pause the host cannot miss before it counts.
                 auto again = frame(p);
-                again.pause =
-                    std::max<std::chrono::microseconds>(step.pause * 10, std::chrono::milliseconds(50));
+                again.pause = conformance::confirming_pause(step.pause);
                 const auto confirmed = send(again, options_.timeout);
                 note_unread(confirmed.exchange);
                 if (std::none_of(confirmed.violations.begin(), confirmed.violations.end(),

@@ -185,8 +185,9 @@ std::vector<WriteRange> acknowledged_unchecked(const std::vector<UncheckedWrite>
     for (const auto& w : unchecked) {
         if (w.step >= steps.size()) continue;  // the replay stopped before it
         const auto replies = loose_requests(framing, steps[w.step].exchange.received);
+        const std::uint8_t function[] = {w.function};
         const bool acknowledged = std::any_of(replies.begin(), replies.end(), [&](const LooseRequest& r) {
-            return !r.pdu.empty() && r.pdu[0] == w.function;
+            return acknowledges(function, r.pdu);
         });
         if (!acknowledged) continue;
         for (const auto& range : w.points)

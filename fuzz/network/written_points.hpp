@@ -32,6 +32,10 @@ struct WriteRange {
     }
 };
 std::optional<WriteRange> write_range(std::span<const std::uint8_t> pdu);
+// Whether `reply_pdu` acknowledges the write `request_pdu`: a normal response of its function.
+inline bool acknowledges(std::span<const std::uint8_t> request_pdu, std::span<const std::uint8_t> reply_pdu) {
+    return !request_pdu.empty() && !reply_pdu.empty() && reply_pdu[0] == request_pdu[0];
+}
 
 // Rewrites a write request so that the holding registers for which `held` gives a value keep it: the value
 // an FC6, FC16 or FC23 request would store there becomes that value, and an FC22 mask there becomes the one
