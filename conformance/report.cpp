@@ -143,7 +143,7 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
     out << report.results.size() << " rules: " << report.count(Outcome::Pass) << " passed, "
         << report.failures_of(Authority::Specification) << " failed the specification, "
         << report.failures_of(Authority::Manual) << " failed the manual, "
-        << report.failures_of(Authority::Implied) << " warnings (rules the manual only implies), "
+        << report.failures_of(Authority::Implied) << " warnings (not counted in the exit code), "
         << report.count(Outcome::Skip) << " skipped, " << report.count(Outcome::Error) << " errors; "
         << report.requests << " requests in " << ms(report.wall) << " ms\n";
     if (report.late_replies)
@@ -287,7 +287,9 @@ void write_junit(std::ostream& out, const Report& report) {
             else if (shown == "skip")
                 out << "      <skipped message=\"" << xml_escape(r->reason) << "\"/>\n";
             else if (shown == "warn")
-                out << "      <system-out>" << xml_escape("warning (rule the manual only implies)\n" + body)
+                out << "      <system-out>"
+                    << xml_escape("warning (not counted in the exit code: " + std::string(r->rule.source) +
+                                  ")\n" + body)
                     << "</system-out>\n";
             out << "    </testcase>\n";
         }

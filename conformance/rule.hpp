@@ -16,7 +16,9 @@ std::string_view to_string(Outcome o) noexcept;
 enum class Authority : std::uint8_t {
     Specification,  // Modbus Application Protocol V1.1b3, Serial Line V1.02, Messaging on TCP/IP V1.0b
     Manual,         // the device's manual, as the profile transcribes it
-    Implied,        // the manual implies it without saying it: a failure is a warning
+    // A failure is a warning: the manual implies the rule without saying it, or what the rule judges this
+    // host cannot tell surely (frames told apart by content on a stream, pauses timed by its reads).
+    Implied,
 };
 std::string_view to_string(Authority a) noexcept;
 

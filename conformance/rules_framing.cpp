@@ -1,6 +1,6 @@
 // Framing on serial lines and serial framing over TCP (SL §2.5): a bad CRC or LRC is never answered, nor a
-// truncated frame, nor one holding a silence above t1.5; the reply starts after t3.5; requests back to back
-// are each answered; ASCII accepts lower-case hex.
+// truncated frame, nor one holding a silence above t1.5; the reply starts after t3.5 and holds no such
+// silence either; requests back to back are each answered; ASCII accepts lower-case hex.
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -82,6 +82,47 @@ void check_framing(Context& c) {
                                std::to_string(ex.first_byte.count() / 1000) + " µs";
                   r.outcome =
                       is_normal(ex, fc) && ex.first_byte >= line.t3_5() ? Outcome::Pass : Outcome::Fail;
+              });
+        // The device's side of the same rule: its reply is one continuous stream. Pauses inside a reply are
+        // timed by this host's reads, which its scheduler and a USB adapter's buffering move by a millisecond
+        // or more (the allowance the client also adds to t3.5 before it ends a frame): a warning, seen in
+        // most of several replies, not a failure. A pause over t3.5 splits the reply, which other rules fail.
+        c.run({"framing.reply_continuous", "framing", "SL §2.5.1.1 (pauses as this host times them)",
+               "The reply holds no silence above t1.5.", Authority::Implied, false},
+              [&](RuleResult& r) {
+                  constexpr int replies = 5;
+                  const auto allowed = line.t1_5() + std::chrono::milliseconds(1);
+                  int normal = 0;
+                  int paused = 0;
+                  std::chrono::nanoseconds longest{0};
+                  std::size_t after = 0;
+                  std::size_t size = 0;
+                  for (int i = 0; i < replies; ++i) {
+                      const auto ex = c.session.raw(good, "a request (reply " + std::to_string(i + 1) +
+                                                              " of " + std::to_string(replies) + ")");
+                      if (!is_normal(ex, fc)) continue;
+                      ++normal;
+                      if (ex.longest_pause <= allowed) continue;
+                      ++paused;
+                      if (ex.longest_pause > longest) {
+                          longest = ex.longest_pause;
+                          after = ex.pause_after;
+                          size = ex.own_received().size();
+                      }
+                  }
+                  r.expected = "no pause above t1.5 (" + std::to_string(line.t1_5().count() / 1000) +
+                               " µs) + 1 ms inside a reply";
+                  if (normal == 0) {
+                      r.outcome = Outcome::Skip;
+                      r.reason = "no normal reply to time";
+                      return;
+                  }
+                  r.observed = std::to_string(paused) + " of " + std::to_string(normal) +
+                               " normal replies held a pause";
+                  if (paused > 0)
+                      r.observed += ", the longest " + std::to_string(longest.count() / 1000) +
+                                    " µs after byte " + std::to_string(after) + " of " + std::to_string(size);
+                  r.outcome = 2 * paused > normal ? Outcome::Fail : Outcome::Pass;
               });
         c.run(
             {"framing.gap_inside", "framing", "SL §2.5.1.1",

@@ -100,11 +100,11 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
     const auto start = Clock::now();
     const auto deadline = start + timeout;
     const bool datagram = endpoint_.scheme == Scheme::Udp;
+    const bool serial = is_serial(endpoint_.scheme);
     const std::chrono::microseconds silence_window =
-        is_serial(endpoint_.scheme)
-            ? std::chrono::duration_cast<std::chrono::microseconds>(endpoint_.line.t3_5()) +
-                  std::chrono::milliseconds(1)
-            : std::chrono::microseconds(options_.settle);
+        serial ? std::chrono::duration_cast<std::chrono::microseconds>(endpoint_.line.t3_5()) +
+                     std::chrono::milliseconds(1)
+               : std::chrono::microseconds(options_.settle);
     // A server on the same machine or a fast network answers within tens of microseconds: polling without
     // sleeping for that long first spares the wake-up of a sleeping thread, which costs about as much as
     // the exchange (the slave's server loop does the same after answering).
@@ -142,7 +142,13 @@ Exchange Client::raw(std::span<const std::uint8_t> bytes, std::chrono::microseco
                 continue;
             }
             if (n < 0) continue;
+            const auto previous_read = read_at;
             read_at = Clock::now() - start;
+            if (serial && ex.received.size() > frames_in.framed() &&
+                read_at - previous_read > ex.longest_pause) {
+                ex.longest_pause = read_at - previous_read;
+                ex.pause_after = ex.received.size() - frames_in.framed();
+            }
             read_from = ex.received.size();
             if (read_from == 0) ex.first_byte = read_at;
             ex.received.insert(ex.received.end(), buf, buf + n);

@@ -28,6 +28,11 @@ struct Exchange {
     std::chrono::nanoseconds first_byte{0};
     bool timed_out = false;  // nothing complete arrived in time
     bool closed = false;     // the peer closed the connection
+    // Serial lines: the longest time between two reads while a frame was still incomplete (a pause inside a
+    // frame, as this host saw it: its scheduler and a USB adapter's buffering move such times), and how many
+    // bytes of that frame had come before it. Zero: every frame came in one read or without a pause.
+    std::chrono::nanoseconds longest_pause{0};
+    std::size_t pause_after = 0;
     // Late replies to earlier requests, read and set aside: over Modbus/TCP by transaction id, over RTU and
     // ASCII by what they answer (see OwedRequest).
     std::vector<Frame> stale_replies;
@@ -144,6 +149,9 @@ class ReplyScanner {
 
     // Frames found so far, not counting those set aside.
     std::size_t found() const noexcept { return found_; }
+    // How many bytes of ex.received the frames found (and set aside) so far span: the bytes past it are a
+    // frame still coming.
+    std::size_t framed() const noexcept { return scan_from_; }
     // Whether the exchange is complete: the frames waited for have come.
     bool complete() const noexcept { return frames_ != 0 && found_ >= frames_; }
 

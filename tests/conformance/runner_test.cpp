@@ -233,6 +233,7 @@ std::vector<FaultCase> fault_cases() {
         {"slow-reply=600", "cth2265i", "tcp", "fc.supported.3", false, {"fc.supported.*"}},
         // Over RTU on a stream a pause inside a reply shows only where two frames share one write (the reply
         // to the first is taken as ended at the pause): robustness.pipeline_after_exception, a warning there.
+        // On a line framing.reply_continuous reports it (serial_line_test.cpp, on a pseudo-terminal).
         {"gap-inside-frame=5",
          "mmk-2030",
          "rtu-tcp",

@@ -19,7 +19,14 @@ using namespace mbscope::conformance::test;
 // The reference slave serving mmk-2030 on a pseudo-terminal it creates, the line timed at `baud`.
 class SlaveOnPty {
   public:
-    SlaveOnPty(const std::string& framing, int baud) {
+    SlaveOnPty(const std::string& framing, int baud, const std::vector<std::string>& faults = {}) {
+        std::vector<slave::FaultSpec> specs;
+        for (const auto& f : faults) {
+            auto spec = slave::parse_fault(f);
+            EXPECT_TRUE(spec.has_value()) << f;
+            if (spec) specs.push_back(*spec);
+        }
+        faults_ = slave::FaultSet(specs, 7);
         auto listen = tp::parse_endpoint(framing + ":pty?baud=" + std::to_string(baud));
         EXPECT_TRUE(listen.has_value());
         if (!listen) return;
@@ -89,6 +96,41 @@ TEST(SerialLine, APauseTheDeviceDidNotHearIsTriedLongerBeforeTheDeviceFails) {
     ASSERT_NE(gap, report.results.end());
     EXPECT_EQ(gap->outcome, Outcome::Pass) << gap->observed;
     EXPECT_NE(gap->observed.find("after 50 ms"), std::string::npos) << gap->observed;
+}
+
+// gap-inside-frame on a true serial line: every reply comes in two parts 2.5 character times apart, which
+// SL §2.5.1.1 makes a broken frame (a silence over t1.5 inside it); a master on the line discards it. The
+// device and the runner time the line at 1200 baud (t1.5 13.75 ms, t3.5 32 ms), so the pause (23 ms) is
+// far from both the allowance for this host's timing (t1.5 + 1 ms) and the silence that splits a reply.
+// Over RTU on a stream the fault shows only where two frames share one write (runner_test.cpp's table).
+TEST(SerialLine, APauseInsideTheDevicesRepliesIsReported) {
+    SlaveOnPty slave("rtu", 1200, {"gap-inside-frame=2.5"});
+    auto target = tp::parse_endpoint("rtu:" + slave.address() + "?baud=1200");
+    ASSERT_TRUE(target.has_value());
+    auto client = tp::Client::open(*target);
+    ASSERT_TRUE(client.has_value()) << (client ? "" : client.error());
+    auto options = options_for(std::chrono::milliseconds(500));
+    options.run.rule_globs = {"framing.*", "fc.supported.3"};
+    const auto report = run_check(*client, slave::test::profile("mmk-2030"), options);
+    slave.stop();
+    const auto outcome = [&](const std::string& id) -> const RuleResult* {
+        const auto it = std::find_if(report.results.begin(), report.results.end(),
+                                     [&](const RuleResult& x) { return x.rule.id == id; });
+        return it == report.results.end() ? nullptr : &*it;
+    };
+    const RuleResult* continuous = outcome("framing.reply_continuous");
+    ASSERT_NE(continuous, nullptr);
+    EXPECT_EQ(continuous->outcome, Outcome::Fail) << continuous->observed;
+    EXPECT_EQ(continuous->rule.authority, Authority::Implied);
+    EXPECT_NE(continuous->observed.find("5 of 5 normal replies held a pause"), std::string::npos)
+        << continuous->observed;
+    EXPECT_NE(continuous->observed.find("after byte 3 of 7"), std::string::npos) << continuous->observed;
+    // The pause is shorter than the silence that ends a frame: each reply is still whole.
+    const RuleResult* read = outcome("fc.supported.3");
+    ASSERT_NE(read, nullptr);
+    EXPECT_EQ(read->outcome, Outcome::Pass) << read->observed;
+    EXPECT_EQ(report.failures_of(Authority::Specification) + report.failures_of(Authority::Manual), 0u)
+        << failures(report);
 }
 
 INSTANTIATE_TEST_SUITE_P(Serial, OverPseudoTerminal, ::testing::Values("rtu", "ascii"));
