@@ -19,6 +19,15 @@
 namespace mbscope::cli {
 namespace {
 
+// Where a device answers: "address 5", or that it is silent (an address its manual says disables
+// communication, MK's 0).
+std::string address_text(const slave::Device& d) {
+    const auto& disabled = d.profile().line.unit_disabled;
+    if (std::find(disabled.begin(), disabled.end(), int(d.unit())) != disabled.end())
+        return "address " + std::to_string(d.unit()) + ", which disables communication";
+    return "address " + std::to_string(d.unit());
+}
+
 struct SlaveOptions {
     std::string profile = "modbus";
     std::string listen = "tcp://127.0.0.1:5020";
@@ -139,9 +148,22 @@ int run_slave(const SlaveOptions& o) {
     options.create_pty = o.pty;
     options.max_clients = o.max_clients;
     options.idle_timeout = std::chrono::milliseconds(static_cast<long>(o.idle_timeout_s * 1000));
-    options.tick = [&processes](std::chrono::steady_clock::time_point now) {
+    // A write to a device's address register moves it at once (MK ENDER): said as it happens.
+    std::vector<std::uint8_t> answering;
+    for (const auto* d : units)
+        answering.push_back(d->unit());
+    options.tick = [&processes, &units, &answering,
+                    quiet = o.quiet](std::chrono::steady_clock::time_point now) {
         for (auto& p : processes)
             p.advance(now);
+        for (std::size_t i = 0; i < units.size(); ++i) {
+            if (units[i]->unit() == answering[i]) continue;
+            answering[i] = units[i]->unit();
+            if (!quiet)
+                std::cerr << "mbscope slave: unit " << int(units[i]->configured_unit()) << " ("
+                          << units[i]->profile().id << ") now answers at " << address_text(*units[i])
+                          << ": its address register was written\n";
+        }
     };
     if (o.pty && !modbus::transport::is_serial(endpoint->scheme)) {
         std::cerr << "mbscope slave: --pty needs a serial endpoint (rtu:pty or ascii:pty)\n";
@@ -162,8 +184,13 @@ int run_slave(const SlaveOptions& o) {
             target.device = server.address();
             std::cerr << "mbscope slave: mbscope commands reach it as --target '" << target.text() << "'\n";
         }
-        for (const auto* d : units)
-            std::cerr << "mbscope slave: unit " << int(d->unit()) << " serves " << d->profile().id << '\n';
+        for (const auto* d : units) {
+            std::cerr << "mbscope slave: unit " << int(d->configured_unit()) << " serves " << d->profile().id;
+            if (d->unit() != d->configured_unit())
+                std::cerr << ", answering at " << address_text(*d) << " (its address register, as " << o.state
+                          << " keeps it)";
+            std::cerr << '\n';
+        }
         for (const auto& f : o.faults)
             std::cerr << "mbscope slave: planted fault " << f << '\n';
     }
@@ -198,7 +225,8 @@ void register_slave(CLI::App& app, int& exit_code) {
         "  A unit no --unit names gets no reply, on every transport (the slave is no gateway). Unit 0 is\n"
         "  the broadcast: every unit whose profile allows the function executes it, none replies. Over\n"
         "  tcp with a single unit, unit 255 reaches it too (Modbus/TCP: the device is its IP address),\n"
-        "  and so does any unit when its manual says so (Walchem).\n\n"
+        "  and so does any unit when its manual says so (Walchem). A valid write to a device's address\n"
+        "  register (MK ENDER) moves it at once, after its acknowledgement; --state keeps the move.\n\n"
         "Faults (--fault NAME[=ARG], repeatable, deterministic under --seed):\n" +
         slave::fault_help() +
         "\nExit codes: 0 stopped by SIGINT/SIGTERM, 2 could not start (bad option, profile, endpoint or "

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <span>
+#include <utility>
 
 #include "conformance/context.hpp"
 #include "modbus/addressing.hpp"
@@ -34,6 +35,23 @@ void ExchangeOracle::reset() {
     listen_only_.clear();
     listen_only_unknown_.clear();
     written_.clear();
+}
+
+void ExchangeOracle::moved(std::size_t index, std::uint8_t to) {
+    if (index >= units_.size() || units_[index].id == to) return;
+    const std::uint8_t from = std::exchange(units_[index].id, to);
+    const auto rekey = [&](std::set<std::uint8_t>& units) {
+        if (units.erase(from)) units.insert(to);
+    };
+    rekey(listen_only_);
+    rekey(listen_only_unknown_);
+    std::map<ShadowKey, std::uint16_t> written;
+    for (const auto& [key, value] : written_) {
+        auto k = key;
+        if (std::get<0>(k) == from) std::get<0>(k) = to;
+        written[k] = value;
+    }
+    written_ = std::move(written);
 }
 
 namespace {
@@ -112,6 +130,9 @@ ExchangeOracle::Expected ExchangeOracle::expect(const Request& r) const {
         return e;
     }
     const Unit* u = route(r.unit);
+    // Address 0 set on a device disables its communication (MK-ADR-01, 000:220): over Modbus/TCP unit 0xFF
+    // still reaches the lone device, which stays silent.
+    if (u && u->id == 0) return silence("silence.address_disabled", "MK-ADR-01");
     if (!u) {
         if (serial(framing_)) return silence("silence.other_unit", "SL §2.1");
         // A Modbus/TCP device that does not serve the unit id: silence, or a gateway's exceptions 0A/0B.

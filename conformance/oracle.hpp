@@ -74,6 +74,10 @@ class ExchangeOracle {
 
     // Forget what was learnt from acknowledged writes and listen-only mode (the target was restarted).
     void reset();
+    // The `index`th of the units the oracle was made with answers at `to` now (a write to its address
+    // register moved it, MK ENDER); what was learnt of it goes with it. The caller tells: a broadcast write
+    // executes unseen. At address 0 a device answers nothing (communication disabled, MK-ADR-01).
+    void moved(std::size_t index, std::uint8_t to);
 
   private:
     // Exception codes, one bit each: a judged request allocates nothing for them.

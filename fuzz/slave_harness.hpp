@@ -52,7 +52,10 @@ class SlaveHarness {
           framing_(framing),
           profiles_(std::move(profiles)),
           responder_(units, no_faults, framing, ip_network),
-          oracle_(framing, oracle_units(units), ip_network) {}
+          oracle_(framing, oracle_units(units), ip_network) {
+        for (const auto* d : units)
+            answering_.push_back(d->unit());
+    }
 
     // Hands `adu` to the slave when it decodes as a frame (the server never hands other bytes to a unit) and
     // judges the reply; false when it is no frame.
@@ -76,6 +79,13 @@ class SlaveHarness {
         for (const auto& v : oracle_.judge(ex, changed))
             fail(target_, conformance::to_string(v) + "\n  profile " + profiles_ + "\n  request " +
                               modbus::hex_bytes(ex.sent) + "\n  reply   " + modbus::hex_bytes(ex.received));
+        // A write to a device's address register moves it (MK ENDER; the slave's tests prove when): the
+        // oracle follows, as it cannot see a broadcast write execute.
+        for (std::size_t i = 0; i < units_.size(); ++i)
+            if (units_[i]->unit() != answering_[i]) {
+                oracle_.moved(i, units_[i]->unit());
+                answering_[i] = units_[i]->unit();
+            }
         return true;
     }
 
@@ -100,6 +110,7 @@ class SlaveHarness {
     std::string profiles_;
     slave::Responder responder_;
     conformance::ExchangeOracle oracle_;
+    std::vector<std::uint8_t> answering_;  // each unit's address as the oracle knows it
 };
 
 }  // namespace mbscope::fuzz

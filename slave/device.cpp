@@ -74,12 +74,28 @@ Device::Device(const modbus::Profile& profile, std::uint8_t unit, FaultSet* faul
     : Device(profile, modbus::LineState{unit, std::nullopt, std::nullopt, std::nullopt}, faults) {}
 
 Device::Device(const modbus::Profile& profile, const modbus::LineState& line, FaultSet* faults)
-    : profile_(&profile), unit_(line.unit), faults_(faults ? faults : &no_faults_), image_(profile, line) {}
+    : profile_(&profile),
+      unit_(line.unit),
+      configured_unit_(line.unit),
+      faults_(faults ? faults : &no_faults_),
+      image_(profile, line) {
+    for (const modbus::Point& p : profile.table(Table::HoldingRegisters))
+        if (p.mirrors == modbus::LineSetting::UnitId && p.access != modbus::Access::Read &&
+            p.encoding.words == 1 && !p.fixed_value)
+            address_register_ = &p;
+}
 
 void Device::reset() noexcept {
     image_.reset();
     counters_ = Counters{};
     listen_only_ = false;
+    unit_ = configured_unit_;
+}
+
+void Device::follow_address() noexcept {
+    if (!address_register_) return;
+    const std::uint16_t held = image_.reg(Table::HoldingRegisters, address_register_->address);
+    if (held <= 0xFF) unit_ = static_cast<std::uint8_t>(held);
 }
 
 void Device::count_frame(bool checksum_ok) noexcept {
@@ -106,6 +122,7 @@ std::vector<std::uint8_t> Device::exception(std::uint8_t fc, std::uint8_t code) 
 std::vector<std::uint8_t> Device::refuse_taken_back_write(std::uint8_t fc) {
     // handle() counted the acknowledgement it made as a completion; that acknowledgement is never sent.
     --counters_.event_count;  // the exact inverse, wrap-round included
+    follow_address();         // a new address taken back with the write
     return exception(fc & 0x7F, exc_device_failure);
 }
 
@@ -150,6 +167,9 @@ Reply Device::handle(const Request& request) {
             out = dispatch(*decoded, request.broadcast, reply.wrote);
         }
     }
+    // A new address takes effect once the request is done: the reply (formed by the server from the
+    // request's unit id) still goes out from the old one, as from a device that obeys after answering.
+    if (reply.wrote) follow_address();
     if (!out.empty() && (out[0] & 0x80) == 0 && fc != 8 && fc != 11 && fc != 12) ++counters_.event_count;
     if (!out.empty() && (out[0] & 0x80) == 0 && faults_->fires(Fault::ExceptionForValid)) {
         out = exception(fc, exc_device_failure);

@@ -58,7 +58,16 @@ class Device {
     RegisterImage& image() noexcept { return image_; }
     const RegisterImage& image() const noexcept { return image_; }
     const modbus::Profile& profile() const noexcept { return *profile_; }
+    // The address the device answers at now: the one it was made with until a write to the register that
+    // holds its address moves it (MK ENDER: the device obeys at once, MK-CFG-01; 0 disables communication,
+    // MK-ADR-01), as a restored state file can.
     std::uint8_t unit() const noexcept { return unit_; }
+    // The address it was made with (`--unit`), which names it in a state file whatever it answers at now.
+    std::uint8_t configured_unit() const noexcept { return configured_unit_; }
+    // Takes the address the image holds in the register that mirrors it, when the map has a writable one and
+    // the value is an address (0-255): after a write the server took back, and after a state file was
+    // applied.
+    void follow_address() noexcept;
     const Counters& counters() const noexcept { return counters_; }
     bool listen_only() const noexcept { return listen_only_; }
     // Addresses whose value the process must not move (stuck-value fault, or a user's pinned value).
@@ -91,6 +100,8 @@ class Device {
 
     const modbus::Profile* profile_;
     std::uint8_t unit_;
+    std::uint8_t configured_unit_;
+    const modbus::Point* address_register_ = nullptr;  // a writable holding register mirroring the unit id
     FaultSet* faults_;
     FaultSet no_faults_;
     RegisterImage image_;

@@ -46,7 +46,7 @@ std::string state_text(const std::vector<Device*>& devices, const OtherUnits& ot
                 t[std::to_string(address)] = value;
             unit[std::string(modbus::to_string(table))] = std::move(t);
         }
-        doc["units"][std::to_string(d->unit())] = std::move(unit);
+        doc["units"][std::to_string(d->configured_unit())] = std::move(unit);
     }
     return doc.dump(1) + "\n";
 }
@@ -123,9 +123,9 @@ modbus::Result<OtherUnits, std::string> apply_state(std::string_view text, const
     };
     std::vector<Entry> entries;
     for (Device* d : devices) {
-        const auto it = doc["units"].find(std::to_string(d->unit()));
+        const auto it = doc["units"].find(std::to_string(d->configured_unit()));
         if (it == doc["units"].end()) continue;
-        const std::string unit = name + ": unit " + std::to_string(d->unit());
+        const std::string unit = name + ": unit " + std::to_string(d->configured_unit());
         if (const auto saved = text_of(*it, "profile"); saved != d->profile().id)
             return unit + " was saved with profile \"" + (saved.empty() ? "?" : modbus::printable(saved)) +
                    "\", now served as \"" + d->profile().id + "\"";
@@ -149,9 +149,12 @@ modbus::Result<OtherUnits, std::string> apply_state(std::string_view text, const
     }
     OtherUnits others = doc["units"];
     for (const Device* d : devices)
-        others.erase(std::to_string(d->unit()));
+        others.erase(std::to_string(d->configured_unit()));
     for (const Entry& e : entries)
         e.device->image().set_reg(e.table, e.address, e.value);
+    // A device whose address was written answers at it after a restart too, as one keeps it in its memory.
+    for (Device* d : devices)
+        d->follow_address();
     return others.empty() ? OtherUnits{} : others;
 }
 

@@ -1,10 +1,12 @@
 #pragma once
 // The slave's memory across restarts (--state FILE): every register and coil that differs from the
-// profile's initial image, per unit, as JSON. Saved atomically: written to FILE.tmp, fsync'ed, renamed over
-// FILE and the directory fsync'ed, so a kill at any instant leaves either the old or the new image, never
-// a torn one. The server saves before it sends the acknowledgement of a write, so an acknowledged write is
-// on disk. Units the file holds that a run does not serve are written back as they were saved, so serving
-// fewer units for a while loses none of the others' values.
+// profile's initial image, per unit (named by the address it was made with, `--unit`, also when a write
+// moved it: the address written is in the image and taken again on loading), as JSON. Saved atomically:
+// written to FILE.tmp, fsync'ed, renamed over FILE and the directory fsync'ed, so a kill at any instant
+// leaves either the old or the new image, never a torn one. The server saves before it sends the
+// acknowledgement of a write, so an acknowledged write is on disk. Units the file holds that a run does not
+// serve are written back as they were saved, so serving fewer units for a while loses none of the others'
+// values.
 
 #include <string>
 #include <string_view>
@@ -25,8 +27,8 @@ using OtherUnits = nlohmann::json;
 // system call that failed.
 modbus::Result<void, std::string> save_state(const std::string& path, const std::vector<Device*>& devices,
                                              const OtherUnits& others = {});
-// Applies a saved image to the devices with the same unit id and profile and returns the units it holds
-// for no device. A missing file is not an error (first start); one that exists and cannot be read, or a
+// Applies a saved image to the devices with the same configured unit id and profile and returns the units it
+// holds for no device. A missing file is not an error (first start); one that exists and cannot be read, or a
 // damaged one, is, naming the file and what is wrong.
 modbus::Result<OtherUnits, std::string> load_state(const std::string& path,
                                                    const std::vector<Device*>& devices);

@@ -80,9 +80,10 @@ std::vector<Step> script(const mb::Profile& p, std::uint8_t unit, Framing framin
     int written = 0;
     for (const auto& pt : p.table(Table::HoldingRegisters)) {
         // Points with a documented range: a value inside it is known to be accepted, one past it refused.
+        // Not a line setting: a valid address moves the device (MK ENDER), as it would a real one.
         if (written == 3 || pt.access != mb::Access::ReadWrite || pt.encoding.words != 1 || pt.reserved ||
             !p.functions.supports(6) || pt.fixed_value || pt.min_from || pt.max_from || !pt.max ||
-            pt.encoding.type == mb::EncodingType::Enum)
+            pt.encoding.type == mb::EncodingType::Enum || pt.mirrors)
             continue;
         const std::uint16_t value = static_cast<std::uint16_t>(pt.max.value_or(pt.min.value_or(0) + 1));
         add(pdu(6, {pt.address, value}));

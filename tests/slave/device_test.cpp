@@ -1,8 +1,9 @@
 // slave::Device mechanics that no one manual states: malformed requests, FC8 counters and listen-only mode,
 // the write flag the state file relies on, the initial register image; and the server's unit routing
-// (a unit configured at the address that disables communication).
+// (a unit configured at the address that disables communication, a device moved by a write to its address).
 #include <gtest/gtest.h>
 
+#include "slave/responder.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
 namespace mbscope::slave::test {
@@ -182,20 +183,42 @@ TEST(Device, SameAsTablesShareStorage) {
     EXPECT_EQ(ask(device, "04 00 17 00 01"), "04 02 00 0A");
 }
 
+// Devices on one line, served over rtu-tcp on a free loopback port until stop() or the end of the scope.
+class ServedLine {
+  public:
+    ServedLine(std::vector<Device*> units, FaultSet& faults)
+        : server_(*mb::transport::parse_endpoint("rtu-tcp://127.0.0.1:0"), std::move(units), faults,
+                  ServerOptions{}) {
+        opened_ = server_.open().has_value();
+        if (opened_) thread_ = std::thread([this] { (void)server_.run(stop_); });
+    }
+    ~ServedLine() { stop(); }
+    ServedLine(const ServedLine&) = delete;
+    ServedLine& operator=(const ServedLine&) = delete;
+    bool opened() const noexcept { return opened_; }
+    std::uint16_t port() const noexcept { return server_.port(); }
+    void stop() {
+        stop_ = true;
+        if (thread_.joinable()) thread_.join();
+    }
+
+  private:
+    Server server_;
+    bool opened_ = false;
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+};
+
 // MK-ADR-01 (000:220): ENDER 0 disables communication — a unit configured at 0 on an MK profile answers
 // nothing and executes no broadcast, while the unit beside it on the same line does.
 TEST(ServerRouting, MK_ADR_01_UnitZeroConfiguredNeverCommunicates) {
     FaultSet faults;
     Device silent(profile("mmk-2030"), 0, &faults);
     Device active(profile("mmk-2030"), 2, &faults);
-    auto endpoint = mb::transport::parse_endpoint("rtu-tcp://127.0.0.1:0");
-    ASSERT_TRUE(endpoint.has_value());
-    Server server(*endpoint, {&silent, &active}, faults, ServerOptions{});
-    ASSERT_TRUE(server.open().has_value());
-    std::atomic<bool> stop{false};
-    std::thread thread([&] { (void)server.run(stop); });
+    ServedLine line({&silent, &active}, faults);
+    ASSERT_TRUE(line.opened());
     {
-        Client client(server.port());
+        Client client(line.port());
         ASSERT_TRUE(client.connected());
         // Broadcast FC6 register 23 := 10 (RTU, CRC written by hand), then read it from unit 2.
         client.send(mb::encode_rtu(0, bytes("06 00 17 00 0A")));
@@ -204,10 +227,69 @@ TEST(ServerRouting, MK_ADR_01_UnitZeroConfiguredNeverCommunicates) {
                   "02 03 02 00 0A 7C 43");
         EXPECT_EQ(client.exchange(hex(mb::encode_rtu(0, bytes("03 00 17 00 01"))), 7, silence), "");
     }
-    stop = true;
-    thread.join();
+    line.stop();
     EXPECT_EQ(silent.image().reg(Table::HoldingRegisters, 23), 0);
     EXPECT_EQ(active.image().reg(Table::HoldingRegisters, 23), 10);
+}
+
+// MK-CFG-01 (000:218-226, 500): the slave address ENDER (register 7) is a register too, and a device obeys a
+// valid new one at once. The write is acknowledged from the old address; from then on the device answers at
+// the new one and not at the old, on the same line as a unit that stays where it was; 0 disables it
+// (MK-ADR-01), broadcasts included. A value outside 0..99 is refused and moves nothing.
+TEST(ServerRouting, MK_CFG_01_AWrittenAddressMovesTheDevice) {
+    FaultSet faults;
+    Device moving(profile("mmk-2030"), 1, &faults);
+    Device staying(profile("mmk-2030"), 2, &faults);
+    ServedLine line({&moving, &staying}, faults);
+    ASSERT_TRUE(line.opened());
+    const auto rtu = [](std::uint8_t unit, const char* pdu) { return hex(mb::encode_rtu(unit, bytes(pdu))); };
+    {
+        Client client(line.port());
+        ASSERT_TRUE(client.connected());
+        // ENDER := 100 (the manual's own example, 000:500): exception 03, the device stays at 1.
+        EXPECT_EQ(client.exchange(rtu(1, "06 00 07 00 64"), 5), rtu(1, "86 03"));
+        EXPECT_EQ(client.exchange(rtu(1, "03 00 07 00 01"), 7), rtu(1, "03 02 00 01"));
+        // ENDER := 5: acknowledged from address 1, then address 5 answers and 1 does not.
+        EXPECT_EQ(client.exchange(rtu(1, "06 00 07 00 05"), 8), rtu(1, "06 00 07 00 05"));
+        EXPECT_EQ(client.exchange(rtu(1, "03 00 07 00 01"), 7, silence), "");
+        EXPECT_EQ(client.exchange(rtu(5, "03 00 07 00 01"), 7), rtu(5, "03 02 00 05"));
+        EXPECT_EQ(client.exchange(rtu(2, "03 00 07 00 01"), 7), rtu(2, "03 02 00 02"));
+        // ENDER := 0 over FC16: acknowledged, then silent at every address, broadcasts executed by unit 2
+        // only.
+        EXPECT_EQ(client.exchange(rtu(5, "10 00 07 00 01 02 00 00"), 8), rtu(5, "10 00 07 00 01"));
+        EXPECT_EQ(client.exchange(rtu(5, "03 00 07 00 01"), 7, silence), "");
+        EXPECT_EQ(client.exchange(rtu(0, "03 00 07 00 01"), 7, silence), "");
+        client.send(mb::encode_rtu(0, bytes("06 00 17 00 0A")));
+        EXPECT_EQ(hex(client.read(1, silence)), "");
+        EXPECT_EQ(client.exchange(rtu(2, "03 00 17 00 01"), 7), rtu(2, "03 02 00 0A"));
+    }
+    line.stop();
+    EXPECT_EQ(moving.unit(), 0);
+    EXPECT_EQ(moving.configured_unit(), 1);
+    EXPECT_EQ(moving.image().reg(Table::HoldingRegisters, 23), 0);
+    // As made again: the address it was made with.
+    moving.reset();
+    EXPECT_EQ(moving.unit(), 1);
+}
+
+// A write the server takes back (it could not be saved: exception 04) moves nothing either.
+TEST(ServerRouting, AnAddressWriteTakenBackLeavesTheDeviceWhereItWas) {
+    FaultSet faults;
+    Device device(profile("mmk-2030"), 1, &faults);
+    Responder responder({&device}, faults, mb::Framing::Rtu, false, [] { return false; });
+    const auto request = mb::encode_rtu(1, bytes("06 00 07 00 05"));
+    const auto frame = mb::decode_adu(mb::Framing::Rtu, request);
+    ASSERT_TRUE(frame.has_value());
+    EXPECT_EQ(hex(responder.respond(*frame)), hex(mb::encode_rtu(1, bytes("86 04"))));
+    EXPECT_EQ(device.unit(), 1);
+    EXPECT_EQ(device.image().reg(Table::HoldingRegisters, 7), 1);
+}
+
+// A profile whose address register is read-only (CTH2265I 3999, 003:599) is never moved.
+TEST(Device, AReadOnlyAddressRegisterMovesNothing) {
+    Device device(profile("cth2265i"), 3);
+    EXPECT_EQ(ask(device, "06 0F 9F 00 07").substr(0, 2), "86");
+    EXPECT_EQ(device.unit(), 3);
 }
 
 }  // namespace

@@ -57,6 +57,26 @@ TEST_F(StateFile, RoundTripKeepsEveryWrittenValue) {
 }
 
 // Only what differs from the initial image is kept: an untouched device saves no table.
+// A device moved by a write to its address register (MK ENDER) is still saved as the unit it was made
+// with, and after a restart answers at the address written, as a device keeps it in its memory.
+TEST_F(StateFile, AWrittenAddressIsKeptAcrossARestart) {
+    {
+        Device device(profile("mmk-2030"), 1);
+        EXPECT_EQ(ask(device, "06 00 07 00 05"), "06 00 07 00 05");
+        EXPECT_EQ(ask(device, "06 00 17 00 0A"), "06 00 17 00 0A");
+        ASSERT_EQ(device.unit(), 5);
+        ASSERT_TRUE(save_state(path_, {&device}).has_value());
+    }
+    EXPECT_NE(read_file().find("\"1\""), std::string::npos) << read_file();
+    Device restarted(profile("mmk-2030"), 1);
+    const auto loaded = load_state(path_, {&restarted});
+    ASSERT_TRUE(loaded.has_value()) << loaded.error();
+    EXPECT_TRUE(loaded->is_null()) << loaded->dump();  // nothing saved for a unit not served
+    EXPECT_EQ(restarted.unit(), 5);
+    EXPECT_EQ(restarted.configured_unit(), 1);
+    EXPECT_EQ(ask(restarted, "03 00 17 00 01"), "03 02 00 0A");
+}
+
 TEST_F(StateFile, KeepsOnlyChanges) {
     Device device(profile("cth2265i"), 1);
     ASSERT_TRUE(save_state(path_, {&device}).has_value());
