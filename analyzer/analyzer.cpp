@@ -640,6 +640,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             for (auto& rule : options_.semantics->check_response(*profile, *request.pdu, *rsp_record->pdu))
                 found.push_back(
                     {rule.code, rsp_record, std::move(rule.message), {request.index, rsp_record->index}});
+            if (auto moved =
+                    options_.semantics->follow_address(server, *profile, *request.pdu, *rsp_record->pdu))
+                found.push_back(
+                    {moved->code, rsp_record, std::move(moved->message), {request.index, rsp_record->index}});
         }
     }
     if (made && options_.word_order && !made->profile && rsp_record && request.pdu && rsp_record->pdu) {

@@ -1,6 +1,8 @@
 #include "analyzer/semantics.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <span>
 
 #include "modbus/addressing.hpp"
 
@@ -38,6 +40,7 @@ void Semantics::add(DeviceSelector selector, std::shared_ptr<const Profile> prof
 
 const Profile* Semantics::profile_for(const std::string& server, std::uint8_t unit) const {
     const std::string host = server.substr(0, server.rfind(':'));
+    if (const auto it = moved_.find({host, unit}); it != moved_.end()) return it->second;
     const Profile* best = nullptr;
     int best_score = -1;
     for (const auto& [sel, profile] : maps_) {
@@ -167,6 +170,42 @@ std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const P
              "exception 2 (illegal data address) to a request whose addresses are all in the map of " +
                  profile.id});
     return out;
+}
+
+std::optional<RuleBreak> Semantics::follow_address(const std::string& server, const Profile& profile,
+                                                   const Pdu& q, const Pdu& a) {
+    if (a.is_exception() || a.function_code() != q.function_code() || profile.open_address_space)
+        return std::nullopt;
+    std::uint16_t start = 0;
+    std::span<const std::uint16_t> written;
+    std::uint16_t single = 0;
+    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6) {
+        start = w->address;
+        single = w->value;
+        written = {&single, 1};
+    } else if (const auto* m = std::get_if<WriteMultipleRegistersRequest>(&q.body)) {
+        start = m->starting_address;
+        written = std::span<const std::uint16_t>(m->values).first(
+            count_within_address_space(m->starting_address, m->values.size()));
+    } else {
+        return std::nullopt;
+    }
+    for (std::size_t i = 0; i < written.size(); ++i) {
+        const Point* p = profile.find(Table::HoldingRegisters, static_cast<std::uint16_t>(start + i));
+        if (!p || p->mirrors != LineSetting::UnitId || p->access == Access::Read || written[i] > 0xFF)
+            continue;
+        const auto unit = static_cast<std::uint8_t>(written[i]);
+        moved_[{server.substr(0, server.rfind(':')), unit}] = &profile;
+        const auto& disabled = profile.line.unit_disabled;
+        const bool silent = std::find(disabled.begin(), disabled.end(), int(unit)) != disabled.end();
+        return RuleBreak{FindingCode::ProfileAddressMoved,
+                         (p->mnemonic.empty() ? p->name_en : p->mnemonic) + " (register " +
+                             std::to_string(p->address) + ") := " + std::to_string(unit) +
+                             " acknowledged: the device answers at unit " + std::to_string(unit) +
+                             (silent ? ", which disables its communication (" + profile.id + "'s manual)"
+                                     : " from now on (" + profile.id + "'s manual)")};
+    }
+    return std::nullopt;
 }
 
 std::vector<NamedValue> Semantics::values(const Profile& profile, const std::string& device, const Pdu& q,

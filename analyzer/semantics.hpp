@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "modbus/finding_codes.hpp"
@@ -37,6 +38,11 @@ class Semantics {
     // The response judged against the map (an exception where the map says the request is valid).
     std::vector<RuleBreak> check_response(const modbus::Profile& profile, const modbus::Pdu& request,
                                           const modbus::Pdu& response) const;
+    // A write to the device's address register that it acknowledged (MK ENDER: the device obeys at once,
+    // MK-CFG-01): from then on `server`'s unit at the new address is described by `profile` too. The note
+    // to report, or nullopt when the transaction moved nothing.
+    std::optional<RuleBreak> follow_address(const std::string& server, const modbus::Profile& profile,
+                                            const modbus::Pdu& request, const modbus::Pdu& response);
     // Named values of a completed transaction (reads: the reply's values; writes: the values written).
     std::vector<modbus::NamedValue> values(const modbus::Profile& profile, const std::string& device,
                                            const modbus::Pdu& request, const modbus::Pdu& response);
@@ -44,6 +50,8 @@ class Semantics {
   private:
     std::vector<std::pair<DeviceSelector, std::shared_ptr<const modbus::Profile>>> maps_;
     std::map<std::string, std::map<std::uint16_t, std::uint16_t>> registers_;  // device → last values seen
+    // (host, unit) → the profile of a device that moved there (follow_address): before any --map.
+    std::map<std::pair<std::string, std::uint8_t>, const modbus::Profile*> moved_;
 };
 
 // Parses "--map" keys: "17", "10.0.0.3", "10.0.0.3:17". nullopt when malformed.

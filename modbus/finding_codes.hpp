@@ -77,6 +77,7 @@ enum class FindingCode : std::uint16_t {
     ProfileValueOutOfRange = 703,
     ProfileWriteReadOnly = 704,
     ProfileExceptionUnexpected = 705,
+    ProfileAddressMoved = 706,
 };
 
 struct FindingInfo {

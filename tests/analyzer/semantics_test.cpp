@@ -23,17 +23,21 @@ struct Harness {
     std::uint64_t number = 0;
     mb::Timestamp t = 1s;
     std::uint16_t tid = 0;
-    Harness() {
-        mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/tests/fixtures/profiles"});
-        auto p = store.load("test-device");
+    std::uint8_t unit = 1;  // of the exchanges to come
+    // The fixture profile for every device, or a bundled one mapped to one unit (--map UNIT=ID).
+    explicit Harness(const std::string& id = "test-device", std::optional<int> mapped_unit = std::nullopt) {
+        mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) +
+                                         (id == "test-device" ? "/tests/fixtures/profiles" : "/profiles")});
+        auto p = store.load(id);
         EXPECT_TRUE(p.has_value());
         an::AnalyzerOptions o;
         o.semantics = std::make_shared<an::Semantics>();
-        o.semantics->add({}, std::make_shared<const mb::Profile>(std::move(p.value())));
+        o.semantics->add({std::nullopt, mapped_unit},
+                         std::make_shared<const mb::Profile>(std::move(p.value())));
         analyzer = std::make_unique<an::Analyzer>(o, sink);
     }
     void send(bool to_server, const mb::Pdu& pdu) {
-        auto payload = mb::encode_tcp(tid, 1, mb::encode_pdu(pdu));
+        auto payload = mb::encode_tcp(tid, unit, mb::encode_pdu(pdu));
         auto bytes = mbscope::test::packet(to_server, seq[to_server ? 0 : 1], payload);
         seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
         an::Packet p;
@@ -168,4 +172,34 @@ TEST(Semantics, SelectorsPickTheMostSpecificProfile) {
     EXPECT_EQ(s.profile_for("10.0.0.3:502", 17), c.get());
     EXPECT_FALSE(an::parse_selector("x:y").has_value());
     EXPECT_FALSE(an::parse_selector("300").has_value());
+}
+
+// MK-CFG-01 (000:218-226, 500): ENDER (register 7) holds the device's address and a device obeys a new
+// one at once. Its acknowledged write is a note, and the profile mapped to the old unit describes the
+// device at the new one: the read that follows there is named in the manual's terms and judged by its rules.
+// A refused value (100, outside 0..99) and a write elsewhere move nothing.
+TEST(Semantics, AnAcknowledgedAddressWriteMovesTheDevicesProfileWithIt) {
+    Harness h("mmk-2030", 1);
+    h.exchange(mb::make_write_single_register(7, 100), mb::make_exception(6, 3));
+    h.exchange(mb::make_write_single_register(23, 10), mb::make_write_single_register(23, 10));
+    h.exchange(mb::make_write_single_register(7, 17), mb::make_write_single_register(7, 17));
+    h.unit = 17;
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 7, 16),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters,
+                                                std::vector<std::uint16_t>(16, 17)));
+    h.analyzer->finish();
+    ASSERT_EQ(h.sink.count(mb::FindingCode::ProfileAddressMoved), 1);
+    for (const auto& f : h.sink.findings) {
+        if (f.code != mb::FindingCode::ProfileAddressMoved) continue;
+        EXPECT_NE(f.message.find("ENDER (register 7) := 17 acknowledged: the device answers at unit 17"),
+                  std::string::npos)
+            << f.message;
+    }
+    ASSERT_EQ(h.sink.transactions.size(), 4u);
+    const auto& moved = h.sink.transactions[3];
+    ASSERT_NE(moved.profile, nullptr);
+    EXPECT_EQ(moved.profile->id, "mmk-2030");
+    ASSERT_FALSE(moved.values.empty());
+    // 16 registers where the manual allows 15: its rule applies at the new address too.
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileQuantityAboveLimit), 1);
 }
