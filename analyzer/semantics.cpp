@@ -190,22 +190,21 @@ std::optional<RuleBreak> Semantics::follow_address(const std::string& server, co
     } else {
         return std::nullopt;
     }
-    for (std::size_t i = 0; i < written.size(); ++i) {
-        const Point* p = profile.find(Table::HoldingRegisters, static_cast<std::uint16_t>(start + i));
-        if (!p || p->mirrors != LineSetting::UnitId || p->access == Access::Read || written[i] > 0xFF)
-            continue;
-        const auto unit = static_cast<std::uint8_t>(written[i]);
-        moved_[{server.substr(0, server.rfind(':')), unit}] = &profile;
-        const auto& disabled = profile.line.unit_disabled;
-        const bool silent = std::find(disabled.begin(), disabled.end(), int(unit)) != disabled.end();
-        return RuleBreak{FindingCode::ProfileAddressMoved,
-                         (p->mnemonic.empty() ? p->name_en : p->mnemonic) + " (register " +
-                             std::to_string(p->address) + ") := " + std::to_string(unit) +
-                             " acknowledged: the device answers at unit " + std::to_string(unit) +
-                             (silent ? ", which disables its communication (" + profile.id + "'s manual)"
-                                     : " from now on (" + profile.id + "'s manual)")};
-    }
-    return std::nullopt;
+    const Point* p = profile.address_register();
+    if (!p || p->address < start) return std::nullopt;
+    const std::size_t offset = p->address - start;
+    if (offset >= written.size()) return std::nullopt;
+    const std::uint16_t value = written[offset];
+    if (value > 0xFF) return std::nullopt;
+    const auto unit = static_cast<std::uint8_t>(value);
+    moved_[{server.substr(0, server.rfind(':')), unit}] = &profile;
+    return RuleBreak{
+        FindingCode::ProfileAddressMoved,
+        (p->mnemonic.empty() ? p->name_en : p->mnemonic) + " (register " + std::to_string(p->address) +
+            ") := " + std::to_string(unit) + " acknowledged: the device answers at unit " +
+            std::to_string(unit) +
+            (profile.line.disables(unit) ? ", which disables its communication (" + profile.id + "'s manual)"
+                                         : " from now on (" + profile.id + "'s manual)")};
 }
 
 std::vector<NamedValue> Semantics::values(const Profile& profile, const std::string& device, const Pdu& q,

@@ -22,8 +22,7 @@ namespace {
 // Where a device answers: "address 5", or that it is silent (an address its manual says disables
 // communication, MK's 0).
 std::string address_text(const slave::Device& d) {
-    const auto& disabled = d.profile().line.unit_disabled;
-    if (std::find(disabled.begin(), disabled.end(), int(d.unit())) != disabled.end())
+    if (d.profile().line.disables(d.unit()))
         return "address " + std::to_string(d.unit()) + ", which disables communication";
     return "address " + std::to_string(d.unit());
 }
@@ -98,8 +97,7 @@ int run_slave(const SlaveOptions& o) {
             return exit_failure;
         }
         // The manual's address range (MK: 1..99, 000:269; the specification: 1..247).
-        const auto& disabled = p->line.unit_disabled;
-        const bool disables = std::find(disabled.begin(), disabled.end(), unit) != disabled.end();
+        const bool disables = p->line.disables(unit);
         if (unit == 0 && !disables) {
             std::cerr << "mbscope slave: unit 0 is the broadcast address; " << p->id
                       << "'s manual gives it no other meaning\n";

@@ -20,6 +20,14 @@ std::string_view to_string(Access a) noexcept {
     return "?";
 }
 
+const Point* Profile::address_register() const noexcept {
+    for (const Point& p : table(Table::HoldingRegisters))
+        if (p.mirrors == LineSetting::UnitId && p.access != Access::Read && p.encoding.words == 1 &&
+            !p.fixed_value)
+            return &p;
+    return nullptr;
+}
+
 namespace {
 constexpr std::pair<std::string_view, EncodingType> encoding_names[] = {
     {"u16", EncodingType::U16},

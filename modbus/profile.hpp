@@ -5,6 +5,7 @@
 // part of mbscope asks of it: what is at (table, address), what do these raw words mean, would the device
 // accept this write.
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -142,6 +143,10 @@ struct LineRules {
     int unit_min = 1;
     int unit_max = 247;
     std::vector<int> unit_disabled;
+    // Whether a device at `unit` does not communicate (MK's address 0, MK-ADR-01).
+    bool disables(int unit) const noexcept {
+        return std::find(unit_disabled.begin(), unit_disabled.end(), unit) != unit_disabled.end();
+    }
     bool any_unit_answered = false;  // Walchem: every non-zero unit id is answered (002:213-215)
     int tcp_port = 502;
     std::optional<int> min_poll_interval_ms;
@@ -230,6 +235,9 @@ struct Profile {
     bool implements(Table t) const noexcept { return has_table[static_cast<int>(t)]; }
     // The point holding `address` (a 32-bit point holds two addresses); nullptr when the map has none.
     const Point* find(Table t, std::uint16_t address) const noexcept;
+    // The holding register a master may write that holds the device's own address (MK ENDER: the device
+    // obeys a new one at once, MK-CFG-01); nullptr when the map has none.
+    const Point* address_register() const noexcept;
     std::size_t point_count(Table t) const noexcept { return points[static_cast<int>(t)].size(); }
 };
 

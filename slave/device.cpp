@@ -78,12 +78,8 @@ Device::Device(const modbus::Profile& profile, const modbus::LineState& line, Fa
       unit_(line.unit),
       configured_unit_(line.unit),
       faults_(faults ? faults : &no_faults_),
-      image_(profile, line) {
-    for (const modbus::Point& p : profile.table(Table::HoldingRegisters))
-        if (p.mirrors == modbus::LineSetting::UnitId && p.access != modbus::Access::Read &&
-            p.encoding.words == 1 && !p.fixed_value)
-            address_register_ = &p;
-}
+      image_(profile, line),
+      address_register_(profile.address_register()) {}
 
 void Device::reset() noexcept {
     image_.reset();

@@ -101,10 +101,10 @@ class Device {
     const modbus::Profile* profile_;
     std::uint8_t unit_;
     std::uint8_t configured_unit_;
-    const modbus::Point* address_register_ = nullptr;  // a writable holding register mirroring the unit id
     FaultSet* faults_;
     FaultSet no_faults_;
     RegisterImage image_;
+    const modbus::Point* address_register_;  // Profile::address_register()
     Counters counters_;
     bool listen_only_ = false;
 };
