@@ -630,7 +630,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         ++(timed_out ? stats.timeouts : stats.unanswered_at_end);
     }
     if (options_.semantics && rsp_record && request.pdu && rsp_record->pdu) {
-        const std::string server = request.link.str().substr(request.link.str().find(" -> ") + 4);
+        // The flow's server, as on_request took it: "client -> server" over IP, the link itself on a line.
+        const std::string& link = request.link.str();
+        const auto arrow = link.find(" -> ");
+        const std::string server = arrow == std::string::npos ? link : link.substr(arrow + 4);
         if (const Profile* profile = options_.semantics->profile_for(server, request.frame.unit_id())) {
             if (made) {
                 made->profile = profile;

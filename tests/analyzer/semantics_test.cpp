@@ -3,7 +3,11 @@
 // 23 filter 0.0..25.0 s): each profile.* finding triggered, and silent on clean traffic.
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <fstream>
+
 #include "analyzer/analyzer.hpp"
+#include "analyzer/serial_input.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
@@ -202,4 +206,40 @@ TEST(Semantics, AnAcknowledgedAddressWriteMovesTheDevicesProfileWithIt) {
     ASSERT_FALSE(moved.values.empty());
     // 16 registers where the manual allows 15: its rule applies at the new address too.
     EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileQuantityAboveLimit), 1);
+}
+
+// The same on a serial line, from a capture in the text format: the request at the new unit is judged by
+// the manual's rules too (the line is its own server; the response side once took another name for it).
+TEST(Semantics, AnAddressWriteOnASerialLineMovesTheProfileForRequestsAndReplies) {
+    const auto rtu = [](std::uint8_t unit, std::vector<std::uint8_t> pdu) {
+        std::string hex;
+        for (auto b : mb::encode_rtu(unit, pdu)) {
+            char x[4];
+            std::snprintf(x, sizeof x, "%02X ", b);
+            hex += x;
+        }
+        return hex;
+    };
+    const std::string path = ::testing::TempDir() + "address-moved.txt";
+    std::ofstream(path) << "0.050 master " << rtu(1, {0x06, 0x00, 0x07, 0x00, 0x11}) << "\n"
+                        << "0.100 slave " << rtu(1, {0x06, 0x00, 0x07, 0x00, 0x11}) << "\n"
+                        << "0.150 master " << rtu(17, {0x03, 0x00, 0x07, 0x00, 0x10}) << "\n"
+                        << "0.200 slave " << rtu(17, {0x83, 0x03}) << "\n"
+                        << "0.250 master " << rtu(17, {0x03, 0x00, 0x17, 0x00, 0x01}) << "\n"
+                        << "0.300 slave " << rtu(17, {0x03, 0x02, 0x00, 0x0A}) << "\n";
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    auto p = store.load("mmk-2030");
+    ASSERT_TRUE(p.has_value());
+    Collect sink;
+    an::AnalyzerOptions o;
+    o.semantics = std::make_shared<an::Semantics>();
+    o.semantics->add({std::nullopt, 1}, std::make_shared<const mb::Profile>(std::move(p.value())));
+    an::Analyzer a(o, sink);
+    ASSERT_TRUE(an::read_input(a, path, an::InputFormat::Text));
+    a.finish();
+    EXPECT_EQ(sink.count(mb::FindingCode::ProfileAddressMoved), 1);
+    EXPECT_EQ(sink.count(mb::FindingCode::ProfileQuantityAboveLimit), 1);  // FC3 of 16 at unit 17
+    ASSERT_EQ(sink.transactions.size(), 3u);
+    ASSERT_NE(sink.transactions[2].profile, nullptr);
+    EXPECT_FALSE(sink.transactions[2].values.empty());
 }
