@@ -148,7 +148,9 @@ void register_fuzz(CLI::App& app, int& exit_code) {
         ->check(duration_text());
     cmd->add_option("--requests", o->requests, "Stop after N requests")
         ->check(CLI::Range(std::uint64_t{1}, std::numeric_limits<std::uint64_t>::max()));
-    cmd->add_option("--seed", o->seed, "Seed: the same seed against the same target sends the same requests");
+    cmd->add_option("--seed", o->seed,
+                    "Seed: the same seed against a target that answers alike sends the same requests "
+                    "(requests_digest in the summary)");
     cmd->add_option("--artifacts", o->artifacts, "Directory for reproducers (created)");
     cmd->add_flag("--read-only", o->read_only,
                   "Send only requests that cannot write (public read functions)");

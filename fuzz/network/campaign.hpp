@@ -84,6 +84,9 @@ struct CampaignSummary {
     std::chrono::nanoseconds elapsed{0};
     std::chrono::microseconds silence_wait{0};  // learnt where the rules demand silence, when the run ended
     std::size_t response_classes = 0;
+    // FNV-1a of every request as written, in order: the same seed against a target that answers alike
+    // sends the same requests, and two runs show it by this value (a reply's timing does not steer them).
+    std::uint64_t requests_digest = 0xCBF29CE484222325ull;
     std::map<std::string, std::uint64_t> outcomes;  // "normal", "exception 02", "silence", each rule broken
     std::vector<CampaignFinding> findings;
     std::vector<conformance::Touched> restored;
