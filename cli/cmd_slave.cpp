@@ -163,6 +163,10 @@ int run_slave(const SlaveOptions& o) {
                           << ": its address register was written\n";
         }
     };
+    // So do PROT, BAUD and PARID: the line follows a device alone on it.
+    options.on_line_change = [quiet = o.quiet](const std::string& text) {
+        if (!quiet) std::cerr << "mbscope slave: " << text << '\n';
+    };
     if (o.pty && !modbus::transport::is_serial(endpoint->scheme)) {
         std::cerr << "mbscope slave: --pty needs a serial endpoint (rtu:pty or ascii:pty)\n";
         return exit_failure;
@@ -178,7 +182,7 @@ int run_slave(const SlaveOptions& o) {
         // A serial address printed is a device path (what libmodbus and pyserial open); the mbscope commands
         // want it with its scheme and line settings, which the path alone does not carry.
         if (modbus::transport::is_serial(endpoint->scheme)) {
-            auto target = *endpoint;
+            auto target = server.endpoint();  // a state file's line settings included
             target.device = server.address();
             std::cerr << "mbscope slave: mbscope commands reach it as --target '" << target.text() << "'\n";
         }

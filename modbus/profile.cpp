@@ -1,6 +1,7 @@
 #include "modbus/profile.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 
@@ -170,6 +171,38 @@ std::optional<std::uint16_t> mirrored_value(const Point& p, const LineState& lin
         if (v.means == wanted && v.value >= 0 && v.value <= 0xFFFF)
             return static_cast<std::uint16_t>(v.value);
     return std::nullopt;
+}
+
+LineState held_line_settings(const Profile& profile,
+                             const std::function<std::uint16_t(std::uint16_t)>& read) {
+    LineState held;
+    for (const Point& p : profile.table(Table::HoldingRegisters)) {
+        if (!p.mirrors || *p.mirrors == LineSetting::UnitId || p.encoding.words != 1) continue;
+        const std::uint16_t code = read(p.address);
+        const auto v = std::find_if(p.encoding.values.begin(), p.encoding.values.end(),
+                                    [&](const EnumValue& e) { return e.value == code; });
+        if (v == p.encoding.values.end() || v->means.empty()) continue;
+        switch (*p.mirrors) {
+            case LineSetting::Framing:
+                if (v->means == "rtu") held.framing = Framing::Rtu;
+                if (v->means == "ascii") held.framing = Framing::Ascii;
+                break;
+            case LineSetting::Baud: {
+                std::uint32_t baud = 0;
+                const auto [end, ec] =
+                    std::from_chars(v->means.data(), v->means.data() + v->means.size(), baud);
+                if (ec == std::errc{} && end == v->means.data() + v->means.size() && baud > 0)
+                    held.baud = baud;
+                break;
+            }
+            case LineSetting::Parity:
+                held.parity = parse_parity(v->means);
+                break;
+            case LineSetting::UnitId:
+                break;
+        }
+    }
+    return held;
 }
 
 std::optional<RawLimits> raw_limits(const Encoding& e) noexcept {

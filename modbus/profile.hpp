@@ -256,6 +256,11 @@ struct NamedValue {
 // Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.
 // `context` supplies registers outside the block (decimal-point registers), may be empty. Words past address
 // 65535 get no value (they are not wrapped round to address 0).
+// The settings a device whose holding registers read `read` holds, as far as its map mirrors them
+// (framing, baud rate, parity: mirrored_value's inverse; not the unit, which the caller knows). A code the
+// map gives no meaning leaves that setting unknown.
+LineState held_line_settings(const Profile& profile, const std::function<std::uint16_t(std::uint16_t)>& read);
+
 std::vector<NamedValue> decode_registers(const Profile& profile, Table table, std::uint16_t start,
                                          const std::vector<std::uint16_t>& words,
                                          const std::map<std::uint16_t, std::uint16_t>& context = {});

@@ -86,6 +86,21 @@ void Device::reset() noexcept {
     counters_ = Counters{};
     listen_only_ = false;
     unit_ = configured_unit_;
+    off_line_ = false;
+}
+
+modbus::LineState Device::held_line() const {
+    auto held = modbus::held_line_settings(
+        *profile_, [this](std::uint16_t a) { return image_.reg(Table::HoldingRegisters, a); });
+    held.unit = unit_;
+    return held;
+}
+
+modbus::LineState Device::made_line() const {
+    auto made =
+        modbus::held_line_settings(*profile_, [this](std::uint16_t a) { return image_.initial_holding(a); });
+    made.unit = configured_unit_;
+    return made;
 }
 
 void Device::follow_address() noexcept {

@@ -68,6 +68,17 @@ class Device {
     // the value is an address (0-255): after a write the server took back, and after a state file was
     // applied.
     void follow_address() noexcept;
+    // The framing, baud rate and parity the device holds in the registers that mirror them (MK PROT, BAUD,
+    // PARID; unknown where the map mirrors none or the code means nothing), and those its image was made
+    // with. They differ once a master wrote another valid code: the device then talks with the new
+    // settings, which the server follows (MK-CFG-01).
+    modbus::LineState held_line() const;
+    modbus::LineState made_line() const;
+    // Off the line: its settings differ from those of the line other units keep, so it cannot read a frame
+    // on it and answers nothing; back when the line takes its settings, or at reset().
+    void leave_line() noexcept { off_line_ = true; }
+    void join_line() noexcept { off_line_ = false; }
+    bool off_line() const noexcept { return off_line_; }
     const Counters& counters() const noexcept { return counters_; }
     bool listen_only() const noexcept { return listen_only_; }
     // Addresses whose value the process must not move (stuck-value fault, or a user's pinned value).
@@ -107,6 +118,7 @@ class Device {
     const modbus::Point* address_register_;  // Profile::address_register()
     Counters counters_;
     bool listen_only_ = false;
+    bool off_line_ = false;
 };
 
 }  // namespace mbscope::slave

@@ -64,6 +64,9 @@ std::uint16_t& RegisterImage::writable(Words& w, std::uint16_t address) {
 std::uint16_t RegisterImage::reg(Table t, std::uint16_t address) const noexcept {
     return (*words(t).page[address / page_words])[address % page_words];
 }
+std::uint16_t RegisterImage::initial_holding(std::uint16_t address) const noexcept {
+    return (*initial_[index_of(Table::HoldingRegisters)][address / page_words])[address % page_words];
+}
 void RegisterImage::set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept {
     Words& w = words(t);
     const std::uint16_t before = (*w.page[address / page_words])[address % page_words];

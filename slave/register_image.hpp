@@ -27,6 +27,8 @@ class RegisterImage {
                            std::optional<modbus::LineState> line = std::nullopt);
 
     std::uint16_t reg(Table t, std::uint16_t address) const noexcept;
+    // A holding register's value in the image construction made (before any write).
+    std::uint16_t initial_holding(std::uint16_t address) const noexcept;
     void set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept;
     bool bit(Table t, std::uint16_t address) const noexcept;
     void set_bit(Table t, std::uint16_t address, bool value) noexcept;

@@ -19,7 +19,7 @@ Responder::Responder(std::vector<Device*> units, FaultSet& faults, Framing frami
 
 Device* Responder::route(std::uint8_t unit) const {
     for (Device* d : units_)
-        if (d->unit() == unit) return d;
+        if (d->unit() == unit && !d->off_line()) return d;
     // Modbus/TCP: a device reached by its IP address answers unit 0xFF (TCP §4.4.1.2); Walchem answers
     // every non-zero unit id (002:213-215).
     if (ip_network_ && units_.size() == 1 &&
@@ -30,7 +30,7 @@ Device* Responder::route(std::uint8_t unit) const {
 
 std::vector<std::uint8_t> Responder::respond(const modbus::Frame& f) {
     for (Device* d : units_)
-        d->count_frame(f.checksum_ok);
+        if (!d->off_line()) d->count_frame(f.checksum_ok);
     if (!f.checksum_ok) return {};  // SL §2.5.1.2: a frame with a bad CRC/LRC is not answered
     // Not Modbus (TCP §3.1.3): discarded. Stacks that never look at the field serve it all the same.
     if (f.framing == Framing::Tcp && f.protocol_id() != 0 && !faults_.fires(Fault::AnyProtocolId)) return {};
@@ -55,7 +55,8 @@ std::vector<std::uint8_t> Responder::answer(std::uint8_t unit, std::span<const s
     if (unit == 0) {  // broadcast: every unit on the line executes it
         bool wrote = false;
         for (Device* d : units_) {
-            if (d->unit() == 0) continue;  // address 0 configured: communication disabled (MK 000:220)
+            // Address 0 configured: communication disabled (MK 000:220); off the line: deaf to it.
+            if (d->unit() == 0 || d->off_line()) continue;
             Reply r = d->handle({request, true});
             wrote |= r.wrote;
             if (pdu.empty()) pdu = std::move(r.pdu);  // only with reply-to-broadcast

@@ -28,6 +28,8 @@ class Responder {
     std::vector<std::uint8_t> respond(const modbus::Frame& frame);
 
     Device* route(std::uint8_t unit) const;
+    // The line's framing changed (a device told to talk ASCII instead of RTU, MK-CFG-01): replies follow.
+    void set_framing(modbus::Framing framing) noexcept { framing_ = framing; }
     const std::vector<Device*>& units() const noexcept { return units_; }
 
   private:

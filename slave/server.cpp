@@ -4,13 +4,16 @@
 #include <poll.h>
 #include <sched.h>
 #include <sys/socket.h>
+#include <termios.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <deque>
 #include <optional>
+#include <string>
 
 #include "modbus/adu.hpp"
 #include "modbus/ascii_deframer.hpp"
@@ -47,6 +50,24 @@ struct Connection {
     std::vector<std::uint8_t> out;  // bytes waiting for the socket to accept them
 };
 
+// A serial line's settings, or a stream's framing, that a device was told to take: applied once the
+// acknowledgement has left with the old ones.
+struct LineChange {
+    Framing framing = Framing::Rtu;
+    modbus::SerialLine line;
+};
+
+std::string settings_text(Framing framing, const modbus::SerialLine& line, bool serial) {
+    std::string s(framing == Framing::Ascii ? "ASCII" : "RTU");
+    if (serial) {
+        s += ", " + std::to_string(line.baud) + " baud, ";
+        s += line.parity == modbus::Parity::None   ? "no parity"
+             : line.parity == modbus::Parity::Even ? "even parity"
+                                                   : "odd parity";
+    }
+    return s;
+}
+
 struct Scheduled {
     Clock::time_point due;
     std::uint64_t connection = 0;  // 0: the UDP socket
@@ -74,6 +95,10 @@ struct Server::Impl {
     std::deque<Scheduled> scheduled;  // kept sorted by due time
     Responder responder;
     Clock::time_point last_tick{};
+    // Per unit, the framing, baud rate and parity its registers held when the line last followed them
+    // (first: as the device was made); and a change of the line's waiting for its acknowledgement to leave.
+    std::vector<modbus::LineState> followed;
+    std::optional<LineChange> pending_line;
 
     Impl(tp::Endpoint e, std::vector<Device*> u, FaultSet& f, ServerOptions o, ServerStats& s)
         : endpoint(std::move(e)),
@@ -83,7 +108,130 @@ struct Server::Impl {
           stats(s),
           framing(tp::framing_of(endpoint.scheme)),
           responder(units, faults, framing, framing == Framing::Tcp && !tp::is_serial(endpoint.scheme),
-                    [this] { return save(); }) {}
+                    [this] { return save(); }) {
+        for (const Device* d : units)
+            followed.push_back(d->made_line());
+    }
+
+    // ---- the line's settings, as the devices hold them
+
+    void say(const std::string& text) const {
+        if (options.on_line_change) options.on_line_change(text);
+    }
+
+    // A device told another framing, speed or parity (a valid code written to MK's PROT, BAUD or PARID:
+    // MK-CFG-01; the manual gives no delay, so at once) talks with them from then on. One UART serves every
+    // unit on the line, so the line follows only when every unit on it holds the same new settings (a
+    // device alone, a broadcast write, or the last of a line's devices told one by one); until then a unit
+    // whose settings differ from the line's cannot read a frame on it and answers nothing. The line
+    // switches once the acknowledgement, sent with the old settings, is out. Over Modbus/TCP the wire has
+    // none of these settings, and over a TCP stream (a serial server's) only the framing is seen: the rest
+    // are stored only.
+    void follow_line(bool at_open = false) {
+        if (framing == Framing::Tcp) return;
+        const bool serial = tp::is_serial(endpoint.scheme);
+        std::vector<modbus::LineState> held;
+        std::vector<bool> differs;
+        for (std::size_t i = 0; i < units.size(); ++i) {
+            held.push_back(units[i]->held_line());
+            const auto& h = held.back();
+            const auto& was = followed[i];
+            differs.push_back((h.framing && h.framing != was.framing) ||
+                              (serial && h.baud && h.baud != was.baud) ||
+                              (serial && h.parity && h.parity != was.parity));
+        }
+        const auto told = std::find(differs.begin(), differs.end(), true);
+        if (told == differs.end()) return;
+        const auto& first = held[static_cast<std::size_t>(told - differs.begin())];
+        bool every = true;
+        for (std::size_t i = 0; i < units.size(); ++i)
+            every = every && differs[i] && held[i].framing == first.framing &&
+                    (!serial || (held[i].baud == first.baud && held[i].parity == first.parity));
+        const auto name = [](const Device* d) {
+            return "unit " + std::to_string(d->unit()) + " (" + d->profile().id + ")";
+        };
+        if (!every) {
+            for (std::size_t i = 0; i < units.size(); ++i) {
+                if (!differs[i] || units[i]->off_line()) continue;
+                units[i]->leave_line();
+                modbus::SerialLine own = endpoint.line;
+                if (held[i].baud) own.baud = *held[i].baud;
+                if (held[i].parity) own.parity = *held[i].parity;
+                say(name(units[i]) + (at_open ? " holds " : " was told ") +
+                    settings_text(held[i].framing.value_or(framing), own, serial) +
+                    (at_open ? " (the state file)" : "") +
+                    ": it cannot read the line the other units keep and answers nothing until they are told "
+                    "the same");
+            }
+            return;
+        }
+        LineChange change{pending_line ? pending_line->framing : framing,
+                          pending_line ? pending_line->line : endpoint.line};
+        const auto& was = followed[static_cast<std::size_t>(told - differs.begin())];
+        if (first.framing && first.framing != was.framing) {
+            change.framing = *first.framing;
+            change.line.data_bits = change.framing == Framing::Ascii ? 7 : 8;  // SL §2.5.1, §2.5.2
+        }
+        if (serial && first.baud && first.baud != was.baud) change.line.baud = *first.baud;
+        if (serial && first.parity && first.parity != was.parity) change.line.parity = *first.parity;
+        for (std::size_t i = 0; i < units.size(); ++i) {
+            followed[i] = held[i];
+            units[i]->join_line();
+        }
+        const std::string who = units.size() == 1 ? name(units.front()) : "every unit on the line";
+        const std::string now = settings_text(change.framing, change.line, serial);
+        say(at_open ? who + " holds " + now + " (the state file): the line is served so"
+                    : who + " was told " + now + ": the line follows once the acknowledgement is out");
+        pending_line = change;
+    }
+
+    std::uint64_t modifications() const noexcept {
+        std::uint64_t n = 0;
+        for (const Device* d : units)
+            n += d->image().modifications();
+        return n;
+    }
+
+    void take_framing(Framing f) {
+        framing = f;
+        responder.set_framing(f);
+        const bool serial = tp::is_serial(endpoint.scheme);
+        if (f == Framing::Ascii)
+            endpoint.scheme = serial ? tp::Scheme::AsciiSerial : tp::Scheme::AsciiOverTcp;
+        else
+            endpoint.scheme = serial ? tp::Scheme::RtuSerial : tp::Scheme::RtuOverTcp;
+    }
+
+    // The change waits for the reply that acknowledged it (queued, or not yet taken by the socket).
+    void apply_line_change() {
+        if (!pending_line || !scheduled.empty()) return;
+        for (const auto& [id, c] : connections)
+            if (!c.out.empty()) return;
+        const LineChange change = *std::exchange(pending_line, std::nullopt);
+        if (tp::is_serial(endpoint.scheme) && serial_id) {
+            Connection& c = connections.at(serial_id);
+            const bool pty = options.create_pty || tp::is_pty(endpoint.device);
+            // The acknowledgement leaves at the old speed: wait for the UART (a pseudo-terminal has none,
+            // and would wait for its reader).
+            if (!pty) ::tcdrain(c.fd.get());
+            if (auto set = tp::set_line(c.fd.get(), change.line, pty); !set) {
+                say("cannot set " + endpoint.device + " to " +
+                    settings_text(change.framing, change.line, true) + ": " + set.error());
+                return;
+            }
+        }
+        endpoint.line = change.line;
+        if (change.framing != framing) {
+            take_framing(change.framing);
+            for (auto& [id, c] : connections) {
+                c.rtu.clear();
+                c.rtu_gap = false;
+                c.ascii = c.serial ? modbus::AsciiDeframer({std::chrono::milliseconds(1000)})
+                                   : modbus::AsciiDeframer{};
+                c.partial = false;
+            }
+        }
+    }
 
     // ---- request → response
 
@@ -164,13 +312,22 @@ struct Server::Impl {
             ++stats.bad_frames;
         else if (f.framing != Framing::Tcp || f.protocol_id() == 0)
             ++stats.requests;
+        const auto before = modifications();
         auto reply = responder.respond(f);
         if (!reply.empty()) send(id, nullptr, 0, std::move(reply));
+        if (modifications() != before) follow_line();
     }
 
     // ---- endpoints
 
     modbus::Result<void, std::string> open() {
+        // Settings a state file restored (a device keeps what it was told) are the line's from the start.
+        follow_line(true);
+        if (pending_line) {
+            endpoint.line = pending_line->line;
+            if (pending_line->framing != framing) take_framing(pending_line->framing);
+            pending_line.reset();
+        }
         using S = tp::Scheme;
         switch (endpoint.scheme) {
             case S::Tcp:
@@ -482,6 +639,7 @@ struct Server::Impl {
                 scheduled.pop_front();
                 deliver(s);
             }
+            apply_line_change();
             for (auto id : to_close)
                 connections.erase(id);
             if (stats.responses != responses_before) spin_until = now + spin_after_reply;
@@ -502,6 +660,12 @@ modbus::Result<void, std::string> Server::open() {
 
 modbus::Result<void, std::string> Server::run(const std::atomic<bool>& stop) {
     return impl_->run(stop);
+}
+
+tp::Endpoint Server::endpoint() const {
+    tp::Endpoint e = impl_->endpoint;
+    if (impl_->listener || impl_->udp) e.port = port();
+    return e;
 }
 
 std::uint16_t Server::port() const noexcept {

@@ -7,7 +7,9 @@
 //        ─▶ ADU faults ─▶ send queue (slow-reply and gap-inside-frame delays)
 //
 // Serial lines follow SL §2.5.1.1: a request ends at a silence of t3.5 (so the answer never starts before
-// it), and a request holding a silence above t1.5 or a bad CRC/LRC is never answered.
+// it), and a request holding a silence above t1.5 or a bad CRC/LRC is never answered. A device told other
+// line settings (MK-CFG-01: PROT, BAUD, PARID written) takes them once its acknowledgement is out: the
+// server's port and framing follow when every unit on the line holds them; until then it is off the line.
 
 #include <atomic>
 #include <chrono>
@@ -40,6 +42,9 @@ struct ServerOptions {
     // Called between requests with the time, so the simulated process moves while the slave serves.
     std::function<void(std::chrono::steady_clock::time_point)> tick;
     std::chrono::milliseconds tick_interval{100};
+    // Called with a sentence when a device takes other line settings (MK-CFG-01: PROT, BAUD, PARID
+    // written) and the line follows it, or it leaves a line other units share.
+    std::function<void(const std::string&)> on_line_change;
 };
 
 struct ServerStats {
@@ -64,6 +69,9 @@ class Server {
     // Where clients connect: "tcp://127.0.0.1:5020" (the real port when 0 was asked), or the pty's path.
     std::string address() const;
     std::uint16_t port() const noexcept;
+    // The endpoint as served now: its scheme and line follow devices told other settings. Not while run()
+    // is serving in another thread (it changes them).
+    modbus::transport::Endpoint endpoint() const;
     // Serves until `stop` becomes true (checked at least every 100 ms). Errors: the endpoint failed.
     modbus::Result<void, std::string> run(const std::atomic<bool>& stop);
     const ServerStats& stats() const noexcept { return stats_; }

@@ -16,6 +16,10 @@ namespace {
 
 speed_t speed_of(std::uint32_t baud) noexcept {
     switch (baud) {
+        case 300:
+            return B300;
+        case 600:
+            return B600;
         case 1200:
             return B1200;
         case 2400:
@@ -74,6 +78,15 @@ std::string make_raw(int fd, const SerialLine& line, bool pty) {
 }
 
 }  // namespace
+
+Result<void, std::string> set_line(int fd, const SerialLine& line, bool pty) {
+    if (auto err = make_raw(fd, line, pty); !err.empty()) return err;
+    return {};
+}
+
+bool is_pty(const std::string& device) {
+    return is_pty_device(device);
+}
 
 Result<UniqueFd, std::string> open_serial(const std::string& device, const SerialLine& line) {
     UniqueFd fd(::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));

@@ -14,6 +14,13 @@ namespace mbscope::modbus::transport {
 // Opens DEVICE non-blocking, raw, at the line's speed, parity, data and stop bits.
 Result<UniqueFd, std::string> open_serial(const std::string& device, const SerialLine& line);
 
+// Sets an open port to the line's speed, parity, data and stop bits, raw, as open_serial does: a slave
+// whose device was told another speed or parity. `pty`: the port is a pseudo-terminal, where parity and
+// 7-bit characters may be refused and are then left out (they only time the line there).
+Result<void, std::string> set_line(int fd, const SerialLine& line, bool pty);
+// DEVICE is a pseudo-terminal's client side (/dev/pts/N, or a link to one).
+bool is_pty(const std::string& device);
+
 struct Pty {
     UniqueFd master;         // the side mbscope reads and writes
     UniqueFd slave_keep;     // held open so the master never reads EIO between two clients

@@ -94,37 +94,12 @@ TEST(Connections, ASecondSlaveOnAPortInUseIsRefused) {
     }
 }
 
-// The other side of the slave's pseudo-terminal, raw.
-int open_terminal(const std::string& path) {
-    const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
-    EXPECT_GE(fd, 0) << path;
-    if (fd < 0) return fd;
-    termios t{};
-    ::tcgetattr(fd, &t);
-    ::cfmakeraw(&t);
-    ::tcsetattr(fd, TCSANOW, &t);
-    return fd;
-}
-
 // Waits for the first byte of a reply; the time from `sent` to it, or nothing within `timeout`.
 std::optional<Clock::duration> first_byte_after(int fd, Clock::time_point sent,
                                                 std::chrono::milliseconds timeout) {
     pollfd p{fd, POLLIN, 0};
     if (::poll(&p, 1, static_cast<int>(timeout.count())) <= 0) return std::nullopt;
     return Clock::now() - sent;
-}
-
-std::vector<std::uint8_t> read_all(int fd, std::size_t count) {
-    std::vector<std::uint8_t> out;
-    while (out.size() < count) {
-        pollfd p{fd, POLLIN, 0};
-        if (::poll(&p, 1, 1000) <= 0) break;
-        std::uint8_t buf[256];
-        const ssize_t n = ::read(fd, buf, std::min(sizeof buf, count - out.size()));
-        if (n <= 0) break;
-        out.insert(out.end(), buf, buf + n);
-    }
-    return out;
 }
 
 TEST(SerialLine, RtuAnswersOnlyAfterTheRequestsT35SilenceAndNeverABadCrc) {
@@ -153,7 +128,7 @@ TEST(SerialLine, RtuAnswersOnlyAfterTheRequestsT35SilenceAndNeverABadCrc) {
         ASSERT_TRUE(after.has_value()) << "round " << round << ": no answer";
         EXPECT_GE(*after, t35) << "round " << round
                                << ": the answer started before the request's t3.5 silence";
-        const auto reply = read_all(fd, 7);
+        const auto reply = read_terminal(fd, 7);
         ASSERT_EQ(reply.size(), 7u);
         EXPECT_EQ(hex(std::span<const std::uint8_t>(reply.data(), 3)), "01 03 02");
         std::this_thread::sleep_for(50ms);

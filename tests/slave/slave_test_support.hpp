@@ -3,10 +3,12 @@
 // bytes, and a Server run on 127.0.0.1 port 0 in a thread with a raw socket client beside it.
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -378,6 +380,33 @@ class Client {
     int fd_ = -1;
     bool connected_ = false;
 };
+
+// The other side of a slave's pseudo-terminal, raw.
+inline int open_terminal(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+    EXPECT_GE(fd, 0) << path;
+    if (fd < 0) return fd;
+    termios t{};
+    ::tcgetattr(fd, &t);
+    ::cfmakeraw(&t);
+    ::tcsetattr(fd, TCSANOW, &t);
+    return fd;
+}
+
+// Reads from a terminal until `count` bytes arrived or `timeout` passed without one; returns what arrived.
+inline std::vector<std::uint8_t> read_terminal(int fd, std::size_t count,
+                                               std::chrono::milliseconds timeout = std::chrono::seconds(1)) {
+    std::vector<std::uint8_t> out;
+    while (out.size() < count) {
+        pollfd p{fd, POLLIN, 0};
+        if (::poll(&p, 1, static_cast<int>(timeout.count())) <= 0) break;
+        std::uint8_t buf[256];
+        const ssize_t n = ::read(fd, buf, std::min(sizeof buf, count - out.size()));
+        if (n <= 0) break;
+        out.insert(out.end(), buf, buf + n);
+    }
+    return out;
+}
 
 // How long a test waits before it concludes that no answer is coming: far above a loopback round trip, also
 // under the sanitizers.
