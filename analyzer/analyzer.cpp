@@ -635,6 +635,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         const auto arrow = link.find(" -> ");
         const std::string server = arrow == std::string::npos ? link : link.substr(arrow + 4);
         if (const Profile* profile = options_.semantics->profile_for(server, request.frame.unit_id())) {
+            if (auto told = options_.semantics->follow_line_settings(request.device, *profile, *request.pdu,
+                                                                     *rsp_record->pdu))
+                found.push_back(
+                    {told->code, rsp_record, std::move(told->message), {request.index, rsp_record->index}});
             if (made) {
                 made->profile = profile;
                 made->values =

@@ -172,24 +172,83 @@ std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const P
     return out;
 }
 
+namespace {
+
+// The holding registers an acknowledged FC6 or FC16 wrote: the first address and the values (those within
+// the address space). nullopt for any other transaction.
+struct WrittenRegisters {
+    std::uint16_t start = 0;
+    std::vector<std::uint16_t> values;
+};
+std::optional<WrittenRegisters> acknowledged_registers(const Pdu& q, const Pdu& a) {
+    if (a.is_exception() || a.function_code() != q.function_code()) return std::nullopt;
+    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
+        return WrittenRegisters{w->address, {w->value}};
+    if (const auto* m = std::get_if<WriteMultipleRegistersRequest>(&q.body)) {
+        const auto n = count_within_address_space(m->starting_address, m->values.size());
+        return WrittenRegisters{m->starting_address,
+                                std::vector<std::uint16_t>(m->values.begin(), m->values.begin() + n)};
+    }
+    return std::nullopt;
+}
+
+// "ENDER (register 7)": the manual's mnemonic where it gives one.
+std::string register_name(const Point& p) {
+    return (p.mnemonic.empty() ? p.name_en : p.mnemonic) + " (register " + std::to_string(p.address) + ")";
+}
+
+// A line setting's code as a person says it: "ASCII", "2400 baud", "even parity".
+std::string setting_text(LineSetting s, const std::string& means) {
+    switch (s) {
+        case LineSetting::Framing:
+            return means == "ascii" ? "ASCII" : means == "rtu" ? "RTU" : means;
+        case LineSetting::Baud:
+            return means + " baud";
+        case LineSetting::Parity:
+            return means == "none" ? "no parity" : means + " parity";
+        case LineSetting::UnitId:
+            break;
+    }
+    return means;
+}
+
+}  // namespace
+
+std::optional<RuleBreak> Semantics::follow_line_settings(const std::string& device, const Profile& profile,
+                                                         const Pdu& q, const Pdu& a) const {
+    const auto w = acknowledged_registers(q, a);
+    if (!w) return std::nullopt;
+    const auto seen = registers_.find(device);
+    std::string written, now;
+    for (const Point& p : profile.table(Table::HoldingRegisters)) {
+        if (!p.mirrors || *p.mirrors == LineSetting::UnitId || p.encoding.words != 1 ||
+            p.address < w->start || std::size_t{p.address} - w->start >= w->values.size())
+            continue;
+        const std::uint16_t code = w->values[p.address - w->start];
+        const auto v = std::find_if(p.encoding.values.begin(), p.encoding.values.end(),
+                                    [&](const EnumValue& e) { return e.value == code && !e.means.empty(); });
+        if (v == p.encoding.values.end()) continue;  // a code the manual does not define: a rule break
+        if (seen != registers_.end()) {
+            const auto before = seen->second.find(p.address);
+            if (before != seen->second.end() && before->second == code)
+                continue;  // read so before: no change
+        }
+        written += (written.empty() ? "" : ", ") + register_name(p) + " := " + std::to_string(code);
+        now += (now.empty() ? "" : ", ") + setting_text(*p.mirrors, v->means);
+    }
+    if (written.empty()) return std::nullopt;
+    return RuleBreak{FindingCode::ProfileLineSettingsChanged,
+                     written + " acknowledged: the device talks " + now + " from now on (" + profile.id +
+                         "'s manual); a master that keeps the old settings no longer reaches it"};
+}
+
 std::optional<RuleBreak> Semantics::follow_address(const std::string& server, const Profile& profile,
                                                    const Pdu& q, const Pdu& a) {
-    if (a.is_exception() || a.function_code() != q.function_code() || profile.open_address_space)
-        return std::nullopt;
-    std::uint16_t start = 0;
-    std::span<const std::uint16_t> written;
-    std::uint16_t single = 0;
-    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6) {
-        start = w->address;
-        single = w->value;
-        written = {&single, 1};
-    } else if (const auto* m = std::get_if<WriteMultipleRegistersRequest>(&q.body)) {
-        start = m->starting_address;
-        written = std::span<const std::uint16_t>(m->values).first(
-            count_within_address_space(m->starting_address, m->values.size()));
-    } else {
-        return std::nullopt;
-    }
+    if (profile.open_address_space) return std::nullopt;
+    const auto w = acknowledged_registers(q, a);
+    if (!w) return std::nullopt;
+    const std::uint16_t start = w->start;
+    const std::span<const std::uint16_t> written(w->values);
     const Point* p = profile.address_register();
     if (!p || p->address < start) return std::nullopt;
     const std::size_t offset = p->address - start;
@@ -200,8 +259,7 @@ std::optional<RuleBreak> Semantics::follow_address(const std::string& server, co
     moved_[{server.substr(0, server.rfind(':')), unit}] = &profile;
     return RuleBreak{
         FindingCode::ProfileAddressMoved,
-        (p->mnemonic.empty() ? p->name_en : p->mnemonic) + " (register " + std::to_string(p->address) +
-            ") := " + std::to_string(unit) + " acknowledged: the device answers at unit " +
+        register_name(*p) + " := " + std::to_string(unit) + " acknowledged: the device answers at unit " +
             std::to_string(unit) +
             (profile.line.disables(unit) ? ", which disables its communication (" + profile.id + "'s manual)"
                                          : " from now on (" + profile.id + "'s manual)")};

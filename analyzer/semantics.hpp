@@ -43,6 +43,13 @@ class Semantics {
     // to report, or nullopt when the transaction moved nothing.
     std::optional<RuleBreak> follow_address(const std::string& server, const modbus::Profile& profile,
                                             const modbus::Pdu& request, const modbus::Pdu& response);
+    // A write to the registers mirroring the device's framing, speed or parity (MK PROT, BAUD, PARID:
+    // MK-CFG-01) that it acknowledged, with codes the manual defines and, where the registers were read
+    // before on `device`, other than they held: the device talks with them from then on. The note, or
+    // nullopt. Before values(), which remembers the written values.
+    std::optional<RuleBreak> follow_line_settings(const std::string& device, const modbus::Profile& profile,
+                                                  const modbus::Pdu& request,
+                                                  const modbus::Pdu& response) const;
     // Named values of a completed transaction (reads: the reply's values; writes: the values written).
     std::vector<modbus::NamedValue> values(const modbus::Profile& profile, const std::string& device,
                                            const modbus::Pdu& request, const modbus::Pdu& response);

@@ -78,6 +78,7 @@ enum class FindingCode : std::uint16_t {
     ProfileWriteReadOnly = 704,
     ProfileExceptionUnexpected = 705,
     ProfileAddressMoved = 706,
+    ProfileLineSettingsChanged = 707,
 };
 
 struct FindingInfo {

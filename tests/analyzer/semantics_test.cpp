@@ -208,6 +208,39 @@ TEST(Semantics, AnAcknowledgedAddressWriteMovesTheDevicesProfileWithIt) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileQuantityAboveLimit), 1);
 }
 
+// MK-CFG-01 (000:218-226, 501-503): PROT, BAUD and PARID (registers 8-10) mirror the line's framing, speed
+// and parity, and a device told a valid new code talks with it from then on: a master that does not follow
+// loses it, which a capture of a device that "went silent" after a configuration write shows. The
+// acknowledged write is a note naming what the device now talks; a refused one, a code the manual does not
+// define (a rule break of its own) and a value the registers were read holding before change nothing.
+TEST(Semantics, AnAcknowledgedWriteOfTheLineSettingsIsANote) {
+    Harness h("mmk-2030", 1);
+    const auto fc16 = [](std::uint16_t start, std::vector<std::uint16_t> values) {
+        return mb::make_write_multiple_registers(start, values);
+    };
+    const auto ack = [](std::uint16_t start, std::uint16_t count) {
+        return mb::make_write_multiple_response(mb::FunctionCode::WriteMultipleRegisters, start, count);
+    };
+    const std::vector<std::uint16_t> held{1, 5, 0};  // RTU, 9600 baud, no parity
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 8, 3),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, held));
+    h.exchange(mb::make_write_single_register(9, 3), mb::make_exception(6, 4));              // refused
+    h.exchange(fc16(8, {1, 5, 0}), ack(8, 3));                                               // what they held
+    h.exchange(mb::make_write_single_register(9, 6), mb::make_write_single_register(9, 6));  // no such code
+    h.exchange(fc16(8, {0, 3, 1}), ack(8, 3));
+    h.analyzer->finish();
+    ASSERT_EQ(h.sink.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
+    for (const auto& f : h.sink.findings) {
+        if (f.code != mb::FindingCode::ProfileLineSettingsChanged) continue;
+        EXPECT_NE(f.message.find("PROT. (register 8) := 0, BAUD (register 9) := 3, PARID (register 10) := 1 "
+                                 "acknowledged: the device talks ASCII, 2400 baud, even parity from now on "
+                                 "(mmk-2030's manual)"),
+                  std::string::npos)
+            << f.message;
+    }
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileValueOutOfRange), 1);  // BAUD := 6
+}
+
 // The same on a serial line, from a capture in the text format: the request at the new unit is judged by
 // the manual's rules too (the line is its own server; the response side once took another name for it).
 TEST(Semantics, AnAddressWriteOnASerialLineMovesTheProfileForRequestsAndReplies) {
