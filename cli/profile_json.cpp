@@ -20,6 +20,8 @@ json profile_to_json(const Profile& p) {
     j["line"] = {{"transports", p.line.transports},
                  {"baud_rates", p.line.baud_rates},
                  {"parity", p.line.parity},
+                 {"data_bits", p.line.data_bits},
+                 {"stop_bits", p.line.stop_bits},
                  {"unit_id",
                   {{"min", p.line.unit_min}, {"max", p.line.unit_max}, {"disabled", p.line.unit_disabled}}}};
     j["functions"] = {

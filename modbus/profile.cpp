@@ -21,6 +21,24 @@ std::string_view to_string(Access a) noexcept {
     return "?";
 }
 
+std::optional<int> LineRules::data_bits_for(Framing framing) const {
+    const auto it = data_bits.find(framing == Framing::Ascii ? "ascii" : "rtu");
+    if (framing == Framing::Tcp || it == data_bits.end()) return std::nullopt;
+    return it->second;
+}
+
+std::optional<int> LineRules::stop_bits_for(Framing framing, Parity parity) const {
+    if (framing == Framing::Tcp) return std::nullopt;
+    const std::string base = framing == Framing::Ascii ? "ascii" : "rtu";
+    // The most specific key the manual gives: "ascii_no_parity" before "ascii".
+    for (const std::string& key : {base + (parity == Parity::None ? "_no_parity" : "_parity"), base}) {
+        const auto it = stop_bits.find(key);
+        if (it != stop_bits.end())
+            return it->second.size() == 1 ? std::optional<int>(it->second.front()) : std::nullopt;
+    }
+    return std::nullopt;
+}
+
 const Point* Profile::address_register() const noexcept {
     for (const Point& p : table(Table::HoldingRegisters))
         if (p.mirrors == LineSetting::UnitId && p.access != Access::Read && p.encoding.words == 1 &&

@@ -152,6 +152,13 @@ struct LineRules {
     std::optional<int> min_poll_interval_ms;
     std::optional<int> response_timeout_ms;
     int ascii_inter_char_timeout_ms = 1000;
+    // The character the manual fixes: data bits per framing ("rtu", "ascii"), and the stop bits it allows
+    // per framing and parity ("rtu", "rtu_parity", "rtu_no_parity", "ascii", ...): MK-CHR-01, MK-CHR-02.
+    std::map<std::string, int, std::less<>> data_bits;
+    std::map<std::string, std::vector<int>, std::less<>> stop_bits;
+    // What they fix for a line: nullopt where the manual says nothing, or allows several stop bits.
+    std::optional<int> data_bits_for(Framing framing) const;
+    std::optional<int> stop_bits_for(Framing framing, Parity parity) const;
 };
 
 enum class AddressCheck : std::uint8_t { Every, First };

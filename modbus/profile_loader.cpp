@@ -416,6 +416,39 @@ LineRules parse_line(Reader& r, const json& j) {
         l.response_timeout_ms = static_cast<int>(*m);
     l.ascii_inter_char_timeout_ms =
         static_cast<int>(r.integer(*line, "ascii_inter_char_timeout_ms", "/line", false, 0).value_or(1000));
+    if (auto d = r.child(*line, "data_bits"); d && !d->is_object()) {
+        r.error("/line/data_bits", "must be an object: {\"rtu\": 8, \"ascii\": 7}");
+    } else if (d) {
+        for (const auto& [key, x] : d->items()) {
+            if (key != "rtu" && key != "ascii")
+                r.error("/line/data_bits/" + key, "unknown framing (rtu or ascii)");
+            else if (!x.is_number_integer() || x.get<std::int64_t>() < 5 || x.get<std::int64_t>() > 8)
+                r.error("/line/data_bits/" + key, "must be 5 to 8 data bits");
+            else
+                l.data_bits[key] = x.get<int>();
+        }
+    }
+    if (auto s = r.child(*line, "stop_bits")) {
+        const json empty = json::object();
+        static constexpr std::string_view keys[] = {"rtu",   "rtu_parity",   "rtu_no_parity",
+                                                    "ascii", "ascii_parity", "ascii_no_parity"};
+        if (!s->is_object()) r.error("/line/stop_bits", "must be an object: {\"rtu\": [1], ...}");
+        for (const auto& [key, x] : s->is_object() ? s->items() : empty.items()) {
+            if (std::find(std::begin(keys), std::end(keys), key) == std::end(keys)) {
+                r.error("/line/stop_bits/" + key,
+                        "unknown key (rtu, ascii, each also _parity or _no_parity)");
+                continue;
+            }
+            std::vector<int> allowed;
+            for (const auto& b : x.is_array() ? x : empty)
+                if (b.is_number_integer() && (b.get<std::int64_t>() == 1 || b.get<std::int64_t>() == 2))
+                    allowed.push_back(b.get<int>());
+            if (!x.is_array() || allowed.empty() || allowed.size() != x.size())
+                r.error("/line/stop_bits/" + key, "must be a list of 1 and/or 2");
+            else
+                l.stop_bits[key] = std::move(allowed);
+        }
+    }
     return l;
 }
 

@@ -64,6 +64,9 @@ std::string settings_text(Framing framing, const modbus::SerialLine& line, bool 
         s += line.parity == modbus::Parity::None   ? "no parity"
              : line.parity == modbus::Parity::Even ? "even parity"
                                                    : "odd parity";
+        // The character as a terminal program writes it: 8N1, 7E1, 7N2.
+        s += " (" + std::to_string(line.data_bits) + "NEO"[static_cast<int>(line.parity)] +
+             std::to_string(line.stop_bits) + ")";
     }
     return s;
 }
@@ -168,12 +171,17 @@ struct Server::Impl {
         LineChange change{pending_line ? pending_line->framing : framing,
                           pending_line ? pending_line->line : endpoint.line};
         const auto& was = followed[static_cast<std::size_t>(told - differs.begin())];
-        if (first.framing && first.framing != was.framing) {
-            change.framing = *first.framing;
-            change.line.data_bits = change.framing == Framing::Ascii ? 7 : 8;  // SL §2.5.1, §2.5.2
-        }
+        if (first.framing && first.framing != was.framing) change.framing = *first.framing;
         if (serial && first.baud && first.baud != was.baud) change.line.baud = *first.baud;
         if (serial && first.parity && first.parity != was.parity) change.line.parity = *first.parity;
+        // The character that goes with them: the manual's (MK-CHR-01: 8 data bits in RTU, 7 in ASCII;
+        // MK-CHR-02: 2 stop bits in ASCII without parity, else 1), else the specification's data bits
+        // (SL §2.5.1, §2.5.2) and the stop bits as they were.
+        const auto& rules = units[static_cast<std::size_t>(told - differs.begin())]->profile().line;
+        change.line.data_bits = static_cast<std::uint8_t>(
+            rules.data_bits_for(change.framing).value_or(change.framing == Framing::Ascii ? 7 : 8));
+        if (const auto stop = rules.stop_bits_for(change.framing, change.line.parity))
+            change.line.stop_bits = static_cast<std::uint8_t>(*stop);
         for (std::size_t i = 0; i < units.size(); ++i) {
             followed[i] = held[i];
             units[i]->join_line();

@@ -1,6 +1,7 @@
 // The profile loader on small documents written for the test: structure, model variants, overrides, queries
 // and error reporting with JSON pointers. The real device profiles have their own coverage tests.
 #include "modbus/profile_loader.hpp"
+#include "modbus/storage/profile_store.hpp"
 
 #include <gtest/gtest.h>
 
@@ -278,6 +279,55 @@ TEST(ProfileLoader, LimitsNoFrameCanCarryAreErrors) {
     ASSERT_EQ(l.profiles.size(), 1u);
     EXPECT_EQ(l.profiles[0].functions.max_for(16), 125);
     EXPECT_EQ(l.profiles[0].functions.max_for(15), 2040);
+}
+
+// The character a manual fixes (MK-CHR-01: 8 data bits in RTU, 7 in ASCII; MK-CHR-02: 2 stop bits in
+// ASCII without parity, else 1) is read from line.data_bits and line.stop_bits, which the profiles carried
+// and the loader ignored; the most specific stop-bit key wins, a list of several fixes nothing, and values
+// that cannot be are errors.
+TEST(ProfileLoader, TheCharacterTheManualFixesIsLoaded) {
+    const char* mk_like = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y",
+      "line": {"transports": ["rtu", "ascii"], "data_bits": {"rtu": 8, "ascii": 7},
+               "stop_bits": {"rtu": [1, 2], "ascii_no_parity": [2], "ascii": [1]}},
+      "functions": {"supported": [3]},
+      "tables": {"holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "000:1"}]},
+      "models": [{"id": "m"}]
+    })";
+    const auto good = load(mk_like);
+    EXPECT_TRUE(good.errors.empty());
+    ASSERT_EQ(good.profiles.size(), 1u);
+    const auto& line = good.profiles[0].line;
+    EXPECT_EQ(line.data_bits_for(mb::Framing::Rtu), 8);
+    EXPECT_EQ(line.data_bits_for(mb::Framing::Ascii), 7);
+    EXPECT_FALSE(line.data_bits_for(mb::Framing::Tcp).has_value());
+    EXPECT_EQ(line.stop_bits_for(mb::Framing::Ascii, mb::Parity::None), 2);
+    EXPECT_EQ(line.stop_bits_for(mb::Framing::Ascii, mb::Parity::Odd), 1);
+    EXPECT_FALSE(line.stop_bits_for(mb::Framing::Rtu, mb::Parity::None).has_value());  // 1 or 2
+
+    const char* wrong = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y",
+      "line": {"transports": ["rtu"], "data_bits": {"rtu": 9, "tcp": 8},
+               "stop_bits": {"rtu": [3], "ascii_even": [1], "ascii": 1}},
+      "functions": {"supported": [3]},
+      "tables": {"holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "000:1"}]},
+      "models": [{"id": "m"}]
+    })";
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/line/data_bits/rtu", "must be 5 to 8 data bits"},
+        {"/line/data_bits/tcp", "unknown framing (rtu or ascii)"},
+        {"/line/stop_bits/ascii", "must be a list of 1 and/or 2"},
+        {"/line/stop_bits/ascii_even", "unknown key (rtu, ascii, each also _parity or _no_parity)"},
+        {"/line/stop_bits/rtu", "must be a list of 1 and/or 2"},
+    };
+    EXPECT_EQ(pointers_and_messages(load(wrong)), expected);
+    // A bundled MK profile says what MK-CHR-01 and MK-CHR-02 say.
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    const auto mk = store.load("mmk-2030");
+    ASSERT_TRUE(mk.has_value());
+    EXPECT_EQ(mk->line.stop_bits_for(mb::Framing::Ascii, mb::Parity::None), 2);
+    EXPECT_EQ(mk->line.stop_bits_for(mb::Framing::Rtu, mb::Parity::None), 1);
+    EXPECT_EQ(mk->line.data_bits_for(mb::Framing::Ascii), 7);
 }
 
 // A range is in raw units, so each limit must fit the point's registers: a maximum of 70000 on one register

@@ -197,16 +197,25 @@ TEST(LineSettings, MK_CFG_01_OnASerialLineThePortFollowsTheDevice) {
     std::this_thread::sleep_for(100ms);
     const std::string reply = ascii(1, "03 02 00 03");
     EXPECT_EQ(exchange(ascii(1, "03 00 09 00 01"), reply.size() / 3 + 1), reply);
+    // PARID := none in ASCII: MK-CHR-02's two stop bits (the profile's line.stop_bits).
+    const std::string none = ascii(1, "06 00 0A 00 00");
+    EXPECT_EQ(exchange(none, none.size() / 3 + 1), none);
+    std::this_thread::sleep_for(100ms);
     ::close(fd);
     s.stop();
     const auto now = s.server().endpoint();
     EXPECT_EQ(now.scheme, mb::transport::Scheme::AsciiSerial);
     EXPECT_EQ(now.line.baud, 2400u);
-    EXPECT_EQ(now.line.parity, mb::Parity::Even);
-    EXPECT_EQ(now.line.data_bits, 7);  // SL §2.5.2, MK-CHR-01
-    ASSERT_EQ(said.lines.size(), 3u);
-    EXPECT_NE(said.lines[2].find("was told ASCII, 2400 baud, even parity"), std::string::npos)
+    EXPECT_EQ(now.line.parity, mb::Parity::None);
+    EXPECT_EQ(now.line.data_bits, 7);  // MK-CHR-01
+    EXPECT_EQ(now.line.stop_bits, 2);  // MK-CHR-02
+    ASSERT_EQ(said.lines.size(), 4u);
+    EXPECT_NE(said.lines[0].find("was told RTU, 2400 baud, no parity (8N1)"), std::string::npos)
+        << said.lines[0];
+    EXPECT_NE(said.lines[2].find("was told ASCII, 2400 baud, even parity (7E1)"), std::string::npos)
         << said.lines[2];
+    EXPECT_NE(said.lines[3].find("was told ASCII, 2400 baud, no parity (7N2)"), std::string::npos)
+        << said.lines[3];
 }
 
 // A device keeps what it was told: restarted from the state file, the line is opened with those settings.
@@ -239,7 +248,7 @@ TEST(LineSettings, TheSettingsAStateFileKeepsAreTheLinesAfterARestart) {
     EXPECT_EQ(::cfgetospeed(&t), B2400);
     ::close(fd);
     ASSERT_EQ(said.lines.size(), 1u);
-    EXPECT_NE(said.lines[0].find("holds RTU, 2400 baud, no parity (the state file)"), std::string::npos)
+    EXPECT_NE(said.lines[0].find("holds RTU, 2400 baud, no parity (8N1) (the state file)"), std::string::npos)
         << said.lines[0];
     std::filesystem::remove_all(dir);
 }
