@@ -192,6 +192,14 @@ int run_slave(const SlaveOptions& o) {
                 std::cerr << ", answering at " << address_text(*d) << " (its address register, as " << o.state
                           << " keeps it)";
             std::cerr << '\n';
+            // Served as asked, but said: a tester who meant to reproduce the device would not pick these.
+            const auto served = server.endpoint();
+            const bool serial = modbus::transport::is_serial(served.scheme);
+            for (const auto& departure :
+                 modbus::line_departures(d->profile().line, modbus::transport::framing_of(served.scheme),
+                                         serial ? &served.line : nullptr))
+                std::cerr << "mbscope slave: unit " << int(d->configured_unit()) << " (" << d->profile().id
+                          << "): " << departure << "; served as given\n";
         }
         for (const auto& f : o.faults)
             std::cerr << "mbscope slave: planted fault " << f << '\n';

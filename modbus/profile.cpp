@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 
 #include "modbus/function_code.hpp"
 
@@ -27,16 +28,60 @@ std::optional<int> LineRules::data_bits_for(Framing framing) const {
     return it->second;
 }
 
-std::optional<int> LineRules::stop_bits_for(Framing framing, Parity parity) const {
-    if (framing == Framing::Tcp) return std::nullopt;
+const std::vector<int>* LineRules::stop_bits_allowed(Framing framing, Parity parity) const {
+    if (framing == Framing::Tcp) return nullptr;
     const std::string base = framing == Framing::Ascii ? "ascii" : "rtu";
     // The most specific key the manual gives: "ascii_no_parity" before "ascii".
-    for (const std::string& key : {base + (parity == Parity::None ? "_no_parity" : "_parity"), base}) {
-        const auto it = stop_bits.find(key);
-        if (it != stop_bits.end())
-            return it->second.size() == 1 ? std::optional<int>(it->second.front()) : std::nullopt;
+    for (const std::string& key : {base + (parity == Parity::None ? "_no_parity" : "_parity"), base})
+        if (const auto it = stop_bits.find(key); it != stop_bits.end()) return &it->second;
+    return nullptr;
+}
+
+std::optional<int> LineRules::stop_bits_for(Framing framing, Parity parity) const {
+    const auto* allowed = stop_bits_allowed(framing, parity);
+    if (!allowed || allowed->size() != 1) return std::nullopt;
+    return allowed->front();
+}
+
+namespace {
+template <typename List>
+std::string listed(const List& items) {
+    std::string out;
+    for (const auto& item : items) {
+        if (!out.empty()) out += ", ";
+        if constexpr (std::is_same_v<std::decay_t<decltype(item)>, std::string>)
+            out += item;
+        else
+            out += std::to_string(item);
     }
-    return std::nullopt;
+    return out;
+}
+}  // namespace
+
+std::vector<std::string> line_departures(const LineRules& rules, Framing framing, const SerialLine* line) {
+    std::vector<std::string> out;
+    const std::string transport(to_string(framing));
+    if (!rules.transports.empty() &&
+        std::find(rules.transports.begin(), rules.transports.end(), transport) == rules.transports.end())
+        out.push_back("the manual lists no " + transport + " transport (" + listed(rules.transports) + ")");
+    if (!line || framing == Framing::Tcp) return out;
+    if (!rules.baud_rates.empty() &&
+        std::find(rules.baud_rates.begin(), rules.baud_rates.end(), line->baud) == rules.baud_rates.end())
+        out.push_back(std::to_string(line->baud) + " baud is not among the manual's (" +
+                      listed(rules.baud_rates) + ")");
+    const std::string parity(to_string(line->parity));
+    if (!rules.parity.empty() &&
+        std::find(rules.parity.begin(), rules.parity.end(), parity) == rules.parity.end())
+        out.push_back("parity " + parity + " is not among the manual's (" + listed(rules.parity) + ")");
+    if (const auto data = rules.data_bits_for(framing); data && *data != line->data_bits)
+        out.push_back(std::to_string(line->data_bits) + " data bits where the manual fixes " +
+                      std::to_string(*data) + " for " + transport);
+    if (const auto* stop = rules.stop_bits_allowed(framing, line->parity);
+        stop && std::find(stop->begin(), stop->end(), line->stop_bits) == stop->end())
+        out.push_back(std::to_string(line->stop_bits) + " stop bits where the manual allows " +
+                      listed(*stop) + " for " + transport +
+                      (line->parity == Parity::None ? " without parity" : " with parity"));
+    return out;
 }
 
 const Point* Profile::address_register() const noexcept {

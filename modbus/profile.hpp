@@ -159,7 +159,14 @@ struct LineRules {
     // What they fix for a line: nullopt where the manual says nothing, or allows several stop bits.
     std::optional<int> data_bits_for(Framing framing) const;
     std::optional<int> stop_bits_for(Framing framing, Parity parity) const;
+    // The stop bits the manual allows there (the most specific key); null where it says nothing.
+    const std::vector<int>* stop_bits_allowed(Framing framing, Parity parity) const;
 };
+
+// How a line departs from what the device's manual allows (transports, baud rates, parities, data and stop
+// bits), a sentence each; `line` for a serial line, null over TCP. Empty when it departs in nothing the
+// manual states.
+std::vector<std::string> line_departures(const LineRules& rules, Framing framing, const SerialLine* line);
 
 enum class AddressCheck : std::uint8_t { Every, First };
 

@@ -330,6 +330,28 @@ TEST(ProfileLoader, TheCharacterTheManualFixesIsLoaded) {
     EXPECT_EQ(mk->line.data_bits_for(mb::Framing::Ascii), 7);
 }
 
+// A line the device's manual does not allow is said, one sentence per departure (the slave serves it as
+// asked and says so): MK's 8N1 RTU at 9600 departs in nothing, 19200 baud 8N2 and a TCP transport do.
+TEST(ProfileLoader, ALineTheManualDoesNotAllowIsSaid) {
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    const auto mk = store.load("mmk-2030");
+    ASSERT_TRUE(mk.has_value());
+    mb::SerialLine line{9600, 8, mb::Parity::None, 1};
+    EXPECT_TRUE(mb::line_departures(mk->line, mb::Framing::Rtu, &line).empty());
+    line = {9600, 7, mb::Parity::None, 2};  // MK-CHR-02: ASCII without parity, 7N2
+    EXPECT_TRUE(mb::line_departures(mk->line, mb::Framing::Ascii, &line).empty());
+    line = {19200, 8, mb::Parity::None, 2};
+    const std::vector<std::string> expected{
+        "19200 baud is not among the manual's (300, 600, 1200, 2400, 4800, 9600)",
+        "2 stop bits where the manual allows 1 for rtu without parity"};
+    EXPECT_EQ(mb::line_departures(mk->line, mb::Framing::Rtu, &line), expected);
+    EXPECT_EQ(mb::line_departures(mk->line, mb::Framing::Tcp, nullptr),
+              std::vector<std::string>{"the manual lists no tcp transport (rtu, ascii)"});
+    line = {9600, 8, mb::Parity::Even, 1};
+    EXPECT_EQ(mb::line_departures(mk->line, mb::Framing::Ascii, &line),
+              std::vector<std::string>{"8 data bits where the manual fixes 7 for ascii"});
+}
+
 // A range is in raw units, so each limit must fit the point's registers: a maximum of 70000 on one register
 // was accepted, and the conformance runner then wrote it as 4464 and called that "the maximum". Checked
 // after a model's overrides, which may give a point its range; a float's range is in engineering units.
