@@ -225,9 +225,8 @@ std::optional<RuleBreak> Semantics::follow_line_settings(const std::string& devi
             p.address < w->start || std::size_t{p.address} - w->start >= w->values.size())
             continue;
         const std::uint16_t code = w->values[p.address - w->start];
-        const auto v = std::find_if(p.encoding.values.begin(), p.encoding.values.end(),
-                                    [&](const EnumValue& e) { return e.value == code && !e.means.empty(); });
-        if (v == p.encoding.values.end()) continue;  // a code the manual does not define: a rule break
+        const EnumValue* v = mirrored_meaning(p, code);
+        if (!v) continue;  // a code the manual does not define: a rule break
         if (seen != registers_.end()) {
             const auto before = seen->second.find(p.address);
             if (before != seen->second.end() && before->second == code)

@@ -179,10 +179,12 @@ int run_slave(const SlaveOptions& o) {
     // The address first and alone on stdout, so scripts and tests can read where to connect.
     std::cout << server.address() << std::endl;
     if (!o.quiet) {
+        const auto served = server.endpoint();  // a state file's line settings included
+        const bool serial = modbus::transport::is_serial(served.scheme);
         // A serial address printed is a device path (what libmodbus and pyserial open); the mbscope commands
         // want it with its scheme and line settings, which the path alone does not carry.
-        if (modbus::transport::is_serial(endpoint->scheme)) {
-            auto target = server.endpoint();  // a state file's line settings included
+        if (serial) {
+            auto target = served;
             target.device = server.address();
             std::cerr << "mbscope slave: mbscope commands reach it as --target '" << target.text() << "'\n";
         }
@@ -193,8 +195,6 @@ int run_slave(const SlaveOptions& o) {
                           << " keeps it)";
             std::cerr << '\n';
             // Served as asked, but said: a tester who meant to reproduce the device would not pick these.
-            const auto served = server.endpoint();
-            const bool serial = modbus::transport::is_serial(served.scheme);
             for (const auto& departure :
                  modbus::line_departures(d->profile().line, modbus::transport::framing_of(served.scheme),
                                          serial ? &served.line : nullptr))

@@ -23,8 +23,9 @@ std::string_view to_string(Access a) noexcept {
 }
 
 std::optional<int> LineRules::data_bits_for(Framing framing) const {
+    if (framing == Framing::Tcp) return std::nullopt;
     const auto it = data_bits.find(framing == Framing::Ascii ? "ascii" : "rtu");
-    if (framing == Framing::Tcp || it == data_bits.end()) return std::nullopt;
+    if (it == data_bits.end()) return std::nullopt;
     return it->second;
 }
 
@@ -236,15 +237,20 @@ std::optional<std::uint16_t> mirrored_value(const Point& p, const LineState& lin
     return std::nullopt;
 }
 
+const EnumValue* mirrored_meaning(const Point& p, std::uint16_t code) {
+    if (!p.mirrors) return nullptr;
+    const auto v = std::find_if(p.encoding.values.begin(), p.encoding.values.end(),
+                                [&](const EnumValue& e) { return e.value == code; });
+    return v == p.encoding.values.end() || v->means.empty() ? nullptr : &*v;
+}
+
 LineState held_line_settings(const Profile& profile,
                              const std::function<std::uint16_t(std::uint16_t)>& read) {
     LineState held;
     for (const Point& p : profile.table(Table::HoldingRegisters)) {
         if (!p.mirrors || *p.mirrors == LineSetting::UnitId || p.encoding.words != 1) continue;
-        const std::uint16_t code = read(p.address);
-        const auto v = std::find_if(p.encoding.values.begin(), p.encoding.values.end(),
-                                    [&](const EnumValue& e) { return e.value == code; });
-        if (v == p.encoding.values.end() || v->means.empty()) continue;
+        const EnumValue* v = mirrored_meaning(p, read(p.address));
+        if (!v) continue;
         switch (*p.mirrors) {
             case LineSetting::Framing:
                 if (v->means == "rtu") held.framing = Framing::Rtu;

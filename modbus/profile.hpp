@@ -129,6 +129,9 @@ struct Point {
 // the setting. nullopt when the point mirrors nothing, when the line has no such setting (a baud rate over
 // TCP) or when the map has no code for it.
 std::optional<std::uint16_t> mirrored_value(const Point& p, const LineState& line);
+// On a point mirroring a line setting, the value the map gives `code` when it means a setting ("ascii",
+// "9600", "even"); null for a code the manual does not define or that means none.
+const EnumValue* mirrored_meaning(const Point& p, std::uint16_t code);
 
 struct ProfileNote {
     std::string text;
@@ -267,14 +270,14 @@ struct NamedValue {
                            // point register, is outside the block and not known from elsewhere
 };
 
-// Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.
-// `context` supplies registers outside the block (decimal-point registers), may be empty. Words past address
-// 65535 get no value (they are not wrapped round to address 0).
 // The settings a device whose holding registers read `read` holds, as far as its map mirrors them
 // (framing, baud rate, parity: mirrored_value's inverse; not the unit, which the caller knows). A code the
 // map gives no meaning leaves that setting unknown.
 LineState held_line_settings(const Profile& profile, const std::function<std::uint16_t(std::uint16_t)>& read);
 
+// Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.
+// `context` supplies registers outside the block (decimal-point registers), may be empty. Words past address
+// 65535 get no value (they are not wrapped round to address 0).
 std::vector<NamedValue> decode_registers(const Profile& profile, Table table, std::uint16_t start,
                                          const std::vector<std::uint16_t>& words,
                                          const std::map<std::uint16_t, std::uint16_t>& context = {});

@@ -102,6 +102,9 @@ struct Server::Impl {
     // (first: as the device was made); and a change of the line's waiting for its acknowledgement to leave.
     std::vector<modbus::LineState> followed;
     std::optional<LineChange> pending_line;
+    // A framing, speed or parity some unit's map mirrors, on a wire that has them: only then can a write
+    // move the line, and only then is a frame's effect on the images looked at.
+    bool line_can_follow = false;
 
     Impl(tp::Endpoint e, std::vector<Device*> u, FaultSet& f, ServerOptions o, ServerStats& s)
         : endpoint(std::move(e)),
@@ -112,8 +115,12 @@ struct Server::Impl {
           framing(tp::framing_of(endpoint.scheme)),
           responder(units, faults, framing, framing == Framing::Tcp && !tp::is_serial(endpoint.scheme),
                     [this] { return save(); }) {
-        for (const Device* d : units)
+        for (const Device* d : units) {
             followed.push_back(d->made_line());
+            for (const auto& p : d->profile().table(modbus::Table::HoldingRegisters))
+                line_can_follow |=
+                    framing != Framing::Tcp && p.mirrors && *p.mirrors != modbus::LineSetting::UnitId;
+        }
     }
 
     // ---- the line's settings, as the devices hold them
@@ -131,7 +138,7 @@ struct Server::Impl {
     // none of these settings, and over a TCP stream (a serial server's) only the framing is seen: the rest
     // are stored only.
     void follow_line(bool at_open = false) {
-        if (framing == Framing::Tcp) return;
+        if (!line_can_follow) return;
         const bool serial = tp::is_serial(endpoint.scheme);
         std::vector<modbus::LineState> held;
         std::vector<bool> differs;
@@ -210,7 +217,8 @@ struct Server::Impl {
             endpoint.scheme = serial ? tp::Scheme::RtuSerial : tp::Scheme::RtuOverTcp;
     }
 
-    // The change waits for the reply that acknowledged it (queued, or not yet taken by the socket).
+    // The change waits for the reply that acknowledged it (queued, or not yet taken by the socket). Before
+    // the port is opened (a state file's settings) it only sets what open() will use.
     void apply_line_change() {
         if (!pending_line || !scheduled.empty()) return;
         for (const auto& [id, c] : connections)
@@ -320,10 +328,10 @@ struct Server::Impl {
             ++stats.bad_frames;
         else if (f.framing != Framing::Tcp || f.protocol_id() == 0)
             ++stats.requests;
-        const auto before = modifications();
+        const auto before = line_can_follow ? modifications() : 0;
         auto reply = responder.respond(f);
         if (!reply.empty()) send(id, nullptr, 0, std::move(reply));
-        if (modifications() != before) follow_line();
+        if (line_can_follow && modifications() != before) follow_line();
     }
 
     // ---- endpoints
@@ -331,11 +339,7 @@ struct Server::Impl {
     modbus::Result<void, std::string> open() {
         // Settings a state file restored (a device keeps what it was told) are the line's from the start.
         follow_line(true);
-        if (pending_line) {
-            endpoint.line = pending_line->line;
-            if (pending_line->framing != framing) take_framing(pending_line->framing);
-            pending_line.reset();
-        }
+        apply_line_change();
         using S = tp::Scheme;
         switch (endpoint.scheme) {
             case S::Tcp:

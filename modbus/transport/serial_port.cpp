@@ -43,13 +43,6 @@ speed_t speed_of(std::uint32_t baud) noexcept {
     }
 }
 
-// A pseudo-terminal: the slave side of one (/dev/pts/N) or, from open_pty, either side.
-bool is_pty_device(const std::string& device) {
-    char resolved[PATH_MAX];
-    return ::realpath(device.c_str(), resolved) != nullptr &&
-           std::string_view(resolved).starts_with("/dev/pts/");
-}
-
 std::string make_raw(int fd, const SerialLine& line, bool pty) {
     termios tio{};
     if (tcgetattr(fd, &tio) != 0) return std::string("tcgetattr: ") + std::strerror(errno);
@@ -85,13 +78,15 @@ Result<void, std::string> set_line(int fd, const SerialLine& line, bool pty) {
 }
 
 bool is_pty(const std::string& device) {
-    return is_pty_device(device);
+    char resolved[PATH_MAX];
+    return ::realpath(device.c_str(), resolved) != nullptr &&
+           std::string_view(resolved).starts_with("/dev/pts/");
 }
 
 Result<UniqueFd, std::string> open_serial(const std::string& device, const SerialLine& line) {
     UniqueFd fd(::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
     if (!fd) return device + ": " + std::strerror(errno);
-    if (auto err = make_raw(fd.get(), line, is_pty_device(device)); !err.empty()) return device + ": " + err;
+    if (auto err = make_raw(fd.get(), line, is_pty(device)); !err.empty()) return device + ": " + err;
     return fd;
 }
 
