@@ -636,9 +636,18 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         const std::string server = arrow == std::string::npos ? link : link.substr(arrow + 4);
         if (const Profile* profile = options_.semantics->profile_for(server, request.frame.unit_id())) {
             if (auto told = options_.semantics->follow_line_settings(request.device, *profile, *request.pdu,
-                                                                     *rsp_record->pdu))
-                found.push_back(
-                    {told->code, rsp_record, std::move(told->message), {request.index, rsp_record->index}});
+                                                                     *rsp_record->pdu)) {
+                // On a serial line the capture follows the device (a TCP connection carries none of it).
+                if (request.carrier == Carrier::Serial)
+                    if (const auto it = serial_links_.find(request.link.str()); it != serial_links_.end())
+                        told->note.message +=
+                            follow_line(*it->second, request.frame.unit_id(), told->settings, profile->line,
+                                        rsp_record->frame.offset + rsp_record->frame.wire_length);
+                found.push_back({told->note.code,
+                                 rsp_record,
+                                 std::move(told->note.message),
+                                 {request.index, rsp_record->index}});
+            }
             if (made) {
                 made->profile = profile;
                 made->values =
@@ -720,6 +729,39 @@ struct Analyzer::SerialLink {
     Direction hint = Direction::Unknown;
     std::uint64_t offset = 0;  // exported PDUs: bytes of the records before this one
     int rtac_side = -1;        // RTAC serial: 0 sending, 1 receiving, -1 not yet known
+
+    // The line as the link reads it: its framing (none until the first bytes tell it, when the input does
+    // not) and its character (t1.5/t3.5), both changed by a device told other settings (follow_line).
+    bool started = false;
+    std::optional<Framing> framing;
+    SerialLine line;
+    std::uint64_t base = 0;     // stream offset of the deframers' first byte: their offsets count from it
+    std::uint64_t fed = 0;      // stream bytes given to the link
+    std::uint64_t settled = 0;  // every byte before this is in a reported frame or unparsed record
+    // Kept when the framing is not known yet, or may change mid-stream (profiles can tell a device other
+    // settings): the chunks from the first byte not yet settled on, so that the bytes after a change are
+    // deframed again the new way. A close (close_frames) is a chunk of its own, without bytes.
+    struct Chunk {
+        std::vector<std::uint8_t> bytes;
+        std::uint64_t offset;  // stream offset of bytes[0]
+        Timestamp received;
+        Direction hint;
+        std::uint64_t packet;
+        bool close;
+    };
+    bool keeps_chunks = false;
+    std::deque<Chunk> chunks;
+    std::size_t next_chunk = 0;               // the next chunk for the deframers
+    std::size_t next_skip = 0;                // its bytes already given (a restart inside it)
+    std::optional<std::uint64_t> restart_at;  // follow_line: deframe again from here, the new way
+    // Telling the framing: an ASCII deframer that has not seen a frame with a valid LRC yet, and the count
+    // of bytes no ASCII line carries.
+    std::unique_ptr<AsciiDeframer> probe;
+    std::size_t foreign = 0;
+    // Units that answered on the line, and the settings each was told: the line follows once all of them
+    // hold the same.
+    std::vector<std::uint8_t> answered;
+    std::map<std::uint8_t, LineState> told;
 };
 
 Analyzer::SerialLink& Analyzer::serial_link(const std::string& key, const std::string& link,
@@ -735,6 +777,8 @@ Analyzer::SerialLink& Analyzer::serial_link(const std::string& key, const std::s
         flow->server = server;
         flow->carrier = carrier;
         slot->flow = flow.get();
+        slot->line = options_.serial_line;
+        slot->keeps_chunks = options_.semantics != nullptr;
     }
     return *slot;
 }
@@ -766,7 +810,10 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
 void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp t, std::uint64_t packet) {
     Flow& flow = *link.flow;
     for (auto& e : events) {
+        if (link.restart_at) break;  // the rest was deframed the old way: it is deframed again (pump)
         if (auto* u = std::get_if<Unparsed>(&e)) {
+            u->offset += link.base;
+            link.settled = std::max(link.settled, u->offset + u->length);
             summary_.unparsed_bytes += u->length;
             const Timestamp when = u->time.count() ? u->time : t;
             sink_.unparsed(
@@ -782,6 +829,8 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             continue;
         }
         Frame& frame = std::get<Frame>(e);
+        frame.offset += link.base;
+        link.settled = std::max(link.settled, frame.offset + frame.wire_length);
         FrameRecord r(frame);
         r.index = ++next_frame_;
         r.packet = packet;
@@ -790,6 +839,9 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         r.source = source_;
         r.link = flow.link;
         r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
+        if (r.direction == Direction::Response && frame.unit_id() != 0 &&
+            std::find(link.answered.begin(), link.answered.end(), frame.unit_id()) == link.answered.end())
+            link.answered.push_back(frame.unit_id());
         r.carrier = flow.carrier;
         DeviceStats* stats = nullptr;
         r.device = device_of(flow, frame.unit_id(), stats);
@@ -814,7 +866,34 @@ void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> b
     serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint);
 }
 
+void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,
+                            std::span<const std::uint8_t> bytes, Timestamp received, Direction hint,
+                            std::uint64_t packet) {
+    if (!link.started) {
+        link.started = true;
+        link.framing = framing;
+        if (!framing) link.probe = std::make_unique<AsciiDeframer>();
+    }
+    if (!link.keeps_chunks && link.framing && link.next_chunk == link.chunks.size()) {
+        link.chunks.clear();  // those that told the framing
+        link.next_chunk = 0;
+        link.fed += bytes.size();
+        deframe(link, bytes, received, hint, packet);
+        return;
+    }
+    link.chunks.push_back({{bytes.begin(), bytes.end()}, link.fed, received, hint, packet, false});
+    link.fed += bytes.size();
+    if (!link.framing) tell_framing(link, bytes, false);
+    if (link.framing) pump(link);
+}
+
 void Analyzer::close_frames(SerialLink& link, Timestamp t, std::uint64_t packet) {
+    if (link.next_chunk == link.chunks.size() && !link.keeps_chunks) return flush_deframers(link, t, packet);
+    link.chunks.push_back({{}, link.fed, t, link.hint, packet, true});
+    if (link.framing) pump(link);
+}
+
+void Analyzer::flush_deframers(SerialLink& link, Timestamp t, std::uint64_t packet) {
     DeframeEvents events;
     if (link.timed) link.timed->advance(Timestamp::max(), events);
     if (link.untimed) link.untimed->finish(events);
@@ -822,30 +901,136 @@ void Analyzer::close_frames(SerialLink& link, Timestamp t, std::uint64_t packet)
     serial_events(link, events, t, packet);
 }
 
-void Analyzer::serial_bytes(SerialLink& link, Framing framing, std::span<const std::uint8_t> bytes,
-                            Timestamp received, Direction hint, std::uint64_t packet) {
+void Analyzer::deframe(SerialLink& link, std::span<const std::uint8_t> bytes, Timestamp received,
+                       Direction hint, std::uint64_t packet) {
     if (hint != link.hint) {
         // The other side is talking now: whatever the line held before is complete, and belongs to the
         // direction it was captured in.
-        close_frames(link, received, packet);
+        flush_deframers(link, received, packet);
         link.hint = hint;
+        if (link.restart_at) return;  // those bytes come again, after the change (pump)
     }
     DeframeEvents events;
-    if (framing == Framing::Ascii) {
+    if (link.framing == Framing::Ascii) {
         if (!link.ascii) link.ascii = std::make_unique<AsciiDeframer>();
         link.ascii->feed(bytes, received, events);
     } else if (received.count()) {
-        if (!link.timed) link.timed = std::make_unique<RtuTimedDeframer>(options_.serial_line);
+        if (!link.timed) link.timed = std::make_unique<RtuTimedDeframer>(link.line);
         // a direction change ends the frame in progress: close it before these bytes
-        link.timed->advance(
-            received - options_.serial_line.character_time() * static_cast<std::int64_t>(bytes.size()),
-            events);
+        link.timed->advance(received - link.line.character_time() * static_cast<std::int64_t>(bytes.size()),
+                            events);
         link.timed->feed(bytes, received, events);
     } else {
         if (!link.untimed) link.untimed = std::make_unique<RtuDeframer>();
         link.untimed->feed(bytes, events);
     }
     serial_events(link, events, received, packet);
+}
+
+void Analyzer::pump(SerialLink& link) {
+    while (link.next_chunk < link.chunks.size()) {
+        const std::size_t skip = std::exchange(link.next_skip, 0);
+        const SerialLink::Chunk& c = link.chunks[link.next_chunk++];  // nothing is added while it is read
+        if (c.close)
+            flush_deframers(link, c.received, c.packet);
+        else
+            deframe(link, std::span<const std::uint8_t>(c.bytes).subspan(skip), c.received, c.hint, c.packet);
+        if (link.restart_at) restart(link);
+    }
+    // A chunk goes once its bytes are all in reported records, or far enough behind that no deframer holds
+    // any of them (a timed RTU deframer keeps at most 1,024 bytes without a silence, an ASCII one a frame of
+    // 513 characters; noise between frames is only counted): a line of noise keeps no more than that.
+    constexpr std::uint64_t held_at_most = 4096;
+    while (link.next_chunk > 0) {
+        const auto end = link.chunks.front().offset + link.chunks.front().bytes.size();
+        if (end > link.settled && end + held_at_most > link.fed) break;
+        link.chunks.pop_front();
+        --link.next_chunk;
+    }
+}
+
+void Analyzer::restart(SerialLink& link) {
+    const std::uint64_t at = *std::exchange(link.restart_at, std::nullopt);
+    link.untimed.reset();
+    link.timed.reset();
+    link.ascii.reset();
+    link.base = at;
+    // From the first chunk with bytes at or after `at` (the chunks from the settled offset on are kept, and
+    // `at` ends the last frame reported).
+    std::size_t i = 0;
+    while (i < link.chunks.size() &&
+           (link.chunks[i].close ? link.chunks[i].offset < at
+                                 : link.chunks[i].offset + link.chunks[i].bytes.size() <= at))
+        ++i;
+    link.next_chunk = i;
+    link.next_skip = i < link.chunks.size() && at > link.chunks[i].offset ? at - link.chunks[i].offset : 0;
+}
+
+namespace {
+// What an ASCII line carries: ':', hex digits (lower case too, a finding but a frame), CR and LF.
+bool ascii_line_byte(std::uint8_t b) noexcept {
+    return b == ':' || b == '\r' || b == '\n' || (b >= '0' && b <= '9') || (b >= 'A' && b <= 'F') ||
+           (b >= 'a' && b <= 'f');
+}
+}  // namespace
+
+void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> bytes, bool at_end) {
+    // An RTU frame is binary: its unit, function code, CRC and most data bytes fall outside what an ASCII
+    // line carries, so a few such bytes tell RTU; noise on an ASCII line is rarer than that before the
+    // first good frame. A line of ASCII characters without a valid frame in its first few hundred bytes
+    // is read as RTU too (and then reported as unparsed, not dropped).
+    constexpr std::size_t foreign_for_rtu = 8;
+    constexpr std::uint64_t bytes_to_tell = 600;  // above the longest ASCII frame (513 characters)
+    // Whichever the stream shows first: the end of a frame with a valid LRC, or the foreign byte that
+    // makes the count.
+    DeframeEvents events;
+    link.probe->feed(bytes, events);
+    if (at_end) link.probe->finish(events);
+    std::optional<std::uint64_t> ascii_at, rtu_at;
+    for (const auto& e : events)
+        if (const auto* f = std::get_if<Frame>(&e); f && f->checksum_ok && !ascii_at)
+            ascii_at = f->offset + f->wire_length;
+    const std::uint64_t start = link.fed - bytes.size();
+    for (std::size_t i = 0; i < bytes.size() && !rtu_at; ++i)
+        if (!ascii_line_byte(bytes[i]) && ++link.foreign == foreign_for_rtu) rtu_at = start + i + 1;
+    if (ascii_at && (!rtu_at || *ascii_at <= *rtu_at))
+        link.framing = Framing::Ascii;
+    else if (rtu_at || link.fed >= bytes_to_tell || at_end)
+        link.framing = Framing::Rtu;
+    if (link.framing) link.probe.reset();
+}
+
+std::string Analyzer::follow_line(SerialLink& link, std::uint8_t unit, const LineState& told,
+                                  const LineRules& rules, std::uint64_t at) {
+    if (!link.keeps_chunks || !link.framing) return {};
+    LineState& own = link.told[unit];
+    if (told.framing) own.framing = told.framing;
+    if (told.baud) own.baud = told.baud;
+    if (told.parity) own.parity = told.parity;
+    const Framing framing = own.framing.value_or(*link.framing);
+    SerialLine line = link.line;
+    line.baud = own.baud.value_or(line.baud);
+    line.parity = own.parity.value_or(line.parity);
+    if (framing == *link.framing && line.baud == link.line.baud && line.parity == link.line.parity) return {};
+    std::string behind;
+    for (const std::uint8_t other : link.answered) {
+        if (other == unit) continue;
+        const auto it = link.told.find(other);
+        const LineState held = it == link.told.end() ? LineState{} : it->second;
+        if (held.framing.value_or(*link.framing) != framing ||
+            held.baud.value_or(link.line.baud) != line.baud ||
+            held.parity.value_or(link.line.parity) != line.parity)
+            behind += (behind.empty() ? "" : ", ") + std::to_string(other);
+    }
+    const bool speed = own.baud || own.parity;  // said when the speed or parity changes
+    if (!behind.empty())
+        return "; the line is still read as " + settings_text(*link.framing, link.line, speed) + ": unit" +
+               (behind.find(',') == std::string::npos ? " " : "s ") + behind +
+               ", which answered on it, was not told the same";
+    link.framing = framing;
+    link.line = rules.character_for(framing, line);
+    link.restart_at = at;
+    return "; the line is read as " + settings_text(framing, link.line, speed) + " from here on";
 }
 
 void Analyzer::user_dlt_packet(const Packet& p) {
@@ -874,7 +1059,7 @@ void Analyzer::user_dlt_packet(const Packet& p) {
             hint = Direction::Response;
         bytes = bytes.subspan(1);
     }
-    serial_bytes(serial_link(source_), *options_.user_dlt, bytes, p.time, hint);
+    serial_bytes(serial_link(source_), options_.user_dlt, bytes, p.time, hint);
 }
 
 void Analyzer::exported_pdu(const Packet& p) {
@@ -1055,11 +1240,18 @@ void Analyzer::finish() {
         if (f->carrier == Carrier::Tcp) close_streams(*f, now_);
     for (auto& [name, link] : serial_links_) {
         source_ = link->source;
-        DeframeEvents events;
-        if (link->untimed) link->untimed->finish(events);
-        if (link->timed) link->timed->finish(events);
-        if (link->ascii) link->ascii->finish(events);
-        serial_events(*link, events, now_);
+        if (link->started && !link->framing) tell_framing(*link, {}, true);
+        // A change of line settings in what the deframers give up at the end is followed too: the bytes
+        // after it are deframed again, and given up in their turn.
+        do {
+            if (link->restart_at) restart(*link);
+            pump(*link);
+            DeframeEvents events;
+            if (link->untimed) link->untimed->finish(events);
+            if (link->timed) link->timed->finish(events);
+            if (link->ascii) link->ascii->finish(events);
+            serial_events(*link, events, now_);
+        } while (link->restart_at);
     }
     expire(now_, true);
     summary_.modbus_like_ports = modbus_like_.tally();

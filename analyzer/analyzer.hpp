@@ -40,7 +40,11 @@ struct AnalyzerOptions {
     std::size_t max_pending_per_flow = 1024;
     std::shared_ptr<Semantics> semantics;  // device profiles; null: values stay raw
     // Serial lines: framing, character format (t1.5/t3.5 when timestamps are known) and response timeout.
-    modbus::Framing serial_framing = modbus::Framing::Rtu;
+    // No framing: each line's is told from its first bytes (ASCII when a frame with a valid LRC comes
+    // before bytes no ASCII line carries, RTU otherwise). A device that acknowledges other line settings
+    // (MK PROT, BAUD, PARID) changes its line's from there, once every unit that answered on it has been
+    // told the same (the way the reference slave's line follows).
+    std::optional<modbus::Framing> serial_framing;
     modbus::SerialLine serial_line{};
     modbus::Timestamp serial_timeout = std::chrono::seconds(1);  // issue 4: 1 s serial default
     // TCP server ports of serial gateways whose streams carry raw RTU frames (no MBAP header).
@@ -87,7 +91,10 @@ class Analyzer {
     void reached(std::uint64_t offset) {
         if (options_.progress) options_.progress(summary_, offset);
     }
-    void set_serial_framing(modbus::Framing framing) noexcept { options_.serial_framing = framing; }
+    void set_serial_framing(std::optional<modbus::Framing> framing) noexcept {
+        options_.serial_framing = framing;
+    }
+    std::optional<modbus::Framing> serial_framing() const noexcept { return options_.serial_framing; }
     void finish();
     const Summary& summary() const noexcept { return summary_; }
 
@@ -150,9 +157,26 @@ class Analyzer {
     SerialLink& serial_link(const std::string& key, const std::string& link, const std::string& server,
                             Carrier carrier);
     SerialLink& serial_link(const std::string& source);
-    void serial_bytes(SerialLink& link, modbus::Framing framing, std::span<const std::uint8_t> bytes,
-                      modbus::Timestamp received, modbus::Direction hint, std::uint64_t packet = 0);
+    // A chunk of the line: to the link's deframers at once, or through its kept chunks (pump) when its
+    // framing is not known yet or may change. `framing`: the line's, when the input fixes it.
+    void serial_bytes(SerialLink& link, std::optional<modbus::Framing> framing,
+                      std::span<const std::uint8_t> bytes, modbus::Timestamp received, modbus::Direction hint,
+                      std::uint64_t packet = 0);
+    // The frame on the line is over (a direction change, the UART's end of message): in order with the
+    // chunks around it.
     void close_frames(SerialLink& link, modbus::Timestamp t, std::uint64_t packet = 0);
+    void deframe(SerialLink& link, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
+                 modbus::Direction hint, std::uint64_t packet);
+    void flush_deframers(SerialLink& link, modbus::Timestamp t, std::uint64_t packet);
+    // The kept chunks not yet deframed, to the deframers; after a change of line settings, again from the
+    // change on.
+    void pump(SerialLink& link);
+    void restart(SerialLink& link);
+    void tell_framing(SerialLink& link, std::span<const std::uint8_t> bytes, bool at_end);
+    // A unit on a serial link acknowledged other line settings (the response ending at stream offset `at`):
+    // what the capture does about it, as the end of the note's sentence.
+    std::string follow_line(SerialLink& link, std::uint8_t unit, const modbus::LineState& told,
+                            const modbus::LineRules& rules, std::uint64_t at);
     void serial_events(SerialLink& link, modbus::DeframeEvents& events, modbus::Timestamp t,
                        std::uint64_t packet = 0);
     void user_dlt_packet(const Packet& packet);

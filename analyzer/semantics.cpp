@@ -214,12 +214,14 @@ std::string setting_text(LineSetting s, const std::string& means) {
 
 }  // namespace
 
-std::optional<RuleBreak> Semantics::follow_line_settings(const std::string& device, const Profile& profile,
-                                                         const Pdu& q, const Pdu& a) const {
+std::optional<Semantics::LineSettingsTold> Semantics::follow_line_settings(const std::string& device,
+                                                                           const Profile& profile,
+                                                                           const Pdu& q, const Pdu& a) const {
     const auto w = acknowledged_registers(q, a);
     if (!w) return std::nullopt;
     const auto seen = registers_.find(device);
     std::string written, now;
+    LineState settings;
     for (const Point& p : profile.table(Table::HoldingRegisters)) {
         if (!p.mirrors || *p.mirrors == LineSetting::UnitId || p.encoding.words != 1 ||
             p.address < w->start || std::size_t{p.address} - w->start >= w->values.size())
@@ -234,11 +236,14 @@ std::optional<RuleBreak> Semantics::follow_line_settings(const std::string& devi
         }
         written += (written.empty() ? "" : ", ") + register_name(p) + " := " + std::to_string(code);
         now += (now.empty() ? "" : ", ") + setting_text(*p.mirrors, v->means);
+        take_meaning(settings, *p.mirrors, v->means);
     }
     if (written.empty()) return std::nullopt;
-    return RuleBreak{FindingCode::ProfileLineSettingsChanged,
-                     written + " acknowledged: the device talks " + now + " from now on (" + profile.id +
-                         "'s manual); a master that keeps the old settings no longer reaches it"};
+    return LineSettingsTold{
+        RuleBreak{FindingCode::ProfileLineSettingsChanged,
+                  written + " acknowledged: the device talks " + now + " from now on (" + profile.id +
+                      "'s manual); a master that keeps the old settings no longer reaches it"},
+        settings};
 }
 
 std::optional<RuleBreak> Semantics::follow_address(const std::string& server, const Profile& profile,

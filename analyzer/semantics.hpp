@@ -45,11 +45,16 @@ class Semantics {
                                             const modbus::Pdu& request, const modbus::Pdu& response);
     // A write to the registers mirroring the device's framing, speed or parity (MK PROT, BAUD, PARID:
     // MK-CFG-01) that it acknowledged, with codes the manual defines and, where the registers were read
-    // before on `device`, other than they held: the device talks with them from then on. The note, or
-    // nullopt. Before values(), which remembers the written values.
-    std::optional<RuleBreak> follow_line_settings(const std::string& device, const modbus::Profile& profile,
-                                                  const modbus::Pdu& request,
-                                                  const modbus::Pdu& response) const;
+    // before on `device`, other than they held: the device talks with them from then on. The note and the
+    // settings written, or nullopt. Before values(), which remembers the written values.
+    struct LineSettingsTold {
+        RuleBreak note;
+        modbus::LineState settings;  // the framing, speed and parity written; the rest unset
+    };
+    std::optional<LineSettingsTold> follow_line_settings(const std::string& device,
+                                                         const modbus::Profile& profile,
+                                                         const modbus::Pdu& request,
+                                                         const modbus::Pdu& response) const;
     // Named values of a completed transaction (reads: the reply's values; writes: the values written).
     std::vector<modbus::NamedValue> values(const modbus::Profile& profile, const std::string& device,
                                            const modbus::Pdu& request, const modbus::Pdu& response);

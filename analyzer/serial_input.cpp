@@ -221,9 +221,12 @@ InputFormat detect_input_format(std::span<const std::uint8_t> h) {
         ++i;
     if (i < h.size() && (std::isdigit(h[i]) || h[i] == '#')) {
         bool printable = true;
-        for (std::size_t k = 0; k < h.size() && h[k] != '\n'; ++k)
+        bool words = h[i] == '#';  // a time and bytes: a line of one word is no chunk (an ASCII dump's tail)
+        for (std::size_t k = i; k < h.size() && h[k] != '\n'; ++k) {
             printable &= h[k] == '\t' || h[k] == '\r' || (h[k] >= 0x20 && h[k] < 0x7F);
-        if (printable) return InputFormat::Text;
+            words |= (h[k] == ' ' || h[k] == '\t') && k + 1 < h.size() && h[k + 1] > ' ';
+        }
+        if (printable && words) return InputFormat::Text;
     }
     return InputFormat::RtuRaw;
 }
@@ -237,6 +240,7 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
     }
     const std::string& path = input->name;
     bool capture_read_as_serial = false;
+    bool detected_here = false;
     if (format != InputFormat::Pcap) {
         std::ifstream in(input->path, std::ios::binary);
         if (!in) {
@@ -255,7 +259,10 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
             a.input_error(path +
                           ": holds a pcap or pcapng capture (its magic number) but --format reads it as "
                           "serial bytes; leave --format out to decode the capture");
-        if (format == InputFormat::Auto) format = detected;
+        if (format == InputFormat::Auto) {
+            format = detected;
+            detected_here = true;
+        }
     }
     // A file of no bytes decodes to nothing in every serial format; reporting that as a clean decode would
     // pass off a tap that recorded nothing (or the wrong file) as a quiet line. libpcap names an empty pcap
@@ -269,18 +276,19 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
         case InputFormat::Pcap:
             return a.read_capture(input->path, input->name);
         case InputFormat::Text:
-            a.set_serial_framing(modbus::Framing::Rtu);
             read = read_text(a, *input);
             break;
         case InputFormat::RtuRaw:
         case InputFormat::AsciiRaw:
-            a.set_serial_framing(format == InputFormat::AsciiRaw ? modbus::Framing::Ascii
-                                                                 : modbus::Framing::Rtu);
+            // Asked for by name, the format fixes the framing; found by its first byte, the line's bytes
+            // tell it (a dump that starts inside a frame or with noise is not misread).
+            if (!detected_here && !a.serial_framing())
+                a.set_serial_framing(format == InputFormat::AsciiRaw ? modbus::Framing::Ascii
+                                                                     : modbus::Framing::Rtu);
             read = read_raw(a, *input);
             break;
         case InputFormat::Jpnevulator:
         case InputFormat::Socat:
-            a.set_serial_framing(modbus::Framing::Rtu);
             read = read_log(a, *input, format, options);
             break;
         case InputFormat::Auto:

@@ -1,8 +1,9 @@
 // The serial capture readers (raw RTU and ASCII dumps, the text format, jpnevulator and socat logs) and the
 // analyzer behind them, on bytes given to the reader as a file (an in-memory file, so the readers run
-// exactly as `mbscope decode` runs them). The format and the line's character format are drawn from the
-// first bytes. Properties: no crash, no leak, no undefined behaviour; a damaged log is an input error, not
-// an abort.
+// exactly as `mbscope decode` runs them). The format, the line's character format and framing, and
+// whether a bundled profile describes every device (so that a device told other line settings makes the
+// line deframed again from there) are drawn from the last bytes. Properties: no crash, no leak, no undefined
+// behaviour; a damaged log is an input error, not an abort.
 #include <fuzzer/FuzzedDataProvider.h>
 #include <sys/mman.h>
 #include <unistd.h>
@@ -14,6 +15,7 @@
 #include "analyzer/analyzer.hpp"
 #include "analyzer/serial_input.hpp"
 #include "analyzer/sinks.hpp"
+#include "fuzz/bundled_profiles.hpp"
 #include "fuzz/fuzz_support.hpp"
 
 using namespace mbscope;
@@ -27,6 +29,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     analyzer::AnalyzerOptions options;
     options.serial_line.baud = in.PickValueInArray<std::uint32_t>({1200, 9600, 19200, 115200});
     options.serial_line.parity = in.ConsumeBool() ? modbus::Parity::Even : modbus::Parity::None;
+    if (in.ConsumeBool()) {
+        const auto& profiles = fuzz::bundled_profiles();
+        auto semantics = std::make_shared<analyzer::Semantics>();
+        const auto& p = profiles[in.ConsumeIntegralInRange<std::size_t>(0, profiles.size() - 1)];
+        semantics->add({}, std::make_shared<const modbus::Profile>(p));
+        options.semantics = std::move(semantics);
+    }
+    // none: told from the line's bytes
+    static const std::optional<modbus::Framing> framings[] = {std::nullopt, modbus::Framing::Rtu,
+                                                              modbus::Framing::Ascii};
+    options.serial_framing = framings[in.ConsumeIntegralInRange<std::size_t>(0, 2)];
     const auto log = in.ConsumeRemainingBytes<std::uint8_t>();
 
     const int fd = ::memfd_create("fuzz_serial_log", MFD_CLOEXEC);

@@ -275,7 +275,9 @@ def build(mbscope, out_dir):
             p.data(pcap)
             write("capture", p.bytes(), out_dir)
 
-    # serial_log: format "auto", 9600 baud, no parity, then the log; the text format from the examples.
+    # serial_log: format "auto", 9600 baud, no parity, no profile, framing told by the bytes, then the log;
+    # the text format from the examples. Then an MK device told PROT := 0 (ASCII) in RTU and read in ASCII
+    # (MK-CFG-01), described by its profile: the line is deframed again from the acknowledgement on.
     text = "".join("%.3f %s %s\n" % (1 + i * 0.05, ">" if i % 2 == 0 else "<", frame.hex(" ").upper())
                    for i, frame in enumerate(rtu_frames)).encode()
     for log in logs + [text, b"".join(rtu_frames), b"".join(ascii_frames)]:
@@ -283,6 +285,24 @@ def build(mbscope, out_dir):
         p.integral(0, 5, 0)
         p.integral(0, 3, 1)
         p.boolean(False)
+        p.boolean(False)
+        p.integral(0, 2, 0)
+        p.data(log)
+        write("serial_log", p.bytes(), out_dir)
+    prot = [rtu(1, bytes.fromhex("0300080001")), rtu(1, bytes.fromhex("03020001")),
+            rtu(1, bytes.fromhex("0600080000")), rtu(1, bytes.fromhex("0600080000")),
+            ascii_frame(1, bytes.fromhex("0300080001")), ascii_frame(1, bytes.fromhex("03020000"))]
+    ids = [pr["id"] for pr in all_profiles]
+    for log in (b"".join(prot), "".join("%.3f %s %s\n" % (1 + i * 0.05, ">" if i % 2 == 0 else "<",
+                                                          frame.hex(" ").upper())
+                                         for i, frame in enumerate(prot)).encode()):
+        p = Provider()
+        p.integral(0, 5, 0)
+        p.integral(0, 3, 1)
+        p.boolean(False)
+        p.boolean(True)
+        p.integral(0, len(all_profiles) - 1, ids.index("mmk-2030"))
+        p.integral(0, 2, 0)
         p.data(log)
         write("serial_log", p.bytes(), out_dir)
 

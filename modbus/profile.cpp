@@ -44,6 +44,14 @@ std::optional<int> LineRules::stop_bits_for(Framing framing, Parity parity) cons
     return allowed->front();
 }
 
+SerialLine LineRules::character_for(Framing framing, SerialLine line) const {
+    line.data_bits =
+        static_cast<std::uint8_t>(data_bits_for(framing).value_or(framing == Framing::Ascii ? 7 : 8));
+    if (const auto stop = stop_bits_for(framing, line.parity))
+        line.stop_bits = static_cast<std::uint8_t>(*stop);
+    return line;
+}
+
 namespace {
 template <typename List>
 std::string listed(const List& items) {
@@ -244,32 +252,33 @@ const EnumValue* mirrored_meaning(const Point& p, std::uint16_t code) {
     return v == p.encoding.values.end() || v->means.empty() ? nullptr : &*v;
 }
 
+void take_meaning(LineState& state, LineSetting setting, const std::string& means) {
+    switch (setting) {
+        case LineSetting::Framing:
+            if (means == "rtu") state.framing = Framing::Rtu;
+            if (means == "ascii") state.framing = Framing::Ascii;
+            break;
+        case LineSetting::Baud: {
+            std::uint32_t baud = 0;
+            const auto [end, ec] = std::from_chars(means.data(), means.data() + means.size(), baud);
+            if (ec == std::errc{} && end == means.data() + means.size() && baud > 0) state.baud = baud;
+            break;
+        }
+        case LineSetting::Parity:
+            state.parity = parse_parity(means);
+            break;
+        case LineSetting::UnitId:
+            break;
+    }
+}
+
 LineState held_line_settings(const Profile& profile,
                              const std::function<std::uint16_t(std::uint16_t)>& read) {
     LineState held;
     for (const Point& p : profile.table(Table::HoldingRegisters)) {
         if (!p.mirrors || *p.mirrors == LineSetting::UnitId || p.encoding.words != 1) continue;
-        const EnumValue* v = mirrored_meaning(p, read(p.address));
-        if (!v) continue;
-        switch (*p.mirrors) {
-            case LineSetting::Framing:
-                if (v->means == "rtu") held.framing = Framing::Rtu;
-                if (v->means == "ascii") held.framing = Framing::Ascii;
-                break;
-            case LineSetting::Baud: {
-                std::uint32_t baud = 0;
-                const auto [end, ec] =
-                    std::from_chars(v->means.data(), v->means.data() + v->means.size(), baud);
-                if (ec == std::errc{} && end == v->means.data() + v->means.size() && baud > 0)
-                    held.baud = baud;
-                break;
-            }
-            case LineSetting::Parity:
-                held.parity = parse_parity(v->means);
-                break;
-            case LineSetting::UnitId:
-                break;
-        }
+        if (const EnumValue* v = mirrored_meaning(p, read(p.address)))
+            take_meaning(held, *p.mirrors, v->means);
     }
     return held;
 }

@@ -164,6 +164,11 @@ struct LineRules {
     std::optional<int> stop_bits_for(Framing framing, Parity parity) const;
     // The stop bits the manual allows there (the most specific key); null where it says nothing.
     const std::vector<int>* stop_bits_allowed(Framing framing, Parity parity) const;
+    // `line` with the character that goes with `framing` and its parity: the manual's (MK-CHR-01: 8 data
+    // bits in RTU, 7 in ASCII; MK-CHR-02: 2 stop bits in ASCII without parity, else 1), else the
+    // specification's data bits (SL §2.5.1, §2.5.2) and the stop bits as they were. For a line told another
+    // framing or parity.
+    SerialLine character_for(Framing framing, SerialLine line) const;
 };
 
 // How a line departs from what the device's manual allows (transports, baud rates, parities, data and stop
@@ -274,6 +279,8 @@ struct NamedValue {
 // (framing, baud rate, parity: mirrored_value's inverse; not the unit, which the caller knows). A code the
 // map gives no meaning leaves that setting unknown.
 LineState held_line_settings(const Profile& profile, const std::function<std::uint16_t(std::uint16_t)>& read);
+// Sets in `state` the setting a mirrored point's code means (mirrored_meaning's "ascii", "9600", "even").
+void take_meaning(LineState& state, LineSetting setting, const std::string& means);
 
 // Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.
 // `context` supplies registers outside the block (decimal-point registers), may be empty. Words past address

@@ -21,4 +21,16 @@ std::optional<Parity> parse_parity(std::string_view t) noexcept {
     return std::nullopt;
 }
 
+std::string settings_text(Framing framing, const SerialLine& line, bool serial) {
+    std::string s(framing == Framing::Ascii ? "ASCII" : "RTU");
+    if (!serial) return s;
+    s += ", " + std::to_string(line.baud) + " baud, ";
+    s += line.parity == Parity::None   ? "no parity"
+         : line.parity == Parity::Even ? "even parity"
+                                       : "odd parity";
+    s += " (" + std::to_string(line.data_bits) + "NEO"[static_cast<int>(line.parity)] +
+         std::to_string(line.stop_bits) + ")";
+    return s;
+}
+
 }  // namespace mbscope::modbus

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdint>
 #include <optional>
+#include <string>
 #include <string_view>
 
 #include "modbus/frame.hpp"
@@ -47,5 +48,9 @@ struct LineState {
     std::optional<std::uint32_t> baud;
     std::optional<Parity> parity;
 };
+
+// A line's settings as people say them: "RTU", or on a serial line "ASCII, 9600 baud, even parity (7E1)"
+// (the character as a terminal program writes it: 8N1, 7E1, 7N2).
+std::string settings_text(Framing framing, const SerialLine& line, bool serial);
 
 }  // namespace mbscope::modbus

@@ -57,19 +57,7 @@ struct LineChange {
     modbus::SerialLine line;
 };
 
-std::string settings_text(Framing framing, const modbus::SerialLine& line, bool serial) {
-    std::string s(framing == Framing::Ascii ? "ASCII" : "RTU");
-    if (serial) {
-        s += ", " + std::to_string(line.baud) + " baud, ";
-        s += line.parity == modbus::Parity::None   ? "no parity"
-             : line.parity == modbus::Parity::Even ? "even parity"
-                                                   : "odd parity";
-        // The character as a terminal program writes it: 8N1, 7E1, 7N2.
-        s += " (" + std::to_string(line.data_bits) + "NEO"[static_cast<int>(line.parity)] +
-             std::to_string(line.stop_bits) + ")";
-    }
-    return s;
-}
+using modbus::settings_text;
 
 struct Scheduled {
     Clock::time_point due;
@@ -181,14 +169,9 @@ struct Server::Impl {
         if (first.framing && first.framing != was.framing) change.framing = *first.framing;
         if (serial && first.baud && first.baud != was.baud) change.line.baud = *first.baud;
         if (serial && first.parity && first.parity != was.parity) change.line.parity = *first.parity;
-        // The character that goes with them: the manual's (MK-CHR-01: 8 data bits in RTU, 7 in ASCII;
-        // MK-CHR-02: 2 stop bits in ASCII without parity, else 1), else the specification's data bits
-        // (SL §2.5.1, §2.5.2) and the stop bits as they were.
+        // The character that goes with them (the manual's, else the specification's).
         const auto& rules = units[static_cast<std::size_t>(told - differs.begin())]->profile().line;
-        change.line.data_bits = static_cast<std::uint8_t>(
-            rules.data_bits_for(change.framing).value_or(change.framing == Framing::Ascii ? 7 : 8));
-        if (const auto stop = rules.stop_bits_for(change.framing, change.line.parity))
-            change.line.stop_bits = static_cast<std::uint8_t>(*stop);
+        change.line = rules.character_for(change.framing, change.line);
         for (std::size_t i = 0; i < units.size(); ++i) {
             followed[i] = held[i];
             units[i]->join_line();

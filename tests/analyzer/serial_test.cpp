@@ -61,6 +61,8 @@ TEST(SerialInput, FormatDetection) {
     EXPECT_EQ(d(bytes({0x0A, 0x0D, 0x0D, 0x0A})), an::InputFormat::Pcap);
     EXPECT_EQ(d(":11030060000389\r\n"), an::InputFormat::AsciiRaw);
     EXPECT_EQ(d("1.000 > 11 03 00 60\n"), an::InputFormat::Text);
+    // An ASCII dump cut inside its first frame is a raw dump (its line then tells ASCII), not a text log.
+    EXPECT_EQ(d("0060000389\r\n:11030060000389\r\n"), an::InputFormat::RtuRaw);
     EXPECT_EQ(d(bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45})), an::InputFormat::RtuRaw);
 }
 

@@ -1,0 +1,39 @@
+// `mbscope decode --framing`: a serial capture's framing when its bytes should not decide it, and the two
+// names of a raw dump's framing (`--format rtu|ascii` and `--framing`) that must agree.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+
+#include "tests/cli/cli_run.hpp"
+
+using mbscope::test::run_mbscope;
+
+namespace {
+// The MK manual's ASCII example (MK-ASC-02, 000:304-309) as a text log: a time, then the characters' bytes.
+std::string ascii_log() {
+    const std::string path = ::testing::TempDir() + "framing-option.txt";
+    std::ofstream(path) << "1.000 3A 31 31 30 33 30 30 36 30 30 30 30 33 38 39 0D 0A\n";
+    return path;
+}
+}  // namespace
+
+TEST(FramingOption, AutoTellsAsciiAndAStatedFramingIsObeyed) {
+    const auto found = run_mbscope("decode --jsonl " + ascii_log());
+    EXPECT_EQ(found.exit_code, 0) << found.out;
+    EXPECT_NE(found.out.find("\"framing\":\"ascii\""), std::string::npos) << found.out;
+
+    const auto stated = run_mbscope("decode --jsonl --framing rtu " + ascii_log());
+    EXPECT_EQ(stated.exit_code, 1) << stated.out;  // read as RTU: a CRC mismatch, an error finding
+    EXPECT_NE(stated.out.find("rtu.crc_mismatch"), std::string::npos) << stated.out;
+}
+
+TEST(FramingOption, ARawDumpsTwoNamesMustAgree) {
+    const auto r = run_mbscope("decode --format ascii --framing rtu " + ascii_log());
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.out.find("--format ascii reads a raw ASCII dump; --framing rtu contradicts it"),
+              std::string::npos)
+        << r.out;
+    const auto help = run_mbscope("decode --help");
+    EXPECT_NE(help.out.find("--framing"), std::string::npos);
+}
