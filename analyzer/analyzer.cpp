@@ -42,6 +42,52 @@ struct Analyzer::Flow {
     std::vector<Unit> units;
 };
 
+// A link whose frames come whole or from a serial deframer, never from TCP reassembly: serial lines, and
+// exported PDUs.
+struct Analyzer::SerialLink {
+    Flow* flow = nullptr;
+    std::string source;  // input file
+    std::unique_ptr<RtuDeframer> untimed;
+    std::unique_ptr<RtuTimedDeframer> timed;
+    std::unique_ptr<AsciiDeframer> ascii;
+    Direction hint = Direction::Unknown;
+    std::uint64_t offset = 0;  // exported PDUs: bytes of the records before this one
+    int rtac_side = -1;        // RTAC serial: 0 sending, 1 receiving, -1 not yet known
+
+    // The line as the link reads it: its framing (none until the first bytes tell it, when the input does
+    // not) and its character (t1.5/t3.5), both changed by a device told other settings (follow_line).
+    bool started = false;
+    std::optional<Framing> framing;
+    SerialLine line;
+    std::uint64_t base = 0;     // stream offset of the deframers' first byte: their offsets count from it
+    std::uint64_t fed = 0;      // stream bytes given to the link
+    std::uint64_t settled = 0;  // every byte before this is in a reported frame or unparsed record
+    // Kept when the framing is not known yet, or may change mid-stream (profiles can tell a device other
+    // settings): the chunks from the first byte not yet settled on, so that the bytes after a change are
+    // deframed again the new way. A close (close_frames) is a chunk of its own, without bytes.
+    struct Chunk {
+        std::vector<std::uint8_t> bytes;
+        std::uint64_t offset;  // stream offset of bytes[0]
+        Timestamp received;
+        Direction hint;
+        std::uint64_t packet;
+        bool close;
+    };
+    bool keeps_chunks = false;
+    std::deque<Chunk> chunks;
+    std::size_t next_chunk = 0;               // the next chunk for the deframers
+    std::size_t next_skip = 0;                // its bytes already given (a restart inside it)
+    std::optional<std::uint64_t> restart_at;  // follow_line: deframe again from here, the new way
+    // Telling the framing: an ASCII deframer that has not seen a frame with a valid LRC yet, and the count
+    // of bytes no ASCII line carries.
+    std::unique_ptr<AsciiDeframer> probe;
+    std::size_t foreign = 0;
+    // Units that answered on the line, and the settings each was told: the line follows once all of them
+    // hold the same.
+    std::vector<std::uint8_t> answered;
+    std::map<std::uint8_t, LineState> told;
+};
+
 std::size_t Analyzer::FlowKeyHash::operator()(const FlowKey& k) const noexcept {
     // the words mixed side by side rather than in a chain of multiplications, then folded once
     const std::uint64_t h = (k.words[0] ^ 0x9E3779B97F4A7C15ull) * 0xBF58476D1CE4E5B9ull +
@@ -389,10 +435,16 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
                 report(rule.code, r, rule.message);
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
-        if (!sink_wants_transactions_) return;
+        auto told = follow_broadcast(flow, r);
+        if (!sink_wants_transactions_) {
+            if (told) report(FindingCode::ProfileLineSettingsChanged, r, std::move(*told), {r.index});
+            return;
+        }
         TransactionRecord t(std::move(r));
         t.broadcast = true;
         sink_.transaction(t);
+        if (told)
+            report(FindingCode::ProfileLineSettingsChanged, t.request, std::move(*told), {t.request.index});
         return;
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
@@ -648,18 +700,30 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                                  std::move(told->note.message),
                                  {request.index, rsp_record->index}});
             }
+            // Remembered whether or not the sink takes transactions: what a later write changes (and so the
+            // findings) must not depend on the output chosen.
+            auto values =
+                options_.semantics->values(*profile, request.device, *request.pdu, *rsp_record->pdu);
             if (made) {
                 made->profile = profile;
-                made->values =
-                    options_.semantics->values(*profile, request.device, *request.pdu, *rsp_record->pdu);
+                made->values = std::move(values);
             }
             for (auto& rule : options_.semantics->check_response(*profile, *request.pdu, *rsp_record->pdu))
                 found.push_back(
                     {rule.code, rsp_record, std::move(rule.message), {request.index, rsp_record->index}});
             if (auto moved =
-                    options_.semantics->follow_address(server, *profile, *request.pdu, *rsp_record->pdu))
+                    options_.semantics->follow_address(server, *profile, *request.pdu, *rsp_record->pdu)) {
+                // The unit no longer answers at its old address: it is not on the line there any more.
+                if (request.carrier == Carrier::Serial)
+                    if (const auto it = serial_links_.find(request.link.str()); it != serial_links_.end()) {
+                        auto& answered = it->second->answered;
+                        answered.erase(std::remove(answered.begin(), answered.end(), request.frame.unit_id()),
+                                       answered.end());
+                        it->second->told.erase(request.frame.unit_id());
+                    }
                 found.push_back(
                     {moved->code, rsp_record, std::move(moved->message), {request.index, rsp_record->index}});
+            }
         }
     }
     if (made && options_.word_order && !made->profile && rsp_record && request.pdu && rsp_record->pdu) {
@@ -717,52 +781,6 @@ void Analyzer::expire(Timestamp now, bool at_end) {
 }
 
 // ---------------------------------------------------------------- serial lines
-
-// A link whose frames come whole or from a serial deframer, never from TCP reassembly: serial lines, and
-// exported PDUs.
-struct Analyzer::SerialLink {
-    Flow* flow = nullptr;
-    std::string source;  // input file
-    std::unique_ptr<RtuDeframer> untimed;
-    std::unique_ptr<RtuTimedDeframer> timed;
-    std::unique_ptr<AsciiDeframer> ascii;
-    Direction hint = Direction::Unknown;
-    std::uint64_t offset = 0;  // exported PDUs: bytes of the records before this one
-    int rtac_side = -1;        // RTAC serial: 0 sending, 1 receiving, -1 not yet known
-
-    // The line as the link reads it: its framing (none until the first bytes tell it, when the input does
-    // not) and its character (t1.5/t3.5), both changed by a device told other settings (follow_line).
-    bool started = false;
-    std::optional<Framing> framing;
-    SerialLine line;
-    std::uint64_t base = 0;     // stream offset of the deframers' first byte: their offsets count from it
-    std::uint64_t fed = 0;      // stream bytes given to the link
-    std::uint64_t settled = 0;  // every byte before this is in a reported frame or unparsed record
-    // Kept when the framing is not known yet, or may change mid-stream (profiles can tell a device other
-    // settings): the chunks from the first byte not yet settled on, so that the bytes after a change are
-    // deframed again the new way. A close (close_frames) is a chunk of its own, without bytes.
-    struct Chunk {
-        std::vector<std::uint8_t> bytes;
-        std::uint64_t offset;  // stream offset of bytes[0]
-        Timestamp received;
-        Direction hint;
-        std::uint64_t packet;
-        bool close;
-    };
-    bool keeps_chunks = false;
-    std::deque<Chunk> chunks;
-    std::size_t next_chunk = 0;               // the next chunk for the deframers
-    std::size_t next_skip = 0;                // its bytes already given (a restart inside it)
-    std::optional<std::uint64_t> restart_at;  // follow_line: deframe again from here, the new way
-    // Telling the framing: an ASCII deframer that has not seen a frame with a valid LRC yet, and the count
-    // of bytes no ASCII line carries.
-    std::unique_ptr<AsciiDeframer> probe;
-    std::size_t foreign = 0;
-    // Units that answered on the line, and the settings each was told: the line follows once all of them
-    // hold the same.
-    std::vector<std::uint8_t> answered;
-    std::map<std::uint8_t, LineState> told;
-};
 
 Analyzer::SerialLink& Analyzer::serial_link(const std::string& key, const std::string& link,
                                             const std::string& server, Carrier carrier) {
@@ -998,6 +1016,40 @@ void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> byte
     else if (rtu_at || link.fed >= bytes_to_tell || at_end)
         link.framing = Framing::Rtu;
     if (link.framing) link.probe.reset();
+}
+
+std::optional<std::string> Analyzer::follow_broadcast(Flow& flow, const FrameRecord& r) {
+    if (!options_.semantics || !r.pdu || flow.carrier != Carrier::Serial) return std::nullopt;
+    const auto it = serial_links_.find(flow.link.str());
+    if (it == serial_links_.end()) return std::nullopt;
+    SerialLink& link = *it->second;
+    // Every device on the line takes it whose manual allows the function in broadcast: those that answered
+    // on it, or before any did, the device every unit is described as (--profile).
+    std::vector<std::uint8_t> units = link.answered;
+    if (units.empty()) units.push_back(0);
+    std::string who, written, now, ids, line_said;
+    for (const std::uint8_t unit : units) {
+        const Profile* profile = options_.semantics->profile_for(flow.server, unit);
+        if (!profile) continue;
+        DeviceStats* stats = nullptr;
+        const std::string& device = unit == 0 ? r.device.str() : device_of(flow, unit, stats).str();
+        auto told = options_.semantics->follow_broadcast_line_settings(device, *profile, *r.pdu);
+        if (!told) continue;
+        line_said =
+            follow_line(link, unit, told->settings, profile->line, r.frame.offset + r.frame.wire_length);
+        if (unit != 0) who += (who.empty() ? "" : ", ") + std::to_string(unit);
+        if (written.empty()) {
+            written = told->written;
+            now = told->now;
+        }
+        if (ids.find(profile->id) == std::string::npos) ids += (ids.empty() ? "" : ", ") + profile->id;
+    }
+    if (written.empty()) return std::nullopt;
+    const bool several = who.find(',') != std::string::npos;
+    return written + " broadcast: " + (who.empty() ? "the devices" : (several ? "units " : "unit ") + who) +
+           (several || who.empty() ? " talk " : " talks ") + now + " from now on (" + ids +
+           "'s manual); a master that keeps the old settings no longer reaches " +
+           (several || who.empty() ? "them" : "it") + line_said;
 }
 
 std::string Analyzer::follow_line(SerialLink& link, std::uint8_t unit, const LineState& told,

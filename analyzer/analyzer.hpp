@@ -175,6 +175,9 @@ class Analyzer {
     void tell_framing(SerialLink& link, std::span<const std::uint8_t> bytes, bool at_end);
     // A unit on a serial link acknowledged other line settings (the response ending at stream offset `at`):
     // what the capture does about it, as the end of the note's sentence.
+    // A broadcast write of line settings, taken by the devices on the line whose manuals allow it: the
+    // note's message, or nullopt.
+    std::optional<std::string> follow_broadcast(Flow& flow, const FrameRecord& request);
     std::string follow_line(SerialLink& link, std::uint8_t unit, const modbus::LineState& told,
                             const modbus::LineRules& rules, std::uint64_t at);
     void serial_events(SerialLink& link, modbus::DeframeEvents& events, modbus::Timestamp t,

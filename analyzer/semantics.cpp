@@ -174,22 +174,30 @@ std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const P
 
 namespace {
 
-// The holding registers an acknowledged FC6 or FC16 wrote: the first address and the values (those within
-// the address space). nullopt for any other transaction.
+// The holding registers a write request writes (FC6, FC16, FC23's write part): the first address and the
+// values (those within the address space). nullopt for any other request.
 struct WrittenRegisters {
     std::uint16_t start = 0;
     std::vector<std::uint16_t> values;
 };
-std::optional<WrittenRegisters> acknowledged_registers(const Pdu& q, const Pdu& a) {
-    if (a.is_exception() || a.function_code() != q.function_code()) return std::nullopt;
+std::optional<WrittenRegisters> written_registers(const Pdu& q) {
     if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
         return WrittenRegisters{w->address, {w->value}};
-    if (const auto* m = std::get_if<WriteMultipleRegistersRequest>(&q.body)) {
-        const auto n = count_within_address_space(m->starting_address, m->values.size());
-        return WrittenRegisters{m->starting_address,
-                                std::vector<std::uint16_t>(m->values.begin(), m->values.begin() + n)};
-    }
+    const auto within = [](std::uint16_t start, const std::vector<std::uint16_t>& values) {
+        const auto n = count_within_address_space(start, values.size());
+        return WrittenRegisters{start, std::vector<std::uint16_t>(values.begin(), values.begin() + n)};
+    };
+    if (const auto* m = std::get_if<WriteMultipleRegistersRequest>(&q.body))
+        return within(m->starting_address, m->values);
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&q.body))
+        return within(rw->write_starting_address, rw->write_values);
     return std::nullopt;
+}
+// What the device took: the request's writes when the response acknowledges them (its own function code,
+// not an exception; AP §6.17: FC23 writes before it reads).
+std::optional<WrittenRegisters> acknowledged_registers(const Pdu& q, const Pdu& a) {
+    if (a.is_exception() || a.function_code() != q.function_code()) return std::nullopt;
+    return written_registers(q);
 }
 
 // "ENDER (register 7)": the manual's mnemonic where it gives one.
@@ -214,19 +222,17 @@ std::string setting_text(LineSetting s, const std::string& means) {
 
 }  // namespace
 
-std::optional<Semantics::LineSettingsTold> Semantics::follow_line_settings(const std::string& device,
-                                                                           const Profile& profile,
-                                                                           const Pdu& q, const Pdu& a) const {
-    const auto w = acknowledged_registers(q, a);
-    if (!w) return std::nullopt;
+std::optional<Semantics::LineSettingsTold> Semantics::line_settings_written(
+    const std::string& device, const Profile& profile, std::uint16_t start,
+    std::span<const std::uint16_t> values, const std::string& how) const {
     const auto seen = registers_.find(device);
     std::string written, now;
     LineState settings;
     for (const Point& p : profile.table(Table::HoldingRegisters)) {
-        if (!p.mirrors || *p.mirrors == LineSetting::UnitId || p.encoding.words != 1 ||
-            p.address < w->start || std::size_t{p.address} - w->start >= w->values.size())
+        if (!p.mirrors || *p.mirrors == LineSetting::UnitId || p.encoding.words != 1 || p.address < start ||
+            std::size_t{p.address} - start >= values.size())
             continue;
-        const std::uint16_t code = w->values[p.address - w->start];
+        const std::uint16_t code = values[p.address - start];
         const EnumValue* v = mirrored_meaning(p, code);
         if (!v) continue;  // a code the manual does not define: a rule break
         if (seen != registers_.end()) {
@@ -241,9 +247,30 @@ std::optional<Semantics::LineSettingsTold> Semantics::follow_line_settings(const
     if (written.empty()) return std::nullopt;
     return LineSettingsTold{
         RuleBreak{FindingCode::ProfileLineSettingsChanged,
-                  written + " acknowledged: the device talks " + now + " from now on (" + profile.id +
+                  written + " " + how + ": the device talks " + now + " from now on (" + profile.id +
                       "'s manual); a master that keeps the old settings no longer reaches it"},
-        settings};
+        settings, written, now};
+}
+
+std::optional<Semantics::LineSettingsTold> Semantics::follow_line_settings(const std::string& device,
+                                                                           const Profile& profile,
+                                                                           const Pdu& q, const Pdu& a) const {
+    const auto w = acknowledged_registers(q, a);
+    if (!w) return std::nullopt;
+    return line_settings_written(device, profile, w->start, w->values, "acknowledged");
+}
+
+std::optional<Semantics::LineSettingsTold> Semantics::follow_broadcast_line_settings(
+    const std::string& device, const Profile& profile, const Pdu& q) {
+    if (!profile.functions.allows_broadcast(q.function_code())) return std::nullopt;
+    const auto w = written_registers(q);
+    if (!w) return std::nullopt;
+    auto told = line_settings_written(device, profile, w->start, w->values, "broadcast");
+    // Taken without a reply: remembered as an acknowledged write's values are (values()).
+    auto& seen = registers_[device];
+    for (std::size_t i = 0; i < w->values.size(); ++i)
+        seen[static_cast<std::uint16_t>(w->start + i)] = w->values[i];
+    return told;
 }
 
 std::optional<RuleBreak> Semantics::follow_address(const std::string& server, const Profile& profile,
@@ -277,6 +304,8 @@ std::vector<NamedValue> Semantics::values(const Profile& profile, const std::str
         for (std::size_t i = 0; i < count_within_address_space(start, words.size()); ++i)
             seen[static_cast<std::uint16_t>(start + i)] = words[i];
     };
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&q.body))
+        remember(rw->write_starting_address, rw->write_values);  // AP §6.17: written before the read
     if (auto s = read_span(q)) {
         if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body)) {
             remember(s->start, regs->values);

@@ -50,16 +50,27 @@ class Semantics {
     struct LineSettingsTold {
         RuleBreak note;
         modbus::LineState settings;  // the framing, speed and parity written; the rest unset
+        std::string written;         // "PROT. (register 8) := 0"
+        std::string now;             // "ASCII"
     };
     std::optional<LineSettingsTold> follow_line_settings(const std::string& device,
                                                          const modbus::Profile& profile,
                                                          const modbus::Pdu& request,
                                                          const modbus::Pdu& response) const;
+    // The same for a broadcast write (no reply: SL §2.1), on a device whose manual allows the function in
+    // broadcast; the written values are remembered for `device` as values() remembers acknowledged ones.
+    std::optional<LineSettingsTold> follow_broadcast_line_settings(const std::string& device,
+                                                                   const modbus::Profile& profile,
+                                                                   const modbus::Pdu& request);
     // Named values of a completed transaction (reads: the reply's values; writes: the values written).
     std::vector<modbus::NamedValue> values(const modbus::Profile& profile, const std::string& device,
                                            const modbus::Pdu& request, const modbus::Pdu& response);
 
   private:
+    std::optional<LineSettingsTold> line_settings_written(const std::string& device,
+                                                          const modbus::Profile& profile, std::uint16_t start,
+                                                          std::span<const std::uint16_t> values,
+                                                          const std::string& how) const;
     std::vector<std::pair<DeviceSelector, std::shared_ptr<const modbus::Profile>>> maps_;
     std::map<std::string, std::map<std::uint16_t, std::uint16_t>> registers_;  // device → last values seen
     // (host, unit) → the profile of a device that moved there (follow_address): before any --map.

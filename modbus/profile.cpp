@@ -153,6 +153,10 @@ bool FunctionRules::supports(std::uint8_t fc) const {
     return std::find(supported.begin(), supported.end(), fc) != supported.end();
 }
 
+bool FunctionRules::allows_broadcast(std::uint8_t fc) const {
+    return std::find(broadcast.begin(), broadcast.end(), fc) != broadcast.end();
+}
+
 int FunctionRules::max_for(std::uint8_t fc, bool write_part) const {
     const std::string key = std::to_string(fc) + (write_part ? "w" : "");
     if (auto it = max_quantity.find(key); it != max_quantity.end()) return it->second;

@@ -190,6 +190,7 @@ struct FunctionRules {
     std::set<std::string, std::less<>> implied_exceptions;  // conditions whose code the manual only implies
 
     bool supports(std::uint8_t fc) const;
+    bool allows_broadcast(std::uint8_t fc) const;  // the manual runs it sent to unit 0 (SL §2.1)
     // The manual's limit, else the specification's (AP §6.x); 0 when the function has no quantity.
     int max_for(std::uint8_t fc, bool write_part = false) const;
 };

@@ -159,9 +159,8 @@ Reply Device::handle(const Request& request) {
     }
     // A broadcast runs only a write the profile allows in broadcast, and is never answered (SL §2.1).
     if (request.broadcast && !answer_broadcast) {
-        const auto& allowed = profile_->functions.broadcast;
         ++counters_.no_response;
-        if (!is_write(fc) || std::find(allowed.begin(), allowed.end(), fc) == allowed.end()) return reply;
+        if (!is_write(fc) || !profile_->functions.allows_broadcast(fc)) return reply;
     }
 
     std::vector<std::uint8_t> out;

@@ -238,3 +238,65 @@ TEST(LineFraming, ANewSpeedSetsTheSilences) {
     EXPECT_EQ(run.sink.count(mb::FindingCode::RtuGapInsideFrame), 0);
     EXPECT_EQ(run.unparsed(), 0u);
 }
+
+// A broadcast of new line settings (FC16 to unit 0, which MK devices run: functions.broadcast, SL §2.1)
+// is taken by every device on the line at once, without a reply: one note names the units, and the line
+// is read the new way from the byte after the broadcast.
+TEST(LineFraming, ABroadcastOfTheLineSettingsMovesTheWholeLine) {
+    const auto read8 = [](auto frame, std::uint8_t unit, std::uint8_t holds) {
+        return frame(unit, {0x03, 0x00, 0x08, 0x00, 0x01}) + frame(unit, {0x03, 0x02, 0x00, holds});
+    };
+    // PROT, BAUD, PARID := ASCII, 9600 baud, no parity
+    const std::string broadcast =
+        rtu(0, {0x10, 0x00, 0x08, 0x00, 0x03, 0x06, 0x00, 0x00, 0x00, 0x05, 0x00, 0x00});
+    const std::string dump =
+        read8(rtu, 1, 1) + read8(rtu, 2, 1) + broadcast + read8(ascii, 1, 0) + read8(ascii, 2, 0);
+    Decoding run("mmk-2030");
+    ASSERT_TRUE(run.read(written("broadcast.bin", dump)));
+    EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, A, A}));
+    EXPECT_EQ(run.unparsed(), 0u);
+    EXPECT_EQ(run.sink.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
+    EXPECT_EQ(run.note(),
+              "PROT. (register 8) := 0, BAUD (register 9) := 5, PARID (register 10) := 0 broadcast: "
+              "units 1, 2 talk ASCII, 9600 baud, no parity from now on (mmk-2030's manual); a master "
+              "that keeps the old settings no longer reaches them; the line is read as ASCII, 9600 "
+              "baud, no parity (7N2) from here on");
+    ASSERT_EQ(run.sink.transactions.size(), 5u);
+    EXPECT_TRUE(run.sink.transactions[2].broadcast);
+}
+
+// A unit that moved to another address (ENDER, MK-CFG-01) is no longer on the line at the old one: the
+// line follows the next change without waiting for it there.
+TEST(LineFraming, AUnitThatMovedAwayIsNotWaitedFor) {
+    const std::string dump = rtu(1, {0x03, 0x00, 0x08, 0x00, 0x01}) + rtu(1, {0x03, 0x02, 0x00, 0x01}) +
+                             rtu(1, {0x06, 0x00, 0x07, 0x00, 0x11}) + rtu(1, {0x06, 0x00, 0x07, 0x00, 0x11}) +
+                             rtu(17, {0x06, 0x00, 0x08, 0x00, 0x00}) +
+                             rtu(17, {0x06, 0x00, 0x08, 0x00, 0x00}) +
+                             ascii(17, {0x03, 0x00, 0x08, 0x00, 0x01}) + ascii(17, {0x03, 0x02, 0x00, 0x00});
+    Decoding run("mmk-2030");
+    ASSERT_TRUE(run.read(written("moved.bin", dump)));
+    EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, A}));
+    EXPECT_EQ(run.unparsed(), 0u);
+    EXPECT_EQ(run.sink.count(mb::FindingCode::ProfileAddressMoved), 1);
+    EXPECT_NE(run.note().find("; the line is read as ASCII from here on"), std::string::npos) << run.note();
+}
+
+// FC23 writes before it reads (AP §6.17): an acknowledged FC23 that writes PROT tells the device as FC6 and
+// FC16 do. (No bundled MK device supports FC23; the map is what is judged here.)
+TEST(LineFraming, AnAcknowledgedReadWriteOfTheLineSettingsTellsTheDevice) {
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    auto profile = store.load("mmk-2030");
+    ASSERT_TRUE(profile.has_value());
+    an::Semantics semantics;
+    const std::uint16_t ascii_code[] = {0};
+    const std::uint16_t read_back[] = {0};
+    auto q = mb::make_read_write_multiple(8, 1, 8, ascii_code);
+    auto a = mb::make_read_registers_response(mb::FunctionCode::ReadWriteMultipleRegisters, read_back);
+    a.direction = mb::Direction::Response;
+    const auto told = semantics.follow_line_settings("unit 1", profile.value(), q, a);
+    ASSERT_TRUE(told.has_value());
+    EXPECT_EQ(told->settings.framing, A);
+    EXPECT_EQ(told->written, "PROT. (register 8) := 0");
+    // An exception acknowledges nothing.
+    EXPECT_FALSE(semantics.follow_line_settings("unit 1", profile.value(), q, mb::make_exception(23, 1)));
+}
