@@ -58,6 +58,7 @@ struct Analyzer::SerialLink {
     // not) and its character (t1.5/t3.5), both changed by a device told other settings (follow_line).
     bool started = false;
     std::optional<Framing> framing;
+    std::optional<Framing> first_framing;  // what the line was read as first
     SerialLine line;
     std::uint64_t base = 0;     // stream offset of the deframers' first byte: their offsets count from it
     std::uint64_t fed = 0;      // stream bytes given to the link
@@ -889,7 +890,7 @@ void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,
                             std::uint64_t packet) {
     if (!link.started) {
         link.started = true;
-        link.framing = framing;
+        link.framing = link.first_framing = framing;
         if (!framing) link.probe = std::make_unique<AsciiDeframer>();
     }
     if (!link.keeps_chunks && link.framing && link.next_chunk == link.chunks.size()) {
@@ -1015,7 +1016,10 @@ void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> byte
         link.framing = Framing::Ascii;
     else if (rtu_at || link.fed >= bytes_to_tell || at_end)
         link.framing = Framing::Rtu;
-    if (link.framing) link.probe.reset();
+    if (link.framing) {
+        link.first_framing = link.framing;
+        link.probe.reset();
+    }
 }
 
 std::optional<std::string> Analyzer::follow_broadcast(Flow& flow, const FrameRecord& r) {
@@ -1281,6 +1285,14 @@ void Analyzer::end_connection(Flow& f, Timestamp t) {
         f.rtu_deframer[dir].reset();
         f.rtu_lost[dir] = 0;
     }
+}
+
+std::vector<Framing> Analyzer::serial_framings_read() const {
+    std::vector<Framing> out;
+    for (const auto& [key, link] : serial_links_)
+        if (link->first_framing && std::find(out.begin(), out.end(), *link->first_framing) == out.end())
+            out.push_back(*link->first_framing);
+    return out;
 }
 
 void Analyzer::finish() {

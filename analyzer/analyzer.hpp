@@ -97,6 +97,8 @@ class Analyzer {
     std::optional<modbus::Framing> serial_framing() const noexcept { return options_.serial_framing; }
     void finish();
     const Summary& summary() const noexcept { return summary_; }
+    // The framings the serial lines were first read in (stated, or told from their bytes), each once.
+    std::vector<modbus::Framing> serial_framings_read() const;
 
   private:
     struct Flow;

@@ -27,6 +27,12 @@ void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
     cmd.add_option("--stop-bits", o.stop_bits, "Serial line: stop bits")
         ->check(CLI::Range(1, 2))
         ->capture_default_str();
+    cmd.add_option("--framing", o.framing,
+                   "Serial line: rtu or ascii; auto tells it per line from its first bytes. A device that "
+                   "acknowledges other line settings (MK PROT, BAUD, PARID, with --profile or --map) "
+                   "changes it from there")
+        ->check(CLI::IsMember({"auto", "rtu", "ascii"}))
+        ->capture_default_str();
     cmd.add_option("--timeout", o.timeout_s,
                    "Seconds without a response before a request is reported unanswered, on TCP and serial "
                    "lines alike (default 3 on TCP, 1 on a serial line)")
@@ -107,6 +113,8 @@ bool apply_analysis_options(const AnalysisCliOptions& o, const std::string& comm
             std::chrono::duration_cast<modbus::Timestamp>(std::chrono::duration<double>(o.timeout_s));
         options.serial_timeout = options.timeout;
     }
+    if (o.framing != "auto")
+        options.serial_framing = o.framing == "ascii" ? modbus::Framing::Ascii : modbus::Framing::Rtu;
     options.serial_line = {o.baud, static_cast<std::uint8_t>(o.data_bits), *modbus::parse_parity(o.parity),
                            static_cast<std::uint8_t>(o.stop_bits)};
     return load_semantics(o, command, options);

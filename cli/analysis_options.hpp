@@ -1,6 +1,6 @@
 #pragma once
 // The options mbscope decode and mbscope sniff share, registered by one function so that both commands
-// take them alike: server ports, the serial line's character format, the response timeout, device
+// take them alike: server ports, the serial line's framing and character format, the response timeout, device
 // profiles (--profile, --map, --profile-dir, --config), --word-order, and the outputs (--json, --jsonl,
 // --summary, --csv).
 
@@ -21,6 +21,7 @@ struct AnalysisCliOptions {
     std::uint32_t baud = 9600;
     std::string parity = "N";
     int data_bits = 8, stop_bits = 1;
+    std::string framing = "auto";  // serial lines: auto, rtu, ascii
     double timeout_s = 0;  // --timeout; 0: not given, each carrier keeps its default (TCP 3 s, serial 1 s)
     std::string profile;
     std::vector<std::string> maps, profile_dirs, config;

@@ -23,7 +23,6 @@ struct DecodeOptions {
     std::string user_dlt;
     bool no_progress = false;
     std::string format = "auto";
-    std::string framing = "auto";
     std::string master_alias, slave_alias;
     std::string socat_master = "left";
     std::string rtac_role;
@@ -39,16 +38,14 @@ int run_decode(const DecodeOptions& o) {
     if (!o.rtac_role.empty())
         options.rtac_tx = o.rtac_role == "master" ? modbus::Direction::Request : modbus::Direction::Response;
     if (!apply_analysis_options(o.common, "decode", options)) return exit_failure;
-    if (o.framing != "auto") {
-        options.serial_framing = o.framing == "ascii" ? modbus::Framing::Ascii : modbus::Framing::Rtu;
-        // A raw dump named by its framing: two names for one thing must agree.
-        if ((o.format == "ascii" && o.framing == "rtu") ||
-            ((o.format == "rtu" || o.format == "raw") && o.framing == "ascii")) {
-            std::cerr << "mbscope decode: --format " << o.format << " reads a raw "
-                      << (o.format == "ascii" ? "ASCII" : "RTU") << " dump; --framing " << o.framing
-                      << " contradicts it\n";
-            return exit_failure;
-        }
+    // A raw dump named by its framing: two names for one thing must agree.
+    const std::string& framing = o.common.framing;
+    if ((o.format == "ascii" && framing == "rtu") ||
+        ((o.format == "rtu" || o.format == "raw") && framing == "ascii")) {
+        std::cerr << "mbscope decode: --format " << o.format << " reads a raw "
+                  << (o.format == "ascii" ? "ASCII" : "RTU") << " dump; --framing " << framing
+                  << " contradicts it\n";
+        return exit_failure;
     }
     Outputs outputs;
     if (!outputs.open(o.common, "decode")) return exit_failure;
@@ -127,12 +124,6 @@ void register_decode(CLI::App& app, int& exit_code) {
                     "(--read --timing-print log), socat (socat -x -v standard error)")
         ->check(
             CLI::IsMember({"auto", "pcap", "pcapng", "rtu", "raw", "ascii", "text", "jpnevulator", "socat"}))
-        ->capture_default_str();
-    cmd->add_option("--framing", o->framing,
-                    "Serial captures (raw dumps, text, jpnevulator and socat logs, RTAC records): the line's "
-                    "framing; auto tells it per line from its first bytes. A device that acknowledges other "
-                    "line settings (MK PROT, BAUD, PARID, with --profile or --map) changes it from there")
-        ->check(CLI::IsMember({"auto", "rtu", "ascii"}))
         ->capture_default_str();
     cmd->add_option("--master-alias", o->master_alias,
                     "jpnevulator logs: the --tty alias (or device) that carries the master's requests; the "

@@ -52,10 +52,14 @@ int run_sniff(SniffCliOptions o) {
     if (a.summary().input_errors_unlisted)
         std::cerr << "mbscope sniff: " << a.summary().input_errors_unlisted
                   << " more input errors, not listed\n";
-    if (!s.write.empty() && !s.serial.empty())
+    if (!s.write.empty() && !s.serial.empty()) {
+        // The framing the line was read in: the records do not say it, --user-dlt must.
+        const auto read = a.serial_framings_read();
+        const std::string framing = read.size() == 1 && read[0] == modbus::Framing::Ascii ? "ascii" : "rtu";
         std::cerr << "mbscope sniff: " << s.write << " holds the serial bytes as USER0 records; read it "
-                  << "with mbscope decode --user-dlt " << (capture->direction_header() ? "rtu-dir" : "rtu")
-                  << '\n';
+                  << "with mbscope decode --user-dlt " << framing
+                  << (capture->direction_header() ? "-dir" : "") << '\n';
+    }
     if (!ok) return exit_failure;
     return a.summary().errors ? exit_findings : exit_ok;
 }
@@ -77,8 +81,8 @@ void register_sniff(CLI::App& app, int& exit_code) {
     cmd->add_option("--write", o->sniff.write,
                     "Also write what was captured to FILE: pcapng (nanosecond timestamps) when the name "
                     "ends in .pcapng, in any case; classic pcap otherwise. Serial bytes are USER0 records: "
-                    "read back with mbscope decode --user-dlt rtu, or --user-dlt rtu-dir with --serial2 "
-                    "(a direction byte leads each record)");
+                    "read back with mbscope decode --user-dlt rtu (or ascii), --user-dlt rtu-dir (ascii-dir) "
+                    "with --serial2 (a direction byte leads each record), as said at the end");
     cmd->add_option("--duration", o->duration, "Stop after this long: 60 (seconds), 60s, 500ms, 5m")
         ->check(duration_text());
     cmd->add_option("--count", o->count, "Stop after this many packets (serial: reads)")

@@ -63,57 +63,92 @@ std::size_t packet_blocks(const std::string& path) {
     return count;
 }
 
+// One sniff session: `line`'s chunks written in turn into the master's (true) or the slaves' tap, then
+// the written file decoded again with --user-dlt `user_dlt`.
+struct Session {
+    std::string dir, written, err;
+    Records live, again;
+};
+Session sniffed(const std::string& name, const std::vector<std::pair<bool, std::vector<std::uint8_t>>>& line,
+                const std::string& user_dlt) {
+    Session s;
+    s.dir = ::testing::TempDir() + name;
+    SocatTaps taps(s.dir);
+    EXPECT_TRUE(taps.ready());
+    if (!taps.ready()) return s;
+    s.written = s.dir + "/bus.pcapng";
+    Child sniff({MBSCOPE_BINARY, "sniff", "--serial", s.dir + "/m2", "--serial2", s.dir + "/s2", "--baud",
+                 "19200", "--write", s.written, "--jsonl"},
+                s.dir + "/sniff.jsonl", s.dir + "/sniff.err");
+    const bool opened = wait_for([&] { return std::filesystem::exists(s.written); });
+    EXPECT_TRUE(opened) << slurp(s.dir + "/sniff.err");
+    if (!opened) return s;
+    // Each chunk written once sniff has recorded the one before (it flushes every serial record): the
+    // order of the two taps is the order on the line.
+    for (std::size_t i = 0; i < line.size(); ++i) {
+        const auto& [master, chunk] = line[i];
+        const int fd = master ? taps.master_end : taps.slave_end;
+        EXPECT_EQ(::write(fd, chunk.data(), chunk.size()), static_cast<ssize_t>(chunk.size()));
+        const bool recorded = wait_for([&] { return packet_blocks(s.written) > i; });
+        EXPECT_TRUE(recorded) << slurp(s.dir + "/sniff.err");
+        if (!recorded) return s;
+    }
+    sniff.stop();  // SIGTERM: sniff drains, prints its summary and closes the file
+    s.err = slurp(s.dir + "/sniff.err");
+    s.live = records(slurp(s.dir + "/sniff.jsonl"));
+    s.again = records(run(std::string(MBSCOPE_BINARY) + " decode --baud 19200 --user-dlt " + user_dlt +
+                          " --jsonl '" + s.written + "'"));
+    return s;
+}
+
 }  // namespace
 
 TEST(SniffSocat, WrittenSessionDecodesToTheSameTransactions) {
     if (!have("socat")) GTEST_SKIP() << "needs socat";
-    const std::string dir = ::testing::TempDir() + "sniff_socat";
-    SocatTaps taps(dir);
-    ASSERT_TRUE(taps.ready());
-    const int master_end = taps.master_end, slave_end = taps.slave_end;
-    const std::string written = dir + "/bus.pcapng";
-    Child sniff({MBSCOPE_BINARY, "sniff", "--serial", dir + "/m2", "--serial2", dir + "/s2", "--baud",
-                 "19200", "--write", written, "--jsonl"},
-                dir + "/sniff.jsonl", dir + "/sniff.err");
-    ASSERT_TRUE(wait_for([&] { return std::filesystem::exists(written); })) << slurp(dir + "/sniff.err");
-
-    const std::vector<std::pair<int, std::vector<std::uint8_t>>> line = {
-        {master_end, bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45})},
-        {slave_end, bytes({0x11, 0x03, 0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA})},
-        {master_end, bytes({0x11, 0x06, 0x00, 0x01, 0x00, 0x03, 0x9A, 0x9B})},
-        {slave_end, bytes({0x11, 0x06, 0x00, 0x01, 0x00, 0x03, 0x9A, 0x9B})},
-        {master_end, bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45})},
-        {slave_end, bytes({0x11, 0x83, 0x02, 0xC1, 0x34})},
-    };
-    // Each chunk written once sniff has recorded the one before (it flushes every serial record): the
-    // order of the two taps is the order on the line.
-    for (std::size_t i = 0; i < line.size(); ++i) {
-        const auto& [fd, chunk] = line[i];
-        ASSERT_EQ(::write(fd, chunk.data(), chunk.size()), static_cast<ssize_t>(chunk.size()));
-        ASSERT_TRUE(wait_for([&] { return packet_blocks(written) > i; })) << slurp(dir + "/sniff.err");
+    const Session s =
+        sniffed("sniff_socat",
+                {
+                    {true, bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45})},
+                    {false, bytes({0x11, 0x03, 0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA})},
+                    {true, bytes({0x11, 0x06, 0x00, 0x01, 0x00, 0x03, 0x9A, 0x9B})},
+                    {false, bytes({0x11, 0x06, 0x00, 0x01, 0x00, 0x03, 0x9A, 0x9B})},
+                    {true, bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45})},
+                    {false, bytes({0x11, 0x83, 0x02, 0xC1, 0x34})},
+                },
+                "rtu-dir");
+    EXPECT_NE(s.err.find("--user-dlt rtu-dir"), std::string::npos) << s.err;
+    ASSERT_EQ(s.live.frames.size(), 6u) << slurp(s.dir + "/sniff.jsonl");
+    ASSERT_EQ(s.live.transactions.size(), 3u);
+    EXPECT_EQ(s.live.frames, s.again.frames);
+    EXPECT_EQ(s.live.transactions, s.again.transactions);
+    for (std::size_t i = 0; i < s.live.frames.size(); ++i) {
+        EXPECT_EQ(s.live.frames[i]["direction"], i % 2 ? "response" : "request") << i;
     }
-    sniff.stop();  // SIGTERM: sniff drains, prints its summary and closes the file
-
-    const std::string err = slurp(dir + "/sniff.err");
-    EXPECT_NE(err.find("--user-dlt rtu-dir"), std::string::npos) << err;
-    const Records live = records(slurp(dir + "/sniff.jsonl"));
-    const Records again = records(run(std::string(MBSCOPE_BINARY) +
-                                      " decode --baud 19200 --user-dlt rtu-dir --jsonl '" + written + "'"));
-    ASSERT_EQ(live.frames.size(), 6u) << slurp(dir + "/sniff.jsonl");
-    ASSERT_EQ(live.transactions.size(), 3u);
-    EXPECT_EQ(live.frames, again.frames);
-    EXPECT_EQ(live.transactions, again.transactions);
-    for (std::size_t i = 0; i < live.frames.size(); ++i) {
-        EXPECT_EQ(live.frames[i]["direction"], i % 2 ? "response" : "request") << i;
-    }
-    EXPECT_EQ(live.transactions[2]["exception_code"], 2);
+    EXPECT_EQ(s.live.transactions[2]["exception_code"], 2);
 
     // A second reader: tshark sees one interface a port, named after it, the records alternating.
     if (!have("tshark")) return;
     const std::string names =
-        run("tshark -r '" + written + "' -T fields -e frame.interface_name 2>/dev/null");
+        run("tshark -r '" + s.written + "' -T fields -e frame.interface_name 2>/dev/null");
     std::string expected;
     for (int i = 0; i < 3; ++i)
-        expected += dir + "/m2\n" + dir + "/s2\n";
+        expected += s.dir + "/m2\n" + s.dir + "/s2\n";
     EXPECT_EQ(names, expected);
+}
+
+// An ASCII line (the MK manual's FC3 exchange in ASCII, MK-ASC-02, 000:304-309): sniff reads it as ASCII
+// from its bytes, and says to read the file back with --user-dlt ascii-dir, which gives the same records.
+TEST(SniffSocat, AnAsciiLineIsReadAndWrittenAsAscii) {
+    if (!have("socat")) GTEST_SKIP() << "needs socat";
+    const auto chars = [](const std::string& text) {
+        return std::vector<std::uint8_t>(text.begin(), text.end());
+    };
+    const Session s = sniffed(
+        "sniff_socat_ascii",
+        {{true, chars(":11030060000389\r\n")}, {false, chars(":110306022B0000006455\r\n")}}, "ascii-dir");
+    EXPECT_NE(s.err.find("--user-dlt ascii-dir"), std::string::npos) << s.err;
+    ASSERT_EQ(s.live.transactions.size(), 1u) << slurp(s.dir + "/sniff.jsonl");
+    EXPECT_EQ(s.live.transactions[0]["function"], 3);
+    EXPECT_EQ(s.live.frames, s.again.frames);
+    EXPECT_EQ(s.live.transactions, s.again.transactions);
 }
