@@ -702,12 +702,13 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                                  {request.index, rsp_record->index}});
             }
             // Remembered whether or not the sink takes transactions: what a later write changes (and so the
-            // findings) must not depend on the output chosen.
-            auto values =
-                options_.semantics->values(*profile, request.device, *request.pdu, *rsp_record->pdu);
+            // findings) must not depend on the output chosen. Named only for a transaction record.
             if (made) {
                 made->profile = profile;
-                made->values = std::move(values);
+                made->values =
+                    options_.semantics->values(*profile, request.device, *request.pdu, *rsp_record->pdu);
+            } else {
+                options_.semantics->remember(request.device, *request.pdu, *rsp_record->pdu);
             }
             for (auto& rule : options_.semantics->check_response(*profile, *request.pdu, *rsp_record->pdu))
                 found.push_back(

@@ -296,21 +296,31 @@ std::optional<RuleBreak> Semantics::follow_address(const std::string& server, co
                                          : " from now on (" + profile.id + "'s manual)")};
 }
 
-std::vector<NamedValue> Semantics::values(const Profile& profile, const std::string& device, const Pdu& q,
-                                          const Pdu& a) {
-    if (a.is_exception()) return {};
+void Semantics::remember(const std::string& device, const Pdu& q, const Pdu& a) {
+    if (a.is_exception()) return;
     auto& seen = registers_[device];
-    auto remember = [&](std::uint16_t start, const std::vector<std::uint16_t>& words) {
+    const auto keep = [&](std::uint16_t start, const std::vector<std::uint16_t>& words) {
         for (std::size_t i = 0; i < count_within_address_space(start, words.size()); ++i)
             seen[static_cast<std::uint16_t>(start + i)] = words[i];
     };
     if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&q.body))
-        remember(rw->write_starting_address, rw->write_values);  // AP §6.17: written before the read
+        keep(rw->write_starting_address, rw->write_values);  // AP §6.17: written before the read
+    if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body); regs && read_span(q))
+        keep(read_span(q)->start, regs->values);
+    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
+        keep(w->address, {w->value});
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body))
+        keep(w->starting_address, w->values);
+}
+
+std::vector<NamedValue> Semantics::values(const Profile& profile, const std::string& device, const Pdu& q,
+                                          const Pdu& a) {
+    if (a.is_exception()) return {};
+    remember(device, q, a);
+    const auto& seen = registers_[device];
     if (auto s = read_span(q)) {
-        if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body)) {
-            remember(s->start, regs->values);
+        if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
             return decode_registers(profile, s->table, s->start, regs->values, seen);
-        }
         if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) {
             std::vector<NamedValue> out;
             for (std::size_t i = 0;
@@ -330,14 +340,10 @@ std::vector<NamedValue> Semantics::values(const Profile& profile, const std::str
             return out;
         }
     }
-    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6) {
-        remember(w->address, {w->value});
+    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
         return decode_registers(profile, Table::HoldingRegisters, w->address, {w->value}, seen);
-    }
-    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body)) {
-        remember(w->starting_address, w->values);
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body))
         return decode_registers(profile, Table::HoldingRegisters, w->starting_address, w->values, seen);
-    }
     return {};
 }
 

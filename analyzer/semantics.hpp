@@ -62,6 +62,9 @@ class Semantics {
     std::optional<LineSettingsTold> follow_broadcast_line_settings(const std::string& device,
                                                                    const modbus::Profile& profile,
                                                                    const modbus::Pdu& request);
+    // What a completed transaction shows the device's registers hold (reads, and writes it acknowledged),
+    // kept for `device`: a later write of the same code is no change. values() does it too.
+    void remember(const std::string& device, const modbus::Pdu& request, const modbus::Pdu& response);
     // Named values of a completed transaction (reads: the reply's values; writes: the values written).
     std::vector<modbus::NamedValue> values(const modbus::Profile& profile, const std::string& device,
                                            const modbus::Pdu& request, const modbus::Pdu& response);

@@ -140,6 +140,36 @@ TEST(SummaryOnly, FindingsAboutPairsAreTheSame) {
         EXPECT_GE(all.count(code), 1) << mb::to_string(code);
 }
 
+// What a device's registers were read holding decides whether a later write changes anything (MK-CFG-01:
+// a write of the line settings they already hold is no note): remembered without transaction records too.
+TEST(SummaryOnly, RegistersReadBeforeAreRememberedToo) {
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    auto p = store.load("mmk-2030");
+    ASSERT_TRUE(p.has_value());
+    auto mk = std::make_shared<an::Semantics>();
+    mk->add({}, std::make_shared<const mb::Profile>(std::move(p.value())));
+    mbscope::test::Conversation c;
+    mb::Timestamp t = 1s;
+    std::uint16_t tid = 0;
+    const auto exchange = [&](const mb::Pdu& q, mb::Pdu a) {
+        ++tid;
+        c.send(true, mb::encode_tcp(tid, 1, mb::encode_pdu(q)), t += 1ms);
+        a.direction = mb::Direction::Response;
+        c.send(false, mb::encode_tcp(tid, 1, mb::encode_pdu(a)), t += 2ms);
+    };
+    const std::vector<std::uint16_t> held{1, 5, 0}, ascii{0, 5, 0};  // PROT, BAUD, PARID
+    exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 8, 3),
+             mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, held));
+    const auto ack = mb::make_write_multiple_response(mb::FunctionCode::WriteMultipleRegisters, 8, 3);
+    exchange(mb::make_write_multiple_registers(8, held), ack);   // what they hold: no note
+    exchange(mb::make_write_multiple_registers(8, ascii), ack);  // PROT := 0: the note
+    const auto file = c.file();
+    expect_same("mmk-2030", "", file, mk);
+    Collect all;
+    decode(all, "", file, mk);
+    EXPECT_EQ(all.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
+}
+
 // The bundled captures and the public ones in ../shared/captures, read from their files (read ahead).
 TEST(SummaryOnly, RealCapturesGiveTheSameSummary) {
     std::vector<std::string> files;
