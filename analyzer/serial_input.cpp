@@ -134,9 +134,13 @@ bool read_text(Analyzer& a, const Input& input) {
         if (!(words >> time_token) || time_token[0] == '#') continue;
         modbus::Timestamp t{0};
         if (!parse_time(time_token, t)) {
+            // A file of frames (`mbscope frame --file`: "rtu|ascii|tcp HEX...") starts its lines with a
+            // framing.
+            const bool frame_file = time_token == "rtu" || time_token == "ascii" || time_token == "tcp";
             a.input_error(
                 path + ":" + std::to_string(number) +
-                ": not a time in seconds from 0 to 9.2e9 (year 2262): " + modbus::quote_excerpt(time_token));
+                ": not a time in seconds from 0 to 9.2e9 (year 2262): " + modbus::quote_excerpt(time_token) +
+                (frame_file ? " (a file of frames, one a line: mbscope frame --file reads it)" : ""));
             ok = false;
             continue;
         }

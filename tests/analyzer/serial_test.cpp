@@ -259,3 +259,15 @@ TEST(SerialInput, AFileInTheWrongFormatListsAHundredErrorsAndCountsTheRest) {
     EXPECT_NE(r->summary.input_errors[0].find("binary.txt:1:"), std::string::npos)
         << r->summary.input_errors[0];
 }
+
+// The bundled file of the manuals' frames is read by `mbscope frame --file`, not by decode: decode says so
+// instead of only that "rtu" is no time.
+TEST(SerialInput, AFileOfFramesIsNamedForWhatReadsIt) {
+    auto r = decode(std::string(MBSCOPE_SOURCE_DIR) + "/captures/manual-examples.txt");
+    EXPECT_FALSE(r->ok);
+    ASSERT_FALSE(r->summary.input_errors.empty());
+    EXPECT_NE(r->summary.input_errors[0].find(
+                  "'rtu' (a file of frames, one a line: mbscope frame --file reads it)"),
+              std::string::npos)
+        << r->summary.input_errors[0];
+}
