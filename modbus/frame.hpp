@@ -17,17 +17,15 @@
 #include <vector>
 
 #include "modbus/finding_codes.hpp"
+#include "modbus/framing.hpp"
 #include "modbus/function_code.hpp"
 
 namespace mbscope::modbus {
-
-enum class Framing : std::uint8_t { Rtu = 0, Ascii = 1, Tcp = 2 };
 
 // Largest ADU a Frame holds. The specification caps Modbus/TCP at 260 bytes (MBAP length 254), but real
 // devices exceed it: the Walchem manual allows FC16 of 125 registers, a 263-byte ADU (002:362-381), and
 // Schneider UMAS traffic carries MBAP length 255. Such frames are kept, flagged tcp.length_invalid.
 inline constexpr std::size_t max_frame_bytes = 263;
-std::string_view to_string(Framing f) noexcept;
 
 // Time since an arbitrary epoch (capture time, or steady clock for live input). Zero means "no timing".
 using Timestamp = std::chrono::nanoseconds;

@@ -10,7 +10,7 @@
 #include <string>
 #include <string_view>
 
-#include "modbus/frame.hpp"
+#include "modbus/framing.hpp"
 
 namespace mbscope::modbus {
 
