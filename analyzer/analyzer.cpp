@@ -59,6 +59,8 @@ struct Analyzer::SerialLink {
     bool started = false;
     std::optional<Framing> framing;
     std::optional<Framing> first_framing;  // what the line was read as first
+    std::vector<Framing> read_as;          // every framing it was read in, in order
+    bool framing_told = false;             // the first one from the bytes, not from the input or the user
     SerialLine line;
     std::uint64_t base = 0;     // stream offset of the deframers' first byte: their offsets count from it
     std::uint64_t fed = 0;      // stream bytes given to the link
@@ -892,6 +894,7 @@ void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,
     if (!link.started) {
         link.started = true;
         link.framing = link.first_framing = framing;
+        if (framing) link.read_as.push_back(*framing);
         if (!framing) link.probe = std::make_unique<AsciiDeframer>();
     }
     if (!link.keeps_chunks && link.framing && link.next_chunk == link.chunks.size()) {
@@ -1019,6 +1022,8 @@ void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> byte
         link.framing = Framing::Rtu;
     if (link.framing) {
         link.first_framing = link.framing;
+        link.read_as.push_back(*link.framing);
+        link.framing_told = true;
         link.probe.reset();
     }
 }
@@ -1084,6 +1089,7 @@ std::string Analyzer::follow_line(SerialLink& link, std::uint8_t unit, const Lin
         return "; the line is still read as " + settings_text(*link.framing, link.line, speed) + ": unit" +
                (behind.find(',') == std::string::npos ? " " : "s ") + behind +
                ", which answered on it, was not told the same";
+    if (framing != *link.framing) link.read_as.push_back(framing);
     link.framing = framing;
     link.line = rules.character_for(framing, line);
     link.restart_at = at;
@@ -1318,6 +1324,9 @@ void Analyzer::finish() {
             serial_events(*link, events, now_);
         } while (link->restart_at);
     }
+    for (const auto& [key, link] : serial_links_)
+        if (link->flow->carrier == Carrier::Serial && !link->read_as.empty())
+            summary_.serial_lines[link->flow->link.str()] = {link->read_as, link->framing_told};
     expire(now_, true);
     summary_.modbus_like_ports = modbus_like_.tally();
     sink_.end(summary_);

@@ -126,6 +126,13 @@ struct Summary {
     // that fits the payload, a public function code), by (UDP?, the lower of the two ports): a server port a
     // user may have left out (--tcp-port, --udp-port), told rather than decoding to nothing.
     std::map<std::pair<bool, std::uint16_t>, std::uint64_t> modbus_like_ports;
+    // Serial lines (not exported PDUs): the framings each was read in, in order (more than one when a device
+    // was told another), and whether the first was told from the line's bytes rather than stated.
+    struct SerialLineRead {
+        std::vector<modbus::Framing> framings;
+        bool told = false;
+    };
+    std::map<std::string, SerialLineRead> serial_lines;
 };
 
 class Sink {

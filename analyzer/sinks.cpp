@@ -134,6 +134,13 @@ void TextSink::end(const Summary& s) {
             out_ << " FC" << fc << "×" << n;
         out_ << '\n';
     }
+    for (const auto& [line, read] : s.serial_lines) {
+        out_ << "  " << line << ": read as ";
+        for (std::size_t i = 0; i < read.framings.size(); ++i)
+            out_ << (i ? ", then " : "") << (read.framings[i] == Framing::Ascii ? "ASCII" : "RTU")
+                 << (i == 0 && read.told ? " (told from its first bytes)" : "");
+        out_ << '\n';
+    }
     if (!s.findings.empty()) {
         out_ << "  findings:";
         for (const auto& [code, n] : s.findings)
@@ -338,6 +345,16 @@ json summary_to_json(const Summary& s) {
         j["ip_fragments_not_decoded"] = {{"datagrams_incomplete", s.ip_datagrams_incomplete},
                                          {"fragments_incomplete", s.ip_fragments_incomplete},
                                          {"fragments_invalid", s.ip_fragments_invalid}};
+    if (!s.serial_lines.empty()) {
+        json lines = json::object();
+        for (const auto& [line, read] : s.serial_lines) {
+            json framings = json::array();
+            for (const Framing f : read.framings)
+                framings.push_back(std::string(to_string(f)));
+            lines[line] = {{"framings", framings}, {"told_from_bytes", read.told}};
+        }
+        j["serial_lines"] = lines;
+    }
     if (!s.modbus_like_ports.empty()) {
         json ports = json::array();
         for (const auto& [where, n] : s.modbus_like_ports)

@@ -130,6 +130,8 @@ TEST(LineFraming, AnRtuLineIsRtuAndAStatedFramingIsKept) {
     Decoding stated({}, R);
     ASSERT_TRUE(stated.read(written("ascii-stated-rtu.txt", "1.000 " + hex_of(manual_request) + "\n")));
     ASSERT_FALSE(stated.sink.frames.empty());
+    ASSERT_EQ(stated.analyzer.summary().serial_lines.size(), 1u);
+    EXPECT_FALSE(stated.analyzer.summary().serial_lines.begin()->second.told);
     for (const auto& f : stated.sink.frames)
         EXPECT_EQ(f.frame.framing, R);
     EXPECT_EQ(stated.sink.count(mb::FindingCode::RtuCrcMismatch), 1);
@@ -199,6 +201,11 @@ TEST(LineFraming, AMultiDropLineFollowsWhenEveryUnitThatAnsweredWasTold) {
     ASSERT_TRUE(run.read(written("multi-drop.bin", dump)));
     EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, R, R, A, A, A, R}));
     EXPECT_EQ(run.unparsed(), 0u);
+    // The summary says what the line was read in, in order, and that the first was told from its bytes.
+    const auto& lines = run.analyzer.summary().serial_lines;
+    ASSERT_EQ(lines.size(), 1u);
+    EXPECT_EQ(lines.begin()->second.framings, (std::vector<mb::Framing>{R, A, R}));
+    EXPECT_TRUE(lines.begin()->second.told);
     std::vector<std::string> said;
     for (const auto& f : run.sink.findings)
         if (f.code == mb::FindingCode::ProfileLineSettingsChanged)
