@@ -58,9 +58,8 @@ struct Analyzer::SerialLink {
     // not) and its character (t1.5/t3.5), both changed by a device told other settings (follow_line).
     bool started = false;
     std::optional<Framing> framing;
-    std::optional<Framing> first_framing;  // what the line was read as first
-    std::vector<Framing> read_as;          // every framing it was read in, in order
-    bool framing_told = false;             // the first one from the bytes, not from the input or the user
+    std::vector<Framing> read_as;  // every framing it was read in, in order
+    bool framing_told = false;     // the first one from the bytes, not from the input or the user
     SerialLine line;
     std::uint64_t base = 0;     // stream offset of the deframers' first byte: their offsets count from it
     std::uint64_t fed = 0;      // stream bytes given to the link
@@ -861,7 +860,9 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         r.source = source_;
         r.link = flow.link;
         r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
-        if (r.direction == Direction::Response && frame.unit_id() != 0 &&
+        // A unit on the line: one that answered with a frame whose checksum holds (noise read as a frame
+        // names units nobody has).
+        if (r.direction == Direction::Response && frame.checksum_ok && frame.unit_id() != 0 &&
             std::find(link.answered.begin(), link.answered.end(), frame.unit_id()) == link.answered.end())
             link.answered.push_back(frame.unit_id());
         r.carrier = flow.carrier;
@@ -893,7 +894,7 @@ void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,
                             std::uint64_t packet) {
     if (!link.started) {
         link.started = true;
-        link.framing = link.first_framing = framing;
+        link.framing = framing;
         if (framing) link.read_as.push_back(*framing);
         if (!framing) link.probe = std::make_unique<AsciiDeframer>();
     }
@@ -1021,7 +1022,6 @@ void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> byte
     else if (rtu_at || link.fed >= bytes_to_tell || at_end)
         link.framing = Framing::Rtu;
     if (link.framing) {
-        link.first_framing = link.framing;
         link.read_as.push_back(*link.framing);
         link.framing_told = true;
         link.probe.reset();
@@ -1297,8 +1297,8 @@ void Analyzer::end_connection(Flow& f, Timestamp t) {
 std::vector<Framing> Analyzer::serial_framings_read() const {
     std::vector<Framing> out;
     for (const auto& [key, link] : serial_links_)
-        if (link->first_framing && std::find(out.begin(), out.end(), *link->first_framing) == out.end())
-            out.push_back(*link->first_framing);
+        if (!link->read_as.empty() && std::find(out.begin(), out.end(), link->read_as.front()) == out.end())
+            out.push_back(link->read_as.front());
     return out;
 }
 

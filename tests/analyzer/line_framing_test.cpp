@@ -307,3 +307,20 @@ TEST(LineFraming, AnAcknowledgedReadWriteOfTheLineSettingsTellsTheDevice) {
     // An exception acknowledges nothing.
     EXPECT_FALSE(semantics.follow_line_settings("unit 1", profile.value(), q, mb::make_exception(23, 1)));
 }
+
+// A reply whose CRC fails names a unit nobody may have (noise read as a frame): it does not put that unit
+// on the line, and the line follows unit 1 alone.
+TEST(LineFraming, AReplyWithABadCrcPutsNoUnitOnTheLine) {
+    std::string bad_reply = rtu(9, {0x03, 0x02, 0x00, 0x01});
+    bad_reply.back() = static_cast<char>(bad_reply.back() ^ 0x5A);
+    const std::string prot_ascii = rtu(1, {0x06, 0x00, 0x08, 0x00, 0x00});
+    const std::string dump = rtu(9, {0x03, 0x00, 0x08, 0x00, 0x01}) + bad_reply +
+                             rtu(1, {0x03, 0x00, 0x08, 0x00, 0x01}) + rtu(1, {0x03, 0x02, 0x00, 0x01}) +
+                             prot_ascii + prot_ascii + ascii(1, {0x03, 0x00, 0x08, 0x00, 0x01}) +
+                             ascii(1, {0x03, 0x02, 0x00, 0x00});
+    Decoding run("mmk-2030");
+    ASSERT_TRUE(run.read(written("bad-crc.bin", dump)));
+    EXPECT_EQ(run.sink.count(mb::FindingCode::RtuCrcMismatch), 1);
+    EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, A}));
+    EXPECT_NE(run.note().find("; the line is read as ASCII from here on"), std::string::npos) << run.note();
+}
