@@ -225,7 +225,7 @@ std::string setting_text(LineSetting s, const std::string& means) {
 std::optional<Semantics::LineSettingsTold> Semantics::line_settings_written(
     const std::string& device, const Profile& profile, std::uint16_t start,
     std::span<const std::uint16_t> values, const std::string& how) const {
-    const auto seen = registers_.find(device);
+    const auto seen = holding_.find(device);
     std::string written, now;
     LineState settings;
     for (const Point& p : profile.table(Table::HoldingRegisters)) {
@@ -235,7 +235,7 @@ std::optional<Semantics::LineSettingsTold> Semantics::line_settings_written(
         const std::uint16_t code = values[p.address - start];
         const EnumValue* v = mirrored_meaning(p, code);
         if (!v) continue;  // a code the manual does not define: a rule break
-        if (seen != registers_.end()) {
+        if (seen != holding_.end()) {
             const auto before = seen->second.find(p.address);
             if (before != seen->second.end() && before->second == code)
                 continue;  // read so before: no change
@@ -266,10 +266,11 @@ std::optional<Semantics::LineSettingsTold> Semantics::follow_broadcast_line_sett
     const auto w = written_registers(q);
     if (!w) return std::nullopt;
     auto told = line_settings_written(device, profile, w->start, w->values, "broadcast");
-    // Taken without a reply: remembered as an acknowledged write's values are (values()).
-    auto& seen = registers_[device];
+    // Taken without a reply: remembered as an acknowledged write's values are (remember()).
+    auto &seen = registers_[device], &holding = holding_[device];
     for (std::size_t i = 0; i < w->values.size(); ++i)
-        seen[static_cast<std::uint16_t>(w->start + i)] = w->values[i];
+        seen[static_cast<std::uint16_t>(w->start + i)] = holding[static_cast<std::uint16_t>(w->start + i)] =
+            w->values[i];
     return told;
 }
 
@@ -298,19 +299,24 @@ std::optional<RuleBreak> Semantics::follow_address(const std::string& server, co
 
 void Semantics::remember(const std::string& device, const Pdu& q, const Pdu& a) {
     if (a.is_exception()) return;
-    auto& seen = registers_[device];
-    const auto keep = [&](std::uint16_t start, const std::vector<std::uint16_t>& words) {
-        for (std::size_t i = 0; i < count_within_address_space(start, words.size()); ++i)
+    // Every register by its address (decoding takes context from any table: a decimal point read by FC3
+    // scales an FC4 value), and the holding registers apart (what a write of line settings changes).
+    auto &seen = registers_[device], &holding = holding_[device];
+    const auto keep = [&](std::uint16_t start, const std::vector<std::uint16_t>& words, bool holding_table) {
+        for (std::size_t i = 0; i < count_within_address_space(start, words.size()); ++i) {
             seen[static_cast<std::uint16_t>(start + i)] = words[i];
+            if (holding_table) holding[static_cast<std::uint16_t>(start + i)] = words[i];
+        }
     };
     if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&q.body))
-        keep(rw->write_starting_address, rw->write_values);  // AP §6.17: written before the read
-    if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body); regs && read_span(q))
-        keep(read_span(q)->start, regs->values);
+        keep(rw->write_starting_address, rw->write_values, true);  // AP §6.17: written before the read
+    if (const auto span = read_span(q))
+        if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
+            keep(span->start, regs->values, span->table == Table::HoldingRegisters);
     if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
-        keep(w->address, {w->value});
+        keep(w->address, {w->value}, true);
     if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body))
-        keep(w->starting_address, w->values);
+        keep(w->starting_address, w->values, true);
 }
 
 std::vector<NamedValue> Semantics::values(const Profile& profile, const std::string& device, const Pdu& q,

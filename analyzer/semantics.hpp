@@ -76,6 +76,7 @@ class Semantics {
                                                           const std::string& how) const;
     std::vector<std::pair<DeviceSelector, std::shared_ptr<const modbus::Profile>>> maps_;
     std::map<std::string, std::map<std::uint16_t, std::uint16_t>> registers_;  // device → last values seen
+    std::map<std::string, std::map<std::uint16_t, std::uint16_t>> holding_;    // the holding registers alone
     // (host, unit) → the profile of a device that moved there (follow_address): before any --map.
     std::map<std::pair<std::string, std::uint8_t>, const modbus::Profile*> moved_;
 };

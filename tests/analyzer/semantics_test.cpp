@@ -241,6 +241,30 @@ TEST(Semantics, AnAcknowledgedWriteOfTheLineSettingsIsANote) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileValueOutOfRange), 1);  // BAUD := 6
 }
 
+// What input registers (FC4) hold at the same addresses is not what the holding registers PROT, BAUD and
+// PARID held: a write of PROT := 0 after an FC4 read of 0 at address 8 is still a change.
+TEST(Semantics, AnInputRegisterReadIsNotWhatTheLineSettingsHeld) {
+    const auto input = [](std::uint16_t value) {
+        const std::vector<std::uint16_t> v{value};
+        return mb::make_read_registers_response(mb::FunctionCode::ReadInputRegisters, v);
+    };
+    const auto read_input_8 = mb::make_read_request(mb::FunctionCode::ReadInputRegisters, 8, 1);
+    const auto prot_ascii = mb::make_write_single_register(8, 0);
+    // FC4 reads 0 at 8: PROT := 0 is still a change.
+    Harness first("mmk-2030", 1);
+    first.exchange(read_input_8, input(0));
+    first.exchange(prot_ascii, prot_ascii);
+    first.analyzer->finish();
+    EXPECT_EQ(first.sink.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
+    // PROT := 0 acknowledged, then FC4 reads 1 at 8: PROT := 0 again is no change.
+    Harness again("mmk-2030", 1);
+    again.exchange(prot_ascii, prot_ascii);
+    again.exchange(read_input_8, input(1));
+    again.exchange(prot_ascii, prot_ascii);
+    again.analyzer->finish();
+    EXPECT_EQ(again.sink.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
+}
+
 // The same on a serial line, from a capture in the text format: the request at the new unit is judged by
 // the manual's rules too (the line is its own server; the response side once took another name for it).
 TEST(Semantics, AnAddressWriteOnASerialLineMovesTheProfileForRequestsAndReplies) {
