@@ -1097,13 +1097,13 @@ std::string Analyzer::follow_line(SerialLink& link, std::uint8_t unit, const Lin
 }
 
 void Analyzer::user_dlt_packet(const Packet& p) {
-    if (!options_.user_dlt) {
+    if (!options_.user_dlt && !options_.user_dlt_serial) {
         // USER0..15 are private: without --user-dlt nothing says the bytes are Modbus. Said once a file.
         if (std::find(told_user_dlt_.begin(), told_user_dlt_.end(), source_) == told_user_dlt_.end()) {
             told_user_dlt_.push_back(source_);
             input_error(source_ + ": link type " + std::to_string(p.linktype) + " (USER" +
                         std::to_string(p.linktype - link_user0) +
-                        ") is private; --user-dlt rtu|ascii says what it carries");
+                        ") is private; --user-dlt rtu|ascii|serial says what it carries");
         }
         return;
     }
@@ -1114,7 +1114,10 @@ void Analyzer::user_dlt_packet(const Packet& p) {
         if (bytes.empty()) {
             input_error(source_ + ": packet " + std::to_string(p.number) +
                         ": empty record where a direction byte was expected (--user-dlt " +
-                        (*options_.user_dlt == Framing::Ascii ? "ascii" : "rtu") + "-dir)");
+                        (!options_.user_dlt                     ? "serial"
+                         : *options_.user_dlt == Framing::Ascii ? "ascii"
+                                                                : "rtu") +
+                        "-dir)");
             return;
         }
         if (bytes[0] == static_cast<std::uint8_t>(UserDltDirection::MasterToSlave)) hint = Direction::Request;

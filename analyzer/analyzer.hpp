@@ -52,6 +52,8 @@ struct AnalyzerOptions {
     // What link types USER0..USER15 (147-162) carry: they are private by definition, so only the user can
     // say. nullopt: such packets are not decoded (and the input says why once).
     std::optional<modbus::Framing> user_dlt;
+    // They carry serial bytes whose framing the line's bytes tell (--user-dlt serial), user_dlt unset.
+    bool user_dlt_serial = false;
     // USER0..15 records start with a one-byte direction pseudo-header (UserDltDirection), as mbscope sniff
     // writes two serial taps; other values of the byte leave the direction to the state machine.
     bool user_dlt_direction = false;

@@ -32,7 +32,11 @@ int run_decode(const DecodeOptions& o) {
     analyzer::AnalyzerOptions options;
     options.rtu_over_tcp_ports = o.rtu_over_tcp_ports;
     if (!o.user_dlt.empty()) {
-        options.user_dlt = o.user_dlt.starts_with("ascii") ? modbus::Framing::Ascii : modbus::Framing::Rtu;
+        if (o.user_dlt.starts_with("serial"))
+            options.user_dlt_serial = true;
+        else
+            options.user_dlt =
+                o.user_dlt.starts_with("ascii") ? modbus::Framing::Ascii : modbus::Framing::Rtu;
         options.user_dlt_direction = o.user_dlt.ends_with("-dir");
     }
     if (!o.rtac_role.empty())
@@ -140,10 +144,11 @@ void register_decode(CLI::App& app, int& exit_code) {
         ->check(CLI::Range(1, 65535));
     cmd->add_option(
            "--user-dlt", o->user_dlt,
-           "What pcap link types USER0..USER15 (147-162) carry: rtu or ascii serial bytes, one chunk "
-           "per record with its capture time; rtu-dir and ascii-dir: each record starts with a direction "
-           "byte (0 master to slave, 1 slave to master), as mbscope sniff writes two serial taps")
-        ->check(CLI::IsMember({"rtu", "ascii", "rtu-dir", "ascii-dir"}));
+           "What pcap link types USER0..USER15 (147-162) carry: rtu or ascii serial bytes, or serial "
+           "bytes whose framing the line's bytes tell, one chunk per record with its capture time; "
+           "rtu-dir, ascii-dir and serial-dir: each record starts with a direction byte (0 master to "
+           "slave, 1 slave to master), as mbscope sniff writes two serial taps")
+        ->check(CLI::IsMember({"rtu", "ascii", "serial", "rtu-dir", "ascii-dir", "serial-dir"}));
     cmd->add_option("--rtac-role", o->rtac_role,
                     "SEL RTAC serial captures (link type 250): the RTAC's role on the port, master (its TX "
                     "bytes are requests) or slave; unset, the request → response state machine decides")

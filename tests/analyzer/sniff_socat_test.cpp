@@ -151,4 +151,10 @@ TEST(SniffSocat, AnAsciiLineIsReadAndWrittenAsAscii) {
     EXPECT_EQ(s.live.transactions[0]["function"], 3);
     EXPECT_EQ(s.live.frames, s.again.frames);
     EXPECT_EQ(s.live.transactions, s.again.transactions);
+    // Read back without saying the framing: the records' bytes tell it.
+    const Records told =
+        records(run(std::string(MBSCOPE_BINARY) + " decode --baud 19200 --user-dlt serial-dir --jsonl '" +
+                    s.written + "'"));
+    EXPECT_EQ(s.live.frames, told.frames);
+    EXPECT_EQ(s.live.transactions, told.transactions);
 }
