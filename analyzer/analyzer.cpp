@@ -56,7 +56,6 @@ struct Analyzer::SerialLink {
 
     // The line as the link reads it: its framing (none until the first bytes tell it, when the input does
     // not) and its character (t1.5/t3.5), both changed by a device told other settings (follow_line).
-    bool started = false;
     std::optional<Framing> framing;
     std::vector<Framing> read_as;  // every framing it was read in, in order
     bool framing_told = false;     // the first one from the bytes, not from the input or the user
@@ -80,8 +79,8 @@ struct Analyzer::SerialLink {
     std::size_t next_chunk = 0;               // the next chunk for the deframers
     std::size_t next_skip = 0;                // its bytes already given (a restart inside it)
     std::optional<std::uint64_t> restart_at;  // follow_line: deframe again from here, the new way
-    // Telling the framing: an ASCII deframer that has not seen a frame with a valid LRC yet, and the count
-    // of bytes no ASCII line carries.
+    // Telling the framing (there while it is not known): an ASCII deframer that has not seen a frame with
+    // a valid LRC yet, and the count of bytes no ASCII line carries.
     std::unique_ptr<AsciiDeframer> probe;
     std::size_t foreign = 0;
     // Units that answered on the line, and the settings each was told: the line follows once all of them
@@ -692,11 +691,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             if (auto told = options_.semantics->follow_line_settings(request.device, *profile, *request.pdu,
                                                                      *rsp_record->pdu)) {
                 // On a serial line the capture follows the device (a TCP connection carries none of it).
-                if (request.carrier == Carrier::Serial)
-                    if (const auto it = serial_links_.find(request.link.str()); it != serial_links_.end())
-                        told->note.message +=
-                            follow_line(*it->second, request.frame.unit_id(), told->settings, profile->line,
-                                        rsp_record->frame.offset + rsp_record->frame.wire_length);
+                if (SerialLink* line = serial_line_of(request.link.str(), request.carrier))
+                    told->note.message +=
+                        follow_line(*line, request.frame.unit_id(), told->settings, profile->line,
+                                    rsp_record->frame.offset + rsp_record->frame.wire_length);
                 found.push_back({told->note.code,
                                  rsp_record,
                                  std::move(told->note.message),
@@ -717,13 +715,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             if (auto moved =
                     options_.semantics->follow_address(server, *profile, *request.pdu, *rsp_record->pdu)) {
                 // The unit no longer answers at its old address: it is not on the line there any more.
-                if (request.carrier == Carrier::Serial)
-                    if (const auto it = serial_links_.find(request.link.str()); it != serial_links_.end()) {
-                        auto& answered = it->second->answered;
-                        answered.erase(std::remove(answered.begin(), answered.end(), request.frame.unit_id()),
-                                       answered.end());
-                        it->second->told.erase(request.frame.unit_id());
-                    }
+                if (SerialLink* line = serial_line_of(request.link.str(), request.carrier)) {
+                    std::erase(line->answered, request.frame.unit_id());
+                    line->told.erase(request.frame.unit_id());
+                }
                 found.push_back(
                     {moved->code, rsp_record, std::move(moved->message), {request.index, rsp_record->index}});
             }
@@ -804,6 +799,12 @@ Analyzer::SerialLink& Analyzer::serial_link(const std::string& key, const std::s
     return *slot;
 }
 
+Analyzer::SerialLink* Analyzer::serial_line_of(const std::string& link, Carrier carrier) {
+    if (carrier != Carrier::Serial) return nullptr;  // exported PDUs come framed; TCP carries no line
+    const auto it = serial_links_.find(link);
+    return it == serial_links_.end() ? nullptr : it->second.get();
+}
+
 Analyzer::SerialLink& Analyzer::serial_link(const std::string& source) {
     return serial_link("serial " + source, "serial " + source, "serial " + source, Carrier::Serial);
 }
@@ -862,7 +863,8 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
         // A unit on the line: one that answered with a frame whose checksum holds (noise read as a frame
         // names units nobody has).
-        if (r.direction == Direction::Response && frame.checksum_ok && frame.unit_id() != 0 &&
+        if (link.keeps_chunks && r.direction == Direction::Response && frame.checksum_ok &&
+            frame.unit_id() != 0 &&
             std::find(link.answered.begin(), link.answered.end(), frame.unit_id()) == link.answered.end())
             link.answered.push_back(frame.unit_id());
         r.carrier = flow.carrier;
@@ -892,11 +894,12 @@ void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> b
 void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,
                             std::span<const std::uint8_t> bytes, Timestamp received, Direction hint,
                             std::uint64_t packet) {
-    if (!link.started) {
-        link.started = true;
+    if (!link.framing && !link.probe) {  // the line's first bytes
         link.framing = framing;
-        if (framing) link.read_as.push_back(*framing);
-        if (!framing) link.probe = std::make_unique<AsciiDeframer>();
+        if (framing)
+            link.read_as.push_back(*framing);
+        else
+            link.probe = std::make_unique<AsciiDeframer>();
     }
     if (!link.keeps_chunks && link.framing && link.next_chunk == link.chunks.size()) {
         link.chunks.clear();  // those that told the framing
@@ -1029,10 +1032,9 @@ void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> byte
 }
 
 std::optional<std::string> Analyzer::follow_broadcast(Flow& flow, const FrameRecord& r) {
-    if (!options_.semantics || !r.pdu || flow.carrier != Carrier::Serial) return std::nullopt;
-    const auto it = serial_links_.find(flow.link.str());
-    if (it == serial_links_.end()) return std::nullopt;
-    SerialLink& link = *it->second;
+    SerialLink* line = serial_line_of(flow.link.str(), flow.carrier);
+    if (!options_.semantics || !r.pdu || !line) return std::nullopt;
+    SerialLink& link = *line;
     // Every device on the line takes it whose manual allows the function in broadcast: those that answered
     // on it, or before any did, the device every unit is described as (--profile).
     std::vector<std::uint8_t> units = link.answered;
@@ -1314,17 +1316,13 @@ void Analyzer::finish() {
         if (f->carrier == Carrier::Tcp) close_streams(*f, now_);
     for (auto& [name, link] : serial_links_) {
         source_ = link->source;
-        if (link->started && !link->framing) tell_framing(*link, {}, true);
+        if (link->probe) tell_framing(*link, {}, true);
         // A change of line settings in what the deframers give up at the end is followed too: the bytes
         // after it are deframed again, and given up in their turn.
         do {
             if (link->restart_at) restart(*link);
             pump(*link);
-            DeframeEvents events;
-            if (link->untimed) link->untimed->finish(events);
-            if (link->timed) link->timed->finish(events);
-            if (link->ascii) link->ascii->finish(events);
-            serial_events(*link, events, now_);
+            flush_deframers(*link, now_, 0);
         } while (link->restart_at);
     }
     for (const auto& [key, link] : serial_links_)

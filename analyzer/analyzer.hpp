@@ -161,6 +161,8 @@ class Analyzer {
     SerialLink& serial_link(const std::string& key, const std::string& link, const std::string& server,
                             Carrier carrier);
     SerialLink& serial_link(const std::string& source);
+    // The serial line a record's link names; null for other carriers.
+    SerialLink* serial_line_of(const std::string& link, Carrier carrier);
     // A chunk of the line: to the link's deframers at once, or through its kept chunks (pump) when its
     // framing is not known yet or may change. `framing`: the line's, when the input fixes it.
     void serial_bytes(SerialLink& link, std::optional<modbus::Framing> framing,
@@ -177,11 +179,11 @@ class Analyzer {
     void pump(SerialLink& link);
     void restart(SerialLink& link);
     void tell_framing(SerialLink& link, std::span<const std::uint8_t> bytes, bool at_end);
-    // A unit on a serial link acknowledged other line settings (the response ending at stream offset `at`):
-    // what the capture does about it, as the end of the note's sentence.
     // A broadcast write of line settings, taken by the devices on the line whose manuals allow it: the
     // note's message, or nullopt.
     std::optional<std::string> follow_broadcast(Flow& flow, const FrameRecord& request);
+    // A unit on a serial link acknowledged other line settings (the response ending at stream offset `at`):
+    // what the capture does about it, as the end of the note's sentence.
     std::string follow_line(SerialLink& link, std::uint8_t unit, const modbus::LineState& told,
                             const modbus::LineRules& rules, std::uint64_t at);
     void serial_events(SerialLink& link, modbus::DeframeEvents& events, modbus::Timestamp t,

@@ -266,11 +266,7 @@ std::optional<Semantics::LineSettingsTold> Semantics::follow_broadcast_line_sett
     const auto w = written_registers(q);
     if (!w) return std::nullopt;
     auto told = line_settings_written(device, profile, w->start, w->values, "broadcast");
-    // Taken without a reply: remembered as an acknowledged write's values are (remember()).
-    auto &seen = registers_[device], &holding = holding_[device];
-    for (std::size_t i = 0; i < w->values.size(); ++i)
-        seen[static_cast<std::uint16_t>(w->start + i)] = holding[static_cast<std::uint16_t>(w->start + i)] =
-            w->values[i];
+    keep(device, w->start, w->values, true);  // taken without a reply: as an acknowledged write's values
     return told;
 }
 
@@ -299,24 +295,22 @@ std::optional<RuleBreak> Semantics::follow_address(const std::string& server, co
 
 void Semantics::remember(const std::string& device, const Pdu& q, const Pdu& a) {
     if (a.is_exception()) return;
+    if (const auto w = written_registers(q))
+        keep(device, w->start, w->values, true);  // FC23: before its read
+    if (const auto span = read_span(q))
+        if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
+            keep(device, span->start, regs->values, span->table == Table::HoldingRegisters);
+}
+
+void Semantics::keep(const std::string& device, std::uint16_t start, std::span<const std::uint16_t> words,
+                     bool holding_table) {
     // Every register by its address (decoding takes context from any table: a decimal point read by FC3
     // scales an FC4 value), and the holding registers apart (what a write of line settings changes).
     auto &seen = registers_[device], &holding = holding_[device];
-    const auto keep = [&](std::uint16_t start, const std::vector<std::uint16_t>& words, bool holding_table) {
-        for (std::size_t i = 0; i < count_within_address_space(start, words.size()); ++i) {
-            seen[static_cast<std::uint16_t>(start + i)] = words[i];
-            if (holding_table) holding[static_cast<std::uint16_t>(start + i)] = words[i];
-        }
-    };
-    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&q.body))
-        keep(rw->write_starting_address, rw->write_values, true);  // AP §6.17: written before the read
-    if (const auto span = read_span(q))
-        if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
-            keep(span->start, regs->values, span->table == Table::HoldingRegisters);
-    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
-        keep(w->address, {w->value}, true);
-    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body))
-        keep(w->starting_address, w->values, true);
+    for (std::size_t i = 0; i < count_within_address_space(start, words.size()); ++i) {
+        seen[static_cast<std::uint16_t>(start + i)] = words[i];
+        if (holding_table) holding[static_cast<std::uint16_t>(start + i)] = words[i];
+    }
 }
 
 std::vector<NamedValue> Semantics::values(const Profile& profile, const std::string& device, const Pdu& q,

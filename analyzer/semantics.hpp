@@ -75,6 +75,9 @@ class Semantics {
                                                           std::span<const std::uint16_t> values,
                                                           const std::string& how) const;
     std::vector<std::pair<DeviceSelector, std::shared_ptr<const modbus::Profile>>> maps_;
+    // `words` seen at `start` on `device`: in registers_, and in holding_ when they are holding registers.
+    void keep(const std::string& device, std::uint16_t start, std::span<const std::uint16_t> words,
+              bool holding_table);
     std::map<std::string, std::map<std::uint16_t, std::uint16_t>> registers_;  // device → last values seen
     std::map<std::string, std::map<std::uint16_t, std::uint16_t>> holding_;    // the holding registers alone
     // (host, unit) → the profile of a device that moved there (follow_address): before any --map.

@@ -244,7 +244,7 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
     }
     const std::string& path = input->name;
     bool capture_read_as_serial = false;
-    bool detected_here = false;
+    const InputFormat asked = format;
     if (format != InputFormat::Pcap) {
         std::ifstream in(input->path, std::ios::binary);
         if (!in) {
@@ -263,10 +263,7 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
             a.input_error(path +
                           ": holds a pcap or pcapng capture (its magic number) but --format reads it as "
                           "serial bytes; leave --format out to decode the capture");
-        if (format == InputFormat::Auto) {
-            format = detected;
-            detected_here = true;
-        }
+        if (format == InputFormat::Auto) format = detected;
     }
     // A file of no bytes decodes to nothing in every serial format; reporting that as a clean decode would
     // pass off a tap that recorded nothing (or the wrong file) as a quiet line. libpcap names an empty pcap
@@ -286,7 +283,7 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
         case InputFormat::AsciiRaw:
             // Asked for by name, the format fixes the framing; found by its first byte, the line's bytes
             // tell it (a dump that starts inside a frame or with noise is not misread).
-            if (!detected_here && !a.serial_framing())
+            if (asked != InputFormat::Auto && !a.serial_framing())
                 a.set_serial_framing(format == InputFormat::AsciiRaw ? modbus::Framing::Ascii
                                                                      : modbus::Framing::Rtu);
             read = read_raw(a, *input);

@@ -17,6 +17,7 @@ namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 
 using mbscope::test::Collect;
+using mbscope::test::write_temp;
 
 namespace {
 
@@ -41,12 +42,6 @@ std::string rtu(std::uint8_t unit, std::vector<std::uint8_t> pdu) {
 }
 std::string ascii(std::uint8_t unit, std::vector<std::uint8_t> pdu) {
     return mb::encode_ascii(unit, pdu);
-}
-
-std::string written(const std::string& name, const std::string& content) {
-    const std::string path = ::testing::TempDir() + name;
-    std::ofstream(path, std::ios::binary) << content;
-    return path;
 }
 
 // An analyzer describing every device by `profile` (none: values stay raw).
@@ -94,7 +89,7 @@ constexpr auto R = mb::Framing::Rtu;
 // function at unit 58 (':'). Its first bytes now tell the framing.
 TEST(LineFraming, ATimedLogOfAnAsciiLineIsReadAsAscii) {
     Decoding run;
-    ASSERT_TRUE(run.read(written(
+    ASSERT_TRUE(run.read(write_temp(
         "ascii-line.txt", "1.000 > " + hex_of(manual_request) + "\n1.020 < " + hex_of(manual_reply) + "\n")));
     ASSERT_EQ(run.framings(), std::vector<mb::Framing>{A});
     ASSERT_TRUE(run.sink.transactions[0].response.has_value());
@@ -110,7 +105,7 @@ TEST(LineFraming, ATimedLogOfAnAsciiLineIsReadAsAscii) {
 TEST(LineFraming, ARawAsciiDumpThatStartsInsideAFrameIsStillAscii) {
     const std::string cut = manual_request.substr(5);  // "0060000389\r\n"
     Decoding run;
-    ASSERT_TRUE(run.read(written("ascii-late.bin", cut + manual_request + manual_reply)));
+    ASSERT_TRUE(run.read(write_temp("ascii-late.bin", cut + manual_request + manual_reply)));
     EXPECT_EQ(run.framings(), std::vector<mb::Framing>{A});
     EXPECT_EQ(run.unparsed(), cut.size());
     ASSERT_EQ(run.sink.unparsed_records.size(), 1u);
@@ -123,12 +118,12 @@ TEST(LineFraming, AnRtuLineIsRtuAndAStatedFramingIsKept) {
     const std::string line = "1.000 " + hex_of(rtu(17, {0x03, 0x00, 0x60, 0x00, 0x03})) + "\n1.020 " +
                              hex_of(rtu(17, {0x03, 0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64})) + "\n";
     Decoding found;
-    ASSERT_TRUE(found.read(written("rtu-line.txt", line)));
+    ASSERT_TRUE(found.read(write_temp("rtu-line.txt", line)));
     EXPECT_EQ(found.framings(), std::vector<mb::Framing>{R});
     EXPECT_EQ(found.unparsed(), 0u);
 
     Decoding stated({}, R);
-    ASSERT_TRUE(stated.read(written("ascii-stated-rtu.txt", "1.000 " + hex_of(manual_request) + "\n")));
+    ASSERT_TRUE(stated.read(write_temp("ascii-stated-rtu.txt", "1.000 " + hex_of(manual_request) + "\n")));
     ASSERT_FALSE(stated.sink.frames.empty());
     ASSERT_EQ(stated.analyzer.summary().serial_lines.size(), 1u);
     EXPECT_FALSE(stated.analyzer.summary().serial_lines.begin()->second.told);
@@ -160,7 +155,7 @@ TEST(LineFraming, AnAcknowledgedProtWriteSwitchesTheLineToAscii) {
     for (const auto& [name, content] : {std::pair{"prot.txt", log}, std::pair{"prot.bin", dump}}) {
         SCOPED_TRACE(name);
         Decoding run("mmk-2030");
-        ASSERT_TRUE(run.read(written(name, content)));
+        ASSERT_TRUE(run.read(write_temp(name, content)));
         EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, A}));
         EXPECT_EQ(run.unparsed(), 0u);
         EXPECT_EQ(run.sink.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
@@ -177,7 +172,7 @@ TEST(LineFraming, AnAcknowledgedProtWriteSwitchesTheLineToAscii) {
     // Without the device's map nothing says what register 8 is: the ASCII frames stay bytes nobody framed,
     // reported as such, not dropped.
     Decoding blind;
-    ASSERT_TRUE(blind.read(written("prot-blind.bin", dump)));
+    ASSERT_TRUE(blind.read(write_temp("prot-blind.bin", dump)));
     EXPECT_EQ(blind.framings(), (std::vector<mb::Framing>{R, R}));
     EXPECT_EQ(blind.unparsed(), read_again.size() + holds_ascii.size());
 }
@@ -198,7 +193,7 @@ TEST(LineFraming, AMultiDropLineFollowsWhenEveryUnitThatAnsweredWasTold) {
                              write8(rtu, 2, 0) + read8(ascii, 1, 0) + write8(ascii, 1, 1) +
                              write8(ascii, 2, 1) + read8(rtu, 1, 1);
     Decoding run("mmk-2030");
-    ASSERT_TRUE(run.read(written("multi-drop.bin", dump)));
+    ASSERT_TRUE(run.read(write_temp("multi-drop.bin", dump)));
     EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, R, R, A, A, A, R}));
     EXPECT_EQ(run.unparsed(), 0u);
     // The summary says what the line was read in, in order, and that the first was told from its bytes.
@@ -235,7 +230,7 @@ TEST(LineFraming, ANewSpeedSetsTheSilences) {
                             hex_of(reply.substr(0, 3)) + "\n" + times[2] + " < " + hex_of(reply.substr(3)) +
                             "\n";
     Decoding run("mmk-2030");
-    ASSERT_TRUE(run.read(written("baud.txt", log)));
+    ASSERT_TRUE(run.read(write_temp("baud.txt", log)));
     EXPECT_NE(run.note().find("; the line is read as RTU, 2400 baud, no parity (8N1) from here on"),
               std::string::npos)
         << run.note();
@@ -259,7 +254,7 @@ TEST(LineFraming, ABroadcastOfTheLineSettingsMovesTheWholeLine) {
     const std::string dump =
         read8(rtu, 1, 1) + read8(rtu, 2, 1) + broadcast + read8(ascii, 1, 0) + read8(ascii, 2, 0);
     Decoding run("mmk-2030");
-    ASSERT_TRUE(run.read(written("broadcast.bin", dump)));
+    ASSERT_TRUE(run.read(write_temp("broadcast.bin", dump)));
     EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, A, A}));
     EXPECT_EQ(run.unparsed(), 0u);
     EXPECT_EQ(run.sink.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
@@ -281,7 +276,7 @@ TEST(LineFraming, AUnitThatMovedAwayIsNotWaitedFor) {
                              rtu(17, {0x06, 0x00, 0x08, 0x00, 0x00}) +
                              ascii(17, {0x03, 0x00, 0x08, 0x00, 0x01}) + ascii(17, {0x03, 0x02, 0x00, 0x00});
     Decoding run("mmk-2030");
-    ASSERT_TRUE(run.read(written("moved.bin", dump)));
+    ASSERT_TRUE(run.read(write_temp("moved.bin", dump)));
     EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, A}));
     EXPECT_EQ(run.unparsed(), 0u);
     EXPECT_EQ(run.sink.count(mb::FindingCode::ProfileAddressMoved), 1);
@@ -319,7 +314,7 @@ TEST(LineFraming, AReplyWithABadCrcPutsNoUnitOnTheLine) {
                              prot_ascii + prot_ascii + ascii(1, {0x03, 0x00, 0x08, 0x00, 0x01}) +
                              ascii(1, {0x03, 0x02, 0x00, 0x00});
     Decoding run("mmk-2030");
-    ASSERT_TRUE(run.read(written("bad-crc.bin", dump)));
+    ASSERT_TRUE(run.read(write_temp("bad-crc.bin", dump)));
     EXPECT_EQ(run.sink.count(mb::FindingCode::RtuCrcMismatch), 1);
     EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, A}));
     EXPECT_NE(run.note().find("; the line is read as ASCII from here on"), std::string::npos) << run.note();

@@ -18,6 +18,7 @@ namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::bytes;
 using mbscope::test::Collect;
+using mbscope::test::write_temp;
 using namespace std::chrono_literals;
 
 namespace {
@@ -93,12 +94,6 @@ Parsed socat(const std::string& log, const an::SerialLogOptions& options = {}) {
 
 mb::Timestamp at(std::int64_t second, std::int64_t us) {
     return std::chrono::seconds(second) + std::chrono::microseconds(us);
-}
-
-std::string write_temp(const std::string& name, const std::string& content) {
-    const std::string path = ::testing::TempDir() + name;
-    std::ofstream(path, std::ios::binary) << content;
-    return path;
 }
 
 struct Run {

@@ -20,14 +20,9 @@
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::Collect;
+using mbscope::test::write_temp;
 
 namespace {
-
-std::string write_temp(const std::string& name, const std::string& content) {
-    const std::string path = ::testing::TempDir() + name;
-    std::ofstream(path, std::ios::binary) << content;
-    return path;
-}
 
 std::string bytes(std::initializer_list<int> b) {
     std::string s;

@@ -1,11 +1,15 @@
 #pragma once
 // Shared by the analyzer tests: a sink that keeps every record, IPv4 packets built by hand (link type raw
 // IP) between a client 10.0.0.1:40000 and a server 10.0.0.2:502 (or another server port), and classic pcap
-// files holding records of any link type.
+// files holding records of any link type, and files of any bytes in the test's temporary directory.
+
+#include <gtest/gtest.h>
 
 #include <cstdint>
+#include <fstream>
 #include <initializer_list>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "analyzer/analyzer.hpp"
@@ -138,6 +142,13 @@ inline std::vector<std::uint8_t> bytes(std::initializer_list<int> values) {
     for (int v : values)
         b.push_back(static_cast<std::uint8_t>(v));
     return b;
+}
+
+// `content` written to `name` in the test's temporary directory; its path.
+inline std::string write_temp(const std::string& name, const std::string& content) {
+    const std::string path = ::testing::TempDir() + name;
+    std::ofstream(path, std::ios::binary) << content;
+    return path;
 }
 
 }  // namespace mbscope::test
