@@ -5,6 +5,7 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <set>
 
 #include "cli/commands.hpp"
 #include "cli/number_checks.hpp"
@@ -110,9 +111,18 @@ int run_fuzz_command(const FuzzCliOptions& o) {
         std::cerr << "mbscope fuzz: written without being read first, not restored: "
                   << modbus::to_string(w.table) << ' ' << w.start << " (" << w.count
                   << (w.count == 1 ? " point)\n" : " points)\n");
+    std::set<std::pair<modbus::Table, std::uint16_t>> unanswered;
+    for (const auto& u : summary.unanswered_writes)
+        unanswered.insert({u.table, u.address});
+    for (const auto& w : fuzz::network::ranges_of(unanswered))
+        std::cerr << "mbscope fuzz: written by a write that drew no reply, without being read first, not "
+                     "restored: "
+                  << modbus::to_string(w.table) << ' ' << w.start << " (" << w.count
+                  << (w.count == 1 ? " point)\n" : " points)\n");
+    unrestored |= !unanswered.empty();
     if (unrestored)
-        std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\" and "
-                     "\"not_read\")\n";
+        std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\", "
+                     "\"not_read\" and \"unanswered_writes\")\n";
     return summary.findings.empty() && !unrestored ? exit_ok : exit_findings;
 }
 

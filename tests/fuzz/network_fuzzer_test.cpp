@@ -76,6 +76,22 @@ std::string listing(const fz::CampaignSummary& s) {
     return out.empty() ? " (none)" : out;
 }
 
+using Points = std::set<std::pair<Table, std::uint16_t>>;
+
+// The points a run's summary says it left changed and not restored: not restored, in a range it could not
+// read first, or reached unread by a write that drew no reply.
+Points left_unrestored(const fz::CampaignSummary& s) {
+    Points listed;
+    for (const auto& r : s.not_read)
+        for (std::uint32_t a = r.start; a < r.end(); ++a)
+            listed.insert({r.table, static_cast<std::uint16_t>(a)});
+    for (const auto& t : s.restored)
+        if (!t.restored) listed.insert({t.table, t.address});
+    for (const auto& u : s.unanswered_writes)
+        listed.insert({u.table, u.address});
+    return listed;
+}
+
 std::vector<FaultCase> fault_cases() {
     return {
         {"bad-crc", "mmk-2030", "rtu-tcp", {"reply.checksum"}},
@@ -262,7 +278,7 @@ TEST(NetworkFuzzer, PointsWrittenBeforeTheTargetWasLostAreListedAsNotRestored) {
 // A lax device executes writes its manual says it refuses (here: quantities over the manual's limits). Their
 // points are read before they are sent too, so they are put back; and nothing is called restored that
 // does not hold what it held before the run. Every point the run left changed is in the summary, as not
-// restored or in a range whose values could not be read first.
+// restored, in a range whose values could not be read first, or reached unread by a write without a reply.
 TEST(NetworkFuzzer, WritesALaxDeviceShouldHaveRefusedAreRestoredOrListed) {
     RunningServer server({"ignore-max-quantity", "accept-out-of-range"}, 7, "mmk-2030");
     auto o = options_for("tcp", server.start("tcp"));
@@ -279,15 +295,13 @@ TEST(NetworkFuzzer, WritesALaxDeviceShouldHaveRefusedAreRestoredOrListed) {
         return mbscope::modbus::is_bit_table(t) ? static_cast<std::uint16_t>(image.bit(t, a))
                                                 : image.reg(t, a);
     };
-    std::set<std::pair<Table, std::uint16_t>> listed;
+    const Points listed = left_unrestored(s);
     for (const auto& t : s.restored) {
         if (t.restored) {
             EXPECT_EQ(value(after, t.table, t.address), t.original)
                 << "called restored: " << mbscope::modbus::to_string(t.table) << " " << t.address;
             EXPECT_EQ(value(before, t.table, t.address), t.original)
                 << "original misread: " << mbscope::modbus::to_string(t.table) << " " << t.address;
-        } else {
-            listed.insert({t.table, t.address});
         }
     }
     // What the simulated process moves (process values, a relay) is the process's; a write-only point (an
@@ -298,9 +312,6 @@ TEST(NetworkFuzzer, WritesALaxDeviceShouldHaveRefusedAreRestoredOrListed) {
     for (const Table t : {Table::Coils, Table::HoldingRegisters})
         for (const auto& pt : profile.table(t))
             if (pt.access == mbscope::modbus::Access::Write) not_state.insert({t, pt.address});
-    for (const auto& r : s.not_read)
-        for (std::uint32_t a = r.start; a < std::uint32_t{r.start} + r.count; ++a)
-            listed.insert({r.table, static_cast<std::uint16_t>(a)});
     for (const auto& [t, changed] : after.changes()) {
         if (t != Table::Coils && t != Table::HoldingRegisters) continue;
         for (const auto& [address, now] : changed)
@@ -1132,39 +1143,76 @@ class IgnoresTheUnitId {
     std::thread thread_;
 };
 
-// Over Modbus/TCP a write to another unit is read first too (a device ignoring the unit id executes it), but
-// its reply, which the rules do not want, is not waited for: it is matched to the write by transaction id
-// when it comes. A device that executes it changed the points it reached that were not read first (outside
-// the map), and they are listed as not read, as after a prompt acknowledgement; they were in neither list.
-// The device: the reference slave serving the generic map (registers the MMK's manual does not list),
-// ignoring the unit id, fuzzed as an MMK-2030.
-TEST(NetworkFuzzer, AWriteAcknowledgedAfterItsExchangeListsThePointsItReachedUnread) {
-    RunningServer server({}, 1, "modbus");
-    IgnoresTheUnitId relay(server.start("tcp"));
-    auto o = options_for("tcp", relay.port());
-    o.requests = 1500;
+// The reference slave serving the generic map (registers the MMK's manual does not list) at `port`, fuzzed
+// as an MMK-2030 over Modbus/TCP; the coils and holding registers outside the MMK's map it holds changed
+// after the run, each expected among the points the summary lists.
+Points changed_outside_the_mmk_map(std::uint16_t port, const sl::RegisterImage& image, std::uint64_t requests,
+                                   fz::CampaignSummary& s) {
+    auto o = options_for("tcp", port);
+    o.requests = requests;
     o.minimise_budget = 0;
     const auto& mmk = mbscope::slave::test::profile("mmk-2030");
-    const auto s = fz::run_campaign(mmk, o);
-    ASSERT_TRUE(s.reachable) << s.error;
-    ASSERT_FALSE(s.target_lost) << listing(s);
-    std::set<std::pair<Table, std::uint16_t>> listed;
-    for (const auto& r : s.not_read)
-        for (std::uint32_t a = r.start; a < r.end(); ++a)
-            listed.insert({r.table, static_cast<std::uint16_t>(a)});
-    for (const auto& t : s.restored)
-        if (!t.restored) listed.insert({t.table, t.address});
-    std::size_t outside = 0;
-    for (const auto& [t, changed] : server.device().image().changes()) {
+    s = fz::run_campaign(mmk, o);
+    EXPECT_TRUE(s.reachable) << s.error;
+    EXPECT_FALSE(s.target_lost) << listing(s);
+    const Points listed = left_unrestored(s);
+    Points outside;
+    for (const auto& [t, changed] : image.changes()) {
         if (t != Table::Coils && t != Table::HoldingRegisters) continue;
         for (const auto& [address, now] : changed) {
             if (mmk.find(t, address)) continue;  // in the map: read first, restored
-            ++outside;
+            outside.insert({t, address});
             EXPECT_TRUE(listed.count({t, address})) << mbscope::modbus::to_string(t) << " " << address
                                                     << " changed to " << now << " and not listed";
         }
     }
-    EXPECT_GT(outside, 0u) << "no write outside the map was executed";
+    return outside;
+}
+
+// Over Modbus/TCP a write to another unit is read first too (a device ignoring the unit id executes it), but
+// its reply, which the rules do not want, is not waited for: it is matched to the write by transaction id
+// when it comes. A device that executes it changed the points it reached that were not read first (outside
+// the map), and they are listed as not read, as after a prompt acknowledgement; they were in neither list.
+// The device: the reference slave serving the generic map, ignoring the unit id, fuzzed as an MMK-2030.
+TEST(NetworkFuzzer, AWriteAcknowledgedAfterItsExchangeListsThePointsItReachedUnread) {
+    RunningServer server({}, 1, "modbus");
+    IgnoresTheUnitId relay(server.start("tcp"));
+    fz::CampaignSummary s;
+    const auto outside = changed_outside_the_mmk_map(relay.port(), server.device().image(), 1500, s);
+    EXPECT_FALSE(outside.empty()) << "no write outside the map was executed";
+}
+
+// A broadcast draws no reply on a serial line, so nothing tells whether the device executed it (the reference
+// slave takes unit 0 over Modbus/TCP as a broadcast too). One that reached points the fuzzer could not read
+// first (outside the map) and that the device holds after all may have changed them: they are read when the
+// run ends, and those that read normally are listed (`unanswered_writes`), not restored, with what they hold.
+// Before, they were in no list. The same run against the MMK-2030 itself lists nothing, its exception 02
+// saying it holds no such point.
+TEST(NetworkFuzzer, ABroadcastThatReachedPointsUnreadListsThoseTheDeviceHolds) {
+    RunningServer lax({}, 1, "modbus");
+    const auto port = lax.start("tcp");
+    const auto& image = lax.device().image();
+    fz::CampaignSummary s;
+    const auto outside = changed_outside_the_mmk_map(port, image, 6000, s);
+    const auto& mmk = mbscope::slave::test::profile("mmk-2030");
+    std::size_t unanswered_only = 0;
+    for (const auto& u : s.unanswered_writes) {
+        EXPECT_FALSE(mmk.find(u.table, u.address)) << "in the map, so read first";
+        const std::uint16_t held = mbscope::modbus::is_bit_table(u.table)
+                                       ? static_cast<std::uint16_t>(image.bit(u.table, u.address))
+                                       : image.reg(u.table, u.address);
+        EXPECT_EQ(u.value, held) << mbscope::modbus::to_string(u.table) << " " << u.address;
+        unanswered_only += outside.count({u.table, u.address});
+    }
+    EXPECT_GT(unanswered_only, 0u) << "no write that drew no reply changed a point outside the map";
+
+    RunningServer strict({}, 1, "mmk-2030");
+    auto k = options_for("tcp", strict.start("tcp"));
+    k.requests = 6000;
+    k.minimise_budget = 0;
+    const auto t = fz::run_campaign(mmk, k);
+    ASSERT_TRUE(t.reachable) << t.error;
+    EXPECT_TRUE(t.unanswered_writes.empty()) << listing(t);
 }
 
 // `mbscope ARGUMENTS` started in the background, its process id known, what it prints collected.
