@@ -73,8 +73,12 @@ int run_replay_command(const ReplayCliOptions& o) {
     auto unread = remembered.unread;
     for (const auto& w : fuzz::network::acknowledged_unchecked(remembered.unchecked, framing, steps))
         unread.push_back(w);
+    // Those a step wrote without drawing a reply (a broadcast): the device may have executed it where it
+    // holds them; read now to see which it holds.
+    const auto unanswered = fuzz::network::read_held(
+        session, fuzz::network::unanswered_unchecked(remembered.unchecked, framing, steps));
     const auto restored = session.touched().empty() ? std::vector<conformance::Touched>{} : session.restore();
-    bool unrestored = !unread.empty();
+    bool unrestored = !unread.empty() || !unanswered.empty();
     for (const auto& t : restored)
         unrestored |= !t.restored;
 
@@ -110,13 +114,17 @@ int run_replay_command(const ReplayCliOptions& o) {
                                     {"stopped", stopped},
                                     {"steps", out},
                                     {"restored", conformance::to_json(restored)},
-                                    {"not_read", fuzz::network::to_json(unread)}}
+                                    {"not_read", fuzz::network::to_json(unread)},
+                                    {"unanswered_writes", fuzz::network::to_json(unanswered)}}
                          .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
                   << '\n';
     } else {
         for (const auto& w : unread)
             std::cout << "not read before the replay, not restored: " << modbus::to_string(w.table) << ' '
                       << w.start << " (" << w.count << (w.count == 1 ? " point)\n" : " points)\n");
+        for (const auto& p : unanswered)
+            std::cout << "written by a step that drew no reply, not read before, not restored: "
+                      << modbus::to_string(p.table) << ' ' << p.address << " holds " << p.value << '\n';
         std::size_t back = 0;
         for (const auto& t : restored) {
             if (t.restored)

@@ -454,33 +454,12 @@ void Campaign::note_unread(const modbus::transport::Exchange& ex) {
 }
 
 // When the run ends: the points writes that drew no reply reached unread (unknown_, neither acknowledged nor
-// read since), each contiguous range read in as few requests as the function's limit allows. What the
-// device answers for, it holds, and a write it did not answer may have changed it (CampaignSummary::
-// unanswered_writes). A range it will not read as a whole is taken to be points it does not hold: the
-// strict device's exception 02 for every one of them, not a read per point.
+// read since), read to see which the device holds (CampaignSummary::unanswered_writes).
 void Campaign::read_unanswered_writes() {
     std::set<Location> points;
     for (const auto& point : unknown_)
         if (!not_read_.count(point) && !session_.touched().count(point)) points.insert(point);
-    for (const auto& range : ranges_of(points)) {
-        const bool bits = modbus::is_bit_table(range.table);
-        const std::uint32_t chunk = bits ? modbus::max_read_bits : modbus::max_read_registers;
-        for (std::uint32_t start = range.start; start < range.end(); start += chunk) {
-            const auto count = static_cast<std::uint16_t>(std::min(chunk, range.end() - start));
-            const auto at = static_cast<std::uint16_t>(start);
-            const std::string note = "read after an unanswered write";
-            std::vector<std::uint16_t> values;
-            if (bits) {
-                if (const auto read = session_.read_bits(range.table, at, count, note))
-                    values.assign(read->begin(), read->end());
-            } else if (const auto read = session_.read_registers(range.table, at, count, note)) {
-                values = *read;
-            }
-            for (std::size_t i = 0; i < values.size() && i < count; ++i)
-                s_.unanswered_writes.push_back({range.table, static_cast<std::uint16_t>(at + i), values[i]});
-        }
-    }
-    (void)session_.take_evidence();
+    s_.unanswered_writes = read_held(session_, points);
 }
 
 // A write's acknowledgement that came after its exchange ended (matched to it by transaction id, over RTU
@@ -914,10 +893,6 @@ nlohmann::json to_json(const CampaignSummary& s) {
                             {"minimised", f.reproducer.minimised}});
         if (!f.file_error.empty()) findings.back()["reproducer_error"] = f.file_error;
     }
-    nlohmann::json unanswered = nlohmann::json::array();
-    for (const auto& u : s.unanswered_writes)
-        unanswered.push_back(
-            {{"table", std::string(modbus::to_string(u.table))}, {"address", u.address}, {"value", u.value}});
     nlohmann::json j{{"reachable", s.reachable},
                      {"requests", s.requests},
                      {"replies", s.replies},
@@ -938,7 +913,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"findings", findings},
                      {"restored", conformance::to_json(s.restored)},
                      {"not_read", to_json(s.not_read)},
-                     {"unanswered_writes", unanswered},
+                     {"unanswered_writes", to_json(s.unanswered_writes)},
                      {"stopped", s.stopped},
                      {"target_lost", s.target_lost}};
     if (!s.error.empty()) j["error"] = s.error;

@@ -93,17 +93,10 @@ struct CampaignSummary {
     // Points a write the device acknowledged reached before their values could be read (outside the map,
     // or the read failed): what they held before the run is unknown, so they are not restored.
     std::vector<WriteRange> not_read;
-    // Points a write that drew no reply reached before their values could be read: a broadcast (on a
-    // serial line never answered) or a write left unanswered. Whether the device executed it is unknown;
-    // read when the run ended, those it answered for in one read of their range are listed with what they
-    // hold, perhaps the fuzzer's value, and are not restored. A range it refused to read (exception 02: it
-    // holds no such point) is not.
-    struct UnansweredWrite {
-        modbus::Table table = modbus::Table::HoldingRegisters;
-        std::uint16_t address = 0;
-        std::uint16_t value = 0;  // a bit as 0/1
-    };
-    std::vector<UnansweredWrite> unanswered_writes;
+    // Points a write that drew no reply reached before their values could be read: read when the run ended,
+    // those the device answered for (read_held), with what they hold now, perhaps the fuzzer's value. Not
+    // restored.
+    std::vector<HeldPoint> unanswered_writes;
     bool stopped = false;      // interrupted
     bool target_lost = false;  // the run ended because the target stopped answering
     double requests_per_second() const;

@@ -178,23 +178,83 @@ RememberedWrites remember_writes(conformance::Session& session, const modbus::Pr
     return out;
 }
 
+namespace {
+
+enum class Answer { Acknowledged, Refused, None };
+
+// What the step of an unchecked write drew for the write's function.
+Answer answer_to(const UncheckedWrite& w, modbus::Framing framing, const std::vector<ReplayedStep>& steps) {
+    const auto replies = loose_requests(framing, steps[w.step].exchange.received);
+    const std::uint8_t function[] = {w.function};
+    if (std::any_of(replies.begin(), replies.end(),
+                    [&](const LooseRequest& r) { return acknowledges(function, r.pdu); }))
+        return Answer::Acknowledged;
+    if (std::any_of(replies.begin(), replies.end(),
+                    [&](const LooseRequest& r) { return !r.pdu.empty() && r.pdu[0] == (w.function | 0x80); }))
+        return Answer::Refused;
+    return Answer::None;
+}
+
+// The points of the unchecked writes of steps the replay reached that drew `answer`.
+std::set<std::pair<modbus::Table, std::uint16_t>> unchecked_points(
+    const std::vector<UncheckedWrite>& unchecked, modbus::Framing framing,
+    const std::vector<ReplayedStep>& steps, Answer answer) {
+    std::set<std::pair<modbus::Table, std::uint16_t>> points;
+    for (const auto& w : unchecked) {
+        if (w.step >= steps.size()) continue;  // the replay stopped before it
+        if (answer_to(w, framing, steps) != answer) continue;
+        for (const auto& range : w.points)
+            for (std::uint32_t a = range.start; a < range.end(); ++a)
+                points.insert({range.table, static_cast<std::uint16_t>(a)});
+    }
+    return points;
+}
+
+}  // namespace
+
 std::vector<WriteRange> acknowledged_unchecked(const std::vector<UncheckedWrite>& unchecked,
                                                modbus::Framing framing,
                                                const std::vector<ReplayedStep>& steps) {
-    std::set<std::pair<modbus::Table, std::uint16_t>> changed;
-    for (const auto& w : unchecked) {
-        if (w.step >= steps.size()) continue;  // the replay stopped before it
-        const auto replies = loose_requests(framing, steps[w.step].exchange.received);
-        const std::uint8_t function[] = {w.function};
-        const bool acknowledged = std::any_of(replies.begin(), replies.end(), [&](const LooseRequest& r) {
-            return acknowledges(function, r.pdu);
-        });
-        if (!acknowledged) continue;
-        for (const auto& range : w.points)
-            for (std::uint32_t a = range.start; a < range.end(); ++a)
-                changed.insert({range.table, static_cast<std::uint16_t>(a)});
+    return ranges_of(unchecked_points(unchecked, framing, steps, Answer::Acknowledged));
+}
+
+std::set<std::pair<modbus::Table, std::uint16_t>> unanswered_unchecked(
+    const std::vector<UncheckedWrite>& unchecked, modbus::Framing framing,
+    const std::vector<ReplayedStep>& steps) {
+    return unchecked_points(unchecked, framing, steps, Answer::None);
+}
+
+std::vector<HeldPoint> read_held(conformance::Session& session,
+                                 const std::set<std::pair<modbus::Table, std::uint16_t>>& points) {
+    std::vector<HeldPoint> held;
+    for (const auto& range : ranges_of(points)) {
+        const bool bits = modbus::is_bit_table(range.table);
+        const std::uint32_t chunk = bits ? modbus::max_read_bits : modbus::max_read_registers;
+        for (std::uint32_t start = range.start; start < range.end(); start += chunk) {
+            const auto count = static_cast<std::uint16_t>(std::min(chunk, range.end() - start));
+            const auto at = static_cast<std::uint16_t>(start);
+            const std::string note = "read after a write that drew no reply";
+            std::vector<std::uint16_t> values;
+            if (bits) {
+                if (const auto read = session.read_bits(range.table, at, count, note))
+                    values.assign(read->begin(), read->end());
+            } else if (const auto read = session.read_registers(range.table, at, count, note)) {
+                values = *read;
+            }
+            for (std::size_t i = 0; i < values.size() && i < count; ++i)
+                held.push_back({range.table, static_cast<std::uint16_t>(at + i), values[i]});
+        }
     }
-    return ranges_of(changed);
+    (void)session.take_evidence();
+    return held;
+}
+
+nlohmann::json to_json(const std::vector<HeldPoint>& points) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& p : points)
+        out.push_back(
+            {{"table", std::string(modbus::to_string(p.table))}, {"address", p.address}, {"value", p.value}});
+    return out;
 }
 
 }  // namespace mbscope::fuzz::network

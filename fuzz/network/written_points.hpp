@@ -44,6 +44,23 @@ inline bool acknowledges(std::span<const std::uint8_t> request_pdu, std::span<co
 std::size_t keep_registers(std::vector<std::uint8_t>& pdu,
                            const std::function<std::optional<std::uint16_t>(std::uint16_t)>& held);
 
+// A point read after a write that drew no reply (a broadcast, never answered on a serial line, or a write
+// left unanswered) had reached it before its value could be read: whether the device executed the write is
+// unknown, and the point may hold the write's value.
+struct HeldPoint {
+    modbus::Table table = modbus::Table::HoldingRegisters;
+    std::uint16_t address = 0;
+    std::uint16_t value = 0;  // a bit as 0/1
+};
+// Reads `points` through `session`, each contiguous range in as few requests as the function's limit allows:
+// the points of the ranges the device answered for, with what they hold. A range it will not read as a whole
+// is taken to be points it does not hold (the strict device's exception 02 for each), not read point by
+// point.
+std::vector<HeldPoint> read_held(conformance::Session& session,
+                                 const std::set<std::pair<modbus::Table, std::uint16_t>>& points);
+// [{"table", "address", "value"}, ...]
+nlohmann::json to_json(const std::vector<HeldPoint>& points);
+
 // The ranges that hold `points` (each a table and an address), contiguous runs joined.
 std::vector<WriteRange> ranges_of(const std::set<std::pair<modbus::Table, std::uint16_t>>& points);
 // [{"table", "start", "count"}, ...]
@@ -83,5 +100,11 @@ RememberedWrites remember_writes(conformance::Session& session, const modbus::Pr
 std::vector<WriteRange> acknowledged_unchecked(const std::vector<UncheckedWrite>& unchecked,
                                                modbus::Framing framing,
                                                const std::vector<ReplayedStep>& steps);
+// The points of the unchecked writes whose step drew neither an acknowledgement nor an exception of their
+// function (a broadcast, or a write left unanswered): whether the device executed them is unknown, and they
+// are read after the replay (read_held).
+std::set<std::pair<modbus::Table, std::uint16_t>> unanswered_unchecked(
+    const std::vector<UncheckedWrite>& unchecked, modbus::Framing framing,
+    const std::vector<ReplayedStep>& steps);
 
 }  // namespace mbscope::fuzz::network

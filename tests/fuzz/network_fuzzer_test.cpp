@@ -1073,6 +1073,39 @@ TEST(FuzzCommand, AReplayListsAWriteOutsideTheMapTheDeviceAcknowledged) {
     EXPECT_TRUE(k["not_read"].empty()) << strict.out;
 }
 
+// A broadcast step draws no reply, so nothing tells whether the device executed it. One to a point outside
+// the profile's map (not read first) is read after the steps: a device that holds the point is listed as
+// having it written by a step without a reply, with what it holds now (exit 1); before, it was in no list.
+// A device that holds no such point (exception 02 to the read) leaves nothing to list.
+TEST(FuzzCommand, AReplayListsAPointABroadcastStepReachedThatTheDeviceHolds) {
+    using mbscope::modbus::Table;
+    RunningServer lax({}, 1, "modbus");
+    const auto target = "tcp://127.0.0.1:" + std::to_string(lax.start("tcp"));
+    // FC6 register 5000 (outside mmk-2030's map) = 0xBEEF, to unit 0.
+    const std::vector<std::uint8_t> write{0x06, 0x13, 0x88, 0xBE, 0xEF};
+    const auto file =
+        save_adu_steps("mbscope-replay-broadcast.json", target, {mbscope::modbus::encode_tcp(1, 0, write)})
+            .string();
+    const auto listed = run("replay --json --profile mmk-2030 --timeout 300 " + file);
+    EXPECT_EQ(listed.status, 1) << listed.out;
+    EXPECT_EQ(lax.device().image().reg(Table::HoldingRegisters, 5000), 0xBEEF);
+    const auto j = json_in(listed.out);
+    ASSERT_FALSE(j.is_discarded()) << listed.out;
+    EXPECT_TRUE(j["not_read"].empty()) << listed.out;
+    ASSERT_EQ(j["unanswered_writes"].size(), 1u) << listed.out;
+    EXPECT_EQ(j["unanswered_writes"][0]["table"], "holding_registers");
+    EXPECT_EQ(j["unanswered_writes"][0]["address"], 5000);
+    EXPECT_EQ(j["unanswered_writes"][0]["value"], 0xBEEF);
+
+    RunningServer strict({}, 1, "mmk-2030");
+    const auto clean = run("replay --json --profile mmk-2030 --timeout 300 --target tcp://127.0.0.1:" +
+                           std::to_string(strict.start("tcp")) + " " + file);
+    EXPECT_EQ(clean.status, 0) << clean.out;
+    const auto k = json_in(clean.out);
+    ASSERT_FALSE(k.is_discarded()) << clean.out;
+    EXPECT_TRUE(k["unanswered_writes"].empty()) << clean.out;
+}
+
 // A Modbus/TCP relay in front of port `upstream` (a device serving unit 1) that makes it a device ignoring
 // the unit id, as many are: each request goes on for unit 1, and its reply comes back with the unit the
 // request named. One client connection at a time, as many in turn as the client opens.
