@@ -838,16 +838,13 @@ CampaignSummary Campaign::run() {
         }
     } else {
         read_unanswered_writes();
-    }
-    if (!s_.target_lost && !session_.touched().empty()) {
-        s_.restored = session_.restore();
+        if (!session_.touched().empty()) s_.restored = session_.restore();
         for (auto& t : s_.restored)
             if (doubtful_.count({t.table, t.address})) {
                 t.restored = false;
                 t.problem =
                     "not restored: first read after a write that reached it unread, so the value put back "
-                    "may "
-                    "be one the fuzzer wrote";
+                    "may be one the fuzzer wrote";
             }
     }
     s_.not_read = ranges_of(not_read_);
