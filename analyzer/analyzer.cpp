@@ -1116,9 +1116,7 @@ void Analyzer::user_dlt_packet(const Packet& p) {
         if (bytes.empty()) {
             input_error(source_ + ": packet " + std::to_string(p.number) +
                         ": empty record where a direction byte was expected (--user-dlt " +
-                        (!options_.user_dlt                     ? "serial"
-                         : *options_.user_dlt == Framing::Ascii ? "ascii"
-                                                                : "rtu") +
+                        (options_.user_dlt ? std::string(to_string(*options_.user_dlt)) : "serial") +
                         "-dir)");
             return;
         }

@@ -24,10 +24,13 @@ std::vector<std::vector<std::uint8_t>> sample_pdus() {
     std::vector<std::vector<std::uint8_t>> pdus;
     for (int i = 0; i < 64; ++i) {
         const auto qty = static_cast<std::uint16_t>(1 + rng() % 125);
-        pdus.push_back(mb::encode_pdu(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 96, qty)));
+        pdus.push_back(
+            mb::encode_pdu(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 96, qty)));
         std::vector<std::uint16_t> regs(qty);
-        for (auto& r : regs) r = static_cast<std::uint16_t>(rng());
-        pdus.push_back(mb::encode_pdu(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, regs)));
+        for (auto& r : regs)
+            r = static_cast<std::uint16_t>(rng());
+        pdus.push_back(
+            mb::encode_pdu(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, regs)));
         pdus.push_back(mb::encode_pdu(mb::make_write_single_register(84, 926)));
         pdus.push_back(mb::encode_pdu(mb::make_exception(3, 2)));
     }
@@ -68,8 +71,7 @@ const Stream& noisy_rtu_stream() {
         while (n.bytes.size() < stream_bytes) {
             for (const auto& p : pdus) {
                 auto adu = mb::encode_rtu(17, p);
-                if (rng() % 16 == 0)
-                    adu[rng() % adu.size()] ^= static_cast<std::uint8_t>(1 + rng() % 255);
+                if (rng() % 16 == 0) adu[rng() % adu.size()] ^= static_cast<std::uint8_t>(1 + rng() % 255);
                 n.bytes.insert(n.bytes.end(), adu.begin(), adu.end());
                 ++n.frames;
                 if (rng() % 8 == 0)
@@ -106,7 +108,8 @@ void BM_ReferenceByteLoop(benchmark::State& state) {
     const auto& s = rtu_stream();
     for (auto _ : state) {
         std::uint32_t h = 0;
-        for (std::uint8_t b : s.bytes) h = (h << 5) - h + b;
+        for (std::uint8_t b : s.bytes)
+            h = (h << 5) - h + b;
         benchmark::DoNotOptimize(h);
     }
     finish(state, s);
@@ -117,7 +120,8 @@ void BM_ReferenceVectorSum(benchmark::State& state) {
     const auto& s = rtu_stream();
     for (auto _ : state) {
         std::uint64_t sum = 0;
-        for (std::uint8_t b : s.bytes) sum += b;
+        for (std::uint8_t b : s.bytes)
+            sum += b;
         benchmark::DoNotOptimize(sum);
     }
     finish(state, s);
@@ -126,14 +130,16 @@ BENCHMARK(BM_ReferenceVectorSum);
 
 void BM_Crc16(benchmark::State& state) {
     const auto& s = rtu_stream();
-    for (auto _ : state) benchmark::DoNotOptimize(mb::crc16(s.bytes));
+    for (auto _ : state)
+        benchmark::DoNotOptimize(mb::crc16(s.bytes));
     finish(state, s);
 }
 BENCHMARK(BM_Crc16);
 
 void BM_Crc16Bitwise(benchmark::State& state) {
     const auto& s = rtu_stream();
-    for (auto _ : state) benchmark::DoNotOptimize(mb::crc16_bitwise(s.bytes));
+    for (auto _ : state)
+        benchmark::DoNotOptimize(mb::crc16_bitwise(s.bytes));
     finish(state, s);
 }
 BENCHMARK(BM_Crc16Bitwise);
@@ -210,7 +216,8 @@ void BM_DecodePdusOfRtuStream(benchmark::State& state) {
     d.finish(events);
     for (auto _ : state) {
         for (const auto& e : events)
-            if (const auto* f = std::get_if<mb::Frame>(&e)) benchmark::DoNotOptimize(mb::decode_pdu(f->pdu(), mb::Direction::Unknown));
+            if (const auto* f = std::get_if<mb::Frame>(&e))
+                benchmark::DoNotOptimize(mb::decode_pdu(f->pdu(), mb::Direction::Unknown));
     }
     finish(state, s);
 }
