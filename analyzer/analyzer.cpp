@@ -1099,7 +1099,7 @@ std::string Analyzer::follow_line(SerialLink& link, std::uint8_t unit, const Lin
 }
 
 void Analyzer::user_dlt_packet(const Packet& p) {
-    if (!options_.user_dlt && !options_.user_dlt_serial) {
+    if (!options_.user_dlt) {
         // USER0..15 are private: without --user-dlt nothing says the bytes are Modbus. Said once a file.
         if (std::find(told_user_dlt_.begin(), told_user_dlt_.end(), source_) == told_user_dlt_.end()) {
             told_user_dlt_.push_back(source_);
@@ -1116,7 +1116,7 @@ void Analyzer::user_dlt_packet(const Packet& p) {
         if (bytes.empty()) {
             input_error(source_ + ": packet " + std::to_string(p.number) +
                         ": empty record where a direction byte was expected (--user-dlt " +
-                        (options_.user_dlt ? std::string(to_string(*options_.user_dlt)) : "serial") +
+                        (*options_.user_dlt ? std::string(to_string(**options_.user_dlt)) : "serial") +
                         "-dir)");
             return;
         }
@@ -1125,7 +1125,7 @@ void Analyzer::user_dlt_packet(const Packet& p) {
             hint = Direction::Response;
         bytes = bytes.subspan(1);
     }
-    serial_bytes(serial_link(source_), options_.user_dlt, bytes, p.time, hint);
+    serial_bytes(serial_link(source_), *options_.user_dlt, bytes, p.time, hint);
 }
 
 void Analyzer::exported_pdu(const Packet& p) {

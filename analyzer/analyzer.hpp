@@ -50,10 +50,9 @@ struct AnalyzerOptions {
     // TCP server ports of serial gateways whose streams carry raw RTU frames (no MBAP header).
     std::vector<std::uint16_t> rtu_over_tcp_ports;
     // What link types USER0..USER15 (147-162) carry: they are private by definition, so only the user can
-    // say. nullopt: such packets are not decoded (and the input says why once).
-    std::optional<modbus::Framing> user_dlt;
-    // They carry serial bytes whose framing the line's bytes tell (--user-dlt serial), user_dlt unset.
-    bool user_dlt_serial = false;
+    // say. nullopt: such packets are not decoded (and the input says why once); else serial bytes in the
+    // framing held, or, holding none, in the framing the line's bytes tell (--user-dlt serial).
+    std::optional<std::optional<modbus::Framing>> user_dlt;
     // USER0..15 records start with a one-byte direction pseudo-header (UserDltDirection), as mbscope sniff
     // writes two serial taps; other values of the byte leave the direction to the state machine.
     bool user_dlt_direction = false;

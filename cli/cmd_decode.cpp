@@ -33,7 +33,7 @@ int run_decode(const DecodeOptions& o) {
     options.rtu_over_tcp_ports = o.rtu_over_tcp_ports;
     if (!o.user_dlt.empty()) {
         if (o.user_dlt.starts_with("serial"))
-            options.user_dlt_serial = true;
+            options.user_dlt.emplace();  // no framing: the line's bytes tell it
         else
             options.user_dlt =
                 o.user_dlt.starts_with("ascii") ? modbus::Framing::Ascii : modbus::Framing::Rtu;

@@ -30,7 +30,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     analyzer::AnalyzerOptions options;
     const auto flags = in.ConsumeIntegral<std::uint8_t>();
     if (flags & 0x01) options.user_dlt = (flags & 0x02) ? modbus::Framing::Ascii : modbus::Framing::Rtu;
-    options.user_dlt_serial = (flags & 0x41) == 0x40;  // USER records' framing told from their bytes
+    if ((flags & 0x41) == 0x40) options.user_dlt.emplace();  // USER records' framing told from their bytes
     if (flags & 0x04) options.rtu_over_tcp_ports = {502};
     if (flags & 0x08) options.tcp_ports.push_back(1502);
     if (flags & 0x10) options.word_order = modbus::WordOrder::Cdab;
