@@ -119,10 +119,15 @@ int run_fuzz_command(const FuzzCliOptions& o) {
                      "restored: "
                   << modbus::to_string(w.table) << ' ' << w.start << " (" << w.count
                   << (w.count == 1 ? " point)\n" : " points)\n");
-    unrestored |= !unanswered.empty();
+    for (const auto& w : summary.unanswered_unread)
+        std::cerr << "mbscope fuzz: written by a write that drew no reply, could not be read "
+                  << (summary.target_lost ? "(the target stopped answering)" : "(no answer to the read)")
+                  << ", may have changed, not restored: " << modbus::to_string(w.table) << ' ' << w.start
+                  << " (" << w.count << (w.count == 1 ? " point)\n" : " points)\n");
+    unrestored |= !unanswered.empty() || !summary.unanswered_unread.empty();
     if (unrestored)
         std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\", "
-                     "\"not_read\" and \"unanswered_writes\")\n";
+                     "\"not_read\", \"unanswered_writes\" and \"unanswered_unread\")\n";
     return summary.findings.empty() && !unrestored ? exit_ok : exit_findings;
 }
 

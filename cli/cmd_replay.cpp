@@ -78,7 +78,7 @@ int run_replay_command(const ReplayCliOptions& o) {
     const auto unanswered = fuzz::network::read_held(
         session, fuzz::network::unanswered_unchecked(remembered.unchecked, framing, steps));
     const auto restored = session.touched().empty() ? std::vector<conformance::Touched>{} : session.restore();
-    bool unrestored = !unread.empty() || !unanswered.empty();
+    bool unrestored = !unread.empty() || !unanswered.held.empty() || !unanswered.unread.empty();
     for (const auto& t : restored)
         unrestored |= !t.restored;
 
@@ -115,16 +115,23 @@ int run_replay_command(const ReplayCliOptions& o) {
                                     {"steps", out},
                                     {"restored", conformance::to_json(restored)},
                                     {"not_read", fuzz::network::to_json(unread)},
-                                    {"unanswered_writes", fuzz::network::to_json(unanswered)}}
+                                    {"unanswered_writes", fuzz::network::to_json(unanswered.held)},
+                                    {"unanswered_unread", fuzz::network::to_json(unanswered.unread)}}
                          .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
                   << '\n';
     } else {
         for (const auto& w : unread)
             std::cout << "not read before the replay, not restored: " << modbus::to_string(w.table) << ' '
                       << w.start << " (" << w.count << (w.count == 1 ? " point)\n" : " points)\n");
-        for (const auto& p : unanswered)
+        for (const auto& p : unanswered.held)
             std::cout << "written by a step that drew no reply, not read before, not restored: "
                       << modbus::to_string(p.table) << ' ' << p.address << " holds " << p.value << '\n';
+        for (const auto& w : unanswered.unread)
+            std::cout
+                << "written by a step that drew no reply, no answer to the read after, may have changed, "
+                   "not restored: "
+                << modbus::to_string(w.table) << ' ' << w.start << " (" << w.count
+                << (w.count == 1 ? " point)\n" : " points)\n");
         std::size_t back = 0;
         for (const auto& t : restored) {
             if (t.restored)

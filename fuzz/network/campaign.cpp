@@ -454,12 +454,19 @@ void Campaign::note_unread(const modbus::transport::Exchange& ex) {
 }
 
 // When the run ends: the points writes that drew no reply reached unread (unknown_, neither acknowledged nor
-// read since), read to see which the device holds (CampaignSummary::unanswered_writes).
+// read since), read to see which the device holds (CampaignSummary::unanswered_writes); those no read could
+// tell about, and all of them when the target was lost (it is not sent anything more), are listed unread.
 void Campaign::read_unanswered_writes() {
     std::set<Location> points;
     for (const auto& point : unknown_)
         if (!not_read_.count(point) && !session_.touched().count(point)) points.insert(point);
-    s_.unanswered_writes = read_held(session_, points);
+    if (s_.target_lost) {
+        s_.unanswered_unread = ranges_of(points);
+        return;
+    }
+    auto reading = read_held(session_, points);
+    s_.unanswered_writes = std::move(reading.held);
+    s_.unanswered_unread = std::move(reading.unread);
 }
 
 // A write's acknowledgement that came after its exchange ended (matched to it by transaction id, over RTU
@@ -826,6 +833,7 @@ CampaignSummary Campaign::run() {
     progress(true);
     s_.elapsed = Clock::now() - start_;  // the fuzzing, not the restore after it
     s_.silence_wait = silence_wait();
+    read_unanswered_writes();
     if (s_.target_lost) {
         // A target that stopped answering is not written to again (each point would wait out the timeout
         // twice, an hour for 2,000 points at 1 s): every point written is listed as not restored, so the
@@ -837,7 +845,6 @@ CampaignSummary Campaign::run() {
             s_.restored.push_back(std::move(t));
         }
     } else {
-        read_unanswered_writes();
         if (!session_.touched().empty()) s_.restored = session_.restore();
         for (auto& t : s_.restored)
             if (doubtful_.count({t.table, t.address})) {
@@ -911,6 +918,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"restored", conformance::to_json(s.restored)},
                      {"not_read", to_json(s.not_read)},
                      {"unanswered_writes", to_json(s.unanswered_writes)},
+                     {"unanswered_unread", to_json(s.unanswered_unread)},
                      {"stopped", s.stopped},
                      {"target_lost", s.target_lost}};
     if (!s.error.empty()) j["error"] = s.error;

@@ -97,6 +97,9 @@ struct CampaignSummary {
     // those the device answered for (read_held), with what they hold now, perhaps the fuzzer's value. Not
     // restored.
     std::vector<HeldPoint> unanswered_writes;
+    // Of those points, the ones no read could tell about (read_held), or all of them when the target was
+    // lost: whether they changed is unknown. Not restored.
+    std::vector<WriteRange> unanswered_unread;
     bool stopped = false;      // interrupted
     bool target_lost = false;  // the run ended because the target stopped answering
     double requests_per_second() const;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <variant>
 
+#include "conformance/context.hpp"
 #include "modbus/ascii_deframer.hpp"
 #include "modbus/pdu.hpp"
 #include "modbus/rtu_deframer.hpp"
@@ -224,29 +225,76 @@ std::set<std::pair<modbus::Table, std::uint16_t>> unanswered_unchecked(
     return unchecked_points(unchecked, framing, steps, Answer::None);
 }
 
-std::vector<HeldPoint> read_held(conformance::Session& session,
-                                 const std::set<std::pair<modbus::Table, std::uint16_t>>& points) {
-    std::vector<HeldPoint> held;
+namespace {
+
+enum class ReadAnswer { Values, Refused, None };
+
+// One read of [start, start + count) of `table`, its values appended to `held` when the device gives them.
+// Refused: an exception of the read's function. None: anything else (silence, a malformed reply, another
+// function's or transaction's), which tells nothing about the points.
+ReadAnswer read_piece(conformance::Session& session, modbus::Table table, std::uint16_t start,
+                      std::uint16_t count, std::vector<HeldPoint>& held) {
+    using modbus::FunctionCode;
+    const bool bits = modbus::is_bit_table(table);
+    const auto fc = bits ? (table == modbus::Table::DiscreteInputs ? FunctionCode::ReadDiscreteInputs
+                                                                   : FunctionCode::ReadCoils)
+                         : (table == modbus::Table::InputRegisters ? FunctionCode::ReadInputRegisters
+                                                                   : FunctionCode::ReadHoldingRegisters);
+    const auto request = modbus::encode_pdu(modbus::make_read_request(fc, start, count));
+    const auto reply =
+        conformance::response_pdu(session.request(request, "read after a write that drew no reply"));
+    if (!reply || reply->function_code() != static_cast<std::uint8_t>(fc)) return ReadAnswer::None;
+    if (reply->is_exception()) return ReadAnswer::Refused;
+    const auto at = [&](std::size_t i) { return static_cast<std::uint16_t>(start + i); };
+    if (const auto* r = std::get_if<modbus::ReadRegistersResponse>(&reply->body); r && !bits) {
+        if (r->values.size() != count) return ReadAnswer::None;
+        for (std::size_t i = 0; i < count; ++i)
+            held.push_back({table, at(i), r->values[i]});
+        return ReadAnswer::Values;
+    }
+    if (const auto* r = std::get_if<modbus::ReadBitsResponse>(&reply->body); r && bits) {
+        if (r->values.size() * 8 < count) return ReadAnswer::None;
+        for (std::size_t i = 0; i < count; ++i)
+            held.push_back({table, at(i), static_cast<std::uint16_t>(modbus::bit_at(r->values, i) ? 1 : 0)});
+        return ReadAnswer::Values;
+    }
+    return ReadAnswer::None;
+}
+
+}  // namespace
+
+HeldReading read_held(conformance::Session& session,
+                      const std::set<std::pair<modbus::Table, std::uint16_t>>& points) {
+    HeldReading out;
+    std::set<std::pair<modbus::Table, std::uint16_t>> unread;
+    unsigned silent = 0;  // reads in a row that drew no answer
+    // Reads one piece (none once the device is taken to be gone); the points of one that drew no answer are
+    // unread.
+    const auto read = [&](modbus::Table table, std::uint16_t start, std::uint16_t count) {
+        ReadAnswer answer = ReadAnswer::None;
+        if (silent < silent_reads_before_giving_up)
+            answer = read_piece(session, table, start, count, out.held);
+        silent = answer == ReadAnswer::None ? silent + 1 : 0;
+        if (answer == ReadAnswer::None)
+            for (std::uint32_t a = start; a < std::uint32_t{start} + count; ++a)
+                unread.insert({table, static_cast<std::uint16_t>(a)});
+        return answer;
+    };
     for (const auto& range : ranges_of(points)) {
-        const bool bits = modbus::is_bit_table(range.table);
-        const std::uint32_t chunk = bits ? modbus::max_read_bits : modbus::max_read_registers;
+        const std::uint32_t chunk =
+            modbus::is_bit_table(range.table) ? modbus::max_read_bits : modbus::max_read_registers;
         for (std::uint32_t start = range.start; start < range.end(); start += chunk) {
             const auto count = static_cast<std::uint16_t>(std::min(chunk, range.end() - start));
-            const auto at = static_cast<std::uint16_t>(start);
-            const std::string note = "read after a write that drew no reply";
-            std::vector<std::uint16_t> values;
-            if (bits) {
-                if (const auto read = session.read_bits(range.table, at, count, note))
-                    values.assign(read->begin(), read->end());
-            } else if (const auto read = session.read_registers(range.table, at, count, note)) {
-                values = *read;
-            }
-            for (std::size_t i = 0; i < values.size() && i < count; ++i)
-                held.push_back({range.table, static_cast<std::uint16_t>(at + i), values[i]});
+            if (read(range.table, static_cast<std::uint16_t>(start), count) != ReadAnswer::Refused ||
+                count == 1)
+                continue;
+            for (std::uint32_t a = start; a < start + count; ++a)
+                (void)read(range.table, static_cast<std::uint16_t>(a), 1);
         }
     }
     (void)session.take_evidence();
-    return held;
+    out.unread = ranges_of(unread);
+    return out;
 }
 
 nlohmann::json to_json(const std::vector<HeldPoint>& points) {

@@ -52,12 +52,22 @@ struct HeldPoint {
     std::uint16_t address = 0;
     std::uint16_t value = 0;  // a bit as 0/1
 };
-// Reads `points` through `session`, each contiguous range in as few requests as the function's limit allows:
-// the points of the ranges the device answered for, with what they hold. A range it will not read as a whole
-// is taken to be points it does not hold (the strict device's exception 02 for each), not read point by
-// point.
-std::vector<HeldPoint> read_held(conformance::Session& session,
-                                 const std::set<std::pair<modbus::Table, std::uint16_t>>& points);
+// What the points writes without a reply reached hold when read (read_held).
+struct HeldReading {
+    std::vector<HeldPoint> held;  // the points the device answered for, with what they hold
+    // The points no read could tell about: the device gave neither their values nor an exception (silence,
+    // a malformed or foreign reply), or stopped answering before they were read. Whether the write changed
+    // them is unknown.
+    std::vector<WriteRange> unread;
+};
+// Reads `points` through `session`, each contiguous range in as few requests as the function's limit allows.
+// A range the device refuses as a whole (an exception) is read again point by point: a strict device refuses
+// a range where any point is missing (exception 02) and may still hold the others; a point it refuses alone
+// it does not hold. After `silent_reads_before_giving_up` reads in a row that drew no answer the device is
+// taken to be gone: the points not read yet are `unread` without a request each waiting --timeout.
+inline constexpr unsigned silent_reads_before_giving_up = 3;
+HeldReading read_held(conformance::Session& session,
+                      const std::set<std::pair<modbus::Table, std::uint16_t>>& points);
 // [{"table", "address", "value"}, ...]
 nlohmann::json to_json(const std::vector<HeldPoint>& points);
 

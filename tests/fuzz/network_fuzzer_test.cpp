@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <thread>
 
@@ -89,6 +90,9 @@ Points left_unrestored(const fz::CampaignSummary& s) {
         if (!t.restored) listed.insert({t.table, t.address});
     for (const auto& u : s.unanswered_writes)
         listed.insert({u.table, u.address});
+    for (const auto& r : s.unanswered_unread)
+        for (std::uint32_t a = r.start; a < r.end(); ++a)
+            listed.insert({r.table, static_cast<std::uint16_t>(a)});
     return listed;
 }
 
@@ -1076,7 +1080,8 @@ TEST(FuzzCommand, AReplayListsAWriteOutsideTheMapTheDeviceAcknowledged) {
 // A broadcast step draws no reply, so nothing tells whether the device executed it. One to a point outside
 // the profile's map (not read first) is read after the steps: a device that holds the point is listed as
 // having it written by a step without a reply, with what it holds now (exit 1); before, it was in no list.
-// A device that holds no such point (exception 02 to the read) leaves nothing to list.
+// A device that holds no such point (exception 02 to the read) leaves nothing to list; one that answers no
+// read leaves it unknown, listed as such.
 TEST(FuzzCommand, AReplayListsAPointABroadcastStepReachedThatTheDeviceHolds) {
     using mbscope::modbus::Table;
     RunningServer lax({}, 1, "modbus");
@@ -1104,6 +1109,21 @@ TEST(FuzzCommand, AReplayListsAPointABroadcastStepReachedThatTheDeviceHolds) {
     const auto k = json_in(clean.out);
     ASSERT_FALSE(k.is_discarded()) << clean.out;
     EXPECT_TRUE(k["unanswered_writes"].empty()) << clean.out;
+
+    // A device that answers nothing: the read after the step tells nothing, so the point is listed as
+    // `unanswered_unread` (it may hold the step's value) and the replay exits 1; before, a read that drew no
+    // answer was taken for a point the device does not hold, and the replay exited 0.
+    RunningServer silent({"no-reply=1"}, 1, "modbus");
+    const auto unknown = run("replay --json --profile mmk-2030 --timeout 200 --target tcp://127.0.0.1:" +
+                             std::to_string(silent.start("tcp")) + " " + file);
+    EXPECT_EQ(unknown.status, 1) << unknown.out;
+    const auto u = json_in(unknown.out);
+    ASSERT_FALSE(u.is_discarded()) << unknown.out;
+    EXPECT_TRUE(u["unanswered_writes"].empty()) << unknown.out;
+    ASSERT_EQ(u["unanswered_unread"].size(), 1u) << unknown.out;
+    EXPECT_EQ(u["unanswered_unread"][0]["table"], "holding_registers");
+    EXPECT_EQ(u["unanswered_unread"][0]["start"], 5000);
+    EXPECT_EQ(u["unanswered_unread"][0]["count"], 1);
 }
 
 // A Modbus/TCP relay in front of port `upstream` (a device serving unit 1) that makes it a device ignoring
@@ -1246,6 +1266,90 @@ TEST(NetworkFuzzer, ABroadcastThatReachedPointsUnreadListsThoseTheDeviceHolds) {
     const auto t = fz::run_campaign(mmk, k);
     ASSERT_TRUE(t.reachable) << t.error;
     EXPECT_TRUE(t.unanswered_writes.empty()) << listing(t);
+}
+
+// The end of a run reads the points writes without a reply reached unread. A strict device refuses a read
+// that takes in a point it does not hold (exception 02) and may hold the others of the range: a range
+// refused as a whole is read again point by point. Here the MMK-2030's last holding register of a run and
+// the one after it: the range is refused, the first point read alone; before, neither was read.
+TEST(NetworkFuzzer, ARangeTheDeviceRefusesAsAWholeIsReadPointByPoint) {
+    RunningServer server({}, 1, "mmk-2030");
+    const auto port = server.start("tcp");
+    const auto& mmk = mbscope::slave::test::profile("mmk-2030");
+    std::optional<std::uint16_t> last;
+    for (std::uint32_t a = 0; a < 0xFFFF && !last; ++a)
+        if (mmk.find(Table::HoldingRegisters, static_cast<std::uint16_t>(a)) &&
+            !mmk.find(Table::HoldingRegisters, static_cast<std::uint16_t>(a + 1)))
+            last = static_cast<std::uint16_t>(a);
+    ASSERT_TRUE(last.has_value());
+    auto client = mbscope::modbus::transport::Client::open(
+        *mbscope::modbus::transport::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+    ASSERT_TRUE(client.has_value()) << client.error();
+    mbscope::conformance::Session session(*client, {1, std::chrono::milliseconds(1000), {}}, &mmk);
+    const auto reading = fz::read_held(
+        session,
+        {{Table::HoldingRegisters, *last}, {Table::HoldingRegisters, static_cast<std::uint16_t>(*last + 1)}});
+    ASSERT_EQ(reading.held.size(), 1u);
+    EXPECT_EQ(reading.held[0].address, *last);
+    EXPECT_EQ(reading.held[0].value, server.device().image().reg(Table::HoldingRegisters, *last));
+    EXPECT_TRUE(reading.unread.empty());
+    EXPECT_EQ(session.requests(), 3u) << "the range, then each of its points";
+}
+
+// A read that draws no answer tells nothing about its points: they are listed as unread (whether the write
+// changed them is unknown), not passed over as points the device does not hold. After three such reads in a
+// row the device is taken to be gone, and the ranges left are listed without a request each waiting the
+// timeout.
+TEST(NetworkFuzzer, PointsNoReadAnsweredForAreListedUnread) {
+    RunningServer server({"no-reply=1"}, 1, "modbus");
+    const auto port = server.start("tcp");
+    auto client = mbscope::modbus::transport::Client::open(
+        *mbscope::modbus::transport::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+    ASSERT_TRUE(client.has_value()) << client.error();
+    mbscope::conformance::Session session(*client, {1, std::chrono::milliseconds(100), {}},
+                                          &mbscope::slave::test::profile("modbus"));
+    const Points points{{Table::Coils, 7},
+                        {Table::HoldingRegisters, 10},
+                        {Table::HoldingRegisters, 11},
+                        {Table::HoldingRegisters, 20},
+                        {Table::HoldingRegisters, 30},
+                        {Table::HoldingRegisters, 40}};
+    const auto reading = fz::read_held(session, points);
+    EXPECT_TRUE(reading.held.empty());
+    Points unread;
+    for (const auto& r : reading.unread)
+        for (std::uint32_t a = r.start; a < r.end(); ++a)
+            unread.insert({r.table, static_cast<std::uint16_t>(a)});
+    EXPECT_EQ(unread, points);
+    EXPECT_EQ(reading.unread.size(), 5u) << "ranges: coil 7, registers 10-11, 20, 30, 40";
+    EXPECT_EQ(session.requests(), fz::silent_reads_before_giving_up);
+}
+
+// A target lost mid-run is sent nothing more, so the points writes without a reply reached unread cannot be
+// read at the end; they are listed as `unanswered_unread` (whether the device executed those writes is
+// unknown), so that every point the run may have changed outside the map is in the summary. Before, they
+// were in no list. The device: the reference slave serving the generic map, fuzzed as an MMK-2030, lost
+// after 2,500 answers.
+TEST(NetworkFuzzer, ALostTargetListsThePointsWritesWithoutAReplyReachedUnread) {
+    RunningServer server({"crash-after=2500"}, 1, "modbus");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.requests = 6000;
+    o.minimise_budget = 0;
+    const auto& mmk = mbscope::slave::test::profile("mmk-2030");
+    const auto s = fz::run_campaign(mmk, o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    ASSERT_TRUE(s.target_lost) << listing(s);
+    EXPECT_TRUE(s.unanswered_writes.empty()) << "read after the target was lost";
+    EXPECT_FALSE(s.unanswered_unread.empty()) << "no write without a reply reached a point outside the map";
+    const Points listed = left_unrestored(s);
+    for (const auto& [t, changed] : server.device().image().changes()) {
+        if (t != Table::Coils && t != Table::HoldingRegisters) continue;
+        for (const auto& [address, now] : changed) {
+            if (mmk.find(t, address)) continue;  // in the map: read first
+            EXPECT_TRUE(listed.count({t, address})) << mbscope::modbus::to_string(t) << " " << address
+                                                    << " changed to " << now << " and not listed";
+        }
+    }
 }
 
 // `mbscope ARGUMENTS` started in the background, its process id known, what it prints collected.
