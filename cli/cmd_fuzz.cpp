@@ -109,21 +109,28 @@ int run_fuzz_command(const FuzzCliOptions& o) {
         unrestored |= !t.restored;
     for (const auto& w : summary.not_read)
         std::cerr << "mbscope fuzz: written without being read first, not restored: "
-                  << modbus::to_string(w.table) << ' ' << w.start << " (" << w.count
-                  << (w.count == 1 ? " point)\n" : " points)\n");
+                  << fuzz::network::to_string(w) << '\n';
     std::set<std::pair<modbus::Table, std::uint16_t>> unanswered;
     for (const auto& u : summary.unanswered_writes)
         unanswered.insert({u.table, u.address});
     for (const auto& w : fuzz::network::ranges_of(unanswered))
         std::cerr << "mbscope fuzz: written by a write that drew no reply, without being read first, not "
                      "restored: "
-                  << modbus::to_string(w.table) << ' ' << w.start << " (" << w.count
-                  << (w.count == 1 ? " point)\n" : " points)\n");
+                  << fuzz::network::to_string(w) << '\n';
     for (const auto& w : summary.unanswered_unread)
         std::cerr << "mbscope fuzz: written by a write that drew no reply, could not be read "
                   << (summary.target_lost ? "(the target stopped answering)" : "(no answer to the read)")
-                  << ", may have changed, not restored: " << modbus::to_string(w.table) << ' ' << w.start
-                  << " (" << w.count << (w.count == 1 ? " point)\n" : " points)\n");
+                  << ", may have changed, not restored: " << fuzz::network::to_string(w) << '\n';
+    if (!summary.unanswered_refused.empty()) {
+        std::size_t points = 0;
+        for (const auto& w : summary.unanswered_refused)
+            points += w.count;
+        const std::size_t ranges = summary.unanswered_refused.size();
+        std::cerr << "mbscope fuzz: " << points << (points == 1 ? " point" : " points") << " in " << ranges
+                  << (ranges == 1 ? " range" : " ranges")
+                  << " written by writes that drew no reply were refused as a whole and not read "
+                     "point by point; taken for points the device does not hold (\"unanswered_refused\")\n";
+    }
     unrestored |= !unanswered.empty() || !summary.unanswered_unread.empty();
     if (unrestored)
         std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\", "

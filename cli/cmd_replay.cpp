@@ -116,13 +116,13 @@ int run_replay_command(const ReplayCliOptions& o) {
                                     {"restored", conformance::to_json(restored)},
                                     {"not_read", fuzz::network::to_json(unread)},
                                     {"unanswered_writes", fuzz::network::to_json(unanswered.held)},
-                                    {"unanswered_unread", fuzz::network::to_json(unanswered.unread)}}
+                                    {"unanswered_unread", fuzz::network::to_json(unanswered.unread)},
+                                    {"unanswered_refused", fuzz::network::to_json(unanswered.refused)}}
                          .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
                   << '\n';
     } else {
         for (const auto& w : unread)
-            std::cout << "not read before the replay, not restored: " << modbus::to_string(w.table) << ' '
-                      << w.start << " (" << w.count << (w.count == 1 ? " point)\n" : " points)\n");
+            std::cout << "not read before the replay, not restored: " << fuzz::network::to_string(w) << '\n';
         for (const auto& p : unanswered.held)
             std::cout << "written by a step that drew no reply, not read before, not restored: "
                       << modbus::to_string(p.table) << ' ' << p.address << " holds " << p.value << '\n';
@@ -130,8 +130,12 @@ int run_replay_command(const ReplayCliOptions& o) {
             std::cout
                 << "written by a step that drew no reply, no answer to the read after, may have changed, "
                    "not restored: "
-                << modbus::to_string(w.table) << ' ' << w.start << " (" << w.count
-                << (w.count == 1 ? " point)\n" : " points)\n");
+                << fuzz::network::to_string(w) << '\n';
+        for (const auto& w : unanswered.refused)
+            std::cout
+                << "written by a step that drew no reply, the device refused to read it as a whole, not "
+                   "read point by point (taken for points it does not hold): "
+                << fuzz::network::to_string(w) << '\n';
         std::size_t back = 0;
         for (const auto& t : restored) {
             if (t.restored)

@@ -467,6 +467,7 @@ void Campaign::read_unanswered_writes() {
     auto reading = read_held(session_, points);
     s_.unanswered_writes = std::move(reading.held);
     s_.unanswered_unread = std::move(reading.unread);
+    s_.unanswered_refused = std::move(reading.refused);
 }
 
 // A write's acknowledgement that came after its exchange ended (matched to it by transaction id, over RTU
@@ -919,6 +920,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"not_read", to_json(s.not_read)},
                      {"unanswered_writes", to_json(s.unanswered_writes)},
                      {"unanswered_unread", to_json(s.unanswered_unread)},
+                     {"unanswered_refused", to_json(s.unanswered_refused)},
                      {"stopped", s.stopped},
                      {"target_lost", s.target_lost}};
     if (!s.error.empty()) j["error"] = s.error;

@@ -100,6 +100,9 @@ struct CampaignSummary {
     // Of those points, the ones no read could tell about (read_held), or all of them when the target was
     // lost: whether they changed is unknown. Not restored.
     std::vector<WriteRange> unanswered_unread;
+    // Of those points, ranges the device refused to read as a whole and that were not read point by point
+    // (HeldReading::refused): taken for points it does not hold, as the map says. Not counted as unrestored.
+    std::vector<WriteRange> unanswered_refused;
     bool stopped = false;      // interrupted
     bool target_lost = false;  // the run ended because the target stopped answering
     double requests_per_second() const;

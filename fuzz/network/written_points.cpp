@@ -132,6 +132,11 @@ nlohmann::json to_json(const std::vector<WriteRange>& ranges) {
     return out;
 }
 
+std::string to_string(const WriteRange& range) {
+    return std::string(modbus::to_string(range.table)) + ' ' + std::to_string(range.start) + " (" +
+           std::to_string(range.count) + (range.count == 1 ? " point)" : " points)");
+}
+
 bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range) {
     const std::uint32_t end = range.end();
     if (profile.open_address_space)
@@ -268,6 +273,7 @@ HeldReading read_held(conformance::Session& session,
     HeldReading out;
     std::set<std::pair<modbus::Table, std::uint16_t>> unread;
     unsigned silent = 0;  // reads in a row that drew no answer
+    unsigned singles_left = single_reads_after_refusals;
     // Reads one piece (none once the device is taken to be gone); the points of one that drew no answer are
     // unread.
     const auto read = [&](modbus::Table table, std::uint16_t start, std::uint16_t count) {
@@ -288,6 +294,11 @@ HeldReading read_held(conformance::Session& session,
             if (read(range.table, static_cast<std::uint16_t>(start), count) != ReadAnswer::Refused ||
                 count == 1)
                 continue;
+            if (count > singles_left) {
+                out.refused.push_back({range.table, static_cast<std::uint16_t>(start), count});
+                continue;
+            }
+            singles_left -= count;
             for (std::uint32_t a = start; a < start + count; ++a)
                 (void)read(range.table, static_cast<std::uint16_t>(a), 1);
         }

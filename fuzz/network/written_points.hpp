@@ -9,6 +9,7 @@
 #include <optional>
 #include <set>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -59,12 +60,20 @@ struct HeldReading {
     // a malformed or foreign reply), or stopped answering before they were read. Whether the write changed
     // them is unknown.
     std::vector<WriteRange> unread;
+    // Ranges the device refused to read as a whole and that were not read point by point (the budget of
+    // single reads was spent): taken, as the map says, for points it does not hold. A device holding some of
+    // them would have those left out; listed so that this is said, not assumed silently.
+    std::vector<WriteRange> refused;
 };
 // Reads `points` through `session`, each contiguous range in as few requests as the function's limit allows.
-// A range the device refuses as a whole (an exception) is read again point by point: a strict device refuses
-// a range where any point is missing (exception 02) and may still hold the others; a point it refuses alone
-// it does not hold. After `silent_reads_before_giving_up` reads in a row that drew no answer the device is
-// taken to be gone: the points not read yet are `unread` without a request each waiting --timeout.
+// A range the device refuses as a whole (an exception) is read again point by point, while
+// `single_reads_after_refusals` allow: a strict device refuses a range where any point is missing and may
+// hold the others; a point it refuses alone it does not hold. The budget bounds what this costs on a slow
+// line (a strict device refuses every single read of the thousands of coils a few broadcasts reach: at 9600
+// baud 256 exceptions take about 6 s). After `silent_reads_before_giving_up` reads in a row that drew no
+// answer the device is taken to be gone: the points not read yet are `unread` without a request each
+// waiting --timeout.
+inline constexpr unsigned single_reads_after_refusals = 256;
 inline constexpr unsigned silent_reads_before_giving_up = 3;
 HeldReading read_held(conformance::Session& session,
                       const std::set<std::pair<modbus::Table, std::uint16_t>>& points);
@@ -75,6 +84,8 @@ nlohmann::json to_json(const std::vector<HeldPoint>& points);
 std::vector<WriteRange> ranges_of(const std::set<std::pair<modbus::Table, std::uint16_t>>& points);
 // [{"table", "start", "count"}, ...]
 nlohmann::json to_json(const std::vector<WriteRange>& ranges);
+// "holding_registers 5000 (3 points)"
+std::string to_string(const WriteRange& range);
 
 // Reads, through `session`, the original values of the points of `range` that exist on the device: those
 // of the profile's map, or every one of an open address space (read in blocks). False when a read failed

@@ -1271,7 +1271,8 @@ TEST(NetworkFuzzer, ABroadcastThatReachedPointsUnreadListsThoseTheDeviceHolds) {
 // The end of a run reads the points writes without a reply reached unread. A strict device refuses a read
 // that takes in a point it does not hold (exception 02) and may hold the others of the range: a range
 // refused as a whole is read again point by point. Here the MMK-2030's last holding register of a run and
-// the one after it: the range is refused, the first point read alone; before, neither was read.
+// the one after it: the range is refused, the first point read alone; before, neither was read. Single reads
+// are bounded: past the budget a refused range is listed as such.
 TEST(NetworkFuzzer, ARangeTheDeviceRefusesAsAWholeIsReadPointByPoint) {
     RunningServer server({}, 1, "mmk-2030");
     const auto port = server.start("tcp");
@@ -1293,7 +1294,26 @@ TEST(NetworkFuzzer, ARangeTheDeviceRefusesAsAWholeIsReadPointByPoint) {
     EXPECT_EQ(reading.held[0].address, *last);
     EXPECT_EQ(reading.held[0].value, server.device().image().reg(Table::HoldingRegisters, *last));
     EXPECT_TRUE(reading.unread.empty());
+    EXPECT_TRUE(reading.refused.empty());
     EXPECT_EQ(session.requests(), 3u) << "the range, then each of its points";
+
+    // Point by point within a budget: a refused range longer than it is listed as refused, not read point by
+    // point (coils the MMK-2030 does not have; a few broadcasts reach thousands).
+    const std::uint16_t first = 40000;
+    const auto beyond = static_cast<std::uint16_t>(fz::single_reads_after_refusals + 1);
+    Points coils;
+    for (std::uint16_t i = 0; i < beyond; ++i) {
+        ASSERT_FALSE(mmk.find(Table::Coils, static_cast<std::uint16_t>(first + i)));
+        coils.insert({Table::Coils, static_cast<std::uint16_t>(first + i)});
+    }
+    const auto refused = fz::read_held(session, coils);
+    EXPECT_TRUE(refused.held.empty());
+    EXPECT_TRUE(refused.unread.empty());
+    ASSERT_EQ(refused.refused.size(), 1u);
+    EXPECT_EQ(refused.refused[0].table, Table::Coils);
+    EXPECT_EQ(refused.refused[0].start, first);
+    EXPECT_EQ(refused.refused[0].count, beyond);
+    EXPECT_EQ(session.requests(), 4u) << "the range only";
 }
 
 // A read that draws no answer tells nothing about its points: they are listed as unread (whether the write
