@@ -68,6 +68,11 @@ std::vector<std::uint8_t> encode_tcp(std::uint16_t transaction_id, std::uint8_t 
     return out;
 }
 
+bool rtu_crc_ok(std::span<const std::uint8_t> adu) noexcept {
+    const std::size_t n = adu.size();
+    return crc16(adu.first(n - 2)) == static_cast<std::uint16_t>(adu[n - 2] | (adu[n - 1] << 8));
+}
+
 namespace detail {
 
 void fill_rtu_frame(std::span<const std::uint8_t> adu, Frame& frame) noexcept {
@@ -75,10 +80,7 @@ void fill_rtu_frame(std::span<const std::uint8_t> adu, Frame& frame) noexcept {
     frame.length = static_cast<std::uint16_t>(adu.size());
     std::memcpy(frame.bytes.data(), adu.data(), adu.size());
     frame.wire_length = static_cast<std::uint32_t>(adu.size());
-    const std::uint16_t computed = crc16(adu.first(adu.size() - 2));
-    const std::uint16_t received =
-        static_cast<std::uint16_t>(adu[adu.size() - 2] | (adu[adu.size() - 1] << 8));
-    frame.checksum_ok = computed == received;
+    frame.checksum_ok = rtu_crc_ok(adu);
     if (!frame.checksum_ok) frame.findings.add(FindingCode::RtuCrcMismatch);
     if (adu[0] >= 248) frame.findings.add(FindingCode::RtuUnitIdReserved);
 }

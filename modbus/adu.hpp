@@ -37,6 +37,10 @@ std::vector<std::uint8_t> encode_adu(Framing framing, std::uint16_t transaction_
 
 // RTU ADU (unit .. CRC). Errors: Truncated (< 4 bytes), TooLong (> 256 bytes).
 Result<Frame> decode_rtu(std::span<const std::uint8_t> adu) noexcept;
+// Whether an RTU ADU's last two bytes (low byte first) are the CRC of the bytes before them; `adu` holds at
+// least 3 bytes. The one place the comparison is made: fuzzing builds trace it (it is how libFuzzer learns to
+// write a valid CRC), while the deframers' own files are built without comparison tracing (CMakeLists.txt).
+bool rtu_crc_ok(std::span<const std::uint8_t> adu) noexcept;
 // ASCII frame from ':' to LF inclusive. Errors: BadStartCharacter, BadEndCharacters, BadHexDigit,
 // OddHexLength, Truncated (< 3 binary bytes), TooLong.
 Result<Frame> decode_ascii(std::span<const std::uint8_t> chars) noexcept;

@@ -3,7 +3,6 @@
 #include <algorithm>
 
 #include "modbus/adu.hpp"
-#include "modbus/checksum.hpp"
 #include "modbus/pdu.hpp"
 
 namespace mbscope::modbus {
@@ -35,11 +34,6 @@ Candidates candidates(std::span<const std::uint8_t> buf) noexcept {
     return c;
 }
 
-bool crc_ok(std::span<const std::uint8_t> adu) noexcept {
-    const std::size_t n = adu.size();
-    return crc16(adu.first(n - 2)) == static_cast<std::uint16_t>(adu[n - 2] | (adu[n - 1] << 8));
-}
-
 enum class Probe { Yes, No, NeedMore };
 
 // Does a CRC-valid frame start at the front of buf? (no recursion: used to confirm a bad-CRC frame)
@@ -56,7 +50,7 @@ Probe probe_valid(std::span<const std::uint8_t> buf, bool at_end, std::size_t& n
             need = std::max(need, c.length[i]);
             continue;
         }
-        if (crc_ok(buf.first(c.length[i]))) return Probe::Yes;
+        if (rtu_crc_ok(buf.first(c.length[i]))) return Probe::Yes;
     }
     if (pending && !at_end) {
         need = std::max(need, c.need);
@@ -84,7 +78,7 @@ DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept {
             if (!at_end) return {Kind::NeedMore, len};
             continue;
         }
-        if (crc_ok(buf.first(len))) return {Kind::Complete, len, true};
+        if (rtu_crc_ok(buf.first(len))) return {Kind::Complete, len, true};
     }
     if (c.need > buf.size() && !at_end) return {Kind::NeedMore, c.need};
 
@@ -220,7 +214,7 @@ void RtuTimedDeframer::emit_unparsed(std::size_t begin, std::size_t length, Unpa
 void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
     const std::size_t n = seg_.size();
     std::size_t consumed = 0;
-    if (at_end && n >= 4 && n <= max_rtu_adu_length && crc_ok(seg_)) {
+    if (at_end && n >= 4 && n <= max_rtu_adu_length && rtu_crc_ok(seg_)) {
         emit_frame(0, n, out);
         consumed = n;
     } else if (at_end && n > 0) {
