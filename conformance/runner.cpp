@@ -162,10 +162,7 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
         if (stop && stop->load()) break;
         TableFacts& f = c.tables[static_cast<int>(t)];
         f.table = t;
-        const std::uint8_t read_fc = t == Table::Coils            ? 1
-                                     : t == Table::DiscreteInputs ? 2
-                                     : t == Table::InputRegisters ? 4
-                                                                  : 3;
+        const auto read_fc = static_cast<std::uint8_t>(modbus::read_function(t));
         f.present = profile.functions.supports(read_fc);
         if (!f.present) continue;
         if (profile.open_address_space)

@@ -188,8 +188,7 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
 std::optional<std::vector<std::uint16_t>> Session::read_registers(Table table, std::uint16_t start,
                                                                   std::uint16_t quantity,
                                                                   const std::string& note) {
-    const auto fc = table == Table::InputRegisters ? modbus::FunctionCode::ReadInputRegisters
-                                                   : modbus::FunctionCode::ReadHoldingRegisters;
+    const auto fc = modbus::read_function(table);
     const auto pdu = modbus::encode_pdu(modbus::make_read_request(fc, start, quantity));
     const auto rsp = read_answer(request(pdu, note), fc);
     if (!rsp) return std::nullopt;
@@ -200,8 +199,7 @@ std::optional<std::vector<std::uint16_t>> Session::read_registers(Table table, s
 
 std::optional<std::vector<bool>> Session::read_bits(Table table, std::uint16_t start, std::uint16_t quantity,
                                                     const std::string& note) {
-    const auto fc = table == Table::DiscreteInputs ? modbus::FunctionCode::ReadDiscreteInputs
-                                                   : modbus::FunctionCode::ReadCoils;
+    const auto fc = modbus::read_function(table);
     const auto pdu = modbus::encode_pdu(modbus::make_read_request(fc, start, quantity));
     const auto rsp = read_answer(request(pdu, note), fc);
     if (!rsp) return std::nullopt;

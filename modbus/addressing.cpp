@@ -79,6 +79,20 @@ std::string format_reference(const Reference& ref) {
     return out;
 }
 
+FunctionCode read_function(Table t) noexcept {
+    switch (t) {
+        case Table::Coils:
+            return FunctionCode::ReadCoils;
+        case Table::DiscreteInputs:
+            return FunctionCode::ReadDiscreteInputs;
+        case Table::InputRegisters:
+            return FunctionCode::ReadInputRegisters;
+        case Table::HoldingRegisters:
+            break;
+    }
+    return FunctionCode::ReadHoldingRegisters;
+}
+
 std::optional<Table> table_of_function(std::uint8_t fc) noexcept {
     switch (fc) {
         case 0x01:

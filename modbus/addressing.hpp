@@ -11,6 +11,7 @@
 #include <string>
 #include <string_view>
 
+#include "modbus/function_code.hpp"
 #include "modbus/result.hpp"
 
 namespace mbscope::modbus {
@@ -50,5 +51,8 @@ std::string format_reference(const Reference& ref);
 // The table a read or write function code addresses (FC1/5/15 coils, FC2 discrete inputs, FC4 input
 // registers, FC3/6/16/22/23 holding registers).
 std::optional<Table> table_of_function(std::uint8_t function_code) noexcept;
+// The function that reads a table: FC1 coils, FC2 discrete inputs, FC4 input registers, FC3 holding
+// registers.
+FunctionCode read_function(Table t) noexcept;
 
 }  // namespace mbscope::modbus

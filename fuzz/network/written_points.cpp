@@ -239,12 +239,8 @@ enum class ReadAnswer { Values, Refused, None };
 // function's or transaction's), which tells nothing about the points.
 ReadAnswer read_piece(conformance::Session& session, modbus::Table table, std::uint16_t start,
                       std::uint16_t count, std::vector<HeldPoint>& held) {
-    using modbus::FunctionCode;
     const bool bits = modbus::is_bit_table(table);
-    const auto fc = bits ? (table == modbus::Table::DiscreteInputs ? FunctionCode::ReadDiscreteInputs
-                                                                   : FunctionCode::ReadCoils)
-                         : (table == modbus::Table::InputRegisters ? FunctionCode::ReadInputRegisters
-                                                                   : FunctionCode::ReadHoldingRegisters);
+    const auto fc = modbus::read_function(table);
     const auto request = modbus::encode_pdu(modbus::make_read_request(fc, start, count));
     const auto reply =
         conformance::response_pdu(session.request(request, "read after a write that drew no reply"));

@@ -49,3 +49,14 @@ TEST(Addressing, TablesOfFunctions) {
     EXPECT_EQ(mb::parse_table("hr"), mb::Table::HoldingRegisters);
     EXPECT_FALSE(mb::parse_table("registers").has_value());
 }
+
+// The read of each table is the function that addresses it (AP §6.1-6.4).
+TEST(Addressing, ReadFunctionOfEachTable) {
+    EXPECT_EQ(mb::read_function(mb::Table::Coils), mb::FunctionCode::ReadCoils);
+    EXPECT_EQ(mb::read_function(mb::Table::DiscreteInputs), mb::FunctionCode::ReadDiscreteInputs);
+    EXPECT_EQ(mb::read_function(mb::Table::InputRegisters), mb::FunctionCode::ReadInputRegisters);
+    EXPECT_EQ(mb::read_function(mb::Table::HoldingRegisters), mb::FunctionCode::ReadHoldingRegisters);
+    for (auto t : {mb::Table::Coils, mb::Table::DiscreteInputs, mb::Table::InputRegisters,
+                   mb::Table::HoldingRegisters})
+        EXPECT_EQ(mb::table_of_function(static_cast<std::uint8_t>(mb::read_function(t))), t);
+}
