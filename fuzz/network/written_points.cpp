@@ -232,34 +232,36 @@ std::set<std::pair<modbus::Table, std::uint16_t>> unanswered_unchecked(
 
 namespace {
 
-enum class ReadAnswer { Values, Refused, None };
+enum class ReadAnswer { Values, Refused, Unusable, Silence };
 
 // One read of [start, start + count) of `table`, its values appended to `held` when the device gives them.
-// Refused: an exception of the read's function. None: anything else (silence, a malformed reply, another
-// function's or transaction's), which tells nothing about the points.
+// Refused: an exception of the read's function. Unusable: a reply that tells nothing about the points (a
+// malformed one, another function's or transaction's). Silence: the read waited the whole timeout for
+// nothing it could use (no reply, a reply cut short, a closed connection).
 ReadAnswer read_piece(conformance::Session& session, modbus::Table table, std::uint16_t start,
                       std::uint16_t count, std::vector<HeldPoint>& held) {
     const bool bits = modbus::is_bit_table(table);
     const auto fc = modbus::read_function(table);
     const auto request = modbus::encode_pdu(modbus::make_read_request(fc, start, count));
-    const auto reply =
-        conformance::response_pdu(session.request(request, "read after a write that drew no reply"));
-    if (!reply || reply->function_code() != static_cast<std::uint8_t>(fc)) return ReadAnswer::None;
+    const auto exchange = session.request(request, "read after a write that drew no reply");
+    const auto reply = conformance::response_pdu(exchange);
+    if (!reply) return exchange.timed_out || exchange.closed ? ReadAnswer::Silence : ReadAnswer::Unusable;
+    if (reply->function_code() != static_cast<std::uint8_t>(fc)) return ReadAnswer::Unusable;
     if (reply->is_exception()) return ReadAnswer::Refused;
     const auto at = [&](std::size_t i) { return static_cast<std::uint16_t>(start + i); };
     if (const auto* r = std::get_if<modbus::ReadRegistersResponse>(&reply->body); r && !bits) {
-        if (r->values.size() != count) return ReadAnswer::None;
+        if (r->values.size() != count) return ReadAnswer::Unusable;
         for (std::size_t i = 0; i < count; ++i)
             held.push_back({table, at(i), r->values[i]});
         return ReadAnswer::Values;
     }
     if (const auto* r = std::get_if<modbus::ReadBitsResponse>(&reply->body); r && bits) {
-        if (r->values.size() * 8 < count) return ReadAnswer::None;
+        if (r->values.size() * 8 < count) return ReadAnswer::Unusable;
         for (std::size_t i = 0; i < count; ++i)
             held.push_back({table, at(i), static_cast<std::uint16_t>(modbus::bit_at(r->values, i) ? 1 : 0)});
         return ReadAnswer::Values;
     }
-    return ReadAnswer::None;
+    return ReadAnswer::Unusable;
 }
 
 }  // namespace
@@ -268,16 +270,16 @@ HeldReading read_held(conformance::Session& session,
                       const std::set<std::pair<modbus::Table, std::uint16_t>>& points) {
     HeldReading out;
     std::set<std::pair<modbus::Table, std::uint16_t>> unread;
-    unsigned silent = 0;  // reads in a row that drew no answer
+    unsigned silent = 0;  // reads in a row that waited the whole timeout
     unsigned singles_left = single_reads_after_refusals;
-    // Reads one piece (none once the device is taken to be gone); the points of one that drew no answer are
-    // unread.
+    // Reads one piece (none once the device is taken to be gone); the points of one that drew neither values
+    // nor an exception are unread. A device that answers, however wrongly, is not gone: only silence counts.
     const auto read = [&](modbus::Table table, std::uint16_t start, std::uint16_t count) {
-        ReadAnswer answer = ReadAnswer::None;
+        ReadAnswer answer = ReadAnswer::Silence;
         if (silent < silent_reads_before_giving_up)
             answer = read_piece(session, table, start, count, out.held);
-        silent = answer == ReadAnswer::None ? silent + 1 : 0;
-        if (answer == ReadAnswer::None)
+        silent = answer == ReadAnswer::Silence ? silent + 1 : 0;
+        if (answer == ReadAnswer::Silence || answer == ReadAnswer::Unusable)
             for (std::uint32_t a = start; a < std::uint32_t{start} + count; ++a)
                 unread.insert({table, static_cast<std::uint16_t>(a)});
         return answer;

@@ -70,9 +70,10 @@ struct HeldReading {
 // `single_reads_after_refusals` allow: a strict device refuses a range where any point is missing and may
 // hold the others; a point it refuses alone it does not hold. The budget bounds what this costs on a slow
 // line (a strict device refuses every single read of the thousands of coils a few broadcasts reach: at 9600
-// baud 256 exceptions take about 6 s). After `silent_reads_before_giving_up` reads in a row that drew no
-// answer the device is taken to be gone: the points not read yet are `unread` without a request each
-// waiting --timeout.
+// baud 256 exceptions take about 6 s). After `silent_reads_before_giving_up` reads in a row that waited
+// --timeout for nothing usable (silence, a reply cut short, a closed connection) the device is taken to be
+// gone: the points not read yet are `unread` without a request each waiting --timeout. A prompt reply that
+// tells nothing (malformed, another function's) leaves its points unread but is no sign of a device gone.
 inline constexpr unsigned single_reads_after_refusals = 256;
 inline constexpr unsigned silent_reads_before_giving_up = 3;
 HeldReading read_held(conformance::Session& session,

@@ -1316,33 +1316,58 @@ TEST(NetworkFuzzer, ARangeTheDeviceRefusesAsAWholeIsReadPointByPoint) {
     EXPECT_EQ(session.requests(), 4u) << "the range only";
 }
 
+// read_held of a coil and four ranges of holding registers (10-11, 20, 30, 40) of the generic map, from the
+// reference slave planting `fault`, over TCP; with how many requests it sent.
+const Points five_ranges{{Table::Coils, 7},
+                         {Table::HoldingRegisters, 10},
+                         {Table::HoldingRegisters, 11},
+                         {Table::HoldingRegisters, 20},
+                         {Table::HoldingRegisters, 30},
+                         {Table::HoldingRegisters, 40}};
+struct HeldFromSlave {
+    fz::HeldReading reading;
+    std::uint64_t requests = 0;
+};
+HeldFromSlave read_five_ranges(const std::string& fault, std::chrono::milliseconds timeout) {
+    RunningServer server({fault}, 1, "modbus");
+    const auto port = server.start("tcp");
+    auto client = mbscope::modbus::transport::Client::open(
+        *mbscope::modbus::transport::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+    if (!client) {
+        ADD_FAILURE() << client.error();
+        return {};
+    }
+    mbscope::conformance::Session session(*client, {1, timeout, {}},
+                                          &mbscope::slave::test::profile("modbus"));
+    auto reading = fz::read_held(session, five_ranges);
+    return {std::move(reading), session.requests()};
+}
+
 // A read that draws no answer tells nothing about its points: they are listed as unread (whether the write
 // changed them is unknown), not passed over as points the device does not hold. After three such reads in a
 // row the device is taken to be gone, and the ranges left are listed without a request each waiting the
 // timeout.
 TEST(NetworkFuzzer, PointsNoReadAnsweredForAreListedUnread) {
-    RunningServer server({"no-reply=1"}, 1, "modbus");
-    const auto port = server.start("tcp");
-    auto client = mbscope::modbus::transport::Client::open(
-        *mbscope::modbus::transport::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
-    ASSERT_TRUE(client.has_value()) << client.error();
-    mbscope::conformance::Session session(*client, {1, std::chrono::milliseconds(100), {}},
-                                          &mbscope::slave::test::profile("modbus"));
-    const Points points{{Table::Coils, 7},
-                        {Table::HoldingRegisters, 10},
-                        {Table::HoldingRegisters, 11},
-                        {Table::HoldingRegisters, 20},
-                        {Table::HoldingRegisters, 30},
-                        {Table::HoldingRegisters, 40}};
-    const auto reading = fz::read_held(session, points);
+    const auto [reading, requests] = read_five_ranges("no-reply=1", std::chrono::milliseconds(100));
     EXPECT_TRUE(reading.held.empty());
     Points unread;
     for (const auto& r : reading.unread)
         for (std::uint32_t a = r.start; a < r.end(); ++a)
             unread.insert({r.table, static_cast<std::uint16_t>(a)});
-    EXPECT_EQ(unread, points);
+    EXPECT_EQ(unread, five_ranges);
     EXPECT_EQ(reading.unread.size(), 5u) << "ranges: coil 7, registers 10-11, 20, 30, 40";
-    EXPECT_EQ(session.requests(), fz::silent_reads_before_giving_up);
+    EXPECT_EQ(requests, fz::silent_reads_before_giving_up);
+}
+
+// A device that answers every read promptly but uselessly (here with another function code) is not gone:
+// each range is read and listed unread, none passed over. Before, three such replies in a row counted as
+// silence and the ranges after them were listed without being read.
+TEST(NetworkFuzzer, AWrongButPromptReplyIsNoSignOfADeviceGone) {
+    const auto [reading, requests] = read_five_ranges("wrong-function", std::chrono::milliseconds(500));
+    EXPECT_TRUE(reading.held.empty());
+    EXPECT_TRUE(reading.refused.empty());
+    EXPECT_EQ(reading.unread.size(), 5u) << "ranges: coil 7, registers 10-11, 20, 30, 40";
+    EXPECT_EQ(requests, 5u) << "every range read";
 }
 
 // A target lost mid-run is sent nothing more, so the points writes without a reply reached unread cannot be
