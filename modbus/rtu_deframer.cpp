@@ -10,57 +10,96 @@ namespace {
 
 using Kind = DeframeStep::Kind;
 
+// The ADU lengths a frame starting at the front of a buffer can have: one per direction whose length its
+// first bytes tell, ascending, and how many bytes a direction needs before it can tell. Called at every byte
+// position of a stream without frames, so it is kept small enough to travel in a register and without an
+// array (a fuzzing build's AddressSanitizer gives a function a poisoned stack frame for a local it cannot
+// keep in registers, which cost more than the deframing itself).
 struct Candidates {
-    std::size_t length[2] = {0, 0};  // ADU lengths, ascending
-    std::size_t count = 0;
-    std::size_t need = 0;  // >0: a direction needs this many ADU bytes before its length is known
+    std::uint16_t shorter = 0;
+    std::uint16_t longer = 0;
+    std::uint16_t count = 0;
+    std::uint16_t need = 0;  // >0: a direction needs this many ADU bytes before its length is known
+
+    std::size_t length(std::size_t i) const noexcept { return i == 0 ? shorter : longer; }
 };
+
+// buf from `offset` on. Not span::subspan: with its checks for a count, a fuzzing build does not inline it,
+// and its caller then keeps the span in a poisoned stack frame.
+std::span<const std::uint8_t> from(std::span<const std::uint8_t> buf, std::size_t offset) noexcept {
+    return {buf.data() + offset, buf.size() - offset};
+}
 
 Candidates candidates(std::span<const std::uint8_t> buf) noexcept {
     Candidates c;
-    const auto pdu = buf.subspan(1);
-    for (Direction d : {Direction::Request, Direction::Response}) {
-        const auto p = predict_pdu_length(pdu, d);
+    const auto pdu = from(buf, 1);
+    for (std::uint8_t d = 0; d < 2; ++d) {
+        const LengthPrediction p = predict_pdu_length(pdu, d == 0 ? Direction::Request : Direction::Response);
         if (p.kind == LengthPrediction::Kind::Known) {
             const std::size_t adu = 1 + p.length + 2;
             if (p.length < 1 || adu > max_rtu_adu_length) continue;
-            if (c.count == 1 && c.length[0] == adu) continue;
-            c.length[c.count++] = adu;
-        } else if (p.kind == LengthPrediction::Kind::NeedMore) {
-            c.need = std::max(c.need, 1 + p.length);
+            // Not std::min and std::max: their reference parameters leave a fuzzing build's AddressSanitizer
+            // stack slots to poison here.
+            if (c.count == 0) {
+                c.shorter = static_cast<std::uint16_t>(adu);
+                c.count = 1;
+            } else if (adu < c.shorter) {
+                c.longer = c.shorter;
+                c.shorter = static_cast<std::uint16_t>(adu);
+                c.count = 2;
+            } else if (adu > c.shorter) {
+                c.longer = static_cast<std::uint16_t>(adu);
+                c.count = 2;
+            }
+        } else if (p.kind == LengthPrediction::Kind::NeedMore && 1 + p.length > c.need) {
+            c.need = static_cast<std::uint16_t>(1 + p.length);
         }
     }
-    if (c.count == 2 && c.length[0] > c.length[1]) std::swap(c.length[0], c.length[1]);
     return c;
 }
 
-enum class Probe { Yes, No, NeedMore };
+enum class Probe : std::uint8_t { Yes, No, NeedMore };
+struct ProbeResult {
+    Probe probe = Probe::No;
+    std::uint16_t need = 0;  // NeedMore: the bytes needed from the probe's start
+};
 
 // Does a CRC-valid frame start at the front of buf? (no recursion: used to confirm a bad-CRC frame)
-Probe probe_valid(std::span<const std::uint8_t> buf, bool at_end, std::size_t& need) noexcept {
-    if (buf.size() < 4) {
-        need = 4;
-        return at_end ? Probe::No : Probe::NeedMore;
-    }
+ProbeResult probe_valid(std::span<const std::uint8_t> buf, bool at_end) noexcept {
+    if (buf.size() < 4) return {at_end ? Probe::No : Probe::NeedMore, 4};
     const Candidates c = candidates(buf);
     bool pending = c.need > buf.size();
+    std::uint16_t need = c.need;
     for (std::size_t i = 0; i < c.count; ++i) {
-        if (buf.size() < c.length[i]) {
+        if (buf.size() < c.length(i)) {
             pending = true;
-            need = std::max(need, c.length[i]);
+            if (c.length(i) > need) need = static_cast<std::uint16_t>(c.length(i));
             continue;
         }
-        if (rtu_crc_ok(buf.first(c.length[i]))) return Probe::Yes;
+        if (rtu_crc_ok(buf.first(c.length(i)))) return {Probe::Yes, 0};
     }
-    if (pending && !at_end) {
-        need = std::max(need, c.need);
-        return Probe::NeedMore;
-    }
-    return Probe::No;
+    if (pending && !at_end) return {Probe::NeedMore, need};
+    return {Probe::No, 0};
 }
 
 bool plausible_start(std::span<const std::uint8_t> buf) noexcept {
     return buf[0] <= 247 && is_public_function(buf[1] & 0x7F);
+}
+
+// At the end of the input, a plausible start whose predicted length runs past the end is a truncated frame,
+// unless a valid frame starts inside it (then only the bytes before that one are lost). Kept out of
+// rtu_step, which runs at every byte position: there, a fuzzing build left one of this loop's calls of
+// span::size() out of line, which kept buf in a poisoned stack frame for every call.
+DeframeStep skip_at_end(std::span<const std::uint8_t> buf, Candidates c) noexcept {
+    bool runs_past_end = c.need > buf.size();
+    for (std::size_t i = 0; i < c.count; ++i)
+        runs_past_end |= c.length(i) > buf.size();
+    if (!runs_past_end) return {Kind::Skip, 1, true, UnparsedReason::Garbage};
+    std::size_t valid_at = buf.size();
+    for (std::size_t j = 1; j + 4 <= buf.size() && valid_at == buf.size(); ++j) {
+        if (probe_valid(from(buf, j), true).probe == Probe::Yes) valid_at = j;
+    }
+    return {Kind::Skip, valid_at, true, UnparsedReason::Truncated};
 }
 
 }  // namespace
@@ -73,7 +112,7 @@ DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept {
     const Candidates c = candidates(buf);
     if (c.count == 0 && c.need == 0) return {Kind::Skip, 1, true, UnparsedReason::UnknownFunction};
     for (std::size_t i = 0; i < c.count; ++i) {
-        const std::size_t len = c.length[i];
+        const std::size_t len = c.length(i);
         if (buf.size() < len) {
             if (!at_end) return {Kind::NeedMore, len};
             continue;
@@ -86,35 +125,21 @@ DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept {
     // immediately, or when it fills the input exactly.
     if (plausible_start(buf)) {
         for (std::size_t i = 0; i < c.count; ++i) {
-            const std::size_t len = c.length[i];
+            const std::size_t len = c.length(i);
             if (buf.size() < len) continue;
             if (len == buf.size() && at_end) return {Kind::Complete, len, false};
-            std::size_t need = 0;
-            switch (probe_valid(buf.subspan(len), at_end, need)) {
+            const ProbeResult after = probe_valid(from(buf, len), at_end);
+            switch (after.probe) {
                 case Probe::Yes:
                     return {Kind::Complete, len, false};
                 case Probe::NeedMore:
-                    return {Kind::NeedMore, len + need};
+                    return {Kind::NeedMore, len + after.need};
                 case Probe::No:
                     break;
             }
         }
     }
-    // At the end of the input, a plausible start whose predicted length runs past the end is a truncated
-    // frame, unless a valid frame starts inside it (then only the bytes before that one are lost).
-    if (at_end && plausible_start(buf)) {
-        bool runs_past_end = c.need > buf.size();
-        for (std::size_t i = 0; i < c.count; ++i)
-            runs_past_end |= c.length[i] > buf.size();
-        if (runs_past_end) {
-            std::size_t valid_at = buf.size();
-            for (std::size_t j = 1; j + 4 <= buf.size() && valid_at == buf.size(); ++j) {
-                std::size_t need = 0;
-                if (probe_valid(buf.subspan(j), true, need) == Probe::Yes) valid_at = j;
-            }
-            return {Kind::Skip, valid_at, true, UnparsedReason::Truncated};
-        }
-    }
+    if (at_end && plausible_start(buf)) return skip_at_end(buf, c);
     return {Kind::Skip, 1, true, UnparsedReason::Garbage};
 }
 
