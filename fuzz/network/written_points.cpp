@@ -235,9 +235,9 @@ namespace {
 enum class ReadAnswer { Values, Refused, Unusable, Silence };
 
 // One read of [start, start + count) of `table`, its values appended to `held` when the device gives them.
-// Refused: an exception of the read's function. Unusable: a reply that tells nothing about the points (a
-// malformed one, another function's or transaction's). Silence: the read waited the whole timeout for
-// nothing it could use (no reply, a reply cut short, a closed connection).
+// Refused: an exception of the read's function. Unusable: a reply came before the timeout and tells nothing
+// about the points (a malformed one, another function's or transaction's). Silence: the read waited the whole
+// timeout for nothing it could use (no reply, a reply cut short, a closed connection).
 ReadAnswer read_piece(conformance::Session& session, modbus::Table table, std::uint16_t start,
                       std::uint16_t count, std::vector<HeldPoint>& held) {
     const bool bits = modbus::is_bit_table(table);
