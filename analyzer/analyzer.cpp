@@ -139,6 +139,9 @@ void Analyzer::report(FindingCode code, const FrameRecord& about, std::string me
 }
 
 namespace {
+constexpr std::uint64_t packets_between_progress =
+    256;  // calls of the progress callback: the clock is not free
+
 bool contains(const std::vector<std::uint16_t>& ports, std::uint16_t port) {
     return std::find(ports.begin(), ports.end(), port) != ports.end();
 }
@@ -1238,11 +1241,10 @@ void Analyzer::rtac_packet(const Packet& p) {
 }
 
 bool Analyzer::read_capture(CaptureSource& capture) {
-    constexpr std::uint64_t progress_every = 256;  // packets between two calls: the clock is not free
-    set_source(capture.name());                    // once, not a comparison of names for every packet
+    set_source(capture.name());  // once, not a comparison of names for every packet
     while (auto p = capture.next()) {
         packet_in_source(*p);
-        if (options_.progress && p->number % progress_every == 0)
+        if (options_.progress && p->number % packets_between_progress == 0)
             options_.progress(summary_, capture.offset());
     }
     if (!capture.error().empty()) {
@@ -1250,6 +1252,23 @@ bool Analyzer::read_capture(CaptureSource& capture) {
         return false;
     }
     return true;
+}
+
+bool Analyzer::read_capture(CaptureMerge& captures) {
+    const std::string* source = nullptr;
+    std::uint64_t count = 0;
+    while (auto p = captures.next()) {
+        if (&captures.name() != source) {  // the files' names stay where they are: a pointer tells a change
+            source = &captures.name();
+            set_source(*source);
+        }
+        packet_in_source(*p);
+        if (options_.progress && ++count % packets_between_progress == 0)
+            options_.progress(summary_, captures.offset());
+    }
+    for (const auto& e : captures.errors())
+        input_error(e);
+    return captures.errors().empty();
 }
 
 bool Analyzer::read_capture(const std::string& path, const std::string& name) {

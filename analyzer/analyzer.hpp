@@ -16,6 +16,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "analyzer/capture_merge.hpp"
 #include "analyzer/capture_source.hpp"
 #include "analyzer/ip_reassembly.hpp"
 #include "analyzer/modbus_like_ports.hpp"
@@ -82,6 +83,9 @@ class Analyzer {
     // the capture is reported as.
     bool read_capture(const std::string& path, const std::string& name = {});
     bool read_capture(CaptureSource& capture);
+    // Several capture files as one capture, merged by time (analyzer/capture_merge.hpp); false (and the
+    // errors in the summary) when one of them could not be read to its end.
+    bool read_capture(CaptureMerge& captures);
     // An input problem, named with its file and place. Control characters are escaped (messages quote input
     // bytes and end up on terminals). The first max_listed_input_errors are kept; the rest are counted
     // (Summary::input_errors_unlisted): a file read in the wrong format has an error on every line.

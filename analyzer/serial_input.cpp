@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cstring>
@@ -235,21 +236,31 @@ InputFormat detect_input_format(std::span<const std::uint8_t> h) {
     return InputFormat::RtuRaw;
 }
 
-bool read_input(Analyzer& a, const std::string& name, InputFormat format, const SerialLogOptions& options) {
+namespace {
+
+// An input opened and its format told, ready to be read.
+struct Prepared {
+    Input input;
+    InputFormat asked;   // as given: Auto when the file's head told the format
+    InputFormat format;  // what it is read as
+    bool capture_read_as_serial = false;
+};
+
+// Opens an input and tells its format; nullopt (the error in the summary) when it cannot be read at all.
+std::optional<Prepared> prepare(Analyzer& a, const std::string& name, InputFormat format) {
     std::string error;
-    const auto input = open_input(name, error);
+    auto input = open_input(name, error);
     if (!input) {
         a.input_error(error);
-        return false;
+        return std::nullopt;
     }
-    const std::string& path = input->name;
-    bool capture_read_as_serial = false;
-    const InputFormat asked = format;
+    Prepared p{std::move(*input), format, format};
+    const std::string& path = p.input.name;
     if (format != InputFormat::Pcap) {
-        std::ifstream in(input->path, std::ios::binary);
+        std::ifstream in(p.input.path, std::ios::binary);
         if (!in) {
             a.input_error(path + ": cannot open");
-            return false;
+            return std::nullopt;
         }
         std::vector<char> head(4096);  // socat -d writes a few diagnostic lines before the first block
         in.read(head.data(), static_cast<std::streamsize>(head.size()));
@@ -258,44 +269,91 @@ bool read_input(Analyzer& a, const std::string& name, InputFormat format, const 
             detect_input_format({reinterpret_cast<const std::uint8_t*>(head.data()), head.size()});
         // A capture file read as serial bytes decodes to thousands of unparsed bytes and no error finding
         // (exit 0): say what the file is. It is still decoded as asked.
-        capture_read_as_serial = format != InputFormat::Auto && detected == InputFormat::Pcap;
-        if (capture_read_as_serial)
+        p.capture_read_as_serial = format != InputFormat::Auto && detected == InputFormat::Pcap;
+        if (p.capture_read_as_serial)
             a.input_error(path +
                           ": holds a pcap or pcapng capture (its magic number) but --format reads it as "
                           "serial bytes; leave --format out to decode the capture");
-        if (format == InputFormat::Auto) format = detected;
+        if (format == InputFormat::Auto) p.format = detected;
     }
     // A file of no bytes decodes to nothing in every serial format; reporting that as a clean decode would
     // pass off a tap that recorded nothing (or the wrong file) as a quiet line. libpcap names an empty pcap
     // itself (a truncated file header).
-    if (format != InputFormat::Pcap && holds_no_bytes(*input)) {
+    if (p.format != InputFormat::Pcap && holds_no_bytes(p.input)) {
         a.input_error(path + ": empty file, nothing to decode");
-        return false;
+        return std::nullopt;
     }
+    return p;
+}
+
+bool read_prepared(Analyzer& a, const Prepared& p, const SerialLogOptions& options) {
     bool read = false;
-    switch (format) {
+    switch (p.format) {
         case InputFormat::Pcap:
-            return a.read_capture(input->path, input->name);
+            return a.read_capture(p.input.path, p.input.name);
         case InputFormat::Text:
-            read = read_text(a, *input);
+            read = read_text(a, p.input);
             break;
         case InputFormat::RtuRaw:
         case InputFormat::AsciiRaw:
             // Asked for by name, the format fixes the framing; found by its first byte, the line's bytes
             // tell it (a dump that starts inside a frame or with noise is not misread).
-            if (asked != InputFormat::Auto && !a.serial_framing())
-                a.set_serial_framing(format == InputFormat::AsciiRaw ? modbus::Framing::Ascii
-                                                                     : modbus::Framing::Rtu);
-            read = read_raw(a, *input);
+            if (p.asked != InputFormat::Auto && !a.serial_framing())
+                a.set_serial_framing(p.format == InputFormat::AsciiRaw ? modbus::Framing::Ascii
+                                                                       : modbus::Framing::Rtu);
+            read = read_raw(a, p.input);
             break;
         case InputFormat::Jpnevulator:
         case InputFormat::Socat:
-            read = read_log(a, *input, format, options);
+            read = read_log(a, p.input, p.format, options);
             break;
         case InputFormat::Auto:
             break;
     }
-    return read && !capture_read_as_serial;
+    return read && !p.capture_read_as_serial;
+}
+
+}  // namespace
+
+bool read_input(Analyzer& a, const std::string& name, InputFormat format, const SerialLogOptions& options) {
+    const auto p = prepare(a, name, format);
+    return p && read_prepared(a, *p, options);
+}
+
+bool read_inputs(Analyzer& a, const std::vector<std::string>& names, InputFormat format,
+                 const SerialLogOptions& options, const std::function<void(const std::string&)>& done) {
+    bool all_read = true;
+    std::vector<Prepared> inputs;  // each holds its input open (a spooled pipe) until everything is read
+    for (const auto& name : names) {
+        auto p = prepare(a, name, format);
+        if (p) {
+            inputs.push_back(std::move(*p));
+            continue;
+        }
+        all_read = false;
+        if (done) done(name);
+    }
+    const auto is_capture = [](const Prepared& p) { return p.format == InputFormat::Pcap; };
+    const auto captures = std::count_if(inputs.begin(), inputs.end(), is_capture);
+    bool captures_read = false;
+    for (const auto& p : inputs) {
+        if (!is_capture(p) || captures == 1) {
+            all_read &= read_prepared(a, p, options);
+            if (done) done(p.input.name);
+            continue;
+        }
+        if (captures_read) continue;  // read with the first
+        captures_read = true;
+        std::vector<CaptureFile> files;
+        for (const auto& c : inputs)
+            if (is_capture(c)) files.push_back({c.input.path, c.input.name});
+        CaptureMerge merge(std::move(files));
+        all_read &= a.read_capture(merge);
+        if (done)
+            for (const auto& c : inputs)
+                if (is_capture(c)) done(c.input.name);
+    }
+    return all_read;
 }
 
 }  // namespace mbscope::analyzer

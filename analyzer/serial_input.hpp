@@ -9,10 +9,12 @@
 //  - logs of other tools: jpnevulator --read --timing-print and socat -x -v (analyzer/serial_logs.hpp).
 // A malformed line is reported with file and line number; the lines around it are still decoded.
 
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "analyzer/analyzer.hpp"
 #include "analyzer/serial_logs.hpp"
@@ -34,5 +36,12 @@ InputFormat detect_input_format(std::span<const std::uint8_t> head);
 // (analyzer/serial_logs.hpp).
 bool read_input(Analyzer& analyzer, const std::string& path, InputFormat format,
                 const SerialLogOptions& logs = {});
+// Several inputs into one analyzer. The pcap and pcapng files among them are one capture, merged by time
+// (analyzer/capture_merge.hpp) and read where the first of them is named; the others (serial dumps and
+// logs) are read one after another in the order named. `done`, when given, is called with each input's name
+// once it is read (for a progress line). False when an input could not be read completely.
+bool read_inputs(Analyzer& analyzer, const std::vector<std::string>& names, InputFormat format,
+                 const SerialLogOptions& logs = {},
+                 const std::function<void(const std::string& name)>& done = {});
 
 }  // namespace mbscope::analyzer

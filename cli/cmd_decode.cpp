@@ -80,24 +80,21 @@ int run_decode(const DecodeOptions& o) {
     };
     if (meter) options.progress = show;
     analyzer::Analyzer a(options, sink);
-    bool all_read = true, any_read = false;
     const auto format = analyzer::parse_input_format(o.format);
     analyzer::SerialLogOptions logs;
     logs.master_alias = o.master_alias;
     logs.slave_alias = o.slave_alias;
     logs.socat_master_left = o.socat_master == "left";
     logs.line = options.serial_line;
-    for (const auto& f : o.files) {
-        const bool ok = analyzer::read_input(a, f, *format, logs);
-        all_read &= ok;
-        any_read |= ok || a.summary().packets > 0;
-        if (meter) {
-            std::error_code ec;
-            const auto size = std::filesystem::file_size(f, ec);
-            show(a.summary(), ec ? 0 : size);
-            files_done += ec ? 0 : size;
-        }
-    }
+    const auto file_done = [&](const std::string& f) {
+        std::error_code ec;
+        const auto size = std::filesystem::file_size(f, ec);
+        files_done += ec ? 0 : size;
+        show(a.summary(), 0);
+    };
+    const bool all_read = analyzer::read_inputs(a, o.files, *format, logs,
+                                                meter ? std::function<void(const std::string&)>(file_done)
+                                                      : std::function<void(const std::string&)>());
     if (meter) meter->clear();
     a.finish();
     for (const auto& e : a.summary().input_errors)
@@ -105,7 +102,6 @@ int run_decode(const DecodeOptions& o) {
     if (a.summary().input_errors_unlisted)
         std::cerr << "mbscope decode: " << a.summary().input_errors_unlisted
                   << " more input errors, not listed\n";
-    if (!any_read) return exit_failure;
     if (!all_read) return exit_failure;
     return a.summary().errors ? exit_findings : exit_ok;
 }
@@ -118,7 +114,9 @@ void register_decode(CLI::App& app, int& exit_code) {
     add_analysis_options(*cmd, o->common);
     cmd->add_option("files", o->files,
                     "Captures: pcap, pcapng, raw serial dumps, the text format (analyzer/README.md); - for "
-                    "standard input (a pipe is read to its end first)")
+                    "standard input (a pipe is read to its end first). Several pcap/pcapng files are one "
+                    "capture merged by time, as mergecap merges them; serial inputs are read in the order "
+                    "given")
         ->required()
         ->check(CLI::Validator(
             [](std::string& file) { return file == "-" ? std::string() : CLI::ExistingFile(file); },
