@@ -6,6 +6,7 @@
 #include <stdio_ext.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <condition_variable>
@@ -15,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "analyzer/pcapng_snaplen.hpp"
 #include "analyzer/timestamps.hpp"
 
 namespace mbscope::analyzer {
@@ -159,10 +161,14 @@ namespace {
 // A file read through stdio whose position is known without a system call. The reader asks where it is
 // before every packet (a damaged record is reported with its byte offset) and the progress line asks too;
 // ftell() on an ordinary FILE is an lseek() each time, which was a sixth of the time of a summary run.
-// Through fopencookie the position is our own count of the bytes read.
+// Through fopencookie the position is our own count of the bytes read. On their way to libpcap the bytes
+// of a pcapng file have their interfaces' snapshot lengths levelled (analyzer/pcapng_snaplen.hpp). A
+// capture in memory (the fuzzer's, the tests') is read the same way.
 struct CountedFile {
-    int fd = -1;
+    int fd = -1;                             // a file's descriptor, or -1 for memory
+    std::span<const std::uint8_t> memory{};  // fd -1: the capture
     off64_t position = 0;
+    PcapngSnaplenPatch snaplens;
     // stdio's buffer: glibc's setvbuf() ignores the size asked for unless it is given the buffer, and its
     // own is 8 KiB (a read() per 8 KiB: 5,000 system calls for a 40 MB capture). 64 KiB, not more: with
     // 256 KiB the read-ahead thread's copying out of the buffer took from one to two and a half times as
@@ -175,10 +181,20 @@ struct CountedFile {
 ssize_t counted_read(void* cookie, char* buffer, std::size_t size) {
     auto* f = static_cast<CountedFile*>(cookie);
     ssize_t n;
-    do {
-        n = ::read(f->fd, buffer, size);
-    } while (n < 0 && errno == EINTR);
-    if (n > 0) f->position += n;
+    if (f->fd < 0) {
+        const auto left =
+            f->memory.size() - std::min<std::size_t>(static_cast<std::size_t>(f->position), f->memory.size());
+        n = static_cast<ssize_t>(std::min(size, left));
+        if (n > 0) std::memcpy(buffer, f->memory.data() + f->position, static_cast<std::size_t>(n));
+    } else {
+        do {
+            n = ::read(f->fd, buffer, size);
+        } while (n < 0 && errno == EINTR);
+    }
+    if (n > 0) {
+        f->snaplens.pass({reinterpret_cast<std::uint8_t*>(buffer), static_cast<std::size_t>(n)});
+        f->position += n;
+    }
     return n;
 }
 
@@ -188,8 +204,21 @@ int counted_seek(void* cookie, off64_t* offset, int whence) {
         *offset = f->position;
         return 0;
     }
-    const off64_t at = ::lseek64(f->fd, *offset, whence);
-    if (at < 0) return -1;
+    f->snaplens.stop();  // the bytes no longer pass in file order
+    off64_t at;
+    if (f->fd < 0) {
+        const off64_t base = whence == SEEK_SET   ? 0
+                             : whence == SEEK_CUR ? f->position
+                                                  : static_cast<off64_t>(f->memory.size());
+        at = base + *offset;
+        if (at < 0) {
+            errno = EINVAL;
+            return -1;
+        }
+    } else {
+        at = ::lseek64(f->fd, *offset, whence);
+        if (at < 0) return -1;
+    }
     f->position = *offset = at;
     return 0;
 }
@@ -202,13 +231,7 @@ int counted_close(void* cookie) {
 }
 
 // Errors are the system's message alone: the caller names the file.
-FILE* open_counted(const std::string& path, std::string& error) {
-    const int fd = path == "-" ? STDIN_FILENO : ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-        error = std::strerror(errno);
-        return nullptr;
-    }
-    auto* cookie = new CountedFile{fd, 0};
+FILE* open_counted(CountedFile* cookie, std::string& error) {
     FILE* file = fopencookie(cookie, "rb", {counted_read, nullptr, counted_seek, counted_close});
     if (!file) {
         error = std::strerror(errno);
@@ -220,6 +243,17 @@ FILE* open_counted(const std::string& path, std::string& error) {
     // locks the FILE for each of libpcap's two fread() calls a packet once the process has a second thread.
     __fsetlocking(file, FSETLOCKING_BYCALLER);
     return file;
+}
+
+FILE* open_counted(const std::string& path, std::string& error) {
+    const int fd = path == "-" ? STDIN_FILENO : ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+        error = std::strerror(errno);
+        return nullptr;
+    }
+    auto* cookie = new CountedFile;
+    cookie->fd = fd;
+    return open_counted(cookie, error);
 }
 
 }  // namespace
@@ -248,9 +282,11 @@ std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::u
         error = "memory: empty capture";
         return nullptr;
     }
-    FILE* f = fmemopen(const_cast<std::uint8_t*>(bytes.data()), bytes.size(), "rb");
+    auto* cookie = new CountedFile;
+    cookie->memory = bytes;
+    FILE* f = open_counted(cookie, error);
     if (!f) {
-        error = "memory: cannot open";
+        error = "memory: " + error;
         return nullptr;
     }
     char errbuf[PCAP_ERRBUF_SIZE] = {};
@@ -314,7 +350,8 @@ bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
         // libpcap (1.10) reads pcapng only while every interface has the first one's link type.
         error = name + ": after " + std::to_string(count) + " packets, an interface block" + at + ": " + why +
                 "; libpcap reads a pcapng file only when all its interfaces share one link type: split it "
-                "by interface (tshark -r FILE -Y frame.interface_id==N -w PART.pcapng) and decode the parts";
+                "by interface (tshark -r FILE -Y frame.interface_id==N -w PART.pcapng) and decode the parts "
+                "together (they are merged by time)";
         return false;
     }
     error = name + ": packet " + std::to_string(count + 1) + at + ": " + why;

@@ -202,6 +202,33 @@ def reproducers(mbscope):
     return out
 
 
+def pcapng_of(pcap, snaplens=(65535, 262144)):
+    """A classic little-endian pcap rewritten as pcapng, its packets spread over two interfaces of the same link
+    type and different snapshot lengths, as mergecap writes a merge of captures taken with different limits
+    (libpcap 1.10 alone refuses such a file; analyzer/pcapng_snaplen.hpp levels them)."""
+    import struct
+    magic, = struct.unpack_from("<I", pcap)
+    nano = magic == 0xA1B23C4D
+    linktype, = struct.unpack_from("<I", pcap, 20)
+
+    def block(kind, body):
+        body += b"\0" * (-len(body) % 4)
+        return struct.pack("<II", kind, 12 + len(body)) + body + struct.pack("<I", 12 + len(body))
+
+    out = block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1))
+    for snaplen in snaplens:  # if_tsresol 9: nanoseconds
+        out += block(1, struct.pack("<HHI", linktype, 0, snaplen) + struct.pack("<HHB3x", 9, 1, 9) + b"\0" * 4)
+    offset, n = 24, 0
+    while offset + 16 <= len(pcap):
+        sec, frac, caplen, length = struct.unpack_from("<IIII", pcap, offset)
+        data = pcap[offset + 16:offset + 16 + caplen]
+        ns = sec * 1_000_000_000 + (frac if nano else frac * 1000)
+        out += block(6, struct.pack("<IIIII", n % 2, ns >> 32, ns & 0xFFFFFFFF, caplen, length) + data)
+        offset += 16 + caplen
+        n += 1
+    return out
+
+
 def write(target, payload, out_dir):
     directory = os.path.join(out_dir, target)
     os.makedirs(directory, exist_ok=True)
@@ -215,6 +242,7 @@ def build(mbscope, out_dir):
     ascii_frames = [b for f, b in examples if f == "ascii"]
     captures = [os.path.join(ROOT, "captures", n) for n in sorted(os.listdir(os.path.join(ROOT, "captures")))]
     pcaps = [open(p, "rb").read() for p in captures if p.endswith((".pcap", ".pcapng"))]
+    pcaps += [pcapng_of(p) for p in pcaps if p[:4] in (b"\xd4\xc3\xb2\xa1", b"\x4d\x3c\xb2\xa1")]
     logs = [open(p, "rb").read() for p in captures if p.endswith(".log")]
     all_profiles = profiles(mbscope)
 
