@@ -79,6 +79,9 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     const bool meter = o.progress && isatty(STDERR_FILENO);
     if (meter) options.progress = show_progress;
     options.stop = &stop_on_signals(BrokenPipe::Ignored);
+    options.stop_again = &second_stop_signal();
+    if (meter)
+        options.note = [](const std::string& text) { std::cerr << "\r\033[Kmbscope fuzz: " << text << '\n'; };
 
     const auto summary = fuzz::network::run_campaign(*profile, options);
     if (meter) std::cerr << "\r\033[K";
@@ -117,9 +120,12 @@ int run_fuzz_command(const FuzzCliOptions& o) {
         std::cerr << "mbscope fuzz: written by a write that drew no reply, without being read first, not "
                      "restored: "
                   << fuzz::network::to_string(w) << '\n';
+    const char* why_unread = summary.target_lost             ? "(the target stopped answering)"
+                             : summary.read_back_interrupted ? "(no answer to the read, or not reached: the "
+                                                               "read-back was interrupted)"
+                                                             : "(no answer to the read)";
     for (const auto& w : summary.unanswered_unread)
-        std::cerr << "mbscope fuzz: written by a write that drew no reply, could not be read "
-                  << (summary.target_lost ? "(the target stopped answering)" : "(no answer to the read)")
+        std::cerr << "mbscope fuzz: written by a write that drew no reply, could not be read " << why_unread
                   << ", may have changed, not restored: " << fuzz::network::to_string(w) << '\n';
     if (!summary.unanswered_refused.empty()) {
         std::size_t points = 0;

@@ -6,10 +6,11 @@ namespace mbscope::cli {
 namespace {
 
 std::atomic<bool> stop_requested{false};
+std::atomic<bool> stop_requested_again{false};
 static_assert(std::atomic<bool>::is_always_lock_free, "set from a signal handler");
 
 extern "C" void on_stop_signal(int) {
-    stop_requested.store(true);
+    if (stop_requested.exchange(true)) stop_requested_again.store(true);
 }
 
 }  // namespace
@@ -19,6 +20,10 @@ std::atomic<bool>& stop_on_signals(BrokenPipe broken_pipe) {
     std::signal(SIGTERM, on_stop_signal);
     if (broken_pipe == BrokenPipe::Ignored) std::signal(SIGPIPE, SIG_IGN);
     return stop_requested;
+}
+
+const std::atomic<bool>& second_stop_signal() {
+    return stop_requested_again;
 }
 
 }  // namespace mbscope::cli

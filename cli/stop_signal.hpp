@@ -13,5 +13,9 @@ enum class BrokenPipe {
 
 // Installs the handlers and returns the flag they set.
 std::atomic<bool>& stop_on_signals(BrokenPipe broken_pipe);
+// Set by a second SIGINT or SIGTERM, one that comes while the run is stopping: what is left of the stop
+// that only informs (the fuzzer's read-back of points written without a reply) is cut short. Restoring what
+// was written is not.
+const std::atomic<bool>& second_stop_signal();
 
 }  // namespace mbscope::cli

@@ -464,10 +464,25 @@ void Campaign::read_unanswered_writes() {
         s_.unanswered_unread = ranges_of(points);
         return;
     }
-    auto reading = read_held(session_, points);
+    ReadHeldLimits limits;
+    limits.single_reads = single_reads_within_a_minute(options_.interval);
+    limits.interrupt = options_.stop_again;
+    if (options_.note && !points.empty()) {
+        const auto ranges = ranges_of(points).size();
+        std::string text = "reading back " + std::to_string(points.size()) + " points in " +
+                           std::to_string(ranges) + (ranges == 1 ? " range" : " ranges") +
+                           " that writes without a reply reached";
+        if (options_.interval.count() > 0)
+            text += ", a request every " + std::to_string(options_.interval.count()) +
+                    " ms (the polling interval)";
+        if (options_.stop_again) text += "; interrupt again to skip it (the restore after it still runs)";
+        options_.note(text);
+    }
+    auto reading = read_held(session_, points, limits);
     s_.unanswered_writes = std::move(reading.held);
     s_.unanswered_unread = std::move(reading.unread);
     s_.unanswered_refused = std::move(reading.refused);
+    s_.read_back_interrupted = reading.interrupted;
 }
 
 // A write's acknowledgement that came after its exchange ended (matched to it by transaction id, over RTU
@@ -921,6 +936,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"unanswered_writes", to_json(s.unanswered_writes)},
                      {"unanswered_unread", to_json(s.unanswered_unread)},
                      {"unanswered_refused", to_json(s.unanswered_refused)},
+                     {"read_back_interrupted", s.read_back_interrupted},
                      {"stopped", s.stopped},
                      {"target_lost", s.target_lost}};
     if (!s.error.empty()) j["error"] = s.error;

@@ -49,6 +49,12 @@ struct CampaignOptions {
     std::size_t max_findings = 0;           // stop once this many are saved (0: run the whole budget)
     std::function<void(const struct CampaignSummary&)> progress;  // called about four times a second
     const std::atomic<bool>* stop = nullptr;
+    // Set by a second interrupt while stopping: the read-back of points written by writes that drew no reply
+    // ends (they are listed unread); the restore after it does not.
+    const std::atomic<bool>* stop_again = nullptr;
+    // Said, when given, before the read-back: what it will read and at what pace (for a person at a terminal;
+    // at a manual's polling interval it can take minutes).
+    std::function<void(const std::string&)> note;
 };
 
 struct CampaignFinding {
@@ -103,6 +109,8 @@ struct CampaignSummary {
     // Of those points, ranges the device refused to read as a whole and that were not read point by point
     // (HeldReading::refused): taken for points it does not hold, as the map says. Not counted as unrestored.
     std::vector<WriteRange> unanswered_refused;
+    bool read_back_interrupted =
+        false;                 // CampaignOptions::stop_again cut the read-back: see unanswered_unread
     bool stopped = false;      // interrupted
     bool target_lost = false;  // the run ended because the target stopped answering
     double requests_per_second() const;

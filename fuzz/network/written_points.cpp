@@ -266,17 +266,26 @@ ReadAnswer read_piece(conformance::Session& session, modbus::Table table, std::u
 
 }  // namespace
 
+unsigned single_reads_within_a_minute(std::chrono::milliseconds interval) {
+    if (interval.count() <= 0) return ReadHeldLimits{}.single_reads;
+    const auto fit = std::chrono::milliseconds(60'000) / interval;
+    return static_cast<unsigned>(std::clamp<std::int64_t>(fit, 1, ReadHeldLimits{}.single_reads));
+}
+
 HeldReading read_held(conformance::Session& session,
-                      const std::set<std::pair<modbus::Table, std::uint16_t>>& points) {
+                      const std::set<std::pair<modbus::Table, std::uint16_t>>& points,
+                      const ReadHeldLimits& limits) {
     HeldReading out;
     std::set<std::pair<modbus::Table, std::uint16_t>> unread;
     unsigned silent = 0;  // reads in a row that waited the whole timeout
-    unsigned singles_left = single_reads_after_refusals;
-    // Reads one piece (none once the device is taken to be gone); the points of one that drew neither values
-    // nor an exception are unread. A device that answers, however wrongly, is not gone: only silence counts.
+    unsigned singles_left = limits.single_reads;
+    // Reads one piece (none once the device is taken to be gone, or the reading is interrupted); the points
+    // of one that drew neither values nor an exception are unread. A device that answers, however wrongly,
+    // is not gone: only silence counts.
     const auto read = [&](modbus::Table table, std::uint16_t start, std::uint16_t count) {
         ReadAnswer answer = ReadAnswer::Silence;
-        if (silent < silent_reads_before_giving_up)
+        out.interrupted = out.interrupted || (limits.interrupt && limits.interrupt->load());
+        if (silent < silent_reads_before_giving_up && !out.interrupted)
             answer = read_piece(session, table, start, count, out.held);
         silent = answer == ReadAnswer::Silence ? silent + 1 : 0;
         if (answer == ReadAnswer::Silence || answer == ReadAnswer::Unusable)

@@ -4,6 +4,8 @@
 // that the target is left holding what it held before (conformance::Session::restore).
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -64,20 +66,31 @@ struct HeldReading {
     // single reads was spent): taken, as the map says, for points it does not hold. A device holding some of
     // them would have those left out; listed so that this is said, not assumed silently.
     std::vector<WriteRange> refused;
+    bool interrupted = false;  // ReadHeldLimits::interrupt was set: the points not read yet are in `unread`
 };
+// What read_held may spend. The single reads after a refusal are bounded for their time on a slow line or at
+// a manual's polling interval; `interrupt` (a second SIGINT or SIGTERM) ends the reading: the points not read
+// yet are unread, without a request each.
+struct ReadHeldLimits {
+    unsigned single_reads = 256;
+    const std::atomic<bool>* interrupt = nullptr;
+};
+// The single reads that fit in about a minute at a polling interval (a manual's: Walchem asks 5 s between
+// requests, where 256 would take over 21 minutes after the run), at most 256 and at least one.
+unsigned single_reads_within_a_minute(std::chrono::milliseconds interval);
 // Reads `points` through `session`, each contiguous range in as few requests as the function's limit allows.
 // A range the device refuses as a whole (an exception) is read again point by point, while
-// `single_reads_after_refusals` allow: a strict device refuses a range where any point is missing and may
+// `limits.single_reads` allow: a strict device refuses a range where any point is missing and may
 // hold the others; a point it refuses alone it does not hold. The budget bounds what this costs on a slow
 // line (a strict device refuses every single read of the thousands of coils a few broadcasts reach: at 9600
 // baud 256 exceptions take about 6 s). After `silent_reads_before_giving_up` reads in a row that waited
 // --timeout for nothing usable (silence, a reply cut short, a closed connection) the device is taken to be
 // gone: the points not read yet are `unread` without a request each waiting --timeout. A prompt reply that
 // tells nothing (malformed, another function's) leaves its points unread but is no sign of a device gone.
-inline constexpr unsigned single_reads_after_refusals = 256;
 inline constexpr unsigned silent_reads_before_giving_up = 3;
 HeldReading read_held(conformance::Session& session,
-                      const std::set<std::pair<modbus::Table, std::uint16_t>>& points);
+                      const std::set<std::pair<modbus::Table, std::uint16_t>>& points,
+                      const ReadHeldLimits& limits = {});
 // [{"table", "address", "value"}, ...]
 nlohmann::json to_json(const std::vector<HeldPoint>& points);
 

@@ -23,6 +23,7 @@
 #include <set>
 #include <thread>
 
+#include "conformance/report.hpp"
 #include "fuzz/network/campaign.hpp"
 #include "fuzz/network/reply_latency.hpp"
 #include "fuzz/network/unanswered.hpp"
@@ -1200,10 +1201,12 @@ class IgnoresTheUnitId {
 // as an MMK-2030 over Modbus/TCP; the coils and holding registers outside the MMK's map it holds changed
 // after the run, each expected among the points the summary lists.
 Points changed_outside_the_mmk_map(std::uint16_t port, const sl::RegisterImage& image, std::uint64_t requests,
-                                   fz::CampaignSummary& s) {
+                                   fz::CampaignSummary& s,
+                                   const std::function<void(fz::CampaignOptions&)>& adjust = {}) {
     auto o = options_for("tcp", port);
     o.requests = requests;
     o.minimise_budget = 0;
+    if (adjust) adjust(o);
     const auto& mmk = mbscope::slave::test::profile("mmk-2030");
     s = fz::run_campaign(mmk, o);
     EXPECT_TRUE(s.reachable) << s.error;
@@ -1268,6 +1271,50 @@ TEST(NetworkFuzzer, ABroadcastThatReachedPointsUnreadListsThoseTheDeviceHolds) {
     EXPECT_TRUE(t.unanswered_writes.empty()) << listing(t);
 }
 
+// A second interrupt while the run stops ends the read-back of what writes without a reply reached (at a
+// manual's polling interval it can take minutes): the points it did not reach are listed unread, none is
+// left out, and the restore after it runs as it would have (the same seed without the interrupt restores the
+// same points).
+TEST(NetworkFuzzer, ASecondInterruptEndsTheReadBackButNotTheRestore) {
+    RunningServer plain({}, 1, "modbus");
+    fz::CampaignSummary whole;
+    (void)changed_outside_the_mmk_map(plain.start("tcp"), plain.device().image(), 6000, whole);
+    ASSERT_FALSE(whole.unanswered_writes.empty());
+    EXPECT_FALSE(whole.read_back_interrupted);
+
+    RunningServer lax({}, 1, "modbus");
+    const std::atomic<bool> again{true};
+    std::vector<std::string> notes;
+    fz::CampaignSummary cut;
+    const auto outside = changed_outside_the_mmk_map(
+        lax.start("tcp"), lax.device().image(), 6000, cut, [&](fz::CampaignOptions& o) {
+            o.stop_again = &again;
+            o.note = [&](const std::string& n) { notes.push_back(n); };
+        });
+    EXPECT_FALSE(outside.empty());
+    EXPECT_TRUE(cut.read_back_interrupted);
+    EXPECT_TRUE(cut.unanswered_writes.empty()) << listing(cut);
+    std::size_t unread = 0, read_before = 0;
+    for (const auto& w : cut.unanswered_unread)
+        unread += w.count;
+    for (const auto& w : whole.unanswered_unread)
+        read_before += w.count;
+    EXPECT_GE(unread, whole.unanswered_writes.size() + read_before);
+    ASSERT_EQ(notes.size(), 1u);
+    EXPECT_NE(notes[0].find("interrupt again to skip it"), std::string::npos) << notes[0];
+    ASSERT_FALSE(cut.restored.empty());
+    EXPECT_EQ(mbscope::conformance::to_json(cut.restored), mbscope::conformance::to_json(whole.restored));
+}
+
+// At a manual's polling interval the single reads after a refusal are those that fit in about a minute.
+TEST(NetworkFuzzer, TheSingleReadsAfterARefusalFitAMinuteOfThePollingInterval) {
+    using std::chrono::milliseconds;
+    EXPECT_EQ(fz::single_reads_within_a_minute(milliseconds(0)), 256u);
+    EXPECT_EQ(fz::single_reads_within_a_minute(milliseconds(100)), 256u);
+    EXPECT_EQ(fz::single_reads_within_a_minute(milliseconds(5000)), 12u);  // Walchem
+    EXPECT_EQ(fz::single_reads_within_a_minute(milliseconds(120000)), 1u);
+}
+
 // The end of a run reads the points writes without a reply reached unread. A strict device refuses a read
 // that takes in a point it does not hold (exception 02) and may hold the others of the range: a range
 // refused as a whole is read again point by point. Here the MMK-2030's last holding register of a run and
@@ -1300,7 +1347,7 @@ TEST(NetworkFuzzer, ARangeTheDeviceRefusesAsAWholeIsReadPointByPoint) {
     // Point by point within a budget: a refused range longer than it is listed as refused, not read point by
     // point (coils the MMK-2030 does not have; a few broadcasts reach thousands).
     const std::uint16_t first = 40000;
-    const auto beyond = static_cast<std::uint16_t>(fz::single_reads_after_refusals + 1);
+    const auto beyond = static_cast<std::uint16_t>(fz::ReadHeldLimits{}.single_reads + 1);
     Points coils;
     for (std::uint16_t i = 0; i < beyond; ++i) {
         ASSERT_FALSE(mmk.find(Table::Coils, static_cast<std::uint16_t>(first + i)));
@@ -1314,6 +1361,19 @@ TEST(NetworkFuzzer, ARangeTheDeviceRefusesAsAWholeIsReadPointByPoint) {
     EXPECT_EQ(refused.refused[0].start, first);
     EXPECT_EQ(refused.refused[0].count, beyond);
     EXPECT_EQ(session.requests(), 4u) << "the range only";
+
+    // A smaller budget (a polling interval's): the last register and the one after it, refused as a range,
+    // now past it.
+    fz::ReadHeldLimits one;
+    one.single_reads = 1;
+    const auto past = fz::read_held(
+        session,
+        {{Table::HoldingRegisters, *last}, {Table::HoldingRegisters, static_cast<std::uint16_t>(*last + 1)}},
+        one);
+    EXPECT_TRUE(past.held.empty());
+    ASSERT_EQ(past.refused.size(), 1u);
+    EXPECT_EQ(past.refused[0].count, 2u);
+    EXPECT_EQ(session.requests(), 5u) << "the range only";
 }
 
 // read_held of a coil and four ranges of holding registers (10-11, 20, 30, 40) of the generic map, from the
