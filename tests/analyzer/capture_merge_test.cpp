@@ -144,6 +144,16 @@ TEST(CaptureMerge, ARequestAndItsResponseInTwoFilesPair) {
         a.finish();
         EXPECT_EQ(a.summary().transactions, 5u);
         EXPECT_TRUE(a.summary().findings.empty());
+        // Each frame named after its own file and its packet there: request i and response i are packet
+        // i + 1 of theirs.
+        ASSERT_EQ(sink.frames.size(), 10u);
+        for (std::size_t i = 0; i < sink.frames.size(); ++i) {
+            const auto& f = sink.frames[i];
+            const bool request = f.direction == mb::Direction::Request;
+            EXPECT_EQ(request, i % 2 == 0);
+            EXPECT_EQ(f.source.str(), request ? requests : responses);
+            EXPECT_EQ(f.packet, i / 2 + 1);
+        }
     }
 }
 
