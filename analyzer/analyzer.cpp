@@ -286,7 +286,10 @@ void Analyzer::packet_in_source(const Packet& p) {
                     ": timestamp beyond April 2262, not representable; such packets are decoded at the "
                     "time of the packet before them");
     }
-    if (p.time > now_) now_ = p.time;
+    if (p.time > now_)
+        now_ = p.time;
+    else if (now_ - p.time > std::max(options_.timeout, options_.serial_timeout))
+        clock_went_back(p);
     expire(now_, false);
     if (p.linktype >= link_user0 && p.linktype <= link_user15) return user_dlt_packet(p);
     if (p.linktype == link_upper_pdu) return exported_pdu(p);
@@ -740,6 +743,24 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
     if (made) sink_.transaction(*made);
     for (auto& f : found)
         report(f.code, *f.about, std::move(f.message), std::move(f.frames));
+}
+
+// Requests are timed out against the latest time seen (packets a little out of order, as several capture
+// queues stamp them, move nothing back). A step back longer than a timeout is the clock set back (by hand,
+// NTP, a tap's clock restored): left as it was, every request after it would expire at the next packet, its
+// response unsolicited, until the clock caught up, hours later. The pending requests' deadlines move back
+// with the clock, each keeping the wait it had left, and the step is said once per file.
+void Analyzer::clock_went_back(const Packet& p) {
+    const Timestamp back = now_ - p.time;
+    for (auto& e : expiries_)
+        if (e.deadline != Timestamp::max()) e.deadline -= back;
+    now_ = p.time;
+    const std::string& source = source_.str();
+    if (clock_warned_source_ == source) return;
+    clock_warned_source_ = source;
+    input_error(source + ": packet " + std::to_string(p.number) + ": the capture's clock goes back " +
+                std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(back).count()) +
+                " ms; requests are timed out by the clock from here (later steps back are not listed)");
 }
 
 void Analyzer::expire(Timestamp now, bool at_end) {

@@ -203,6 +203,8 @@ class Analyzer {
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,
                TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
+    // A packet stamped well before the latest time seen: the capture's clock was set back.
+    void clock_went_back(const Packet& p);
     void report(modbus::FindingCode code, const FrameRecord& about, std::string message,
                 std::vector<std::uint64_t> frames = {});
     void count_finding(modbus::FindingCode code);
@@ -233,7 +235,8 @@ class Analyzer {
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;
     modbus::DeframeEvents stream_events_;
     SharedText source_;
-    std::string time_warned_source_;  // the last source whose out-of-range timestamps were reported
+    std::string time_warned_source_;   // the last source whose out-of-range timestamps were reported
+    std::string clock_warned_source_;  // the last source whose clock going back was reported
     std::uint64_t packet_number_ = 0;
     modbus::Timestamp now_{0};
     std::vector<std::string> told_user_dlt_;  // sources already told that USER link types need --user-dlt

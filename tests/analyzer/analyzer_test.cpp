@@ -228,6 +228,45 @@ TEST(Analyzer, AResponseStampedBeforeItsRequestHasNoLatency) {
     EXPECT_EQ(device.responses, 2u);
 }
 
+// The capture's clock set back an hour in the middle of a poll (a tap's clock corrected by hand or NTP):
+// every request after the step expired at the next packet, its response unsolicited, until the clock caught
+// up. The pending deadlines now move back with the clock: a request outstanding across the step keeps the
+// wait it had left, one genuinely unanswered after it still times out, and the step is said, once.
+TEST(Analyzer, AClockSetBackDoesNotTimeOutEveryRequestAfterIt) {
+    for (const bool across : {false, true}) {
+        SCOPED_TRACE(across ? "a request outstanding across the step" : "none outstanding");
+        Harness h;
+        const mb::Timestamp start = 10h;
+        for (std::uint16_t i = 0; i < 5; ++i) {
+            h.send(true, read_request(i), start + i * 1s);
+            h.send(false, read_response(i), start + i * 1s + 20ms);
+        }
+        h.send(true, {}, start + 9s);  // an acknowledgement, later than every deadline so far
+        if (across) h.send(true, read_request(5), start + 10s);
+        const mb::Timestamp back = start + 10s + 100ms - 1h;  // the clock is set back an hour
+        if (across) h.send(false, read_response(5), back);
+        for (std::uint16_t i = 6; i < 11; ++i) {
+            h.send(true, read_request(i), back + (i - 5) * 1s);
+            h.send(false, read_response(i), back + (i - 5) * 1s + 20ms);
+        }
+        h.send(true, read_request(11), back + 7s);  // never answered
+        h.send(true, read_request(12), back + 20s);
+        h.send(false, read_response(12), back + 20s + 20ms);
+        h.analyzer.finish();
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairResponseBeforeRequest), across ? 1 : 0);
+        EXPECT_EQ(h.analyzer.summary().transactions, across ? 13u : 12u);
+        const auto& errors = h.analyzer.summary().input_errors;
+        ASSERT_EQ(errors.size(), 1u);
+        // The first packet stamped before the step: the response across it, else the next request.
+        EXPECT_NE(errors[0].find(across ? "test: packet 13: the capture's clock goes back 3599900 ms"
+                                        : "test: packet 12: the capture's clock goes back 3597900 ms"),
+                  std::string::npos)
+            << errors[0];
+    }
+}
+
 // A connection reset in the middle of a request, then a new connection on the same addresses and ports: the
 // half ADU took the first bytes of the next connection's request, which was lost with it, and its response
 // was called unsolicited.
