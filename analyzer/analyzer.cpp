@@ -479,21 +479,33 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     if (flow.pending >= options_.max_pending_per_flow) {
         report(FindingCode::PairPendingOverflow, r,
                std::to_string(flow.pending) + " requests unanswered on this link; the oldest is given up");
-        for (const Expiry& e : expiries_) {  // oldest first
-            if (e.key.flow != flow.id) continue;
-            auto old = pending_.find(e.key);
-            if (old == pending_.end() || old->second.serial != e.serial) continue;
-            Pending given_up = std::move(old->second);
-            pending_.erase(old);
+        // The link's oldest request still pending: the one with the smallest serial, in whichever queue.
+        std::unordered_map<PendingKey, Pending, PendingHash>::iterator oldest = pending_.end();
+        for (const auto& queue : expiries_)
+            for (const Expiry& e : queue) {
+                if (e.key.flow != flow.id) continue;
+                auto it = pending_.find(e.key);
+                if (it == pending_.end() || it->second.serial != e.serial) continue;
+                if (oldest == pending_.end() || e.serial < oldest->second.serial) oldest = it;
+                break;  // each queue is in the order requests came
+            }
+        if (oldest != pending_.end()) {
+            Pending given_up = std::move(oldest->second);
+            pending_.erase(oldest);
             --flow.pending;
             complete(given_up, nullptr, true);
-            break;
         }
     }
     const std::uint64_t serial = ++next_serial_;
-    const Timestamp timeout = r.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
-    // an untimed capture (raw dump) has no clock: its requests expire only when the master moves on
-    expiries_.push_back({r.time.count() ? r.time + timeout : Timestamp::max(), key, serial});
+    ++expiry_entries_;
+    // An untimed capture (raw dump) has no clock: its requests expire only when the master moves on.
+    if (!r.time.count()) {
+        expiries_[untimed].push_back({Timestamp::max(), key, serial});
+    } else if (r.frame.framing == Framing::Tcp) {
+        expiries_[tcp_timeout].push_back({r.time + options_.timeout, key, serial});
+    } else {
+        expiries_[serial_timeout].push_back({r.time + options_.serial_timeout, key, serial});
+    }
     // made from the record (any earlier one with the key was completed above): a default-made record would
     // zero a frame's whole buffer first, a third of this function's time
     pending_.try_emplace(key, std::move(r), serial, &stats);
@@ -752,8 +764,9 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
 // with the clock, each keeping the wait it had left, and the step is said once per file.
 void Analyzer::clock_went_back(const Packet& p) {
     const Timestamp back = now_ - p.time;
-    for (auto& e : expiries_)
-        if (e.deadline != Timestamp::max()) e.deadline -= back;
+    for (auto& queue : expiries_)
+        for (auto& e : queue)
+            if (e.deadline != Timestamp::max()) e.deadline -= back;
     now_ = p.time;
     const std::string& source = source_.str();
     if (clock_warned_source_ == source) return;
@@ -767,17 +780,26 @@ void Analyzer::expire(Timestamp now, bool at_end) {
     // An answered request's entry would wait for its deadline: at 50,000 requests a second and a 3 s timeout
     // that is 150,000 entries. When entries outnumber the requests still pending, the answered ones at the
     // front leave at once, so memory follows what is outstanding, not the traffic's rate.
-    while (expiries_.size() > 2 * pending_.size() + 64) {
-        const Expiry& e = expiries_.front();
-        const auto it = pending_.find(e.key);
-        if (it != pending_.end() && it->second.serial == e.serial)
-            break;  // still pending: its deadline decides
-        expiries_.pop_front();
-    }
-    while (!expiries_.empty()) {
-        const Expiry e = expiries_.front();
+    for (auto& queue : expiries_)
+        while (expiry_entries_ > 2 * pending_.size() + 64 && !queue.empty()) {
+            const Expiry& e = queue.front();
+            const auto it = pending_.find(e.key);
+            if (it != pending_.end() && it->second.serial == e.serial)
+                break;  // still pending: its deadline decides
+            queue.pop_front();
+            --expiry_entries_;
+        }
+    // Each queue is in deadline order (one timeout each, capture time only moves forward): the next due is
+    // at the front of one of them.
+    for (;;) {
+        std::deque<Expiry>* next = nullptr;
+        for (auto& queue : expiries_)
+            if (!queue.empty() && (!next || queue.front().deadline < next->front().deadline)) next = &queue;
+        if (!next) break;
+        const Expiry e = next->front();
         if (!at_end && e.deadline > now) break;
-        expiries_.pop_front();
+        next->pop_front();
+        --expiry_entries_;
         auto it = pending_.find(e.key);
         if (it == pending_.end() || it->second.serial != e.serial) continue;  // answered meanwhile
         Pending p = std::move(it->second);

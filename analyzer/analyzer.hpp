@@ -231,7 +231,12 @@ class Analyzer {
     std::array<FlowCacheEntry, 64> flow_cache_{};
     std::map<std::string, std::unique_ptr<SerialLink>> serial_links_;
     std::unordered_map<PendingKey, Pending, PendingHash> pending_;
-    std::deque<Expiry> expiries_;
+    // Requests by deadline, one queue per timeout: each is then in deadline order, and a serial request (1 s)
+    // is not held up behind a Modbus/TCP one (3 s) sent before it. Requests without a time stamp (raw
+    // dumps) wait in a queue of their own: they end only when the master moves on, or the capture.
+    enum ExpiryQueue : std::uint8_t { tcp_timeout, serial_timeout, untimed };
+    std::array<std::deque<Expiry>, 3> expiries_;
+    std::size_t expiry_entries_ = 0;  // in all three queues (not three sizes summed for every packet)
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;
     modbus::DeframeEvents stream_events_;
     SharedText source_;

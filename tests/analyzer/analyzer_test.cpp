@@ -267,6 +267,33 @@ TEST(Analyzer, AClockSetBackDoesNotTimeOutEveryRequestAfterIt) {
     }
 }
 
+// Requests time out by their own framing's timeout (--timeout 3 s over Modbus/TCP, 1 s on a serial line): an
+// RTU request behind a Modbus/TCP one, on a gateway's RTU-over-TCP port, waited for the TCP request's later
+// deadline, so a reply 1.9 s after it was paired as if in time.
+TEST(Analyzer, AShortTimeoutIsNotHeldUpByALongerOneBeforeIt) {
+    an::AnalyzerOptions o;
+    o.rtu_over_tcp_ports = {5020};
+    for (const bool tcp_answered : {true, false}) {
+        SCOPED_TRACE(tcp_answered ? "the Modbus/TCP request answered"
+                                  : "the Modbus/TCP request still pending");
+        Harness h(o);
+        const auto rtu_request = mbscope::test::bytes({0x11, 0x03, 0x00, 0x6B, 0x00, 0x03, 0x76, 0x87});
+        const auto rtu_response =
+            mbscope::test::bytes({0x11, 0x03, 0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA});
+        h.send(true, read_request(1), 1s);
+        h.raw(packet(true, 9000, rtu_request, false, 0x18, 5020, 7000), 1s + 100ms);
+        if (tcp_answered) h.send(false, read_response(1), 1s + 200ms);
+        h.raw(packet(false, 7000, rtu_response, false, 0x18, 5020, 9008), 3s);  // 1.9 s after its request
+        h.send(true, {}, 10s);
+        h.analyzer.finish();
+        const auto& rtu = h.analyzer.summary().devices.at("10.0.0.2:5020 unit 17");
+        EXPECT_EQ(rtu.timeouts, 1u);
+        EXPECT_EQ(rtu.responses, 0u);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), tcp_answered ? 1 : 2);
+    }
+}
+
 // A connection reset in the middle of a request, then a new connection on the same addresses and ports: the
 // half ADU took the first bytes of the next connection's request, which was lost with it, and its response
 // was called unsolicited.
