@@ -139,8 +139,8 @@ void Analyzer::report(FindingCode code, const FrameRecord& about, std::string me
 }
 
 namespace {
-constexpr std::uint64_t packets_between_progress =
-    256;  // calls of the progress callback: the clock is not free
+// Packets between two calls of the progress callback: the clock is not free.
+constexpr std::uint64_t packets_between_progress = 256;
 
 bool contains(const std::vector<std::uint16_t>& ports, std::uint16_t port) {
     return std::find(ports.begin(), ports.end(), port) != ports.end();

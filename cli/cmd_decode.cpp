@@ -86,15 +86,15 @@ int run_decode(const DecodeOptions& o) {
     logs.slave_alias = o.slave_alias;
     logs.socat_master_left = o.socat_master == "left";
     logs.line = options.serial_line;
-    const auto file_done = [&](const std::string& f) {
-        std::error_code ec;
-        const auto size = std::filesystem::file_size(f, ec);
-        files_done += ec ? 0 : size;
-        show(a.summary(), 0);
-    };
-    const bool all_read = analyzer::read_inputs(a, o.files, *format, logs,
-                                                meter ? std::function<void(const std::string&)>(file_done)
-                                                      : std::function<void(const std::string&)>());
+    std::function<void(const std::string&)> file_done;  // for the progress line
+    if (meter)
+        file_done = [&](const std::string& f) {
+            std::error_code ec;
+            const auto size = std::filesystem::file_size(f, ec);
+            files_done += ec ? 0 : size;
+            show(a.summary(), 0);
+        };
+    const bool all_read = analyzer::read_inputs(a, o.files, *format, logs, file_done);
     if (meter) meter->clear();
     a.finish();
     for (const auto& e : a.summary().input_errors)
