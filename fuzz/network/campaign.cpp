@@ -464,9 +464,15 @@ void Campaign::read_unanswered_writes() {
         s_.unanswered_unread = ranges_of(points);
         return;
     }
+    // An interrupt that stopped the fuzzing asks for the read-back too; one more ends it. After a run that
+    // ended by its budget, the first ends it.
+    const auto stop_set = [](const std::atomic<bool>* flag) { return flag && flag->load(); };
+    const bool stopping = stop_set(options_.stop);
     ReadHeldLimits limits;
     limits.single_reads = single_reads_within_a_minute(options_.interval);
-    limits.interrupt = options_.stop_again;
+    limits.interrupted = [&] {
+        return stop_set(options_.stop_again) || (!stopping && stop_set(options_.stop));
+    };
     if (options_.note && !points.empty()) {
         const auto ranges = ranges_of(points).size();
         std::string text = "reading back " + std::to_string(points.size()) + " points in " +
@@ -475,7 +481,9 @@ void Campaign::read_unanswered_writes() {
         if (options_.interval.count() > 0)
             text += ", a request every " + std::to_string(options_.interval.count()) +
                     " ms (the polling interval)";
-        if (options_.stop_again) text += "; interrupt again to skip it (the restore after it still runs)";
+        if (options_.stop)
+            text += std::string("; interrupt") + (stopping ? " again" : "") +
+                    " to skip it (the restore after it still runs)";
         options_.note(text);
     }
     auto reading = read_held(session_, points, limits);

@@ -50,7 +50,8 @@ struct CampaignOptions {
     std::function<void(const struct CampaignSummary&)> progress;  // called about four times a second
     const std::atomic<bool>* stop = nullptr;
     // Set by a second interrupt while stopping: the read-back of points written by writes that drew no reply
-    // ends (they are listed unread); the restore after it does not.
+    // ends (they are listed unread); the restore after it does not. After a run that ended by its budget,
+    // `stop` ends the read-back.
     const std::atomic<bool>* stop_again = nullptr;
     // Said, when given, before the read-back: what it will read and at what pace (for a person at a terminal;
     // at a manual's polling interval it can take minutes).
@@ -109,8 +110,9 @@ struct CampaignSummary {
     // Of those points, ranges the device refused to read as a whole and that were not read point by point
     // (HeldReading::refused): taken for points it does not hold, as the map says. Not counted as unrestored.
     std::vector<WriteRange> unanswered_refused;
-    bool read_back_interrupted =
-        false;                 // CampaignOptions::stop_again cut the read-back: see unanswered_unread
+    // The read-back was interrupted (CampaignOptions::stop or stop_again): its points not read are in
+    // unanswered_unread.
+    bool read_back_interrupted = false;
     bool stopped = false;      // interrupted
     bool target_lost = false;  // the run ended because the target stopped answering
     double requests_per_second() const;

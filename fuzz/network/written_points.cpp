@@ -284,7 +284,7 @@ HeldReading read_held(conformance::Session& session,
     // is not gone: only silence counts.
     const auto read = [&](modbus::Table table, std::uint16_t start, std::uint16_t count) {
         ReadAnswer answer = ReadAnswer::Silence;
-        out.interrupted = out.interrupted || (limits.interrupt && limits.interrupt->load());
+        out.interrupted = out.interrupted || (limits.interrupted && limits.interrupted());
         if (silent < silent_reads_before_giving_up && !out.interrupted)
             answer = read_piece(session, table, start, count, out.held);
         silent = answer == ReadAnswer::Silence ? silent + 1 : 0;

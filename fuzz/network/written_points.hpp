@@ -4,7 +4,6 @@
 // that the target is left holding what it held before (conformance::Session::restore).
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -66,14 +65,14 @@ struct HeldReading {
     // single reads was spent): taken, as the map says, for points it does not hold. A device holding some of
     // them would have those left out; listed so that this is said, not assumed silently.
     std::vector<WriteRange> refused;
-    bool interrupted = false;  // ReadHeldLimits::interrupt was set: the points not read yet are in `unread`
+    bool interrupted = false;  // ReadHeldLimits::interrupted said so: the points not read yet are in `unread`
 };
 // What read_held may spend. The single reads after a refusal are bounded for their time on a slow line or at
-// a manual's polling interval; `interrupt` (a second SIGINT or SIGTERM) ends the reading: the points not read
-// yet are unread, without a request each.
+// a manual's polling interval; `interrupted`, asked before each read, ends the reading when true (a person
+// interrupted it): the points not read yet are unread, without a request each.
 struct ReadHeldLimits {
     unsigned single_reads = 256;
-    const std::atomic<bool>* interrupt = nullptr;
+    std::function<bool()> interrupted;
 };
 // The single reads that fit in about a minute at a polling interval (a manual's: Walchem asks 5 s between
 // requests, where 256 would take over 21 minutes after the run), at most 256 and at least one.
