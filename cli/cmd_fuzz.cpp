@@ -39,9 +39,12 @@ struct FuzzCliOptions {
 };
 
 void show_progress(const fuzz::network::CampaignSummary& s) {
+    // Tenths below 10 a second: at a manual's polling interval (Walchem: one request in 5 s) the rate read
+    // "0/s".
+    const double rate = s.requests_per_second();
     std::fprintf(stderr,
-                 "\r\033[K%llu requests  %.0f/s  %zu findings  %zu response classes  %zu rule outcomes",
-                 static_cast<unsigned long long>(s.requests), s.requests_per_second(), s.findings.size(),
+                 "\r\033[K%llu requests  %.*f/s  %zu findings  %zu response classes  %zu rule outcomes",
+                 static_cast<unsigned long long>(s.requests), rate < 10 ? 1 : 0, rate, s.findings.size(),
                  s.response_classes, s.outcomes.size());
     std::fflush(stderr);
 }

@@ -53,8 +53,8 @@ struct CampaignOptions {
     // ends (they are listed unread); the restore after it does not. After a run that ended by its budget,
     // `stop` ends the read-back.
     const std::atomic<bool>* stop_again = nullptr;
-    // Said, when given, before the read-back: what it will read and at what pace (for a person at a terminal;
-    // at a manual's polling interval it can take minutes).
+    // Said, when given, before the read-back (what it will read and at what pace) and, at a polling interval,
+    // before the restore: for a person at a terminal, as at a manual's interval either can take minutes.
     std::function<void(const std::string&)> note;
 };
 

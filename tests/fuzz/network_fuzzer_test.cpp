@@ -1306,6 +1306,23 @@ TEST(NetworkFuzzer, ASecondInterruptEndsTheReadBackButNotTheRestore) {
     EXPECT_EQ(mbscope::conformance::to_json(cut.restored), mbscope::conformance::to_json(whole.restored));
 }
 
+// At a polling interval the restore is announced too (at Walchem's 5 s, a minute for every 12 points).
+TEST(NetworkFuzzer, TheRestoreAtAPollingIntervalIsAnnounced) {
+    RunningServer server({}, 1, "mmk-2030");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.requests = 300;
+    o.minimise_budget = 0;
+    o.interval = std::chrono::milliseconds(1);
+    std::vector<std::string> notes;
+    o.note = [&](const std::string& n) { notes.push_back(n); };
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    ASSERT_FALSE(s.restored.empty());
+    ASSERT_FALSE(notes.empty());
+    EXPECT_EQ(notes.back(), "restoring the " + std::to_string(s.restored.size()) +
+                                " points written, a request every 1 ms (the polling interval)");
+}
+
 // At a manual's polling interval the single reads after a refusal are those that fit in about a minute.
 TEST(NetworkFuzzer, TheSingleReadsAfterARefusalFitAMinuteOfThePollingInterval) {
     using std::chrono::milliseconds;
