@@ -97,6 +97,9 @@ int run_check_command(const CheckCliOptions& o) {
         options.run.progress = [&done](const conformance::RuleResult& r) {
             std::cerr << "\r\033[K" << ++done << " rules  " << r.rule.id << std::flush;
         };
+        options.run.note = [](const std::string& text) {
+            std::cerr << "\r\033[Kmbscope check: " << text << '\n';
+        };
     }
     auto client = modbus::transport::Client::open(*endpoint);
     if (!client) {

@@ -39,6 +39,9 @@ struct RunOptions {
     // 000:246-248) and 15 s (WA-GEN-02, 002:164); a run defaults to a shorter listen.
     std::chrono::milliseconds idle{1000};
     std::function<void(const RuleResult&)> progress;  // after each rule (a terminal shows where the run is)
+    // Said, when given, before the restore at a polling interval, where it can take minutes (Walchem: a
+    // minute for every 12 points): for a person at a terminal.
+    std::function<void(const std::string&)> note;
 };
 
 struct Context {

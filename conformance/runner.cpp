@@ -186,6 +186,8 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     // A stop during the last family, or before the first (while the address space was probed).
     if (stop && stop->load()) report.stopped = true;
     // Nothing lost: every point a rule wrote goes back to its original value, even after a stop.
+    if (const auto text = session.restore_announcement(); options.run.note && !text.empty())
+        options.run.note(text);
     report.restored = session.restore();
     report.results = std::move(c.results);
     report.response_times = session.response_times();

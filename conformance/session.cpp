@@ -365,6 +365,12 @@ std::vector<std::uint8_t> Session::restore_pdu(const Touched& t) const {
     return modbus::encode_pdu(modbus::make_write_single_register(t.address, t.original));
 }
 
+std::string Session::restore_announcement() const {
+    if (options_.interval.count() <= 0 || touched_.empty()) return {};
+    return "restoring the " + std::to_string(touched_.size()) + " points written, a request every " +
+           std::to_string(options_.interval.count()) + " ms (the polling interval)";
+}
+
 std::vector<Touched> Session::restore() {
     unanswered_in_a_row_ = 0;  // the rules before may have asked for silence on purpose
     std::vector<Touched> out;

@@ -76,6 +76,9 @@ class Session {
     bool remember(modbus::Table table, std::uint16_t start, std::uint16_t count, std::uint16_t chunk = 1);
     // Write back every remembered value, verify, and return the ledger.
     std::vector<Touched> restore();
+    // What a person at a terminal is told before restore() at a polling interval, where it can take minutes
+    // (Walchem's 5 s: a minute for every 12 points); empty without an interval or a point to restore.
+    std::string restore_announcement() const;
     const std::map<std::pair<modbus::Table, std::uint16_t>, Touched>& touched() const noexcept {
         return touched_;
     }

@@ -869,10 +869,8 @@ CampaignSummary Campaign::run() {
             s_.restored.push_back(std::move(t));
         }
     } else {
-        if (options_.note && options_.interval.count() > 0 && !session_.touched().empty())
-            options_.note("restoring the " + std::to_string(session_.touched().size()) +
-                          " points written, a request every " + std::to_string(options_.interval.count()) +
-                          " ms (the polling interval)");
+        if (const auto text = session_.restore_announcement(); options_.note && !text.empty())
+            options_.note(text);
         if (!session_.touched().empty()) s_.restored = session_.restore();
         for (auto& t : s_.restored)
             if (doubtful_.count({t.table, t.address})) {

@@ -169,6 +169,25 @@ TEST(Runner, AStopDuringTheLastFamilyIsAnInterruptedRun) {
     EXPECT_NE(junit.str().find("errors=\"1\""), std::string::npos) << junit.str();
 }
 
+// At a polling interval the restore is announced (Walchem's 5 s: a minute for every 12 points written).
+TEST(Runner, TheRestoreAtAPollingIntervalIsAnnounced) {
+    RunningServer server({}, 1, "mmk-2030");
+    const std::uint16_t port = server.start("tcp");
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+    ASSERT_TRUE(client.has_value());
+    auto options = options_for();
+    options.run.rule_globs = {"echo.fc6"};
+    options.session.interval = std::chrono::milliseconds(1);
+    std::vector<std::string> notes;
+    options.run.note = [&notes](const std::string& n) { notes.push_back(n); };
+    const auto report = run_check(*client, slave::test::profile("mmk-2030"), options, nullptr);
+    ASSERT_FALSE(report.restored.empty());
+    EXPECT_TRUE(report.all_restored());
+    ASSERT_EQ(notes.size(), 1u);
+    EXPECT_EQ(notes[0], "restoring the " + std::to_string(report.restored.size()) +
+                            " points written, a request every 1 ms (the polling interval)");
+}
+
 // ---- every planted fault is caught
 
 struct FaultCase {
