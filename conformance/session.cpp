@@ -367,8 +367,10 @@ std::vector<std::uint8_t> Session::restore_pdu(const Touched& t) const {
 
 std::string Session::restore_announcement() const {
     if (options_.interval.count() <= 0 || touched_.empty()) return {};
-    return "restoring the " + std::to_string(touched_.size()) + " points written, a request every " +
-           std::to_string(options_.interval.count()) + " ms (the polling interval)";
+    const std::size_t n = touched_.size();
+    return "restoring the " + std::to_string(n) + (n == 1 ? " point" : " points") +
+           " written, a request every " + std::to_string(options_.interval.count()) +
+           " ms (the polling interval)";
 }
 
 std::vector<Touched> Session::restore() {

@@ -184,8 +184,8 @@ TEST(Runner, TheRestoreAtAPollingIntervalIsAnnounced) {
     ASSERT_FALSE(report.restored.empty());
     EXPECT_TRUE(report.all_restored());
     ASSERT_EQ(notes.size(), 1u);
-    EXPECT_EQ(notes[0], "restoring the " + std::to_string(report.restored.size()) +
-                            " points written, a request every 1 ms (the polling interval)");
+    ASSERT_EQ(report.restored.size(), 1u);  // the register echo.fc6 wrote (the fuzzer's test has several)
+    EXPECT_EQ(notes[0], "restoring the 1 point written, a request every 1 ms (the polling interval)");
 }
 
 // ---- every planted fault is caught
