@@ -172,10 +172,6 @@ std::vector<nlohmann::json> records(const std::string& files) {
     return out;
 }
 
-bool have(const std::string& tool) {
-    return std::system(("command -v " + tool + " >/dev/null 2>&1").c_str()) == 0;
-}
-
 void expect_same_as_mergecap(const std::vector<std::string>& names) {
     std::string files;
     for (const auto& n : names)
@@ -193,7 +189,7 @@ void expect_same_as_mergecap(const std::vector<std::string>& names) {
 }
 
 TEST(CaptureMerge, DecodingSeveralFilesIsDecodingWhatMergecapMakesOfThem) {
-    if (!have("mergecap")) GTEST_SKIP() << "mergecap (Wireshark) not installed";
+    if (!mbscope::test::have("mergecap")) GTEST_SKIP() << "mergecap (Wireshark) not installed";
     // Named out of time order (2015 before 2013): every request of the second used to expire at once,
     // 2,775 responses reported unsolicited.
     expect_same_as_mergecap({"zeek__zeek/modbus-eit.pcap", "zeek__zeek/modbusBig.pcap"});
@@ -229,7 +225,7 @@ TEST(CaptureMerge, FilesOutOfTimeOrderDecodeAsEachDoesAlone) {
 
 // A capture split by tshark into its two directions decodes as the capture did.
 TEST(CaptureMerge, ACaptureSplitByDirectionDecodesAsAWhole) {
-    if (!have("tshark")) GTEST_SKIP() << "tshark not installed";
+    if (!mbscope::test::have("tshark")) GTEST_SKIP() << "tshark not installed";
     const std::string whole = captures + "zeek__zeek/modbusSmall.pcap";
     const std::string requests = ::testing::TempDir() + "capture_merge_requests.pcap";
     const std::string responses = ::testing::TempDir() + "capture_merge_responses.pcap";

@@ -4,7 +4,6 @@
 // decoding as the captures themselves do.
 #include <gtest/gtest.h>
 
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -19,11 +18,6 @@ namespace mb = mbscope::modbus;
 using mbscope::test::bytes;
 
 namespace {
-
-std::vector<std::uint8_t> slurp_bytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
 
 // Ethernet, not raw IP: libpcap 1.10 compares a second interface's LINKTYPE_RAW (101) with the first one's
 // DLT_RAW (12) and refuses raw-IP files of several interfaces whatever their snapshot lengths.
@@ -47,7 +41,8 @@ std::vector<std::uint8_t> two_snaplens() {
     EXPECT_EQ(w.write_packet(0, mb::Timestamp(1'000'000'000), datagram, datagram.size()), "");
     EXPECT_EQ(w.write_packet(1, mb::Timestamp(2'000'000'000), datagram, datagram.size()), "");
     EXPECT_EQ(w.close(), "");
-    return slurp_bytes(path);
+    const std::string written = mbscope::test::slurp(path);
+    return {written.begin(), written.end()};
 }
 
 // The same blocks big-endian, built here: a section header, two interfaces (snapshot lengths 96 and
@@ -157,7 +152,7 @@ TEST(PcapngSnaplen, ClassicPcapAndBrokenBlocksAreLeftAlone) {
 // of captures taken with 65535 and 262144 was refused whole ("an interface has a snapshot length 262144
 // different from the snapshot length of the first interface", packet 1, nothing decoded).
 TEST(PcapngSnaplen, MergecapsMergeOfCapturesWithDifferentSnapshotLengthsDecodes) {
-    if (std::system("command -v mergecap >/dev/null 2>&1") != 0) GTEST_SKIP() << "mergecap not installed";
+    if (!mbscope::test::have("mergecap")) GTEST_SKIP() << "mergecap not installed";
     const std::string captures = std::string(MBSCOPE_SOURCE_DIR) + "/../shared/captures/zeek__zeek/";
     std::string files;
     for (const char* f : {"modbus-and-non-modbus-p502.pcap", "modbusSmall.pcap", "modbus-eit.pcap"})
