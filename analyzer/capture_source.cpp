@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cerrno>
 #include <condition_variable>
 #include <cstdio>
@@ -16,7 +17,7 @@
 #include <thread>
 #include <vector>
 
-#include "analyzer/pcapng_snaplen.hpp"
+#include "analyzer/pcapng_interfaces.hpp"
 #include "analyzer/timestamps.hpp"
 
 namespace mbscope::analyzer {
@@ -162,13 +163,13 @@ namespace {
 // before every packet (a damaged record is reported with its byte offset) and the progress line asks too;
 // ftell() on an ordinary FILE is an lseek() each time, which was a sixth of the time of a summary run.
 // Through fopencookie the position is our own count of the bytes read. On their way to libpcap the bytes
-// of a pcapng file have their interfaces' snapshot lengths levelled (analyzer/pcapng_snaplen.hpp). A
+// of a pcapng file have their interfaces levelled (analyzer/pcapng_interfaces.hpp). A
 // capture in memory (the fuzzer's, the tests') is read the same way.
 struct CountedFile {
     int fd = -1;                             // a file's descriptor, or -1 for memory
     std::span<const std::uint8_t> memory{};  // fd -1: the capture
     off64_t position = 0;
-    PcapngSnaplenPatch snaplens;
+    PcapngInterfacePatch interfaces;
     // stdio's buffer: glibc's setvbuf() ignores the size asked for unless it is given the buffer, and its
     // own is 8 KiB (a read() per 8 KiB: 5,000 system calls for a 40 MB capture). 64 KiB, not more: with
     // 256 KiB the read-ahead thread's copying out of the buffer took from one to two and a half times as
@@ -178,8 +179,8 @@ struct CountedFile {
     std::unique_ptr<char[]> buffer = std::make_unique_for_overwrite<char[]>(buffer_size);
 };
 
-ssize_t counted_read(void* cookie, char* buffer, std::size_t size) {
-    auto* f = static_cast<CountedFile*>(cookie);
+// The next bytes of the source, counted and passed through the interface patch.
+ssize_t read_source(CountedFile* f, char* buffer, std::size_t size) {
     ssize_t n;
     if (f->fd < 0) {
         const auto left =
@@ -192,8 +193,21 @@ ssize_t counted_read(void* cookie, char* buffer, std::size_t size) {
         } while (n < 0 && errno == EINTR);
     }
     if (n > 0) {
-        f->snaplens.pass({reinterpret_cast<std::uint8_t*>(buffer), static_cast<std::size_t>(n)});
+        f->interfaces.pass({reinterpret_cast<std::uint8_t*>(buffer), static_cast<std::size_t>(n)});
         f->position += n;
+    }
+    return n;
+}
+
+ssize_t counted_read(void* cookie, char* buffer, std::size_t size) {
+    auto* f = static_cast<CountedFile*>(cookie);
+    // While a pcapng file's blocks are followed, one byte of the buffer is kept free: a read that ends on
+    // the first byte of an interface's link type is completed with the next, the two changed together.
+    const bool keep_one = size > 1 && f->interfaces.following();
+    ssize_t n = read_source(f, buffer, keep_one ? size - 1 : size);
+    if (n > 0 && static_cast<std::size_t>(n) < size && f->interfaces.wants_next_byte()) {
+        const ssize_t more = read_source(f, buffer + n, 1);
+        if (more > 0) n += more;  // an error is the next read's to report
     }
     return n;
 }
@@ -204,7 +218,7 @@ int counted_seek(void* cookie, off64_t* offset, int whence) {
         *offset = f->position;
         return 0;
     }
-    f->snaplens.stop();  // the bytes no longer pass in file order
+    f->interfaces.stop();  // the bytes no longer pass in file order
     off64_t at;
     if (f->fd < 0) {
         const off64_t base = whence == SEEK_SET   ? 0
@@ -309,6 +323,26 @@ std::unique_ptr<CaptureSource> CaptureSource::made(pcap_t* pcap, const std::stri
     return s;
 }
 
+namespace {
+
+// Where the pcapng block libpcap has just refused starts (" at byte offset N"): libpcap reads a block whole
+// before it judges it, so the file stands at its end, and the block's last four bytes are its length. Other
+// blocks (name resolution, statistics, decryption secrets) may lie between the last packet and it. Reading
+// ends here, so the file may be moved.
+std::string refused_block_offset(pcap_t* pcap, FILE* file) {
+    const long end = file ? std::ftell(file) : -1;
+    std::uint8_t b[4];
+    if (end < 20 || std::fseek(file, end - 4, SEEK_SET) != 0 || std::fread(b, 1, 4, file) != 4) return "";
+    const bool big_endian = (pcap_is_swapped(pcap) != 0) == (std::endian::native == std::endian::little);
+    const std::uint32_t length = big_endian ? std::uint32_t{b[0]} << 24 | b[1] << 16 | b[2] << 8 | b[3]
+                                            : std::uint32_t{b[3]} << 24 | b[2] << 16 | b[1] << 8 | b[0];
+    if (length < 20 || length % 4 != 0 || length > static_cast<std::uint32_t>(end))
+        return " ending at byte offset " + std::to_string(end);
+    return " at byte offset " + std::to_string(end - static_cast<long>(length));
+}
+
+}  // namespace
+
 bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
     pcap_pkthdr* header = nullptr;
     const u_char* data = nullptr;
@@ -348,7 +382,8 @@ bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
     if (why.find("different from the type of the first interface") != std::string::npos) {
         // Not damage, and not a packet: an interface block libpcap will not take. The file is fine;
         // libpcap (1.10) reads pcapng only while every interface has the first one's link type.
-        error = name + ": after " + std::to_string(count) + " packets, an interface block" + at + ": " + why +
+        error = name + ": after " + std::to_string(count) + " packets, an interface block" +
+                refused_block_offset(pcap, file) + ": " + why +
                 "; libpcap reads a pcapng file only when all its interfaces share one link type: split it "
                 "by interface (tshark -r FILE -Y frame.interface_id==N -w PART.pcapng) and decode the parts "
                 "together (they are merged by time)";

@@ -202,14 +202,19 @@ def reproducers(mbscope):
     return out
 
 
-def pcapng_of(pcap, snaplens=(65535, 262144)):
+def pcapng_of(pcap, snaplens=(65535, 262144), raw_ip=False):
     """A classic little-endian pcap rewritten as pcapng, its packets spread over two interfaces of the same link
     type and different snapshot lengths, as mergecap writes a merge of captures taken with different limits
-    (libpcap 1.10 alone refuses such a file; analyzer/pcapng_snaplen.hpp levels them)."""
+    (libpcap 1.10 alone refuses such a file; analyzer/pcapng_interfaces.hpp levels them). With raw_ip, an
+    Ethernet capture's IPv4 packets without their Ethernet header on two raw-IP interfaces (LINKTYPE_RAW), as
+    from two tun interfaces, which libpcap 1.10 alone refuses too."""
     import struct
     magic, = struct.unpack_from("<I", pcap)
     nano = magic == 0xA1B23C4D
     linktype, = struct.unpack_from("<I", pcap, 20)
+    if raw_ip:
+        assert linktype == 1, "raw_ip takes an Ethernet capture"
+        linktype = 101
 
     def block(kind, body):
         body += b"\0" * (-len(body) % 4)
@@ -222,9 +227,13 @@ def pcapng_of(pcap, snaplens=(65535, 262144)):
     while offset + 16 <= len(pcap):
         sec, frac, caplen, length = struct.unpack_from("<IIII", pcap, offset)
         data = pcap[offset + 16:offset + 16 + caplen]
+        offset += 16 + caplen
+        if raw_ip:
+            if data[12:14] != b"\x08\x00":
+                continue
+            data, caplen, length = data[14:], caplen - 14, length - 14
         ns = sec * 1_000_000_000 + (frac if nano else frac * 1000)
         out += block(6, struct.pack("<IIIII", n % 2, ns >> 32, ns & 0xFFFFFFFF, caplen, length) + data)
-        offset += 16 + caplen
         n += 1
     return out
 
@@ -242,7 +251,9 @@ def build(mbscope, out_dir):
     ascii_frames = [b for f, b in examples if f == "ascii"]
     captures = [os.path.join(ROOT, "captures", n) for n in sorted(os.listdir(os.path.join(ROOT, "captures")))]
     pcaps = [open(p, "rb").read() for p in captures if p.endswith((".pcap", ".pcapng"))]
-    pcaps += [pcapng_of(p) for p in pcaps if p[:4] in (b"\xd4\xc3\xb2\xa1", b"\x4d\x3c\xb2\xa1")]
+    classic = [p for p in pcaps if p[:4] in (b"\xd4\xc3\xb2\xa1", b"\x4d\x3c\xb2\xa1")]
+    pcaps += [pcapng_of(p) for p in classic]
+    pcaps += [pcapng_of(p, raw_ip=True) for p in classic if p[20:24] == b"\x01\x00\x00\x00"]
     logs = [open(p, "rb").read() for p in captures if p.endswith(".log")]
     all_profiles = profiles(mbscope)
 

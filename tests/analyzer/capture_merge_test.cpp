@@ -15,6 +15,7 @@
 
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
+using mbscope::test::write_temp;
 using namespace std::chrono_literals;
 using mbscope::test::bytes;
 using mbscope::test::Collect;
@@ -25,13 +26,6 @@ namespace {
 
 const std::string captures = std::string(MBSCOPE_SOURCE_DIR) + "/../shared/captures/";
 
-std::string write_file(const std::string& name, const std::vector<std::uint8_t>& content) {
-    const std::string path = ::testing::TempDir() + "capture_merge_" + name;
-    std::ofstream(path, std::ios::binary)
-        .write(reinterpret_cast<const char*>(content.data()), static_cast<std::streamsize>(content.size()));
-    return path;
-}
-
 // A raw-IP pcap of UDP datagrams at the given times (in seconds); each datagram's payload is its time, so
 // the order packets come out in can be read back from them.
 std::string datagrams(const std::string& name, const std::vector<int>& seconds) {
@@ -39,7 +33,7 @@ std::string datagrams(const std::string& name, const std::vector<int>& seconds) 
     for (int s : seconds)
         records.push_back(
             {std::chrono::seconds(s), mbscope::test::packet(true, 0, {static_cast<std::uint8_t>(s)}, true)});
-    return write_file(name, mbscope::test::pcap_file(mbscope::test::link_raw, records));
+    return write_temp("capture_merge_" + name, mbscope::test::pcap_file(mbscope::test::link_raw, records));
 }
 
 struct Merged {
@@ -91,7 +85,7 @@ TEST(CaptureMerge, AFileThatCannotBeReadIsNamedAndTheOthersAreMergedWhole) {
                                                            {4s, mbscope::test::packet(true, 0, {4}, true)},
                                                            {6s, mbscope::test::packet(true, 0, {6}, true)}});
     damaged_bytes.resize(damaged_bytes.size() - 10);
-    const auto damaged = write_file("damaged.pcap", damaged_bytes);
+    const auto damaged = write_temp("capture_merge_damaged.pcap", damaged_bytes);
     const std::string missing = ::testing::TempDir() + "capture_merge_no_such_file.pcap";
     an::CaptureMerge merge({{good, "good"}, {missing, "missing"}, {damaged, "damaged"}});
     const std::vector<Merged> expected{
@@ -133,10 +127,10 @@ TEST(CaptureMerge, ARequestAndItsResponseInTwoFilesPair) {
     std::vector<PcapRecord> to_server, to_client;
     for (std::size_t i = 0; i < c.records.size(); ++i)
         (i % 2 == 0 ? to_server : to_client).push_back(c.records[i]);
-    const auto requests =
-        write_file("requests.pcap", mbscope::test::pcap_file(mbscope::test::link_raw, to_server));
-    const auto responses =
-        write_file("responses.pcap", mbscope::test::pcap_file(mbscope::test::link_raw, to_client));
+    const auto requests = write_temp("capture_merge_requests.pcap",
+                                     mbscope::test::pcap_file(mbscope::test::link_raw, to_server));
+    const auto responses = write_temp("capture_merge_responses.pcap",
+                                      mbscope::test::pcap_file(mbscope::test::link_raw, to_client));
     for (const auto& order : {std::vector{responses, requests}, std::vector{requests, responses}}) {
         Collect sink;
         an::Analyzer a({}, sink);

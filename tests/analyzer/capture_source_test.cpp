@@ -28,14 +28,6 @@ std::vector<std::uint8_t> many_records() {
     return mbscope::test::pcap_file(mbscope::test::link_raw, records);
 }
 
-std::string write_temp(const std::vector<std::uint8_t>& bytes, const std::string& name) {
-    const auto path =
-        (std::filesystem::temp_directory_path() / (name + "-" + std::to_string(::getpid()) + ".pcap"))
-            .string();
-    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-    return path;
-}
-
 struct Seen {
     std::uint64_t number;
     mb::Timestamp time;
@@ -64,7 +56,7 @@ struct ReadBothWays {
     std::unique_ptr<an::CaptureSource> file, memory;
     std::vector<Seen> from_file, from_memory;
     ReadBothWays(const std::vector<std::uint8_t>& bytes, const std::string& name)
-        : path(write_temp(bytes, name)) {
+        : path(mbscope::test::write_temp(name + ".pcap", bytes)) {
         std::string error;
         file = an::CaptureSource::open_file(path, error);
         EXPECT_TRUE(file) << error;
@@ -113,7 +105,7 @@ TEST(CaptureSource, DamageFarIntoAFileIsReportedAfterEveryPacketBeforeIt) {
 
 TEST(CaptureSource, ClosingBeforeTheEndStopsTheReader) {
     const auto bytes = many_records();
-    const auto path = write_temp(bytes, "mbscope-read-ahead-stop");
+    const auto path = mbscope::test::write_temp("mbscope-read-ahead-stop.pcap", bytes);
     for (int read = 0; read < 3000; read += 700) {  // stopped at the start, inside and between batches
         std::string error;
         auto file = an::CaptureSource::open_file(path, error);

@@ -187,43 +187,58 @@ TEST(DamagedCapture, PcapngTimestampBeyond2262IsNamedAndThePacketStillDecoded) {
 
 // libpcap refuses a pcapng file whose second interface has another link type (Ethernet and raw IP): the
 // error named "packet 1 at byte offset 48" as if a packet were damaged. It names the interface block, what
-// libpcap allows, and how to split the file; the packets before it are still decoded.
+// libpcap allows, and how to split the file; the packets before it are still decoded. The block is named
+// where it starts, also when other blocks (here a Name Resolution Block, as Wireshark writes them, and
+// Interface Statistics) lie between the last packet and it.
 TEST(DamagedCapture, PcapngInterfacesOfDifferentLinkTypesAreNamedForWhatTheyAre) {
-    std::vector<std::uint8_t> f;
-    std::vector<std::uint8_t> shb;
-    put32(shb, 0x1A2B3C4D);
-    put32(shb, 1);
-    put32(shb, 0xFFFFFFFF);
-    put32(shb, 0xFFFFFFFF);
-    block(f, 0x0A0D0D0A, shb);
-    std::vector<std::uint8_t> idb;
-    put32(idb, 101);  // LINKTYPE_RAW
-    put32(idb, 65535);
-    block(f, 1, idb);
-    const auto packet = mbscope::test::packet(
-        true, 1, {0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0x11, 0x03, 0x00, 0x6B, 0x00, 0x03});
-    std::vector<std::uint8_t> epb;
-    put32(epb, 0);
-    put32(epb, 0);
-    put32(epb, 1'000'000);
-    put32(epb, static_cast<std::uint32_t>(packet.size()));
-    put32(epb, static_cast<std::uint32_t>(packet.size()));
-    epb.insert(epb.end(), packet.begin(), packet.end());
-    block(f, 6, epb);
-    const std::size_t second_interface = f.size();
-    std::vector<std::uint8_t> ethernet;
-    put32(ethernet, 1);  // LINKTYPE_ETHERNET
-    put32(ethernet, 65535);
-    block(f, 1, ethernet);
-    const auto o = analyse(f);
-    EXPECT_TRUE(o.opened);
-    EXPECT_EQ(o.summary.packets, 1u);
-    EXPECT_EQ(o.summary.frames, 1u);
-    EXPECT_NE(o.error.find("after 1 packets, an interface block at byte offset " +
-                           std::to_string(second_interface)),
-              std::string::npos)
-        << o.error;
-    EXPECT_NE(o.error.find("split it by interface"), std::string::npos) << o.error;
+    for (bool blocks_between : {false, true}) {
+        SCOPED_TRACE(blocks_between);
+        std::vector<std::uint8_t> f;
+        std::vector<std::uint8_t> shb;
+        put32(shb, 0x1A2B3C4D);
+        put32(shb, 1);
+        put32(shb, 0xFFFFFFFF);
+        put32(shb, 0xFFFFFFFF);
+        block(f, 0x0A0D0D0A, shb);
+        std::vector<std::uint8_t> idb;
+        put32(idb, 101);  // LINKTYPE_RAW
+        put32(idb, 65535);
+        block(f, 1, idb);
+        const auto packet = mbscope::test::packet(
+            true, 1, {0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0x11, 0x03, 0x00, 0x6B, 0x00, 0x03});
+        std::vector<std::uint8_t> epb;
+        put32(epb, 0);
+        put32(epb, 0);
+        put32(epb, 1'000'000);
+        put32(epb, static_cast<std::uint32_t>(packet.size()));
+        put32(epb, static_cast<std::uint32_t>(packet.size()));
+        epb.insert(epb.end(), packet.begin(), packet.end());
+        block(f, 6, epb);
+        if (blocks_between) {
+            std::vector<std::uint8_t> nrb = {1, 0, 8, 0, 10, 0, 0, 2, 'p', 'l', 'c', 0};  // 10.0.0.2 "plc"
+            put32(nrb, 0);                                                                // end of records
+            block(f, 4, nrb);
+            std::vector<std::uint8_t> isb;
+            put32(isb, 0);
+            put32(isb, 0);
+            put32(isb, 2'000'000);
+            block(f, 5, isb);
+        }
+        const std::size_t second_interface = f.size();
+        std::vector<std::uint8_t> ethernet;
+        put32(ethernet, 1);  // LINKTYPE_ETHERNET
+        put32(ethernet, 65535);
+        block(f, 1, ethernet);
+        const auto o = analyse(f);
+        EXPECT_TRUE(o.opened);
+        EXPECT_EQ(o.summary.packets, 1u);
+        EXPECT_EQ(o.summary.frames, 1u);
+        EXPECT_NE(o.error.find("after 1 packets, an interface block at byte offset " +
+                               std::to_string(second_interface) + ": "),
+                  std::string::npos)
+            << o.error;
+        EXPECT_NE(o.error.find("split it by interface"), std::string::npos) << o.error;
+    }
 }
 
 // "-" is standard input: a capture piped in (over ssh, out of an archive) decodes as the file does.

@@ -150,5 +150,8 @@ inline std::string write_temp(const std::string& name, const std::string& conten
     std::ofstream(path, std::ios::binary) << content;
     return path;
 }
+inline std::string write_temp(const std::string& name, const std::vector<std::uint8_t>& content) {
+    return write_temp(name, std::string(content.begin(), content.end()));
+}
 
 }  // namespace mbscope::test
