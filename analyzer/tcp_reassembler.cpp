@@ -15,6 +15,7 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     next_.reset();
     fin_at_.reset();
     syn_at_.reset();
+    acknowledged_.reset();
     pending_.clear();
     arena_.clear();
     base_ = 0;
@@ -41,6 +42,8 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
     }
     if (!next_) next_ = seq;  // capture started mid-connection
     if (payload.empty()) return;
+    // Past an acknowledged hole: the direction moved on without the acknowledged bytes.
+    if (acknowledged_ && static_cast<std::int32_t>(seq - *next_) > 0) give_up_acknowledged(t);
     // Position relative to the next expected byte, wrap-aware (RFC 793 sequence space).
     const auto rel = static_cast<std::int32_t>(seq - *next_);
     if (rel < 0) {
@@ -130,6 +133,8 @@ void TcpReassembler::drain(modbus::Timestamp t) {
         arena_.clear();
     else if (arena_.size() > 2 * buffered_ + 4096)
         compact();
+    if (acknowledged_ && static_cast<std::int32_t>(*acknowledged_ - *next_) <= 0)
+        acknowledged_.reset();  // the acknowledged bytes came after all
 }
 
 void TcpReassembler::compact() {
@@ -162,12 +167,30 @@ void TcpReassembler::acknowledged(std::uint32_t ack, modbus::Timestamp t) {
     // mid-stream capture's first segments, a port reused by another connection).
     const auto rel = static_cast<std::int32_t>(ack - *next_);
     if (rel <= 0 || rel > (1 << 30)) return;
-    std::uint64_t missing = static_cast<std::uint64_t>(rel);
-    if (!pending_.empty()) missing = std::min(missing, pending_.front().at - base_);
-    if (missing > 0) skip(missing, t);
+    if (!acknowledged_) {  // the acknowledged bytes may still come, a little late in the capture
+        acknowledged_ = ack;
+        acknowledged_at_ = t;
+        return;
+    }
+    if (static_cast<std::int32_t>(ack - *acknowledged_) > 0) acknowledged_ = ack;
+    if (t - acknowledged_at_ >= reordering_wait) give_up_acknowledged(t);
+}
+
+// Every hole below the acknowledgement, each declared a gap (bytes waiting between them are delivered).
+void TcpReassembler::give_up_acknowledged(modbus::Timestamp t) {
+    const std::uint32_t ack = *acknowledged_;
+    acknowledged_.reset();
+    for (auto rel = static_cast<std::int32_t>(ack - *next_); rel > 0;
+         rel = static_cast<std::int32_t>(ack - *next_)) {
+        std::uint64_t missing = static_cast<std::uint64_t>(rel);
+        if (!pending_.empty()) missing = std::min(missing, pending_.front().at - base_);
+        if (missing == 0) break;  // drain() leaves no piece at base_; kept from looping all the same
+        skip(missing, t);
+    }
 }
 
 void TcpReassembler::flush(modbus::Timestamp t) {
+    if (acknowledged_) give_up_acknowledged(t);
     while (!pending_.empty())
         skip_to_first_buffered(t);
 }

@@ -166,21 +166,28 @@ TEST(TcpReassembler, AHoleThatExceedsTheBufferingBoundIsDeclaredLost) {
 }
 
 // The peer acknowledging bytes the capture never showed: they will not be sent again, so the hole below the
-// acknowledgement is given up at once (one lost segment used to hold every later byte of the direction
-// until the end of the capture). Bytes not acknowledged yet may still come; a FIN's own sequence number,
-// acknowledged, is no lost byte.
+// acknowledgement is given up (one lost segment used to hold every later byte of the direction until the end
+// of the capture): when the direction's next segment lies past it, at an acknowledgement a reordering wait
+// after the first that covered it, or at the end. Bytes not acknowledged yet may still come; a FIN's own
+// sequence number, acknowledged, is no lost byte.
 TEST(TcpReassembler, AnAcknowledgementPastAHoleGivesItUp) {
     Harness h;
     const auto s = stream_of(100);
+    const auto wait = TcpReassembler::reordering_wait;
+    const mb::Timestamp t0{0};
     h.syn(0);
     h.send(1, s, 0, 10);
-    h.reassembler.acknowledged(11, mb::Timestamp{0});  // all seen: nothing to give up
-    h.send(1, s, 20, 10);                              // 10..20 not captured
-    h.send(1, s, 40, 10);                              // nor 30..40
-    h.reassembler.acknowledged(1 + 20, mb::Timestamp{0});
+    h.reassembler.acknowledged(11, t0);  // all seen: nothing to give up
+    h.send(1, s, 20, 10);                // 10..20 not captured
+    h.send(1, s, 40, 10);                // nor 30..40
+    h.reassembler.acknowledged(1 + 20, t0);
+    h.reassembler.acknowledged(1 + 20, t0 + wait - mb::Timestamp{1});  // the bytes may still come
+    EXPECT_EQ(h.out.gaps, 0);
+    h.reassembler.acknowledged(1 + 20, t0 + wait);
     EXPECT_EQ(h.out.gaps, 1);
-    EXPECT_EQ(h.out.stream.size(), 30u);                   // 0..10, the lost 10, 20..30
-    h.reassembler.acknowledged(1 + 35, mb::Timestamp{0});  // up to 35 only: 35..40 may still come
+    EXPECT_EQ(h.out.stream.size(), 30u);                // 0..10, the lost 10, 20..30
+    h.reassembler.acknowledged(1 + 35, t0 + wait);      // up to 35 only: 35..40 may still come
+    h.reassembler.acknowledged(1 + 35, t0 + 2 * wait);  // a wait after the first covering 30..35
     EXPECT_EQ(h.out.gaps, 2);
     EXPECT_EQ(h.out.stream.size(), 35u);
     h.send(1, s, 35, 5);
@@ -188,22 +195,58 @@ TEST(TcpReassembler, AnAcknowledgementPastAHoleGivesItUp) {
     std::fill(expected.begin() + 10, expected.begin() + 20, 0xEE);
     std::fill(expected.begin() + 30, expected.begin() + 35, 0xEE);
     EXPECT_EQ(h.out.stream, expected);
-    // Nothing waiting and a segment lost at the end: given up when acknowledged, so the next one is in order.
-    h.reassembler.acknowledged(1 + 60, mb::Timestamp{0});
-    EXPECT_EQ(h.out.gaps, 3);
+    // Nothing waiting and a segment lost at the end: given up when the next one comes, which is in order.
+    h.reassembler.acknowledged(1 + 60, t0);
+    EXPECT_EQ(h.out.gaps, 2);
     h.send(1, s, 60, 10);
+    EXPECT_EQ(h.out.gaps, 3);
     EXPECT_EQ(h.out.stream.size(), 70u);
     EXPECT_EQ(h.out.deliveries, 5);
     // Old and absurd acknowledgements change nothing.
-    h.reassembler.acknowledged(1 + 5, mb::Timestamp{0});
-    h.reassembler.acknowledged(1 + 70 + (1u << 31), mb::Timestamp{0});
+    h.reassembler.acknowledged(1 + 5, t0 + 3 * wait);
+    h.reassembler.acknowledged(1 + 70 + (1u << 31), t0 + 3 * wait);
     EXPECT_EQ(h.out.gaps, 3);
     // The FIN after byte 80 takes sequence number 81; its acknowledgement, 82, loses nothing.
     h.send(1, s, 70, 10);
     h.reassembler.finished_at(1 + 80);
-    h.reassembler.acknowledged(1 + 81, mb::Timestamp{0});
+    h.reassembler.acknowledged(1 + 81, t0 + 3 * wait);
+    h.reassembler.acknowledged(1 + 81, t0 + 5 * wait);
+    h.flush();
     EXPECT_EQ(h.out.gaps, 3);
     EXPECT_EQ(h.out.stream.size(), 80u);
+}
+
+// A tap or mirror port merging both directions can capture an acknowledgement before the segment it
+// acknowledges (modbusBig.pcap: packet 3149 acknowledges the 10-byte reply that is packet 3150, 0.7 ms
+// later). The hole waited for nothing: it was given up at the acknowledgement, the reply taken for a
+// retransmission of bytes "not captured", and its request reported unanswered.
+TEST(TcpReassembler, AnAcknowledgementCapturedBeforeItsBytesWaitsForThem) {
+    Harness h;
+    const auto s = stream_of(60);
+    const auto wait = TcpReassembler::reordering_wait;
+    h.syn(0);
+    h.send(1, s, 0, 10);
+    h.reassembler.acknowledged(1 + 20, mb::Timestamp{0});
+    h.send(1, s, 10, 10);  // the bytes acknowledged, captured after the acknowledgement
+    h.reassembler.acknowledged(1 + 20, wait);
+    EXPECT_EQ(h.out.gaps, 0);
+    EXPECT_EQ(h.out.stream, std::vector<std::uint8_t>(s.begin(), s.begin() + 20));
+    EXPECT_EQ(h.reassembler.retransmitted_bytes(), 0u);
+    // Part of an acknowledged range comes late, the rest never: the rest is given up after the wait.
+    h.reassembler.acknowledged(1 + 40, 2 * wait);
+    h.send(1, s, 20, 12);
+    h.reassembler.acknowledged(1 + 40, 3 * wait);
+    EXPECT_EQ(h.out.gaps, 1);
+    auto expected = std::vector<std::uint8_t>(s.begin(), s.begin() + 40);
+    std::fill(expected.begin() + 32, expected.end(), 0xEE);
+    EXPECT_EQ(h.out.stream, expected);
+    // Acknowledged and never seen before the end: a gap at the end.
+    h.send(1, s, 40, 5);
+    h.reassembler.acknowledged(1 + 55, 3 * wait);
+    EXPECT_EQ(h.out.gaps, 1);
+    h.flush();
+    EXPECT_EQ(h.out.gaps, 2);
+    EXPECT_EQ(h.out.stream.size(), 55u);
 }
 
 // A capture begun mid-connection (no SYN) whose first segment overtook an earlier one: the earlier bytes
