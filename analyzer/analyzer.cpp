@@ -906,6 +906,12 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         if (r.time > now_) now_ = r.time;
         r.source = source_;
         r.link = flow.link;
+        // Up to this frame's own time, not the capture's: a timed deframer closes a frame only when later
+        // bytes show the silence after it, so a request and its response read in one chunk come out when the
+        // next chunk arrives, which may be more than the timeout later. Before the frame is classified: a
+        // master's retry after a timeout was taken for the timed-out request's response (a malformed one,
+        // "unsolicited" by the time it was paired).
+        expire(r.time, false);
         r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
         // A unit on the line: one that answered with a frame whose checksum holds (noise read as a frame
         // names units nobody has).
@@ -922,10 +928,6 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         else
             r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
                       std::to_string(pdu.error().offset);
-        // Up to this frame's own time, not the capture's: a timed deframer closes a frame only when later
-        // bytes show the silence after it, so a request and its response read in one chunk come out when the
-        // next chunk arrives, which may be more than the timeout later.
-        expire(r.time, false);
         on_frame(flow, r, *stats);
     }
     events.clear();

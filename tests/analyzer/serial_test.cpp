@@ -151,6 +151,23 @@ TEST(SerialInput, AnUnsolicitedReplyIsNamedByItsUnit) {
         }
 }
 
+// A master retrying after a timeout, as RS-485 masters do: each retry was classified before the timed-out
+// request expired, so every second one was taken for that request's response (a malformed FC3 reply, byte
+// count 0) and reported unsolicited. Each is a request, timed out in its turn.
+TEST(SerialInput, AMastersRetryAfterATimeoutIsARequest) {
+    const auto path = write_temp("retry.txt",
+                                 "1.000 11 03 00 60 00 03 07 45\n2.500 11 03 00 60 00 03 07 45\n"
+                                 "4.000 11 03 00 60 00 03 07 45\n5.500 11 03 00 60 00 03 07 45\n");
+    auto r = decode(path, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.findings.size(), 4u);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 3);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), 1);
+    ASSERT_EQ(r->sink.frames.size(), 4u);
+    for (const auto& f : r->sink.frames)
+        EXPECT_EQ(f.direction, mb::Direction::Request) << f.index;
+    EXPECT_EQ(r->summary.devices.begin()->second.requests, 4u);
+}
+
 // A capture file given with a serial --format decoded to thousands of unparsed bytes, no error finding and
 // exit 0. It is still decoded as asked, and the run fails naming what the file is.
 TEST(SerialInput, ACaptureReadAsSerialBytesIsNamed) {
