@@ -29,9 +29,16 @@ struct Analyzer::Flow {
     std::size_t pending = 0;
     // The last response paired on the link (its ADU, decoded): the same response again, with no request
     // waiting for it, is that request answered twice rather than a reply nobody asked for.
+    // (A late reply, too: a copy of it is that request answered twice.)
     std::array<std::uint8_t, max_frame_bytes> last_response{};
     std::size_t last_response_length = 0;
     std::uint64_t last_response_index = 0;
+    void keep_last_response(const FrameRecord& r) {
+        if (!r.frame.checksum_ok) return;
+        last_response_length = r.frame.length;
+        std::memcpy(last_response.data(), r.frame.bytes.data(), r.frame.length);
+        last_response_index = r.index;
+    }
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
     // "server unit N" and its statistics, made once per unit seen on the link rather than once per frame.
     struct Unit {
@@ -455,6 +462,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         return;
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
+    if (!timed_out_.empty()) timed_out_.erase(key);  // a reply with this key now answers this request
     if (auto it = r.frame.framing == Framing::Tcp ? pending_.end() : pending_.find(key);
         it != pending_.end()) {
         // The master moved on: the previous request was never answered.
@@ -562,6 +570,22 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
     auto it = pending_.find(key);
+    if (it == pending_.end() && !timed_out_.empty()) {
+        // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
+        // again (a poll's late reply on a serial line often carries the same bytes as the one before).
+        if (auto late = late_for(key, r)) {
+            const auto ms = [](Timestamp d) {
+                return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
+            };
+            flow.keep_last_response(r);
+            report(FindingCode::PairLateResponse, r,
+                   "the reply to frame " + std::to_string(late->request_index) + " (" + late->what +
+                       ") came " + ms(r.time - late->sent) + " ms after it, past the " + ms(late->timeout) +
+                       " ms timeout: the request was reported unanswered",
+                   {late->request_index, r.index});
+            return;
+        }
+    }
     if (it == pending_.end() && r.frame.checksum_ok && r.frame.length == flow.last_response_length &&
         std::memcmp(r.frame.bytes.data(), flow.last_response.data(), r.frame.length) == 0) {
         // No request waits for it. (Over Modbus/TCP a request that does was found above by its transaction
@@ -598,11 +622,7 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         }
     }
     --flow.pending;
-    if (r.frame.checksum_ok) {
-        flow.last_response_length = r.frame.length;
-        std::memcpy(flow.last_response.data(), r.frame.bytes.data(), r.frame.length);
-        flow.last_response_index = r.index;
-    }
+    flow.keep_last_response(r);
     complete(it->second, &r, false);  // reports and sinks never touch the pending table
     pending_.erase(it);
 }
@@ -811,17 +831,47 @@ void Analyzer::expire(Timestamp now, bool at_end) {
             report(FindingCode::PairNoResponseAtEnd, p.request,
                    (p.request.pdu ? describe_request(*p.request.pdu) : std::string("request")) +
                        " unanswered when the capture ended");
-        else
-            report(FindingCode::PairNoResponse, p.request,
-                   (p.request.pdu ? describe_request(*p.request.pdu) : std::string("request")) + " to " +
-                       p.request.device + " got no response within " +
-                       std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
-                                          p.request.frame.framing == Framing::Tcp ? options_.timeout
-                                                                                  : options_.serial_timeout)
-                                          .count()) +
-                       " ms");
+        const Timestamp timeout =
+            p.request.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
+        if (!ended) {
+            report(
+                FindingCode::PairNoResponse, p.request,
+                (p.request.pdu ? describe_request(*p.request.pdu) : std::string("request")) + " to " +
+                    p.request.device + " got no response within " +
+                    std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
+                    " ms");
+            remember_timed_out(e.key, p, timeout);
+        }
         complete(p, nullptr, !ended);
     }
+}
+
+void Analyzer::remember_timed_out(const PendingKey& key, const Pending& pending, Timestamp timeout) {
+    const std::uint64_t serial = ++next_serial_;
+    timed_out_[key] = {pending.request.index,
+                       pending.request.time,
+                       timeout,
+                       pending.request.frame.unit_id(),
+                       pending.request.pdu ? describe_request(*pending.request.pdu) : std::string("request"),
+                       serial};
+    timed_out_order_.emplace_back(key, serial);
+    while (timed_out_order_.size() > max_timed_out) {  // entries whose key was used again count too
+        const auto& [old_key, old_serial] = timed_out_order_.front();
+        if (auto it = timed_out_.find(old_key); it != timed_out_.end() && it->second.serial == old_serial)
+            timed_out_.erase(it);
+        timed_out_order_.pop_front();
+    }
+}
+
+std::optional<Analyzer::TimedOut> Analyzer::late_for(const PendingKey& key, const FrameRecord& response) {
+    const auto it = timed_out_.find(key);
+    // A serial line's key is the link alone: the late reply is the timed-out request's unit's.
+    if (it == timed_out_.end() ||
+        (response.frame.framing != Framing::Tcp && it->second.unit != response.frame.unit_id()))
+        return std::nullopt;
+    TimedOut late = std::move(it->second);
+    timed_out_.erase(it);
+    return late;
 }
 
 // ---------------------------------------------------------------- serial lines
@@ -1353,6 +1403,8 @@ void Analyzer::end_connection(Flow& f, Timestamp t) {
     // addresses and ports starts at stream offset 0 with nothing buffered. Before this, a half ADU cut by a
     // reset took the first bytes of the next connection's request into it.
     close_streams(f, t);
+    std::erase_if(timed_out_,
+                  [&f](const auto& entry) { return entry.first.flow == f.id; });  // ids start over
     for (int dir = 0; dir < 2; ++dir) {
         f.reassembler[dir]->reset(TcpReassembler::default_max_buffered);
         f.deframer[dir].reset();

@@ -12,6 +12,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -130,6 +131,17 @@ class Analyzer {
         PendingKey key;
         std::uint64_t serial;
     };
+    // A request reported unanswered, kept by its key until the key is used again (or many later): a reply
+    // that comes for it after all is late, not unsolicited. Bounded, oldest forgotten first.
+    struct TimedOut {
+        std::uint64_t request_index = 0;
+        modbus::Timestamp sent{0};
+        modbus::Timestamp timeout{0};
+        std::uint8_t unit = 0;
+        std::string what;  // the request described
+        std::uint64_t serial = 0;
+    };
+    static constexpr std::size_t max_timed_out = 4096;
 
     // The flow of a packet by its binary addresses, packed in five words (both addresses, then ports, the
     // IPv6 flags and the transport): finding a packet's flow must not cost formatting endpoints as text.
@@ -203,6 +215,9 @@ class Analyzer {
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,
                TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
+    void remember_timed_out(const PendingKey& key, const Pending& pending, modbus::Timestamp timeout);
+    // The timed-out request a response answers late, when there is one; it is forgotten then.
+    std::optional<TimedOut> late_for(const PendingKey& key, const FrameRecord& response);
     // A packet stamped well before the latest time seen: the capture's clock was set back.
     void clock_went_back(const Packet& p);
     void report(modbus::FindingCode code, const FrameRecord& about, std::string message,
@@ -237,6 +252,8 @@ class Analyzer {
     enum ExpiryQueue : std::uint8_t { tcp_timeout, serial_timeout, untimed };
     std::array<std::deque<Expiry>, 3> expiries_;
     std::size_t expiry_entries_ = 0;  // in all three queues (not three sizes summed for every packet)
+    std::unordered_map<PendingKey, TimedOut, PendingHash> timed_out_;
+    std::deque<std::pair<PendingKey, std::uint64_t>> timed_out_order_;  // key and serial, oldest first
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;
     modbus::DeframeEvents stream_events_;
     SharedText source_;

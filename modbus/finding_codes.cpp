@@ -120,6 +120,10 @@ constexpr std::array findings{
         "the response is stamped earlier than its request: the capture's clock went back (a merged or "
         "re-stamped capture), so no latency is measured",
         "capture"},
+    FindingInfo{PairLateResponse, "pair.late_response", S::Warning,
+                "response to a request already reported unanswered: it came after the timeout (a slow "
+                "device, a timeout too short for it, or a network that held it up)",
+                "AP §4.1; SL §2.4.1; TCP §4.3.1.3"},
     FindingInfo{ProfileFunctionUnsupported, "profile.function_unsupported", S::Warning,
                 "request uses a function code the device's manual does not list", "device manual"},
     FindingInfo{

@@ -70,6 +70,7 @@ enum class FindingCode : std::uint16_t {
     PairBroadcastResponse = 611,
     PairDuplicateResponse = 612,
     PairResponseBeforeRequest = 613,
+    PairLateResponse = 614,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

@@ -131,9 +131,9 @@ TEST(Analyzer, MissingSegmentIsAGapOfKnownSize) {
 }
 
 // A polling master whose request 2 and response 5 the tap lost (a mirror port drops packets under load).
-// The peer's acknowledgement past each hole gives it up at once: before, the reassembler waited for the
-// lost bytes until the end of the capture, and every later request went unanswered while its response
-// was unsolicited.
+// The peer's acknowledgement past each hole gives it up once the direction's next segment lies past it:
+// before, the reassembler waited for the lost bytes until the end of the capture, and every later request
+// went unanswered while its response was unsolicited.
 TEST(Analyzer, ALostSegmentCostsOneTransactionNotTheRestOfTheCapture) {
     Harness h;
     for (std::uint16_t i = 1; i <= 10; ++i) {
@@ -193,6 +193,40 @@ TEST(Analyzer, NoResponseWithinTimeout) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
     EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").timeouts, 1u);
+}
+
+// A reply after its request's timeout (mb2.pcap: a server that acknowledged nothing for three seconds, then
+// answered five requests at once) was "unsolicited", or, with one other request outstanding, a transaction-id
+// mismatch with that one. It is late, naming the request it answers; the other request is answered as usual.
+// A second copy is unsolicited, and a transaction id used again belongs to its new request.
+TEST(Analyzer, AReplyAfterItsRequestTimedOutIsLate) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(true, read_request(2), 4500ms);  // request 1 timed out at 4 s
+    h.send(false, read_response(1), 5s);
+    h.send(false, read_response(2), 5s + 1ms);
+    h.send(false, read_response(1), 5s + 2ms);
+    h.send(true, read_request(3), 6s);
+    h.send(true, read_request(3), 10s);  // the first 3 timed out at 9 s; its id used again
+    h.send(false, read_response(3), 10s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 2);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdMismatch), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    ASSERT_EQ(h.sink.count(mb::FindingCode::PairLateResponse), 1);
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::PairLateResponse) {
+            EXPECT_EQ(
+                f.message,
+                "the reply to frame 1 (FC3 Read Holding Registers 96+3) came 4000 ms after it, past the "
+                "3000 ms timeout: the request was reported unanswered");
+            EXPECT_EQ(f.frames, (std::vector<std::uint64_t>{1, 3}));
+            EXPECT_EQ(mb::info(f.code).severity, mb::Severity::Warning);
+        }
+    std::size_t answered = 0;
+    for (const auto& t : h.sink.transactions)
+        answered += t.response.has_value();
+    EXPECT_EQ(answered, 2u);  // requests 2 and the second 3
 }
 
 TEST(Analyzer, UnansweredAtTheEndOfTheCaptureIsANoteNotATimeout) {
@@ -289,7 +323,8 @@ TEST(Analyzer, AShortTimeoutIsNotHeldUpByALongerOneBeforeIt) {
         const auto& rtu = h.analyzer.summary().devices.at("10.0.0.2:5020 unit 17");
         EXPECT_EQ(rtu.timeouts, 1u);
         EXPECT_EQ(rtu.responses, 0u);
-        EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairLateResponse), 1);  // its request timed out at 2.1 s
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
         EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), tcp_answered ? 1 : 2);
     }
 }

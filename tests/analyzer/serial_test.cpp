@@ -168,6 +168,46 @@ TEST(SerialInput, AMastersRetryAfterATimeoutIsARequest) {
     EXPECT_EQ(r->summary.devices.begin()->second.requests, 4u);
 }
 
+// A slave that answers after the master's timeout (the MK manual's FC3 example, answered 1.5 s late at a
+// 1 s serial timeout): the reply was "unsolicited" (a rogue master or bus contention, to the reader), or,
+// carrying the same bytes as the poll's reply before, "one request answered twice". It is late, naming its
+// request; another unit's reply stays unsolicited, and a request sent meanwhile takes the reply as its own.
+TEST(SerialInput, AReplyAfterTheTimeoutIsLate) {
+    const std::string fc3 = "11 03 00 60 00 03 07 45", reply = "11 03 06 02 2B 00 00 00 64 C8 BA";
+    const auto path = write_temp("late.txt", "1.000 " + fc3 + "\n1.020 " + reply + "\n3.000 " + fc3 +
+                                                 "\n4.500 " + reply + "\n4.600 " + reply + "\n");
+    auto r = decode(path, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 1);  // the late reply again
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 1);
+    for (const auto& f : r->sink.findings)
+        if (f.code == mb::FindingCode::PairLateResponse) {
+            EXPECT_EQ(
+                f.message,
+                "the reply to frame 3 (FC3 Read Holding Registers 96+3) came 1500 ms after it, past the "
+                "1000 ms timeout: the request was reported unanswered");
+            EXPECT_EQ(f.frames, (std::vector<std::uint64_t>{3, 4}));
+        }
+    for (const auto& f : r->sink.findings)
+        if (f.code == mb::FindingCode::PairDuplicateResponse) {
+            EXPECT_EQ(f.frames, (std::vector<std::uint64_t>{4, 5}));
+        }
+    // Unit 18 asked and timed out; unit 17's reply after it is nobody's.
+    const auto other = write_temp("late-other.txt", "1.000 12 03 00 60 00 03 06 94\n2.500 " + reply + "\n");
+    r = decode(other, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    // The master asked again before the late reply: the reply answers the new request.
+    const auto again =
+        write_temp("late-again.txt", "1.000 " + fc3 + "\n2.500 " + fc3 + "\n2.600 " + reply + "\n");
+    r = decode(again, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
+    ASSERT_FALSE(r->sink.transactions.empty());
+    EXPECT_TRUE(r->sink.transactions.back().response.has_value());
+}
+
 // A capture file given with a serial --format decoded to thousands of unparsed bytes, no error finding and
 // exit 0. It is still decoded as asked, and the run fails naming what the file is.
 TEST(SerialInput, ACaptureReadAsSerialBytesIsNamed) {
