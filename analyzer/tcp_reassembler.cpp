@@ -42,6 +42,10 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
     }
     if (!next_) next_ = seq;  // capture started mid-connection
     if (payload.empty()) return;
+    // A keep-alive probe (RFC 9293 §3.8.4): one garbage octet at the sequence number before the next, sent
+    // to make the peer acknowledge. Its byte is not the stream's (BSD and Windows send 0x00): taken for a
+    // retransmission, every probe was a retransmission conflict.
+    if (payload.size() == 1 && static_cast<std::uint32_t>(seq + 1) == *next_ && base_ > 0) return;
     // Past an acknowledged hole: the direction moved on without the acknowledged bytes.
     if (acknowledged_ && static_cast<std::int32_t>(seq - *next_) > 0) give_up_acknowledged(t);
     // Position relative to the next expected byte, wrap-aware (RFC 793 sequence space).

@@ -249,6 +249,25 @@ TEST(TcpReassembler, AnAcknowledgementCapturedBeforeItsBytesWaitsForThem) {
     EXPECT_EQ(h.out.stream.size(), 55u);
 }
 
+// TCP keep-alive probes (RFC 9293 §3.8.4) carry one garbage octet at the sequence number before the next
+// (0x00 from BSD and Windows): each was compared with the byte delivered there and reported as a
+// retransmission that differs from the first copy. A one-byte retransmission elsewhere is still compared.
+TEST(TcpReassembler, AKeepAliveProbeIsNoRetransmission) {
+    Harness h;
+    const auto s = stream_of(20);  // byte 9 is 9
+    h.syn(0);
+    h.send(1, s, 0, 10);
+    const std::vector<std::uint8_t> garbage = {0x00};
+    for (int probe = 0; probe < 3; ++probe)
+        h.send(1 + 10 - 1, garbage, 0, 1);  // sequence number 10: the last byte's
+    EXPECT_TRUE(h.out.conflicts.empty());
+    EXPECT_EQ(h.reassembler.retransmitted_bytes(), 0u);
+    h.send(1 + 8, garbage, 0, 1);  // two before the next: a retransmission, and it differs
+    EXPECT_EQ(h.out.conflicts.size(), 1u);
+    h.send(1, s, 10, 10);
+    EXPECT_EQ(h.out.stream, s);
+}
+
 // A capture begun mid-connection (no SYN) whose first segment overtook an earlier one: the earlier bytes
 // precede the first delivered and cannot be put before it. They were counted as retransmitted and vanished;
 // they are named, and only bytes delivered before count as retransmitted.
