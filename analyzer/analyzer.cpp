@@ -309,6 +309,16 @@ void Analyzer::packet_in_source(const Packet& p) {
     if (status == ParseStatus::Fragment) {
         whole = ip_fragments_.add(fragment, p.time);
         if (!whole || parse_datagram(*whole, l4) != ParseStatus::Ok) return;
+    } else if (status == ParseStatus::UnsupportedLink) {
+        // A capture of a link mbscope does not read (802.11, PPP, ...) decoded to nothing without a word, as
+        // if the line carried no Modbus. Said once a file and link type; the run fails (exit 2).
+        if (first_told(p.linktype))
+            input_error(
+                source + ": link type " + std::to_string(p.linktype) +
+                " is not one mbscope decodes (Ethernet, Linux cooked, raw IP, BSD loopback, Wireshark's "
+                "exported PDUs, SEL RTAC serial; serial bytes in USER0-15 with --user-dlt): its packets "
+                "are not decoded");
+        return;
     } else if (status != ParseStatus::Ok) {
         return;
     }
@@ -1196,11 +1206,17 @@ std::string Analyzer::follow_line(SerialLink& link, std::uint8_t unit, const Lin
     return "; the line is read as " + settings_text(framing, link.line, speed) + " from here on";
 }
 
+bool Analyzer::first_told(int linktype) {
+    std::pair<std::string, int> told(source_.str(), linktype);
+    if (std::find(told_links_.begin(), told_links_.end(), told) != told_links_.end()) return false;
+    told_links_.push_back(std::move(told));
+    return true;
+}
+
 void Analyzer::user_dlt_packet(const Packet& p) {
     if (!options_.user_dlt) {
         // USER0..15 are private: without --user-dlt nothing says the bytes are Modbus. Said once a file.
-        if (std::find(told_user_dlt_.begin(), told_user_dlt_.end(), source_) == told_user_dlt_.end()) {
-            told_user_dlt_.push_back(source_);
+        if (first_told(p.linktype)) {
             input_error(source_ + ": link type " + std::to_string(p.linktype) + " (USER" +
                         std::to_string(p.linktype - link_user0) +
                         ") is private; --user-dlt rtu|ascii|serial says what it carries");

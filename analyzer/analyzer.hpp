@@ -261,7 +261,10 @@ class Analyzer {
     std::string clock_warned_source_;  // the last source whose clock going back was reported
     std::uint64_t packet_number_ = 0;
     modbus::Timestamp now_{0};
-    std::vector<std::string> told_user_dlt_;  // sources already told that USER link types need --user-dlt
+    // A link type a source was told about (USER link types need --user-dlt; others are not decoded): once a
+    // source and link type, whether this is the first time.
+    bool first_told(int linktype);
+    std::vector<std::pair<std::string, int>> told_links_;
 };
 
 }  // namespace mbscope::analyzer

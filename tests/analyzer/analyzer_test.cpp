@@ -74,6 +74,20 @@ TEST(PacketParser, EthernetVlanAndTcp) {
     EXPECT_EQ(an::parse_packet(147, eth, l4), an::ParseStatus::UnsupportedLink);
 }
 
+// A capture of a link type mbscope does not read (here 802.11) decoded to nothing and exit 0, as a quiet
+// line would. It is an input error naming the file and the link type, said once.
+TEST(Analyzer, ALinkTypeNotDecodedIsNamed) {
+    mbscope::test::Conversation c;
+    c.send(true, read_request(1), 1s);
+    c.send(false, read_response(1), 1s + 1ms);
+    const auto d = mbscope::test::decode_pcap(mbscope::test::pcap_file(105, c.records));
+    EXPECT_EQ(d->summary.packets, 2u);
+    ASSERT_EQ(d->summary.input_errors.size(), 1u);
+    EXPECT_NE(d->summary.input_errors[0].find(": link type 105 is not one mbscope decodes"),
+              std::string::npos)
+        << d->summary.input_errors[0];
+}
+
 TEST(Analyzer, CleanExchangeIsPairedWithLatencyAndNoFinding) {
     Harness h;
     h.send(true, read_request(1), 1s);
