@@ -18,7 +18,21 @@ std::uint32_t be32(const std::uint8_t* p) {
     return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
 }
 
-ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4Packet& out) {
+// Tunnels a mirrored copy travels in, decoded down to the packet inside (the outer addresses are the
+// tunnel's, not the conversation's): MPLS label stacks (utilities' and carriers' WANs), GRE carrying IP or
+// Ethernet (transparent Ethernet bridging, and ERSPAN types I, II and III, remote SPAN), VXLAN (UDP 4789),
+// IP in IP. A packet nests at most max_depth of them.
+constexpr int max_depth = 8;
+constexpr std::uint16_t vxlan_port = 4789;
+
+ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth);
+ParseStatus parse_ethernet(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth);
+ParseStatus parse_gre(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth);
+
+ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4Packet& out,
+                     IpFragment* fragment, int depth) {
+    if (protocol == 47) return parse_gre(d, out, fragment, depth + 1);
+    if (protocol == 4 || protocol == 41) return parse_ip(d, out, fragment, depth + 1);  // IPv4, IPv6 in IP
     if (protocol == 6) {
         if (d.size() < 20) return ParseStatus::Malformed;
         const std::size_t header = (d[12] >> 4) * 4u;
@@ -44,6 +58,10 @@ ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4P
         if (length < 8) return ParseStatus::Malformed;
         out.payload = d.subspan(8, std::min(d.size(), length) - 8);
         out.truncated |= length > d.size();
+        // VXLAN: flags with the I bit (a valid network identifier), 3 reserved bytes, the identifier and a
+        // reserved byte, then an Ethernet frame.
+        if (out.destination.port == vxlan_port && out.payload.size() >= 8 && (out.payload[0] & 0x08))
+            return parse_ethernet(out.payload.subspan(8), out, fragment, depth + 1);
         return ParseStatus::Ok;
     }
     return ParseStatus::NotTcpUdp;
@@ -60,7 +78,8 @@ bool skip_v6_extensions(std::span<const std::uint8_t> d, std::uint8_t& next, std
     return pos <= d.size();
 }
 
-ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment) {
+ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth) {
+    if (depth > max_depth) return ParseStatus::Malformed;
     if (d.empty()) return ParseStatus::Malformed;
     const int version = d[0] >> 4;
     if (version == 4) {
@@ -85,7 +104,7 @@ ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment*
                                        .data = payload};
             return ParseStatus::Fragment;
         }
-        return parse_l4(d[9], payload, out);
+        return parse_l4(d[9], payload, out, fragment, depth);
     }
     if (version == 6) {
         if (d.size() < 40) return ParseStatus::Malformed;
@@ -114,15 +133,78 @@ ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment*
                                        .data = d.subspan(pos + 8, end - pos - 8)};
             return ParseStatus::Fragment;
         }
-        return parse_l4(next, d.subspan(pos, end - pos), out);
+        return parse_l4(next, d.subspan(pos, end - pos), out, fragment, depth);
     }
     return ParseStatus::NotIp;
 }
 
-ParseStatus by_ethertype(std::uint16_t type, std::span<const std::uint8_t> d, L4Packet& out,
-                         IpFragment* fragment) {
-    if (type == 0x0800 || type == 0x86DD) return parse_ip(d, out, fragment);
+// An MPLS label stack (4 bytes a label, the last with the bottom-of-stack bit), then what the first nibble
+// says: IPv4 or IPv6, or 0, a pseudowire control word before an Ethernet frame (Ethernet over MPLS).
+ParseStatus parse_mpls(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth) {
+    std::size_t pos = 0;
+    for (;;) {
+        if (pos + 4 > d.size()) return ParseStatus::Malformed;
+        const bool bottom = d[pos + 2] & 0x01;
+        pos += 4;
+        if (bottom) break;
+    }
+    if (pos >= d.size()) return ParseStatus::Malformed;
+    const int nibble = d[pos] >> 4;
+    if (nibble == 4 || nibble == 6) return parse_ip(d.subspan(pos), out, fragment, depth);
+    if (nibble == 0 && pos + 4 <= d.size()) return parse_ethernet(d.subspan(pos + 4), out, fragment, depth);
     return ParseStatus::NotIp;
+}
+
+ParseStatus by_ethertype(std::uint16_t type, std::span<const std::uint8_t> d, L4Packet& out,
+                         IpFragment* fragment, int depth) {
+    if (type == 0x0800 || type == 0x86DD) return parse_ip(d, out, fragment, depth);
+    if (type == 0x8847 || type == 0x8848) return parse_mpls(d, out, fragment, depth + 1);
+    return ParseStatus::NotIp;
+}
+
+ParseStatus parse_ethernet(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth) {
+    if (depth > max_depth) return ParseStatus::Malformed;
+    if (d.size() < 14) return ParseStatus::Malformed;
+    std::size_t pos = 12;
+    std::uint16_t type = be16(d.data() + pos);
+    while (type == 0x8100 || type == 0x88A8 || type == 0x9100) {  // VLAN tags, possibly stacked
+        pos += 4;
+        if (pos + 2 > d.size()) return ParseStatus::Malformed;
+        type = be16(d.data() + pos);
+    }
+    return by_ethertype(type, d.subspan(pos + 2), out, fragment, depth);
+}
+
+// GRE (RFC 2784, 2890): flags and version, the protocol, then a checksum, key and sequence number when
+// their flags say so. Version 1 is PPTP's, which carries PPP, not mirrored frames.
+ParseStatus parse_gre(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth) {
+    if (depth > max_depth) return ParseStatus::Malformed;
+    if (d.size() < 4) return ParseStatus::Malformed;
+    const std::uint16_t flags = be16(d.data());
+    if ((flags & 0x0007) != 0 || (flags & 0x4000)) return ParseStatus::NotIp;  // version 1, source routes
+    const std::uint16_t protocol = be16(d.data() + 2);
+    const bool sequenced = flags & 0x1000;
+    std::size_t pos = 4 + ((flags & 0x8000) ? 4u : 0u) + ((flags & 0x2000) ? 4u : 0u) + (sequenced ? 4u : 0u);
+    if (pos > d.size()) return ParseStatus::Malformed;
+    switch (protocol) {
+        case 0x0800:
+        case 0x86DD:
+            return parse_ip(d.subspan(pos), out, fragment, depth);
+        case 0x6558:  // transparent Ethernet bridging
+            return parse_ethernet(d.subspan(pos), out, fragment, depth);
+        case 0x88BE:  // ERSPAN: type II has a sequence number and an 8-byte header, type I neither
+            if (sequenced) pos += 8;
+            break;
+        case 0x22EB:  // ERSPAN type III: a 12-byte header, and an 8-byte platform subheader when its O flag
+                      // is set
+            if (pos + 12 > d.size()) return ParseStatus::Malformed;
+            pos += (d[pos + 11] & 0x01) ? 20 : 12;
+            break;
+        default:
+            return ParseStatus::NotIp;
+    }
+    if (pos > d.size()) return ParseStatus::Malformed;
+    return parse_ethernet(d.subspan(pos), out, fragment, depth);
 }
 
 }  // namespace
@@ -151,40 +233,31 @@ ParseStatus parse_datagram(const IpDatagram& datagram, L4Packet& out) noexcept {
     std::uint8_t next = datagram.protocol;
     std::size_t pos = 0;
     if (datagram.v6 && !skip_v6_extensions(d, next, pos)) return ParseStatus::Malformed;
-    return parse_l4(next, d.subspan(pos), out);
+    return parse_l4(next, d.subspan(pos), out, nullptr, 0);
 }
 
 ParseStatus parse_packet(int linktype, std::span<const std::uint8_t> d, L4Packet& out,
                          IpFragment* fragment) noexcept {
     switch (linktype) {
-        case link_ethernet: {
-            if (d.size() < 14) return ParseStatus::Malformed;
-            std::size_t pos = 12;
-            std::uint16_t type = be16(d.data() + pos);
-            while (type == 0x8100 || type == 0x88A8 || type == 0x9100) {  // VLAN tags, possibly stacked
-                pos += 4;
-                if (pos + 2 > d.size()) return ParseStatus::Malformed;
-                type = be16(d.data() + pos);
-            }
-            return by_ethertype(type, d.subspan(pos + 2), out, fragment);
-        }
+        case link_ethernet:
+            return parse_ethernet(d, out, fragment, 0);
         case link_sll:
             if (d.size() < 16) return ParseStatus::Malformed;
-            return by_ethertype(be16(d.data() + 14), d.subspan(16), out, fragment);
+            return by_ethertype(be16(d.data() + 14), d.subspan(16), out, fragment, 0);
         case link_sll2:
             if (d.size() < 20) return ParseStatus::Malformed;
-            return by_ethertype(be16(d.data()), d.subspan(20), out, fragment);
+            return by_ethertype(be16(d.data()), d.subspan(20), out, fragment, 0);
         case link_raw_dlt:
         case link_raw_dlt_openbsd:
         case link_raw:
         case link_ipv4:
         case link_ipv6:
-            return parse_ip(d, out, fragment);
+            return parse_ip(d, out, fragment, 0);
         case link_null:
         case link_loop:
             if (d.size() < 4) return ParseStatus::Malformed;
-            return parse_ip(d.subspan(4), out,
-                            fragment);  // the family word's byte order varies; the IP version decides
+            // the family word's byte order varies; the IP version decides
+            return parse_ip(d.subspan(4), out, fragment, 0);
         default:
             return ParseStatus::UnsupportedLink;
     }

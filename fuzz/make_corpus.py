@@ -238,6 +238,42 @@ def pcapng_of(pcap, snaplens=(65535, 262144), raw_ip=False):
     return out
 
 
+def tunnelled_of(pcap):
+    """An Ethernet classic pcap whose IPv4 packets travel, in turn, in the tunnels the analyzer decodes: an MPLS
+    label, GRE with the frame inside (transparent Ethernet bridging), ERSPAN type II and VXLAN."""
+    import struct
+    outer_mac = bytes.fromhex("0011223344550066778899aa")
+
+    def outer_ip(protocol, payload):
+        return struct.pack(">BBHHHBBH4s4s", 0x45, 0, 20 + len(payload), 1, 0, 64, protocol, 0,
+                           bytes([192, 168, 1, 1]), bytes([192, 168, 1, 2])) + payload
+
+    def wrap(n, frame):
+        if frame[12:14] != b"\x08\x00":
+            return frame
+        kind = n % 4
+        if kind == 0:
+            return frame[:12] + b"\x88\x47" + struct.pack(">I", (16 << 12) | 0x100 | 64) + frame[14:]
+        if kind == 1:
+            tunnel = outer_ip(47, b"\x00\x00\x65\x58" + frame)
+        elif kind == 2:
+            tunnel = outer_ip(47, b"\x10\x00\x88\xbe" + struct.pack(">I", n) + b"\x10\x00\x00\x01\x00\x00\x00\x00"
+                              + frame)
+        else:
+            vxlan = b"\x08\x00\x00\x00\x00\x00\x2a\x00" + frame
+            tunnel = outer_ip(17, struct.pack(">HHHH", 49152, 4789, 8 + len(vxlan), 0) + vxlan)
+        return outer_mac + b"\x08\x00" + tunnel
+
+    out, offset, n = bytearray(pcap[:24]), 24, 0
+    while offset + 16 <= len(pcap):
+        sec, frac, caplen, length = struct.unpack_from("<IIII", pcap, offset)
+        frame = wrap(n, pcap[offset + 16:offset + 16 + caplen])
+        out += struct.pack("<IIII", sec, frac, len(frame), length - caplen + len(frame)) + frame
+        offset += 16 + caplen
+        n += 1
+    return bytes(out)
+
+
 def write(target, payload, out_dir):
     directory = os.path.join(out_dir, target)
     os.makedirs(directory, exist_ok=True)
@@ -254,6 +290,7 @@ def build(mbscope, out_dir):
     classic = [p for p in pcaps if p[:4] in (b"\xd4\xc3\xb2\xa1", b"\x4d\x3c\xb2\xa1")]
     pcaps += [pcapng_of(p) for p in classic]
     pcaps += [pcapng_of(p, raw_ip=True) for p in classic if p[20:24] == b"\x01\x00\x00\x00"]
+    pcaps += [tunnelled_of(p) for p in classic if p[20:24] == b"\x01\x00\x00\x00"]
     logs = [open(p, "rb").read() for p in captures if p.endswith(".log")]
     all_profiles = profiles(mbscope)
 
