@@ -308,7 +308,11 @@ void Analyzer::packet_in_source(const Packet& p) {
     const ParseStatus status = parse_packet(p.linktype, p.data, l4, &fragment);
     if (status == ParseStatus::Fragment) {
         whole = ip_fragments_.add(fragment, p.time);
-        if (!whole || parse_datagram(*whole, l4) != ParseStatus::Ok) return;
+        if (!whole) return;
+        if (const ParseStatus inside = parse_datagram(*whole, l4); inside != ParseStatus::Ok) {
+            summary_.packets_malformed += inside == ParseStatus::Malformed;
+            return;
+        }
     } else if (status == ParseStatus::UnsupportedLink) {
         // A capture of a link mbscope does not read (802.11, PPP, ...) decoded to nothing without a word, as
         // if the line carried no Modbus. Said once a file and link type; the run fails (exit 2).
@@ -319,8 +323,11 @@ void Analyzer::packet_in_source(const Packet& p) {
                 "exported PDUs, SEL RTAC serial; serial bytes in USER0-15 with --user-dlt): its packets "
                 "are not decoded");
         return;
-    } else if (status != ParseStatus::Ok) {
+    } else if (status == ParseStatus::Malformed) {
+        ++summary_.packets_malformed;  // it may have been Modbus: counted, not dropped without a word
         return;
+    } else if (status != ParseStatus::Ok) {
+        return;  // not IP, not TCP or UDP: not Modbus
     }
     if (!server_port(l4.transport, l4.destination.port) && !server_port(l4.transport, l4.source.port)) {
         modbus_like_.note(l4);

@@ -122,6 +122,9 @@ struct Summary {
     // IP datagrams whose fragments never all arrived (ip_reassembly.hpp), the fragments they had, and
     // fragments reaching past the largest datagram: captured packets that could not be decoded.
     std::uint64_t ip_datagrams_incomplete = 0, ip_fragments_incomplete = 0, ip_fragments_invalid = 0;
+    // Packets whose link, IP or transport header is damaged or cut short by the snapshot length: whatever
+    // they carried was not decoded.
+    std::uint64_t packets_malformed = 0;
     // Packets on ports not decoded as Modbus whose payload is one whole Modbus/TCP ADU (protocol 0, a length
     // that fits the payload, a public function code), by (UDP?, the lower of the two ports): a server port a
     // user may have left out (--tcp-port, --udp-port), told rather than decoding to nothing.

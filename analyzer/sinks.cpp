@@ -157,6 +157,9 @@ void TextSink::end(const Summary& s) {
     if (s.ip_fragments_invalid)
         out_ << "  not decoded: " << s.ip_fragments_invalid
              << " IP fragments reaching past the largest datagram (65,535 bytes)\n";
+    if (s.packets_malformed)
+        out_ << "  not decoded: " << s.packets_malformed
+             << " packets whose link, IP or TCP/UDP header is damaged or cut short\n";
     for (const auto& [where, n] : s.modbus_like_ports)
         out_ << "  hint: " << n << (where.first ? " UDP" : " TCP") << " packets on port " << where.second
              << " hold Modbus/TCP ADUs; decode them with " << (where.first ? "--udp-port " : "--tcp-port ")
@@ -345,6 +348,7 @@ json summary_to_json(const Summary& s) {
         j["ip_fragments_not_decoded"] = {{"datagrams_incomplete", s.ip_datagrams_incomplete},
                                          {"fragments_incomplete", s.ip_fragments_incomplete},
                                          {"fragments_invalid", s.ip_fragments_invalid}};
+    if (s.packets_malformed) j["packets_malformed"] = s.packets_malformed;
     if (!s.serial_lines.empty()) {
         json lines = json::object();
         for (const auto& [line, read] : s.serial_lines) {

@@ -233,6 +233,33 @@ TEST(Analyzer, TunnelledConversationsDecodeAsTsharkDecodesThem) {
     }
 }
 
+// Packets whose headers are damaged (an IPv4 header length under 20 bytes, a TCP data offset under 20 bytes,
+// a packet shorter than an IPv4 header) were dropped without a word: whatever Modbus they held was gone from
+// the report. They are counted in the summary, in text and JSON; packets that are not IP are not.
+TEST(Analyzer, PacketsWithDamagedHeadersAreCounted) {
+    Harness h;
+    auto ihl = packet(true, 1000, read_request(1));
+    ihl[0] = 0x44;
+    auto offset = packet(true, 1000, read_request(1));
+    offset[20 + 12] = 0x30;
+    h.raw(ihl, 1s);
+    h.raw(offset, 1s);
+    h.raw({0x45, 0, 0, 40, 0, 1}, 1s);
+    h.raw({0x00, 0x01, 0x08, 0x00}, 1s);  // not IP at all: not counted
+    h.send(true, read_request(1), 2s);
+    h.send(false, read_response(1), 2s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.analyzer.summary().packets_malformed, 3u);
+    EXPECT_EQ(h.sink.transactions.size(), 1u);
+    std::ostringstream text;
+    an::TextSink(text, true).end(h.analyzer.summary());
+    EXPECT_NE(
+        text.str().find("not decoded: 3 packets whose link, IP or TCP/UDP header is damaged or cut short"),
+        std::string::npos)
+        << text.str();
+    EXPECT_EQ(an::summary_to_json(h.analyzer.summary())["packets_malformed"], 3);
+}
+
 // A capture of a link type mbscope does not read (here 802.11) decoded to nothing and exit 0, as a quiet
 // line would. It is an input error naming the file and the link type, said once.
 TEST(Analyzer, ALinkTypeNotDecodedIsNamed) {
