@@ -844,33 +844,28 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         for (auto& [k, f] : flows_)
             if (f->id == e.key.flow) --f->pending;
         const bool ended = at_end && e.deadline > now_;
-        if (ended)
-            report(FindingCode::PairNoResponseAtEnd, p.request,
-                   (p.request.pdu ? describe_request(*p.request.pdu) : std::string("request")) +
-                       " unanswered when the capture ended");
-        const Timestamp timeout =
-            p.request.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
-        if (!ended) {
+        std::string what = p.request.pdu ? describe_request(*p.request.pdu) : std::string("request");
+        if (ended) {
+            report(FindingCode::PairNoResponseAtEnd, p.request, what + " unanswered when the capture ended");
+        } else {
+            const Timestamp timeout =
+                p.request.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
             report(
                 FindingCode::PairNoResponse, p.request,
-                (p.request.pdu ? describe_request(*p.request.pdu) : std::string("request")) + " to " +
-                    p.request.device + " got no response within " +
+                what + " to " + p.request.device + " got no response within " +
                     std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
                     " ms");
-            remember_timed_out(e.key, p, timeout);
+            remember_timed_out(e.key, p, timeout, std::move(what));
         }
         complete(p, nullptr, !ended);
     }
 }
 
-void Analyzer::remember_timed_out(const PendingKey& key, const Pending& pending, Timestamp timeout) {
+void Analyzer::remember_timed_out(const PendingKey& key, const Pending& pending, Timestamp timeout,
+                                  std::string what) {
     const std::uint64_t serial = ++next_serial_;
-    timed_out_[key] = {pending.request.index,
-                       pending.request.time,
-                       timeout,
-                       pending.request.frame.unit_id(),
-                       pending.request.pdu ? describe_request(*pending.request.pdu) : std::string("request"),
-                       serial};
+    timed_out_[key] = {pending.request.index,           pending.request.time, timeout,
+                       pending.request.frame.unit_id(), std::move(what),      serial};
     timed_out_order_.emplace_back(key, serial);
     while (timed_out_order_.size() > max_timed_out) {  // entries whose key was used again count too
         const auto& [old_key, old_serial] = timed_out_order_.front();
@@ -1214,9 +1209,11 @@ std::string Analyzer::follow_line(SerialLink& link, std::uint8_t unit, const Lin
 }
 
 bool Analyzer::first_told(int linktype) {
-    std::pair<std::string, int> told(source_.str(), linktype);
-    if (std::find(told_links_.begin(), told_links_.end(), told) != told_links_.end()) return false;
-    told_links_.push_back(std::move(told));
+    // Asked for every packet of such a file: a look through a list of a few, nothing copied.
+    if (std::any_of(told_links_.begin(), told_links_.end(),
+                    [&](const auto& told) { return told.second == linktype && told.first == source_.str(); }))
+        return false;
+    told_links_.emplace_back(source_.str(), linktype);
     return true;
 }
 

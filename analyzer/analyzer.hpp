@@ -215,7 +215,8 @@ class Analyzer {
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,
                TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
-    void remember_timed_out(const PendingKey& key, const Pending& pending, modbus::Timestamp timeout);
+    void remember_timed_out(const PendingKey& key, const Pending& pending, modbus::Timestamp timeout,
+                            std::string what);
     // The timed-out request a response answers late, when there is one; it is forgotten then.
     std::optional<TimedOut> late_for(const PendingKey& key, const FrameRecord& response);
     // A packet stamped well before the latest time seen: the capture's clock was set back.
