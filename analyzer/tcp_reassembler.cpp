@@ -34,10 +34,15 @@ bool TcpReassembler::reset_in_window(std::uint32_t seq) const noexcept {
 void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload,
                              modbus::Timestamp t) {
     if (syn) {
-        if (next_ && syn_at_ == seq) return;  // the SYN again: the stream has already moved past it
+        if (next_ && syn_at_ == seq) return;  // the SYN again (and its data): the stream has moved past it
         syn_at_ = seq;
         next_ = seq + 1;
-        payload = {};  // data on a SYN is legal but never used by Modbus clients
+        // Data on a SYN (TCP Fast Open) are the stream's first bytes; they were dropped without a word. A
+        // server that does not take them has them sent again after the handshake: a retransmission then.
+        if (!payload.empty()) {
+            deliver(payload, t);
+            drain(t);
+        }
         return;
     }
     if (!next_) next_ = seq;  // capture started mid-connection

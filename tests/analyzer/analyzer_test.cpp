@@ -299,6 +299,19 @@ TEST(Analyzer, AduSplitOverSegmentsAndSeveralPerSegment) {
     EXPECT_TRUE(h.sink.findings.empty());
 }
 
+// A client using TCP Fast Open sends its first request on the SYN: the request was dropped without a word,
+// and its response reported unsolicited.
+TEST(Analyzer, ARequestOnASynIsDecoded) {
+    Harness h;
+    const auto a = read_request(1);
+    h.raw(packet(true, 999, a, false, 0x02), 1s);  // SYN with the request: it starts at 1000
+    h.seq[0] = 1000 + static_cast<std::uint32_t>(a.size());
+    h.send(false, read_response(1), 1s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.transactions.size(), 1u);
+    EXPECT_TRUE(h.sink.findings.empty());
+}
+
 TEST(Analyzer, OutOfOrderAndRetransmittedSegmentsAreReassembled) {
     Harness h;
     auto a = read_request(1);

@@ -249,6 +249,21 @@ TEST(TcpReassembler, AnAcknowledgementCapturedBeforeItsBytesWaitsForThem) {
     EXPECT_EQ(h.out.stream.size(), 55u);
 }
 
+// A SYN's data (TCP Fast Open) are the stream's first bytes: they were dropped. A server that did not take
+// them has them sent again after the handshake, which is then a retransmission of what was delivered.
+TEST(TcpReassembler, DataOnASynAreTheStreamsFirstBytes) {
+    Harness h;
+    const auto s = stream_of(20);
+    h.reassembler.segment(99, true, std::span(s).first(12), mb::Timestamp{0});
+    EXPECT_EQ(h.out.stream, std::vector<std::uint8_t>(s.begin(), s.begin() + 12));
+    h.reassembler.segment(99, true, std::span(s).first(12), mb::Timestamp{0});  // the SYN again
+    h.send(100, s, 0, 20);                                                      // sent again, and more
+    EXPECT_EQ(h.out.stream, s);
+    EXPECT_EQ(h.reassembler.retransmitted_bytes(), 12u);
+    EXPECT_TRUE(h.out.conflicts.empty());
+    EXPECT_EQ(h.out.gaps, 0);
+}
+
 // TCP keep-alive probes (RFC 9293 §3.8.4) carry one garbage octet at the sequence number before the next
 // (0x00 from BSD and Windows): each was compared with the byte delivered there and reported as a
 // retransmission that differs from the first copy. A one-byte retransmission elsewhere is still compared.
