@@ -19,15 +19,17 @@ std::uint32_t be32(const std::uint8_t* p) {
 }
 
 // Tunnels a mirrored copy travels in, decoded down to the packet inside (the outer addresses are the
-// tunnel's, not the conversation's): MPLS label stacks (utilities' and carriers' WANs), GRE carrying IP or
-// Ethernet (transparent Ethernet bridging, and ERSPAN types I, II and III, remote SPAN), VXLAN (UDP 4789),
-// IP in IP. A packet nests at most max_depth of them.
+// tunnel's, not the conversation's): MPLS label stacks (utilities' and carriers' WANs), PPPoE sessions, GRE
+// carrying IP or Ethernet (transparent Ethernet bridging, and ERSPAN types I, II and III, remote SPAN),
+// VXLAN (UDP 4789), GENEVE (UDP 6081), IP in IP. A packet nests at most max_depth of them.
 constexpr int max_depth = 8;
-constexpr std::uint16_t vxlan_port = 4789;
+constexpr std::uint16_t vxlan_port = 4789, geneve_port = 6081;
 
 ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth);
 ParseStatus parse_ethernet(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth);
 ParseStatus parse_gre(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth);
+ParseStatus by_ethertype(std::uint16_t type, std::span<const std::uint8_t> d, L4Packet& out,
+                         IpFragment* fragment, int depth);
 
 ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4Packet& out,
                      IpFragment* fragment, int depth) {
@@ -62,6 +64,16 @@ ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4P
         // reserved byte, then an Ethernet frame.
         if (out.destination.port == vxlan_port && out.payload.size() >= 8 && (out.payload[0] & 0x08))
             return parse_ethernet(out.payload.subspan(8), out, fragment, depth + 1);
+        // GENEVE (RFC 8926): version 0, the options' length in 4-byte words, flags, the protocol (an
+        // EtherType; 0x6558 for Ethernet), the network identifier, then the options.
+        if (out.destination.port == geneve_port && out.payload.size() >= 8 && (out.payload[0] >> 6) == 0) {
+            const std::size_t header = 8 + (out.payload[0] & 0x3Fu) * 4;
+            if (header > out.payload.size()) return ParseStatus::Malformed;
+            const std::uint16_t protocol = be16(out.payload.data() + 2);
+            const auto inner = out.payload.subspan(header);
+            if (protocol == 0x6558) return parse_ethernet(inner, out, fragment, depth + 1);
+            return by_ethertype(protocol, inner, out, fragment, depth + 1);
+        }
         return ParseStatus::Ok;
     }
     return ParseStatus::NotTcpUdp;
@@ -155,10 +167,20 @@ ParseStatus parse_mpls(std::span<const std::uint8_t> d, L4Packet& out, IpFragmen
     return ParseStatus::NotIp;
 }
 
+// A PPPoE session (RFC 2516): version and type, code, session id, length, then the PPP protocol number
+// (IPv4 0x0021, IPv6 0x0057), as on DSL links to remote sites.
+ParseStatus parse_pppoe(std::span<const std::uint8_t> d, L4Packet& out, IpFragment* fragment, int depth) {
+    if (d.size() < 8) return ParseStatus::Malformed;
+    const std::uint16_t protocol = be16(d.data() + 6);
+    if (protocol == 0x0021 || protocol == 0x0057) return parse_ip(d.subspan(8), out, fragment, depth);
+    return ParseStatus::NotIp;
+}
+
 ParseStatus by_ethertype(std::uint16_t type, std::span<const std::uint8_t> d, L4Packet& out,
                          IpFragment* fragment, int depth) {
     if (type == 0x0800 || type == 0x86DD) return parse_ip(d, out, fragment, depth);
     if (type == 0x8847 || type == 0x8848) return parse_mpls(d, out, fragment, depth + 1);
+    if (type == 0x8864) return parse_pppoe(d, out, fragment, depth + 1);
     return ParseStatus::NotIp;
 }
 

@@ -1,7 +1,8 @@
 #pragma once
 // Link, network and transport layers of a captured packet, down to the TCP or UDP payload. Link types:
 // Ethernet (with 802.1Q / 802.1ad tags), Linux cooked v1 and v2, raw IPv4/IPv6, BSD null/loopback; inside
-// MPLS, GRE (IP, Ethernet, ERSPAN I-III), VXLAN and IP-in-IP tunnels, to the packet they carry.
+// MPLS, PPPoE, GRE (IP, Ethernet, ERSPAN I-III), VXLAN, GENEVE and IP-in-IP tunnels, to the packet they
+// carry.
 // Parsing never reads outside the packet; a packet it cannot follow says why.
 
 #include <array>

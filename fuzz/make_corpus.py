@@ -240,7 +240,8 @@ def pcapng_of(pcap, snaplens=(65535, 262144), raw_ip=False):
 
 def tunnelled_of(pcap):
     """An Ethernet classic pcap whose IPv4 packets travel, in turn, in the tunnels the analyzer decodes: an MPLS
-    label, GRE with the frame inside (transparent Ethernet bridging), ERSPAN type II and VXLAN."""
+    label, GRE with the frame inside (transparent Ethernet bridging), ERSPAN type II, VXLAN, GENEVE and a PPPoE
+    session."""
     import struct
     outer_mac = bytes.fromhex("0011223344550066778899aa")
 
@@ -251,17 +252,20 @@ def tunnelled_of(pcap):
     def wrap(n, frame):
         if frame[12:14] != b"\x08\x00":
             return frame
-        kind = n % 4
+        kind = n % 6
         if kind == 0:
             return frame[:12] + b"\x88\x47" + struct.pack(">I", (16 << 12) | 0x100 | 64) + frame[14:]
+        if kind == 5:
+            return frame[:12] + b"\x88\x64" + struct.pack(">BBHHH", 0x11, 0, 0x1234, len(frame) - 12, 0x21) + frame[14:]
         if kind == 1:
             tunnel = outer_ip(47, b"\x00\x00\x65\x58" + frame)
         elif kind == 2:
             tunnel = outer_ip(47, b"\x10\x00\x88\xbe" + struct.pack(">I", n) + b"\x10\x00\x00\x01\x00\x00\x00\x00"
                               + frame)
         else:
-            vxlan = b"\x08\x00\x00\x00\x00\x00\x2a\x00" + frame
-            tunnel = outer_ip(17, struct.pack(">HHHH", 49152, 4789, 8 + len(vxlan), 0) + vxlan)
+            port, flags = (4789, b"\x08\x00\x00\x00") if kind == 3 else (6081, b"\x00\x00\x65\x58")
+            vxlan = flags + b"\x00\x00\x2a\x00" + frame
+            tunnel = outer_ip(17, struct.pack(">HHHH", 49152, port, 8 + len(vxlan), 0) + vxlan)
         return outer_mac + b"\x08\x00" + tunnel
 
     out, offset, n = bytearray(pcap[:24]), 24, 0

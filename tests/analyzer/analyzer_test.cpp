@@ -212,6 +212,15 @@ TEST(Analyzer, TunnelledConversationsDecodeAsTsharkDecodesThem) {
                                                                0x08, 0, 0, 0, 0, 0, 0x2A, 0},
                                                               inner)));
              }},
+            {"geneve", [](const auto& ip) {
+                 const auto inner = ethernet_of(0x0800, ip);
+                 return ethernet_of(0x0800, outer_ip(17, with({0xC0, 0x00, 0x17, 0xC1, 0, std::uint8_t(16 + inner.size()), 0, 0,
+                                                               0x00, 0, 0x65, 0x58, 0, 0, 0x2A, 0},
+                                                              inner)));
+             }},
+            {"pppoe", [](const auto& ip) {
+                 return ethernet_of(0x8864, with({0x11, 0, 0x12, 0x34, 0, std::uint8_t(2 + ip.size()), 0x00, 0x21}, ip));
+             }},
         };
     for (const auto& [name, wrap] : tunnels) {
         SCOPED_TRACE(name);
