@@ -58,8 +58,9 @@ struct Analyzer::SerialLink {
     std::unique_ptr<RtuTimedDeframer> timed;
     std::unique_ptr<AsciiDeframer> ascii;
     Direction hint = Direction::Unknown;
-    std::uint64_t offset = 0;  // exported PDUs: bytes of the records before this one
-    int rtac_side = -1;        // RTAC serial: 0 sending, 1 receiving, -1 not yet known
+    Timestamp last_received{0};  // the time of the last chunk deframed, to see the line's clock go back
+    std::uint64_t offset = 0;    // exported PDUs: bytes of the records before this one
+    int rtac_side = -1;          // RTAC serial: 0 sending, 1 receiving, -1 not yet known
 
     // The line as the link reads it: its framing (none until the first bytes tell it, when the input does
     // not) and its character (t1.5/t3.5), both changed by a device told other settings (follow_line).
@@ -296,7 +297,7 @@ void Analyzer::packet_in_source(const Packet& p) {
     if (p.time > now_)
         now_ = p.time;
     else if (now_ - p.time > std::max(options_.timeout, options_.serial_timeout))
-        clock_went_back(p);
+        clock_went_back(p.time, "packet " + std::to_string(p.number));
     expire(now_, false);
     if (p.linktype >= link_user0 && p.linktype <= link_user15) return user_dlt_packet(p);
     if (p.linktype == link_upper_pdu) return exported_pdu(p);
@@ -799,16 +800,16 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
 // NTP, a tap's clock restored): left as it was, every request after it would expire at the next packet, its
 // response unsolicited, until the clock caught up, hours later. The pending requests' deadlines move back
 // with the clock, each keeping the wait it had left, and the step is said once per file.
-void Analyzer::clock_went_back(const Packet& p) {
-    const Timestamp back = now_ - p.time;
+void Analyzer::clock_went_back(Timestamp to, const std::string& where) {
+    const Timestamp back = now_ - to;
     for (auto& queue : expiries_)
         for (auto& e : queue)
             if (e.deadline != Timestamp::max()) e.deadline -= back;
-    now_ = p.time;
+    now_ = to;
     const std::string& source = source_.str();
     if (clock_warned_source_ == source) return;
     clock_warned_source_ = source;
-    input_error(source + ": packet " + std::to_string(p.number) + ": the capture's clock goes back " +
+    input_error(source + ": " + where + ": the capture's clock goes back " +
                 std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(back).count()) +
                 " ms; requests are timed out by the clock from here (later steps back are not listed)");
 }
@@ -1040,6 +1041,24 @@ void Analyzer::flush_deframers(SerialLink& link, Timestamp t, std::uint64_t pack
 
 void Analyzer::deframe(SerialLink& link, std::span<const std::uint8_t> bytes, Timestamp received,
                        Direction hint, std::uint64_t packet) {
+    // A log's clock set back, or logs of two sessions joined: the timed deframer took the later bytes for
+    // ones right after the earlier (timestamps are coarse, never earlier than the last), so every frame after
+    // the step was restamped at the end of the first session, with no word. What the line held ends at the
+    // step; the deframer starts again from these bytes' times, and requests are timed out by the clock from
+    // here, as in a capture.
+    if (received.count() && link.last_received.count() &&
+        link.last_received - received > std::max(options_.timeout, options_.serial_timeout)) {
+        flush_deframers(link, link.last_received, packet);
+        if (link.restart_at) return;  // those bytes come again, after the change (pump)
+        link.timed.reset();
+        if (received < now_) {
+            char at[48];
+            std::snprintf(at, sizeof at, "the chunk stamped %.6f s",
+                          std::chrono::duration<double>(received).count());
+            clock_went_back(received, packet ? "packet " + std::to_string(packet) : std::string(at));
+        }
+    }
+    if (received.count()) link.last_received = received;
     if (hint != link.hint) {
         // The other side is talking now: whatever the line held before is complete, and belongs to the
         // direction it was captured in.
@@ -1088,6 +1107,7 @@ void Analyzer::pump(SerialLink& link) {
 
 void Analyzer::restart(SerialLink& link) {
     const std::uint64_t at = *std::exchange(link.restart_at, std::nullopt);
+    link.last_received = Timestamp{0};  // the chunks from `at` come again, in their times
     link.untimed.reset();
     link.timed.reset();
     link.ascii.reset();

@@ -219,8 +219,9 @@ class Analyzer {
                             std::string what);
     // The timed-out request a response answers late, when there is one; it is forgotten then.
     std::optional<TimedOut> late_for(const PendingKey& key, const FrameRecord& response);
-    // A packet stamped well before the latest time seen: the capture's clock was set back.
-    void clock_went_back(const Packet& p);
+    // A packet or a serial chunk (`where`) stamped well before the latest time seen: the capture's clock was
+    // set back.
+    void clock_went_back(modbus::Timestamp to, const std::string& where);
     void report(modbus::FindingCode code, const FrameRecord& about, std::string message,
                 std::vector<std::uint64_t> frames = {});
     void count_finding(modbus::FindingCode code);

@@ -151,6 +151,30 @@ TEST(SerialInput, AnUnsolicitedReplyIsNamedByItsUnit) {
         }
 }
 
+// A log whose clock goes back (set back, or two sessions' logs joined): the timed deframer took the later
+// bytes for ones right after the earlier, so every frame after the step was restamped at the end of the
+// first session (the second session's exchanges 11.458 ms apart instead of 20), with no word. The step is an
+// input error naming where; the frames after it keep the log's times.
+TEST(SerialInput, ALogsClockGoingBackIsNamedAndItsFramesKeepTheirTimes) {
+    const std::string fc3 = "11 03 00 60 00 03 07 45", reply = "11 03 06 02 2B 00 00 00 64 C8 BA";
+    const auto path =
+        write_temp("back.txt", "100.000 " + fc3 + "\n100.020 " + reply + "\n101.000 " + fc3 + "\n5.000 " +
+                                   reply + "\n5.500 " + fc3 + "\n5.520 " + reply + "\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_EQ(r->summary.input_errors.size(), 1u);
+    EXPECT_EQ(r->summary.input_errors[0],
+              path +
+                  ": the chunk stamped 5.000000 s: the capture's clock goes back "
+                  "96000 ms; requests are timed out by the clock from here (later "
+                  "steps back are not listed)");
+    ASSERT_EQ(r->sink.frames.size(), 6u);
+    EXPECT_EQ(r->sink.frames[4].time, mb::Timestamp(5'500'000'000));  // as the log says
+    ASSERT_EQ(r->sink.transactions.size(), 3u);
+    ASSERT_TRUE(r->sink.transactions[2].latency.has_value());
+    EXPECT_EQ(*r->sink.transactions[2].latency, std::chrono::milliseconds(20));
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseBeforeRequest), 1);  // the reply stamped 5.000
+}
+
 // A master retrying after a timeout, as RS-485 masters do: each retry was classified before the timed-out
 // request expired, so every second one was taken for that request's response (a malformed FC3 reply, byte
 // count 0) and reported unsolicited. Each is a request, timed out in its turn.
