@@ -217,8 +217,7 @@ ParseStatus parse_gre(std::span<const std::uint8_t> d, L4Packet& out, IpFragment
         case 0x88BE:  // ERSPAN: type II has a sequence number and an 8-byte header, type I neither
             if (sequenced) pos += 8;
             break;
-        case 0x22EB:  // ERSPAN type III: a 12-byte header, and an 8-byte platform subheader when its O flag
-                      // is set
+        case 0x22EB:  // ERSPAN type III: a 12-byte header, and a platform subheader when the O flag says so
             if (pos + 12 > d.size()) return ParseStatus::Malformed;
             pos += (d[pos + 11] & 0x01) ? 20 : 12;
             break;
