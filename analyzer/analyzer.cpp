@@ -331,7 +331,14 @@ void Analyzer::packet_in_source(const Packet& p) {
         return;  // not IP, not TCP or UDP: not Modbus
     }
     if (!server_port(l4.transport, l4.destination.port) && !server_port(l4.transport, l4.source.port)) {
-        modbus_like_.note(l4);
+        // Modbus/TCP Security (TLS on port 802): encrypted, so nothing decodes; said, not left as a quiet
+        // line.
+        constexpr std::uint16_t modbus_security_port = 802;
+        if (l4.transport == Transport::Tcp && !l4.payload.empty() &&
+            (l4.destination.port == modbus_security_port || l4.source.port == modbus_security_port))
+            ++summary_.modbus_security_packets;
+        else
+            modbus_like_.note(l4);
         return;
     }
     bool to_server = false;

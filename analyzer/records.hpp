@@ -125,6 +125,8 @@ struct Summary {
     // Packets whose link, IP or transport header is damaged or cut short by the snapshot length: whatever
     // they carried was not decoded.
     std::uint64_t packets_malformed = 0;
+    // Packets with data on TCP port 802, Modbus/TCP Security: TLS, which no capture alone can decrypt.
+    std::uint64_t modbus_security_packets = 0;
     // Packets on ports not decoded as Modbus whose payload is one whole Modbus/TCP ADU (protocol 0, a length
     // that fits the payload, a public function code), by (UDP?, the lower of the two ports): a server port a
     // user may have left out (--tcp-port, --udp-port), told rather than decoding to nothing.

@@ -160,6 +160,9 @@ void TextSink::end(const Summary& s) {
     if (s.packets_malformed)
         out_ << "  not decoded: " << s.packets_malformed
              << " packets whose link, IP or TCP/UDP header is damaged or cut short\n";
+    if (s.modbus_security_packets)
+        out_ << "  not decoded: " << s.modbus_security_packets
+             << " packets on TCP port 802, Modbus/TCP Security: TLS, encrypted\n";
     for (const auto& [where, n] : s.modbus_like_ports)
         out_ << "  hint: " << n << (where.first ? " UDP" : " TCP") << " packets on port " << where.second
              << " hold Modbus/TCP ADUs; decode them with " << (where.first ? "--udp-port " : "--tcp-port ")
@@ -349,6 +352,7 @@ json summary_to_json(const Summary& s) {
                                          {"fragments_incomplete", s.ip_fragments_incomplete},
                                          {"fragments_invalid", s.ip_fragments_invalid}};
     if (s.packets_malformed) j["packets_malformed"] = s.packets_malformed;
+    if (s.modbus_security_packets) j["modbus_security_packets"] = s.modbus_security_packets;
     if (!s.serial_lines.empty()) {
         json lines = json::object();
         for (const auto& [line, read] : s.serial_lines) {

@@ -269,6 +269,25 @@ TEST(Analyzer, PacketsWithDamagedHeadersAreCounted) {
     EXPECT_EQ(an::summary_to_json(h.analyzer.summary())["packets_malformed"], 3);
 }
 
+// Modbus/TCP Security runs TLS on port 802: a capture of it decoded to "0 frames" with no word, as a quiet
+// line would. Its packets with data are counted and said to be encrypted (not taken for a port to decode).
+TEST(Analyzer, ModbusSecurityTrafficIsSaidToBeEncrypted) {
+    Harness h;
+    const auto hello = mbscope::test::bytes({0x16, 0x03, 0x03, 0x00, 0x05, 0x01, 0x00, 0x00, 0x01, 0x00});
+    h.raw(packet(true, 1000, hello, false, 0x18, 802), 1s);
+    h.raw(packet(false, 5000, hello, false, 0x18, 802), 1s + 1ms);
+    h.raw(packet(true, 1010, {}, false, 0x10, 802), 1s + 2ms);  // an acknowledgement: no data, not counted
+    h.analyzer.finish();
+    EXPECT_EQ(h.analyzer.summary().modbus_security_packets, 2u);
+    EXPECT_TRUE(h.analyzer.summary().modbus_like_ports.empty());
+    std::ostringstream text;
+    an::TextSink(text, true).end(h.analyzer.summary());
+    EXPECT_NE(text.str().find("not decoded: 2 packets on TCP port 802, Modbus/TCP Security: TLS, encrypted"),
+              std::string::npos)
+        << text.str();
+    EXPECT_EQ(an::summary_to_json(h.analyzer.summary())["modbus_security_packets"], 2);
+}
+
 // A capture of a link type mbscope does not read (here 802.11) decoded to nothing and exit 0, as a quiet
 // line would. It is an input error naming the file and the link type, said once.
 TEST(Analyzer, ALinkTypeNotDecodedIsNamed) {
