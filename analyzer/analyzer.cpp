@@ -296,7 +296,7 @@ void Analyzer::packet_in_source(const Packet& p) {
     }
     if (p.time > now_)
         now_ = p.time;
-    else if (now_ - p.time > std::max(options_.timeout, options_.serial_timeout))
+    else if (clock_stepped_back(now_, p.time))
         clock_went_back(p.time, "packet " + std::to_string(p.number));
     expire(now_, false);
     if (p.linktype >= link_user0 && p.linktype <= link_user15) return user_dlt_packet(p);
@@ -807,6 +807,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
 // NTP, a tap's clock restored): left as it was, every request after it would expire at the next packet, its
 // response unsolicited, until the clock caught up, hours later. The pending requests' deadlines move back
 // with the clock, each keeping the wait it had left, and the step is said once per file.
+bool Analyzer::clock_stepped_back(Timestamp from, Timestamp to) const {
+    return from - to > std::max(options_.timeout, options_.serial_timeout);
+}
+
 void Analyzer::clock_went_back(Timestamp to, const std::string& where) {
     const Timestamp back = now_ - to;
     for (auto& queue : expiries_)
@@ -1053,8 +1057,7 @@ void Analyzer::deframe(SerialLink& link, std::span<const std::uint8_t> bytes, Ti
     // the step was restamped at the end of the first session, with no word. What the line held ends at the
     // step; the deframer starts again from these bytes' times, and requests are timed out by the clock from
     // here, as in a capture.
-    if (received.count() && link.last_received.count() &&
-        link.last_received - received > std::max(options_.timeout, options_.serial_timeout)) {
+    if (received.count() && link.last_received.count() && clock_stepped_back(link.last_received, received)) {
         flush_deframers(link, link.last_received, packet);
         if (link.restart_at) return;  // those bytes come again, after the change (pump)
         link.timed.reset();

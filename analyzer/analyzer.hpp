@@ -221,6 +221,9 @@ class Analyzer {
     std::optional<TimedOut> late_for(const PendingKey& key, const FrameRecord& response);
     // A packet or a serial chunk (`where`) stamped well before the latest time seen: the capture's clock was
     // set back.
+    // Time going from `from` back to `to` by more than the longer pairing timeout: not coarse or jittery
+    // stamps, the clock itself stepped back.
+    bool clock_stepped_back(modbus::Timestamp from, modbus::Timestamp to) const;
     void clock_went_back(modbus::Timestamp to, const std::string& where);
     void report(modbus::FindingCode code, const FrameRecord& about, std::string message,
                 std::vector<std::uint64_t> frames = {});
