@@ -599,15 +599,8 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
         // again (a poll's late reply on a serial line often carries the same bytes as the one before).
         if (auto late = late_for(key, r)) {
-            const auto ms = [](Timestamp d) {
-                return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
-            };
             flow.keep_last_response(r);
-            report(FindingCode::PairLateResponse, r,
-                   "the reply to frame " + std::to_string(late->request_index) + " (" + late->what +
-                       ") came " + ms(r.time - late->sent) + " ms after it, past the " + ms(late->timeout) +
-                       " ms timeout: the request was reported unanswered",
-                   {late->request_index, r.index});
+            complete(late->pending, &r, false, &*late);
             return;
         }
     }
@@ -652,19 +645,19 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     pending_.erase(it);
 }
 
-void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out) {
+void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late) {
     // The transaction record is made only when the sink takes transactions (--summary does not): moving
     // both frames into it and destroying it were a twentieth of a summary run. The checks read the frames
     // where they are, so that they are the same either way.
     if (!sink_wants_transactions_)
-        return judge(pending.request, response, *pending.stats, timed_out, nullptr);
+        return judge(pending.request, response, *pending.stats, timed_out, late, nullptr);
     TransactionRecord made(std::move(pending.request));
     if (response) made.response.emplace(std::move(*response));
-    judge(made.request, made.response ? &*made.response : nullptr, *pending.stats, timed_out, &made);
+    judge(made.request, made.response ? &*made.response : nullptr, *pending.stats, timed_out, late, &made);
 }
 
 void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, DeviceStats& stats,
-                     bool timed_out, TransactionRecord* made) {
+                     bool timed_out, const TimedOut* late, TransactionRecord* made) {
     // The transaction is written first, then what was found in it.
     struct Deferred {
         FindingCode code;
@@ -690,9 +683,23 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         found.push_back({code, rsp_record, std::move(message), {request.index, rsp_record->index}});
         if (made) made->findings.push_back(code);
     };
+    if (rsp_record && late) {
+        // Counted as a timeout already, and as a transaction: a late reply is neither a second one nor a
+        // response in time. Its latency is what the device took, and goes into the histogram.
+        const auto ms = [](Timestamp d) {
+            return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
+        };
+        ++stats.late_responses;
+        if (made) made->late_past = late->timeout;
+        pair_finding(FindingCode::PairLateResponse,
+                     "the reply to frame " + std::to_string(request.index) + " (" + late->what + ") came " +
+                         ms(rsp_record->time - request.time) + " ms after it, past the " + ms(late->timeout) +
+                         " ms timeout: the request was reported unanswered");
+    } else if (rsp_record) {
+        ++stats.responses;
+    }
     if (rsp_record) {
         const FrameRecord& rsp = *rsp_record;
-        ++stats.responses;
         if (rsp.time.count() && request.time.count()) {  // raw dumps carry no time: no latency either
             const Timestamp latency = rsp.time - request.time;
             if (latency >= Timestamp{0}) {
@@ -796,7 +803,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             made->registers32 = registers32(read->starting_address, regs->values, *options_.word_order);
         }
     }
-    ++summary_.transactions;
+    if (!late) ++summary_.transactions;
     if (made) sink_.transaction(*made);
     for (auto& f : found)
         report(f.code, *f.about, std::move(f.message), std::move(f.frames));
@@ -876,8 +883,9 @@ void Analyzer::expire(Timestamp now, bool at_end) {
 void Analyzer::remember_timed_out(const PendingKey& key, const Pending& pending, Timestamp timeout,
                                   std::string what) {
     const std::uint64_t serial = ++next_serial_;
-    timed_out_[key] = {pending.request.index,           pending.request.time, timeout,
-                       pending.request.frame.unit_id(), std::move(what),      serial};
+    timed_out_.insert_or_assign(
+        key, TimedOut{Pending(FrameRecord(pending.request), pending.serial, pending.stats), timeout,
+                      std::move(what), serial});
     timed_out_order_.emplace_back(key, serial);
     while (timed_out_order_.size() > max_timed_out) {  // entries whose key was used again count too
         const auto& [old_key, old_serial] = timed_out_order_.front();
@@ -890,8 +898,8 @@ void Analyzer::remember_timed_out(const PendingKey& key, const Pending& pending,
 std::optional<Analyzer::TimedOut> Analyzer::late_for(const PendingKey& key, const FrameRecord& response) {
     const auto it = timed_out_.find(key);
     // A serial line's key is the link alone: the late reply is the timed-out request's unit's.
-    if (it == timed_out_.end() ||
-        (response.frame.framing != Framing::Tcp && it->second.unit != response.frame.unit_id()))
+    if (it == timed_out_.end() || (response.frame.framing != Framing::Tcp &&
+                                   it->second.pending.request.frame.unit_id() != response.frame.unit_id()))
         return std::nullopt;
     TimedOut late = std::move(it->second);
     timed_out_.erase(it);

@@ -132,12 +132,11 @@ class Analyzer {
         std::uint64_t serial;
     };
     // A request reported unanswered, kept by its key until the key is used again (or many later): a reply
-    // that comes for it after all is late, not unsolicited. Bounded, oldest forgotten first.
+    // that comes for it after all is late, not unsolicited, and is paired with it (its values named, what it
+    // acknowledges followed). Bounded, oldest forgotten first.
     struct TimedOut {
-        std::uint64_t request_index = 0;
-        modbus::Timestamp sent{0};
+        Pending pending;  // the request, a copy of the one its timed-out transaction took
         modbus::Timestamp timeout{0};
-        std::uint8_t unit = 0;
         std::string what;  // the request described
         std::uint64_t serial = 0;
     };
@@ -209,11 +208,12 @@ class Analyzer {
     modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
     void on_request(Flow& flow, FrameRecord& record, DeviceStats& stats);
     void on_response(Flow& flow, FrameRecord& record);
-    void complete(Pending& pending, FrameRecord* response, bool timed_out);
+    // `late`: the response came after the request's timeout, which was reported and counted already.
+    void complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late = nullptr);
     // Counts and finds what a request and its response (or its absence) show; with `made`, fills the
     // transaction record and gives it to the sink before the findings.
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,
-               TransactionRecord* made);
+               const TimedOut* late, TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
     void remember_timed_out(const PendingKey& key, const Pending& pending, modbus::Timestamp timeout,
                             std::string what);

@@ -5,7 +5,8 @@
 // Columns: time (ISO 8601 UTC, empty for untimed dumps), source, transport (tcp, udp, serial,
 // exported-pdu), framing (tcp, rtu, ascii), link, unit_id, transaction_id (Modbus/TCP only), function,
 // function_name, address and quantity (what the request names), status (ok, exception, timeout, unanswered,
-// broadcast, malformed), exception_code, latency_ms, values, registers32, findings.
+// broadcast, malformed, bad_checksum, and late or late_exception for a reply after its request's timeout,
+// which has a "timeout" row of its own), exception_code, latency_ms, values, registers32, findings.
 // values: with a profile "name=value unit" separated by "; "; without one the registers or bits read or
 // written, separated by spaces. registers32 (--word-order): "address u32=N f32=X" separated by "; ".
 

@@ -75,6 +75,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
         out.end_array();
     }
     if (q.pdu) out.member("function", q.pdu->function_code());
+    if (r && t.late_past) out.member("late", true);
     if (r && t.latency)
         out.member("latency_ms", std::chrono::duration<double, std::milli>(*t.latency).count());
     text_member(out, "link", q.link);

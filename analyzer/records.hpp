@@ -56,6 +56,9 @@ struct TransactionRecord {
     std::optional<FrameRecord> response;
     std::optional<modbus::Timestamp> latency;
     bool timed_out = false;
+    // The response came after the request's timeout: the request was reported unanswered (a transaction of
+    // its own, timed out) and this one pairs the reply with it after all. The timeout it missed.
+    std::optional<modbus::Timestamp> late_past;
     bool broadcast = false;  // serial unit 0: executed by every slave, answered by none
     std::vector<modbus::FindingCode> findings;
     std::vector<modbus::NamedValue> values;  // with a profile: the values named in the device's terms
@@ -108,6 +111,8 @@ struct DeviceStats {
     std::uint64_t requests = 0, responses = 0, exceptions = 0, timeouts = 0, checksum_errors = 0;
     // Requests still waiting, within their timeout, when the capture ended: not timeouts, nor answered.
     std::uint64_t unanswered_at_end = 0;
+    // Timeouts whose reply came after all (not counted as responses; their latencies are in the histogram).
+    std::uint64_t late_responses = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests
 };

@@ -78,9 +78,13 @@ void TextSink::transaction(const TransactionRecord& t) {
     else
         out_ << "  " << to_string(t.request.frame.framing);
     out_ << "  " << pdu_brief(t.request);
-    if (t.response)
+    if (t.response) {
         out_ << "  -> " << pdu_brief(*t.response) << (t.latency ? "  " + ms(*t.latency) : std::string());
-    else
+        if (t.late_past)
+            out_ << "  late, past the "
+                 << std::chrono::duration_cast<std::chrono::milliseconds>(*t.late_past).count()
+                 << " ms timeout";
+    } else
         out_ << "  -> "
              << (t.broadcast   ? "broadcast, no response expected"
                  : t.timed_out ? "no response"
@@ -125,6 +129,7 @@ void TextSink::end(const Summary& s) {
     for (const auto& [device, d] : s.devices) {
         out_ << "  " << device << ": " << d.requests << " requests, " << d.responses << " responses, "
              << d.exceptions << " exceptions, " << d.timeouts << " timeouts";
+        if (d.late_responses) out_ << " (" << d.late_responses << " answered late)";
         if (d.unanswered_at_end) out_ << ", " << d.unanswered_at_end << " unanswered at the end";
         if (d.latency.count())
             out_ << "; latency min " << ms(d.latency.min()) << " / median " << ms(d.latency.quantile(0.5))
@@ -268,6 +273,7 @@ json transaction_to_json(const TransactionRecord& t) {
     if (t.response) {
         j["response_frame"] = t.response->index;
         if (t.latency) j["latency_ms"] = std::chrono::duration<double, std::milli>(*t.latency).count();
+        if (t.late_past) j["late"] = true;
         if (t.response->pdu && t.response->pdu->is_exception())
             j["exception_code"] = std::get<ExceptionResponse>(t.response->pdu->body).exception_code;
     } else if (t.broadcast) {
@@ -331,6 +337,7 @@ json summary_to_json(const Summary& s) {
                  {"exceptions", d.exceptions},
                  {"timeouts", d.timeouts},
                  {"unanswered_at_end", d.unanswered_at_end}};
+        if (d.late_responses) dev["late_responses"] = d.late_responses;
         json fcs = json::object();
         for (const auto& [fc, n] : d.functions)
             fcs[std::to_string(fc)] = n;

@@ -464,10 +464,31 @@ TEST(Analyzer, AReplyAfterItsRequestTimedOutIsLate) {
             EXPECT_EQ(f.frames, (std::vector<std::uint64_t>{1, 3}));
             EXPECT_EQ(mb::info(f.code).severity, mb::Severity::Warning);
         }
-    std::size_t answered = 0;
-    for (const auto& t : h.sink.transactions)
-        answered += t.response.has_value();
+    std::size_t answered = 0, late = 0;
+    for (const auto& t : h.sink.transactions) {
+        answered += t.response.has_value() && !t.late_past;
+        if (!t.late_past) continue;
+        // The late reply is paired with its request in a transaction of its own, after the timed-out one.
+        ++late;
+        EXPECT_EQ(t.request.index, 1u);
+        ASSERT_TRUE(t.response);
+        EXPECT_EQ(t.response->index, 3u);
+        EXPECT_EQ(*t.late_past, 3s);
+        EXPECT_EQ(t.latency, 4s);
+        EXPECT_FALSE(t.timed_out);
+        EXPECT_EQ(t.findings, std::vector<mb::FindingCode>{mb::FindingCode::PairLateResponse});
+    }
     EXPECT_EQ(answered, 2u);  // requests 2 and the second 3
+    EXPECT_EQ(late, 1u);
+    // Counted once: request 1 is a timeout and a transaction; its reply is neither a response in time nor
+    // another transaction.
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.requests, 4u);
+    EXPECT_EQ(device.timeouts, 2u);
+    EXPECT_EQ(device.late_responses, 1u);
+    EXPECT_EQ(device.responses, 2u);
+    EXPECT_EQ(device.latency.max(), 4s);
+    EXPECT_EQ(h.analyzer.summary().transactions, 4u);
 }
 
 TEST(Analyzer, UnansweredAtTheEndOfTheCaptureIsANoteNotATimeout) {

@@ -93,6 +93,24 @@ mb::Pdu response(mb::Pdu p) {
     return p;
 }
 
+// The CSV of a conversation decoded, with `beside` taking the records too (as --csv FILE sits beside the
+// text output).
+std::string csv_of(const mbscope::test::Conversation& c, an::Sink* beside = nullptr) {
+    std::ostringstream out;
+    {
+        an::CsvSink csv(out);
+        an::TeeSink both(beside ? std::vector<an::Sink*>{beside, &csv} : std::vector<an::Sink*>{&csv});
+        an::Analyzer analyzer({}, both);
+        std::string error;
+        const auto file = c.file();
+        auto capture = an::CaptureSource::open_memory(file, error);
+        EXPECT_TRUE(capture) << error;
+        if (capture) analyzer.read_capture(*capture);
+        analyzer.finish();
+    }
+    return out.str();
+}
+
 }  // namespace
 
 TEST(CsvSink, FieldsAreQuotedOnlyWhenTheyMustBe) {
@@ -118,24 +136,14 @@ TEST(CsvSink, RawValuesStatusesAndLatency) {
     c.send(true, adu(3, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 40, 1)), 3s);
     c.send(false, adu(3, mb::make_exception(3, 2)), 3s + 1ms);
     c.send(true, adu(4, mb::make_write_single_register(7, 1234)), 4s);  // never answered
-    std::ostringstream out;
-    {
-        mbscope::test::Collect kept;  // beside the CSV, as --csv FILE sits beside the text output
-        an::CsvSink csv(out);
-        an::TeeSink both({&kept, &csv});
-        an::Analyzer analyzer({}, both);
-        std::string error;
-        const auto file = c.file();
-        auto capture = an::CaptureSource::open_memory(file, error);
-        ASSERT_TRUE(capture);
-        analyzer.read_capture(*capture);
-        analyzer.finish();
-    }
+    mbscope::test::Collect kept;
+    const auto text = csv_of(c, &kept);
+    EXPECT_EQ(kept.transactions.size(), 4u);
     EXPECT_EQ(
-        out.str().substr(0, out.str().find("\r\n")),
+        text.substr(0, text.find("\r\n")),
         "time,source,transport,framing,link,unit_id,transaction_id,function,function_name,address,quantity,"
         "status,exception_code,latency_ms,values,registers32,findings");
-    const auto rows = rows_of(out.str());
+    const auto rows = rows_of(text);
     ASSERT_EQ(rows.size(), 4u);
     EXPECT_EQ(rows[0].at("time"), "1970-01-01T00:00:01.000000Z");
     EXPECT_EQ(rows[0].at("transport"), "tcp");
@@ -162,6 +170,33 @@ TEST(CsvSink, RawValuesStatusesAndLatency) {
     EXPECT_EQ(rows[3].at("quantity"), "1");
     EXPECT_EQ(rows[3].at("values"), "1234");
     EXPECT_EQ(rows[3].at("latency_ms"), "");
+}
+
+// A reply after its request's timeout: the request's row says "timeout", and the reply has a row of its own
+// with its values and latency.
+TEST(CsvSink, ALateReplyHasARowOfItsOwn) {
+    mbscope::test::Conversation c;
+    const std::uint16_t registers[] = {7, 8};
+    c.send(true, adu(1, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 96, 2)), 1s);
+    c.send(true, adu(2, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 40, 1)), 4500ms);
+    c.send(
+        false,
+        adu(1, response(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, registers))),
+        5s);
+    c.send(false, adu(2, mb::make_exception(3, 2)), 9s);
+    const auto rows = rows_of(csv_of(c));
+    ASSERT_EQ(rows.size(), 4u);
+    EXPECT_EQ(rows[0].at("status"), "timeout");
+    EXPECT_EQ(rows[0].at("transaction_id"), "1");
+    EXPECT_EQ(rows[1].at("status"), "late");
+    EXPECT_EQ(rows[1].at("transaction_id"), "1");
+    EXPECT_EQ(rows[1].at("values"), "7 8");
+    EXPECT_EQ(rows[1].at("latency_ms"), "4000.000");
+    EXPECT_EQ(rows[1].at("findings"), "pair.late_response");
+    EXPECT_EQ(rows[2].at("status"), "timeout");
+    EXPECT_EQ(rows[3].at("status"), "late_exception");
+    EXPECT_EQ(rows[3].at("exception_code"), "2");
+    EXPECT_EQ(rows[3].at("findings"), "pair.late_response pair.exception_response");
 }
 
 TEST(CsvSink, NamedValuesWithAProfileAndAQuotedSourceName) {

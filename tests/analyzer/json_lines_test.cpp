@@ -52,15 +52,21 @@ json as_written(const json& document) {
 
 // Every record compared as it comes.
 struct Compare : an::Sink {
-    int frames = 0, transactions = 0, findings = 0, unparsed_records = 0;
+    int frames = 0, transactions = 0, findings = 0, unparsed_records = 0, late = 0;
     void frame(const an::FrameRecord& f) override {
         ++frames;
         EXPECT_EQ(streamed(f, an::write_frame), as_written(an::frame_to_json(f))) << "frame " << f.index;
     }
     void transaction(const an::TransactionRecord& t) override {
         ++transactions;
-        EXPECT_EQ(streamed(t, an::write_transaction), as_written(an::transaction_to_json(t)))
+        const json written = streamed(t, an::write_transaction);
+        EXPECT_EQ(written, as_written(an::transaction_to_json(t)))
             << "transaction of frame " << t.request.index;
+        if (written.contains("late")) {
+            ++late;
+            EXPECT_EQ(written["late"], true);
+            EXPECT_TRUE(written.contains("latency_ms"));
+        }
     }
     void finding(const an::FindingRecord& f) override {
         ++findings;
@@ -143,6 +149,8 @@ TEST(JsonLines, DamagedStreamsTimeoutsAndUnparsedBytesWriteWhatNlohmannBuilds) {
     c.send(true, mb::encode_tcp(3, 1, read), 3s);                                   // never answered
     c.send(false, mbscope::test::bytes({0, 9, 0, 0, 0, 3, 1, 0x83, 2}), 3s + 1ms);  // unsolicited id
     c.send(true, mb::encode_tcp(4, 0, mb::encode_pdu(mb::make_write_single_register(5, 0xFFFF))), 9s);
+    c.send(true, mb::encode_tcp(5, 1, read), 20s);
+    c.send(false, mbscope::test::bytes({0, 5, 0, 0, 0, 7, 1, 3, 4, 0, 1, 0, 2}), 24s);  // past its timeout
     Compare sink;
     an::Analyzer a({}, sink);
     std::string error;
@@ -154,6 +162,7 @@ TEST(JsonLines, DamagedStreamsTimeoutsAndUnparsedBytesWriteWhatNlohmannBuilds) {
     EXPECT_GE(sink.transactions, 2);
     EXPECT_GE(sink.findings, 2);
     EXPECT_GE(sink.unparsed_records, 1);
+    EXPECT_EQ(sink.late, 1);
 }
 
 TEST(JsonLines, NamedValuesAndWordOrderViewsWriteWhatNlohmannBuilds) {

@@ -90,6 +90,33 @@ TEST(Semantics, ScaleRegisterRememberedFromAnEarlierRead) {
     EXPECT_EQ(h.sink.transactions[1].values[0].text, "1.234");
 }
 
+// A reply after its request's timeout was only a finding: its values were not named, and what it read was
+// not remembered (a scale register read late left later values unscaled).
+TEST(Semantics, ALateReplyIsNamedAndRememberedLikeOneInTime) {
+    Harness h;
+    ++h.tid;
+    h.send(true, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 17, 2));
+    h.t += 3500ms;  // past the 3 s timeout
+    auto late = mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, fixture_values);
+    late.direction = mb::Direction::Response;
+    h.send(false, late);
+    const std::uint16_t flow[] = {1234};
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 18, 1),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, flow));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairLateResponse), 1);
+    ASSERT_EQ(h.sink.transactions.size(), 3u);
+    EXPECT_TRUE(h.sink.transactions[0].timed_out);
+    const auto& t = h.sink.transactions[1];
+    ASSERT_TRUE(t.late_past);
+    EXPECT_EQ(t.profile, h.sink.transactions[2].profile);
+    ASSERT_EQ(t.values.size(), 2u);
+    EXPECT_EQ(t.values[1].text, "12.34");
+    EXPECT_EQ(t.values[1].point->unit, "m3/h");
+    EXPECT_EQ(h.sink.transactions[2].values[0].text, "12.34");  // two decimal places, as read late
+}
+
 TEST(Semantics, QuantityAboveTheManualsLimit) {
     Harness h;
     h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 17, 16),

@@ -58,7 +58,12 @@ TEST(NumberOptions, TimeoutAppliesToSerialLinesToo) {
     }
     const auto by_default = run_mbscope("decode " + path);
     EXPECT_EQ(by_default.exit_code, 1) << by_default.out;
-    EXPECT_NE(by_default.out.find("1 timeouts"), std::string::npos) << by_default.out;
+    EXPECT_NE(by_default.out.find("0 responses, 0 exceptions, 1 timeouts (1 answered late)"),
+              std::string::npos)
+        << by_default.out;
+    // The late reply is paired with its request all the same, its latency and the timeout it missed said.
+    EXPECT_NE(by_default.out.find("1500.000 ms  late, past the 1000 ms timeout"), std::string::npos)
+        << by_default.out;
     const auto longer = run_mbscope("decode --timeout 5 " + path);
     EXPECT_EQ(longer.exit_code, 0) << longer.out;
     EXPECT_NE(longer.out.find("1 responses, 0 exceptions, 0 timeouts"), std::string::npos) << longer.out;
