@@ -685,7 +685,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
     };
     if (rsp_record && late) {
         // Counted as a timeout already, and as a transaction: a late reply is neither a second one nor a
-        // response in time. Its latency is what the device took, and goes into the histogram.
+        // response (or exception) in time. Its latency is what the device took, and goes into the histogram.
         const auto ms = [](Timestamp d) {
             return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
         };
@@ -727,7 +727,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                              "request FC" + std::to_string(q.function_code()) + ", response FC" +
                                  std::to_string(a.function_code()));
             } else if (a.is_exception()) {
-                ++stats.exceptions;
+                if (!late) ++stats.exceptions;  // of the responses; a late one is among the timeouts
                 const auto code = std::get<ExceptionResponse>(a.body).exception_code;
                 const auto name = exception_name(code);
                 pair_finding(FindingCode::PairExceptionResponse,

@@ -111,7 +111,8 @@ struct DeviceStats {
     std::uint64_t requests = 0, responses = 0, exceptions = 0, timeouts = 0, checksum_errors = 0;
     // Requests still waiting, within their timeout, when the capture ended: not timeouts, nor answered.
     std::uint64_t unanswered_at_end = 0;
-    // Timeouts whose reply came after all (not counted as responses; their latencies are in the histogram).
+    // Timeouts whose reply came after all (not counted as responses or exceptions; their latencies are in
+    // the histogram).
     std::uint64_t late_responses = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests

@@ -491,6 +491,22 @@ TEST(Analyzer, AReplyAfterItsRequestTimedOutIsLate) {
     EXPECT_EQ(h.analyzer.summary().transactions, 4u);
 }
 
+// A late exception is what the device answered, and is judged as one; the device's counts keep it among
+// the timeouts, not the exceptions of its responses (which it would outnumber).
+TEST(Analyzer, ALateExceptionIsAmongTheTimeouts) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(false, mb::encode_tcp(1, 17, mb::encode_pdu(mb::make_exception(3, 2))), 5s);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairLateResponse), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairExceptionResponse), 1);
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.timeouts, 1u);
+    EXPECT_EQ(device.late_responses, 1u);
+    EXPECT_EQ(device.responses, 0u);
+    EXPECT_EQ(device.exceptions, 0u);
+}
+
 TEST(Analyzer, UnansweredAtTheEndOfTheCaptureIsANoteNotATimeout) {
     Harness h;
     h.send(true, read_request(1), 1s);
