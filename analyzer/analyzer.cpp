@@ -141,6 +141,9 @@ void Analyzer::count_finding(FindingCode code) {
 void Analyzer::report(FindingCode code, const FrameRecord& about, std::string message,
                       std::vector<std::uint64_t> frames) {
     count_finding(code);
+    if (!about.device.empty())
+        if (auto it = summary_.devices.find(about.device.str()); it != summary_.devices.end())
+            ++it->second.findings[std::string(to_string(code))];
     if (frames.empty() && about.index) frames.push_back(about.index);
     sink_.finding(FindingRecord{code, about.time, about.source, about.link, about.device, std::move(frames),
                                 about.packet, std::move(message)});
@@ -433,7 +436,7 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
 
 void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     ++summary_.frames;
-    if (r.frame.framing == Framing::Rtu && !r.frame.checksum_ok) ++stats.checksum_errors;
+    if (r.frame.framing != Framing::Tcp && !r.frame.checksum_ok) ++stats.checksum_errors;
     sink_.frame(r);
     for (auto code : r.frame.findings) {
         std::string message(info(code).summary);

@@ -108,6 +108,7 @@ class LatencyHistogram {
 };
 
 struct DeviceStats {
+    // checksum_errors: its frames (requests to it, replies from it) whose CRC or LRC fails.
     std::uint64_t requests = 0, responses = 0, exceptions = 0, timeouts = 0, checksum_errors = 0;
     // Requests still waiting, within their timeout, when the capture ended: not timeouts, nor answered.
     std::uint64_t unanswered_at_end = 0;
@@ -116,6 +117,9 @@ struct DeviceStats {
     std::uint64_t late_responses = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests
+    // The findings about this device (code name → count): which device did it. Findings about a stream or
+    // a line rather than a device (unparsed bytes, gaps) are in the summary's only.
+    std::map<std::string, std::uint64_t> findings;
 };
 
 struct Summary {

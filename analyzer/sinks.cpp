@@ -131,6 +131,7 @@ void TextSink::end(const Summary& s) {
              << d.exceptions << " exceptions, " << d.timeouts << " timeouts";
         if (d.late_responses) out_ << " (" << d.late_responses << " answered late)";
         if (d.unanswered_at_end) out_ << ", " << d.unanswered_at_end << " unanswered at the end";
+        if (d.checksum_errors) out_ << ", " << d.checksum_errors << " frames with a bad CRC/LRC";
         if (d.latency.count())
             out_ << "; latency min " << ms(d.latency.min()) << " / median " << ms(d.latency.quantile(0.5))
                  << " / p99 " << ms(d.latency.quantile(0.99)) << " / max " << ms(d.latency.max());
@@ -138,6 +139,12 @@ void TextSink::end(const Summary& s) {
         for (const auto& [fc, n] : d.functions)
             out_ << " FC" << fc << "×" << n;
         out_ << '\n';
+        if (!d.findings.empty()) {
+            out_ << "    findings:";
+            for (const auto& [code, n] : d.findings)
+                out_ << ' ' << code << "×" << n;
+            out_ << '\n';
+        }
     }
     for (const auto& [line, read] : s.serial_lines) {
         out_ << "  " << line << ": read as ";
@@ -338,6 +345,8 @@ json summary_to_json(const Summary& s) {
                  {"timeouts", d.timeouts},
                  {"unanswered_at_end", d.unanswered_at_end}};
         if (d.late_responses) dev["late_responses"] = d.late_responses;
+        if (d.checksum_errors) dev["checksum_errors"] = d.checksum_errors;
+        if (!d.findings.empty()) dev["findings"] = d.findings;
         json fcs = json::object();
         for (const auto& [fc, n] : d.functions)
             fcs[std::to_string(fc)] = n;

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "analyzer/serial_input.hpp"
+#include "analyzer/sinks.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
@@ -122,6 +123,39 @@ TEST(SerialInput, TimedTextFindsGapsTimeoutsBroadcastRepliesAndBadCrc) {
     const double latency_ms =
         std::chrono::duration<double, std::milli>(*r->sink.transactions[0].latency).count();
     EXPECT_NEAR(latency_ms, 20.0, 0.01);
+}
+
+// Which device did it: the summary counted bad CRCs per device (RTU only) and findings for the whole
+// capture only, and said neither per device. Each device now has its findings and its frames with a bad CRC
+// or LRC.
+TEST(SerialInput, EachDeviceHasItsOwnFindingsAndBadChecksums) {
+    const auto rtu = write_temp("two_units.txt",
+                                "1.000 > 11 03 00 60 00 03 07 45\n"
+                                "1.020 < 11 03 06 02 2B 00 00 00 64 C8 BB\n"  // CRC C8 BA, one bit off
+                                "2.000 > 05 03 00 60 00 03 04 51\n"           // unit 5: never answered
+                                "4.000 > 11 03 00 60 00 03 07 45\n"
+                                "4.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(rtu, an::InputFormat::Text);
+    const auto& devices = r->summary.devices;
+    ASSERT_EQ(devices.size(), 2u);
+    const auto& seventeen = devices.at("serial " + rtu + " unit 17");
+    const auto& five = devices.at("serial " + rtu + " unit 5");
+    EXPECT_EQ(seventeen.checksum_errors, 1u);
+    EXPECT_EQ(seventeen.findings, (std::map<std::string, std::uint64_t>{{"rtu.crc_mismatch", 1}}));
+    EXPECT_EQ(five.checksum_errors, 0u);
+    EXPECT_EQ(five.findings, (std::map<std::string, std::uint64_t>{{"pair.no_response", 1}}));
+    const auto json = an::summary_to_json(r->summary)["devices"];
+    EXPECT_EQ(json["serial " + rtu + " unit 17"]["checksum_errors"], 1);
+    EXPECT_EQ(json["serial " + rtu + " unit 17"]["findings"]["rtu.crc_mismatch"], 1);
+    EXPECT_FALSE(json["serial " + rtu + " unit 5"].contains("checksum_errors"));
+    EXPECT_EQ(json["serial " + rtu + " unit 5"]["findings"]["pair.no_response"], 1);
+
+    // An ASCII line's LRC, from a raw dump (no clock, no timeout).
+    const auto ascii = write_temp("ascii_lrc.txt", ":11030060000389\r\n:110306022B0000006456\r\n");
+    r = decode(ascii, an::InputFormat::AsciiRaw);
+    const auto& device = r->summary.devices.at("serial " + ascii + " unit 17");
+    EXPECT_EQ(device.checksum_errors, 1u);
+    EXPECT_EQ(device.findings.at("ascii.lrc_mismatch"), 1u);
 }
 
 TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
