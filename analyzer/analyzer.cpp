@@ -470,7 +470,8 @@ std::uint16_t pairing_id(const Frame& f) {
 
 void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     ++stats.requests;
-    if (r.pdu) ++stats.functions[r.pdu->function_code()];
+    // By the function code byte: a request whose PDU cannot be decoded still asked for that function.
+    if (const auto pdu = r.frame.pdu(); !pdu.empty()) ++stats.functions[pdu[0]];
     if (options_.semantics && r.pdu)
         if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id()))
             for (auto& rule : options_.semantics->check_request(*profile, *r.pdu))

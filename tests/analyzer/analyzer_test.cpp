@@ -491,6 +491,20 @@ TEST(Analyzer, AReplyAfterItsRequestTimedOutIsLate) {
     EXPECT_EQ(h.analyzer.summary().transactions, 4u);
 }
 
+// The summary's functions per device counted decoded requests only: a device asked twice with a malformed
+// FC43 request listed "2 requests" and no function.
+TEST(Analyzer, ARequestThatCannotBeDecodedIsCountedByItsFunctionCode) {
+    Harness h;
+    const std::vector<std::uint8_t> too_long = {43, 14, 1, 0,
+                                                0xFF};  // read device identification, a byte more
+    h.send(true, mb::encode_tcp(1, 17, too_long), 1s);
+    h.send(true, read_request(2), 2s);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PduMalformed), 1);
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.functions, (std::map<int, std::uint64_t>{{3, 1}, {43, 1}}));
+}
+
 // A late exception is what the device answered, and is judged as one; the device's counts keep it among
 // the timeouts, not the exceptions of its responses (which it would outnumber).
 TEST(Analyzer, ALateExceptionIsAmongTheTimeouts) {
