@@ -584,8 +584,29 @@ bool echo_matches(const Pdu& request, const Pdu& response) {
 std::string describe_request(const Pdu& p) {
     std::string s = "FC" + std::to_string(p.function_code());
     if (auto n = function_name(p.function_code())) s += " " + std::string(*n);
-    if (const auto* r = std::get_if<ReadRequest>(&p.body))
-        s += " " + std::to_string(r->starting_address) + "+" + std::to_string(r->quantity);
+    // What it asked of which addresses, as the transaction lines say it: a message names the request alone.
+    const auto range = [](std::uint16_t start, std::uint16_t quantity) {
+        return " " + std::to_string(start) + "+" + std::to_string(quantity);
+    };
+    if (const auto* r = std::get_if<ReadRequest>(&p.body)) s += range(r->starting_address, r->quantity);
+    if (const auto* w = std::get_if<WriteSingle>(&p.body)) {
+        s += " " + std::to_string(w->address) + " = ";
+        s += p.function_code() == 5 ? (w->value == 0xFF00 ? "ON"
+                                       : w->value == 0    ? "OFF"
+                                                          : std::to_string(w->value))
+                                    : std::to_string(w->value);
+    }
+    if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&p.body))
+        s += range(c->starting_address, c->quantity);
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&p.body))
+        s += range(w->starting_address, w->quantity);
+    if (const auto* m = std::get_if<MaskWriteRegister>(&p.body))
+        s += " " + std::to_string(m->reference_address);
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&p.body))
+        s += ", read" + range(rw->read_starting_address, rw->quantity_to_read) + ", write" +
+             range(rw->write_starting_address, rw->quantity_to_write);
+    if (const auto* d = std::get_if<Diagnostics>(&p.body))
+        s += " sub-function " + std::to_string(d->sub_function);
     return s;
 }
 

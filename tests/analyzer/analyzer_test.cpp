@@ -491,6 +491,33 @@ TEST(Analyzer, AReplyAfterItsRequestTimedOutIsLate) {
     EXPECT_EQ(h.analyzer.summary().transactions, 4u);
 }
 
+// A finding about a write named the function alone ("FC6 Write Single Register got no response"): which
+// register, which value, which range is what the engineer looks for in the device's manual.
+TEST(Analyzer, FindingsNameWhatAWriteAsked) {
+    Harness h;
+    const std::uint16_t values[] = {1, 2};
+    const bool coils[] = {true, false, true};
+    const auto adu = [](std::uint16_t tid, const mb::Pdu& pdu) {
+        return mb::encode_tcp(tid, 17, mb::encode_pdu(pdu));
+    };
+    h.send(true, adu(1, mb::make_write_single_register(23, 250)), 1s);
+    h.send(true, adu(2, mb::make_write_single_coil(7, true)), 1s);
+    h.send(true, adu(3, mb::make_write_multiple_registers(96, values)), 1s);
+    h.send(true, adu(4, mb::make_write_multiple_coils(10, coils)), 1s);
+    h.send(false, mb::encode_tcp(4, 17, mb::encode_pdu(mb::make_exception(15, 2))), 1s + 1ms);
+    h.analyzer.finish();
+    std::vector<std::string> messages;
+    for (const auto& f : h.sink.findings)
+        messages.push_back(f.message);
+    const std::vector<std::string> expected = {
+        "exception 2 (Illegal Data Address) to FC15 Write Multiple Coils 10+3",
+        "FC6 Write Single Register 23 = 250 unanswered when the capture ended",
+        "FC5 Write Single Coil 7 = ON unanswered when the capture ended",
+        "FC16 Write Multiple Registers 96+2 unanswered when the capture ended",
+    };
+    EXPECT_EQ(messages, expected);
+}
+
 // The summary's functions per device counted decoded requests only: a device asked twice with a malformed
 // FC43 request listed "2 requests" and no function.
 TEST(Analyzer, ARequestThatCannotBeDecodedIsCountedByItsFunctionCode) {
