@@ -1504,6 +1504,22 @@ std::vector<Framing> Analyzer::serial_framings_read() const {
     return out;
 }
 
+void Analyzer::idle(Timestamp now) {
+    if (now <= now_) return sink_.flush();
+    for (auto& [name, link] : serial_links_) {
+        // A timed RTU line holding the start of a frame: its t3.5 of silence has passed by now. (An ASCII
+        // frame ends at its LF; a line whose framing is not told yet has no frames to end.)
+        if (link->framing != Framing::Rtu || !link->timed || !link->timed->holding() ||
+            !link->last_received.count() || now - link->last_received < link->line.t3_5())
+            continue;
+        source_ = link->source;
+        close_frames(*link, now);
+    }
+    now_ = now;
+    expire(now_, false);
+    sink_.flush();
+}
+
 void Analyzer::finish() {
     ip_fragments_.expire(now_, true);
     summary_.ip_datagrams_incomplete = ip_fragments_.incomplete_datagrams();

@@ -79,6 +79,11 @@ class Analyzer {
     // direction column), else Unknown and the request → expected-response state machine decides.
     void serial(const std::string& source, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
                 modbus::Direction hint = modbus::Direction::Unknown);
+    // Nothing was captured up to `now` (a live capture's quiet line or network, by the host's clock): a
+    // frame the line's silence has ended is complete, and a request whose timeout has run out is unanswered,
+    // said now rather than at the next byte or packet, or at the end as "unanswered when the capture ended".
+    // What was decoded so far is then written out (Sink::flush).
+    void idle(modbus::Timestamp now);
     // Reads a whole capture file; returns false (and records the error in the summary) if it could not be
     // read to its end. Everything before the damage is still analysed. `name` (the path when empty) is what
     // the capture is reported as.

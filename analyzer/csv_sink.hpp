@@ -26,6 +26,7 @@ class CsvSink : public Sink {
     explicit CsvSink(std::ostream& out);
     void transaction(const TransactionRecord& t) override;
     void end(const Summary&) override { out_.flush(); }
+    void flush() override { out_.flush(); }
 
   private:
     std::ostream& out_;

@@ -40,6 +40,12 @@ Timestamp wall_clock() {
     return std::chrono::duration_cast<Timestamp>(std::chrono::system_clock::now().time_since_epoch());
 }
 
+// The time up to which nothing more can come: a packet or a read waiting in a buffer is stamped when it was
+// captured, so the quiet time handed to the analyzer stops short of the clock by twice the loop's wait.
+Timestamp quiet_until() {
+    return wall_clock() - std::chrono::milliseconds(2 * read_timeout_ms);
+}
+
 }  // namespace
 
 std::string capture_filter(const SniffOptions& o) {
@@ -220,7 +226,17 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         a.input_error(error);
         return false;
     };
+    // Time passes for the analyzer at least every read_timeout_ms, busy or quiet: requests time out, frames
+    // a silence ended come out, and what was decoded is written out, while the capture runs.
+    auto last_pass = std::chrono::steady_clock::now();
+    const auto pass_time = [&](bool quiet) {
+        const auto t = std::chrono::steady_clock::now();
+        if (!quiet && t - last_pass < std::chrono::milliseconds(read_timeout_ms)) return;
+        last_pass = t;
+        a.idle(quiet_until());
+    };
     const auto finished = [&] {
+        a.idle(quiet_until());  // what timed out while the capture ran is a timeout, not cut off by its end
         const std::string written = m.flush(options_.write);
         return written.empty() || write_failed(written);
     };
@@ -236,7 +252,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
                 if (draining) break;
                 // Non-blocking reads and our own wait: in immediate mode libpcap's timeout may never fire.
                 pollfd wait{pcap_get_selectable_fd(m.pcap), POLLIN, 0};
-                ::poll(&wait, 1, read_timeout_ms);
+                if (::poll(&wait, 1, read_timeout_ms) == 0) pass_time(true);
                 continue;
             }
             if (status < 0) {
@@ -254,6 +270,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             const std::string written = m.dump(p.time, p.data, h->len, 0);
             a.packet(name_, p);
             if (!written.empty()) return write_failed(written);
+            pass_time(false);
         }
         return finished();
     }
@@ -279,6 +296,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         }
         if (ready <= 0) {
             if (draining) break;
+            pass_time(true);
             continue;
         }
         for (nfds_t k = 0; k < n; ++k) {
@@ -295,6 +313,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
                      two ? (which[k] == 0 ? Direction::Request : Direction::Response) : Direction::Unknown);
             if (!written.empty()) return write_failed(written);
         }
+        pass_time(false);
     }
     return finished();
 }

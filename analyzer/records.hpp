@@ -158,6 +158,9 @@ class Sink {
     virtual void finding(const FindingRecord&) {}
     virtual void unparsed(const UnparsedRecord&) {}
     virtual void end(const Summary&) {}
+    // What the sink took so far, written out now: a live capture is quiet (Analyzer::idle), and whoever
+    // reads the output should see what was decoded without waiting for a buffer to fill.
+    virtual void flush() {}
     // False for a sink that never looks at transaction records (a summary): the analyzer then does not
     // make them, and transaction() is not called. Asked once, when the analyzer is made.
     virtual bool wants_transactions() const { return true; }

@@ -221,18 +221,24 @@ json frame_to_json(const FrameRecord& f) {
 }
 
 JsonSink::~JsonSink() {
-    flush();
+    pass_on();
 }
 
-void JsonSink::flush() {
+void JsonSink::pass_on() {
     const auto text = writer_.text();
     out_.write(text.data(), static_cast<std::streamsize>(text.size()));
     writer_.clear();
 }
 
+void JsonSink::flush() {
+    if (!lines_) return;
+    pass_on();
+    out_.flush();
+}
+
 void JsonSink::line_written() {
     writer_.end_line();
-    if (writer_.size() >= (1u << 16)) flush();
+    if (writer_.size() >= (1u << 16)) pass_on();
 }
 
 void JsonSink::emit(json j) {
@@ -413,10 +419,14 @@ void TeeSink::end(const Summary& summary) {
     for (auto* s : sinks_)
         s->end(summary);
 }
+void TeeSink::flush() {
+    for (auto* s : sinks_)
+        s->flush();
+}
 
 void JsonSink::end(const Summary& s) {
     emit(summary_to_json(s));
-    flush();
+    pass_on();
     if (!lines_) out_ << document_.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
     out_.flush();
 }

@@ -21,6 +21,7 @@ class TextSink : public Sink {
     void finding(const FindingRecord& f) override;
     void unparsed(const UnparsedRecord& u) override;
     void end(const Summary& s) override;
+    void flush() override { out_.flush(); }
     bool wants_transactions() const override { return !summary_only_; }
 
   private:
@@ -41,11 +42,13 @@ class JsonSink : public Sink {
     void finding(const FindingRecord& f) override;
     void unparsed(const UnparsedRecord& u) override;
     void end(const Summary& s) override;
+    // JSON lines taken so far, to `out` and flushed (a document is written whole, at the end).
+    void flush() override;
 
   private:
     void emit(nlohmann::json j);
     void line_written();
-    void flush();
+    void pass_on();  // the lines in the buffer, to `out`
     std::ostream& out_;
     bool lines_;
     modbus::JsonWriter writer_;
@@ -61,6 +64,7 @@ class TeeSink : public Sink {
     void finding(const FindingRecord& f) override;
     void unparsed(const UnparsedRecord& u) override;
     void end(const Summary& s) override;
+    void flush() override;
     bool wants_transactions() const override;
 
   private:

@@ -54,6 +54,8 @@ class RtuTimedDeframer {
     void advance(Timestamp now, DeframeEvents& out);
     void finish(DeframeEvents& out);
     const SerialLine& line() const noexcept { return line_; }
+    // Bytes are held for a frame not yet ended by a silence (or by finish).
+    bool holding() const noexcept { return !seg_.empty(); }
     // Back to a new deframer's state for `line`, keeping the buffers' capacity.
     void reset(SerialLine line) noexcept;
 

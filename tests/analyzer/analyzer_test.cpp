@@ -548,6 +548,44 @@ TEST(Analyzer, ALateExceptionIsAmongTheTimeouts) {
     EXPECT_EQ(device.exceptions, 0u);
 }
 
+// Quiet time in a live capture (Analyzer::idle): a silence ends the frame in progress, a request whose
+// timeout ran out is unanswered, and the output is flushed; a time already passed changes nothing.
+TEST(Analyzer, QuietTimeEndsFramesAndTimesOutRequests) {
+    struct Flushes : Collect {
+        int flushes = 0;
+        void flush() override { ++flushes; }
+    };
+    Flushes sink;
+    an::AnalyzerOptions o;
+    o.serial_framing = mb::Framing::Rtu;
+    an::Analyzer a(o, sink);
+    const auto request = mbscope::test::bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45});
+    a.serial("line", request, 10s);
+    EXPECT_TRUE(sink.frames.empty());  // a frame ends with t3.5 of silence (4 ms at 9600 baud)
+    a.idle(10s + 2ms);
+    EXPECT_TRUE(sink.frames.empty());
+    a.idle(10s + 5ms);
+    ASSERT_EQ(sink.frames.size(), 1u);
+    EXPECT_EQ(sink.frames[0].time, 10s);
+    a.idle(10s + 900ms);
+    EXPECT_EQ(sink.count(mb::FindingCode::PairNoResponse), 0);
+    a.idle(11s + 100ms);
+    EXPECT_EQ(sink.count(mb::FindingCode::PairNoResponse), 1);
+    EXPECT_EQ(sink.flushes, 4);
+    a.idle(11s);  // earlier than the last: only flushed
+    EXPECT_EQ(sink.flushes, 5);
+
+    // Modbus/TCP: the request times out by quiet time alone, as by the next packet's time.
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.analyzer.idle(3900ms);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
+    h.analyzer.idle(4100ms);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
+}
+
 TEST(Analyzer, UnansweredAtTheEndOfTheCaptureIsANoteNotATimeout) {
     Harness h;
     h.send(true, read_request(1), 1s);

@@ -213,6 +213,43 @@ TEST(Sniff, TwoSerialTapsGiveDirectionsAndAUserZeroFile) {
     EXPECT_TRUE(again->findings.empty());
 }
 
+// A device that never answers, on a line that then stays quiet: its request was framed only when more bytes
+// came or the capture ended, and then reported "unanswered when the capture ended" (a note, exit code 0)
+// however long the capture had run past its timeout. Time passes while the capture runs: the request is
+// framed and times out before the capture ends.
+TEST(Sniff, ASilentDeviceTimesOutWhileTheCaptureRuns) {
+    int master = -1, slave = -1;
+    char path[64];
+    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
+    an::SniffOptions o;
+    o.serial = path;
+    o.duration = std::chrono::milliseconds(2500);  // the request's 1 s timeout runs out well within it
+    std::string error;
+    bool denied = false;
+    auto capture = an::LiveCapture::open(o, error, denied);
+    ASSERT_TRUE(capture) << error;
+    Collect sink;
+    an::AnalyzerOptions options;
+    options.serial_framing = mb::Framing::Rtu;
+    an::Analyzer a(options, sink);
+    std::atomic<bool> stop{false};
+    bool ran = false;
+    std::thread sniffer([&] { ran = capture->run(a, stop); });
+    EXPECT_EQ(::write(master, rtu_request.data(), rtu_request.size()), 8);
+    sniffer.join();
+    EXPECT_TRUE(ran);
+    // Before finish(): what the capture said while it ran.
+    EXPECT_EQ(sink.frames.size(), 1u);
+    EXPECT_EQ(sink.count(mb::FindingCode::PairNoResponse), 1);
+    ASSERT_EQ(sink.transactions.size(), 1u);
+    EXPECT_TRUE(sink.transactions[0].timed_out);
+    a.finish();
+    EXPECT_EQ(sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
+    EXPECT_EQ(a.summary().errors, 1u);
+    ::close(master);
+    ::close(slave);
+}
+
 TEST(Sniff, PcapngIsChosenByTheNameInAnyCase) {
     EXPECT_TRUE(an::writes_pcapng("plant.pcapng"));
     EXPECT_TRUE(an::writes_pcapng("/tmp/PLANT.PcapNG"));
