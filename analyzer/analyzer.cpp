@@ -1504,6 +1504,12 @@ std::vector<Framing> Analyzer::serial_framings_read() const {
     return out;
 }
 
+std::optional<SerialLine> Analyzer::serial_line(const std::string& source) const {
+    const auto it = serial_links_.find("serial " + source);
+    if (it == serial_links_.end()) return std::nullopt;
+    return it->second->line;
+}
+
 void Analyzer::idle(Timestamp now) {
     if (now <= now_) return sink_.flush();
     for (auto& [name, link] : serial_links_) {

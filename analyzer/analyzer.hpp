@@ -84,6 +84,10 @@ class Analyzer {
     // said now rather than at the next byte or packet, or at the end as "unanswered when the capture ended".
     // What was decoded so far is then written out (Sink::flush).
     void idle(modbus::Timestamp now);
+    // The character a serial source's line is read in now (speed, parity, data and stop bits): the line
+    // given, or the one its devices acknowledged since (a live sniffer sets its ports to it). nullopt
+    // before the source's first bytes.
+    std::optional<modbus::SerialLine> serial_line(const std::string& source) const;
     // Reads a whole capture file; returns false (and records the error in the summary) if it could not be
     // read to its end. Everything before the damage is still analysed. `name` (the path when empty) is what
     // the capture is reported as.

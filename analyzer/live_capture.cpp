@@ -277,6 +277,28 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
     // Serial: each read is a chunk stamped when it returned. With two taps the first carries the master's
     // requests and the second the slaves' responses.
     const bool two = static_cast<bool>(m.serial[1]);
+    // The devices on the line acknowledged other settings (MK BAUD, PARID, PROT with a profile) and the
+    // analysis follows them: so do the ports, or every byte from then on is read at the old speed, garbled.
+    modbus::SerialLine port_line = options_.line;
+    const auto follow_line = [&] {
+        const auto line = a.serial_line(name_);
+        if (!line || *line == port_line) return;
+        for (int i = 0; i < 2; ++i) {
+            if (!m.serial[i]) continue;
+            const std::string& device = i == 0 ? options_.serial : options_.serial2;
+            if (auto set =
+                    modbus::transport::set_line(m.serial[i].get(), *line, modbus::transport::is_pty(device));
+                !set)
+                a.input_error(device + ": cannot follow the line to " + std::to_string(line->baud) +
+                              " baud " + std::to_string(line->data_bits) +
+                              (line->parity == modbus::Parity::None   ? "N"
+                               : line->parity == modbus::Parity::Even ? "E"
+                                                                      : "O") +
+                              std::to_string(line->stop_bits) + ": " + set.error() +
+                              "; what follows is read at the old settings");
+        }
+        port_line = *line;
+    };
     std::uint8_t buf[4096];
     while (!done()) {
         if (stop) draining = true;
@@ -297,6 +319,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         if (ready <= 0) {
             if (draining) break;
             pass_time(true);
+            follow_line();
             continue;
         }
         for (nfds_t k = 0; k < n; ++k) {
@@ -314,6 +337,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             if (!written.empty()) return write_failed(written);
         }
         pass_time(false);
+        follow_line();
     }
     return finished();
 }

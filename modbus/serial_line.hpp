@@ -24,6 +24,7 @@ struct SerialLine {
     Parity parity = Parity::None;
     std::uint8_t stop_bits = 1;
 
+    bool operator==(const SerialLine&) const = default;
     std::uint32_t bits_per_character() const noexcept {
         return 1u + data_bits + (parity == Parity::None ? 0u : 1u) + stop_bits;
     }

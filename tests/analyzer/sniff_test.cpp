@@ -8,6 +8,7 @@
 #include <netinet/in.h>
 #include <pty.h>
 #include <sys/socket.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -18,6 +19,8 @@
 
 #include "analyzer/live_capture.hpp"
 #include "analyzer/serial_input.hpp"
+#include "modbus/adu.hpp"
+#include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
 
 namespace an = mbscope::analyzer;
@@ -246,6 +249,53 @@ TEST(Sniff, ASilentDeviceTimesOutWhileTheCaptureRuns) {
     a.finish();
     EXPECT_EQ(sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
     EXPECT_EQ(a.summary().errors, 1u);
+    ::close(master);
+    ::close(slave);
+}
+
+// An MK device told BAUD := 3 (2400 baud, 000:501-503) acknowledges at the old speed and then talks at the
+// new one. The analysis followed it, but the sniffer's port stayed at 9600 baud: every byte from then on was
+// read garbled. The port now follows the line (a pseudo-terminal keeps the speed it is set to).
+TEST(Sniff, TheSerialPortFollowsTheSpeedADeviceAcknowledged) {
+    int master = -1, slave = -1;
+    char path[64];
+    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
+    an::SniffOptions o;
+    o.serial = path;
+    o.duration = std::chrono::seconds(10);  // stopped below, once the port follows
+    std::string error;
+    bool denied = false;
+    auto capture = an::LiveCapture::open(o, error, denied);
+    ASSERT_TRUE(capture) << error;
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    auto profile = store.load("mmk-2030");
+    ASSERT_TRUE(profile.has_value());
+    an::AnalyzerOptions options;
+    options.serial_framing = mb::Framing::Rtu;
+    options.semantics = std::make_shared<an::Semantics>();
+    options.semantics->add({}, std::make_shared<const mb::Profile>(std::move(profile.value())));
+    Collect sink;
+    an::Analyzer a(options, sink);
+    const auto speed = [&] {
+        termios t{};
+        ::tcgetattr(slave, &t);
+        return ::cfgetispeed(&t);
+    };
+    EXPECT_EQ(speed(), B9600);
+    std::atomic<bool> stop{false};
+    std::thread sniffer([&] { capture->run(a, stop); });
+    const auto baud_2400 = mb::encode_rtu(1, mb::encode_pdu(mb::make_write_single_register(9, 3)));
+    EXPECT_EQ(::write(master, baud_2400.data(), baud_2400.size()), 8);  // the master's request
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    EXPECT_EQ(::write(master, baud_2400.data(), baud_2400.size()), 8);  // the device's echo
+    for (int i = 0; i < 100 && speed() != B2400; ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    EXPECT_EQ(speed(), B2400);
+    stop = true;
+    sniffer.join();
+    a.finish();
+    EXPECT_EQ(sink.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
+    EXPECT_TRUE(a.summary().input_errors.empty());
     ::close(master);
     ::close(slave);
 }
