@@ -740,11 +740,14 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                         " µs before its request: the capture's clock went back");
             }
         }
-        if (rsp.frame.unit_id() != request.frame.unit_id())
+        // A reply whose CRC or LRC fails has a damaged byte somewhere (SL §2.5.1.2: the master discards
+        // it): its checksum finding says so, and its unit, function code and data are not held against the
+        // request as if the device had sent them.
+        if (rsp.frame.checksum_ok && rsp.frame.unit_id() != request.frame.unit_id())
             pair_finding(FindingCode::PairUnitMismatch,
                          "request to unit " + std::to_string(request.frame.unit_id()) +
                              ", response from unit " + std::to_string(rsp.frame.unit_id()));
-        if (request.pdu && rsp.pdu) {
+        if (rsp.frame.checksum_ok && request.pdu && rsp.pdu) {
             const Pdu& q = *request.pdu;
             const Pdu& a = *rsp.pdu;
             if (a.function_code() != q.function_code()) {
@@ -1028,7 +1031,14 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             link.answered.push_back(frame.unit_id());
         r.carrier = flow.carrier;
         DeviceStats* stats = nullptr;
-        r.device = device_of(flow, frame.unit_id(), stats);
+        // A reply whose checksum fails may have its unit byte damaged: while a request waits on the line it
+        // is that unit's reply, garbled on the way (the other units do not talk unasked), not a unit nobody
+        // asked, which would stand in the summary as a device of its own.
+        std::uint8_t unit = frame.unit_id();
+        if (r.direction == Direction::Response && !frame.checksum_ok)
+            if (const auto it = pending_.find({flow.id, pairing_id(frame)}); it != pending_.end())
+                unit = it->second.request.frame.unit_id();
+        r.device = device_of(flow, unit, stats);
         auto pdu = decode_pdu(r.frame.pdu(), r.direction);
         if (pdu)
             r.pdu = std::move(pdu.value());

@@ -80,6 +80,9 @@ void TextSink::transaction(const TransactionRecord& t) {
     out_ << "  " << pdu_brief(t.request);
     if (t.response) {
         out_ << "  -> " << pdu_brief(*t.response) << (t.latency ? "  " + ms(*t.latency) : std::string());
+        if (!t.response->frame.checksum_ok)
+            out_ << "  bad " << (t.response->frame.framing == Framing::Ascii ? "LRC" : "CRC")
+                 << ", a master discards it";
         if (t.late_past)
             out_ << "  late, past the "
                  << std::chrono::duration_cast<std::chrono::milliseconds>(*t.late_past).count()

@@ -158,6 +158,31 @@ TEST(SerialInput, EachDeviceHasItsOwnFindingsAndBadChecksums) {
     EXPECT_EQ(device.findings.at("ascii.lrc_mismatch"), 1u);
 }
 
+// A reply to unit 17 garbled on the line, its unit byte among the damage (0x11 read as 0x13, the CRC
+// failing): it stood in the summary as a device "unit 19" that nobody asked, with a bad CRC and a
+// pair.unit_mismatch, and unit 17 had no bad CRC. It is unit 17's reply with a bad CRC, and its damaged
+// bytes are not held against the request.
+TEST(SerialInput, AGarbledReplyIsTheAskedUnitsNotAnotherDevice) {
+    for (const bool marked : {true, false}) {
+        SCOPED_TRACE(marked ? "directions in the log" : "directions told by the analyzer");
+        const std::string to = marked ? "> " : "", from = marked ? "< " : "";
+        const auto path =
+            write_temp("garbled_unit.txt", "1.000 " + to + "11 03 00 60 00 03 07 45\n" +  //
+                                               "1.020 " + from + "13 03 06 02 2B 00 00 00 64 C8 BA\n" +
+                                               "2.000 " + to + "11 03 00 60 00 03 07 45\n" + "2.020 " + from +
+                                               "11 03 06 02 2B 00 00 00 64 C8 BA\n");
+        auto r = decode(path, an::InputFormat::Text);
+        ASSERT_EQ(r->summary.devices.size(), 1u);
+        const auto& device = r->summary.devices.at("serial " + path + " unit 17");
+        EXPECT_EQ(device.checksum_errors, 1u);
+        EXPECT_EQ(device.responses, 2u);
+        EXPECT_EQ(device.findings, (std::map<std::string, std::uint64_t>{{"rtu.crc_mismatch", 1}}));
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnitMismatch), 0);
+        ASSERT_EQ(r->sink.transactions.size(), 2u);
+        EXPECT_FALSE(r->sink.transactions[0].response->frame.checksum_ok);
+    }
+}
+
 TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
     const auto path = write_temp("bad.txt",
                                  "1.0 11 03 00 60 00 03 07 45\nnot-a-time 11\n1.5 zz\n1.6 > 11 3 0 60\n"
