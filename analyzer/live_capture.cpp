@@ -24,7 +24,10 @@ namespace {
 
 constexpr int snap_length = 65535;
 constexpr int read_timeout_ms = 100;  // how often the loop looks at the clock and the stop flag
-constexpr int drain_timeout_ms = 20;  // after a stop, the silence that ends the serial capture
+constexpr int drain_timeout_ms = 20;  // after a stop, the silence that ends the capture
+// After a stop, what is still coming is read for at most this long: a busy network or line is never quiet
+// for drain_timeout_ms, and a stop must stop.
+constexpr auto drain_at_most = std::chrono::milliseconds(500);
 
 // pcap_datalink() gives DLT_ values, capture files hold LINKTYPE_ values: they differ for the few link
 // types whose DLT_ number varies by platform. pcap_dump maps them itself; libpcap exports no mapping.
@@ -241,18 +244,30 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         return written.empty() || write_failed(written);
     };
     bool draining = false;
+    std::chrono::steady_clock::time_point drain_end{};
+    // Stopped: what the kernel or the tty still passes on is read until a short silence, for a moment at
+    // most.
+    const auto drained = [&] {
+        if (stop && !draining) {
+            draining = true;
+            drain_end = std::chrono::steady_clock::now() + drain_at_most;
+        }
+        return draining && std::chrono::steady_clock::now() >= drain_end;
+    };
     if (m.pcap) {
         const int linktype = pcap_datalink(m.pcap);
-        while (!done()) {
-            if (stop) draining = true;  // stopped: take what the kernel already holds, then return
+        while (!done() && !drained()) {
             pcap_pkthdr* h = nullptr;
             const u_char* data = nullptr;
             const int status = pcap_next_ex(m.pcap, &h, &data);
             if (status == 0) {
-                if (draining) break;
                 // Non-blocking reads and our own wait: in immediate mode libpcap's timeout may never fire.
+                // Stopped, the wait is a short one (the packets of an exchange that ended just before the
+                // stop were lost on a busy machine when the first empty read ended the capture).
                 pollfd wait{pcap_get_selectable_fd(m.pcap), POLLIN, 0};
-                if (::poll(&wait, 1, read_timeout_ms) == 0) pass_time(true);
+                const int ready = ::poll(&wait, 1, draining ? drain_timeout_ms : read_timeout_ms);
+                if (ready == 0 && draining) break;
+                if (ready == 0) pass_time(true);
                 continue;
             }
             if (status < 0) {
@@ -300,8 +315,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         port_line = *line;
     };
     std::uint8_t buf[4096];
-    while (!done()) {
-        if (stop) draining = true;
+    while (!done() && !drained()) {
         pollfd fds[2];
         nfds_t n = 0;
         int which[2] = {0, 0};

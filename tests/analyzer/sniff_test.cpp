@@ -300,6 +300,45 @@ TEST(Sniff, TheSerialPortFollowsTheSpeedADeviceAcknowledged) {
     ::close(slave);
 }
 
+// A line that never falls silent for the drain's 20 ms (a busy bus, a chattering device) kept a stopped
+// capture reading it for as long as it talked: a stop must stop. The writer here talks every 5 ms for up to
+// 20 s; the capture is stopped after 200 ms and must return while the line is still talking.
+TEST(Sniff, AStopStopsOnALineThatNeverFallsSilent) {
+    int master = -1, slave = -1;
+    char path[64];
+    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
+    an::SniffOptions o;
+    o.serial = path;
+    std::string error;
+    bool denied = false;
+    auto capture = an::LiveCapture::open(o, error, denied);
+    ASSERT_TRUE(capture) << error;
+    Collect sink;
+    an::Analyzer a({}, sink);
+    std::atomic<bool> stop{false}, returned{false}, still_talking{false};
+    std::thread talker([&] {
+        const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+        while (!returned && std::chrono::steady_clock::now() < end) {
+            if (::write(master, rtu_request.data(), rtu_request.size()) < 0) break;
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        }
+        still_talking = std::chrono::steady_clock::now() < end;
+    });
+    std::thread sniffer([&] {
+        capture->run(a, stop);
+        returned = true;
+    });
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    stop = true;
+    sniffer.join();
+    talker.join();
+    a.finish();
+    EXPECT_TRUE(still_talking);
+    EXPECT_GT(sink.frames.size(), 10u);
+    ::close(master);
+    ::close(slave);
+}
+
 TEST(Sniff, PcapngIsChosenByTheNameInAnyCase) {
     EXPECT_TRUE(an::writes_pcapng("plant.pcapng"));
     EXPECT_TRUE(an::writes_pcapng("/tmp/PLANT.PcapNG"));
