@@ -83,6 +83,31 @@ bool sniff_request(an::LiveCapture& capture, an::Analyzer& a, int master, bool s
     return ran;
 }
 
+// A pseudo-terminal standing for a serial line: `master` is the line's far end, `path` the port a capture
+// opens; closed when the test ends.
+struct Pty {
+    int master = -1, slave = -1;
+    char path[64] = {};
+    Pty() { EXPECT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0); }
+    ~Pty() {
+        ::close(master);
+        ::close(slave);
+    }
+    Pty(const Pty&) = delete;
+    Pty& operator=(const Pty&) = delete;
+};
+
+// A live capture of the pseudo-terminal with `o`'s other options; null (the test failed) when it cannot
+// be opened.
+std::unique_ptr<an::LiveCapture> capture_of(const Pty& pty, an::SniffOptions o = {}) {
+    o.serial = pty.path;
+    std::string error;
+    bool denied = false;
+    auto capture = an::LiveCapture::open(o, error, denied);
+    EXPECT_TRUE(capture) << error;
+    return capture;
+}
+
 }  // namespace
 
 TEST(Sniff, FilterNamesEveryPort) {
@@ -221,16 +246,11 @@ TEST(Sniff, TwoSerialTapsGiveDirectionsAndAUserZeroFile) {
 // however long the capture had run past its timeout. Time passes while the capture runs: the request is
 // framed and times out before the capture ends.
 TEST(Sniff, ASilentDeviceTimesOutWhileTheCaptureRuns) {
-    int master = -1, slave = -1;
-    char path[64];
-    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
+    Pty pty;
     an::SniffOptions o;
-    o.serial = path;
     o.duration = std::chrono::milliseconds(2500);  // the request's 1 s timeout runs out well within it
-    std::string error;
-    bool denied = false;
-    auto capture = an::LiveCapture::open(o, error, denied);
-    ASSERT_TRUE(capture) << error;
+    auto capture = capture_of(pty, o);
+    ASSERT_TRUE(capture);
     Collect sink;
     an::AnalyzerOptions options;
     options.serial_framing = mb::Framing::Rtu;
@@ -238,7 +258,7 @@ TEST(Sniff, ASilentDeviceTimesOutWhileTheCaptureRuns) {
     std::atomic<bool> stop{false};
     bool ran = false;
     std::thread sniffer([&] { ran = capture->run(a, stop); });
-    EXPECT_EQ(::write(master, rtu_request.data(), rtu_request.size()), 8);
+    EXPECT_EQ(::write(pty.master, rtu_request.data(), rtu_request.size()), 8);
     sniffer.join();
     EXPECT_TRUE(ran);
     // Before finish(): what the capture said while it ran.
@@ -249,24 +269,15 @@ TEST(Sniff, ASilentDeviceTimesOutWhileTheCaptureRuns) {
     a.finish();
     EXPECT_EQ(sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
     EXPECT_EQ(a.summary().errors, 1u);
-    ::close(master);
-    ::close(slave);
 }
 
 // An MK device told BAUD := 3 (2400 baud, 000:501-503) acknowledges at the old speed and then talks at the
 // new one. The analysis followed it, but the sniffer's port stayed at 9600 baud: every byte from then on was
 // read garbled. The port now follows the line (a pseudo-terminal keeps the speed it is set to).
 TEST(Sniff, TheSerialPortFollowsTheSpeedADeviceAcknowledged) {
-    int master = -1, slave = -1;
-    char path[64];
-    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
-    an::SniffOptions o;
-    o.serial = path;
-    o.duration = std::chrono::seconds(10);  // stopped below, once the port follows
-    std::string error;
-    bool denied = false;
-    auto capture = an::LiveCapture::open(o, error, denied);
-    ASSERT_TRUE(capture) << error;
+    Pty pty;
+    auto capture = capture_of(pty);
+    ASSERT_TRUE(capture);
     mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
     auto profile = store.load("mmk-2030");
     ASSERT_TRUE(profile.has_value());
@@ -278,16 +289,16 @@ TEST(Sniff, TheSerialPortFollowsTheSpeedADeviceAcknowledged) {
     an::Analyzer a(options, sink);
     const auto speed = [&] {
         termios t{};
-        ::tcgetattr(slave, &t);
+        ::tcgetattr(pty.slave, &t);
         return ::cfgetispeed(&t);
     };
     EXPECT_EQ(speed(), B9600);
     std::atomic<bool> stop{false};
     std::thread sniffer([&] { capture->run(a, stop); });
     const auto baud_2400 = mb::encode_rtu(1, mb::encode_pdu(mb::make_write_single_register(9, 3)));
-    EXPECT_EQ(::write(master, baud_2400.data(), baud_2400.size()), 8);  // the master's request
+    EXPECT_EQ(::write(pty.master, baud_2400.data(), baud_2400.size()), 8);  // the master's request
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    EXPECT_EQ(::write(master, baud_2400.data(), baud_2400.size()), 8);  // the device's echo
+    EXPECT_EQ(::write(pty.master, baud_2400.data(), baud_2400.size()), 8);  // the device's echo
     for (int i = 0; i < 100 && speed() != B2400; ++i)
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
     EXPECT_EQ(speed(), B2400);
@@ -296,30 +307,22 @@ TEST(Sniff, TheSerialPortFollowsTheSpeedADeviceAcknowledged) {
     a.finish();
     EXPECT_EQ(sink.count(mb::FindingCode::ProfileLineSettingsChanged), 1);
     EXPECT_TRUE(a.summary().input_errors.empty());
-    ::close(master);
-    ::close(slave);
 }
 
 // A line that never falls silent for the drain's 20 ms (a busy bus, a chattering device) kept a stopped
 // capture reading it for as long as it talked: a stop must stop. The writer here talks every 5 ms for up to
 // 20 s; the capture is stopped after 200 ms and must return while the line is still talking.
 TEST(Sniff, AStopStopsOnALineThatNeverFallsSilent) {
-    int master = -1, slave = -1;
-    char path[64];
-    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
-    an::SniffOptions o;
-    o.serial = path;
-    std::string error;
-    bool denied = false;
-    auto capture = an::LiveCapture::open(o, error, denied);
-    ASSERT_TRUE(capture) << error;
+    Pty pty;
+    auto capture = capture_of(pty);
+    ASSERT_TRUE(capture);
     Collect sink;
     an::Analyzer a({}, sink);
     std::atomic<bool> stop{false}, returned{false}, still_talking{false};
     std::thread talker([&] {
         const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(20);
         while (!returned && std::chrono::steady_clock::now() < end) {
-            if (::write(master, rtu_request.data(), rtu_request.size()) < 0) break;
+            if (::write(pty.master, rtu_request.data(), rtu_request.size()) < 0) break;
             std::this_thread::sleep_for(std::chrono::milliseconds(5));
         }
         still_talking = std::chrono::steady_clock::now() < end;
@@ -335,8 +338,6 @@ TEST(Sniff, AStopStopsOnALineThatNeverFallsSilent) {
     a.finish();
     EXPECT_TRUE(still_talking);
     EXPECT_GT(sink.frames.size(), 10u);
-    ::close(master);
-    ::close(slave);
 }
 
 TEST(Sniff, PcapngIsChosenByTheNameInAnyCase) {
@@ -349,23 +350,17 @@ TEST(Sniff, PcapngIsChosenByTheNameInAnyCase) {
 
 // One tap into `name`: plain USER0 records, decoded again into the request.
 void one_serial_tap(const std::string& name, std::uint32_t expected_magic) {
-    int master = -1, slave = -1;
-    char path[64];
-    ASSERT_EQ(::openpty(&master, &slave, path, nullptr, nullptr), 0);
     an::SniffOptions o;
-    o.serial = path;
     o.write = ::testing::TempDir() + name;
-    std::string error;
-    bool denied = false;
-    auto capture = an::LiveCapture::open(o, error, denied);
-    ASSERT_TRUE(capture) << error;
-    EXPECT_FALSE(capture->direction_header());
-    Collect sink;
-    an::Analyzer a({}, sink);
-    EXPECT_TRUE(sniff_request(*capture, a, master));
-    ::close(master);
-    ::close(slave);
-    capture.reset();
+    {
+        Pty pty;
+        auto capture = capture_of(pty, o);
+        ASSERT_TRUE(capture);
+        EXPECT_FALSE(capture->direction_header());
+        Collect sink;
+        an::Analyzer a({}, sink);
+        EXPECT_TRUE(sniff_request(*capture, a, pty.master));
+    }
     EXPECT_EQ(magic(o.write), expected_magic) << o.write;
     an::AnalyzerOptions user0;
     user0.user_dlt = mb::Framing::Rtu;
