@@ -800,16 +800,21 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             }
             // Remembered whether or not the sink takes transactions: what a later write changes (and so the
             // findings) must not depend on the output chosen. Named only for a transaction record.
-            if (made) {
-                made->profile = profile;
+            // A reply whose CRC or LRC fails is not what the device holds: its values are neither named nor
+            // remembered (a damaged decimal-point register would scale every later value wrong), nor checked
+            // against the manual.
+            const bool damaged = !rsp_record->frame.checksum_ok;
+            if (made) made->profile = profile;
+            if (made && !damaged)
                 made->values =
                     options_.semantics->values(*profile, request.device, *request.pdu, *rsp_record->pdu);
-            } else {
+            else if (!damaged)
                 options_.semantics->remember(request.device, *request.pdu, *rsp_record->pdu);
-            }
-            for (auto& rule : options_.semantics->check_response(*profile, *request.pdu, *rsp_record->pdu))
-                found.push_back(
-                    {rule.code, rsp_record, std::move(rule.message), {request.index, rsp_record->index}});
+            if (!damaged)
+                for (auto& rule :
+                     options_.semantics->check_response(*profile, *request.pdu, *rsp_record->pdu))
+                    found.push_back(
+                        {rule.code, rsp_record, std::move(rule.message), {request.index, rsp_record->index}});
             if (auto moved =
                     options_.semantics->follow_address(server, *profile, *request.pdu, *rsp_record->pdu)) {
                 // The unit no longer answers at its old address: it is not on the line there any more.

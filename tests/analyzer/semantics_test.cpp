@@ -9,6 +9,7 @@
 #include "analyzer/analyzer.hpp"
 #include "analyzer/serial_input.hpp"
 #include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
 
@@ -115,6 +116,46 @@ TEST(Semantics, ALateReplyIsNamedAndRememberedLikeOneInTime) {
     EXPECT_EQ(t.values[1].text, "12.34");
     EXPECT_EQ(t.values[1].point->unit, "m3/h");
     EXPECT_EQ(h.sink.transactions[2].values[0].text, "12.34");  // two decimal places, as read late
+}
+
+// A reply whose CRC fails on a serial line: its values were named and remembered as if the device held
+// them, so a decimal-point register read through a damaged reply scaled every later value wrong. It is
+// shown raw, with its bad CRC, and what the device holds is what the last good reply said.
+TEST(Semantics, AReplyWithABadCrcIsNotWhatTheDeviceHolds) {
+    const auto line = [](const char* time, const char* dir, std::vector<std::uint8_t> adu) {
+        return std::string(time) + " " + dir + " " + mb::hex_bytes(adu) + "\n";
+    };
+    const auto read = [](std::uint16_t address) {
+        return mb::encode_rtu(
+            1, mb::encode_pdu(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, address, 1)));
+    };
+    const auto reply = [](std::uint16_t value) {
+        const std::uint16_t values[] = {value};
+        return mb::encode_rtu(1, mb::encode_pdu(mb::make_read_registers_response(
+                                     mb::FunctionCode::ReadHoldingRegisters, values)));
+    };
+    auto damaged = reply(4);  // "four decimal places", its CRC failing
+    damaged.back() ^= 0x01;
+    const auto path = mbscope::test::write_temp(
+        "semantics_bad_crc.txt", line("1.0", ">", read(17)) + line("1.02", "<", reply(2)) +  //
+                                     line("2.0", ">", read(17)) + line("2.02", "<", damaged) +
+                                     line("3.0", ">", read(18)) + line("3.02", "<", reply(1234)));
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/tests/fixtures/profiles"});
+    auto p = store.load("test-device");
+    ASSERT_TRUE(p.has_value());
+    Collect sink;
+    an::AnalyzerOptions o;
+    o.semantics = std::make_shared<an::Semantics>();
+    o.semantics->add({}, std::make_shared<const mb::Profile>(std::move(p.value())));
+    an::Analyzer a(o, sink);
+    ASSERT_TRUE(an::read_input(a, path, an::InputFormat::Text));
+    a.finish();
+    ASSERT_EQ(sink.transactions.size(), 3u);
+    EXPECT_FALSE(sink.transactions[1].response->frame.checksum_ok);
+    EXPECT_TRUE(sink.transactions[1].values.empty());
+    ASSERT_EQ(sink.transactions[2].values.size(), 1u);
+    EXPECT_EQ(sink.transactions[2].values[0].text, "12.34");
+    EXPECT_EQ(sink.count(mb::FindingCode::RtuCrcMismatch), 1);
 }
 
 TEST(Semantics, QuantityAboveTheManualsLimit) {
