@@ -466,6 +466,40 @@ namespace {
 std::uint16_t pairing_id(const Frame& f) {
     return f.framing == Framing::Tcp ? f.transaction_id() : 0;
 }
+std::string describe_request(const Pdu& p) {
+    std::string s = "FC" + std::to_string(p.function_code());
+    if (auto n = function_name(p.function_code())) s += " " + std::string(*n);
+    // What it asked of which addresses, as the transaction lines say it: a message names the request alone.
+    const auto range = [](std::uint16_t start, std::uint16_t quantity) {
+        return " " + std::to_string(start) + "+" + std::to_string(quantity);
+    };
+    if (const auto* r = std::get_if<ReadRequest>(&p.body)) s += range(r->starting_address, r->quantity);
+    if (const auto* w = std::get_if<WriteSingle>(&p.body)) {
+        s += " " + std::to_string(w->address) + " = ";
+        s += p.function_code() == 5 ? (w->value == 0xFF00 ? "ON"
+                                       : w->value == 0    ? "OFF"
+                                                          : std::to_string(w->value))
+                                    : std::to_string(w->value);
+    }
+    if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&p.body))
+        s += range(c->starting_address, c->quantity);
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&p.body))
+        s += range(w->starting_address, w->quantity);
+    if (const auto* m = std::get_if<MaskWriteRegister>(&p.body))
+        s += " " + std::to_string(m->reference_address);
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&p.body))
+        s += ", read" + range(rw->read_starting_address, rw->quantity_to_read) + ", write" +
+             range(rw->write_starting_address, rw->quantity_to_write);
+    if (const auto* d = std::get_if<Diagnostics>(&p.body))
+        s += " sub-function " + std::to_string(d->sub_function);
+    return s;
+}
+
+// A timed-out request is kept by its transaction id over Modbus/TCP, and by its unit on a serial line:
+// there the master polls the next unit while a slow one's reply is still on its way.
+std::uint16_t late_id(const Frame& f) {
+    return f.framing == Framing::Tcp ? f.transaction_id() : f.unit_id();
+}
 }  // namespace
 
 void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
@@ -491,7 +525,8 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         return;
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
-    if (!timed_out_.empty()) timed_out_.erase(key);  // a reply with this key now answers this request
+    // A reply with this id (on a serial line, from this unit) now answers this request.
+    if (!timed_out_.empty()) timed_out_.erase({flow.id, late_id(r.frame)});
     if (auto it = r.frame.framing == Framing::Tcp ? pending_.end() : pending_.find(key);
         it != pending_.end()) {
         // The master moved on: the previous request was never answered.
@@ -501,6 +536,12 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         report(FindingCode::PairNoResponse, old.request,
                "request to " + old.request.device + " got no response before the next request",
                {old.request.index});
+        // Its reply may still come, from a slow unit, while the master waits on another: late then. (To
+        // the same unit again, a reply answers the new request.)
+        if (old.request.frame.unit_id() != r.frame.unit_id())
+            remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
+                               old.request.pdu ? describe_request(*old.request.pdu) : std::string("request"),
+                               r.index);
         complete(old, nullptr, true);
     }
     if (auto it = pending_.find(key); it != pending_.end()) {
@@ -581,35 +622,6 @@ bool echo_matches(const Pdu& request, const Pdu& response) {
     }
 }
 
-std::string describe_request(const Pdu& p) {
-    std::string s = "FC" + std::to_string(p.function_code());
-    if (auto n = function_name(p.function_code())) s += " " + std::string(*n);
-    // What it asked of which addresses, as the transaction lines say it: a message names the request alone.
-    const auto range = [](std::uint16_t start, std::uint16_t quantity) {
-        return " " + std::to_string(start) + "+" + std::to_string(quantity);
-    };
-    if (const auto* r = std::get_if<ReadRequest>(&p.body)) s += range(r->starting_address, r->quantity);
-    if (const auto* w = std::get_if<WriteSingle>(&p.body)) {
-        s += " " + std::to_string(w->address) + " = ";
-        s += p.function_code() == 5 ? (w->value == 0xFF00 ? "ON"
-                                       : w->value == 0    ? "OFF"
-                                                          : std::to_string(w->value))
-                                    : std::to_string(w->value);
-    }
-    if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&p.body))
-        s += range(c->starting_address, c->quantity);
-    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&p.body))
-        s += range(w->starting_address, w->quantity);
-    if (const auto* m = std::get_if<MaskWriteRegister>(&p.body))
-        s += " " + std::to_string(m->reference_address);
-    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&p.body))
-        s += ", read" + range(rw->read_starting_address, rw->quantity_to_read) + ", write" +
-             range(rw->write_starting_address, rw->quantity_to_write);
-    if (const auto* d = std::get_if<Diagnostics>(&p.body))
-        s += " sub-function " + std::to_string(d->sub_function);
-    return s;
-}
-
 }  // namespace
 
 void Analyzer::on_response(Flow& flow, FrameRecord& r) {
@@ -620,10 +632,16 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
     auto it = pending_.find(key);
-    if (it == pending_.end() && !timed_out_.empty()) {
+    // On a serial line the request waiting may be to another unit, the master having moved on from this
+    // one's: a reply that unit's late one names (with a checksum that holds, so its unit byte can be
+    // trusted) is that one's, not the waiting request's with a unit mismatch.
+    const bool other_unit_waits = it != pending_.end() && r.frame.framing != Framing::Tcp &&
+                                  r.frame.checksum_ok &&
+                                  it->second.request.frame.unit_id() != r.frame.unit_id();
+    if ((it == pending_.end() || other_unit_waits) && !timed_out_.empty()) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
         // again (a poll's late reply on a serial line often carries the same bytes as the one before).
-        if (auto late = late_for(key, r)) {
+        if (auto late = late_for({flow.id, late_id(r.frame)})) {
             flow.keep_last_response(r);
             complete(late->pending, &r, false, &*late);
             return;
@@ -715,11 +733,20 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
         };
         ++stats.late_responses;
-        if (made) made->late_past = late->timeout;
-        pair_finding(FindingCode::PairLateResponse,
-                     "the reply to frame " + std::to_string(request.index) + " (" + late->what + ") came " +
-                         ms(rsp_record->time - request.time) + " ms after it, past the " + ms(late->timeout) +
-                         " ms timeout: the request was reported unanswered");
+        if (made) {
+            made->late_past = late->timeout;
+            made->late_moved_on = late->moved_on_at != 0;
+        }
+        const bool timed = rsp_record->time.count() && request.time.count();
+        std::string message =
+            "the reply to frame " + std::to_string(request.index) + " (" + late->what + ") came ";
+        if (timed) message += ms(rsp_record->time - request.time) + " ms after it, ";
+        if (late->moved_on_at)
+            message += "after the master had moved on to frame " + std::to_string(late->moved_on_at) +
+                       (timed ? " (" + ms(late->timeout) + " ms after it)" : "");
+        else
+            message += "past the " + ms(late->timeout) + " ms timeout";
+        pair_finding(FindingCode::PairLateResponse, message + ": the request was reported unanswered");
     } else if (rsp_record) {
         ++stats.responses;
     }
@@ -907,18 +934,18 @@ void Analyzer::expire(Timestamp now, bool at_end) {
                 what + " to " + p.request.device + " got no response within " +
                     std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
                     " ms");
-            remember_timed_out(e.key, p, timeout, std::move(what));
+            remember_timed_out({e.key.flow, late_id(p.request.frame)}, p, timeout, std::move(what));
         }
         complete(p, nullptr, !ended);
     }
 }
 
 void Analyzer::remember_timed_out(const PendingKey& key, const Pending& pending, Timestamp timeout,
-                                  std::string what) {
+                                  std::string what, std::uint64_t moved_on_at) {
     const std::uint64_t serial = ++next_serial_;
     timed_out_.insert_or_assign(
         key, TimedOut{Pending(FrameRecord(pending.request), pending.serial, pending.stats), timeout,
-                      std::move(what), serial});
+                      std::move(what), serial, moved_on_at});
     timed_out_order_.emplace_back(key, serial);
     while (timed_out_order_.size() > max_timed_out) {  // entries whose key was used again count too
         const auto& [old_key, old_serial] = timed_out_order_.front();
@@ -928,12 +955,9 @@ void Analyzer::remember_timed_out(const PendingKey& key, const Pending& pending,
     }
 }
 
-std::optional<Analyzer::TimedOut> Analyzer::late_for(const PendingKey& key, const FrameRecord& response) {
+std::optional<Analyzer::TimedOut> Analyzer::late_for(const PendingKey& key) {
     const auto it = timed_out_.find(key);
-    // A serial line's key is the link alone: the late reply is the timed-out request's unit's.
-    if (it == timed_out_.end() || (response.frame.framing != Framing::Tcp &&
-                                   it->second.pending.request.frame.unit_id() != response.frame.unit_id()))
-        return std::nullopt;
+    if (it == timed_out_.end()) return std::nullopt;
     TimedOut late = std::move(it->second);
     timed_out_.erase(it);
     return late;

@@ -144,10 +144,11 @@ class Analyzer {
     // that comes for it after all is late, not unsolicited, and is paired with it (its values named, what it
     // acknowledges followed). Bounded, oldest forgotten first.
     struct TimedOut {
-        Pending pending;  // the request, a copy of the one its timed-out transaction took
-        modbus::Timestamp timeout{0};
-        std::string what;  // the request described
+        Pending pending;               // the request, a copy of the one its timed-out transaction took
+        modbus::Timestamp timeout{0};  // how long it was waited for
+        std::string what;              // the request described
         std::uint64_t serial = 0;
+        std::uint64_t moved_on_at = 0;  // the frame of the master's next request, when it moved on first
     };
     static constexpr std::size_t max_timed_out = 4096;
 
@@ -224,10 +225,11 @@ class Analyzer {
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,
                const TimedOut* late, TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
+    // Keyed by late_id: the transaction id, or on a serial line the unit.
     void remember_timed_out(const PendingKey& key, const Pending& pending, modbus::Timestamp timeout,
-                            std::string what);
+                            std::string what, std::uint64_t moved_on_at = 0);
     // The timed-out request a response answers late, when there is one; it is forgotten then.
-    std::optional<TimedOut> late_for(const PendingKey& key, const FrameRecord& response);
+    std::optional<TimedOut> late_for(const PendingKey& key);
     // A packet or a serial chunk (`where`) stamped well before the latest time seen: the capture's clock was
     // set back.
     // Time going from `from` back to `to` by more than the longer pairing timeout: not coarse or jittery

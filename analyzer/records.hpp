@@ -57,8 +57,10 @@ struct TransactionRecord {
     std::optional<modbus::Timestamp> latency;
     bool timed_out = false;
     // The response came after the request's timeout: the request was reported unanswered (a transaction of
-    // its own, timed out) and this one pairs the reply with it after all. The timeout it missed.
+    // its own, timed out) and this one pairs the reply with it after all. How long it was waited for: the
+    // timeout, or when the master moved on to its next request first (late_moved_on), until then.
     std::optional<modbus::Timestamp> late_past;
+    bool late_moved_on = false;
     bool broadcast = false;  // serial unit 0: executed by every slave, answered by none
     std::vector<modbus::FindingCode> findings;
     std::vector<modbus::NamedValue> values;  // with a profile: the values named in the device's terms

@@ -83,10 +83,15 @@ void TextSink::transaction(const TransactionRecord& t) {
         if (!t.response->frame.checksum_ok)
             out_ << "  bad " << (t.response->frame.framing == Framing::Ascii ? "LRC" : "CRC")
                  << ", a master discards it";
-        if (t.late_past)
-            out_ << "  late, past the "
-                 << std::chrono::duration_cast<std::chrono::milliseconds>(*t.late_past).count()
-                 << " ms timeout";
+        if (t.late_past) {
+            const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(*t.late_past).count();
+            if (!t.late_moved_on)
+                out_ << "  late, past the " << waited << " ms timeout";
+            else if (t.request.time.count())
+                out_ << "  late, the master moved on after " << waited << " ms";
+            else
+                out_ << "  late, the master had moved on";
+        }
     } else
         out_ << "  -> "
              << (t.broadcast   ? "broadcast, no response expected"

@@ -291,6 +291,59 @@ TEST(SerialInput, AReplyAfterTheTimeoutIsLate) {
     EXPECT_TRUE(r->sink.transactions.back().response.has_value());
 }
 
+// A slow unit's reply comes while the master already waits on the next unit: it was paired with the next
+// unit's request (a pair.unit_mismatch, unit 17's values in unit 5's transaction) and unit 5's own reply was
+// "unsolicited". It is unit 17's late reply; unit 5's exchange is whole. The master moved on after its
+// timeout ran out (1 s), or before (300 ms), or in a dump without times.
+TEST(SerialInput, ASlowUnitsReplyWhileTheMasterWaitsOnAnotherIsLate) {
+    const std::string to_17 = "11 03 00 60 00 03 07 45", from_17 = "11 03 06 02 2B 00 00 00 64 C8 BA",
+                      to_5 = "05 03 00 60 00 03 04 51", from_5 = "05 03 06 00 01 00 02 00 03 CF B4";
+    struct Case {
+        const char* name;
+        std::string log;
+        std::string said;
+    };
+    const Case cases[] = {
+        {"after the timeout",
+         "1.000 " + to_17 + "\n2.100 " + to_5 + "\n2.150 " + from_17 + "\n2.200 " + from_5 + "\n",
+         "came 1150 ms after it, past the 1000 ms timeout"},
+        {"before the timeout",
+         "1.000 " + to_17 + "\n1.300 " + to_5 + "\n1.350 " + from_17 + "\n1.400 " + from_5 + "\n",
+         "came 350 ms after it, after the master had moved on to frame 2 (300 ms after it)"},
+        {"without times", "", "came after the master had moved on to frame 2"},
+    };
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.name);
+        const auto r = [&] {
+            if (!c.log.empty()) return decode(write_temp("slow_unit.txt", c.log), an::InputFormat::Text);
+            std::string dump;
+            for (const auto* frame : {&to_17, &to_5, &from_17, &from_5})
+                for (std::size_t i = 0; i < frame->size(); i += 3)
+                    dump.push_back(static_cast<char>(std::stoi(frame->substr(i, 2), nullptr, 16)));
+            return decode(write_temp("slow_unit.bin", dump), an::InputFormat::RtuRaw);
+        }();
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnitMismatch), 0);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
+        ASSERT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 1);
+        for (const auto& f : r->sink.findings)
+            if (f.code == mb::FindingCode::PairLateResponse) {
+                EXPECT_EQ(f.message, "the reply to frame 1 (FC3 Read Holding Registers 96+3) " + c.said +
+                                         ": the request was reported unanswered");
+                EXPECT_EQ(f.frames, (std::vector<std::uint64_t>{1, 3}));
+            }
+        // Unit 5's transaction holds unit 5's reply.
+        bool five = false;
+        for (const auto& t : r->sink.transactions)
+            if (t.request.frame.unit_id() == 5) {
+                five = true;
+                ASSERT_TRUE(t.response.has_value());
+                EXPECT_EQ(t.response->index, 4u);
+            }
+        EXPECT_TRUE(five);
+    }
+}
+
 // A capture file given with a serial --format decoded to thousands of unparsed bytes, no error finding and
 // exit 0. It is still decoded as asked, and the run fails naming what the file is.
 TEST(SerialInput, ACaptureReadAsSerialBytesIsNamed) {
