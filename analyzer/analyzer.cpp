@@ -1550,7 +1550,7 @@ std::optional<SerialLine> Analyzer::serial_line(const std::string& source) const
 }
 
 void Analyzer::idle(Timestamp now) {
-    if (now <= now_) return sink_.flush();
+    if (now <= now_) return flush_output();
     for (auto& [name, link] : serial_links_) {
         // A timed RTU line holding the start of a frame: its t3.5 of silence has passed by now. (An ASCII
         // frame ends at its LF; a line whose framing is not told yet has no frames to end.)
@@ -1562,7 +1562,7 @@ void Analyzer::idle(Timestamp now) {
     }
     now_ = now;
     expire(now_, false);
-    sink_.flush();
+    flush_output();
 }
 
 void Analyzer::finish() {

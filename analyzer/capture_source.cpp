@@ -3,6 +3,7 @@
 #include <pcap/pcap.h>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <stdio_ext.h>
 #include <unistd.h>
 
@@ -168,6 +169,11 @@ namespace {
 struct CountedFile {
     int fd = -1;                             // a file's descriptor, or -1 for memory
     std::span<const std::uint8_t> memory{};  // fd -1: the capture
+    // A stream: its first bytes, read before (to tell its format), come first; `stalled` is called when
+    // the descriptor has nothing to read yet.
+    std::vector<std::uint8_t> head;
+    std::size_t head_given = 0;
+    std::function<void()> stalled;
     off64_t position = 0;
     PcapngInterfacePatch interfaces;
     // stdio's buffer: glibc's setvbuf() ignores the size asked for unless it is given the buffer, and its
@@ -187,7 +193,15 @@ ssize_t read_source(CountedFile* f, char* buffer, std::size_t size) {
             f->memory.size() - std::min<std::size_t>(static_cast<std::size_t>(f->position), f->memory.size());
         n = static_cast<ssize_t>(std::min(size, left));
         if (n > 0) std::memcpy(buffer, f->memory.data() + f->position, static_cast<std::size_t>(n));
+    } else if (f->head_given < f->head.size()) {
+        n = static_cast<ssize_t>(std::min(size, f->head.size() - f->head_given));
+        std::memcpy(buffer, f->head.data() + f->head_given, static_cast<std::size_t>(n));
+        f->head_given += static_cast<std::size_t>(n);
     } else {
+        if (f->stalled) {
+            pollfd ready{f->fd, POLLIN, 0};
+            if (::poll(&ready, 1, 0) == 0) f->stalled();
+        }
         do {
             n = ::read(f->fd, buffer, size);
         } while (n < 0 && errno == EINTR);
@@ -272,22 +286,30 @@ FILE* open_counted(const std::string& path, std::string& error) {
 
 }  // namespace
 
-std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path, std::string& error,
-                                                        const std::string& name) {
-    const std::string& shown = name.empty() ? path : name;
-    FILE* file = open_counted(path, error);
+namespace {
+
+// libpcap reading `file` (null: not opened, `error` says why), or null with `error` naming `name`.
+pcap_t* pcap_of(FILE* file, const std::string& name, std::string& error) {
     if (!file) {
-        error = shown + ": " + error;
+        error = name + ": " + error;
         return nullptr;
     }
     char errbuf[PCAP_ERRBUF_SIZE] = {};
     pcap_t* p = pcap_fopen_offline_with_tstamp_precision(file, PCAP_TSTAMP_PRECISION_NANO, errbuf);
     if (!p) {
         std::fclose(file);
-        error = shown + ": " + errbuf;
-        return nullptr;
+        error = name + ": " + errbuf;
     }
-    return made(p, shown, true);
+    return p;
+}
+
+}  // namespace
+
+std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path, std::string& error,
+                                                        const std::string& name) {
+    const std::string& shown = name.empty() ? path : name;
+    pcap_t* p = pcap_of(open_counted(path, error), shown, error);
+    return p ? made(p, shown, true) : nullptr;
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::uint8_t> bytes,
@@ -298,19 +320,19 @@ std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::u
     }
     auto* cookie = new CountedFile;
     cookie->memory = bytes;
-    FILE* f = open_counted(cookie, error);
-    if (!f) {
-        error = "memory: " + error;
-        return nullptr;
-    }
-    char errbuf[PCAP_ERRBUF_SIZE] = {};
-    pcap_t* p = pcap_fopen_offline_with_tstamp_precision(f, PCAP_TSTAMP_PRECISION_NANO, errbuf);
-    if (!p) {
-        fclose(f);
-        error = std::string("memory: ") + errbuf;
-        return nullptr;
-    }
-    return made(p, "memory", false);
+    pcap_t* p = pcap_of(open_counted(cookie, error), "memory", error);
+    return p ? made(p, "memory", false) : nullptr;
+}
+
+std::unique_ptr<CaptureSource> CaptureSource::open_stream(int fd, std::vector<std::uint8_t> head,
+                                                          const std::string& name, std::string& error,
+                                                          std::function<void()> stalled) {
+    auto* cookie = new CountedFile;
+    cookie->fd = fd;
+    cookie->head = std::move(head);
+    cookie->stalled = std::move(stalled);
+    pcap_t* p = pcap_of(open_counted(cookie, error), name, error);
+    return p ? made(p, name, false) : nullptr;
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::made(pcap_t* pcap, const std::string& name, bool read_ahead) {

@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -37,6 +38,13 @@ class CaptureSource {
                                                     const std::string& name = {});
     static std::unique_ptr<CaptureSource> open_memory(std::span<const std::uint8_t> bytes,
                                                       std::string& error);
+    // A capture coming through a pipe, FIFO or socket (`fd`, taken over) whose first bytes, `head`, were
+    // read already to tell its format: read as it comes, a packet at a time rather than ahead in batches,
+    // with `stalled` called whenever the next bytes are not there yet, before the read waits for them (for
+    // the output to be flushed: `tcpdump -U -w - | mbscope decode -` shows each exchange as it happens).
+    static std::unique_ptr<CaptureSource> open_stream(int fd, std::vector<std::uint8_t> head,
+                                                      const std::string& name, std::string& error,
+                                                      std::function<void()> stalled = {});
     ~CaptureSource();
     CaptureSource(const CaptureSource&) = delete;
     CaptureSource& operator=(const CaptureSource&) = delete;

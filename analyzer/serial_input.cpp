@@ -69,23 +69,40 @@ struct Input {
     std::string path;
     std::string name;
     transport::UniqueFd spool;  // the temporary copy `path` opens, for a pipe or standard input
+    // A capture read as it comes from a pipe or standard input (not copied first): the descriptor, and
+    // its first bytes, read to tell that it is one.
+    transport::UniqueFd stream;
+    std::vector<std::uint8_t> head;
 };
 
 // A pipe, FIFO or socket (and "-", standard input) can be read once only, while reading an input opens it
 // more than once: its head tells its format, an empty file is refused, a socat log is read twice. Such an
 // input is copied first to a temporary file, unlinked at once (it goes when the descriptor closes, however
 // the process ends), and read through /proc/self/fd under its own name. Regular files and devices are read
-// where they are.
-std::optional<Input> open_input(const std::string& name, std::string& error) {
+// where they are. A pcap or pcapng capture (its magic number) is the exception when `may_stream`: libpcap
+// reads it once, front to back, so it is read as it comes (`tcpdump -U -w - | mbscope decode -`, a capture
+// on another host through ssh), not after its writer has ended.
+std::optional<Input> open_input(const std::string& name, std::string& error, bool may_stream) {
     struct stat st {};
     if (name != "-" && (::stat(name.c_str(), &st) != 0 || !(S_ISFIFO(st.st_mode) || S_ISSOCK(st.st_mode))))
-        return Input{name, name, {}};
+        return Input{name, name, {}, {}, {}};
     transport::UniqueFd source(name == "-" ? ::dup(STDIN_FILENO)
                                            : ::open(name.c_str(), O_RDONLY | O_CLOEXEC));
     if (!source) {
         error = name + ": " + std::strerror(errno);
         return std::nullopt;
     }
+    std::vector<char> buffer(1 << 16);
+    std::size_t head = 0;  // the first bytes, up to a magic number's four
+    while (may_stream && head < 4) {
+        const ssize_t n = ::read(source.get(), buffer.data() + head, 4 - head);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break;  // an error or the end: the copy below meets it again
+        head += static_cast<std::size_t>(n);
+    }
+    const std::span<const std::uint8_t> first(reinterpret_cast<const std::uint8_t*>(buffer.data()), head);
+    if (head == 4 && detect_input_format(first) == InputFormat::Pcap)
+        return Input{name, name, {}, std::move(source), {first.begin(), first.end()}};
     std::string temporary = (std::filesystem::temp_directory_path() / "mbscope-input-XXXXXX").string();
     transport::UniqueFd spool(::mkstemp(temporary.data()));
     if (!spool) {
@@ -93,7 +110,15 @@ std::optional<Input> open_input(const std::string& name, std::string& error) {
         return std::nullopt;
     }
     ::unlink(temporary.c_str());
-    std::vector<char> buffer(1 << 16);
+    for (std::size_t n = head; n > 0;) {  // the bytes read to tell a capture, first
+        const ssize_t w = ::write(spool.get(), buffer.data() + (head - n), n);
+        if (w < 0 && errno == EINTR) continue;
+        if (w < 0) {
+            error = name + ": cannot make a temporary copy: " + std::strerror(errno);
+            return std::nullopt;
+        }
+        n -= static_cast<std::size_t>(w);
+    }
     for (;;) {
         const ssize_t n = ::read(source.get(), buffer.data(), buffer.size());
         if (n < 0 && errno == EINTR) continue;
@@ -113,7 +138,7 @@ std::optional<Input> open_input(const std::string& name, std::string& error) {
         }
     }
     const std::string path = "/proc/self/fd/" + std::to_string(spool.get());
-    return Input{path, name, std::move(spool)};
+    return Input{path, name, std::move(spool), {}, {}};
 }
 
 bool read_text(Analyzer& a, const Input& input) {
@@ -247,16 +272,21 @@ struct Prepared {
 };
 
 // Opens an input and tells its format; nullopt (the error in the summary) when it cannot be read at all.
-std::optional<Prepared> prepare(Analyzer& a, const std::string& name, InputFormat format) {
+// `alone`: the only input, so that a capture through a pipe may be read as it comes (several captures are
+// merged by time, which reads each ahead).
+std::optional<Prepared> prepare(Analyzer& a, const std::string& name, InputFormat format, bool alone) {
     std::string error;
-    auto input = open_input(name, error);
+    auto input =
+        open_input(name, error, alone && (format == InputFormat::Auto || format == InputFormat::Pcap));
     if (!input) {
         a.input_error(error);
         return std::nullopt;
     }
     Prepared p{std::move(*input), format, format};
     const std::string& path = p.input.name;
-    if (format != InputFormat::Pcap) {
+    if (p.input.stream) {
+        p.format = InputFormat::Pcap;  // its magic number, read by open_input
+    } else if (format != InputFormat::Pcap) {
         std::ifstream in(p.input.path, std::ios::binary);
         if (!in) {
             a.input_error(path + ": cannot open");
@@ -286,11 +316,21 @@ std::optional<Prepared> prepare(Analyzer& a, const std::string& name, InputForma
     return p;
 }
 
-bool read_prepared(Analyzer& a, const Prepared& p, const SerialLogOptions& options) {
+bool read_prepared(Analyzer& a, Prepared& p, const SerialLogOptions& options) {
     bool read = false;
     switch (p.format) {
-        case InputFormat::Pcap:
-            return a.read_capture(p.input.path, p.input.name);
+        case InputFormat::Pcap: {
+            if (!p.input.stream) return a.read_capture(p.input.path, p.input.name);
+            std::string error;
+            // While the writer is quiet, what was decoded so far is written out.
+            auto capture = CaptureSource::open_stream(p.input.stream.release(), std::move(p.input.head),
+                                                      p.input.name, error, [&a] { a.flush_output(); });
+            if (!capture) {
+                a.input_error(error);
+                return false;
+            }
+            return a.read_capture(*capture);
+        }
         case InputFormat::Text:
             read = read_text(a, p.input);
             break;
@@ -316,7 +356,7 @@ bool read_prepared(Analyzer& a, const Prepared& p, const SerialLogOptions& optio
 }  // namespace
 
 bool read_input(Analyzer& a, const std::string& name, InputFormat format, const SerialLogOptions& options) {
-    const auto p = prepare(a, name, format);
+    auto p = prepare(a, name, format, true);
     return p && read_prepared(a, *p, options);
 }
 
@@ -325,7 +365,7 @@ bool read_inputs(Analyzer& a, const std::vector<std::string>& names, InputFormat
     bool all_read = true;
     std::vector<Prepared> inputs;  // each holds its input open (a spooled pipe) until everything is read
     for (const auto& name : names) {
-        auto p = prepare(a, name, format);
+        auto p = prepare(a, name, format, names.size() == 1);
         if (p) {
             inputs.push_back(std::move(*p));
             continue;
@@ -336,7 +376,7 @@ bool read_inputs(Analyzer& a, const std::vector<std::string>& names, InputFormat
     const auto is_capture = [](const Prepared& p) { return p.format == InputFormat::Pcap; };
     const auto captures = std::count_if(inputs.begin(), inputs.end(), is_capture);
     bool captures_read = false;
-    for (const auto& p : inputs) {
+    for (auto& p : inputs) {
         if (!is_capture(p) || captures == 1) {
             all_read &= read_prepared(a, p, options);
             if (done) done(p.input.name);

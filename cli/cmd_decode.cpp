@@ -112,11 +112,13 @@ void register_decode(CLI::App& app, int& exit_code) {
     auto o = std::make_shared<DecodeOptions>();
     auto* cmd = app.add_subcommand("decode", "Decode captures: every frame, every transaction, every fault");
     add_analysis_options(*cmd, o->common);
-    cmd->add_option("files", o->files,
-                    "Captures: pcap, pcapng, raw serial dumps, the text format (analyzer/README.md); - for "
-                    "standard input (a pipe is read to its end first). Several pcap/pcapng files are one "
-                    "capture merged by time, as mergecap merges them; serial inputs are read in the order "
-                    "given")
+    cmd->add_option(
+           "files", o->files,
+           "Captures: pcap, pcapng, raw serial dumps, the text format (analyzer/README.md); - for "
+           "standard input (a pcap or pcapng capture alone is decoded as it comes, as from "
+           "tcpdump -U -w -; other pipes are read to their end first). Several pcap/pcapng files are "
+           "one capture merged by time, as mergecap merges them; serial inputs are read in the "
+           "order given")
         ->required()
         ->check(CLI::Validator(
             [](std::string& file) { return file == "-" ? std::string() : CLI::ExistingFile(file); },

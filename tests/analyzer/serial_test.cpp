@@ -7,6 +7,7 @@
 #include <unistd.h>
 #include <algorithm>
 
+#include <atomic>
 #include <fstream>
 #include <iterator>
 #include <thread>
@@ -425,6 +426,59 @@ TEST(SerialInput, AFifoDecodesAsTheSameFileDoes) {
     }
     EXPECT_GT(decode(dir + "captures/suricata-modbus.pcap")->summary.frames, 0u);
     ::unlink(fifo.c_str());
+}
+
+// A capture through a pipe (`tcpdump -U -w - | mbscope decode -`, or from another host through ssh) was
+// copied to its end before a byte was decoded: nothing was shown while the capture ran. It is read as it
+// comes, and what was decoded is written out whenever the pipe is quiet: here the first exchange comes
+// out, flushed, before the writer sends the second.
+TEST(SerialInput, ACaptureThroughAPipeIsDecodedAsItComes) {
+    mbscope::test::Conversation first;
+    const auto read = mb::encode_tcp(
+        1, 17, mb::encode_pdu(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 96, 3)));
+    const auto answer = mbscope::test::bytes({0, 1, 0, 0, 0, 9, 17, 3, 6, 2, 0x2B, 0, 0, 0, 0x64});
+    first.send(true, read, std::chrono::seconds(1));
+    first.send(false, answer, std::chrono::seconds(1) + std::chrono::milliseconds(2));
+    auto both = first;
+    auto second_read = read, second_answer = answer;
+    second_read[1] = second_answer[1] = 2;  // transaction id 2
+    both.send(true, second_read, std::chrono::seconds(2));
+    both.send(false, second_answer, std::chrono::seconds(2) + std::chrono::milliseconds(2));
+    const auto whole = both.file();
+    const std::size_t first_part = first.file().size();
+
+    struct Watch : Collect {
+        std::atomic<bool> answered{false}, flushed{false};
+        void transaction(const an::TransactionRecord& t) override {
+            Collect::transaction(t);
+            answered = true;
+        }
+        void flush() override { flushed = answered.load(); }
+    } sink;
+    const std::string fifo = ::testing::TempDir() + "mbscope-stream.fifo";
+    ::unlink(fifo.c_str());
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    std::atomic<bool> shown_before_the_rest{false};
+    std::thread writer([&] {
+        std::ofstream out(fifo, std::ios::binary);
+        out.write(reinterpret_cast<const char*>(whole.data()), static_cast<std::streamsize>(first_part));
+        out.flush();
+        // Not for ever: copied to its end first, the capture would show nothing until the writer closes.
+        for (int i = 0; i < 200 && !sink.flushed; ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        shown_before_the_rest = sink.flushed.load();
+        out.write(reinterpret_cast<const char*>(whole.data() + first_part),
+                  static_cast<std::streamsize>(whole.size() - first_part));
+    });
+    an::Analyzer a({}, sink);
+    EXPECT_TRUE(an::read_input(a, fifo, an::InputFormat::Auto));
+    a.finish();
+    writer.join();
+    ::unlink(fifo.c_str());
+    EXPECT_TRUE(shown_before_the_rest);
+    ASSERT_EQ(sink.transactions.size(), 2u);
+    EXPECT_TRUE(sink.transactions[1].response.has_value());
+    EXPECT_TRUE(a.summary().input_errors.empty());
 }
 
 // A binary file read as the text format: an error for every line, listed up to the limit and counted beyond,
