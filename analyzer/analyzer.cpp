@@ -492,6 +492,11 @@ std::string describe_request(const Pdu& p) {
              range(rw->write_starting_address, rw->quantity_to_write);
     if (const auto* d = std::get_if<Diagnostics>(&p.body))
         s += " sub-function " + std::to_string(d->sub_function);
+    if (const auto* f = std::get_if<ReadFifoQueueRequest>(&p.body))
+        s += " " + std::to_string(f->fifo_pointer_address);
+    if (const auto* id = std::get_if<ReadDeviceIdRequest>(&p.body))
+        s += ", read device identification code " + std::to_string(id->read_device_id_code) + " object " +
+             std::to_string(id->object_id);
     return s;
 }
 

@@ -492,7 +492,8 @@ TEST(Analyzer, AReplyAfterItsRequestTimedOutIsLate) {
 }
 
 // A finding about a write named the function alone ("FC6 Write Single Register got no response"): which
-// register, which value, which range is what the engineer looks for in the device's manual.
+// register, which value, which range (and for FC43 and FC24 what they read) is what the engineer looks for
+// in the device's manual.
 TEST(Analyzer, FindingsNameWhatAWriteAsked) {
     Harness h;
     const std::uint16_t values[] = {1, 2};
@@ -505,6 +506,8 @@ TEST(Analyzer, FindingsNameWhatAWriteAsked) {
     h.send(true, adu(3, mb::make_write_multiple_registers(96, values)), 1s);
     h.send(true, adu(4, mb::make_write_multiple_coils(10, coils)), 1s);
     h.send(false, mb::encode_tcp(4, 17, mb::encode_pdu(mb::make_exception(15, 2))), 1s + 1ms);
+    h.send(true, adu(5, mb::make_read_device_id(1, 0)), 1s);
+    h.send(true, adu(6, mb::make_read_fifo_queue(4)), 1s);
     h.analyzer.finish();
     std::vector<std::string> messages;
     for (const auto& f : h.sink.findings)
@@ -514,6 +517,9 @@ TEST(Analyzer, FindingsNameWhatAWriteAsked) {
         "FC6 Write Single Register 23 = 250 unanswered when the capture ended",
         "FC5 Write Single Coil 7 = ON unanswered when the capture ended",
         "FC16 Write Multiple Registers 96+2 unanswered when the capture ended",
+        "FC43 Encapsulated Interface Transport, read device identification code 1 object 0 unanswered when "
+        "the capture ended",
+        "FC24 Read FIFO Queue 4 unanswered when the capture ended",
     };
     EXPECT_EQ(messages, expected);
 }
