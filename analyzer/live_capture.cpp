@@ -304,13 +304,8 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             if (auto set =
                     modbus::transport::set_line(m.serial[i].get(), *line, modbus::transport::is_pty(device));
                 !set)
-                a.input_error(device + ": cannot follow the line to " + std::to_string(line->baud) +
-                              " baud " + std::to_string(line->data_bits) +
-                              (line->parity == modbus::Parity::None   ? "N"
-                               : line->parity == modbus::Parity::Even ? "E"
-                                                                      : "O") +
-                              std::to_string(line->stop_bits) + ": " + set.error() +
-                              "; what follows is read at the old settings");
+                a.input_error(device + ": cannot follow the line to " + modbus::character_text(*line) + ": " +
+                              set.error() + "; what follows is read at the old settings");
         }
         port_line = *line;
     };

@@ -24,7 +24,11 @@ std::optional<Parity> parse_parity(std::string_view t) noexcept {
 std::string settings_text(Framing framing, const SerialLine& line, bool serial) {
     std::string s(framing == Framing::Ascii ? "ASCII" : "RTU");
     if (!serial) return s;
-    s += ", " + std::to_string(line.baud) + " baud, ";
+    return s + ", " + character_text(line);
+}
+
+std::string character_text(const SerialLine& line) {
+    std::string s = std::to_string(line.baud) + " baud, ";
     s += line.parity == Parity::None   ? "no parity"
          : line.parity == Parity::Even ? "even parity"
                                        : "odd parity";

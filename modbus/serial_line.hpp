@@ -53,5 +53,7 @@ struct LineState {
 // A line's settings as people say them: "RTU", or on a serial line "ASCII, 9600 baud, even parity (7E1)"
 // (the character as a terminal program writes it: 8N1, 7E1, 7N2).
 std::string settings_text(Framing framing, const SerialLine& line, bool serial);
+// The character part alone: "9600 baud, even parity (7E1)".
+std::string character_text(const SerialLine& line);
 
 }  // namespace mbscope::modbus
