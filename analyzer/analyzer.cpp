@@ -500,6 +500,10 @@ std::string describe_request(const Pdu& p) {
     return s;
 }
 
+std::string describe_request(const FrameRecord& r) {
+    return r.pdu ? describe_request(*r.pdu) : std::string("request");
+}
+
 // A timed-out request is kept by its transaction id over Modbus/TCP, and by its unit on a serial line:
 // there the master polls the next unit while a slow one's reply is still on its way.
 std::uint16_t late_id(const Frame& f) {
@@ -545,8 +549,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         // the same unit again, a reply answers the new request.)
         if (old.request.frame.unit_id() != r.frame.unit_id())
             remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
-                               old.request.pdu ? describe_request(*old.request.pdu) : std::string("request"),
-                               r.index);
+                               describe_request(old.request), r.index);
         complete(old, nullptr, true);
     }
     if (auto it = pending_.find(key); it != pending_.end()) {
@@ -706,6 +709,10 @@ void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out,
 
 void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, DeviceStats& stats,
                      bool timed_out, const TimedOut* late, TransactionRecord* made) {
+    // A reply whose CRC or LRC fails has a damaged byte somewhere (SL §2.5.1.2: the master discards it):
+    // its checksum finding says so, and its unit, function code and data are not held against the request
+    // as if the device had sent them, nor named from the map, remembered or checked against the manual.
+    const bool damaged = rsp_record && !rsp_record->frame.checksum_ok;
     // The transaction is written first, then what was found in it.
     struct Deferred {
         FindingCode code;
@@ -772,14 +779,11 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                         " µs before its request: the capture's clock went back");
             }
         }
-        // A reply whose CRC or LRC fails has a damaged byte somewhere (SL §2.5.1.2: the master discards
-        // it): its checksum finding says so, and its unit, function code and data are not held against the
-        // request as if the device had sent them.
-        if (rsp.frame.checksum_ok && rsp.frame.unit_id() != request.frame.unit_id())
+        if (!damaged && rsp.frame.unit_id() != request.frame.unit_id())
             pair_finding(FindingCode::PairUnitMismatch,
                          "request to unit " + std::to_string(request.frame.unit_id()) +
                              ", response from unit " + std::to_string(rsp.frame.unit_id()));
-        if (rsp.frame.checksum_ok && request.pdu && rsp.pdu) {
+        if (!damaged && request.pdu && rsp.pdu) {
             const Pdu& q = *request.pdu;
             const Pdu& a = *rsp.pdu;
             if (a.function_code() != q.function_code()) {
@@ -832,10 +836,8 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             }
             // Remembered whether or not the sink takes transactions: what a later write changes (and so the
             // findings) must not depend on the output chosen. Named only for a transaction record.
-            // A reply whose CRC or LRC fails is not what the device holds: its values are neither named nor
-            // remembered (a damaged decimal-point register would scale every later value wrong), nor checked
-            // against the manual.
-            const bool damaged = !rsp_record->frame.checksum_ok;
+            // A damaged reply is not what the device holds: a damaged decimal-point register, remembered,
+            // would scale every later value wrong.
             if (made) made->profile = profile;
             if (made && !damaged)
                 made->values =
@@ -928,7 +930,7 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         for (auto& [k, f] : flows_)
             if (f->id == e.key.flow) --f->pending;
         const bool ended = at_end && e.deadline > now_;
-        std::string what = p.request.pdu ? describe_request(*p.request.pdu) : std::string("request");
+        std::string what = describe_request(p.request);
         if (ended) {
             report(FindingCode::PairNoResponseAtEnd, p.request, what + " unanswered when the capture ended");
         } else {
@@ -995,8 +997,16 @@ Analyzer::SerialLink* Analyzer::serial_line_of(const std::string& link, Carrier 
     return it == serial_links_.end() ? nullptr : it->second.get();
 }
 
+namespace {
+// A serial source's link: its key, its name in records and its server.
+std::string serial_key(const std::string& source) {
+    return "serial " + source;
+}
+}  // namespace
+
 Analyzer::SerialLink& Analyzer::serial_link(const std::string& source) {
-    return serial_link("serial " + source, "serial " + source, "serial " + source, Carrier::Serial);
+    const std::string key = serial_key(source);
+    return serial_link(key, key, key, Carrier::Serial);
 }
 
 Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
@@ -1549,7 +1559,7 @@ std::vector<Framing> Analyzer::serial_framings_read() const {
 }
 
 std::optional<SerialLine> Analyzer::serial_line(const std::string& source) const {
-    const auto it = serial_links_.find("serial " + source);
+    const auto it = serial_links_.find(serial_key(source));
     if (it == serial_links_.end()) return std::nullopt;
     return it->second->line;
 }
