@@ -88,8 +88,10 @@ struct Analyzer::SerialLink {
     std::size_t next_skip = 0;                // its bytes already given (a restart inside it)
     std::optional<std::uint64_t> restart_at;  // follow_line: deframe again from here, the new way
     // Telling the framing (there while it is not known): an ASCII deframer that has not seen a frame with
-    // a valid LRC yet, and the count of bytes no ASCII line carries.
+    // a valid LRC yet, an RTU one that has not seen a frame with a valid CRC holding a byte no ASCII line
+    // carries, and the count of such bytes.
     std::unique_ptr<AsciiDeframer> probe;
+    std::unique_ptr<RtuDeframer> rtu_probe;
     std::size_t foreign = 0;
     // Units that answered on the line, and the settings each was told: the line follows once all of them
     // hold the same.
@@ -1107,8 +1109,10 @@ void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,
         link.framing = framing;
         if (framing)
             link.read_as.push_back(*framing);
-        else
+        else {
             link.probe = std::make_unique<AsciiDeframer>();
+            link.rtu_probe = std::make_unique<RtuDeframer>();
+        }
     }
     if (!link.keeps_chunks && link.framing && link.next_chunk == link.chunks.size()) {
         link.chunks.clear();  // those that told the framing
@@ -1231,12 +1235,15 @@ bool ascii_line_byte(std::uint8_t b) noexcept {
 void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> bytes, bool at_end) {
     // An RTU frame is binary: its unit, function code, CRC and most data bytes fall outside what an ASCII
     // line carries, so a few such bytes tell RTU; noise on an ASCII line is rarer than that before the
-    // first good frame. A line of ASCII characters without a valid frame in its first few hundred bytes
-    // is read as RTU too (and then reported as unparsed, not dropped).
+    // first good frame. So does a whole frame whose CRC holds and which has such a byte (an ASCII line's
+    // noise does not make one): a lone request to a device that never answers (8 bytes, 7 foreign for FC3)
+    // is then framed and timed out while the line stays quiet, not when the next bytes come. A line of ASCII
+    // characters without a valid frame in its first few hundred bytes is read as RTU too (and then reported
+    // as unparsed, not dropped).
     constexpr std::size_t foreign_for_rtu = 8;
     constexpr std::uint64_t bytes_to_tell = 600;  // above the longest ASCII frame (513 characters)
-    // Whichever the stream shows first: the end of a frame with a valid LRC, or the foreign byte that
-    // makes the count.
+    // Whichever the stream shows first: the end of a frame with a valid LRC, of one with a valid CRC and a
+    // foreign byte, or the foreign byte that makes the count.
     DeframeEvents events;
     link.probe->feed(bytes, events);
     if (at_end) link.probe->finish(events);
@@ -1244,9 +1251,18 @@ void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> byte
     for (const auto& e : events)
         if (const auto* f = std::get_if<Frame>(&e); f && f->checksum_ok && !ascii_at)
             ascii_at = f->offset + f->wire_length;
+    events.clear();
+    link.rtu_probe->feed(bytes, events);
+    if (at_end) link.rtu_probe->finish(events);
+    for (const auto& e : events)
+        if (const auto* f = std::get_if<Frame>(&e);
+            f && f->checksum_ok && !rtu_at && !std::ranges::all_of(f->adu(), ascii_line_byte))
+            rtu_at = f->offset + f->wire_length;
     const std::uint64_t start = link.fed - bytes.size();
-    for (std::size_t i = 0; i < bytes.size() && !rtu_at; ++i)
-        if (!ascii_line_byte(bytes[i]) && ++link.foreign == foreign_for_rtu) rtu_at = start + i + 1;
+    for (std::size_t i = 0; i < bytes.size(); ++i)
+        if (!ascii_line_byte(bytes[i]) && ++link.foreign == foreign_for_rtu &&
+            (!rtu_at || start + i + 1 < *rtu_at))
+            rtu_at = start + i + 1;
     if (ascii_at && (!rtu_at || *ascii_at <= *rtu_at))
         link.framing = Framing::Ascii;
     else if (rtu_at || link.fed >= bytes_to_tell || at_end)
@@ -1255,6 +1271,7 @@ void Analyzer::tell_framing(SerialLink& link, std::span<const std::uint8_t> byte
         link.read_as.push_back(*link.framing);
         link.framing_told = true;
         link.probe.reset();
+        link.rtu_probe.reset();
     }
 }
 

@@ -16,6 +16,8 @@
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 
+using namespace std::chrono_literals;
+
 using mbscope::test::Collect;
 using mbscope::test::write_temp;
 
@@ -39,6 +41,9 @@ std::string hex_of(const std::string& chars) {
 std::string rtu(std::uint8_t unit, std::vector<std::uint8_t> pdu) {
     const auto adu = mb::encode_rtu(unit, pdu);
     return {adu.begin(), adu.end()};
+}
+std::vector<std::uint8_t> octets(const std::string& s) {
+    return {s.begin(), s.end()};
 }
 std::string ascii(std::uint8_t unit, std::vector<std::uint8_t> pdu) {
     return mb::encode_ascii(unit, pdu);
@@ -130,6 +135,36 @@ TEST(LineFraming, AnRtuLineIsRtuAndAStatedFramingIsKept) {
     for (const auto& f : stated.sink.frames)
         EXPECT_EQ(f.frame.framing, R);
     EXPECT_EQ(stated.sink.count(mb::FindingCode::RtuCrcMismatch), 1);
+}
+
+// A live serial line whose first bytes are one RTU request to a device that never answers (sniff's default
+// framing, auto): the request's eight bytes hold seven no ASCII line carries, one short of the count that
+// told RTU, so the line's framing waited for more bytes and the request was neither shown nor timed out
+// while the line stayed quiet. A whole frame with a valid CRC and a byte no ASCII line carries tells RTU.
+TEST(LineFraming, ALoneRtuRequestOnAQuietLineIsFramedAndTimedOut) {
+    Decoding run;
+    const auto request = rtu(17, {0x03, 0x00, 0x60, 0x00, 0x03});
+    run.analyzer.serial("line", octets(request), 10s);
+    run.analyzer.idle(10s + 5ms);
+    ASSERT_EQ(run.sink.frames.size(), 1u);
+    EXPECT_EQ(run.sink.frames[0].frame.framing, R);
+    EXPECT_TRUE(run.sink.frames[0].frame.checksum_ok);
+    run.analyzer.idle(11s + 100ms);
+    EXPECT_EQ(run.sink.count(mb::FindingCode::PairNoResponse), 1);
+    run.analyzer.finish();
+    ASSERT_EQ(run.analyzer.summary().serial_lines.size(), 1u);
+    EXPECT_TRUE(run.analyzer.summary().serial_lines.begin()->second.told);
+    EXPECT_EQ(run.unparsed(), 0u);
+}
+
+// On an ASCII line, an RTU frame made of ASCII characters alone does not tell RTU: "1:" read as unit 0x31 and
+// FC 0x3A is no frame, and text whose CRC happened to hold would still be an ASCII line's characters.
+TEST(LineFraming, AnAsciiLineWithoutForeignBytesStaysAscii) {
+    Decoding run;
+    run.analyzer.serial("line", octets(manual_request), 10s);
+    run.analyzer.serial("line", octets(manual_reply), 10s + 50ms);
+    run.analyzer.finish();
+    EXPECT_EQ(run.framings(), std::vector<mb::Framing>{A});
 }
 
 // MK PROT := 0 acknowledged in RTU: the device talks ASCII from the byte after the acknowledgement, and the
