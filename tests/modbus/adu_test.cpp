@@ -109,6 +109,10 @@ TEST(AsciiAdu, StructuralErrorsNameTheCharacter) {
     EXPECT_TRUE(lower_case->findings.contains(mb::FindingCode::AsciiLowercaseHex));
     EXPECT_EQ(lower_case->bytes[7], 0x0A);
     EXPECT_EQ(mb::decode_ascii(bytes_of(":1103006000389\r\n")).error().code, mb::ErrorCode::OddHexLength);
+    // A bad digit left over after the pairs is a bad digit, not only an odd length.
+    auto odd_bad = mb::decode_ascii(bytes_of(":11030060000389G\r\n"));
+    EXPECT_EQ(odd_bad.error().code, mb::ErrorCode::BadHexDigit);
+    EXPECT_EQ(odd_bad.error().offset, 15u);
     EXPECT_EQ(mb::decode_ascii(bytes_of(":1103\r\n")).error().code, mb::ErrorCode::Truncated);
 }
 
