@@ -118,8 +118,14 @@ void TextSink::transaction(const TransactionRecord& t) {
 void TextSink::finding(const FindingRecord& f) {
     if (summary_only_) return;
     const auto& i = info(f.code);
-    out_ << time_of(f.time) << "  ! " << i.name << " (" << to_string(i.severity) << ") " << f.link << ": "
-         << f.message;
+    out_ << time_of(f.time) << "  ! " << i.name << " (" << to_string(i.severity) << ") " << f.link;
+    // A gateway or a multi-drop line has several devices on one link: the line says which one the finding is
+    // about (as its JSON record's `device` does), unless the message names it already.
+    if (const std::string_view device = f.device.view();
+        !device.empty() && f.message.find(device) == std::string::npos)
+        if (const auto unit = device.rfind(" unit "); unit != std::string_view::npos)
+            out_ << device.substr(unit);
+    out_ << ": " << f.message;
     if (!f.frames.empty()) {
         out_ << " [frame";
         for (auto n : f.frames)

@@ -538,6 +538,37 @@ TEST(Analyzer, ARequestThatCannotBeDecodedIsCountedByItsFunctionCode) {
     EXPECT_EQ(device.functions, (std::map<int, std::uint64_t>{{3, 1}, {43, 1}}));
 }
 
+// Behind a gateway several devices share one TCP link: a finding line of the text output named the link
+// alone ("10.0.0.1:40000 -> 10.0.0.2:502: exception 11 ..."), so which unit the gateway failed to reach was
+// left to the transaction line before it. It names the unit, unless its message names the device already.
+TEST(Analyzer, AFindingLineNamesTheUnit) {
+    Harness h;
+    const auto read = mb::encode_pdu(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 0, 2));
+    h.send(true, mb::encode_tcp(1, 5, read), 1s);
+    h.send(false, mb::encode_tcp(1, 5, mb::encode_pdu(mb::make_exception(3, 0x0B))), 1s + 500ms);
+    h.send(true, mb::encode_tcp(2, 6, read), 2s);
+    h.send(true, mb::encode_tcp(3, 5, read), 6s);  // past unit 6's timeout
+    h.analyzer.finish();
+    std::ostringstream text;
+    an::TextSink sink(text);
+    for (const auto& f : h.sink.findings)
+        sink.finding(f);
+    const std::string out = text.str();
+    EXPECT_NE(
+        out.find("! pair.exception_response (warning) 10.0.0.1:40000 -> 10.0.0.2:502 unit 5: exception 11"),
+        std::string::npos)
+        << out;
+    // The message of a request left unanswered names its device: the line does not say it twice.
+    EXPECT_NE(
+        out.find("10.0.0.1:40000 -> 10.0.0.2:502: FC3 Read Holding Registers 0+2 to 10.0.0.2:502 unit 6 "
+                 "got no response"),
+        std::string::npos)
+        << out;
+    EXPECT_NE(out.find("10.0.0.1:40000 -> 10.0.0.2:502 unit 5: FC3 Read Holding Registers 0+2 unanswered"),
+              std::string::npos)
+        << out;
+}
+
 // A late exception is what the device answered, and is judged as one; the device's counts keep it among
 // the timeouts, not the exceptions of its responses (which it would outnumber).
 TEST(Analyzer, ALateExceptionIsAmongTheTimeouts) {
