@@ -793,8 +793,11 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                              "request FC" + std::to_string(q.function_code()) + ", response FC" +
                                  std::to_string(a.function_code()));
             } else if (a.is_exception()) {
-                if (!late) ++stats.exceptions;  // of the responses; a late one is among the timeouts
                 const auto code = std::get<ExceptionResponse>(a.body).exception_code;
+                if (!late) {  // of the responses; a late one is among the timeouts
+                    ++stats.exceptions;
+                    ++stats.exception_codes[code];
+                }
                 const auto name = exception_name(code);
                 pair_finding(FindingCode::PairExceptionResponse,
                              "exception " + std::to_string(code) + " (" +

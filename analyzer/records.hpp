@@ -119,6 +119,9 @@ struct DeviceStats {
     std::uint64_t late_responses = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests
+    // The exception codes among `exceptions` (code → count): what the device refused, or the gateway in front
+    // of it could not do (10, 11).
+    std::map<int, std::uint64_t> exception_codes;
     // The findings about this device (code name → count): which device did it. Findings about a stream or
     // a line rather than a device (unparsed bytes, gaps) are in the summary's only.
     std::map<std::string, std::uint64_t> findings;

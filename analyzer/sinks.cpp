@@ -153,6 +153,16 @@ void TextSink::end(const Summary& s) {
         for (const auto& [fc, n] : d.functions)
             out_ << " FC" << fc << "×" << n;
         out_ << '\n';
+        if (!d.exception_codes.empty()) {
+            out_ << "    exceptions:";
+            const char* separator = " ";
+            for (const auto& [code, n] : d.exception_codes) {
+                const auto name = exception_name(static_cast<std::uint8_t>(code));
+                out_ << separator << code << ' ' << (name ? *name : "undefined") << "×" << n;
+                separator = ", ";
+            }
+            out_ << '\n';
+        }
         if (!d.findings.empty()) {
             out_ << "    findings:";
             for (const auto& [code, n] : d.findings)
@@ -371,6 +381,12 @@ json summary_to_json(const Summary& s) {
         for (const auto& [fc, n] : d.functions)
             fcs[std::to_string(fc)] = n;
         dev["functions"] = fcs;
+        if (!d.exception_codes.empty()) {
+            json codes = json::object();
+            for (const auto& [code, n] : d.exception_codes)
+                codes[std::to_string(code)] = n;
+            dev["exception_codes"] = codes;
+        }
         if (d.latency.count()) {
             auto m = [](Timestamp t) { return std::chrono::duration<double, std::milli>(t).count(); };
             dev["latency_ms"] = {{"min", m(d.latency.min())},

@@ -569,6 +569,37 @@ TEST(Analyzer, AFindingLineNamesTheUnit) {
         << out;
 }
 
+// "4 exceptions" said that a device refused, not what: the codes tell an address the map lacks (2) from a
+// device failure (4) or a gateway that could not reach the device behind it (11). Counted by code, in time
+// only (as `exceptions`: a late one is among the timeouts).
+TEST(Analyzer, ADevicesExceptionsAreCountedByCode) {
+    Harness h;
+    const auto exception = [](std::uint16_t tid, std::uint8_t code) {
+        return mb::encode_tcp(tid, 17, mb::encode_pdu(mb::make_exception(3, code)));
+    };
+    h.send(true, read_request(1), 1s);
+    h.send(false, exception(1, 11), 1s + 10ms);
+    h.send(true, read_request(2), 2s);
+    h.send(false, exception(2, 2), 2s + 10ms);
+    h.send(true, read_request(3), 3s);
+    h.send(false, exception(3, 11), 3s + 10ms);
+    h.send(true, read_request(4), 4s);
+    h.send(false, exception(4, 4), 9s);  // late
+    h.analyzer.finish();
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.exceptions, 3u);
+    EXPECT_EQ(device.exception_codes, (std::map<int, std::uint64_t>{{2, 1}, {11, 2}}));
+    std::ostringstream text;
+    an::TextSink(text, true).end(h.analyzer.summary());
+    EXPECT_NE(
+        text.str().find("\n    exceptions: 2 Illegal Data Address×1, 11 Gateway Target Device Failed to "
+                        "Respond×2\n"),
+        std::string::npos)
+        << text.str();
+    const auto json = an::summary_to_json(h.analyzer.summary())["devices"]["10.0.0.2:502 unit 17"];
+    EXPECT_EQ(json["exception_codes"], (nlohmann::json{{"2", 1}, {"11", 2}}));
+}
+
 // A late exception is what the device answered, and is judged as one; the device's counts keep it among
 // the timeouts, not the exceptions of its responses (which it would outnumber).
 TEST(Analyzer, ALateExceptionIsAmongTheTimeouts) {

@@ -74,6 +74,7 @@ void expect_same(const std::string& what, const std::string& path,
         EXPECT_EQ(d.requests, e.requests) << name;
         EXPECT_EQ(d.responses, e.responses) << name;
         EXPECT_EQ(d.exceptions, e.exceptions) << name;
+        EXPECT_EQ(d.exception_codes, e.exception_codes) << name;
         EXPECT_EQ(d.timeouts, e.timeouts) << name;
         EXPECT_EQ(d.unanswered_at_end, e.unanswered_at_end) << name;
         EXPECT_EQ(d.late_responses, e.late_responses) << name;
