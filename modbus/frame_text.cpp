@@ -252,6 +252,15 @@ std::string describe_error(const DecodeError& e) {
     return std::string(to_string(e.code)) + " (at byte " + std::to_string(e.offset) + ")";
 }
 
+// How badly a PDU read one way fits its bytes, for choosing between the two readings when both break a rule:
+// a byte count that disagrees with the bytes present says the bytes are not that kind of PDU at all (a
+// master's FC3 request for 252 registers read as a reply whose byte count of 0 is followed by three more
+// bytes), while a quantity above the maximum or an invalid coil value is a rule the sender broke. Then the
+// number of rules broken.
+std::size_t misfit(const Pdu& pdu) noexcept {
+    return (pdu.violations.contains(FindingCode::PduByteCountMismatch) ? 100 : 0) + pdu.violations.size();
+}
+
 void choose_pdu(DecodedFrame& d, Direction direction) {
     const auto pdu_bytes = d.frame->pdu();
     if (direction != Direction::Unknown) {
@@ -271,7 +280,7 @@ void choose_pdu(DecodedFrame& d, Direction direction) {
         d.direction_note = encode_pdu(*d.pdu) == encode_pdu(response.value())
                                ? "request, or its echo response (identical bytes)"
                                : "request (also well-formed as a response)";
-    } else if (req_clean || (request && !rsp_clean && !response)) {
+    } else if (req_clean || (request && !rsp_clean && (!response || misfit(*request) <= misfit(*response)))) {
         d.pdu = std::move(request.value());
         d.direction_note = "request";
     } else if (response) {

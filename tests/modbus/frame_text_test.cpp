@@ -182,3 +182,23 @@ TEST(FrameText, RenderedTextCarriesNoControlCharacterOfTheInput) {
     EXPECT_FALSE(has_control_characters(shown)) << shown;
     EXPECT_NE(shown.find(":11\\x1B030060\\r\\n"), std::string::npos) << shown;
 }
+
+// A frame given without its direction is read as whichever it is more plausibly. A master's FC3 request for
+// 252 registers (twice the maximum, a common master bug) was shown as a response whose byte count of 0
+// disagrees with the three bytes after it: both readings break a rule, but a byte count that disagrees with
+// the bytes present says they are not that kind of PDU at all, while a quantity above the maximum is a rule
+// the sender broke.
+TEST(FrameText, ADirectionIsChosenByWhatTheBytesBreak) {
+    const auto pdu = bytes({0x03, 0x00, 0x00, 0x00, 0xFC});
+    const auto too_many = decode_frame(Framing::Rtu, encode_rtu(1, pdu), Direction::Unknown);
+    ASSERT_TRUE(too_many.pdu.has_value()) << too_many.error;
+    EXPECT_EQ(too_many.direction_note, "request");
+    EXPECT_TRUE(std::holds_alternative<ReadRequest>(too_many.pdu->body));
+    EXPECT_TRUE(too_many.pdu->violations.contains(FindingCode::PduQuantityOutOfRange));
+
+    // A response whose byte count holds stays a response, though its bytes read as a request too.
+    const auto reply =
+        decode_frame(Framing::Rtu, encode_rtu(1, bytes({0x03, 0x02, 0x00, 0x7B})), Direction::Unknown);
+    ASSERT_TRUE(reply.pdu.has_value()) << reply.error;
+    EXPECT_EQ(reply.direction_note, "response");
+}
