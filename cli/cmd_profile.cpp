@@ -9,6 +9,7 @@
 
 #include "cli/commands.hpp"
 #include "cli/profile_json.hpp"
+#include "modbus/addressing.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "modbus/storage/text_file.hpp"
@@ -282,19 +283,37 @@ int run_lookup(const ProfileOptions& o) {
     auto p = load(o);
     if (!p) return exit_failure;
     const Point* pt = p->find(*table, *address);
+    // Manuals and HMIs print reference numbers (Walchem's 40001 ...): a number with no point at that protocol
+    // address that reads as a reference of the table asked is looked up as the reference, and the output says
+    // so. A protocol address in the map stays what it is.
+    const auto reference = modbus::parse_reference(o.address);
+    const bool of_table = reference && reference->table == *table;
+    const std::uint16_t by_reference = of_table ? modbus::to_protocol_address(*reference).value : 0;
+    const bool read_as_reference = !pt && of_table && (pt = p->find(*table, by_reference)) != nullptr;
     if (!pt) {
-        if (o.json)
+        if (o.json) {
             std::cout << nlohmann::json{{"found", false}}.dump() << '\n';
-        else
-            std::cout << p->id << " " << to_string(*table) << " " << *address << ": not in the device map\n";
+        } else {
+            std::cout << p->id << " " << to_string(*table) << " " << *address << ": not in the device map";
+            if (of_table)
+                std::cout << " (nor the reference " << o.address << ", protocol address " << by_reference
+                          << ")";
+            std::cout << '\n';
+        }
         return exit_findings;
     }
     if (o.json) {
-        std::cout << modbus::point_to_json(*pt).dump(2) << '\n';
+        auto j = modbus::point_to_json(*pt);
+        if (read_as_reference) j["read_as_reference"] = o.address;
+        std::cout << j.dump(2) << '\n';
         return exit_ok;
     }
-    std::cout << p->id << " " << to_string(*table) << " " << pt->address
-              << (pt->address != *address ? " (second register of)" : "") << '\n'
+    std::cout << p->id << " " << to_string(*table) << " " << pt->address;
+    if (read_as_reference)
+        std::cout << " (read as the reference " << o.address << ": no point at protocol address " << *address
+                  << ")";
+    std::cout << (pt->address != (read_as_reference ? by_reference : *address) ? " (second register of)" : "")
+              << '\n'
               << "  name      " << pt->name << '\n';
     if (!pt->name_en.empty()) std::cout << "  english   " << pt->name_en << '\n';
     std::cout << "  access    " << to_string(pt->access) << '\n'

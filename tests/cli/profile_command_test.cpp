@@ -46,6 +46,31 @@ TEST(ProfileCommand, ShowByAliasAnyCase) {
     EXPECT_EQ(j["tables"]["holding_registers"][2]["encoding"]["decimals"], 1);
 }
 
+// Manuals print reference numbers (Walchem's 40001 ..., the HMI convention): `lookup ... holding 40024` said
+// "not in the device map" of the register the manual calls 40024. A number with no point at that protocol
+// address that reads as a reference of the table asked is looked up as the reference, and the output says
+// so; a protocol address in the map is still what it is.
+TEST(ProfileCommand, LookupReadsAReferenceNumberAndSaysSo) {
+    auto r = run_mbscope("profile" + dir + "lookup test-device holding 40024");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(
+        r.out.find("test-device holding_registers 23 (read as the reference 40024: no point at protocol "
+                   "address 40024)"),
+        std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("Filtro"), std::string::npos);
+    auto j = run_mbscope("profile" + dir + "lookup test-device holding 40024 --json");
+    ASSERT_EQ(j.exit_code, 0) << j.out;
+    EXPECT_EQ(nlohmann::json::parse(j.out)["read_as_reference"], "40024");
+    // Another table's reference is not taken for this one's, nor a reference with no point either.
+    EXPECT_EQ(run_mbscope("profile" + dir + "lookup test-device input 40024").exit_code, 1);
+    auto none = run_mbscope("profile" + dir + "lookup test-device holding 40100");
+    EXPECT_EQ(none.exit_code, 1);
+    EXPECT_NE(none.out.find("not in the device map (nor the reference 40100, protocol address 99)"),
+              std::string::npos)
+        << none.out;
+}
+
 TEST(ProfileCommand, LookupAndDecode) {
     auto r = run_mbscope("profile" + dir + "lookup test-device holding 23");
     ASSERT_EQ(r.exit_code, 0) << r.out;
