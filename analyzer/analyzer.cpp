@@ -97,6 +97,16 @@ struct Analyzer::SerialLink {
     // hold the same.
     std::vector<std::uint8_t> answered;
     std::map<std::uint8_t, LineState> told;
+    // A line read from several files (serial_part_of): the stream offset at which each file's bytes begin,
+    // and the file, for the records' `source` (a frame is closed by the next bytes, maybe the next file's).
+    std::vector<std::pair<std::uint64_t, SharedText>> parts;
+
+    const SharedText& source_at(std::uint64_t offset, const SharedText& current) const noexcept {
+        if (parts.empty()) return current;
+        const auto after = std::upper_bound(parts.begin(), parts.end(), offset,
+                                            [](std::uint64_t o, const auto& part) { return o < part.first; });
+        return after == parts.begin() ? current : std::prev(after)->second;
+    }
 };
 
 std::size_t Analyzer::FlowKeyHash::operator()(const FlowKey& k) const noexcept {
@@ -1043,11 +1053,12 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             link.settled = std::max(link.settled, u->offset + u->length);
             summary_.unparsed_bytes += u->length;
             const Timestamp when = u->time.count() ? u->time : t;
+            const SharedText& source = link.source_at(u->offset, source_);
             sink_.unparsed(
-                UnparsedRecord{source_, flow.link, link.hint, when, packet, u->offset, u->length, u->reason});
+                UnparsedRecord{source, flow.link, link.hint, when, packet, u->offset, u->length, u->reason});
             FrameRecord about;
             about.time = when;
-            about.source = source_;
+            about.source = source;
             about.link = flow.link;
             about.packet = packet;
             report(FindingCode::StreamUnparsedBytes, about,
@@ -1063,7 +1074,7 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         r.packet = packet;
         r.time = frame.end.count() ? frame.end : t;
         if (r.time > now_) now_ = r.time;
-        r.source = source_;
+        r.source = link.source_at(frame.offset, source_);
         r.link = flow.link;
         // Up to this frame's own time, not the capture's: a timed deframer closes a frame only when later
         // bytes show the silence after it, so a request and its response read in one chunk come out when the
@@ -1102,7 +1113,17 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
 void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> bytes, Timestamp received,
                       Direction hint) {
     set_source(source);
-    serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint);
+    const auto part = serial_parts_.find(source);
+    if (part == serial_parts_.end())
+        return serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint);
+    SerialLink& link = serial_link(part->second);
+    if (link.parts.empty()) link.parts.emplace_back(0, link.source);
+    if (link.parts.back().second != source_) link.parts.emplace_back(link.fed, source_);
+    serial_bytes(link, options_.serial_framing, bytes, received, hint);
+}
+
+void Analyzer::serial_part_of(const std::string& source, const std::string& line) {
+    if (source != line) serial_parts_[source] = line;
 }
 
 void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,

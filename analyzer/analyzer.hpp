@@ -79,6 +79,9 @@ class Analyzer {
     // direction column), else Unknown and the request → expected-response state machine decides.
     void serial(const std::string& source, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
                 modbus::Direction hint = modbus::Direction::Unknown);
+    // The bytes of `source` continue the line of `line` (a log written a file an hour, a capture in pieces):
+    // one stream, one set of devices named after `line`; records keep `source` as the file they came from.
+    void serial_part_of(const std::string& source, const std::string& line);
     // Nothing was captured up to `now` (a live capture's quiet line or network, by the host's clock): a
     // frame the line's silence has ended is complete, and a request whose timeout has run out is unanswered,
     // said now rather than at the next byte or packet, or at the end as "unanswered when the capture ended".
@@ -263,6 +266,7 @@ class Analyzer {
     };
     std::array<FlowCacheEntry, 64> flow_cache_{};
     std::map<std::string, std::unique_ptr<SerialLink>> serial_links_;
+    std::map<std::string, std::string> serial_parts_;  // source → the line it continues (serial_part_of)
     std::unordered_map<PendingKey, Pending, PendingHash> pending_;
     // Requests by deadline, one queue per timeout: each is then in deadline order, and a serial request (1 s)
     // is not held up behind a Modbus/TCP one (3 s) sent before it. Requests without a time stamp (raw

@@ -375,6 +375,11 @@ bool read_inputs(Analyzer& a, const std::vector<std::string>& names, InputFormat
     }
     const auto is_capture = [](const Prepared& p) { return p.format == InputFormat::Pcap; };
     const auto captures = std::count_if(inputs.begin(), inputs.end(), is_capture);
+    if (options.parts_of_one_line)
+        if (const auto first = std::find_if_not(inputs.begin(), inputs.end(), is_capture);
+            first != inputs.end())
+            for (const auto& p : inputs)
+                if (!is_capture(p)) a.serial_part_of(p.input.name, first->input.name);
     bool captures_read = false;
     for (auto& p : inputs) {
         if (!is_capture(p) || captures == 1) {

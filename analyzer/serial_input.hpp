@@ -38,8 +38,9 @@ bool read_input(Analyzer& analyzer, const std::string& path, InputFormat format,
                 const SerialLogOptions& logs = {});
 // Several inputs into one analyzer. The pcap and pcapng files among them are one capture, merged by time
 // (analyzer/capture_merge.hpp) and read where the first of them is named; the others (serial dumps and
-// logs) are read one after another in the order named. `done`, when given, is called with each input's name
-// once it is read (for a progress line). False when an input could not be read completely.
+// logs) are read one after another in the order named, each a line of its own, or with
+// `logs.parts_of_one_line` the parts of one line named after the first. `done`, when given, is called with
+// each input's name once it is read (for a progress line). False when an input could not be read completely.
 bool read_inputs(Analyzer& analyzer, const std::vector<std::string>& names, InputFormat format,
                  const SerialLogOptions& logs = {},
                  const std::function<void(const std::string& name)>& done = {});

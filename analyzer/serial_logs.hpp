@@ -60,6 +60,9 @@ struct SerialLogOptions {
     bool socat_master_left = true;
     // jpnevulator stamps the start of a run: its end is placed by the line's character time.
     modbus::SerialLine line{};
+    // The serial inputs are consecutive parts of one line (a log written a file an hour, a capture in
+    // pieces), read as one stream in the order named (Analyzer::serial_part_of); else each is a line.
+    bool parts_of_one_line = false;
 };
 
 struct SerialChunk {

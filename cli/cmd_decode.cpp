@@ -26,6 +26,7 @@ struct DecodeOptions {
     std::string master_alias, slave_alias;
     std::string socat_master = "left";
     std::string rtac_role;
+    bool one_line = false;
 };
 
 int run_decode(const DecodeOptions& o) {
@@ -86,6 +87,7 @@ int run_decode(const DecodeOptions& o) {
     logs.slave_alias = o.slave_alias;
     logs.socat_master_left = o.socat_master == "left";
     logs.line = options.serial_line;
+    logs.parts_of_one_line = o.one_line;
     std::function<void(const std::string&)> file_done;  // for the progress line
     if (meter)
         file_done = [&](const std::string& f) {
@@ -118,7 +120,7 @@ void register_decode(CLI::App& app, int& exit_code) {
            "standard input (a pcap or pcapng capture alone is decoded as it comes, as from "
            "tcpdump -U -w -; other pipes are read to their end first). Several pcap/pcapng files are "
            "one capture merged by time, as mergecap merges them; serial inputs are read in the "
-           "order given")
+           "order given, each a line of its own (--one-line: parts of one line)")
         ->required()
         ->check(CLI::Validator(
             [](std::string& file) { return file == "-" ? std::string() : CLI::ExistingFile(file); },
@@ -139,6 +141,11 @@ void register_decode(CLI::App& app, int& exit_code) {
                     "(first) address to the right one")
         ->check(CLI::IsMember({"left", "right"}))
         ->capture_default_str();
+    cmd->add_flag(
+        "--one-line", o->one_line,
+        "The serial inputs are consecutive parts of one line (a log written a file an hour, a capture "
+        "in pieces): one stream in the order given, its devices named after the first; a reply in "
+        "the next part is its request's, a frame cut in two is whole");
     cmd->add_option("--rtu-over-tcp", o->rtu_over_tcp_ports,
                     "TCP port of a serial gateway whose streams carry raw RTU frames, no MBAP (repeatable)")
         ->check(CLI::Range(1, 65535));

@@ -39,13 +39,21 @@ struct Run {
     bool ok = false;
 };
 
-std::unique_ptr<Run> decode(const std::string& path, an::InputFormat format = an::InputFormat::Auto) {
+// Several inputs; `one_line`: the serial ones are parts of one line.
+std::unique_ptr<Run> decode_all(const std::vector<std::string>& paths, bool one_line,
+                                an::InputFormat format = an::InputFormat::Auto) {
     auto r = std::make_unique<Run>();
     an::Analyzer a({}, r->sink);
-    r->ok = an::read_input(a, path, format);
+    an::SerialLogOptions logs;
+    logs.parts_of_one_line = one_line;
+    r->ok = an::read_inputs(a, paths, format, logs);
     a.finish();
     r->summary = a.summary();
     return r;
+}
+
+std::unique_ptr<Run> decode(const std::string& path, an::InputFormat format = an::InputFormat::Auto) {
+    return decode_all({path}, false, format);
 }
 
 }  // namespace
@@ -512,4 +520,45 @@ TEST(SerialInput, AFileOfFramesIsNamedForWhatReadsIt) {
                   "'rtu' (a file of frames, one a line: mbscope frame --file reads it)"),
               std::string::npos)
         << r->summary.input_errors[0];
+}
+
+// A logger that writes a file an hour, or a capture handed over in pieces: each part was a line of its own,
+// so a request at the end of one part and its reply at the start of the next were a timeout and an
+// unsolicited reply on clean traffic (exit 1), and each part's devices stood apart in the summary. Named as
+// parts of one line, they are read as one stream in the order given: the exchange across the cut is paired,
+// a frame cut in two (a raw dump split by size) is whole again, and the records keep the file they came from.
+TEST(SerialInput, PartsOfOneLineAreReadAsOneStream) {
+    const std::string fc3 = "11 03 00 60 00 03 07 45", reply = "11 03 06 02 2B 00 00 00 64 C8 BA";
+    const auto first =
+        write_temp("part-1.txt", "1.000 " + fc3 + "\n1.020 " + reply + "\n2.000 " + fc3 + "\n");
+    const auto second =
+        write_temp("part-2.txt", "2.020 " + reply + "\n3.000 " + fc3 + "\n3.020 " + reply + "\n");
+    const auto apart = decode_all({first, second}, false);
+    EXPECT_EQ(apart->summary.devices.size(), 2u);
+    EXPECT_EQ(apart->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+
+    const auto joined = decode_all({first, second}, true);
+    ASSERT_TRUE(joined->ok);
+    EXPECT_TRUE(joined->sink.findings.empty());
+    ASSERT_EQ(joined->summary.devices.size(), 1u);
+    const auto& [name, device] = *joined->summary.devices.begin();
+    EXPECT_EQ(name, "serial " + first + " unit 17");
+    EXPECT_EQ(device.requests, 3u);
+    EXPECT_EQ(device.responses, 3u);
+    ASSERT_EQ(joined->sink.transactions.size(), 3u);
+    EXPECT_EQ(*joined->sink.transactions[1].latency, std::chrono::milliseconds(20));
+    EXPECT_EQ(joined->sink.transactions[1].request.source, first);
+    EXPECT_EQ(joined->sink.transactions[1].response->source, second);
+
+    // A raw dump cut in the middle of a frame.
+    const std::string stream = bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45, 0x11, 0x03, 0x06, 0x02,
+                                      0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA});
+    const auto head = write_temp("dump-1.bin", stream.substr(0, 12));
+    const auto tail = write_temp("dump-2.bin", stream.substr(12));
+    const auto dump = decode_all({head, tail}, true);
+    ASSERT_TRUE(dump->ok);
+    EXPECT_EQ(dump->summary.unparsed_bytes, 0u);
+    ASSERT_EQ(dump->sink.transactions.size(), 1u);
+    ASSERT_TRUE(dump->sink.transactions[0].response.has_value());
+    EXPECT_TRUE(dump->sink.findings.empty());
 }
