@@ -1,6 +1,7 @@
 // mbscope decode: captures in; frames, transactions, findings and a summary out.
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -104,6 +105,18 @@ int run_decode(const DecodeOptions& o) {
     if (a.summary().input_errors_unlisted)
         std::cerr << "mbscope decode: " << a.summary().input_errors_unlisted
                   << " more input errors, not listed\n";
+    // Read apart, the parts of one line's log pair across no cut: the exchange at each one is a timeout and
+    // an unsolicited reply. Whether they are parts or lines only the user knows: say what tells them apart.
+    if (!o.one_line) {
+        const auto lines = std::count_if(o.files.begin(), o.files.end(), [&](const std::string& f) {
+            return a.summary().serial_lines.contains("serial " + f);
+        });
+        if (lines > 1)
+            std::cerr
+                << "mbscope decode: " << lines << " serial inputs were read as " << lines
+                << " lines; if they are parts of one line (a log in several files), --one-line reads them "
+                   "as one stream\n";
+    }
     if (!all_read) return exit_failure;
     return a.summary().errors ? exit_findings : exit_ok;
 }
