@@ -105,8 +105,8 @@ int run_decode(const DecodeOptions& o) {
     if (a.summary().input_errors_unlisted)
         std::cerr << "mbscope decode: " << a.summary().input_errors_unlisted
                   << " more input errors, not listed\n";
-    // Read apart, the parts of one line's log pair across no cut: the exchange at each one is a timeout and
-    // an unsolicited reply. Whether they are parts or lines only the user knows: say what tells them apart.
+    // Read apart, the parts of one line's log do not pair across a cut: the exchange at each cut is a timeout
+    // and an unsolicited reply. Whether the inputs are parts or lines only the user knows: say how to join.
     if (!o.one_line) {
         const auto lines = std::count_if(o.files.begin(), o.files.end(), [&](const std::string& f) {
             return a.summary().serial_lines.contains("serial " + f);

@@ -289,7 +289,11 @@ int run_lookup(const ProfileOptions& o) {
     const auto reference = modbus::parse_reference(o.address);
     const bool of_table = reference && reference->table == *table;
     const std::uint16_t by_reference = of_table ? modbus::to_protocol_address(*reference).value : 0;
-    const bool read_as_reference = !pt && of_table && (pt = p->find(*table, by_reference)) != nullptr;
+    bool read_as_reference = false;
+    if (!pt && of_table) {
+        pt = p->find(*table, by_reference);
+        read_as_reference = pt != nullptr;
+    }
     if (!pt) {
         if (o.json) {
             std::cout << nlohmann::json{{"found", false}}.dump() << '\n';
