@@ -1,10 +1,12 @@
 // mbscope profile: list, show, validate, look up and decode with device profiles.
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "cli/commands.hpp"
@@ -356,12 +358,30 @@ int run_decode(const ProfileOptions& o) {
     auto p = load(o);
     if (!p) return exit_failure;
     auto values = decode_registers(*p, *table, *start, words);
+    // As in lookup: a start that reads as a reference of the table, where no word of the block is a point at
+    // the protocol address and some is at the reference's, is read as the reference, and said so.
+    const auto any_point = [](const auto& decoded) {
+        return std::any_of(decoded.begin(), decoded.end(), [](const auto& v) { return v.point != nullptr; });
+    };
+    std::optional<std::string> read_as_reference;
+    if (const auto reference = modbus::parse_reference(o.address);
+        reference && reference->table == *table && !p->open_address_space && !any_point(values)) {
+        auto by_reference =
+            decode_registers(*p, *table, modbus::to_protocol_address(*reference).value, words);
+        if (any_point(by_reference)) {
+            values = std::move(by_reference);
+            read_as_reference = o.address;
+        }
+    }
     if (o.json) {
         auto a = nlohmann::json::array();
         for (const auto& v : values)
             a.push_back(modbus::named_value_to_json(v));
         std::cout << a.dump(2) << '\n';
     } else {
+        if (read_as_reference)
+            std::cout << "  read as the reference " << *read_as_reference << ": no point at protocol address "
+                      << *start << " on\n";
         for (const auto& v : values) {
             std::string name =
                 v.point ? (v.point->name_en.empty() ? v.point->name : v.point->name_en) : "(not in map)";

@@ -50,7 +50,7 @@ TEST(ProfileCommand, ShowByAliasAnyCase) {
 // "not in the device map" of the register the manual calls 40024. A number with no point at that protocol
 // address that reads as a reference of the table asked is looked up as the reference, and the output says
 // so; a protocol address in the map is still what it is.
-TEST(ProfileCommand, LookupReadsAReferenceNumberAndSaysSo) {
+TEST(ProfileCommand, LookupAndDecodeReadAReferenceNumberAndSaySo) {
     auto r = run_mbscope("profile" + dir + "lookup test-device holding 40024");
     ASSERT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(
@@ -64,6 +64,13 @@ TEST(ProfileCommand, LookupReadsAReferenceNumberAndSaysSo) {
     EXPECT_EQ(nlohmann::json::parse(j.out)["read_as_reference"], "40024");
     // Another table's reference is not taken for this one's, nor a reference with no point either.
     EXPECT_EQ(run_mbscope("profile" + dir + "lookup test-device input 40024").exit_code, 1);
+    // decode takes a reference as lookup does: 40018 is register 17, with its decimal places.
+    auto words = run_mbscope("profile" + dir + "decode test-device holding 40018 0002 04D2");
+    ASSERT_EQ(words.exit_code, 0) << words.out;
+    EXPECT_NE(words.out.find("read as the reference 40018: no point at protocol address 40018 on"),
+              std::string::npos)
+        << words.out;
+    EXPECT_NE(words.out.find("12.34"), std::string::npos) << words.out;
     auto none = run_mbscope("profile" + dir + "lookup test-device holding 40100");
     EXPECT_EQ(none.exit_code, 1);
     EXPECT_NE(none.out.find("not in the device map (nor the reference 40100, protocol address 99)"),
