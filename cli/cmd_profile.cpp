@@ -366,8 +366,10 @@ int run_decode(const ProfileOptions& o) {
     std::optional<std::string> read_as_reference;
     if (const auto reference = modbus::parse_reference(o.address);
         reference && reference->table == *table && !p->open_address_space && !any_point(values)) {
-        auto by_reference =
-            decode_registers(*p, *table, modbus::to_protocol_address(*reference).value, words);
+        const std::uint16_t from = modbus::to_protocol_address(*reference).value;
+        auto by_reference = std::size_t{from} + words.size() <= 0x10000  // as above: no wrap to register 0
+                                ? decode_registers(*p, *table, from, words)
+                                : decltype(values){};
         if (any_point(by_reference)) {
             values = std::move(by_reference);
             read_as_reference = o.address;
