@@ -1012,15 +1012,12 @@ Analyzer::SerialLink* Analyzer::serial_line_of(const std::string& link, Carrier 
     return it == serial_links_.end() ? nullptr : it->second.get();
 }
 
-namespace {
-// A serial source's link: its key, its name in records and its server.
-std::string serial_key(const std::string& source) {
+std::string serial_line_name(const std::string& source) {
     return "serial " + source;
 }
-}  // namespace
 
 Analyzer::SerialLink& Analyzer::serial_link(const std::string& source) {
-    const std::string key = serial_key(source);
+    const std::string key = serial_line_name(source);
     return serial_link(key, key, key, Carrier::Serial);
 }
 
@@ -1600,7 +1597,7 @@ std::vector<Framing> Analyzer::serial_framings_read() const {
 }
 
 std::optional<SerialLine> Analyzer::serial_line(const std::string& source) const {
-    const auto it = serial_links_.find(serial_key(source));
+    const auto it = serial_links_.find(serial_line_name(source));
     if (it == serial_links_.end()) return std::nullopt;
     return it->second->line;
 }

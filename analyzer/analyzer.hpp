@@ -289,4 +289,8 @@ class Analyzer {
     std::vector<std::pair<std::string, int>> told_links_;
 };
 
+// A serial source's line (a file's, a port's): its key, its name in records and the summary's
+// `serial_lines`, and its devices' server.
+std::string serial_line_name(const std::string& source);
+
 }  // namespace mbscope::analyzer

@@ -109,7 +109,7 @@ int run_decode(const DecodeOptions& o) {
     // and an unsolicited reply. Whether the inputs are parts or lines only the user knows: say how to join.
     if (!o.one_line) {
         const auto lines = std::count_if(o.files.begin(), o.files.end(), [&](const std::string& f) {
-            return a.summary().serial_lines.contains("serial " + f);
+            return a.summary().serial_lines.contains(analyzer::serial_line_name(f));
         });
         if (lines > 1)
             std::cerr
