@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <stdio_ext.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -27,7 +28,6 @@ namespace mbscope::analyzer {
 // reading thread touches it.
 struct CaptureSource::Impl {
     pcap_t* pcap = nullptr;
-    std::string name;
     int linktype = 0;
     // Classic pcap records are a fixed header and caplen bytes, so where the next one starts is known
     // without asking the FILE (ftell() was a twentieth of a summary run). record_header is learnt from the
@@ -37,13 +37,19 @@ struct CaptureSource::Impl {
     long record_header = 0;
     std::uint64_t count = 0;
     modbus::Timestamp last_time{0};
-    std::string error;  // set when a record could not be read; reading ends there
+    bool one_pass_of_several = false;    // of a pcapng file read once per link type
+    std::optional<ReadFailure> failure;  // set when a record could not be read; reading ends there
     ~Impl() {
         if (pcap) pcap_close(pcap);  // closes the FILE too
     }
-    // The next record: its data stay valid until the next call. False at the end or on damage (`error`).
+    // The next record: its data stay valid until the next call. False at the end or on damage (`failure`).
     bool read(Packet& packet, std::uint64_t& end_offset);
 };
+
+std::string CaptureSource::ReadFailure::message(const std::string& name, std::uint64_t packets) const {
+    return interface_refused ? name + ": after " + std::to_string(packets) + " packets, " + what
+                             : name + ": packet " + std::to_string(packets + 1) + what;
+}
 
 // Packets copied out of libpcap's buffer into batches by a reading thread, handed to next() a batch at a
 // time through a ring of `depth` batches: one lock and, at most, one wake-up per batch, not per packet.
@@ -61,9 +67,9 @@ class CaptureSource::ReadAhead {
     ReadAhead(const ReadAhead&) = delete;
     ReadAhead& operator=(const ReadAhead&) = delete;
 
-    // The next packet (its data valid until the next call), or nullopt at the end, with `error` set when
+    // The next packet (its data valid until the next call), or nullopt at the end, with `failure` set when
     // the file was damaged, and `end_offset` where the packet ends in the file.
-    std::optional<Packet> next(std::string& error, std::uint64_t& end_offset) {
+    std::optional<Packet> next(std::optional<ReadFailure>& failure, std::uint64_t& end_offset) {
         for (;;) {
             if (!current_) {
                 std::unique_lock lock(mutex_);
@@ -79,7 +85,7 @@ class CaptureSource::ReadAhead {
                 return p;
             }
             if (current_->last) {
-                error = current_->error;
+                failure = current_->failure;
                 return std::nullopt;
             }
             {
@@ -106,7 +112,7 @@ class CaptureSource::ReadAhead {
         std::vector<Record> records;
         std::vector<std::uint8_t> bytes;
         bool last = false;
-        std::string error;
+        std::optional<ReadFailure> failure;
     };
 
     void run() {
@@ -124,7 +130,7 @@ class CaptureSource::ReadAhead {
             while (b.records.size() < batch_packets && b.bytes.size() < batch_bytes) {
                 if (!impl_.read(p, end_offset)) {
                     b.last = true;
-                    b.error = impl_.error;
+                    b.failure = impl_.failure;
                     break;
                 }
                 Record r{p, b.bytes.size(), p.data.size(), end_offset};
@@ -213,17 +219,37 @@ ssize_t read_source(CountedFile* f, char* buffer, std::size_t size) {
     return n;
 }
 
-ssize_t counted_read(void* cookie, char* buffer, std::size_t size) {
-    auto* f = static_cast<CountedFile*>(cookie);
-    // While a pcapng file's blocks are followed, one byte of the buffer is kept free: a read that ends on
-    // the first byte of an interface's link type is completed with the next, the two changed together.
-    const bool keep_one = size > 1 && f->interfaces.following();
-    ssize_t n = read_source(f, buffer, keep_one ? size - 1 : size);
-    if (n > 0 && static_cast<std::size_t>(n) < size && f->interfaces.wants_next_byte()) {
-        const ssize_t more = read_source(f, buffer + n, 1);
-        if (more > 0) n += more;  // an error is the next read's to report
+// `n` bytes read into `buffer`, followed by the ones the interface patch wants to see before they are handed
+// on (an interface's link type whole; a packet block's type with its interface), read right after them.
+// When reading them fails while packets of other link types are being hidden, the read fails: one of them
+// could otherwise reach libpcap.
+ssize_t completed(CountedFile* f, char* buffer, ssize_t n) {
+    while (n > 0) {
+        const std::size_t wanted = f->interfaces.bytes_wanted();
+        if (wanted == 0) break;
+        const ssize_t more = read_source(f, buffer + n, wanted);
+        if (more < 0 && f->interfaces.keeping()) return -1;
+        if (more <= 0) break;  // the end (libpcap reports the block cut short), or the next read's error
+        n += more;
     }
     return n;
+}
+
+ssize_t counted_read(void* cookie, char* buffer, std::size_t size) {
+    auto* f = static_cast<CountedFile*>(cookie);
+    f->interfaces.handed_on();
+    // While a pcapng file's blocks are followed, room is kept at the end of the buffer for the bytes that
+    // complete a header the read ends in (PcapngInterfacePatch::bytes_wanted). stdio asks for its buffer's
+    // size (64 KiB) or a multiple of it, never less: a smaller read cannot keep a packet block from libpcap
+    // when it must, and fails.
+    constexpr std::size_t room = PcapngInterfacePatch::most_wanted;
+    if (!f->interfaces.following()) return read_source(f, buffer, size);
+    if (size <= room) {
+        if (!f->interfaces.keeping()) return read_source(f, buffer, size);
+        errno = EINVAL;
+        return -1;
+    }
+    return completed(f, buffer, read_source(f, buffer, size - room));
 }
 
 int counted_seek(void* cookie, off64_t* offset, int whence) {
@@ -232,7 +258,9 @@ int counted_seek(void* cookie, off64_t* offset, int whence) {
         *offset = f->position;
         return 0;
     }
-    f->interfaces.stop();  // the bytes no longer pass in file order
+    // The bytes no longer pass in file order. libpcap does not seek while it reads; refused_block_offset
+    // and damaged_block_offset do once reading has ended.
+    f->interfaces.stop();
     off64_t at;
     if (f->fd < 0) {
         const off64_t base = whence == SEEK_SET   ? 0
@@ -273,7 +301,9 @@ FILE* open_counted(CountedFile* cookie, std::string& error) {
     return file;
 }
 
-FILE* open_counted(const std::string& path, std::string& error) {
+// `kept` (with the file's link types `known`): one pass of a file read once per link type.
+FILE* open_counted(const std::string& path, std::string& error, std::uint16_t kept = 0,
+                   const std::vector<std::uint16_t>& known = {}) {
     const int fd = path == "-" ? STDIN_FILENO : ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) {
         error = std::strerror(errno);
@@ -281,6 +311,7 @@ FILE* open_counted(const std::string& path, std::string& error) {
     }
     auto* cookie = new CountedFile;
     cookie->fd = fd;
+    if (!known.empty()) cookie->interfaces.keep_only(kept, known);
     return open_counted(cookie, error);
 }
 
@@ -305,11 +336,63 @@ pcap_t* pcap_of(FILE* file, const std::string& name, std::string& error) {
 
 }  // namespace
 
+namespace {
+
+// How much of a file's beginning is looked at for its interfaces: a capturing program describes them all
+// before the first packet, in a few hundred bytes.
+constexpr std::size_t interfaces_looked_for = 64 * 1024;
+
+// The most passes a file is read in: each is a reading of the whole file and, for a file, a thread. A
+// capture of more link types than this (none that a capturing program makes) is refused by libpcap at
+// its first interface of another link type, as a stream is.
+constexpr std::size_t most_passes = 8;
+
+// The link types of a pcapng file's interfaces, from its first bytes (`head`; `whole`: the file): known when
+// a packet block follows them or the file ends; empty otherwise, for classic pcap, for damage, or for more
+// than most_passes.
+std::vector<std::uint16_t> link_types_of(std::span<const std::uint8_t> head, bool whole) {
+    std::vector<std::uint8_t> copy(head.begin(), head.end());  // the patch changes what it passes
+    PcapngInterfacePatch scan;
+    scan.pass(copy);
+    if (!scan.following() || (!scan.packet_met() && !whole) || scan.link_types().size() > most_passes)
+        return {};
+    return scan.link_types();
+}
+
+std::vector<std::uint16_t> link_types_of(const std::string& path) {
+    if (path == "-") return {};
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return {};
+    std::vector<std::uint8_t> head(interfaces_looked_for);
+    ssize_t n;
+    do {
+        n = ::pread(fd, head.data(), head.size(), 0);
+    } while (n < 0 && errno == EINTR);
+    struct stat st {};
+    const bool regular = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+    ::close(fd);
+    if (n <= 0 || !regular) return {};  // a FIFO or device is read once
+    return link_types_of(std::span(head).first(static_cast<std::size_t>(n)),
+                         static_cast<std::uint64_t>(n) == static_cast<std::uint64_t>(st.st_size));
+}
+
+}  // namespace
+
 std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path, std::string& error,
                                                         const std::string& name) {
     const std::string& shown = name.empty() ? path : name;
-    pcap_t* p = pcap_of(open_counted(path, error), shown, error);
-    return p ? made(p, shown, true) : nullptr;
+    const auto types = link_types_of(path);
+    if (types.size() < 2) {
+        pcap_t* p = pcap_of(open_counted(path, error), shown, error);
+        return p ? made(p, shown, true) : nullptr;
+    }
+    std::vector<std::unique_ptr<CaptureSource>> opened;
+    for (const std::uint16_t type : types) {
+        pcap_t* p = pcap_of(open_counted(path, error, type, types), shown, error);
+        if (!p) return nullptr;
+        opened.push_back(made(p, shown, true, true));
+    }
+    return merged(std::move(opened));
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::uint8_t> bytes,
@@ -318,10 +401,18 @@ std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::u
         error = "memory: empty capture";
         return nullptr;
     }
-    auto* cookie = new CountedFile;
-    cookie->memory = bytes;
-    pcap_t* p = pcap_of(open_counted(cookie, error), "memory", error);
-    return p ? made(p, "memory", false) : nullptr;
+    const auto head = bytes.first(std::min(bytes.size(), interfaces_looked_for));
+    const auto types = link_types_of(head, head.size() == bytes.size());
+    std::vector<std::unique_ptr<CaptureSource>> opened;
+    for (std::size_t i = 0; i < std::max<std::size_t>(types.size(), 1); ++i) {
+        auto* cookie = new CountedFile;
+        cookie->memory = bytes;
+        if (types.size() > 1) cookie->interfaces.keep_only(types[i], types);
+        pcap_t* p = pcap_of(open_counted(cookie, error), "memory", error);
+        if (!p) return nullptr;
+        opened.push_back(made(p, "memory", false, types.size() > 1));
+    }
+    return opened.size() == 1 ? std::move(opened.front()) : merged(std::move(opened));
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_stream(int fd, std::vector<std::uint8_t> head,
@@ -335,11 +426,13 @@ std::unique_ptr<CaptureSource> CaptureSource::open_stream(int fd, std::vector<st
     return p ? made(p, name, false) : nullptr;
 }
 
-std::unique_ptr<CaptureSource> CaptureSource::made(pcap_t* pcap, const std::string& name, bool read_ahead) {
+std::unique_ptr<CaptureSource> CaptureSource::made(pcap_t* pcap, const std::string& name, bool read_ahead,
+                                                   bool one_pass_of_several) {
     std::unique_ptr<CaptureSource> s(new CaptureSource);
     s->impl_ = std::make_unique<Impl>();
     s->impl_->pcap = pcap;
-    s->impl_->name = s->name_ = name;
+    s->impl_->one_pass_of_several = one_pass_of_several;
+    s->name_ = name;
     s->impl_->linktype = s->linktype_ = pcap_datalink(pcap);
     if (read_ahead) s->ahead_ = std::make_unique<ReadAhead>(*s->impl_);
     return s;
@@ -347,20 +440,49 @@ std::unique_ptr<CaptureSource> CaptureSource::made(pcap_t* pcap, const std::stri
 
 namespace {
 
-// Where the pcapng block libpcap has just refused starts (" at byte offset N"): libpcap reads a block whole
-// before it judges it, so the file stands at its end, and the block's last four bytes are its length. Other
-// blocks (name resolution, statistics, decryption secrets) may lie between the last packet and it. Reading
-// ends here, so the file may be moved.
-std::string refused_block_offset(pcap_t* pcap, FILE* file) {
+std::uint32_t block_u32(const std::uint8_t* b, bool big_endian) {
+    return big_endian ? std::uint32_t{b[0]} << 24 | b[1] << 16 | b[2] << 8 | b[3]
+                      : std::uint32_t{b[3]} << 24 | b[2] << 16 | b[1] << 8 | b[0];
+}
+
+bool big_endian_file(pcap_t* pcap) {
+    return (pcap_is_swapped(pcap) != 0) == (std::endian::native == std::endian::little);
+}
+
+// Where the pcapng block libpcap has just refused starts: libpcap reads a block whole before it judges it,
+// so the file stands at its end, and the block's last four bytes are its length. Other blocks (name
+// resolution, statistics, decryption secrets) may lie between the last packet and it. Reading ends here, so
+// the file may be moved. `at`: " at byte offset N" (or " ending at ..." when the length makes no sense).
+void refused_block_offset(pcap_t* pcap, FILE* file, std::string& at, std::uint64_t& offset) {
     const long end = file ? std::ftell(file) : -1;
     std::uint8_t b[4];
-    if (end < 20 || std::fseek(file, end - 4, SEEK_SET) != 0 || std::fread(b, 1, 4, file) != 4) return "";
-    const bool big_endian = (pcap_is_swapped(pcap) != 0) == (std::endian::native == std::endian::little);
-    const std::uint32_t length = big_endian ? std::uint32_t{b[0]} << 24 | b[1] << 16 | b[2] << 8 | b[3]
-                                            : std::uint32_t{b[3]} << 24 | b[2] << 16 | b[1] << 8 | b[0];
-    if (length < 20 || length % 4 != 0 || length > static_cast<std::uint32_t>(end))
-        return " ending at byte offset " + std::to_string(end);
-    return " at byte offset " + std::to_string(end - static_cast<long>(length));
+    if (end < 20 || std::fseek(file, end - 4, SEEK_SET) != 0 || std::fread(b, 1, 4, file) != 4) return;
+    const std::uint32_t length = block_u32(b, big_endian_file(pcap));
+    offset = static_cast<std::uint64_t>(end);
+    if (length < 20 || length % 4 != 0 || length > static_cast<std::uint32_t>(end)) {
+        at = " ending at byte offset " + std::to_string(end);
+        return;
+    }
+    offset -= length;
+    at = " at byte offset " + std::to_string(offset);
+}
+
+// The pcapng block libpcap failed on, in a pass of a file read once per link type: that pass's last packet
+// ended at `from`, and the blocks after it, hidden from it, may be other passes' packets, which come before
+// the damage. libpcap stopped inside or at the end of the block it failed on (the file's end when it was cut
+// short), so that is the block holding the byte before where the file stands. Reading ends here.
+std::uint64_t damaged_block_offset(pcap_t* pcap, FILE* file, long from) {
+    const long stop = file ? std::ftell(file) : -1;
+    if (from < 0 || stop <= from) return from < 0 ? 0 : static_cast<std::uint64_t>(from);
+    const bool big_endian = big_endian_file(pcap);
+    long at = from;
+    std::uint8_t b[8];
+    while (std::fseek(file, at, SEEK_SET) == 0 && std::fread(b, 1, 8, file) == 8) {
+        const std::uint32_t length = block_u32(b + 4, big_endian);
+        if (length < 12 || length % 4 != 0 || at + static_cast<long>(length) >= stop) break;
+        at += static_cast<long>(length);
+    }
+    return static_cast<std::uint64_t>(at);
 }
 
 }  // namespace
@@ -400,28 +522,86 @@ bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
     }
     if (rc == PCAP_ERROR_BREAK) return false;  // end of file
     const std::string why = pcap_geterr(pcap);
-    const std::string at = before >= 0 ? " at byte offset " + std::to_string(before) : "";
+    ReadFailure f;
     if (why.find("different from the type of the first interface") != std::string::npos) {
         // Not damage, and not a packet: an interface block libpcap will not take. The file is fine;
         // libpcap (1.10) reads pcapng only while every interface has the first one's link type.
-        error = name + ": after " + std::to_string(count) + " packets, an interface block" +
-                refused_block_offset(pcap, file) + ": " + why +
-                "; libpcap reads a pcapng file only when all its interfaces share one link type: split it "
-                "by interface (tshark -r FILE -Y frame.interface_id==N -w PART.pcapng) and decode the parts "
-                "together (they are merged by time)";
-        return false;
+        f.interface_refused = true;
+        std::string at;
+        refused_block_offset(pcap, file, at, f.offset);
+        f.what = "an interface block" + at + ": " + why +
+                 "; libpcap reads a pcapng file only when all its interfaces share one link type, and a file "
+                 "is read once per link type only when its interfaces are all described before its first "
+                 "packet, never a pipe: split it by interface (tshark -r FILE -Y frame.interface_id==N -w "
+                 "PART.pcapng) and decode the parts together (they are merged by time)";
+    } else {
+        f.offset = one_pass_of_several ? damaged_block_offset(pcap, file, before)
+                   : before >= 0       ? static_cast<std::uint64_t>(before)
+                                       : 0;
+        f.what = (before >= 0 ? " at byte offset " + std::to_string(f.offset) : "") + ": " + why;
     }
-    error = name + ": packet " + std::to_string(count + 1) + at + ": " + why;
+    failure = std::move(f);
     return false;
 }
 
 std::optional<Packet> CaptureSource::next() {
     if (!error_.empty()) return std::nullopt;
-    if (ahead_) return ahead_->next(error_, offset_);
-    Packet p;
-    if (impl_->read(p, offset_)) return p;
-    error_ = impl_->error;
+    if (!passes_.empty()) return next_of_passes();
+    std::optional<Packet> p;
+    if (ahead_) {
+        p = ahead_->next(failure_, offset_);
+    } else {
+        p.emplace();
+        if (!impl_->read(*p, offset_)) {
+            p.reset();
+            failure_ = impl_->failure;
+        }
+    }
+    if (p) {
+        ++count_;
+        return p;
+    }
+    if (failure_) error_ = failure_->message(name_, count_);
     return std::nullopt;
+}
+
+std::unique_ptr<CaptureSource> CaptureSource::merged(std::vector<std::unique_ptr<CaptureSource>> opened) {
+    std::unique_ptr<CaptureSource> s(new CaptureSource);
+    s->name_ = opened.front()->name_;
+    s->linktype_ = opened.front()->linktype_;
+    for (auto& pass : opened) {
+        s->passes_.push_back(Pass{std::move(pass), std::nullopt, 0, false});
+    }
+    return s;
+}
+
+// The passes' next packets in the order they lie in the file, up to the first failure of any pass: the
+// packets of the others that lie before the block it failed on come first, then reading ends, as it ends
+// at the damage of a file read once.
+std::optional<Packet> CaptureSource::next_of_passes() {
+    Pass* earliest = nullptr;
+    const ReadFailure* failed = nullptr;
+    for (Pass& pass : passes_) {
+        if (!pass.packet && !pass.over) {
+            pass.packet = pass.source->next();
+            pass.end = pass.source->offset();
+            pass.over = !pass.packet;
+        }
+        if (pass.packet && (!earliest || pass.end < earliest->end)) earliest = &pass;
+        const auto& f = pass.source->failure_;
+        if (pass.over && f && (!failed || f->offset < failed->offset)) failed = &*f;
+    }
+    if (failed && (!earliest || failed->offset < earliest->end)) {
+        failure_ = *failed;
+        error_ = failure_->message(name_, count_);
+        return std::nullopt;
+    }
+    if (!earliest) return std::nullopt;
+    Packet p = *earliest->packet;
+    earliest->packet.reset();  // its data stay valid until that pass is read again, on the next call
+    p.number = ++count_;
+    offset_ = earliest->end;
+    return p;
 }
 
 }  // namespace mbscope::analyzer

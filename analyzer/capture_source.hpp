@@ -5,6 +5,11 @@
 // were a fifth of a summary run, and the analysis behind them is single-threaded): packets are copied into
 // batches, handed over a few at a time, and come out of next() in the file's order exactly as libpcap gave
 // them. Memory is read in the caller's thread (the fuzzer and the tests).
+//
+// A pcapng file (or memory) whose interfaces are of several link types, all described before its first
+// packet, is read once per link type (analyzer/pcapng_interfaces.hpp says how and why) and the passes merged
+// by where their packets lie in the file: packets come out in the file's order, numbered as in the file,
+// each with its interface's link type. A stream is read once; its refusal names the way round.
 
 #include <chrono>
 #include <cstdint>
@@ -58,12 +63,34 @@ class CaptureSource {
     const std::string& name() const noexcept { return name_; }
 
   private:
+    // Why reading ended before the end, and where. `what` follows the packet count in the message.
+    struct ReadFailure {
+        bool interface_refused = false;  // an interface block libpcap will not take, not damage
+        std::string what;
+        std::uint64_t offset = 0;  // where the refused block or record starts (passes: the block)
+        std::string message(const std::string& name, std::uint64_t packets) const;
+    };
+    // One pass of a file read once per link type: its next packet, where it ends, and whether it is over.
+    struct Pass {
+        std::unique_ptr<CaptureSource> source;
+        std::optional<Packet> packet;
+        std::uint64_t end = 0;
+        bool over = false;
+    };
+
     CaptureSource() = default;
-    static std::unique_ptr<CaptureSource> made(::pcap* pcap, const std::string& name, bool read_ahead);
+    static std::unique_ptr<CaptureSource> made(::pcap* pcap, const std::string& name, bool read_ahead,
+                                               bool one_pass_of_several = false);
+    // The passes of `opened` (one per link type) read as one source.
+    static std::unique_ptr<CaptureSource> merged(std::vector<std::unique_ptr<CaptureSource>> opened);
+    std::optional<Packet> next_of_passes();
     struct Impl;
     class ReadAhead;
     std::unique_ptr<Impl> impl_;
     std::unique_ptr<ReadAhead> ahead_;  // files only
+    std::vector<Pass> passes_;          // several link types: the passes, impl_ empty
+    std::uint64_t count_ = 0;           // packets handed out
+    std::optional<ReadFailure> failure_;
     std::string error_;
     std::string name_;
     int linktype_ = 0;

@@ -3,12 +3,17 @@
 #include <pcap/dlt.h>
 
 #include <algorithm>
+#include <utility>
 
 namespace mbscope::analyzer {
 
 namespace {
 constexpr std::uint32_t section_header_block = 0x0A0D0D0A;  // the same read either way round
 constexpr std::uint32_t interface_description_block = 1;
+constexpr std::uint32_t obsolete_packet_block = 2;  // its interface in 16 bits
+constexpr std::uint32_t simple_packet_block = 3;    // on interface 0
+constexpr std::uint32_t enhanced_packet_block = 6;
+constexpr std::uint8_t local_use_bit = 0x80;  // of a block type's most significant byte
 constexpr std::uint32_t byte_order_magic = 0x1A2B3C4D;
 constexpr std::uint32_t minimum_block = 12;  // type, total length, total length again
 constexpr std::uint32_t minimum_interface_block = 20;
@@ -32,24 +37,63 @@ void PcapngInterfacePatch::begin_block() noexcept {
     }
     state_ = State::Blocks;
     end_ = block_ + length;
+    const std::uint32_t type = u32(0);
     wanted_ =
-        u32(0) == interface_description_block && length >= minimum_interface_block ? interface_header : seen_;
+        type == interface_description_block && length >= minimum_interface_block ? interface_header : seen_;
+    if (type == obsolete_packet_block || type == simple_packet_block || type == enhanced_packet_block) {
+        packet_met_ = true;
+        if (type == simple_packet_block)
+            packet_on(0);
+        else if (keeping_)
+            wanted_ = packet_header;  // every block is at least that long
+    }
 }
 
-// Both bytes of an interface's link type seen: LINKTYPE_RAW written as DLT_RAW, in the section's byte order.
-void PcapngInterfacePatch::link_type(std::uint8_t& second) noexcept {
+// A packet block's interface known: hidden from libpcap when it is on an interface of another link type
+// than the one kept. An interface the section has not described is left to libpcap to refuse.
+void PcapngInterfacePatch::packet_on(std::uint32_t interface) noexcept {
+    if (!keeping_ || interface >= interfaces_.size() || interfaces_[interface] == kept_) return;
+    if (block_first_ != nullptr) block_first_[big_endian_ ? 0 : 3] |= local_use_bit;
+}
+
+// Both bytes of an interface's link type seen: LINKTYPE_RAW written as DLT_RAW, in the section's byte order;
+// with keep_only, another of the file's link types written as the kept one.
+void PcapngInterfacePatch::link_type(std::uint8_t& second) {
     const std::uint16_t first_byte = header_[link_type_at];
     const std::uint16_t second_byte = header_[link_type_at + 1];
-    const auto type = static_cast<std::uint16_t>(big_endian_ ? first_byte << 8 | second_byte
-                                                             : second_byte << 8 | first_byte);
-    if (type != linktype_raw || link_type_first_ == nullptr) return;
-    constexpr std::uint16_t dlt = DLT_RAW;
-    *link_type_first_ = static_cast<std::uint8_t>(big_endian_ ? dlt >> 8 : dlt);
-    second = static_cast<std::uint8_t>(big_endian_ ? dlt : dlt >> 8);
+    auto type = static_cast<std::uint16_t>(big_endian_ ? first_byte << 8 | second_byte
+                                                       : second_byte << 8 | first_byte);
+    if (type == linktype_raw) type = DLT_RAW;
+    interfaces_.push_back(type);
+    if (!packet_met_ && std::find(link_types_.begin(), link_types_.end(), type) == link_types_.end())
+        link_types_.push_back(type);
+    std::uint16_t written = type;
+    if (keeping_ && type != kept_ && std::find(known_.begin(), known_.end(), type) != known_.end())
+        written = kept_;
+    const std::uint16_t as_found = big_endian_ ? std::uint16_t(first_byte << 8 | second_byte)
+                                               : std::uint16_t(second_byte << 8 | first_byte);
+    if (written == as_found || link_type_first_ == nullptr) return;
+    *link_type_first_ = static_cast<std::uint8_t>(big_endian_ ? written >> 8 : written);
+    second = static_cast<std::uint8_t>(big_endian_ ? written : written >> 8);
 }
 
-void PcapngInterfacePatch::header_byte(std::uint8_t& byte) noexcept {
+void PcapngInterfacePatch::keep_only(std::uint16_t kept, std::vector<std::uint16_t> known) {
+    keeping_ = true;
+    kept_ = kept;
+    known_ = std::move(known);
+}
+
+std::size_t PcapngInterfacePatch::bytes_wanted() const noexcept {
+    if (state_ != State::Blocks || seen_ == 0 || seen_ >= wanted_) return 0;
+    if (wanted_ == interface_header) return seen_ == link_type_at + 1 ? 1 : 0;
+    // A block's type is known from its first four bytes, a packet block's interface from its twelfth.
+    if (keeping_ && (wanted_ == block_header || wanted_ == packet_header)) return packet_header - seen_;
+    return 0;
+}
+
+void PcapngInterfacePatch::header_byte(std::uint8_t& byte) {
     header_[seen_] = byte;
+    if (seen_ == 0) block_first_ = &byte;
     const std::uint8_t index = seen_++;
     if (state_ == State::Start) {
         if (seen_ == 4 && u32(0) != section_header_block)
@@ -57,20 +101,31 @@ void PcapngInterfacePatch::header_byte(std::uint8_t& byte) noexcept {
         if (seen_ < block_header) return;
     }
     if (seen_ == block_header) {
-        if (u32(0) == section_header_block)
+        section_header_ = u32(0) == section_header_block;
+        if (section_header_)
             wanted_ = section_header;  // its length is read in the byte order that follows it
         else
             begin_block();
         return;
     }
-    if (seen_ == section_header && wanted_ == section_header) {  // a new section: its byte order
+    if (seen_ == section_header && section_header_) {  // a new section: its byte order
+        section_header_ = false;
         big_endian_ = false;
         if (u32(8) != byte_order_magic) big_endian_ = true;
         if (u32(8) != byte_order_magic) {
             state_ = State::Off;
             return;
         }
+        interfaces_.clear();  // a section numbers its interfaces from 0
         begin_block();
+        return;
+    }
+    if (wanted_ == packet_header) {
+        if (seen_ == packet_header) {
+            const bool obsolete = u32(0) == obsolete_packet_block;  // its 16-bit interface first
+            packet_on(obsolete ? (big_endian_ ? u32(interface_at) >> 16 : u32(interface_at) & 0xFFFF)
+                               : u32(interface_at));
+        }
         return;
     }
     if (wanted_ != interface_header) return;
@@ -80,9 +135,10 @@ void PcapngInterfacePatch::header_byte(std::uint8_t& byte) noexcept {
     if (index >= snaplen_at) byte = 0;
 }
 
-void PcapngInterfacePatch::pass(std::span<std::uint8_t> bytes) noexcept {
-    // A link type's first byte passed last time is changed only if these bytes follow it in memory.
-    if (wants_next_byte() && bytes.data() != link_type_first_ + 1) link_type_first_ = nullptr;
+void PcapngInterfacePatch::pass(std::span<std::uint8_t> bytes) {
+    // A header's first bytes, passed before, are changed only if these bytes follow them in memory.
+    if (bytes.data() != next_in_memory_) block_first_ = link_type_first_ = nullptr;
+    next_in_memory_ = bytes.data() + bytes.size();
     std::size_t i = 0;
     while (i < bytes.size() && state_ != State::Off) {
         const std::uint64_t at = position_ + i;

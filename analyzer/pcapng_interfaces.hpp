@@ -15,6 +15,17 @@
 // as DLT_RAW, which libpcap reads as the same raw IP: the interfaces agree, no packet is cut that the file
 // holds whole, and every packet reaches the analyzer with the link type it had.
 //
+// Interfaces of different link types (dumpcap capturing on Ethernet and on "any", Linux cooked, at once; a
+// merge of an Ethernet and a raw-IP capture) cannot be levelled: libpcap gives one link type for the whole
+// file. Such a file is read once per link type, each pass through a patch told which link type it keeps
+// (keep_only): every interface of the file's other link types is written as the kept one, so libpcap
+// accepts it, and every packet block on one of them is hidden from libpcap (the high bit of its block type
+// set: a block type of local use, which libpcap skips unread). Each packet then reaches the analyzer from
+// exactly one pass, with its interface's own link type, and at its own offset in the file (nothing moves).
+// The link types of the file come from a patch that has passed the file's first blocks (link_types()). An
+// interface of a link type not named to keep_only is left as it is, so libpcap refuses it as before
+// instead of a pass hiding its packets.
+//
 // It follows the block structure (type and total length) through the bytes given it in any chunks, in file
 // order, and changes nothing in a file that is not pcapng or whose blocks stop making sense (a damaged file
 // is left for libpcap to report).
@@ -22,20 +33,36 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 namespace mbscope::analyzer {
 
 class PcapngInterfacePatch {
   public:
+    // Pass on packets of interfaces of link type `kept` alone, among the file's link types `known` (as
+    // link_types() gives them; at least two). Before the first bytes are passed.
+    void keep_only(std::uint16_t kept, std::vector<std::uint16_t> known);
     // The next bytes of the file, changed in place where they hold an interface's snapshot length or link
-    // type.
-    void pass(std::span<std::uint8_t> bytes) noexcept;
-    // The last byte passed is the first of an interface's link type, which can only be changed together
-    // with the second: pass the next byte of the file, in memory right after it, before handing the bytes
-    // on. (Bytes passed anywhere else leave that link type as it is.)
-    bool wants_next_byte() const noexcept {
-        return state_ == State::Blocks && seen_ == link_type_at + 1 && wanted_ == interface_header;
+    // type, or (keep_only) the type of a packet block to hide.
+    void pass(std::span<std::uint8_t> bytes);
+    // How many more bytes of the file are wanted before the bytes passed can be handed on: the last ones
+    // passed begin a field that can only be changed with bytes still to come (an interface's link type; with
+    // keep_only, the first 12 bytes of a block, whose type is changed once its interface is known). Pass
+    // them, in memory right after the others, first. (Bytes passed anywhere else leave the field as it is.)
+    std::size_t bytes_wanted() const noexcept;
+    // The bytes passed so far have been handed on: none of them is changed any more, wherever the next
+    // bytes lie in memory.
+    void handed_on() noexcept {
+        block_first_ = link_type_first_ = nullptr;
+        next_in_memory_ = nullptr;
     }
+    // The most bytes_wanted() asks for.
+    static constexpr std::size_t most_wanted = 12;
+    // The link types of the interfaces met before the first packet block, each once, in the order met, as
+    // libpcap is given them (LINKTYPE_RAW as DLT_RAW); and whether a packet block has been met.
+    const std::vector<std::uint16_t>& link_types() const noexcept { return link_types_; }
+    bool packet_met() const noexcept { return packet_met_; }
+    bool keeping() const noexcept { return keeping_; }
     // Whether the bytes are still followed (a pcapng file read in order so far).
     bool following() const noexcept { return state_ != State::Off; }
     // The bytes are no longer read in order (a seek): change nothing from here on.
@@ -43,15 +70,18 @@ class PcapngInterfacePatch {
 
   private:
     enum class State : std::uint8_t { Start, Blocks, Off };
-    static constexpr std::uint8_t block_header = 8;       // type, total length
-    static constexpr std::uint8_t section_header = 12;    // and the byte-order magic
-    static constexpr std::uint8_t interface_header = 16;  // and link type, reserved, snapshot length
+    static constexpr std::uint8_t block_header = 8;             // type, total length
+    static constexpr std::uint8_t section_header = 12;          // and the byte-order magic
+    static constexpr std::uint8_t interface_header = 16;        // and link type, reserved, snapshot length
+    static constexpr std::uint8_t packet_header = most_wanted;  // and the interface
     static constexpr std::uint8_t link_type_at = 8;
+    static constexpr std::uint8_t interface_at = 8;
     static constexpr std::uint8_t snaplen_at = 12;
 
-    void header_byte(std::uint8_t& byte) noexcept;
+    void header_byte(std::uint8_t& byte);
     void begin_block() noexcept;
-    void link_type(std::uint8_t& second) noexcept;
+    void link_type(std::uint8_t& second);
+    void packet_on(std::uint32_t interface) noexcept;
     std::uint32_t u32(std::size_t at) const noexcept;
 
     State state_ = State::Start;
@@ -62,7 +92,16 @@ class PcapngInterfacePatch {
     std::array<std::uint8_t, interface_header> header_{};  // its first bytes as the file has them
     std::uint8_t seen_ = 0;                                // how many of them have passed
     std::uint8_t wanted_ = block_header;                   // how many are wanted
-    std::uint8_t* link_type_first_ = nullptr;              // where the link type's first byte went
+    std::uint8_t* block_first_ = nullptr;                  // where the block's first byte went
+    std::uint8_t* link_type_first_ = nullptr;              // where an interface's link type's first went
+    const std::uint8_t* next_in_memory_ = nullptr;         // right after the last byte passed
+    bool section_header_ = false;  // the block whose header is being read starts a section
+    bool packet_met_ = false;
+    std::vector<std::uint16_t> link_types_;  // met before the first packet block
+    std::vector<std::uint16_t> interfaces_;  // the section's interfaces' link types, by interface number
+    bool keeping_ = false;                   // keep_only was called
+    std::uint16_t kept_ = 0;
+    std::vector<std::uint16_t> known_;
 };
 
 }  // namespace mbscope::analyzer

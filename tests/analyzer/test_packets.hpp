@@ -144,6 +144,17 @@ inline std::vector<std::uint8_t> bytes(std::initializer_list<int> values) {
     return b;
 }
 
+// Five reads of one holding register (transaction ids 1-5, a second apart), each answered 2 ms later.
+inline Conversation five_reads() {
+    Conversation c;
+    for (std::uint16_t t = 1; t <= 5; ++t) {
+        const auto at = mb::Timestamp(std::int64_t{t} * 1'000'000'000);
+        c.send(true, bytes({0, t, 0, 0, 0, 6, 1, 3, 0, 0, 0, 1}), at);
+        c.send(false, bytes({0, t, 0, 0, 0, 5, 1, 3, 2, 0, t}), at + mb::Timestamp(2'000'000));
+    }
+    return c;
+}
+
 // `content` written to `name` in the test's temporary directory; its path.
 inline std::string write_temp(const std::string& name, const std::string& content) {
     const std::string path = ::testing::TempDir() + name;
