@@ -17,6 +17,7 @@
 #include <cstring>
 #include <mutex>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "analyzer/pcapng_interfaces.hpp"
@@ -37,7 +38,8 @@ struct CaptureSource::Impl {
     long record_header = 0;
     std::uint64_t count = 0;
     modbus::Timestamp last_time{0};
-    bool one_pass_of_several = false;    // of a pcapng file read once per link type
+    const PcapngInterfacePatch* interfaces = nullptr;  // the one its bytes pass through (the FILE's)
+    bool one_pass_of_several = false;                  // of a pcapng file read once per link type
     std::optional<ReadFailure> failure;  // set when a record could not be read; reading ends there
     ~Impl() {
         if (pcap) pcap_close(pcap);  // closes the FILE too
@@ -258,8 +260,8 @@ int counted_seek(void* cookie, off64_t* offset, int whence) {
         *offset = f->position;
         return 0;
     }
-    // The bytes no longer pass in file order. libpcap does not seek while it reads; refused_block_offset
-    // and damaged_block_offset do once reading has ended.
+    // The bytes no longer pass in file order. libpcap does not seek while it reads; damaged_block_offset
+    // does once reading has ended.
     f->interfaces.stop();
     off64_t at;
     if (f->fd < 0) {
@@ -301,9 +303,9 @@ FILE* open_counted(CountedFile* cookie, std::string& error) {
     return file;
 }
 
-// `kept` (with the file's link types `known`): one pass of a file read once per link type.
-FILE* open_counted(const std::string& path, std::string& error, std::uint16_t kept = 0,
-                   const std::vector<std::uint16_t>& known = {}) {
+// A cookie reading the file at `path` (or standard input for "-"); null with `error` when it cannot be
+// opened.
+CountedFile* file_cookie(const std::string& path, std::string& error) {
     const int fd = path == "-" ? STDIN_FILENO : ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) {
         error = std::strerror(errno);
@@ -311,8 +313,7 @@ FILE* open_counted(const std::string& path, std::string& error, std::uint16_t ke
     }
     auto* cookie = new CountedFile;
     cookie->fd = fd;
-    if (!known.empty()) cookie->interfaces.keep_only(kept, known);
-    return open_counted(cookie, error);
+    return cookie;
 }
 
 }  // namespace
@@ -339,7 +340,7 @@ pcap_t* pcap_of(FILE* file, const std::string& name, std::string& error) {
 namespace {
 
 // How much of a file's beginning is looked at for its interfaces: a capturing program describes them all
-// before the first packet, in a few hundred bytes.
+// before the first packet, in a few hundred bytes, or one before the first packet on it.
 constexpr std::size_t interfaces_looked_for = 64 * 1024;
 
 // The most passes a file is read in: each is a reading of the whole file and, for a file, a thread. A
@@ -347,18 +348,17 @@ constexpr std::size_t interfaces_looked_for = 64 * 1024;
 // its first interface of another link type, as a stream is.
 constexpr std::size_t most_passes = 8;
 
-// The link types of a pcapng file's interfaces, from its first bytes (`head`; `whole`: the file): known when
-// a packet block follows them or the file ends; empty otherwise, for classic pcap, for damage, or for more
-// than most_passes.
-std::vector<std::uint16_t> link_types_of(std::span<const std::uint8_t> head, bool whole) {
+// The link types of a pcapng file's interfaces described in its first bytes (`head`): empty for classic
+// pcap, damage, or more than most_passes.
+std::vector<std::uint16_t> link_types_of(std::span<const std::uint8_t> head) {
     std::vector<std::uint8_t> copy(head.begin(), head.end());  // the patch changes what it passes
     PcapngInterfacePatch scan;
     scan.pass(copy);
-    if (!scan.following() || (!scan.packet_met() && !whole) || scan.link_types().size() > most_passes)
-        return {};
+    if (!scan.following() || scan.link_types().size() > most_passes) return {};
     return scan.link_types();
 }
 
+// Of a regular file (a FIFO or device is read once, as it comes).
 std::vector<std::uint16_t> link_types_of(const std::string& path) {
     if (path == "-") return {};
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -371,28 +371,50 @@ std::vector<std::uint16_t> link_types_of(const std::string& path) {
     struct stat st {};
     const bool regular = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
     ::close(fd);
-    if (n <= 0 || !regular) return {};  // a FIFO or device is read once
-    return link_types_of(std::span(head).first(static_cast<std::size_t>(n)),
-                         static_cast<std::uint64_t>(n) == static_cast<std::uint64_t>(st.st_size));
+    if (n <= 0 || !regular) return {};
+    return link_types_of(std::span(head).first(static_cast<std::size_t>(n)));
 }
 
 }  // namespace
 
+// `known` the file's link types: one pass for each if there are two or more, the file read once otherwise.
+std::unique_ptr<CaptureSource> CaptureSource::opened(const Reopen& open,
+                                                     const std::vector<std::uint16_t>& known,
+                                                     std::string& error) {
+    if (known.size() < 2) {
+        auto s = open(0, {}, error);
+        if (s) {
+            s->reopen_ = open;
+            s->known_ = known;
+        }
+        return s;
+    }
+    std::vector<std::unique_ptr<CaptureSource>> passes;
+    for (const std::uint16_t type : known) {
+        auto pass = open(type, known, error);
+        if (!pass) return nullptr;
+        passes.push_back(std::move(pass));
+    }
+    std::unique_ptr<CaptureSource> s(new CaptureSource);
+    s->name_ = passes.front()->name_;
+    s->linktype_ = passes.front()->linktype_;
+    s->reopen_ = open;
+    s->read_in_passes(std::move(passes), known);
+    return s;
+}
+
 std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path, std::string& error,
                                                         const std::string& name) {
-    const std::string& shown = name.empty() ? path : name;
-    const auto types = link_types_of(path);
-    if (types.size() < 2) {
-        pcap_t* p = pcap_of(open_counted(path, error), shown, error);
-        return p ? made(p, shown, true) : nullptr;
-    }
-    std::vector<std::unique_ptr<CaptureSource>> opened;
-    for (const std::uint16_t type : types) {
-        pcap_t* p = pcap_of(open_counted(path, error, type, types), shown, error);
-        if (!p) return nullptr;
-        opened.push_back(made(p, shown, true, true));
-    }
-    return merged(std::move(opened));
+    const std::string shown = name.empty() ? path : name;
+    const Reopen open = [path, shown](std::uint16_t kept, const std::vector<std::uint16_t>& known,
+                                      std::string& error) -> std::unique_ptr<CaptureSource> {
+        CountedFile* cookie = file_cookie(path, error);
+        if (cookie && !known.empty()) cookie->interfaces.keep_only(kept, known);
+        const PcapngInterfacePatch* interfaces = cookie ? &cookie->interfaces : nullptr;
+        pcap_t* p = pcap_of(cookie ? open_counted(cookie, error) : nullptr, shown, error);
+        return p ? made(p, shown, true, interfaces, !known.empty()) : nullptr;
+    };
+    return opened(open, link_types_of(path), error);
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::uint8_t> bytes,
@@ -401,18 +423,16 @@ std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::u
         error = "memory: empty capture";
         return nullptr;
     }
-    const auto head = bytes.first(std::min(bytes.size(), interfaces_looked_for));
-    const auto types = link_types_of(head, head.size() == bytes.size());
-    std::vector<std::unique_ptr<CaptureSource>> opened;
-    for (std::size_t i = 0; i < std::max<std::size_t>(types.size(), 1); ++i) {
+    const Reopen open = [bytes](std::uint16_t kept, const std::vector<std::uint16_t>& known,
+                                std::string& error) -> std::unique_ptr<CaptureSource> {
         auto* cookie = new CountedFile;
         cookie->memory = bytes;
-        if (types.size() > 1) cookie->interfaces.keep_only(types[i], types);
+        if (!known.empty()) cookie->interfaces.keep_only(kept, known);
+        const PcapngInterfacePatch* interfaces = &cookie->interfaces;
         pcap_t* p = pcap_of(open_counted(cookie, error), "memory", error);
-        if (!p) return nullptr;
-        opened.push_back(made(p, "memory", false, types.size() > 1));
-    }
-    return opened.size() == 1 ? std::move(opened.front()) : merged(std::move(opened));
+        return p ? made(p, "memory", false, interfaces, !known.empty()) : nullptr;
+    };
+    return opened(open, link_types_of(bytes.first(std::min(bytes.size(), interfaces_looked_for))), error);
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_stream(int fd, std::vector<std::uint8_t> head,
@@ -422,15 +442,18 @@ std::unique_ptr<CaptureSource> CaptureSource::open_stream(int fd, std::vector<st
     cookie->fd = fd;
     cookie->head = std::move(head);
     cookie->stalled = std::move(stalled);
+    const PcapngInterfacePatch* interfaces = &cookie->interfaces;
     pcap_t* p = pcap_of(open_counted(cookie, error), name, error);
-    return p ? made(p, name, false) : nullptr;
+    return p ? made(p, name, false, interfaces, false) : nullptr;
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::made(pcap_t* pcap, const std::string& name, bool read_ahead,
+                                                   const PcapngInterfacePatch* interfaces,
                                                    bool one_pass_of_several) {
     std::unique_ptr<CaptureSource> s(new CaptureSource);
     s->impl_ = std::make_unique<Impl>();
     s->impl_->pcap = pcap;
+    s->impl_->interfaces = interfaces;
     s->impl_->one_pass_of_several = one_pass_of_several;
     s->name_ = name;
     s->impl_->linktype = s->linktype_ = pcap_datalink(pcap);
@@ -447,24 +470,6 @@ std::uint32_t block_u32(const std::uint8_t* b, bool big_endian) {
 
 bool big_endian_file(pcap_t* pcap) {
     return (pcap_is_swapped(pcap) != 0) == (std::endian::native == std::endian::little);
-}
-
-// Where the pcapng block libpcap has just refused starts: libpcap reads a block whole before it judges it,
-// so the file stands at its end, and the block's last four bytes are its length. Other blocks (name
-// resolution, statistics, decryption secrets) may lie between the last packet and it. Reading ends here, so
-// the file may be moved. `at`: " at byte offset N" (or " ending at ..." when the length makes no sense).
-void refused_block_offset(pcap_t* pcap, FILE* file, std::string& at, std::uint64_t& offset) {
-    const long end = file ? std::ftell(file) : -1;
-    std::uint8_t b[4];
-    if (end < 20 || std::fseek(file, end - 4, SEEK_SET) != 0 || std::fread(b, 1, 4, file) != 4) return;
-    const std::uint32_t length = block_u32(b, big_endian_file(pcap));
-    offset = static_cast<std::uint64_t>(end);
-    if (length < 20 || length % 4 != 0 || length > static_cast<std::uint32_t>(end)) {
-        at = " ending at byte offset " + std::to_string(end);
-        return;
-    }
-    offset -= length;
-    at = " at byte offset " + std::to_string(offset);
 }
 
 // The pcapng block libpcap failed on, in a pass of a file read once per link type: that pass's last packet
@@ -527,13 +532,20 @@ bool CaptureSource::Impl::read(Packet& packet, std::uint64_t& end_offset) {
         // Not damage, and not a packet: an interface block libpcap will not take. The file is fine;
         // libpcap (1.10) reads pcapng only while every interface has the first one's link type.
         f.interface_refused = true;
+        // The patch its bytes passed through saw that interface, and where it starts: also in a stream,
+        // which cannot be moved back to look, and whatever blocks lie between the last packet and it.
         std::string at;
-        refused_block_offset(pcap, file, at, f.offset);
-        f.what = "an interface block" + at + ": " + why +
-                 "; libpcap reads a pcapng file only when all its interfaces share one link type, and a file "
-                 "is read once per link type only when its interfaces are all described before its first "
-                 "packet, never a pipe: split it by interface (tshark -r FILE -Y frame.interface_id==N -w "
-                 "PART.pcapng) and decode the parts together (they are merged by time)";
+        if (interfaces) f.link_types = interfaces->link_types();
+        if (interfaces && interfaces->refused_at()) {
+            f.offset = *interfaces->refused_at();
+            at = " at byte offset " + std::to_string(f.offset);
+        }
+        f.what =
+            "an interface block" + at + ": " + why +
+            "; libpcap reads pcapng only while all its interfaces share one link type, and a file (not a "
+            "pipe) of up to 8 link types is read once for each: save it to a file, or split it by "
+            "interface (tshark -r FILE -Y frame.interface_id==N -w PART.pcapng) and decode the parts "
+            "together (they are merged by time)";
     } else {
         f.offset = one_pass_of_several ? damaged_block_offset(pcap, file, before)
                    : before >= 0       ? static_cast<std::uint64_t>(before)
@@ -561,47 +573,75 @@ std::optional<Packet> CaptureSource::next() {
         ++count_;
         return p;
     }
+    if (failure_ && read_again(*failure_)) return next_of_passes();
     if (failure_) error_ = failure_->message(name_, count_);
     return std::nullopt;
 }
 
-std::unique_ptr<CaptureSource> CaptureSource::merged(std::vector<std::unique_ptr<CaptureSource>> opened) {
-    std::unique_ptr<CaptureSource> s(new CaptureSource);
-    s->name_ = opened.front()->name_;
-    s->linktype_ = opened.front()->linktype_;
-    for (auto& pass : opened) {
-        s->passes_.push_back(Pass{std::move(pass), std::nullopt, 0, false});
+void CaptureSource::read_in_passes(std::vector<std::unique_ptr<CaptureSource>> passes,
+                                   std::vector<std::uint16_t> known) {
+    ahead_.reset();  // its thread ends before what it reads is closed
+    impl_.reset();
+    passes_.clear();
+    for (auto& pass : passes)
+        passes_.push_back(Pass{std::move(pass), std::nullopt, 0, false});
+    known_ = std::move(known);
+    failure_.reset();
+}
+
+// An interface of a link type the passes do not know was refused: read the file again in a pass for each
+// link type met so far, the packets handed out already skipped. Not for a stream, nor beyond most_passes.
+bool CaptureSource::read_again(const ReadFailure& failure) {
+    if (!reopen_ || !failure.interface_refused) return false;
+    std::vector<std::uint16_t> known = known_;
+    for (const std::uint16_t type : failure.link_types)
+        if (std::find(known.begin(), known.end(), type) == known.end()) known.push_back(type);
+    if (known.size() < 2 || known.size() == known_.size() || known.size() > most_passes) return false;
+    std::vector<std::unique_ptr<CaptureSource>> passes;
+    for (const std::uint16_t type : known) {
+        std::string error;
+        auto pass = reopen_(type, known, error);
+        if (!pass) return false;  // the refusal stands
+        passes.push_back(std::move(pass));
     }
-    return s;
+    read_in_passes(std::move(passes), std::move(known));
+    skip_through_ = offset_;
+    return true;
 }
 
 // The passes' next packets in the order they lie in the file, up to the first failure of any pass: the
 // packets of the others that lie before the block it failed on come first, then reading ends, as it ends
-// at the damage of a file read once.
+// at the damage of a file read once (or the file is read again, when an interface of a new link type was
+// refused). Packets ending at or before skip_through_ were handed out before the file was read again.
 std::optional<Packet> CaptureSource::next_of_passes() {
-    Pass* earliest = nullptr;
-    const ReadFailure* failed = nullptr;
-    for (Pass& pass : passes_) {
-        if (!pass.packet && !pass.over) {
-            pass.packet = pass.source->next();
-            pass.end = pass.source->offset();
-            pass.over = !pass.packet;
+    for (;;) {
+        Pass* earliest = nullptr;
+        const ReadFailure* failed = nullptr;
+        for (Pass& pass : passes_) {
+            if (!pass.packet && !pass.over) {
+                pass.packet = pass.source->next();
+                pass.end = pass.source->offset();
+                pass.over = !pass.packet;
+            }
+            if (pass.packet && (!earliest || pass.end < earliest->end)) earliest = &pass;
+            const auto& f = pass.source->failure_;
+            if (pass.over && f && (!failed || f->offset < failed->offset)) failed = &*f;
         }
-        if (pass.packet && (!earliest || pass.end < earliest->end)) earliest = &pass;
-        const auto& f = pass.source->failure_;
-        if (pass.over && f && (!failed || f->offset < failed->offset)) failed = &*f;
+        if (failed && (!earliest || failed->offset < earliest->end)) {
+            const ReadFailure failure = *failed;  // the passes may be replaced
+            if (read_again(failure)) continue;
+            failure_ = failure;
+            error_ = failure_->message(name_, count_);
+            return std::nullopt;
+        }
+        if (!earliest) return std::nullopt;
+        // Its data stay valid until that pass is read again, on the next call.
+        std::optional<Packet> p = std::exchange(earliest->packet, std::nullopt);
+        if (earliest->end <= skip_through_) continue;
+        p->number = ++count_;
+        offset_ = earliest->end;
+        return p;
     }
-    if (failed && (!earliest || failed->offset < earliest->end)) {
-        failure_ = *failed;
-        error_ = failure_->message(name_, count_);
-        return std::nullopt;
-    }
-    if (!earliest) return std::nullopt;
-    Packet p = *earliest->packet;
-    earliest->packet.reset();  // its data stay valid until that pass is read again, on the next call
-    p.number = ++count_;
-    offset_ = earliest->end;
-    return p;
 }
 
 }  // namespace mbscope::analyzer

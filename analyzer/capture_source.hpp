@@ -6,10 +6,12 @@
 // batches, handed over a few at a time, and come out of next() in the file's order exactly as libpcap gave
 // them. Memory is read in the caller's thread (the fuzzer and the tests).
 //
-// A pcapng file (or memory) whose interfaces are of several link types, all described before its first
-// packet, is read once per link type (analyzer/pcapng_interfaces.hpp says how and why) and the passes merged
-// by where their packets lie in the file: packets come out in the file's order, numbered as in the file,
-// each with its interface's link type. A stream is read once; its refusal names the way round.
+// A pcapng file (or memory) whose interfaces are of several link types is read once per link type
+// (analyzer/pcapng_interfaces.hpp says how and why) and the passes merged by where their packets lie in the
+// file: packets come out in the file's order, numbered as in the file, each with its interface's link type.
+// The link types are those described in the first 64 KiB; an interface of another one further on is refused
+// by libpcap, and the file is read again with it, the packets handed out already skipped. A stream is read
+// once; its refusal names the way round.
 
 #include <chrono>
 #include <cstdint>
@@ -25,6 +27,8 @@
 struct pcap;  // libpcap's pcap_t
 
 namespace mbscope::analyzer {
+
+class PcapngInterfacePatch;
 
 struct Packet {
     std::uint64_t number = 0;  // 1-based, as tshark counts
@@ -68,8 +72,13 @@ class CaptureSource {
         bool interface_refused = false;  // an interface block libpcap will not take, not damage
         std::string what;
         std::uint64_t offset = 0;  // where the refused block or record starts (passes: the block)
+        std::vector<std::uint16_t> link_types;  // refused: the file's, as far as its bytes were passed
         std::string message(const std::string& name, std::uint64_t packets) const;
     };
+    // A pass of the file keeping packets of link type `kept` among the file's link types `known` (empty:
+    // the file read once, all its packets).
+    using Reopen = std::function<std::unique_ptr<CaptureSource>(
+        std::uint16_t kept, const std::vector<std::uint16_t>& known, std::string& error)>;
     // One pass of a file read once per link type: its next packet, where it ends, and whether it is over.
     struct Pass {
         std::unique_ptr<CaptureSource> source;
@@ -80,15 +89,21 @@ class CaptureSource {
 
     CaptureSource() = default;
     static std::unique_ptr<CaptureSource> made(::pcap* pcap, const std::string& name, bool read_ahead,
-                                               bool one_pass_of_several = false);
-    // The passes of `opened` (one per link type) read as one source.
-    static std::unique_ptr<CaptureSource> merged(std::vector<std::unique_ptr<CaptureSource>> opened);
+                                               const PcapngInterfacePatch* interfaces,
+                                               bool one_pass_of_several);
+    static std::unique_ptr<CaptureSource> opened(const Reopen& open, const std::vector<std::uint16_t>& known,
+                                                 std::string& error);
+    void read_in_passes(std::vector<std::unique_ptr<CaptureSource>> passes, std::vector<std::uint16_t> known);
+    bool read_again(const ReadFailure& failure);
     std::optional<Packet> next_of_passes();
     struct Impl;
     class ReadAhead;
     std::unique_ptr<Impl> impl_;
     std::unique_ptr<ReadAhead> ahead_;  // files only
     std::vector<Pass> passes_;          // several link types: the passes, impl_ empty
+    Reopen reopen_;                     // a file or memory: how to read it again (a stream cannot be)
+    std::vector<std::uint16_t> known_;  // the link types read (passes: one each)
+    std::uint64_t skip_through_ = 0;    // read again: packets ending here or before were handed out
     std::uint64_t count_ = 0;           // packets handed out
     std::optional<ReadFailure> failure_;
     std::string error_;

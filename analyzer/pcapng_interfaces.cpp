@@ -41,7 +41,6 @@ void PcapngInterfacePatch::begin_block() noexcept {
     wanted_ =
         type == interface_description_block && length >= minimum_interface_block ? interface_header : seen_;
     if (type == obsolete_packet_block || type == simple_packet_block || type == enhanced_packet_block) {
-        packet_met_ = true;
         if (type == simple_packet_block)
             packet_on(0);
         else if (keeping_)
@@ -65,11 +64,16 @@ void PcapngInterfacePatch::link_type(std::uint8_t& second) {
                                                        : second_byte << 8 | first_byte);
     if (type == linktype_raw) type = DLT_RAW;
     interfaces_.push_back(type);
-    if (!packet_met_ && std::find(link_types_.begin(), link_types_.end(), type) == link_types_.end())
+    if (link_types_.size() < most_link_types &&
+        std::find(link_types_.begin(), link_types_.end(), type) == link_types_.end())
         link_types_.push_back(type);
     std::uint16_t written = type;
     if (keeping_ && type != kept_ && std::find(known_.begin(), known_.end(), type) != known_.end())
         written = kept_;
+    if (!first_written_)
+        first_written_ = written;
+    else if (written != *first_written_ && !refused_at_)
+        refused_at_ = block_;
     const std::uint16_t as_found = big_endian_ ? std::uint16_t(first_byte << 8 | second_byte)
                                                : std::uint16_t(second_byte << 8 | first_byte);
     if (written == as_found || link_type_first_ == nullptr) return;

@@ -23,8 +23,8 @@
 // set: a block type of local use, which libpcap skips unread). Each packet then reaches the analyzer from
 // exactly one pass, with its interface's own link type, and at its own offset in the file (nothing moves).
 // The link types of the file come from a patch that has passed the file's first blocks (link_types()). An
-// interface of a link type not named to keep_only is left as it is, so libpcap refuses it as before
-// instead of a pass hiding its packets.
+// interface of a link type not named to keep_only is left as it is, so libpcap refuses it instead of a pass
+// hiding its packets; the reader then learns its link type from the patch and reads the file again.
 //
 // It follows the block structure (type and total length) through the bytes given it in any chunks, in file
 // order, and changes nothing in a file that is not pcapng or whose blocks stop making sense (a damaged file
@@ -32,6 +32,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -58,11 +59,14 @@ class PcapngInterfacePatch {
     }
     // The most bytes_wanted() asks for.
     static constexpr std::size_t most_wanted = 12;
-    // The link types of the interfaces met before the first packet block, each once, in the order met, as
-    // libpcap is given them (LINKTYPE_RAW as DLT_RAW); and whether a packet block has been met.
+    // The link types of the interfaces passed so far, each once, in the order met, as libpcap is given them
+    // (LINKTYPE_RAW as DLT_RAW); the first most_link_types of them.
     const std::vector<std::uint16_t>& link_types() const noexcept { return link_types_; }
-    bool packet_met() const noexcept { return packet_met_; }
+    static constexpr std::size_t most_link_types = 16;
     bool keeping() const noexcept { return keeping_; }
+    // Where the first interface block libpcap refuses starts: the first whose link type, as libpcap is given
+    // it, differs from the first interface's.
+    std::optional<std::uint64_t> refused_at() const noexcept { return refused_at_; }
     // Whether the bytes are still followed (a pcapng file read in order so far).
     bool following() const noexcept { return state_ != State::Off; }
     // The bytes are no longer read in order (a seek): change nothing from here on.
@@ -96,12 +100,13 @@ class PcapngInterfacePatch {
     std::uint8_t* link_type_first_ = nullptr;              // where an interface's link type's first went
     const std::uint8_t* next_in_memory_ = nullptr;         // right after the last byte passed
     bool section_header_ = false;  // the block whose header is being read starts a section
-    bool packet_met_ = false;
-    std::vector<std::uint16_t> link_types_;  // met before the first packet block
+    std::vector<std::uint16_t> link_types_;
     std::vector<std::uint16_t> interfaces_;  // the section's interfaces' link types, by interface number
     bool keeping_ = false;                   // keep_only was called
     std::uint16_t kept_ = 0;
     std::vector<std::uint16_t> known_;
+    std::optional<std::uint16_t> first_written_;  // the first interface's link type, as libpcap is given it
+    std::optional<std::uint64_t> refused_at_;
 };
 
 }  // namespace mbscope::analyzer

@@ -8,6 +8,8 @@
 #include <random>
 #include <sstream>
 
+#include <unistd.h>
+
 #include "analyzer/analyzer.hpp"
 #include "test_packets.hpp"
 
@@ -34,6 +36,30 @@ Outcome analyse(std::span<const std::uint8_t> bytes) {
     an::Analyzer a({}, sink);
     std::string error;
     auto capture = an::CaptureSource::open_memory(bytes, error);
+    if (!capture) {
+        o.opened = false;
+        o.error = error;
+        return o;
+    }
+    a.read_capture(*capture);
+    a.finish();
+    o.summary = a.summary();
+    if (!o.summary.input_errors.empty()) o.error = o.summary.input_errors.front();
+    return o;
+}
+
+// The same read as a stream (a pipe), once, as it comes: `mbscope decode -` and tcpdump piped in.
+Outcome analyse_stream(std::span<const std::uint8_t> bytes) {
+    Outcome o;
+    int ends[2];
+    if (::pipe(ends) != 0) return o;
+    EXPECT_LE(bytes.size(), 65536u);  // the pipe holds it all: written before it is read
+    EXPECT_EQ(::write(ends[1], bytes.data(), bytes.size()), static_cast<ssize_t>(bytes.size()));
+    ::close(ends[1]);
+    mbscope::test::Collect sink;
+    an::Analyzer a({}, sink);
+    std::string error;
+    auto capture = an::CaptureSource::open_stream(ends[0], {}, "stream", error);
     if (!capture) {
         o.opened = false;
         o.error = error;
@@ -185,11 +211,12 @@ TEST(DamagedCapture, PcapngTimestampBeyond2262IsNamedAndThePacketStillDecoded) {
     EXPECT_NE(o.error.find("packet 1: timestamp beyond April 2262"), std::string::npos) << o.error;
 }
 
-// libpcap refuses a pcapng file whose second interface has another link type (Ethernet and raw IP): the
+// libpcap refuses a pcapng stream whose second interface has another link type (Ethernet and raw IP): the
 // error named "packet 1 at byte offset 48" as if a packet were damaged. It names the interface block, what
 // libpcap allows, and how to split the file; the packets before it are still decoded. The block is named
 // where it starts, also when other blocks (here a Name Resolution Block, as Wireshark writes them, and
-// Interface Statistics) lie between the last packet and it.
+// Interface Statistics) lie between the last packet and it. (A file or memory is read again, once per
+// link type: tests/analyzer/pcapng_link_types_test.cpp.)
 TEST(DamagedCapture, PcapngInterfacesOfDifferentLinkTypesAreNamedForWhatTheyAre) {
     for (bool blocks_between : {false, true}) {
         SCOPED_TRACE(blocks_between);
@@ -229,11 +256,11 @@ TEST(DamagedCapture, PcapngInterfacesOfDifferentLinkTypesAreNamedForWhatTheyAre)
         put32(ethernet, 1);  // LINKTYPE_ETHERNET
         put32(ethernet, 65535);
         block(f, 1, ethernet);
-        const auto o = analyse(f);
+        const auto o = analyse_stream(f);
         EXPECT_TRUE(o.opened);
         EXPECT_EQ(o.summary.packets, 1u);
         EXPECT_EQ(o.summary.frames, 1u);
-        EXPECT_NE(o.error.find("after 1 packets, an interface block at byte offset " +
+        EXPECT_NE(o.error.find("stream: after 1 packets, an interface block at byte offset " +
                                std::to_string(second_interface) + ": "),
                   std::string::npos)
             << o.error;
