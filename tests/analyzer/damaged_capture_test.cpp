@@ -30,17 +30,16 @@ struct Outcome {
     std::string error;
 };
 
-Outcome analyse(std::span<const std::uint8_t> bytes) {
+// What the analyzer makes of `capture` (null: not opened, `error` says why).
+Outcome analysed(std::unique_ptr<an::CaptureSource> capture, const std::string& error) {
     Outcome o;
-    mbscope::test::Collect sink;
-    an::Analyzer a({}, sink);
-    std::string error;
-    auto capture = an::CaptureSource::open_memory(bytes, error);
     if (!capture) {
         o.opened = false;
         o.error = error;
         return o;
     }
+    mbscope::test::Collect sink;
+    an::Analyzer a({}, sink);
     a.read_capture(*capture);
     a.finish();
     o.summary = a.summary();
@@ -48,28 +47,22 @@ Outcome analyse(std::span<const std::uint8_t> bytes) {
     return o;
 }
 
+Outcome analyse(std::span<const std::uint8_t> bytes) {
+    std::string error;
+    auto capture = an::CaptureSource::open_memory(bytes, error);
+    return analysed(std::move(capture), error);
+}
+
 // The same read as a stream (a pipe), once, as it comes: `mbscope decode -` and tcpdump piped in.
 Outcome analyse_stream(std::span<const std::uint8_t> bytes) {
-    Outcome o;
     int ends[2];
-    if (::pipe(ends) != 0) return o;
+    if (::pipe(ends) != 0) return {};
     EXPECT_LE(bytes.size(), 65536u);  // the pipe holds it all: written before it is read
     EXPECT_EQ(::write(ends[1], bytes.data(), bytes.size()), static_cast<ssize_t>(bytes.size()));
     ::close(ends[1]);
-    mbscope::test::Collect sink;
-    an::Analyzer a({}, sink);
     std::string error;
     auto capture = an::CaptureSource::open_stream(ends[0], {}, "stream", error);
-    if (!capture) {
-        o.opened = false;
-        o.error = error;
-        return o;
-    }
-    a.read_capture(*capture);
-    a.finish();
-    o.summary = a.summary();
-    if (!o.summary.input_errors.empty()) o.error = o.summary.input_errors.front();
-    return o;
+    return analysed(std::move(capture), error);
 }
 
 // Offsets where a classic little-endian pcap file's records end (24-byte file header, 16-byte record
