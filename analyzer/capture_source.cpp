@@ -358,9 +358,11 @@ std::vector<std::uint16_t> link_types_of(std::span<const std::uint8_t> head) {
     return scan.link_types();
 }
 
-// Of a regular file (a FIFO or device is read once, as it comes).
+// Of a regular file. A FIFO or device is read once, as it comes, and not opened here: opening a FIFO waits
+// for its writer, and closing it again could leave the writer without a reader for a moment.
 std::vector<std::uint16_t> link_types_of(const std::string& path) {
-    if (path == "-") return {};
+    struct stat st {};
+    if (path == "-" || ::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return {};
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) return {};
     std::vector<std::uint8_t> head(interfaces_looked_for);
@@ -368,11 +370,9 @@ std::vector<std::uint16_t> link_types_of(const std::string& path) {
     do {
         n = ::pread(fd, head.data(), head.size(), 0);
     } while (n < 0 && errno == EINTR);
-    struct stat st {};
-    const bool regular = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
     ::close(fd);
-    if (n <= 0 || !regular) return {};
-    return link_types_of(std::span(head).first(static_cast<std::size_t>(n)));
+    return n > 0 ? link_types_of(std::span(head).first(static_cast<std::size_t>(n)))
+                 : std::vector<std::uint16_t>{};
 }
 
 }  // namespace
