@@ -809,7 +809,9 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                     ++stats.exception_codes[code];
                 }
                 const auto name = exception_name(code);
-                pair_finding(FindingCode::PairExceptionResponse,
+                pair_finding(code == 10   ? FindingCode::PairGatewayPathUnavailable
+                             : code == 11 ? FindingCode::PairGatewayTargetNoResponse
+                                          : FindingCode::PairExceptionResponse,
                              "exception " + std::to_string(code) + " (" +
                                  (name ? std::string(*name) : "undefined") + ") to " + describe_request(q));
             } else {

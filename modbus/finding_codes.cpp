@@ -106,6 +106,18 @@ constexpr std::array findings{
                 "AP §6.5-6.16"},
     FindingInfo{PairExceptionResponse, "pair.exception_response", S::Warning,
                 "the slave answered with an exception", "AP §7"},
+    // A gateway's two exceptions are not the device refusing a request: they say the request never
+    // reached an answer. Exception 11 is the timeout of the unit behind the gateway, as the master sees it
+    // (an error like pair.no_response on a line the master drives itself), exception 10 a gateway that
+    // could not route the request at all.
+    FindingInfo{PairGatewayPathUnavailable, "pair.gateway_path_unavailable", S::Error,
+                "a gateway answered that it has no path to the unit asked (exception 10): usually "
+                "misconfigured or overloaded",
+                "AP §7"},
+    FindingInfo{PairGatewayTargetNoResponse, "pair.gateway_target_no_response", S::Error,
+                "a gateway answered that the unit asked did not respond (exception 11): the unit's timeout, "
+                "seen through the gateway",
+                "AP §7"},
     FindingInfo{PairPendingOverflow, "pair.pending_overflow", S::Warning,
                 "too many unanswered requests on one link: the oldest were given up", "capture"},
     FindingInfo{PairBroadcastResponse, "pair.broadcast_response", S::Error,

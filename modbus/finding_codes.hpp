@@ -71,6 +71,8 @@ enum class FindingCode : std::uint16_t {
     PairDuplicateResponse = 612,
     PairResponseBeforeRequest = 613,
     PairLateResponse = 614,
+    PairGatewayPathUnavailable = 615,
+    PairGatewayTargetNoResponse = 616,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

@@ -554,9 +554,9 @@ TEST(Analyzer, AFindingLineNamesTheUnit) {
     for (const auto& f : h.sink.findings)
         sink.finding(f);
     const std::string out = text.str();
-    EXPECT_NE(
-        out.find("! pair.exception_response (warning) 10.0.0.1:40000 -> 10.0.0.2:502 unit 5: exception 11"),
-        std::string::npos)
+    EXPECT_NE(out.find("! pair.gateway_target_no_response (error) 10.0.0.1:40000 -> 10.0.0.2:502 unit 5: "
+                       "exception 11"),
+              std::string::npos)
         << out;
     // The message of a request left unanswered names its device: the line does not say it twice.
     EXPECT_NE(
@@ -598,6 +598,45 @@ TEST(Analyzer, ADevicesExceptionsAreCountedByCode) {
         << text.str();
     const auto json = an::summary_to_json(h.analyzer.summary())["devices"]["10.0.0.2:502 unit 17"];
     EXPECT_EQ(json["exception_codes"], (nlohmann::json{{"2", 1}, {"11", 2}}));
+}
+
+// A gateway's exceptions 10 (no path to the unit) and 11 (the unit did not respond) say that the request
+// reached no answer: errors, as the unit's timeout is on a line the master drives itself, where before they
+// were warnings like any exception and a capture of a gateway that never reached its unit exited 0. An
+// exception the device itself answers (2: an address its map lacks) stays a warning.
+TEST(Analyzer, AGatewaysExceptionsAreErrors) {
+    Harness h;
+    const auto exception = [](std::uint16_t tid, std::uint8_t code) {
+        return mb::encode_tcp(tid, 17, mb::encode_pdu(mb::make_exception(3, code)));
+    };
+    const std::pair<std::uint8_t, mb::FindingCode> cases[] = {
+        {10, mb::FindingCode::PairGatewayPathUnavailable},
+        {11, mb::FindingCode::PairGatewayTargetNoResponse},
+        {2, mb::FindingCode::PairExceptionResponse}};
+    std::uint16_t tid = 0;
+    for (const auto& [code, finding] : cases) {
+        ++tid;
+        h.send(true, read_request(tid), std::chrono::seconds(tid));
+        h.send(false, exception(tid, code), std::chrono::seconds(tid) + 10ms);
+    }
+    h.analyzer.finish();
+    for (const auto& [code, finding] : cases) {
+        SCOPED_TRACE(int{code});
+        EXPECT_EQ(h.sink.count(finding), 1);
+        EXPECT_EQ(mb::info(finding).severity, code == 2 ? mb::Severity::Warning : mb::Severity::Error);
+    }
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").exceptions, 3u);  // still exceptions
+    // What `mbscope decode` exits with for a capture whose one fault is that exception.
+    for (const auto& [code, finding] : cases) {
+        mbscope::test::Conversation c;
+        c.send(true, read_request(1), 1s);
+        c.send(false, exception(1, code), 1s + 10ms);
+        const auto path = mbscope::test::write_temp(
+            "analyzer_gateway_exception_" + std::to_string(code) + ".pcap", c.file());
+        const int status = std::system(
+            (std::string(MBSCOPE_BINARY) + " decode --summary '" + path + "' >/dev/null").c_str());
+        EXPECT_EQ(WEXITSTATUS(status), code == 2 ? 0 : 1) << "exception " << int{code};
+    }
 }
 
 // A late exception is what the device answered, and is judged as one; the device's counts keep it among
