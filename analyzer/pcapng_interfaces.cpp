@@ -40,12 +40,10 @@ void PcapngInterfacePatch::begin_block() noexcept {
     const std::uint32_t type = u32(0);
     wanted_ =
         type == interface_description_block && length >= minimum_interface_block ? interface_header : seen_;
-    if (type == obsolete_packet_block || type == simple_packet_block || type == enhanced_packet_block) {
-        if (type == simple_packet_block)
-            packet_on(0);
-        else if (keeping_)
-            wanted_ = packet_header;  // every block is at least that long
-    }
+    if (type == simple_packet_block)
+        packet_on(0);
+    else if (keeping_ && (type == obsolete_packet_block || type == enhanced_packet_block))
+        wanted_ = packet_header;  // every block is at least that long
 }
 
 // A packet block's interface known: hidden from libpcap when it is on an interface of another link type

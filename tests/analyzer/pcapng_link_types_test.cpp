@@ -141,6 +141,7 @@ std::vector<Read> read_both_ways(const std::vector<std::uint8_t>& file, std::str
         file);
     const auto from_file = read_all(an::CaptureSource::open_file(path, error, "capture"), error);
     EXPECT_EQ(from_memory, from_file);
+    EXPECT_EQ(memory_error.empty(), error.empty()) << memory_error << " / " << error;
     const std::string prefix = "capture: ";
     if (error.starts_with(prefix)) {
         EXPECT_EQ("memory: " + error.substr(prefix.size()), memory_error);
