@@ -348,19 +348,18 @@ constexpr std::size_t interfaces_looked_for = 64 * 1024;
 // its first interface of another link type, as a stream is.
 constexpr std::size_t most_passes = 8;
 
-// The link types of a pcapng file's interfaces described in its first bytes (`head`): empty for classic
-// pcap, damage, or more than most_passes.
-std::vector<std::uint16_t> link_types_of(std::span<const std::uint8_t> head) {
-    std::vector<std::uint8_t> copy(head.begin(), head.end());  // the patch changes what it passes
+// The link types of a pcapng file's interfaces described in its first bytes (`head`, which the patch
+// changes as it passes them): empty for classic pcap, damage, or more than most_passes.
+std::vector<std::uint16_t> link_types_of(std::vector<std::uint8_t> head) {
     PcapngInterfacePatch scan;
-    scan.pass(copy);
+    scan.pass(head);
     if (!scan.following() || scan.link_types().size() > most_passes) return {};
     return scan.link_types();
 }
 
 // Of a regular file. A FIFO or device is read once, as it comes, and not opened here: opening a FIFO waits
 // for its writer, and closing it again could leave the writer without a reader for a moment.
-std::vector<std::uint16_t> link_types_of(const std::string& path) {
+std::vector<std::uint16_t> link_types_of_file(const std::string& path) {
     struct stat st {};
     if (path == "-" || ::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return {};
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -371,8 +370,9 @@ std::vector<std::uint16_t> link_types_of(const std::string& path) {
         n = ::pread(fd, head.data(), head.size(), 0);
     } while (n < 0 && errno == EINTR);
     ::close(fd);
-    return n > 0 ? link_types_of(std::span(head).first(static_cast<std::size_t>(n)))
-                 : std::vector<std::uint16_t>{};
+    if (n <= 0) return {};
+    head.resize(static_cast<std::size_t>(n));
+    return link_types_of(std::move(head));
 }
 
 }  // namespace
@@ -414,7 +414,7 @@ std::unique_ptr<CaptureSource> CaptureSource::open_file(const std::string& path,
         pcap_t* p = pcap_of(cookie ? open_counted(cookie, error) : nullptr, shown, error);
         return p ? made(p, shown, true, interfaces, !known.empty()) : nullptr;
     };
-    return opened(open, link_types_of(path), error);
+    return opened(open, link_types_of_file(path), error);
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::uint8_t> bytes,
@@ -432,7 +432,8 @@ std::unique_ptr<CaptureSource> CaptureSource::open_memory(std::span<const std::u
         pcap_t* p = pcap_of(open_counted(cookie, error), "memory", error);
         return p ? made(p, "memory", false, interfaces, !known.empty()) : nullptr;
     };
-    return opened(open, link_types_of(bytes.first(std::min(bytes.size(), interfaces_looked_for))), error);
+    const auto head = bytes.first(std::min(bytes.size(), interfaces_looked_for));
+    return opened(open, link_types_of(std::vector<std::uint8_t>(head.begin(), head.end())), error);
 }
 
 std::unique_ptr<CaptureSource> CaptureSource::open_stream(int fd, std::vector<std::uint8_t> head,
