@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "analyzer/capture_source.hpp"
+#include "analyzer/pcapng_interfaces.hpp"
 #include "analyzer/pcapng_writer.hpp"
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
@@ -166,6 +167,37 @@ TEST(PcapngLinkTypes, PacketsComeInTheFilesOrderEachWithItsInterfacesLinkType) {
                                        {4, r, 2, true},
                                        {5, e, 3, true},
                                        {6, r, 6, true}}));
+}
+
+// A pass's patch, byte for byte: the other link type's interface is written as the kept one, the packet
+// blocks on it carry the local-use bit of their type, every interface's snapshot length is levelled, and
+// nothing else changes; the same whether the file is passed whole or in chunks of 1 to 40 bytes of the
+// same memory (a header's first bytes then lie in an earlier chunk).
+TEST(PcapngLinkTypes, APassHidesTheOtherLinkTypesPacketBlocksAndNothingElse) {
+    const auto file = written({link_ethernet, link_raw}, {{0, 1}, {1, 2}, {1, 3}, {0, 4}});
+    const auto at = blocks(file);
+    ASSERT_EQ(at.size(), 7u);  // section, two interfaces, four packets
+    const std::vector<std::uint16_t> known{link_ethernet, static_cast<std::uint16_t>(dlt(link_raw))};
+    for (const std::uint16_t kept : known) {
+        SCOPED_TRACE(kept);
+        auto expected = file;
+        for (const std::size_t interface : {at[1], at[2]}) {
+            expected[interface + 8] = static_cast<std::uint8_t>(kept);  // little-endian, under 256
+            std::fill_n(expected.begin() + static_cast<long>(interface + 12), 4, 0);
+        }
+        for (const std::size_t packet :
+             kept == link_ethernet ? std::vector{at[4], at[5]} : std::vector{at[3], at[6]})
+            expected[packet + 3] |= 0x80;
+        for (std::size_t chunk = 1; chunk <= 40; ++chunk) {
+            auto pieces = file;
+            an::PcapngInterfacePatch patch;
+            patch.keep_only(kept, known);
+            for (std::size_t from = 0; from < pieces.size(); from += chunk)
+                patch.pass(std::span(pieces).subspan(from, std::min(chunk, pieces.size() - from)));
+            ASSERT_EQ(pieces, expected) << "chunks of " << chunk;
+            EXPECT_EQ(patch.link_types(), known);
+        }
+    }
 }
 
 // Big-endian, with a Simple Packet Block (on interface 0, no interface field) and an Obsolete Packet Block
