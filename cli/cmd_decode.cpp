@@ -178,9 +178,10 @@ void register_decode(CLI::App& app, int& exit_code) {
                   "not stream to the same terminal)");
     cmd->footer(
         "Link types: Ethernet, Linux cooked, raw IP, BSD loopback; USER0..15 with --user-dlt; Wireshark "
-        "exported PDUs (252, text2pcap -P mbrtu|mbtcp); SEL RTAC serial (250).\n"
-        "Exit codes: 0 decoded with no error-severity finding, 1 faults found, 2 an input could not be "
-        "read.\n"
+        "exported PDUs (252, text2pcap -P mbrtu|mbtcp); SEL RTAC serial (250). A pcapng file whose "
+        "interfaces have several is read once per link type.\n"
+        "Exit codes: 0 decoded with no error-severity finding (an exception response is a warning, a "
+        "gateway's exceptions 10 and 11 are errors), 1 faults found, 2 an input could not be read.\n"
         "Record types and fields: analyzer/README.md.");
     cmd->callback([o, &exit_code] { exit_code = run_decode(*o); });
 }
