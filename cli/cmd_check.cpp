@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/number_checks.hpp"
 #include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
@@ -183,7 +184,7 @@ void register_check(CLI::App& app, int& exit_code) {
                     "Milliseconds silence.idle listens with no request out (default 1000; the MK manual's "
                     "own test idles 10000, the Walchem manual's 15000)")
         ->check(CLI::Range(0, 600000));
-    cmd->add_option("--seed", o->seed, "Seed of the randomised rules (default 1)");
+    cmd->add_option("--seed", o->seed, "Seed of the randomised rules (default 1)")->check(seed_value());
     cmd->add_flag("--verbose,-v", o->verbose, "List passing rules too");
     cmd->add_flag("--json", o->json, "Print the JSON report instead of text");
     cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");

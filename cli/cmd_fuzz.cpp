@@ -181,7 +181,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
         ->check(CLI::Range(std::uint64_t{1}, std::numeric_limits<std::uint64_t>::max()));
     cmd->add_option("--seed", o->seed,
                     "Seed: the same seed against a target that answers alike sends the same requests "
-                    "(requests_digest in the summary)");
+                    "(requests_digest in the summary)")
+        ->check(seed_value());
     cmd->add_option("--artifacts", o->artifacts, "Directory for reproducers (created)");
     cmd->add_flag("--read-only", o->read_only,
                   "Send only requests that cannot write (public read functions)");

@@ -247,7 +247,8 @@ void register_slave(CLI::App& app, int& exit_code) {
     cmd->add_option("--unit", o->units, "Unit id to serve, N or N=PROFILE (repeatable; default 1)");
     cmd->add_option("--state", o->state,
                     "Keep the register image in FILE across restarts (saved atomically on every write)");
-    cmd->add_option("--seed", o->seed, "Seed of the simulated process and of fault rates (default 1)");
+    cmd->add_option("--seed", o->seed, "Seed of the simulated process and of fault rates (default 1)")
+        ->check(seed_value());
     cmd->add_option("--fault", o->faults, "Plant a fault, NAME[=ARG] (repeatable; see below)");
     cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");
     cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");

@@ -71,4 +71,18 @@ inline CLI::Validator duration_text() {
         "TIME");
 }
 
+// A --seed option: a whole number from 0 to 2^64-1. CLI11 converts "-1" to an unsigned 64-bit number by
+// wrapping it, so --seed -1 (a common spelling of "a random seed") ran with seed 18446744073709551615 and
+// said nothing.
+inline CLI::Validator seed_value() {
+    return CLI::Validator(
+        [](std::string& text) -> std::string {
+            const bool digits = !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
+            if (digits && (text.size() < 20 || (text.size() == 20 && text <= "18446744073709551615")))
+                return {};
+            return "a whole number from 0 to 18446744073709551615, not '" + text + "'";
+        },
+        "SEED");
+}
+
 }  // namespace mbscope::cli

@@ -39,6 +39,13 @@ TEST(NumberOptions, ValuesOutsideTheirMeaningAreRefusedBeforeAnythingRuns) {
         {"sniff -i lo --count 0", "--count: Value 0 not in range 1 to"},
         {"fuzz --target tcp://127.0.0.1:1 --duration 0s", "--duration: a time such as 60s"},
         {"fuzz --target tcp://127.0.0.1:1 --duration 10x", "--duration: a time such as 60s"},
+        // CLI11 wrapped a negative seed into 2^64-1 and the run went on with it.
+        {"check --target tcp://127.0.0.1:1 --seed -1",
+         "--seed: a whole number from 0 to 18446744073709551615, not '-1'"},
+        {"fuzz --target tcp://127.0.0.1:1 --seed -1", "--seed: a whole number from 0 to"},
+        {"slave --listen tcp://127.0.0.1:0 --seed -1", "--seed: a whole number from 0 to"},
+        {"fuzz --target tcp://127.0.0.1:1 --seed 18446744073709551616", "--seed: a whole number from 0 to"},
+        {"fuzz --target tcp://127.0.0.1:1 --seed 1e3", "--seed: a whole number from 0 to"},
     };
     for (const auto& c : cases) {
         const auto r = run_mbscope(c.args);
