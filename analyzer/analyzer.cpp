@@ -1,6 +1,7 @@
 #include "analyzer/analyzer.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 
 #include "analyzer/exported_pdu.hpp"
@@ -167,6 +168,16 @@ constexpr std::uint64_t packets_between_progress = 256;
 
 bool contains(const std::vector<std::uint16_t>& ports, std::uint16_t port) {
     return std::find(ports.begin(), ports.end(), port) != ports.end();
+}
+
+// How long a request waited for the reply that never came, until `end`: ", N ms after it" (nothing in a
+// capture without a clock).
+std::string waited(Timestamp request, Timestamp end) {
+    if (!request.count() || !end.count() || end < request) return {};
+    char text[64];
+    std::snprintf(text, sizeof text, ", %.3f ms after it",
+                  std::chrono::duration<double, std::milli>(end - request).count());
+    return text;
 }
 }  // namespace
 
@@ -360,14 +371,18 @@ void Analyzer::packet_in_source(const Packet& p) {
     Flow& flow = flow_for(l4, to_server);
     if (l4.transport == Transport::Tcp) {
         auto& stream = *flow.reassembler[to_server ? 0 : 1];
-        if (l4.syn && stream.opens_new_connection(l4.seq)) end_connection(flow, p.time);
+        if (l4.syn && stream.opens_new_connection(l4.seq))
+            end_connection(
+                flow, p.time,
+                to_server ? "the client opened the connection again" : "the connection was opened again");
         stream.segment(l4.seq, l4.syn, l4.payload, p.time);
         if (l4.fin) stream.finished_at(l4.seq + static_cast<std::uint32_t>(l4.payload.size()));
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
         // A reset connection sends nothing more: half an ADU in either direction will never complete. Not a
         // reset far outside the stream, which its receiver ignores: it ended a live connection's decoding.
         if (l4.rst && stream.reset_in_window(l4.seq)) {
-            end_connection(flow, p.time);
+            end_connection(flow, p.time,
+                           to_server ? "the client reset the connection" : "the server reset the connection");
         } else if (l4.rst) {
             report(FindingCode::StreamResetOutsideWindow, about_stream(flow, p.time),
                    std::string("a TCP reset from the ") + (to_server ? "client" : "server") +
@@ -554,15 +569,14 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         Pending old = std::move(it->second);
         pending_.erase(it);
         --flow.pending;
-        report(FindingCode::PairNoResponse, old.request,
-               "request to " + old.request.device + " got no response before the next request",
-               {old.request.index});
         // Its reply may still come, from a slow unit, while the master waits on another: late then. (To
         // the same unit again, a reply answers the new request.)
         if (old.request.frame.unit_id() != r.frame.unit_id())
             remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
                                describe_request(old.request), r.index);
-        complete(old, nullptr, true);
+        give_up(old, true,
+                {FindingCode::PairNoResponse,
+                 "request to " + old.request.device.str() + " got no response before the next request"});
     }
     if (auto it = pending_.find(key); it != pending_.end()) {
         report(FindingCode::PairTransactionIdDuplicate, r,
@@ -572,7 +586,13 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         Pending old = std::move(it->second);
         pending_.erase(it);
         --flow.pending;
-        complete(old, nullptr, true);
+        // The client has given up on it: a timeout like any other, which its transaction and the exit
+        // code must show (the reuse is the client's doing, the silence the device's).
+        give_up(
+            old, true,
+            {FindingCode::PairNoResponse, describe_request(old.request) + " to " + old.request.device.str() +
+                                              " got no response before its transaction id was used again" +
+                                              waited(old.request.time, r.time)});
     }
     if (flow.pending >= options_.max_pending_per_flow) {
         report(FindingCode::PairPendingOverflow, r,
@@ -708,19 +728,21 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     pending_.erase(it);
 }
 
-void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late) {
+void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late,
+                        Unanswered* unanswered) {
     // The transaction record is made only when the sink takes transactions (--summary does not): moving
     // both frames into it and destroying it were a twentieth of a summary run. The checks read the frames
     // where they are, so that they are the same either way.
     if (!sink_wants_transactions_)
-        return judge(pending.request, response, *pending.stats, timed_out, late, nullptr);
+        return judge(pending.request, response, *pending.stats, timed_out, late, unanswered, nullptr);
     TransactionRecord made(std::move(pending.request));
     if (response) made.response.emplace(std::move(*response));
-    judge(made.request, made.response ? &*made.response : nullptr, *pending.stats, timed_out, late, &made);
+    judge(made.request, made.response ? &*made.response : nullptr, *pending.stats, timed_out, late,
+          unanswered, &made);
 }
 
 void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, DeviceStats& stats,
-                     bool timed_out, const TimedOut* late, TransactionRecord* made) {
+                     bool timed_out, const TimedOut* late, Unanswered* unanswered, TransactionRecord* made) {
     // A reply whose CRC or LRC fails has a damaged byte somewhere (SL §2.5.1.2: the master discards it):
     // its checksum finding says so, and its unit, function code and data are not held against the request
     // as if the device had sent them, nor named from the map, remembered or checked against the manual.
@@ -832,6 +854,12 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
     } else {
         if (made) made->timed_out = timed_out;
         ++(timed_out ? stats.timeouts : stats.unanswered_at_end);
+        // Why there is none: in the transaction's findings too, as an exception's is in its own (a CSV row
+        // of a timeout must not read as a clean exchange).
+        if (unanswered) {
+            found.push_back({unanswered->code, &request, std::move(unanswered->message), {request.index}});
+            if (made) made->findings.push_back(unanswered->code);
+        }
     }
     if (options_.semantics && rsp_record && request.pdu && rsp_record->pdu) {
         // The flow's server, as on_request took it: "client -> server" over IP, the link itself on a line.
@@ -949,18 +977,19 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         const bool ended = at_end && e.deadline > now_;
         std::string what = describe_request(p.request);
         if (ended) {
-            report(FindingCode::PairNoResponseAtEnd, p.request, what + " unanswered when the capture ended");
-        } else {
-            const Timestamp timeout =
-                p.request.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
-            report(
-                FindingCode::PairNoResponse, p.request,
-                what + " to " + p.request.device + " got no response within " +
-                    std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
-                    " ms");
-            remember_timed_out({e.key.flow, late_id(p.request.frame)}, p, timeout, std::move(what));
+            give_up(p, false,
+                    {FindingCode::PairNoResponseAtEnd, what + " unanswered when the capture ended"});
+            continue;
         }
-        complete(p, nullptr, !ended);
+        const Timestamp timeout =
+            p.request.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
+        Unanswered why{
+            FindingCode::PairNoResponse,
+            what + " to " + p.request.device.str() + " got no response within " +
+                std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
+                " ms"};
+        remember_timed_out({e.key.flow, late_id(p.request.frame)}, p, timeout, std::move(what));
+        give_up(p, true, std::move(why));
     }
 }
 
@@ -1575,11 +1604,33 @@ void Analyzer::close_streams(Flow& f, Timestamp t) {
     }
 }
 
-void Analyzer::end_connection(Flow& f, Timestamp t) {
+void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
     // What the connection left unfinished is reported now, at its end; the next connection on the same
     // addresses and ports starts at stream offset 0 with nothing buffered. Before this, a half ADU cut by a
     // reset took the first bytes of the next connection's request into it.
     close_streams(f, t);
+    // Its requests still waiting will not be answered: no reply comes on a connection that is gone. Left
+    // waiting, they clashed with the next connection's transaction ids (which start over), as duplicates
+    // whose timeouts went unreported, or timed out seconds after the reset that ended them.
+    if (f.pending) {
+        std::vector<Pending> waiting;
+        for (auto it = pending_.begin(); it != pending_.end();) {
+            if (it->first.flow != f.id) {
+                ++it;
+                continue;
+            }
+            waiting.push_back(std::move(it->second));
+            it = pending_.erase(it);
+        }
+        f.pending = 0;
+        std::sort(waiting.begin(), waiting.end(),
+                  [](const Pending& a, const Pending& b) { return a.serial < b.serial; });
+        for (Pending& p : waiting)
+            give_up(p, true,
+                    {FindingCode::PairNoResponse, describe_request(p.request) + " to " +
+                                                      p.request.device.str() + " got no response before " +
+                                                      how + waited(p.request.time, t)});
+    }
     std::erase_if(timed_out_,
                   [&f](const auto& entry) { return entry.first.flow == f.id; });  // ids start over
     for (int dir = 0; dir < 2; ++dir) {

@@ -178,8 +178,8 @@ class Analyzer {
     // Both directions' buffered bytes delivered and deframed to the end (at the end of the capture).
     void close_streams(Flow& flow, modbus::Timestamp t);
     // A connection reset, or replaced by a new one on the same addresses and ports: its streams closed,
-    // then started afresh.
-    void end_connection(Flow& flow, modbus::Timestamp t);
+    // its requests still waiting given up (`how` it ended, after "before"), then started afresh.
+    void end_connection(Flow& flow, modbus::Timestamp t, const std::string& how);
     void retransmission_conflict(Flow& flow, int dir, std::uint64_t at, std::size_t differing,
                                  modbus::Timestamp t);
     void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);
@@ -223,12 +223,24 @@ class Analyzer {
     modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
     void on_request(Flow& flow, FrameRecord& record, DeviceStats& stats);
     void on_response(Flow& flow, FrameRecord& record);
+    // Why a request is given up without a response: the finding about it, which its transaction carries.
+    struct Unanswered {
+        modbus::FindingCode code;
+        std::string message;
+    };
     // `late`: the response came after the request's timeout, which was reported and counted already.
-    void complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late = nullptr);
+    // `unanswered`: there is no response, and this is why.
+    void complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late = nullptr,
+                  Unanswered* unanswered = nullptr);
+    // The request will not be answered: counted as a timeout (`timed_out`) or as unanswered at the end, and
+    // reported with its transaction.
+    void give_up(Pending& pending, bool timed_out, Unanswered unanswered) {
+        complete(pending, nullptr, timed_out, nullptr, &unanswered);
+    }
     // Counts and finds what a request and its response (or its absence) show; with `made`, fills the
     // transaction record and gives it to the sink before the findings.
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,
-               const TimedOut* late, TransactionRecord* made);
+               const TimedOut* late, Unanswered* unanswered, TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
     // Keyed by late_id: the transaction id, or on a serial line the unit.
     void remember_timed_out(const PendingKey& key, const Pending& pending, modbus::Timestamp timeout,

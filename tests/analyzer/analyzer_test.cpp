@@ -897,6 +897,8 @@ TEST(Analyzer, TransactionIdMismatch) {
     EXPECT_EQ(h.sink.transactions.size(), 1u);
 }
 
+// The client sent the id again: it gave up on the first request, which the device never answered. That is
+// a timeout like any other, with its finding (an error: the exit code says so), not a timeout only counted.
 TEST(Analyzer, TransactionIdDuplicate) {
     Harness h;
     h.send(true, read_request(1), 1s);
@@ -904,6 +906,78 @@ TEST(Analyzer, TransactionIdDuplicate) {
     h.send(false, read_response(1), 1s + 2ms);
     h.analyzer.finish();
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdDuplicate), 1);
+    ASSERT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::PairNoResponse) {
+            EXPECT_EQ(f.frames, std::vector<std::uint64_t>{1});
+            EXPECT_NE(f.message.find("before its transaction id was used again, 1.000 ms after it"),
+                      std::string::npos)
+                << f.message;
+        }
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").timeouts, 1u);
+    EXPECT_EQ(h.analyzer.summary().errors, 1u);
+    ASSERT_EQ(h.sink.transactions.size(), 2u);
+    EXPECT_TRUE(h.sink.transactions[0].timed_out);
+    EXPECT_EQ(h.sink.transactions[0].findings, std::vector<mb::FindingCode>{mb::FindingCode::PairNoResponse});
+}
+
+// A request still waiting when its connection ends (a reset from either side, or the client opening the
+// connection again, as a PLC with a fixed source port does after its own timeout) will not be answered:
+// given up then, as a timeout with its finding. Left waiting, it clashed with the next connection's first
+// transaction id as a duplicate, its timeout counted but never reported, and the run passed.
+TEST(Analyzer, ARequestWaitingWhenItsConnectionEndsIsGivenUpThen) {
+    struct Case {
+        int how;  // 0 the client resets, 1 the server resets, 2 the client connects again (reset not seen)
+        const char* said;
+    };
+    for (const Case c : {Case{0, "before the client reset the connection, 1000.000 ms after it"},
+                         Case{1, "before the server reset the connection, 1000.000 ms after it"},
+                         Case{2, "before the client opened the connection again, 1100.000 ms after it"}}) {
+        Harness h;
+        h.raw(packet(true, 999, {}, false, 0x02), 1s);  // SYN
+        h.send(true, read_request(1), 1s + 1ms);
+        if (c.how == 0) h.raw(packet(true, h.seq[0], {}, false, 0x04), 2s + 1ms);
+        if (c.how == 1) h.raw(packet(false, h.seq[1], {}, false, 0x04), 2s + 1ms);
+        h.raw(packet(true, 70000, {}, false, 0x02), 2s + 101ms);  // the same ports, a new connection
+        h.raw(packet(false, 90000, {}, false, 0x12, 502, 70001), 2s + 101ms);
+        h.seq[0] = 70001;
+        h.seq[1] = 90001;
+        h.send(true, read_request(1), 2s + 102ms);  // its ids start over
+        h.send(false, read_response(1), 2s + 103ms);
+        h.analyzer.finish();
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdDuplicate), 0) << c.how;
+        ASSERT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1) << c.how;
+        for (const auto& f : h.sink.findings)
+            if (f.code == mb::FindingCode::PairNoResponse) {
+                EXPECT_NE(f.message.find(c.said), std::string::npos) << f.message;
+                EXPECT_EQ(f.frames, std::vector<std::uint64_t>{1});
+            }
+        const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+        EXPECT_EQ(device.timeouts, 1u) << c.how;
+        EXPECT_EQ(device.responses, 1u) << c.how;
+        EXPECT_EQ(h.analyzer.summary().errors, 1u) << c.how;
+        ASSERT_EQ(h.sink.transactions.size(), 2u) << c.how;
+        EXPECT_TRUE(h.sink.transactions[0].timed_out);
+        EXPECT_EQ(h.sink.transactions[0].findings,
+                  std::vector<mb::FindingCode>{mb::FindingCode::PairNoResponse});
+        EXPECT_TRUE(h.sink.transactions[1].response.has_value());
+        EXPECT_TRUE(h.sink.transactions[1].findings.empty());
+    }
+}
+
+// A timeout's transaction carries its finding, as an exception's does: a CSV row or a transaction record of
+// a request nobody answered must not read as a clean exchange. So does one unanswered at the end.
+TEST(Analyzer, AnUnansweredTransactionCarriesItsFinding) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(true, read_request(2), 5s);
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.transactions.size(), 2u);
+    EXPECT_TRUE(h.sink.transactions[0].timed_out);
+    EXPECT_EQ(h.sink.transactions[0].findings, std::vector<mb::FindingCode>{mb::FindingCode::PairNoResponse});
+    EXPECT_FALSE(h.sink.transactions[1].timed_out);
+    EXPECT_EQ(h.sink.transactions[1].findings,
+              std::vector<mb::FindingCode>{mb::FindingCode::PairNoResponseAtEnd});
 }
 
 TEST(Analyzer, ExceptionIsLinkedToItsRequest) {
