@@ -20,8 +20,10 @@ const modbus::Point* first_writable(const modbus::Profile& p, Table t, int words
     return nullptr;
 }
 
+// An echo counts only in the request's envelope (its transaction and unit identifiers, protocol 0): the
+// same PDU from another unit or for another transaction answers nothing that was asked.
 bool echoes(const modbus::transport::Exchange& ex, std::span<const std::uint8_t> pdu) {
-    if (!ex.response || !ex.response->checksum_ok) return false;
+    if (!ex.response || !ex.response->checksum_ok || !envelope_fault(ex).empty()) return false;
     const auto got = ex.response->pdu();
     return std::equal(got.begin(), got.end(), pdu.begin(), pdu.end());
 }
@@ -186,6 +188,16 @@ void check_data(Context& c) {
                Authority::Manual, false},
               [&](RuleResult& r) {
                   const auto expected = modbus::mirrored_value(p, line);
+                  // Over Modbus/TCP unit 255 asks whichever device serves the connection (TCP §4.4.1), not a
+                  // device by its address, which 255 never is on a serial line (SL §2.2: 1 to 247).
+                  if (*p.mirrors == modbus::LineSetting::UnitId && !c.serial_framing() &&
+                      c.session.options().unit == 255) {
+                      r.outcome = Outcome::Skip;
+                      r.reason =
+                          "unit 255 over Modbus/TCP addresses the device on the connection, not by "
+                          "an address it holds (TCP §4.4.1)";
+                      return;
+                  }
                   if (!expected) {
                       // Framing over Modbus/TCP, speed and parity over any network scheme: the device's line
                       // is on the far side of a gateway, its settings are not the runner's.

@@ -12,6 +12,16 @@ using modbus::Table;
 
 namespace {
 
+// The first point of table `t` a harmless write may rewrite with its own value; on the generic profile,
+// which maps nothing, the first address the device reads.
+std::optional<std::uint16_t> rewritable(Context& c, Table t, bool (*may_rewrite)(const modbus::Point&)) {
+    const auto& pts = c.profile.table(t);
+    if (const auto it = std::find_if(pts.begin(), pts.end(), may_rewrite); it != pts.end())
+        return it->address;
+    if (c.profile.open_address_space) return c.facts(t).first_valid();
+    return std::nullopt;
+}
+
 // The smallest request of `fc` that a conforming device must answer normally and that changes nothing:
 // reads of one item at the first valid address, writes of the value already there.
 std::optional<std::vector<std::uint8_t>> harmless_request(Context& c, std::uint8_t fc, std::string& why_not) {
@@ -31,43 +41,38 @@ std::optional<std::vector<std::uint8_t>> harmless_request(Context& c, std::uint8
         }
         case 5:
         case 15: {
-            const auto& pts = c.profile.table(Table::Coils);
-            const auto it = std::find_if(pts.begin(), pts.end(), [](const modbus::Point& p) {
+            const auto at = rewritable(c, Table::Coils, [](const modbus::Point& p) {
                 return p.access == modbus::Access::ReadWrite && !p.reserved;
             });
-            if (it == pts.end()) {
+            if (!at) {
                 why_not = "no readable and writable coil to rewrite with its own value";
                 return std::nullopt;
             }
-            auto now = c.session.read_bits(Table::Coils, it->address, 1,
-                                           "current value, to write it back unchanged");
+            const std::uint16_t address = *at;
+            auto now =
+                c.session.read_bits(Table::Coils, address, 1, "current value, to write it back unchanged");
             if (!now) {
                 why_not = "the coil's current value could not be read";
                 return std::nullopt;
             }
             const bool v = (*now)[0];
-            if (fc == 5) return modbus::encode_pdu(modbus::make_write_single_coil(it->address, v));
+            if (fc == 5) return modbus::encode_pdu(modbus::make_write_single_coil(address, v));
             const bool bits[1] = {v};
-            return modbus::encode_pdu(modbus::make_write_multiple_coils(it->address, bits));
+            return modbus::encode_pdu(modbus::make_write_multiple_coils(address, bits));
         }
         case 6:
         case 16:
         case 22:
         case 23: {
-            const auto& pts = c.profile.table(Table::HoldingRegisters);
-            const auto it = std::find_if(pts.begin(), pts.end(), [](const modbus::Point& p) {
+            const auto at = rewritable(c, Table::HoldingRegisters, [](const modbus::Point& p) {
                 return p.access == modbus::Access::ReadWrite && !p.reserved && p.encoding.words == 1 &&
                        !p.fixed_value;
             });
-            std::uint16_t address = 0;
-            if (it != pts.end())
-                address = it->address;
-            else if (c.profile.open_address_space && c.facts(Table::HoldingRegisters).first_valid())
-                address = *c.facts(Table::HoldingRegisters).first_valid();
-            else {
+            if (!at) {
                 why_not = "no readable and writable register to rewrite with its own value";
                 return std::nullopt;
             }
+            const std::uint16_t address = *at;
             auto now = c.session.read_registers(Table::HoldingRegisters, address, 1,
                                                 "current value, to write it back unchanged");
             if (!now) {

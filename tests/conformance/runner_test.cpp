@@ -15,6 +15,7 @@
 #include <poll.h>
 #include <sys/socket.h>
 
+#include <cctype>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -117,6 +118,73 @@ TEST(LineMirrors, APortReadingAnotherFramingThanItSpeaksFails) {
             EXPECT_EQ(x.expected, "1 (RTU)");
             EXPECT_EQ(x.observed, "0 (ASCII)");
         }
+}
+
+// Over Modbus/TCP unit 255 asks the device on the connection, not one by its address (TCP §4.4.1): the
+// register mirroring the address (ENDER, 0 to 99) cannot read 255, and the rule failed a correct device.
+TEST(LineMirrors, TheAddressIsNotJudgedAgainstUnit255OverTcp) {
+    RunningServer server({}, 1, "mmk-2030");
+    auto options = options_for();
+    options.session.unit = 255;
+    options.run.rule_globs = {"data.mirror.hr7"};
+    const auto run = certify(server, "tcp", "mmk-2030", options);
+    ASSERT_EQ(run.report.results.size(), 1u);
+    EXPECT_EQ(run.report.results[0].outcome, Outcome::Skip) << failures(run.report);
+    EXPECT_NE(run.report.results[0].reason.find("TCP §4.4.1"), std::string::npos);
+}
+
+// A reply counts only in its request's envelope. echo.fc8.0 compared the PDU alone, and tcp.pipelined the
+// transaction ids alone: a reply from another unit, to another transaction or of another function passed.
+struct EnvelopeCase {
+    std::string fault;
+    std::string scheme;
+    std::string rule;
+};
+
+std::ostream& operator<<(std::ostream& out, const EnvelopeCase& c) {
+    return out << c.rule << " against " << c.fault << " over " << c.scheme;
+}
+
+class EnvelopeFault : public ::testing::TestWithParam<EnvelopeCase> {};
+
+TEST_P(EnvelopeFault, FailsTheRuleThatSawTheReply) {
+    const EnvelopeCase& c = GetParam();
+    RunningServer server({c.fault}, 1, "mmk-2030");
+    auto options = options_for();
+    options.run.rule_globs = {c.rule};
+    const auto run = certify(server, c.scheme, "mmk-2030", options);
+    ASSERT_EQ(run.report.results.size(), 1u);
+    EXPECT_EQ(run.report.results[0].outcome, Outcome::Fail) << run.report.results[0].observed;
+    EXPECT_EQ(verdict(run.report), 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(Rules, EnvelopeFault,
+                         ::testing::Values(EnvelopeCase{"wrong-unit", "tcp", "echo.fc8.0"},
+                                           EnvelopeCase{"wrong-unit", "rtu-tcp", "echo.fc8.0"},
+                                           EnvelopeCase{"wrong-tid", "tcp", "echo.fc8.0"},
+                                           EnvelopeCase{"wrong-unit", "tcp", "tcp.pipelined"},
+                                           EnvelopeCase{"wrong-tid", "tcp", "tcp.pipelined"},
+                                           EnvelopeCase{"wrong-function", "tcp", "tcp.pipelined"},
+                                           EnvelopeCase{"bad-protocol-id", "tcp", "tcp.pipelined"}),
+                         [](const auto& info) {
+                             std::string n =
+                                 info.param.rule + "_" + info.param.fault + "_" + info.param.scheme;
+                             for (auto& ch : n)
+                                 if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                             return n;
+                         });
+
+// The generic profile maps no coil: FC5 and FC15 were skipped as having "no readable and writable coil"
+// while echo.fc5 wrote the first coil the device reads. They rewrite that coil with its own value now.
+TEST(GenericProfile, SupportedCoilWritesAreTriedOnTheFirstCoilTheDeviceReads) {
+    RunningServer server({}, 1, "modbus");
+    auto options = options_for();
+    options.run.rule_globs = {"fc.supported.5", "fc.supported.15"};
+    const auto run = certify(server, "tcp", "modbus", options);
+    ASSERT_EQ(run.report.results.size(), 2u);
+    for (const auto& x : run.report.results)
+        EXPECT_EQ(x.outcome, Outcome::Pass) << x.rule.id << ": " << x.reason << x.observed;
+    expect_clean(run, 2);
 }
 
 // The broadcast rules write a value other than the one the register holds when they run. They took it from
