@@ -133,13 +133,13 @@ int run_check_command(const CheckCliOptions& o) {
         return exit_failure;
     }
     // Rules that send nothing (all skipped: broadcast rules over Modbus/TCP) are no sign of a silent target.
+    if (!report.unanswered.empty()) {
+        std::cerr << "mbscope check: " << report.unanswered << '\n';
+        return exit_failure;
+    }
     if (report.response_times.empty() && report.requests > 0) {
-        if (report.late_replies)
-            std::cerr << "mbscope check: the target answered only after the " << report.timeout_ms
-                      << " ms timeout (" << report.late_replies << " late replies): raise --timeout\n";
-        else
-            std::cerr
-                << "mbscope check: the target never answered (wrong unit id, transport or line settings?)\n";
+        std::cerr << "mbscope check: the target answered only after the " << report.timeout_ms
+                  << " ms timeout (" << report.late_replies << " late replies): raise --timeout\n";
         return exit_failure;
     }
     if (!written || report.stopped) return exit_failure;

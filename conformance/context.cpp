@@ -77,6 +77,10 @@ bool Context::selected(const std::string& rule_id) const {
 
 void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& body) {
     if (!selected(rule.id) || (stop && stop->load())) return;
+    if (silent()) {
+        rules_not_run = true;
+        return;
+    }
     RuleResult r;
     r.rule = rule;
     if (rule.writes && options.read_only) {
@@ -97,6 +101,10 @@ void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& 
     r.evidence = session.take_evidence();
     if (options.progress) options.progress(r);
     results.push_back(std::move(r));
+}
+
+bool Context::silent() const {
+    return session.requests() >= silent_after && session.response_times().empty() && !session.late_replies();
 }
 
 bool Context::serial_framing() const {

@@ -55,8 +55,14 @@ struct Context {
     const TableFacts& facts(modbus::Table t) const { return tables[static_cast<int>(t)]; }
     bool selected(const std::string& rule_id) const;
     // Runs one rule: skips it when not selected or when it writes under --read-only, times it, collects
-    // its evidence. The body sets outcome, expected and observed.
+    // its evidence. The body sets outcome, expected and observed. Nothing is run once the target is silent.
     void run(const RuleInfo& rule, const std::function<void(RuleResult&)>& body);
+    // The target answered none of the run's first `silent_after` requests or more in time (a wrong unit id,
+    // transport or line settings): every rule after would wait out its timeouts and fail for that one
+    // reason, so none is run.
+    bool silent() const;
+    static constexpr std::uint64_t silent_after = 3;
+    bool rules_not_run = false;   // a rule was not run for silence
     bool serial_framing() const;  // RTU or ASCII framing (serial lines and serial over TCP)
     bool true_serial() const;     // a real serial line or pseudo-terminal
     // A read of one valid register (FC3, else FC4) that every healthy device answers normally: the

@@ -163,6 +163,7 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
     for (const auto& t : report.restored)
         if (t.restored && !t.problem.empty())
             out << "\n  note: " << modbus::to_string(t.table) << " " << t.address << ": " << t.problem;
+    if (!report.unanswered.empty()) out << "\nnothing judged: " << report.unanswered;
     out << (report.stopped ? "\nstopped before the end (interrupted)\n" : "\n");
 }
 
@@ -223,6 +224,7 @@ nlohmann::json to_json(const Report& report) {
             {"requests", report.requests},
             {"late_replies", report.late_replies},
             {"stopped", report.stopped},
+            {"unanswered", report.unanswered},
             {"summary",
              {{"rules", report.results.size()},
               {"pass", report.count(Outcome::Pass)},

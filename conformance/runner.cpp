@@ -39,6 +39,7 @@ int verdict(const Report& report) {
 
 std::string_view verdict_text(const Report& report) {
     if (report.stopped) return "interrupted";
+    if (!report.unanswered.empty()) return "error";
     return verdict(report) == 0 ? "pass" : "fail";
 }
 
@@ -193,6 +194,28 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     report.response_times = session.response_times();
     report.requests = session.requests();
     report.late_replies = session.late_replies();
+    if (report.requests > 0 && report.response_times.empty() && !report.late_replies && !report.stopped) {
+        report.unanswered = "the target answered none of the run's " + std::to_string(report.requests) +
+                            " requests (wrong unit id, transport or line settings?)";
+        // What the rules saw is silence, not the device's behaviour: nothing was judged. Rules that pass on
+        // silence pass vacuously, and failures for want of a reply are no failures of the device.
+        for (auto& r : report.results) {
+            if (r.outcome == Outcome::Skip) continue;
+            r.outcome = Outcome::Error;
+            r.reason = "not judged: " + report.unanswered;
+        }
+        RuleResult answered;
+        answered.rule = {
+            "target.answered",        "target",
+            "AP §4.1; SL §2.1",       "The target answers the run's requests within the timeout.",
+            Authority::Specification, false};
+        answered.outcome = Outcome::Error;
+        answered.expected = "replies to requests any device of the profile answers";
+        answered.observed = "no reply";
+        answered.reason =
+            report.unanswered + (c.rules_not_run ? "; the rules after those below were not run" : "");
+        report.results.insert(report.results.begin(), std::move(answered));
+    }
     report.wall = std::chrono::steady_clock::now() - started;
     return report;
 }

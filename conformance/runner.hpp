@@ -39,6 +39,11 @@ struct Report {
     std::uint64_t requests = 0;
     std::uint64_t late_replies = 0;  // came after their request was given up (raise --timeout)
     bool stopped = false;            // interrupted before the end
+    // Why no rule could be judged, "" when the target answered: it answered none of the run's requests, not
+    // even late (a wrong unit id, transport or line settings). The run stops after its first requests, and
+    // every rule it ran is in error rather than failed. (Replies that all came late are judged: a device
+    // slower than its manual allows fails; the text says to raise --timeout.)
+    std::string unanswered;
     std::vector<RuleResult> results;
     std::vector<Touched> restored;
     std::vector<std::chrono::nanoseconds> response_times;
@@ -51,8 +56,8 @@ struct Report {
 // Exit-code view of a report: 0 nothing failed, 1 a rule of the specification or the manual failed (implied
 // rules are warnings) or a point could not be restored.
 int verdict(const Report& report);
-// "pass" or "fail" as verdict() says; "interrupted" for a run stopped before every rule ran, which
-// certifies nothing whatever its rules said.
+// "pass" or "fail" as verdict() says; "interrupted" for a run stopped before every rule ran, and "error"
+// for a target that answered nothing (Report::unanswered), which certify nothing whatever their rules said.
 std::string_view verdict_text(const Report& report);
 
 Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,

@@ -187,6 +187,33 @@ TEST(GenericProfile, SupportedCoilWritesAreTriedOnTheFirstCoilTheDeviceReads) {
     expect_clean(run, 2);
 }
 
+// A target that answers nothing (here a unit nobody serves) made a report of a hundred failures, each rule
+// waiting out its timeouts, with an exit code saying the run could not judge. The run now stops once its
+// first requests all went unanswered; what ran is in error, not failed, and the reports say why.
+TEST(Runner, ATargetThatAnswersNothingIsAnErrorNotAHundredFailures) {
+    RunningServer server({}, 1, "mmk-2030");
+    auto options = options_for(std::chrono::milliseconds(100));
+    options.session.unit = 5;
+    const auto run = certify(server, "tcp", "mmk-2030", options);
+    const Report& r = run.report;
+    EXPECT_NE(r.unanswered.find("answered none of the run's"), std::string::npos) << r.unanswered;
+    EXPECT_EQ(r.requests, Context::silent_after);
+    EXPECT_EQ(r.count(Outcome::Fail), 0u) << failures(r);
+    EXPECT_EQ(r.count(Outcome::Pass), 0u);
+    ASSERT_FALSE(r.results.empty());
+    EXPECT_EQ(r.results[0].rule.id, "target.answered");
+    EXPECT_NE(r.results[0].reason.find("were not run"), std::string::npos) << r.results[0].reason;
+    EXPECT_EQ(verdict_text(r), "error");
+    EXPECT_EQ(verdict(r), 1);
+    const auto json = to_json(r);
+    EXPECT_EQ(json["summary"]["verdict"], "error");
+    EXPECT_EQ(json["summary"]["fail_specification"], 0);
+    EXPECT_EQ(json["unanswered"], r.unanswered);
+    std::ostringstream junit;
+    write_junit(junit, r);
+    EXPECT_NE(junit.str().find("failures=\"0\""), std::string::npos) << junit.str();
+}
+
 // The broadcast rules write a value other than the one the register holds when they run. They took it from
 // the value read before the run, which echo.fc6 had already written to the same register: a device that
 // ignored the broadcast read back the value "written", and passed .executed (or failed .refused).
