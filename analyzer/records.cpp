@@ -42,6 +42,37 @@ void LatencyHistogram::add(modbus::Timestamp latency) {
     ++count_;
 }
 
+bool NaturalOrder::operator()(std::string_view a, std::string_view b) const noexcept {
+    const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+    std::size_t i = 0, j = 0;
+    while (i < a.size() && j < b.size()) {
+        if (digit(a[i]) && digit(b[j])) {
+            // Two runs of digits: by value (leading zeros skipped, then the longer run is the larger),
+            // then the one with fewer leading zeros first, so that distinct names never compare equal.
+            std::size_t za = i, zb = j;
+            while (za < a.size() && a[za] == '0')
+                ++za;
+            while (zb < b.size() && b[zb] == '0')
+                ++zb;
+            std::size_t ea = za, eb = zb;
+            while (ea < a.size() && digit(a[ea]))
+                ++ea;
+            while (eb < b.size() && digit(b[eb]))
+                ++eb;
+            if (ea - za != eb - zb) return ea - za < eb - zb;
+            if (const int c = a.substr(za, ea - za).compare(b.substr(zb, eb - zb)); c != 0) return c < 0;
+            if (za - i != zb - j) return za - i < zb - j;
+            i = ea;
+            j = eb;
+            continue;
+        }
+        if (a[i] != b[j]) return static_cast<unsigned char>(a[i]) < static_cast<unsigned char>(b[j]);
+        ++i;
+        ++j;
+    }
+    return a.size() - i < b.size() - j;
+}
+
 // The nearest-rank quantile: the smallest latency that at least q of them do not exceed (the p99 of three
 // latencies is the largest). Rounding the rank down, as before, gave the p99 of three as their median and
 // understated the tail of a skewed set. Within its bucket the latency is taken at the bucket's middle

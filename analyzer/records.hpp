@@ -127,9 +127,15 @@ struct DeviceStats {
     std::map<std::string, std::uint64_t> findings;
 };
 
+// Device names in the order a reader counts: numbers within them by value, so "unit 2" comes before
+// "unit 10" and 10.0.0.9 before 10.0.0.10 (as text, unit 199 came before unit 2 on a multi-drop line).
+struct NaturalOrder {
+    bool operator()(std::string_view a, std::string_view b) const noexcept;
+};
+
 struct Summary {
     std::uint64_t packets = 0, frames = 0, transactions = 0, unparsed_bytes = 0;
-    std::map<std::string, DeviceStats> devices;
+    std::map<std::string, DeviceStats, NaturalOrder> devices;
     std::map<std::string, std::uint64_t> findings;  // code name → count
     std::uint64_t errors = 0;                       // error-severity findings
     std::vector<std::string> input_errors;          // files that could not be read (fully)

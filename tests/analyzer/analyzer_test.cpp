@@ -1132,6 +1132,24 @@ TEST(Analyzer, ARetransmissionWithOtherBytesIsAFinding) {
         }
 }
 
+// Devices in the summary in the order a reader counts: on a multi-drop line unit 2 came after unit 199.
+TEST(Summary, DevicesAreInNaturalOrder) {
+    an::Summary s;
+    for (const char* d : {"serial a unit 10", "serial a unit 2", "serial a unit 199", "serial a unit 1",
+                          "10.0.0.10:502 unit 1", "10.0.0.9:502 unit 1", "10.0.0.9:502 unit 01"})
+        s.devices[d];
+    std::vector<std::string> order;
+    for (const auto& [name, stats] : s.devices)
+        order.push_back(name);
+    EXPECT_EQ(order, (std::vector<std::string>{"10.0.0.9:502 unit 1", "10.0.0.9:502 unit 01",
+                                               "10.0.0.10:502 unit 1", "serial a unit 1", "serial a unit 2",
+                                               "serial a unit 10", "serial a unit 199"}));
+    const an::NaturalOrder less;
+    EXPECT_FALSE(less("unit 7", "unit 7"));
+    EXPECT_TRUE(less("unit", "unit 7"));
+    EXPECT_FALSE(less("unit 7", "unit"));
+}
+
 TEST(LatencyHistogram, QuantilesWithinThreePercent) {
     an::LatencyHistogram h;
     for (int i = 1; i <= 1000; ++i)
