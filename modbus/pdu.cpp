@@ -263,8 +263,9 @@ Result<Pdu> decode_response_body(Pdu pdu, ByteReader& r) {
         if (values.size() % 2 != 0 || *bc % 2 != 0) pdu.violations.add(FindingCode::PduByteCountMismatch);
         const std::size_t max_registers =
             is(fc, Code::ReadWriteMultipleRegisters) ? max_rw_read_registers : max_read_registers;
-        if (values.size() / 2 > max_registers || values.empty())
-            pdu.violations.add(FindingCode::PduQuantityOutOfRange);
+        // The quantity the reply states is its byte count's: fewer bytes present is the byte count's
+        // mismatch (a reply cut short), not a quantity of 0 as well.
+        if (*bc / 2u > max_registers || *bc == 0) pdu.violations.add(FindingCode::PduQuantityOutOfRange);
         pdu.body = ReadRegistersResponse{*bc, read_words(values)};
         return pdu;
     }

@@ -203,6 +203,20 @@ TEST(PduDecode, TrailingBytesAfterFixedRequest) {
     EXPECT_EQ(r.error().offset, 5u);
 }
 
+// A read reply cut short states its quantity in its byte count: the missing bytes are the byte count's
+// mismatch, not a quantity of 0 as well. A byte count of 0, or above 125 registers, is the quantity's.
+TEST(PduDecode, AReadReplyCutShortIsAByteCountMismatchOnly) {
+    auto cut = mb::decode_response(hex("03 06"));  // the 11-byte reply of a log cut after five bytes
+    ASSERT_TRUE(cut.has_value());
+    EXPECT_TRUE(cut->violations.contains(mb::FindingCode::PduByteCountMismatch));
+    EXPECT_FALSE(cut->violations.contains(mb::FindingCode::PduQuantityOutOfRange));
+    for (const char* wrong : {"03 00", "04 FC"}) {
+        auto r = mb::decode_response(hex(wrong));
+        ASSERT_TRUE(r.has_value()) << wrong;
+        EXPECT_TRUE(r->violations.contains(mb::FindingCode::PduQuantityOutOfRange)) << wrong;
+    }
+}
+
 TEST(PduDecode, TruncatedDeviceIdObject) {
     auto r = mb::decode_response(hex("2B 0E 01 01 00 00 01 00 05 41 42"));
     ASSERT_FALSE(r.has_value());
