@@ -1185,9 +1185,12 @@ void Analyzer::close_frames(SerialLink& link, Timestamp t, std::uint64_t packet)
     if (link.framing) pump(link);
 }
 
-void Analyzer::flush_deframers(SerialLink& link, Timestamp t, std::uint64_t packet) {
+void Analyzer::flush_deframers(SerialLink& link, Timestamp t, std::uint64_t packet, bool input_ended) {
     DeframeEvents events;
-    if (link.timed) link.timed->advance(Timestamp::max(), events);
+    if (link.timed && input_ended)
+        link.timed->finish(events);
+    else if (link.timed)
+        link.timed->advance(Timestamp::max(), events);
     if (link.untimed) link.untimed->finish(events);
     if (link.ascii) link.ascii->finish(events);
     serial_events(link, events, t, packet);
@@ -1686,7 +1689,7 @@ void Analyzer::finish() {
         do {
             if (link->restart_at) restart(*link);
             pump(*link);
-            flush_deframers(*link, now_, 0);
+            flush_deframers(*link, now_, 0, true);
         } while (link->restart_at);
     }
     for (const auto& [key, link] : serial_links_)

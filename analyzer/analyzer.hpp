@@ -202,7 +202,9 @@ class Analyzer {
     void close_frames(SerialLink& link, modbus::Timestamp t, std::uint64_t packet = 0);
     void deframe(SerialLink& link, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
                  modbus::Direction hint, std::uint64_t packet);
-    void flush_deframers(SerialLink& link, modbus::Timestamp t, std::uint64_t packet);
+    // `input_ended`: at the end of the input, where a frame is cut rather than ended by a silence.
+    void flush_deframers(SerialLink& link, modbus::Timestamp t, std::uint64_t packet,
+                         bool input_ended = false);
     // The kept chunks not yet deframed, to the deframers; after a change of line settings, again from the
     // change on.
     void pump(SerialLink& link);

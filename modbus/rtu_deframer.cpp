@@ -236,7 +236,7 @@ void RtuTimedDeframer::emit_unparsed(std::size_t begin, std::size_t length, Unpa
         Unparsed{seg_offset_ + begin, static_cast<std::uint32_t>(length), reason, times_[begin]});
 }
 
-void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
+void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out, bool input_ended) {
     const std::size_t n = seg_.size();
     std::size_t consumed = 0;
     if (at_end && n >= 4 && n <= max_rtu_adu_length && rtu_crc_ok(seg_)) {
@@ -250,6 +250,7 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
         const std::size_t mark = out.size();
         std::size_t pos = 0;
         bool any_frame = false;
+        bool cut = false;  // the run's first bytes ask for a frame longer than the rest of the input
         std::size_t run_begin = 0;
         std::size_t run_length = 0;
         UnparsedReason run_reason{};
@@ -266,6 +267,7 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
                 pos += step.length;
             } else {
                 const std::size_t len = std::max<std::size_t>(step.length, 1);
+                cut |= pos == 0 && step.reason == UnparsedReason::Truncated;
                 if (run_length && run_reason != step.reason) flush_run();
                 if (!run_length) {
                     run_begin = pos;
@@ -276,7 +278,7 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out) {
             }
         }
         flush_run();
-        if (!any_frame) {
+        if (!any_frame && !(input_ended && cut)) {
             out.erase(out.begin() + static_cast<std::ptrdiff_t>(mark), out.end());
             if (n >= 4 && n <= max_rtu_adu_length)
                 emit_frame(0, n, out);
@@ -336,7 +338,7 @@ void RtuTimedDeframer::advance(Timestamp now, DeframeEvents& out) {
 }
 
 void RtuTimedDeframer::finish(DeframeEvents& out) {
-    close_segment(true, out);
+    close_segment(true, out, true);
 }
 
 }  // namespace mbscope::modbus

@@ -52,6 +52,9 @@ class RtuTimedDeframer {
     void feed(std::span<const std::uint8_t> bytes, Timestamp received, DeframeEvents& out);
     // Time has passed with no byte: closes the current frame once t3.5 of silence has elapsed.
     void advance(Timestamp now, DeframeEvents& out);
+    // The input ends (not the line: no silence followed its last byte). Unlike a silence, which ends a
+    // frame however short (a device that stopped sending), the end of the input cuts one: bytes whose
+    // content asks for more than the input holds are an unparsed run, truncated, not a frame with a bad CRC.
     void finish(DeframeEvents& out);
     const SerialLine& line() const noexcept { return line_; }
     // Bytes are held for a frame not yet ended by a silence (or by finish).
@@ -64,7 +67,7 @@ class RtuTimedDeframer {
         std::uint64_t before_offset;  // stream offset of the byte after the silence
         float chars;
     };
-    void close_segment(bool at_end, DeframeEvents& out);
+    void close_segment(bool at_end, DeframeEvents& out, bool input_ended = false);
     void emit_frame(std::size_t begin, std::size_t length, DeframeEvents& out);  // CRC status from the bytes
     void emit_unparsed(std::size_t begin, std::size_t length, UnparsedReason reason, DeframeEvents& out);
 

@@ -226,6 +226,43 @@ TEST(RtuTimedDeframer, GapAboveT35SplitsAFrameIntoTwoBadOnes) {
     }
 }
 
+// The input ends five bytes into an eleven-byte reply (a log cut off, a capture stopped): the bytes are a
+// truncated run, not a frame with a bad CRC whose byte count disagrees. A silence after the same bytes ends
+// a frame however short (the device stopped sending): that one is a frame, and its CRC fails.
+TEST(RtuTimedDeframer, TheEndOfTheInputCutsAFrameASilenceEndsIt) {
+    const auto request = hex("11 03 00 60 00 03 07 45");
+    const auto cut = hex("11 03 06 02 2B");
+    for (const bool silence : {false, true}) {
+        mb::SerialLine line;
+        mb::RtuTimedDeframer d(line);
+        mb::DeframeEvents out;
+        d.feed(request, 1s, out);
+        d.feed(cut, 1s + 20ms, out);
+        if (silence) d.advance(2s, out);
+        d.finish(out);
+        expect_every_byte_accounted(out, request.size() + cut.size());
+        ASSERT_EQ(out.size(), 2u) << silence;
+        EXPECT_TRUE(std::get<mb::Frame>(out[0]).checksum_ok);
+        if (silence) {
+            const auto& f = std::get<mb::Frame>(out[1]);
+            EXPECT_FALSE(f.checksum_ok);
+            EXPECT_EQ(f.wire_length, 5u);
+        } else {
+            const auto& u = std::get<mb::Unparsed>(out[1]);
+            EXPECT_EQ(u.reason, mb::UnparsedReason::Truncated);
+            EXPECT_EQ(u.offset, 8u);
+            EXPECT_EQ(u.length, 5u);
+        }
+    }
+    // A run that does not start a longer frame stays one frame with a bad CRC at the end of the input too.
+    mb::RtuTimedDeframer d(mb::SerialLine{});
+    mb::DeframeEvents out;
+    d.feed(hex("11 03 00 60 00 03 07 46"), 1s, out);
+    d.finish(out);
+    ASSERT_EQ(out.size(), 1u);
+    EXPECT_FALSE(std::get<mb::Frame>(out[0]).checksum_ok);
+}
+
 TEST(RtuTimedDeframer, FramesGluedInOneChunkAreSplitByContent) {
     // A USB adapter delivered request and response in one read: no silence visible between them.
     auto glued = hex("11 03 00 60 00 03 07 45 11 03 06 02 2B 00 00 00 64 C8 BA");
