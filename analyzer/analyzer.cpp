@@ -28,6 +28,9 @@ struct Analyzer::Flow {
     std::uint64_t rtu_lost[2] = {0, 0};  // stream bytes lost in gaps, so that offsets stay stream offsets
     Timestamp rtu_last[2] = {};          // when each side last sent: the time of a frame closed later
     std::size_t pending = 0;
+    // The serial the first request after bytes of the request stream were lost gets (0: none lost): a reply
+    // nobody waits for may answer a request among those bytes.
+    std::uint64_t first_request_after_gap = 0;
     // The last response paired on the link (its ADU, decoded): the same response again, with no request
     // waiting for it, is that request answered twice rather than a reply nobody asked for.
     // (A late reply, too: a copy of it is that request answered twice.)
@@ -283,6 +286,7 @@ void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) 
     } else {
         f.deframer[dir].gap(missing, events);
     }
+    if (dir == 0) f.first_request_after_gap = next_serial_ + 1;
     report(FindingCode::StreamGap, about_stream(f, t),
            std::to_string(missing) + " bytes of the " + (dir == 0 ? "request" : "response") +
                " stream were not captured; decoding resumes at the next " +
@@ -375,9 +379,11 @@ void Analyzer::packet_in_source(const Packet& p) {
             end_connection(
                 flow, p.time,
                 to_server ? "the client opened the connection again" : "the connection was opened again");
+        // The acknowledgement first: it says what the sender had received before it sent this segment's
+        // bytes (a request behind a lost segment is released before the reply to it is paired).
+        if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
         stream.segment(l4.seq, l4.syn, l4.payload, p.time);
         if (l4.fin) stream.finished_at(l4.seq + static_cast<std::uint32_t>(l4.payload.size()));
-        if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
         // A reset connection sends nothing more: half an ADU in either direction will never complete. Not a
         // reset far outside the stream, which its receiver ignores: it ended a live connection's decoding.
         if (l4.rst && stream.reset_in_window(l4.seq)) {
@@ -700,12 +706,18 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     }
     if (it == pending_.end()) {
         // One request outstanding on this link and the reply carries another id: a transaction-id mismatch,
-        // not an unsolicited reply.
+        // not an unsolicited reply. Unless that request came after bytes of the request stream were lost: a
+        // request among them (pipelined before it) is the one the reply answers, and the outstanding
+        // request's own reply may follow.
         std::optional<PendingKey> only;
+        bool after_gap = false;
         if (flow.pending == 1)
             for (const auto& [k, v] : pending_)
-                if (k.flow == flow.id) only = k;
-        if (only) {
+                if (k.flow == flow.id) {
+                    only = k;
+                    after_gap = flow.first_request_after_gap && v.serial >= flow.first_request_after_gap;
+                }
+        if (only && !after_gap) {
             it = pending_.find(*only);
             report(FindingCode::PairTransactionIdMismatch, r,
                    "response transaction id " + std::to_string(key.tid) + " answers the request with id " +
@@ -713,12 +725,15 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                    {it->second.request.index, r.index});
         } else {
             // A serial line has no transaction ids: name the unit whose reply nobody asked for.
-            report(FindingCode::PairUnsolicitedResponse, r,
-                   r.frame.framing == Framing::Tcp
-                       ? "no outstanding request with transaction id " + std::to_string(key.tid) +
-                             " on this link"
-                       : "no request to unit " + std::to_string(r.frame.unit_id()) +
-                             " waits for a reply on this link");
+            report(
+                FindingCode::PairUnsolicitedResponse, r,
+                (r.frame.framing == Framing::Tcp ? "no outstanding request with transaction id " +
+                                                       std::to_string(key.tid) + " on this link"
+                                                 : "no request to unit " + std::to_string(r.frame.unit_id()) +
+                                                       " waits for a reply on this link") +
+                    (after_gap ? " (bytes of the request stream were not captured: its request may be "
+                                 "among them)"
+                               : ""));
             return;
         }
     }

@@ -74,7 +74,7 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
     } else if (rel > 0) {
         // Ahead of a hole: wait. A retransmission of a piece still waiting is kept as a piece of its own
         // (the heap cannot find the first by position); when drained its bytes count as retransmitted.
-        pending_.push_back({base_ + static_cast<std::uint64_t>(rel), arena_.size(), payload.size()});
+        pending_.push_back({base_ + static_cast<std::uint64_t>(rel), arena_.size(), payload.size(), t});
         arena_.insert(arena_.end(), payload.begin(), payload.end());
         std::push_heap(pending_.begin(), pending_.end(), later);
         buffered_ += payload.size();
@@ -86,6 +86,7 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
 }
 
 void TcpReassembler::deliver(std::span<const std::uint8_t> bytes, modbus::Timestamp t) {
+    delivered_at_ = t;
     data_(bytes, t);
     // Kept for comparison: the last recent_size bytes, each at its offset modulo the size.
     const auto kept = bytes.last(std::min(bytes.size(), recent_size));
@@ -136,7 +137,7 @@ void TcpReassembler::drain(modbus::Timestamp t) {
         // The arena does not move during the call: only segment() and drain() add or compact.
         const std::span<const std::uint8_t> rest(arena_.data() + piece.begin + skip,
                                                  piece.size - static_cast<std::size_t>(skip));
-        deliver(rest, t);
+        deliver(rest, std::max(piece.time, delivered_at_));
     }
     if (pending_.empty())
         arena_.clear();
@@ -174,8 +175,16 @@ void TcpReassembler::acknowledged(std::uint32_t ack, modbus::Timestamp t) {
     if (fin_at_ && static_cast<std::int32_t>(ack - *fin_at_) > 0) ack = *fin_at_;
     // Wrap-aware; an acknowledgement more than 1 GiB ahead is no acknowledgement of this stream (a
     // mid-stream capture's first segments, a port reused by another connection).
-    const auto rel = static_cast<std::int32_t>(ack - *next_);
+    auto rel = static_cast<std::int32_t>(ack - *next_);
     if (rel <= 0 || rel > (1 << 30)) return;
+    // A hole the acknowledgement covers whole, with bytes after it here already: those came after the
+    // hole's bytes were sent, so the hole's were not captured (a tap's drop), not merely stamped late.
+    // Given up at once, hole by hole, as far as bytes after it are here (what lies beyond may still come).
+    while (rel > 0 && !pending_.empty() && static_cast<std::uint64_t>(rel) >= pending_.front().at - base_) {
+        skip_to_first_buffered(t);
+        rel = static_cast<std::int32_t>(ack - *next_);
+    }
+    if (rel <= 0) return;
     if (!acknowledged_) {  // the acknowledged bytes may still come, a little late in the capture
         acknowledged_ = ack;
         acknowledged_at_ = t;

@@ -43,7 +43,9 @@ class TcpReassembler {
     // acknowledges (modbusBig.pcap, packets 3149 and 3150, 0.7 ms apart), and a hole given up at the
     // acknowledgement lost a reply that the capture holds. The hole is given up when this direction's next
     // segment does not fill it, at an acknowledgement `reordering_wait` or more after the first that
-    // covered it, or at flush().
+    // covered it, or at flush(); and at once when the acknowledgement covers the whole hole and bytes after
+    // it are here already: the hole's bytes would have to come after their own successors, and until
+    // then a request pipelined behind a lost one waited, its reply taken for unsolicited.
     void acknowledged(std::uint32_t ack, modbus::Timestamp t);
     static constexpr modbus::Timestamp reordering_wait{1'000'000'000};
     // A FIN at sequence number `seq` (after its segment's payload): it takes one number of its own, which
@@ -64,11 +66,14 @@ class TcpReassembler {
     void reset(std::size_t max_buffered) noexcept;
 
   private:
-    // Bytes that arrived ahead of a hole: arena_[begin, begin + size), to go at stream position `at`.
+    // Bytes that arrived ahead of a hole: arena_[begin, begin + size), to go at stream position `at`, and
+    // when they arrived (delivered with that time, or the last delivery's if later: a request that waited
+    // behind a lost segment keeps its own time, and a stream's times never go back).
     struct Piece {
         std::uint64_t at;
         std::size_t begin;
         std::size_t size;
+        modbus::Timestamp time;
     };
     void deliver(std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     // Compares bytes retransmitted at stream offset `at` (all before base_) with the ones delivered there,
@@ -89,6 +94,7 @@ class TcpReassembler {
     // The furthest acknowledgement past bytes not captured, and when the first one came: the hole waits.
     std::optional<std::uint32_t> acknowledged_;
     modbus::Timestamp acknowledged_at_{0};
+    modbus::Timestamp delivered_at_{0};  // the time the last bytes were delivered with
     // Pieces waiting for a hole to fill: a heap with the lowest `at` in front. Their bytes share one arena
     // (a segment ahead of a hole used to cost a map node and a vector of its own, and under a fuzzer most
     // segments are). The arena is emptied whenever nothing waits and compacted when mostly dead, so it

@@ -862,6 +862,39 @@ TEST(Analyzer, ARetransmittedSynIsNotANewConnection) {
     EXPECT_TRUE(h.sink.findings.empty());
 }
 
+// A client with requests pipelined, the tap losing the segment of the second: the third waited behind the
+// hole until the client's next segment, seconds later, its reply called unsolicited and itself timed out.
+// The server's reply acknowledges the hole and the bytes after it, so the hole is given up then: the reply to
+// the lost request is unsolicited (its request may be in the lost bytes), the third is paired with its own
+// reply, at its own time.
+TEST(Analyzer, ARequestPipelinedBehindALostSegmentIsPairedWithItsReply) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.seq[0] += static_cast<std::uint32_t>(read_request(2).size());  // request 2: not captured
+    h.send(true, read_request(3), 1s + 2ms);
+    h.send(false, read_response(1), 1s + 10ms);
+    h.send(false, read_response(2), 1s + 11ms);
+    h.send(false, read_response(3), 1s + 12ms);
+    h.send(true, read_request(4), 4s);
+    h.send(false, read_response(4), 4s + 10ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::StreamGap), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdMismatch), 0);
+    ASSERT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    for (const auto& f : h.sink.findings) {
+        if (f.code == mb::FindingCode::PairUnsolicitedResponse) {
+            EXPECT_NE(f.message.find("transaction id 2"), std::string::npos) << f.message;
+        }
+    }
+    ASSERT_EQ(h.sink.transactions.size(), 3u);
+    const auto& third = h.sink.transactions[1];
+    EXPECT_EQ(third.request.frame.transaction_id(), 3);
+    EXPECT_EQ(third.request.time, 1s + 2ms);
+    ASSERT_TRUE(third.response.has_value());
+    EXPECT_EQ(third.latency, 10ms);
+}
+
 TEST(Analyzer, UnsolicitedResponse) {
     Harness h;
     h.send(false, read_response(9), 1s);
