@@ -99,6 +99,8 @@ std::string named_values(const std::vector<NamedValue>& values) {
         s += "=" + v.text;
         if (v.point && !v.point->unit.empty() && v.number) s += " " + v.point->unit;  // not after a raw half
         if (v.partial) s += " (partial)";
+        if (v.other_half_earlier)
+            s += " (register " + std::to_string(*v.other_half_earlier) + " from an earlier reply)";
     }
     return s;
 }

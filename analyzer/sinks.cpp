@@ -108,6 +108,8 @@ void TextSink::transaction(const TransactionRecord& t) {
         if (v.point && !v.point->unit.empty() && v.number)
             out_ << ' ' << v.point->unit;  // not after a raw half
         if (v.partial) out_ << "  (partial)";
+        if (v.other_half_earlier)
+            out_ << "  (register " << *v.other_half_earlier << " from an earlier reply)";
         out_ << '\n';
     }
     for (const auto& r : t.registers32)

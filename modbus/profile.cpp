@@ -387,6 +387,11 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
             v.raw = {first, second};
             v.number = value_32(e, first, second);
         };
+        // The other half known from an earlier reply, not from this block: said, since it may have changed.
+        const auto earlier = [&](std::uint16_t other) {
+            if (other >= start && other - start < static_cast<int>(words.size())) return;
+            v.other_half_earlier = other;
+        };
         if (e.words == 2 && p.address != address) {
             // A second half. Taken with its first when the block holds that (it then starts before this
             // word); a block that starts here (a read from the middle of a value, a write of one register)
@@ -394,6 +399,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
             if (address != start) continue;
             if (auto first = word_at(p.address, start, words, context)) {
                 whole_32(*first, w);
+                earlier(p.address);
             } else {
                 v.partial = true;
                 v.text = std::to_string(w) + " (second half only)";
@@ -464,6 +470,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                     v.number = whole / std::pow(10.0, e.decimals);
                     v.raw = {hi, lo};
                     v.text = format_number(*v.number, e.decimals);
+                    earlier(*e.pair);
                 }
                 break;
             }
@@ -479,6 +486,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                     break;
                 }
                 whole_32(w, *second);
+                earlier(static_cast<std::uint16_t>(address + 1));
                 break;
             }
             case EncodingType::Bits: {

@@ -274,6 +274,10 @@ struct NamedValue {
     std::string text;                // enumeration text, characters, bits, or the number formatted
     bool partial = false;  // a 32-bit or paired value whose other half, or a scaled one whose decimal
                            // point register, is outside the block and not known from elsewhere
+    // A 32-bit or paired value whose other half is outside the block, taken from an earlier reply (or
+    // write) of the device: that register's address. The value is whole only if that half has not
+    // changed since; the text says so.
+    std::optional<std::uint16_t> other_half_earlier;
 };
 
 // The settings a device whose holding registers read `read` holds, as far as its map mirrors them

@@ -60,6 +60,7 @@ json named_value_to_json(const NamedValue& v) {
         j["in_map"] = false;
     }
     if (v.partial) j["partial"] = true;
+    if (v.other_half_earlier) j["other_half_earlier"] = *v.other_half_earlier;
     return j;
 }
 
@@ -71,6 +72,7 @@ void write_named_value(const NamedValue& v, JsonWriter& out) {  // named_value_t
         out.member("name", std::string_view(v.point->name));
         if (!v.point->name_en.empty()) out.member("name_en", std::string_view(v.point->name_en));
     }
+    if (v.other_half_earlier) out.member("other_half_earlier", *v.other_half_earlier);
     if (v.partial) out.member("partial", true);
     out.key("raw");
     out.begin_array();

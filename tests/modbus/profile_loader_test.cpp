@@ -1,6 +1,7 @@
 // The profile loader on small documents written for the test: structure, model variants, overrides, queries
 // and error reporting with JSON pointers. The real device profiles have their own coverage tests.
 #include "modbus/profile_loader.hpp"
+#include "modbus/profile_json.hpp"
 #include "modbus/storage/profile_store.hpp"
 
 #include <gtest/gtest.h>
@@ -156,17 +157,30 @@ TEST(ProfileLoader, ABlockStartingAtASecondHalfShowsIt) {
     EXPECT_EQ(v[0].raw, (std::vector<std::uint16_t>{0x3FC0}));
     EXPECT_EQ(v[1].address, 72);
     EXPECT_EQ(v[1].point, nullptr);
-    // The first half known from elsewhere (an earlier read): the whole value, 1.5 in cdab order.
+    // The first half known from elsewhere (an earlier read): the whole value, 1.5 in cdab order, which says
+    // where its other half came from (that half may have changed since: a value glued from halves read
+    // minutes apart was shown as the device's).
     v = mb::decode_registers(p, mb::Table::HoldingRegisters, 71, {0x3FC0}, {{70, 0x0000}});
     ASSERT_EQ(v.size(), 1u);
     EXPECT_FALSE(v[0].partial);
     EXPECT_DOUBLE_EQ(*v[0].number, 1.5);
     EXPECT_EQ(v[0].raw, (std::vector<std::uint16_t>{0x0000, 0x3FC0}));
-    // Inside a block that holds the first half, the second is still taken with it.
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 69, {1, 0x0000, 0x3FC0});
+    EXPECT_EQ(v[0].other_half_earlier, std::optional<std::uint16_t>(70));
+    EXPECT_EQ(mb::named_value_to_json(v[0])["other_half_earlier"], 70);
+    // So does a first half completed from an earlier reply, and a decimal split's other register.
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 70, {0x0000}, {{71, 0x3FC0}});
+    EXPECT_DOUBLE_EQ(*v[0].number, 1.5);
+    EXPECT_EQ(v[0].other_half_earlier, std::optional<std::uint16_t>(71));
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 60, {1234}, {{61, 5678}});
+    EXPECT_DOUBLE_EQ(*v[0].number, 12345678.0);
+    EXPECT_EQ(v[0].other_half_earlier, std::optional<std::uint16_t>(61));
+    // Inside a block that holds the first half, the second is still taken with it, from this block.
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 69, {1, 0x0000, 0x3FC0}, {{70, 9}, {71, 9}});
     ASSERT_EQ(v.size(), 2u);
     EXPECT_EQ(v[1].address, 70);
     EXPECT_DOUBLE_EQ(*v[1].number, 1.5);
+    EXPECT_EQ(v[1].other_half_earlier, std::nullopt);
+    EXPECT_FALSE(mb::named_value_to_json(v[1]).contains("other_half_earlier"));
 }
 
 // Addresses end at 65535: a block that runs past it names nothing there (wrapped round, its words would be
