@@ -28,8 +28,8 @@ struct Analyzer::Flow {
     std::uint64_t rtu_lost[2] = {0, 0};  // stream bytes lost in gaps, so that offsets stay stream offsets
     Timestamp rtu_last[2] = {};          // when each side last sent: the time of a frame closed later
     std::size_t pending = 0;
-    // The serial the first request after bytes of the request stream were lost gets (0: none lost): a reply
-    // nobody waits for may answer a request among those bytes.
+    // The serial the first request after bytes of the request stream were lost gets (0: none lost, or a
+    // request after them was answered): a reply nobody waits for may answer a request among those bytes.
     std::uint64_t first_request_after_gap = 0;
     // The last response paired on the link (its ADU, decoded): the same response again, with no request
     // waiting for it, is that request answered twice rather than a reply nobody asked for.
@@ -738,6 +738,9 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         }
     }
     --flow.pending;
+    // A request after the lost bytes answered: the replies to those before it have had their turn.
+    if (flow.first_request_after_gap && it->second.serial >= flow.first_request_after_gap)
+        flow.first_request_after_gap = 0;
     flow.keep_last_response(r);
     complete(it->second, &r, false);  // reports and sinks never touch the pending table
     pending_.erase(it);
@@ -1649,6 +1652,7 @@ void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
                                                       p.request.device.str() + " got no response before " +
                                                       how + waited(p.request.time, t)});
     }
+    f.first_request_after_gap = 0;
     std::erase_if(timed_out_,
                   [&f](const auto& entry) { return entry.first.flow == f.id; });  // ids start over
     for (int dir = 0; dir < 2; ++dir) {

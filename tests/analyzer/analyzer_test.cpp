@@ -877,17 +877,21 @@ TEST(Analyzer, ARequestPipelinedBehindALostSegmentIsPairedWithItsReply) {
     h.send(false, read_response(3), 1s + 12ms);
     h.send(true, read_request(4), 4s);
     h.send(false, read_response(4), 4s + 10ms);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdMismatch), 0);
+    // Once a request after the lost bytes was answered, a reply with another id is a mismatch again.
+    h.send(true, read_request(5), 5s);
+    h.send(false, read_response(99), 5s + 10ms);
     h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdMismatch), 1);
     EXPECT_EQ(h.sink.count(mb::FindingCode::StreamGap), 1);
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
-    EXPECT_EQ(h.sink.count(mb::FindingCode::PairTransactionIdMismatch), 0);
     ASSERT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
     for (const auto& f : h.sink.findings) {
         if (f.code == mb::FindingCode::PairUnsolicitedResponse) {
             EXPECT_NE(f.message.find("transaction id 2"), std::string::npos) << f.message;
         }
     }
-    ASSERT_EQ(h.sink.transactions.size(), 3u);
+    ASSERT_EQ(h.sink.transactions.size(), 4u);
     const auto& third = h.sink.transactions[1];
     EXPECT_EQ(third.request.frame.transaction_id(), 3);
     EXPECT_EQ(third.request.time, 1s + 2ms);
