@@ -16,6 +16,7 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     fin_at_.reset();
     syn_at_.reset();
     acknowledged_.reset();
+    delivered_at_ = modbus::Timestamp{0};
     pending_.clear();
     arena_.clear();
     base_ = 0;
