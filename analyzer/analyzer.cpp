@@ -384,6 +384,10 @@ void Analyzer::packet_in_source(const Packet& p) {
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
         stream.segment(l4.seq, l4.syn, l4.payload, p.time);
         if (l4.fin) stream.finished_at(l4.seq + static_cast<std::uint32_t>(l4.payload.size()));
+        // The server closed its side with every byte it sent delivered: no reply will follow on this
+        // connection. (A client's FIN is no end: a half-closed client may still be answered.)
+        if (l4.fin && !to_server && stream.finished())
+            give_up_waiting(flow, p.time, "the server closed the connection");
         // A reset connection sends nothing more: half an ADU in either direction will never complete. Not a
         // reset far outside the stream, which its receiver ignores: it ended a live connection's decoding.
         if (l4.rst && stream.reset_in_window(l4.seq)) {
@@ -1625,6 +1629,27 @@ void Analyzer::close_streams(Flow& f, Timestamp t) {
     }
 }
 
+void Analyzer::give_up_waiting(Flow& f, Timestamp t, const std::string& how) {
+    if (!f.pending) return;
+    std::vector<Pending> waiting;
+    for (auto it = pending_.begin(); it != pending_.end();) {
+        if (it->first.flow != f.id) {
+            ++it;
+            continue;
+        }
+        waiting.push_back(std::move(it->second));
+        it = pending_.erase(it);
+    }
+    f.pending = 0;
+    std::sort(waiting.begin(), waiting.end(),
+              [](const Pending& a, const Pending& b) { return a.serial < b.serial; });
+    for (Pending& p : waiting)
+        give_up(
+            p, true,
+            {FindingCode::PairNoResponse, describe_request(p.request) + " to " + p.request.device.str() +
+                                              " got no response before " + how + waited(p.request.time, t)});
+}
+
 void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
     // What the connection left unfinished is reported now, at its end; the next connection on the same
     // addresses and ports starts at stream offset 0 with nothing buffered. Before this, a half ADU cut by a
@@ -1633,25 +1658,7 @@ void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
     // Its requests still waiting will not be answered: no reply comes on a connection that is gone. Left
     // waiting, they clashed with the next connection's transaction ids (which start over), as duplicates
     // whose timeouts went unreported, or timed out seconds after the reset that ended them.
-    if (f.pending) {
-        std::vector<Pending> waiting;
-        for (auto it = pending_.begin(); it != pending_.end();) {
-            if (it->first.flow != f.id) {
-                ++it;
-                continue;
-            }
-            waiting.push_back(std::move(it->second));
-            it = pending_.erase(it);
-        }
-        f.pending = 0;
-        std::sort(waiting.begin(), waiting.end(),
-                  [](const Pending& a, const Pending& b) { return a.serial < b.serial; });
-        for (Pending& p : waiting)
-            give_up(p, true,
-                    {FindingCode::PairNoResponse, describe_request(p.request) + " to " +
-                                                      p.request.device.str() + " got no response before " +
-                                                      how + waited(p.request.time, t)});
-    }
+    give_up_waiting(f, t, how);
     f.first_request_after_gap = 0;
     std::erase_if(timed_out_,
                   [&f](const auto& entry) { return entry.first.flow == f.id; });  // ids start over

@@ -180,6 +180,8 @@ class Analyzer {
     // A connection reset, or replaced by a new one on the same addresses and ports: its streams closed,
     // its requests still waiting given up (`how` it ended, after "before"), then started afresh.
     void end_connection(Flow& flow, modbus::Timestamp t, const std::string& how);
+    // The flow's requests still waiting will not be answered (`how`, after "before"): each a timeout.
+    void give_up_waiting(Flow& flow, modbus::Timestamp t, const std::string& how);
     void retransmission_conflict(Flow& flow, int dir, std::uint64_t at, std::size_t differing,
                                  modbus::Timestamp t);
     void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);

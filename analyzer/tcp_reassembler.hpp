@@ -51,6 +51,8 @@ class TcpReassembler {
     // A FIN at sequence number `seq` (after its segment's payload): it takes one number of its own, which
     // the peer's acknowledgement covers without any byte having been lost.
     void finished_at(std::uint32_t seq) noexcept { fin_at_ = seq; }
+    // Every byte before the FIN has been delivered: the sender sends nothing more on this connection.
+    bool finished() const noexcept { return fin_at_ && next_ && *next_ == *fin_at_ && pending_.empty(); }
     // Whether a reset at sequence number `seq` can end this direction's stream: nothing seen yet, or from
     // 64 KiB before the next expected byte to as far past it as bytes may wait for a hole. A receiver takes
     // a reset only within its window (RFC 9293 §3.10.7.3, RFC 5961 §3.2); one far outside is a stray or

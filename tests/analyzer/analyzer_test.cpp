@@ -964,17 +964,20 @@ TEST(Analyzer, TransactionIdDuplicate) {
 // transaction id as a duplicate, its timeout counted but never reported, and the run passed.
 TEST(Analyzer, ARequestWaitingWhenItsConnectionEndsIsGivenUpThen) {
     struct Case {
-        int how;  // 0 the client resets, 1 the server resets, 2 the client connects again (reset not seen)
+        int how;  // 0 the client resets, 1 the server resets, 2 the client connects again (reset not seen),
+                  // 3 the server closes its side (FIN)
         const char* said;
     };
     for (const Case c : {Case{0, "before the client reset the connection, 1000.000 ms after it"},
                          Case{1, "before the server reset the connection, 1000.000 ms after it"},
-                         Case{2, "before the client opened the connection again, 1100.000 ms after it"}}) {
+                         Case{2, "before the client opened the connection again, 1100.000 ms after it"},
+                         Case{3, "before the server closed the connection, 1000.000 ms after it"}}) {
         Harness h;
         h.raw(packet(true, 999, {}, false, 0x02), 1s);  // SYN
         h.send(true, read_request(1), 1s + 1ms);
         if (c.how == 0) h.raw(packet(true, h.seq[0], {}, false, 0x04), 2s + 1ms);
         if (c.how == 1) h.raw(packet(false, h.seq[1], {}, false, 0x04), 2s + 1ms);
+        if (c.how == 3) h.raw(packet(false, h.seq[1], {}, false, 0x11, 502, h.seq[0]), 2s + 1ms);
         h.raw(packet(true, 70000, {}, false, 0x02), 2s + 101ms);  // the same ports, a new connection
         h.raw(packet(false, 90000, {}, false, 0x12, 502, 70001), 2s + 101ms);
         h.seq[0] = 70001;
