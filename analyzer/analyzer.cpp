@@ -6,6 +6,7 @@
 
 #include "analyzer/exported_pdu.hpp"
 #include "analyzer/rtac_serial.hpp"
+#include "analyzer/timestamps.hpp"
 #include "analyzer/word_order.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
@@ -171,16 +172,6 @@ constexpr std::uint64_t packets_between_progress = 256;
 
 bool contains(const std::vector<std::uint16_t>& ports, std::uint16_t port) {
     return std::find(ports.begin(), ports.end(), port) != ports.end();
-}
-
-// How long a request waited for the reply that never came, until `end`: ", N ms after it" (nothing in a
-// capture without a clock).
-std::string waited(Timestamp request, Timestamp end) {
-    if (!request.count() || !end.count() || end < request) return {};
-    char text[64];
-    std::snprintf(text, sizeof text, ", %.3f ms after it",
-                  std::chrono::duration<double, std::milli>(end - request).count());
-    return text;
 }
 }  // namespace
 
@@ -541,6 +532,16 @@ std::string describe_request(const FrameRecord& r) {
     return r.pdu ? describe_request(*r.pdu) : std::string("request");
 }
 
+// pair.no_response's message wherever a request is given up: "FC3 Read Holding Registers 0+2 to
+// 10.0.0.2:502 unit 1 got no response " and `when`, and how long after the request `ended` came (nothing
+// for a capture without a clock).
+std::string no_response_message(const FrameRecord& request, const std::string& when, Timestamp ended = {}) {
+    std::string text = describe_request(request) + " to " + request.device.str() + " got no response " + when;
+    if (request.time.count() && ended.count() && ended >= request.time)
+        text += ", " + milliseconds_text(ended - request.time) + " after it";
+    return text;
+}
+
 // A timed-out request is kept by its transaction id over Modbus/TCP, and by its unit on a serial line:
 // there the master polls the next unit while a slow one's reply is still on its way.
 std::uint16_t late_id(const Frame& f) {
@@ -598,11 +599,9 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         --flow.pending;
         // The client has given up on it: a timeout like any other, which its transaction and the exit
         // code must show (the reuse is the client's doing, the silence the device's).
-        give_up(
-            old, true,
-            {FindingCode::PairNoResponse, describe_request(old.request) + " to " + old.request.device.str() +
-                                              " got no response before its transaction id was used again" +
-                                              waited(old.request.time, r.time)});
+        give_up(old, true,
+                {FindingCode::PairNoResponse,
+                 no_response_message(old.request, "before its transaction id was used again", r.time)});
     }
     if (flow.pending >= options_.max_pending_per_flow) {
         report(FindingCode::PairPendingOverflow, r,
@@ -1007,9 +1006,11 @@ void Analyzer::expire(Timestamp now, bool at_end) {
             p.request.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
         Unanswered why{
             FindingCode::PairNoResponse,
-            what + " to " + p.request.device.str() + " got no response within " +
-                std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
-                " ms"};
+            no_response_message(
+                p.request,
+                "within " +
+                    std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
+                    " ms")};
         remember_timed_out({e.key.flow, late_id(p.request.frame)}, p, timeout, std::move(what));
         give_up(p, true, std::move(why));
     }
@@ -1644,10 +1645,7 @@ void Analyzer::give_up_waiting(Flow& f, Timestamp t, const std::string& how) {
     std::sort(waiting.begin(), waiting.end(),
               [](const Pending& a, const Pending& b) { return a.serial < b.serial; });
     for (Pending& p : waiting)
-        give_up(
-            p, true,
-            {FindingCode::PairNoResponse, describe_request(p.request) + " to " + p.request.device.str() +
-                                              " got no response before " + how + waited(p.request.time, t)});
+        give_up(p, true, {FindingCode::PairNoResponse, no_response_message(p.request, "before " + how, t)});
 }
 
 void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {

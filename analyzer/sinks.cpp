@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "analyzer/json_lines.hpp"
+#include "analyzer/timestamps.hpp"
 #include "analyzer/word_order.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/profile_json.hpp"
@@ -18,12 +19,6 @@ double seconds(Timestamp t) {
 }
 
 namespace {
-
-std::string ms(Timestamp t) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.3f ms", std::chrono::duration<double, std::milli>(t).count());
-    return buf;
-}
 
 std::string pdu_brief(const FrameRecord& f) {
     if (!f.pdu) return "undecodable PDU (" + f.error + ")";
@@ -79,7 +74,8 @@ void TextSink::transaction(const TransactionRecord& t) {
         out_ << "  " << to_string(t.request.frame.framing);
     out_ << "  " << pdu_brief(t.request);
     if (t.response) {
-        out_ << "  -> " << pdu_brief(*t.response) << (t.latency ? "  " + ms(*t.latency) : std::string());
+        out_ << "  -> " << pdu_brief(*t.response)
+             << (t.latency ? "  " + milliseconds_text(*t.latency) : std::string());
         if (!t.response->frame.checksum_ok)
             out_ << "  bad " << (t.response->frame.framing == Framing::Ascii ? "LRC" : "CRC")
                  << ", a master discards it";
@@ -149,8 +145,10 @@ void TextSink::end(const Summary& s) {
         if (d.unanswered_at_end) out_ << ", " << d.unanswered_at_end << " unanswered at the end";
         if (d.checksum_errors) out_ << ", " << d.checksum_errors << " frames with a bad CRC/LRC";
         if (d.latency.count())
-            out_ << "; latency min " << ms(d.latency.min()) << " / median " << ms(d.latency.quantile(0.5))
-                 << " / p99 " << ms(d.latency.quantile(0.99)) << " / max " << ms(d.latency.max());
+            out_ << "; latency min " << milliseconds_text(d.latency.min()) << " / median "
+                 << milliseconds_text(d.latency.quantile(0.5)) << " / p99 "
+                 << milliseconds_text(d.latency.quantile(0.99)) << " / max "
+                 << milliseconds_text(d.latency.max());
         out_ << "\n    functions:";
         for (const auto& [fc, n] : d.functions)
             out_ << " FC" << fc << "×" << n;

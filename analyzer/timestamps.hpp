@@ -2,10 +2,13 @@
 // Timestamps are nanoseconds since 1970 in 64 bits, which ends in April 2262. Capture files carry seconds
 // in 64 bits (pcapng) or as decimal text (the text format), both able to go far beyond that: these
 // conversions say so instead of overflowing.
+#include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <optional>
+#include <string>
 
 #include "modbus/frame.hpp"
 
@@ -25,6 +28,13 @@ inline std::optional<modbus::Timestamp> timestamp_from_seconds(double seconds) {
     constexpr double limit = 9.2e9;  // below 2^63 ns
     if (!std::isfinite(seconds) || seconds < 0 || seconds >= limit) return std::nullopt;
     return modbus::Timestamp(static_cast<std::int64_t>(std::llround(seconds * 1e9)));
+}
+
+// A duration as people read latencies: "1.912 ms".
+inline std::string milliseconds_text(modbus::Timestamp d) {
+    char text[40];
+    std::snprintf(text, sizeof text, "%.3f ms", std::chrono::duration<double, std::milli>(d).count());
+    return text;
 }
 
 }  // namespace mbscope::analyzer

@@ -187,7 +187,6 @@ void check_data(Context& c) {
                    " the runner is using.",
                Authority::Manual, false},
               [&](RuleResult& r) {
-                  const auto expected = modbus::mirrored_value(p, line);
                   // Over Modbus/TCP unit 255 asks whichever device serves the connection (TCP §4.4.1), not a
                   // device by its address, which 255 never is on a serial line (SL §2.2: 1 to 247).
                   if (*p.mirrors == modbus::LineSetting::UnitId && !c.serial_framing() &&
@@ -198,6 +197,7 @@ void check_data(Context& c) {
                           "an address it holds (TCP §4.4.1)";
                       return;
                   }
+                  const auto expected = modbus::mirrored_value(p, line);
                   if (!expected) {
                       // Framing over Modbus/TCP, speed and parity over any network scheme: the device's line
                       // is on the far side of a gateway, its settings are not the runner's.

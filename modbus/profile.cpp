@@ -330,10 +330,14 @@ std::string format_number(double v, int decimals) {
     return buf;
 }
 
+bool in_block(std::uint16_t address, std::uint16_t start, const std::vector<std::uint16_t>& words) {
+    return address >= start && address - start < static_cast<int>(words.size());
+}
+
 std::optional<std::uint16_t> word_at(std::uint16_t address, std::uint16_t start,
                                      const std::vector<std::uint16_t>& words,
                                      const std::map<std::uint16_t, std::uint16_t>& context) {
-    if (address >= start && address - start < static_cast<int>(words.size())) return words[address - start];
+    if (in_block(address, start, words)) return words[address - start];
     if (auto it = context.find(address); it != context.end()) return it->second;
     return std::nullopt;
 }
@@ -389,8 +393,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
         };
         // The other half known from an earlier reply, not from this block: said, since it may have changed.
         const auto earlier = [&](std::uint16_t other) {
-            if (other >= start && other - start < static_cast<int>(words.size())) return;
-            v.other_half_earlier = other;
+            if (!in_block(other, start, words)) v.other_half_earlier = other;
         };
         if (e.words == 2 && p.address != address) {
             // A second half. Taken with its first when the block holds that (it then starts before this

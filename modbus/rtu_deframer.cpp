@@ -236,7 +236,8 @@ void RtuTimedDeframer::emit_unparsed(std::size_t begin, std::size_t length, Unpa
         Unparsed{seg_offset_ + begin, static_cast<std::uint32_t>(length), reason, times_[begin]});
 }
 
-void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out, bool input_ended) {
+void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {
+    const bool at_end = end != SegmentEnd::Open;
     const std::size_t n = seg_.size();
     std::size_t consumed = 0;
     if (at_end && n >= 4 && n <= max_rtu_adu_length && rtu_crc_ok(seg_)) {
@@ -278,7 +279,7 @@ void RtuTimedDeframer::close_segment(bool at_end, DeframeEvents& out, bool input
             }
         }
         flush_run();
-        if (!any_frame && !(input_ended && cut)) {
+        if (!any_frame && !(end == SegmentEnd::Input && cut)) {
             out.erase(out.begin() + static_cast<std::ptrdiff_t>(mark), out.end());
             if (n >= 4 && n <= max_rtu_adu_length)
                 emit_frame(0, n, out);
@@ -316,7 +317,7 @@ void RtuTimedDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp recei
         if (first_end < last_end_ + ct) first_end = last_end_ + ct;  // coarse timestamps: no overlap
         const auto silence = first_end - ct - last_end_;
         if (silence >= line_.t3_5()) {
-            close_segment(true, out);
+            close_segment(SegmentEnd::Silence, out);
         } else if (silence > line_.t1_5() && !seg_.empty()) {
             gaps_.push_back({seg_offset_ + seg_.size(),
                              static_cast<float>(static_cast<double>(silence.count()) / ct.count())});
@@ -330,15 +331,16 @@ void RtuTimedDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp recei
         times_[old + i] = first_end + ct * static_cast<std::int64_t>(i);
     last_end_ = times_.back();
     has_last_ = true;
-    if (seg_.size() > 4 * max_rtu_adu_length) close_segment(false, out);
+    if (seg_.size() > 4 * max_rtu_adu_length) close_segment(SegmentEnd::Open, out);
 }
 
 void RtuTimedDeframer::advance(Timestamp now, DeframeEvents& out) {
-    if (has_last_ && !seg_.empty() && now - last_end_ >= line_.t3_5()) close_segment(true, out);
+    if (has_last_ && !seg_.empty() && now - last_end_ >= line_.t3_5())
+        close_segment(SegmentEnd::Silence, out);
 }
 
 void RtuTimedDeframer::finish(DeframeEvents& out) {
-    close_segment(true, out, true);
+    close_segment(SegmentEnd::Input, out);
 }
 
 }  // namespace mbscope::modbus

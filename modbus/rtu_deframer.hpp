@@ -67,7 +67,10 @@ class RtuTimedDeframer {
         std::uint64_t before_offset;  // stream offset of the byte after the silence
         float chars;
     };
-    void close_segment(bool at_end, DeframeEvents& out, bool input_ended = false);
+    // What ends the bytes held: nothing yet (a long run: its front is framed, the tail kept), a silence of
+    // t3.5, or the end of the input.
+    enum class SegmentEnd : std::uint8_t { Open, Silence, Input };
+    void close_segment(SegmentEnd end, DeframeEvents& out);
     void emit_frame(std::size_t begin, std::size_t length, DeframeEvents& out);  // CRC status from the bytes
     void emit_unparsed(std::size_t begin, std::size_t length, UnparsedReason reason, DeframeEvents& out);
 
