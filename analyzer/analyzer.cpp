@@ -620,7 +620,13 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
             Pending given_up = std::move(oldest->second);
             pending_.erase(oldest);
             --flow.pending;
-            complete(given_up, nullptr, true);
+            // A timeout like any other, reported as one: the overflow warning is about the new request.
+            give_up(given_up, true,
+                    {FindingCode::PairNoResponse,
+                     no_response_message(given_up.request,
+                                         "before " + std::to_string(options_.max_pending_per_flow) +
+                                             " later requests on its link left no room to wait for it",
+                                         r.time)});
         }
     }
     const std::uint64_t serial = ++next_serial_;

@@ -1005,6 +1005,34 @@ TEST(Analyzer, ARequestWaitingWhenItsConnectionEndsIsGivenUpThen) {
     }
 }
 
+// A link with more requests waiting than the analyzer keeps gives its oldest up: a timeout, reported as one
+// (it was counted, with only the overflow warning about the newest request to show for it).
+TEST(Analyzer, ARequestGivenUpForRoomIsReportedAsUnanswered) {
+    an::AnalyzerOptions o;
+    o.max_pending_per_flow = 3;
+    Harness h(o);
+    for (std::uint16_t tid = 1; tid <= 4; ++tid)
+        h.send(true, read_request(tid), 1s + tid * 1ms);
+    h.send(false, read_response(4), 1s + 5ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairPendingOverflow), 1);
+    ASSERT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::PairNoResponse) {
+            EXPECT_EQ(f.frames, std::vector<std::uint64_t>{1});
+            EXPECT_NE(
+                f.message.find("before 3 later requests on its link left no room to wait for it, 3.000 ms "
+                               "after it"),
+                std::string::npos)
+                << f.message;
+        }
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").timeouts, 1u);
+    ASSERT_FALSE(h.sink.transactions.empty());
+    EXPECT_TRUE(h.sink.transactions[0].timed_out);
+    EXPECT_EQ(h.sink.transactions[0].request.index, 1u);
+    EXPECT_EQ(h.sink.transactions[0].findings, std::vector<mb::FindingCode>{mb::FindingCode::PairNoResponse});
+}
+
 // A timeout's transaction carries its finding, as an exception's does: a CSV row or a transaction record of
 // a request nobody answered must not read as a clean exchange. So does one unanswered at the end.
 TEST(Analyzer, AnUnansweredTransactionCarriesItsFinding) {
