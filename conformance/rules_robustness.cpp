@@ -79,7 +79,14 @@ void check_robustness(Context& c) {
 
 // Run last: it reads the times of every exchange of the run.
 void check_response_times(Context& c) {
-    auto times = c.session.response_times();
+    // Only replies to their request: one from another unit or for another transaction (or damaged) is
+    // judged by the envelope rules, and how long it took says nothing about this device's answers.
+    auto times = c.session.reply_times();
+    const std::size_t others = c.session.response_times().size() - times.size();
+    const std::string others_text = std::to_string(others) +
+                                    (others == 1 ? " reply that did not answer its request"
+                                                 : " replies that did not answer their requests") +
+                                    " (a bad checksum, another unit or transaction id)";
     const auto limit = c.profile.line.response_timeout_ms;
     c.run(
         {"robustness.response_time", "robustness", limit ? c.profile.source : "SL §2.4.1 (response timeout)",
@@ -89,7 +96,8 @@ void check_response_times(Context& c) {
         [&](RuleResult& r) {
             if (times.empty()) {
                 r.outcome = Outcome::Skip;
-                r.reason = "no reply was received in this run";
+                r.reason = others ? "no reply to its request was received in this run, only " + others_text
+                                  : "no reply was received in this run";
                 return;
             }
             std::sort(times.begin(), times.end());
@@ -97,7 +105,8 @@ void check_response_times(Context& c) {
                 return std::to_string(d.count() / 1000) + " µs";
             };
             r.observed = "min " + us(times.front()) + ", median " + us(times[times.size() / 2]) + ", max " +
-                         us(times.back()) + " over " + std::to_string(times.size()) + " replies";
+                         us(times.back()) + " over " + std::to_string(times.size()) + " replies" +
+                         (others ? " (not counted: " + others_text + ")" : "");
             r.expected = limit ? "max ≤ " + std::to_string(*limit) + " ms" : "measured";
             r.outcome =
                 !limit || times.back() <= std::chrono::milliseconds(*limit) ? Outcome::Pass : Outcome::Fail;

@@ -66,7 +66,11 @@ void Session::log(const tp::Exchange& ex, const std::string& note, bool one_requ
     }
     late_replies_ += ex.stale_replies.size() - copies;
     evidence_.push_back({note, ex.sent, ex.received, ex.elapsed, ex.timed_out});
-    if (!ex.timed_out) times_.push_back(ex.elapsed);
+    if (!ex.timed_out) {
+        times_.push_back(ex.elapsed);
+        if (ex.response && ex.response->checksum_ok && envelope_fault(ex).empty())
+            reply_times_.push_back(ex.elapsed);
+    }
     unanswered_in_a_row_ = ex.received.empty() ? unanswered_in_a_row_ + 1 : 0;
 }
 

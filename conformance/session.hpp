@@ -86,7 +86,15 @@ class Session {
     std::vector<Evidence> take_evidence() { return std::exchange(evidence_, {}); }
     const SessionOptions& options() const noexcept { return options_; }
     modbus::transport::Client& client() noexcept { return client_; }
-    std::vector<std::chrono::nanoseconds>& response_times() noexcept { return times_; }
+    // How long each reply that came in time took, whatever it was (a target that answers nothing is told
+    // by this list being empty); reply_times() only those of replies to their request: a good checksum and
+    // the request's unit and transaction id (what a manual's response time limit is about).
+    const std::vector<std::chrono::nanoseconds>& response_times() const noexcept { return times_; }
+    const std::vector<std::chrono::nanoseconds>& reply_times() const noexcept { return reply_times_; }
+    void forget_times() noexcept {
+        times_.clear();
+        reply_times_.clear();
+    }
     std::uint64_t requests() const noexcept { return requests_; }
     // Replies (or bytes) that came after their request was given up: set aside during a later request, or
     // found waiting before one.
@@ -138,6 +146,7 @@ class Session {
     Ledger touched_;
     std::chrono::steady_clock::time_point last_{};
     std::vector<std::chrono::nanoseconds> times_;
+    std::vector<std::chrono::nanoseconds> reply_times_;
     std::uint64_t requests_ = 0;
     std::uint64_t late_replies_ = 0;
     std::vector<Evidence> repeated_;

@@ -436,7 +436,7 @@ bool Campaign::remember_before_write(const WriteRange& range, const std::functio
     for (const auto& point : unknown)
         if (session_.touched().count(point)) doubtful_.insert(point);
     (void)session_.take_evidence();
-    session_.response_times().clear();
+    session_.forget_times();
     return ok;
 }
 

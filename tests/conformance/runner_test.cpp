@@ -174,6 +174,38 @@ INSTANTIATE_TEST_SUITE_P(Rules, EnvelopeFault,
                              return n;
                          });
 
+// A manual's response time limit is about the device's answers to its requests: replies with another
+// transaction id (the envelope rules' business) were timed with them, and a run with no reply to its
+// request passed the limit "over 28 replies".
+TEST(ResponseTime, CountsOnlyRepliesToTheirRequest) {
+    struct Case {
+        const char* fault;
+        Outcome outcome;
+        const char* said;
+    };
+    for (const Case c :
+         {Case{"wrong-tid", Outcome::Skip, "no reply to its request was received in this run, only "},
+          Case{"wrong-tid=0.5", Outcome::Pass,
+               " replies that did not answer their requests (a bad "
+               "checksum, another unit or transaction id)"},
+          Case{"", Outcome::Pass, " replies"}}) {
+        RunningServer server(c.fault[0] ? std::vector<std::string>{c.fault} : std::vector<std::string>{}, 1,
+                             "mmk-2030");
+        auto options = options_for();
+        options.run.rule_globs = {"fc.supported.*", "robustness.response_time"};
+        const auto run = certify(server, "tcp", "mmk-2030", options);
+        ASSERT_FALSE(run.report.results.empty()) << c.fault;
+        const RuleResult& r = run.report.results.back();
+        ASSERT_EQ(r.rule.id, "robustness.response_time");
+        EXPECT_EQ(r.outcome, c.outcome) << c.fault << ": " << r.reason << r.observed;
+        EXPECT_NE((r.reason + r.observed).find(c.said), std::string::npos)
+            << c.fault << ": " << r.reason << r.observed;
+        EXPECT_EQ((r.reason + r.observed).find("not counted") != std::string::npos,
+                  std::string(c.fault) == "wrong-tid=0.5")
+            << r.observed;
+    }
+}
+
 // The generic profile maps no coil: FC5 and FC15 were skipped as having "no readable and writable coil"
 // while echo.fc5 wrote the first coil the device reads. They rewrite that coil with its own value now.
 TEST(GenericProfile, SupportedCoilWritesAreTriedOnTheFirstCoilTheDeviceReads) {
