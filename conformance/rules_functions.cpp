@@ -225,9 +225,16 @@ void check_function_codes(Context& c) {
                authority_for(c.profile, "unsupported_function"), shaped_request_writes(fc)},
               [&](RuleResult& r) {
                   // A device that executes a write it says it does not support changes address 0: read
-                  // first, so that the end of the run writes it back (a table that cannot be read holds
-                  // nothing to restore). It ran under --read-only and was never restored.
-                  if (const auto table = written_by_shaped_request(fc)) c.session.remember(*table, 0, 1);
+                  // first, so that the end of the run writes it back (a table whose read is refused holds
+                  // nothing to restore; one whose read went unanswered may). It ran under --read-only and
+                  // was never restored.
+                  if (const auto table = written_by_shaped_request(fc);
+                      table && !c.session.remember(*table, 0, 1) && !c.session.last_read_refused()) {
+                      r.outcome = Outcome::Error;
+                      r.reason =
+                          "address 0 of the table it would write could not be read, so nothing was sent";
+                      return;
+                  }
                   const auto pdu = shaped_request(static_cast<std::uint8_t>(fc));
                   const auto ex = c.session.request(pdu, "function code " + std::to_string(fc));
                   expect_exception(r, ex, static_cast<std::uint8_t>(fc), code);

@@ -161,10 +161,15 @@ void check_write_encoding(Context& c) {
               [&](RuleResult& r) {
                   // A device that takes 0x1234 for a value changes the coil: it is read first and written
                   // back at the end (it ran under --read-only and was never restored). A device with no coil
-                  // to read (the CTH2265I's map has none) still gets the request: the value is judged before
-                  // the address (AP §6.5), and there is nothing there to restore.
+                  // to read (the CTH2265I's map has none: the read is refused) still gets the request: the
+                  // value is judged before the address (AP §6.5), and there is nothing there to restore. A
+                  // read that went unanswered says nothing of the kind: the coil may be there, unkept.
                   const auto start = c.facts(Table::Coils).first_valid().value_or(0);
-                  c.session.remember(Table::Coils, start, 1);
+                  if (!c.session.remember(Table::Coils, start, 1) && !c.session.last_read_refused()) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the coil's value could not be read, so nothing was written";
+                      return;
+                  }
                   const std::vector<std::uint8_t> pdu = {0x05, static_cast<std::uint8_t>(start >> 8),
                                                          static_cast<std::uint8_t>(start), 0x12, 0x34};
                   expect_exception(r, c.session.request(pdu, "value 0x1234"), 5, 0x03);

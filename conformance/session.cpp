@@ -26,8 +26,15 @@ bool is_exception(const tp::Exchange& ex) {
 // transaction, protocol and unit identifiers) and of the read's function. The values remembered for
 // restoring and the read-backs that call a point restored come from here: a reply to another transaction or
 // unit, or another function's of the same shape, holds no value of these points.
-std::optional<modbus::Pdu> read_answer(const tp::Exchange& ex, modbus::FunctionCode fc) {
+// The read's answer when it is a normal one; `refused` tells an exception 01 or 02 (no such function or
+// point) from no answer, a damaged one or another exception.
+std::optional<modbus::Pdu> read_answer(const tp::Exchange& ex, modbus::FunctionCode fc, bool& refused) {
     auto pdu = response_pdu(ex);
+    refused = false;
+    if (pdu && pdu->is_exception() && pdu->function_code() == static_cast<std::uint8_t>(fc)) {
+        const auto code = std::get<modbus::ExceptionResponse>(pdu->body).exception_code;
+        refused = code == 0x01 || code == 0x02;
+    }
     if (!pdu || pdu->is_exception() || pdu->function_code() != static_cast<std::uint8_t>(fc))
         return std::nullopt;
     return pdu;
@@ -194,7 +201,7 @@ std::optional<std::vector<std::uint16_t>> Session::read_registers(Table table, s
                                                                   const std::string& note) {
     const auto fc = modbus::read_function(table);
     const auto pdu = modbus::encode_pdu(modbus::make_read_request(fc, start, quantity));
-    const auto rsp = read_answer(request(pdu, note), fc);
+    const auto rsp = read_answer(request(pdu, note), fc, last_read_refused_);
     if (!rsp) return std::nullopt;
     const auto* regs = std::get_if<modbus::ReadRegistersResponse>(&rsp->body);
     if (!regs || regs->values.size() != quantity) return std::nullopt;
@@ -205,7 +212,7 @@ std::optional<std::vector<bool>> Session::read_bits(Table table, std::uint16_t s
                                                     const std::string& note) {
     const auto fc = modbus::read_function(table);
     const auto pdu = modbus::encode_pdu(modbus::make_read_request(fc, start, quantity));
-    const auto rsp = read_answer(request(pdu, note), fc);
+    const auto rsp = read_answer(request(pdu, note), fc, last_read_refused_);
     if (!rsp) return std::nullopt;
     const auto* bits = std::get_if<modbus::ReadBitsResponse>(&rsp->body);
     if (!bits || bits->values.size() * 8 < quantity) return std::nullopt;

@@ -74,6 +74,11 @@ class Session {
     // Keep the original values of [start, start+count) before writing them. False: they could not be read,
     // and the rule must not write.
     bool remember(modbus::Table table, std::uint16_t start, std::uint16_t count, std::uint16_t chunk = 1);
+    // Whether the last read (of remember(), read_registers(), read_bits(), read_point()) was refused with
+    // exception 01 or 02: the device has no such table or point, so a write there changes nothing to
+    // restore. False after no answer, a damaged one or another exception: then the values may well be there,
+    // and nothing may be written before they are kept.
+    bool last_read_refused() const noexcept { return last_read_refused_; }
     // Write back every remembered value, verify, and return the ledger.
     std::vector<Touched> restore();
     // What a person at a terminal is told before restore() at a polling interval, where it can take minutes
@@ -147,6 +152,7 @@ class Session {
     std::chrono::steady_clock::time_point last_{};
     std::vector<std::chrono::nanoseconds> times_;
     std::vector<std::chrono::nanoseconds> reply_times_;
+    bool last_read_refused_ = false;
     std::uint64_t requests_ = 0;
     std::uint64_t late_replies_ = 0;
     std::vector<Evidence> repeated_;

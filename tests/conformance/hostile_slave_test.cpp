@@ -11,8 +11,10 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <mutex>
 #include <optional>
 #include <random>
+#include <set>
 #include <sstream>
 #include <thread>
 #include <vector>
@@ -32,8 +34,11 @@ class HostileServer {
   public:
     // `honest_for`: answer that many requests as a correct slave would, then none at all (a device that
     // hung mid-run, its connection still open).
-    explicit HostileServer(unsigned seed, std::optional<std::size_t> honest_for = std::nullopt)
-        : random_(seed), honest_for_(honest_for) {
+    // `dropping_one_point_reads`: answer as a correct slave would, except a read of one point, never answered
+    // (a device that drops some requests, or an RS-485 line that loses them).
+    explicit HostileServer(unsigned seed, std::optional<std::size_t> honest_for = std::nullopt,
+                           bool dropping_one_point_reads = false)
+        : random_(seed), honest_for_(honest_for), dropping_one_point_reads_(dropping_one_point_reads) {
         listener_ = ::socket(AF_INET, SOCK_STREAM, 0);
         sockaddr_in a{};
         a.sin_family = AF_INET;
@@ -57,6 +62,11 @@ class HostileServer {
 
     std::uint16_t port() const { return port_; }
     std::size_t requests() const { return requests_; }
+    // The table and (first) address of each write (FC5, FC6, FC15, FC16, FC22, FC23) acknowledged so far.
+    std::vector<std::pair<modbus::Table, std::uint16_t>> writes() const {
+        std::lock_guard lock(mutex_);
+        return writes_;
+    }
 
   private:
     struct Connection {
@@ -150,6 +160,21 @@ class HostileServer {
             if (requests_ <= *honest_for_) send(c, tid, 0, unit, plausible(pdu));
             return;
         }
+        if (dropping_one_point_reads_) {
+            const std::uint8_t fc = pdu.empty() ? 0 : pdu[0];
+            if (fc >= 1 && fc <= 4 && pdu.size() == 5 && pdu[3] == 0 && pdu[4] == 1) return;
+            // FC23 writes at its second address; the others at their first.
+            const std::size_t at = fc == 23 ? 5 : 1;
+            if ((fc == 5 || fc == 6 || fc == 15 || fc == 16 || fc == 22 || fc == 23) &&
+                pdu.size() >= at + 2) {
+                std::lock_guard lock(mutex_);
+                writes_.emplace_back(
+                    fc == 5 || fc == 15 ? modbus::Table::Coils : modbus::Table::HoldingRegisters,
+                    static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]));
+            }
+            send(c, tid, 0, unit, plausible(pdu));
+            return;
+        }
         switch (random_() % 11) {
             case 0:
             case 1:
@@ -193,6 +218,9 @@ class HostileServer {
 
     std::mt19937 random_;
     std::optional<std::size_t> honest_for_;
+    bool dropping_one_point_reads_ = false;
+    mutable std::mutex mutex_;
+    std::vector<std::pair<modbus::Table, std::uint16_t>> writes_;
     int listener_ = -1;
     std::uint16_t port_ = 0;
     std::thread thread_;
@@ -288,6 +316,39 @@ TEST(Restore, StopsWritingToADeviceThatStoppedAnswering) {
         EXPECT_FALSE(t.problem.empty()) << t.address;
     }
     EXPECT_EQ(ledger.back().problem, "not restored: no reply to 8 requests in a row");
+}
+
+// A rule that writes reads its point first so the end of the run can write it back; where that read went
+// unanswered it writes nothing. value.fc5.invalid wrote 0x1234 to its coil anyway (and a device that took it
+// was left changed, the report saying everything was restored), as did fc.unsupported.N for a write.
+TEST(Restore, NothingIsWrittenWhereTheOriginalCouldNotBeRead) {
+    HostileServer server(1, std::nullopt, true);
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(server.port())));
+    ASSERT_TRUE(client.has_value()) << client.error();
+    CheckOptions options;
+    options.session.unit = 1;
+    options.session.timeout = std::chrono::milliseconds(20);
+    // FC8 first: a target that answers nothing is not judged at all.
+    options.run.rule_globs = {"fc.supported.8", "value.fc5.invalid", "fc.unsupported.22",
+                              "fc.unsupported.23"};
+    const Report report = run_check(*client, profile("cth2265i"), options);
+    ASSERT_FALSE(report.results.empty());
+    std::set<std::pair<modbus::Table, std::uint16_t>> kept;
+    for (const auto& t : report.restored)
+        kept.insert({t.table, t.address});
+    for (const auto& [table, address] : server.writes())
+        EXPECT_TRUE(kept.count({table, address}))
+            << modbus::to_string(table) << ' ' << address << " written without its value kept";
+    for (const auto& x : report.results)
+        if (x.rule.id == "value.fc5.invalid") {
+            EXPECT_EQ(x.outcome, Outcome::Error);
+            EXPECT_EQ(x.reason, "the coil's value could not be read, so nothing was written");
+        } else if (x.rule.id != "fc.supported.8") {
+            EXPECT_EQ(x.outcome, Outcome::Error) << x.rule.id;
+            EXPECT_EQ(x.reason,
+                      "address 0 of the table it would write could not be read, so nothing was sent");
+        }
+    EXPECT_EQ(report.results.size(), 4u);
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, AgainstAHostileSlave,
