@@ -319,10 +319,20 @@ void Analyzer::packet_in_source(const Packet& p) {
         now_ = p.time;
     else if (clock_stepped_back(now_, p.time))
         clock_went_back(p.time, "packet " + std::to_string(p.number));
+    // A record of serial bytes: the frame its line holds may continue in it, and is ended by it otherwise,
+    // at its own time; requests are timed out at this record's time once its bytes are in.
+    const bool serial_record =
+        (p.linktype >= link_user0 && p.linktype <= link_user15) || p.linktype == link_rtac_serial;
+    if (!serial_links_.empty()) end_silent_frames(now_, serial_record ? &source_.str() : nullptr);
+    if (serial_record) {
+        if (p.linktype == link_rtac_serial)
+            rtac_packet(p);
+        else
+            user_dlt_packet(p);
+        return expire(now_, false);
+    }
     expire(now_, false);
-    if (p.linktype >= link_user0 && p.linktype <= link_user15) return user_dlt_packet(p);
     if (p.linktype == link_upper_pdu) return exported_pdu(p);
-    if (p.linktype == link_rtac_serial) return rtac_packet(p);
     L4Packet l4;
     IpFragment fragment;
     std::optional<IpDatagram> whole;  // a reassembled datagram: l4's payload points into it
@@ -1688,17 +1698,24 @@ std::optional<SerialLine> Analyzer::serial_line(const std::string& source) const
     return it->second->line;
 }
 
-void Analyzer::idle(Timestamp now) {
-    if (now <= now_) return flush_output();
+void Analyzer::end_silent_frames(Timestamp now, const std::string* except) {
+    const SharedText source = source_;
     for (auto& [name, link] : serial_links_) {
         // A timed RTU line holding the start of a frame: its t3.5 of silence has passed by now. (An ASCII
         // frame ends at its LF; a line whose framing is not told yet has no frames to end.)
         if (link->framing != Framing::Rtu || !link->timed || !link->timed->holding() ||
-            !link->last_received.count() || now - link->last_received < link->line.t3_5())
+            !link->last_received.count() || now - link->last_received < link->line.t3_5() ||
+            (except && link->source == *except))
             continue;
         source_ = link->source;
         close_frames(*link, now);
     }
+    source_ = source;
+}
+
+void Analyzer::idle(Timestamp now) {
+    if (now <= now_) return flush_output();
+    end_silent_frames(now, nullptr);
     now_ = now;
     expire(now_, false);
     flush_output();

@@ -202,6 +202,11 @@ class Analyzer {
     // The frame on the line is over (a direction change, the UART's end of message): in order with the
     // chunks around it.
     void close_frames(SerialLink& link, modbus::Timestamp t, std::uint64_t packet = 0);
+    // Ends the frame in progress, at its own time, on every timed RTU line whose t3.5 of silence has passed
+    // by `now`, but the line of the source named `except` (whose bytes at `now` are still to come): before
+    // requests are timed out at `now`, a reply held for the silence after it until the line's next bytes,
+    // more than a timeout later, was a timeout and then a late reply.
+    void end_silent_frames(modbus::Timestamp now, const std::string* except);
     void deframe(SerialLink& link, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
                  modbus::Direction hint, std::uint64_t packet);
     // `input_ended`: at the end of the input, where a frame is cut rather than ended by a silence.

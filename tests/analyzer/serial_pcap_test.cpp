@@ -15,6 +15,7 @@ namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
 using mbscope::test::bytes;
+using mbscope::test::Collect;
 using mbscope::test::decode_pcap;
 using mbscope::test::pcap_file;
 using mbscope::test::PcapRecord;
@@ -88,6 +89,50 @@ TEST(UserLinkType, RtuChunksAreFramedWithTheirCaptureTimes) {
     EXPECT_EQ(*d->sink.transactions[0].latency, 50ms);
     EXPECT_TRUE(d->sink.findings.empty());
     EXPECT_TRUE(d->summary.input_errors.empty());
+}
+
+// A frame on a timed line ends with the silence after it, seen when the line's next bytes arrive: a reply
+// 50 ms after its request, with the next poll 1.2 s later, was held until then, and the request was timed out
+// first (a no_response, then the reply "50 ms after it, past the 1000 ms timeout"). The same when the next
+// record is another line's (two serial captures decoded together).
+TEST(UserLinkType, AReplyHeldForItsSilenceIsPairedBeforeRequestsTimeOut) {
+    std::vector<PcapRecord> records;
+    for (int i = 0; i < 3; ++i) {
+        records.push_back({1s + i * 1200ms, rtu_request});
+        records.push_back({1s + i * 1200ms + 50ms, rtu_response});
+    }
+    auto d = decode_pcap(pcap_file(link_user0, records), user_dlt(mb::Framing::Rtu));
+    ASSERT_EQ(d->sink.transactions.size(), 3u);
+    for (const auto& t : d->sink.transactions) {
+        ASSERT_TRUE(t.latency);
+        EXPECT_EQ(*t.latency, 50ms);
+        EXPECT_FALSE(t.timed_out);
+    }
+    EXPECT_TRUE(d->sink.findings.empty());
+
+    Collect sink;
+    an::Analyzer a(user_dlt(mb::Framing::Rtu), sink);
+    std::uint64_t number = 0;
+    const auto record = [&](const char* source, mb::Timestamp t, const std::vector<std::uint8_t>& bytes) {
+        an::Packet p;
+        p.number = ++number;
+        p.time = t;
+        p.linktype = link_user0;
+        p.data = bytes;
+        p.original_length = static_cast<std::uint32_t>(bytes.size());
+        a.packet(source, p);
+    };
+    record("a.pcap", 1s, rtu_request);
+    record("a.pcap", 1s + 50ms, rtu_response);
+    record("b.pcap", 2500ms, rtu_request);  // past a.pcap's deadline for its request, 2 s
+    record("b.pcap", 2550ms, rtu_response);
+    record("a.pcap", 3s, rtu_request);
+    a.finish();
+    EXPECT_EQ(a.summary().devices.at("serial a.pcap unit 17").responses, 1u);
+    EXPECT_EQ(a.summary().devices.at("serial a.pcap unit 17").timeouts, 0u);
+    EXPECT_EQ(a.summary().devices.at("serial b.pcap unit 17").responses, 1u);
+    for (const auto& f : sink.findings)
+        EXPECT_EQ(f.code, mb::FindingCode::PairNoResponseAtEnd) << f.message;
 }
 
 TEST(UserLinkType, AnyOfTheSixteenCarriesAscii) {
