@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <type_traits>
 
@@ -342,6 +343,44 @@ std::optional<std::uint16_t> word_at(std::uint16_t address, std::uint16_t start,
     return std::nullopt;
 }
 
+// The decimals of a value: the encoding's own, or those another register gives (`decimals_from`, 0 to 9);
+// nullopt when that register is neither in the block nor known from earlier, or holds no such number.
+std::optional<int> decimals_of(const Encoding& e, std::uint16_t start,
+                               const std::vector<std::uint16_t>& words,
+                               const std::map<std::uint16_t, std::uint16_t>& context) {
+    if (!e.decimals_from) return e.decimals;
+    const auto d = word_at(e.decimals_from->address, start, words, context);
+    if (!d || *d > 9) return std::nullopt;
+    return *d;
+}
+
+// What one 8-bit field holds: its enumeration's meaning, its bits' names, its character, else its number.
+std::string byte_field_text(const Encoding& e, const ByteField& field, std::uint8_t b) {
+    std::string text = std::to_string(b);
+    if (field.ascii && b >= 0x20 && b < 0x7F) return text + " '" + static_cast<char>(b) + "'";
+    std::string meanings;
+    for (const auto& ev : e.values)
+        if (ev.value == b)
+            meanings += (meanings.empty() ? "" : " or ") + (ev.text_en.empty() ? ev.text : ev.text_en);
+    for (const auto& bit : e.bits)
+        if (bit.bit < 8 && ((b >> bit.bit) & 1u))
+            meanings += (meanings.empty() ? "" : ", ") + (bit.name_en.empty() ? bit.name : bit.name_en);
+    return meanings.empty() ? text : text + " (" + meanings + ")";
+}
+
+// "alarm 1 or 2: 3 (HI), alarm 2 or 1: 4 (SHI)": each byte of a register of two 8-bit fields, under the
+// manual's name for it, or as the high and the low byte where the manual does not say which is which.
+std::string byte_fields_text(const Encoding& e, std::uint16_t w) {
+    std::string text;
+    for (int i = 0; i < 2; ++i) {
+        const ByteField& f = e.bytes[static_cast<std::size_t>(i)];
+        const bool named = !f.name.empty() && f.name != "?";
+        text += (i ? ", " : "") + (named ? f.name : std::string(i == 0 ? "high byte" : "low byte")) + ": " +
+                byte_field_text(e, f, static_cast<std::uint8_t>(i == 0 ? w >> 8 : w & 0xFF));
+    }
+    return text;
+}
+
 // The number two registers hold as a 32-bit value of the encoding's type and word order: decoding a read
 // and judging a write take it the same way.
 double value_32(const Encoding& e, std::uint16_t first, std::uint16_t second) {
@@ -423,14 +462,9 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 break;
             case EncodingType::Scaled: {
                 const double raw = e.is_signed ? static_cast<std::int16_t>(w) : w;
-                int decimals = 0;
-                if (e.decimals_from) {
-                    auto d = word_at(e.decimals_from->address, start, words, context);
-                    if (d && *d <= 9)
-                        decimals = *d;
-                    else
-                        v.partial = true;  // decimal point register not known: shown unscaled
-                }
+                const auto known = decimals_of(e, start, words, context);
+                const int decimals = known.value_or(0);
+                v.partial = !known;  // decimal point register not known: shown unscaled
                 v.number = raw / std::pow(10.0, decimals);
                 v.text = format_number(*v.number, decimals) +
                          (v.partial ? " (unscaled: decimal point unknown)" : "");
@@ -466,15 +500,20 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 if (!other) {
                     v.partial = true;
                     v.text = std::to_string(w) + " (one half only)";
-                } else {
-                    const std::uint16_t hi = high_first ? w : *other, lo = high_first ? *other : w;
-                    const double whole =
-                        digits ? hi * 10000.0 + lo : static_cast<double>((std::uint32_t{hi} << 16) | lo);
-                    v.number = whole / std::pow(10.0, e.decimals);
-                    v.raw = {hi, lo};
-                    v.text = format_number(*v.number, e.decimals);
-                    earlier(*e.pair);
+                    break;
                 }
+                const std::uint16_t hi = high_first ? w : *other, lo = high_first ? *other : w;
+                const double whole =
+                    digits ? hi * 10000.0 + lo : static_cast<double>((std::uint32_t{hi} << 16) | lo);
+                v.raw = {hi, lo};
+                earlier(*e.pair);
+                // A total whose decimal point another register gives (MK 3.13, 3.22: PT.DEC of the
+                // totalization, 000:1243): shown unscaled, and said to be, while that register is unknown.
+                const auto decimals = decimals_of(e, start, words, context);
+                v.number = whole / std::pow(10.0, decimals.value_or(0));
+                v.text = format_number(*v.number, decimals.value_or(0)) +
+                         (decimals ? "" : " (unscaled: decimal point unknown)");
+                v.partial = !decimals;
                 break;
             }
             case EncodingType::U32:
@@ -505,9 +544,17 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 v.number = w ? 1 : 0;
                 break;
             case EncodingType::Bytes2:
-            case EncodingType::Formula:
+                // Two fields, each named and shown on its own: the number is the register's.
                 v.number = w;
+                v.text = byte_fields_text(e, w);
                 break;
+            case EncodingType::Formula: {
+                v.number = evaluate(e.formula, e.is_signed ? static_cast<std::int16_t>(w) : w);
+                char text[32];
+                std::snprintf(text, sizeof text, "%.7g", *v.number);
+                v.text = text;
+                break;
+            }
         }
         out.push_back(with_text(std::move(v)));
     }

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "modbus/addressing.hpp"
+#include "modbus/formula.hpp"
 #include "modbus/serial_line.hpp"  // LineState
 
 namespace mbscope::modbus {
@@ -74,6 +75,12 @@ struct BitName {
     std::string name_en;
 };
 
+// Bytes2: one of the two 8-bit fields of a register.
+struct ByteField {
+    std::string name;    // the manual's, "?" where it does not say which byte holds which field
+    bool ascii = false;  // an ASCII character ("8 bits ascii": CTH2265I TAG, 003:634-637)
+};
+
 struct Encoding {
     EncodingType type = EncodingType::U16;
     int decimals = 0;
@@ -86,6 +93,9 @@ struct Encoding {
     int words = 1;              // 2 for 32-bit values held in this and the next register
     std::vector<BitName> bits;  // Bits
     std::string expr;           // Formula, as the manual gives it
+    Formula formula;            // Formula: expr, parsed
+    // Bytes2: the high byte's field, then the low byte's; `values` and `bits` apply to each byte.
+    std::array<ByteField, 2> bytes;
 };
 
 // The raw values a point's register or registers can hold: 0..65535 (-32768..32767 signed) for one

@@ -149,11 +149,13 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
         e.words = wide(e.type) ? 2 : 1;  // "u32" was read as one register
         if (e.type == EncodingType::Scaled || e.type == EncodingType::Enum ||
             e.type == EncodingType::Digits4High || e.type == EncodingType::Digits4Low ||
-            e.type == EncodingType::U32Low || e.type == EncodingType::U32High)
+            e.type == EncodingType::U32Low || e.type == EncodingType::U32High ||
+            e.type == EncodingType::Formula)
             r.error(ptr, "\"" + std::string(to_string(e.type)) + "\" needs an object with its " +
-                             (e.type == EncodingType::Scaled ? "\"decimals_from\""
-                              : e.type == EncodingType::Enum ? "\"values\""
-                                                             : "\"pair\""));
+                             (e.type == EncodingType::Scaled    ? "\"decimals_from\""
+                              : e.type == EncodingType::Enum    ? "\"values\""
+                              : e.type == EncodingType::Formula ? "\"expr\""
+                                                                : "\"pair\""));
         return e;
     }
     if (!j.is_object()) {
@@ -216,6 +218,24 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
         }
     }
     e.expr = r.string(j, "expr", ptr, false).value_or("");
+    if (e.type == EncodingType::Formula) {
+        if (e.expr.empty()) {
+            r.error(ptr, "\"formula\" needs \"expr\"");
+        } else if (auto f = parse_formula(e.expr); !f) {
+            r.error(ptr + "/expr", "\"" + e.expr + "\": " + f.error());
+        } else {
+            e.formula = std::move(f).value();
+        }
+    }
+    if (e.type == EncodingType::Bytes2)
+        for (int i = 0; i < 2; ++i) {
+            const char* half = i == 0 ? "high" : "low";
+            const auto field = r.child(j, half);
+            if (!field) continue;
+            const std::string p = ptr + "/" + half;
+            e.bytes[i].name = r.string(*field, "name", p, false).value_or("");
+            if (auto a = r.child(*field, "ascii"); a && a->is_boolean()) e.bytes[i].ascii = a->get<bool>();
+        }
     return e;
 }
 

@@ -451,7 +451,13 @@ TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
         {"address": 5, "name": "c", "access": "r", "encoding": "scaled", "source": "000:5"},
         {"address": 6, "name": "d", "access": "r", "encoding": "enum", "source": "000:6"},
         {"address": 7, "name": "e", "access": "r", "encoding": "u32_low", "source": "000:7"},
-        {"address": 8, "name": "f", "access": "r", "encoding": {"type": "s32", "words": 1}, "source": "000:8"}
+        {"address": 8, "name": "f", "access": "r", "encoding": {"type": "s32", "words": 1}, "source": "000:8"},
+        {"address": 10, "name": "g", "access": "r", "encoding": "formula", "source": "000:10"},
+        {"address": 11, "name": "h", "access": "r", "encoding": {"type": "formula"}, "source": "000:11"},
+        {"address": 12, "name": "i", "access": "r", "encoding": {"type": "formula", "expr": "I = 4 + * R"},
+         "source": "000:12"},
+        {"address": 13, "name": "j", "access": "r", "encoding": {"type": "formula", "expr": "I = 4 + 16 * R / 65536"},
+         "source": "000:13"}
       ]},
       "models": [{"id": "m"}]
     })";
@@ -462,6 +468,9 @@ TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
         {"/tables/holding_registers/3/encoding", "\"enum\" needs an object with its \"values\""},
         {"/tables/holding_registers/4/encoding", "\"u32_low\" needs an object with its \"pair\""},
         {"/tables/holding_registers/5/encoding/words", "a 32-bit value takes two registers"},
+        {"/tables/holding_registers/6/encoding", "\"formula\" needs an object with its \"expr\""},
+        {"/tables/holding_registers/7/encoding", "\"formula\" needs \"expr\""},
+        {"/tables/holding_registers/8/encoding/expr", "\"I = 4 + * R\": unexpected '*' at character 9"},
     };
     EXPECT_EQ(errors, expected);
     ASSERT_EQ(l.profiles.size(), 1u);
@@ -470,6 +479,9 @@ TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
     EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 1)->encoding.words, 2);
     EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 2), p.find(mb::Table::HoldingRegisters, 1));
     EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 4), p.find(mb::Table::HoldingRegisters, 3));
+    const auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 13, {32768});
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].text, "12");
 }
 
 // Fields of the wrong type where the loader used to take a default with nlohmann's value(), which throws on

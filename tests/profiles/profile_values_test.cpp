@@ -1,0 +1,74 @@
+// Values decoded with the bundled profiles as the manuals give them: the CTH2265I's current output by its
+// formula (003:592-594, CTH-ENC-04), its registers of two 8-bit fields (003:620-637, CTH-ENC-05..08), and
+// the MK totalizers' 8-digit totals with the decimal point the totalization's PT.DEC register gives
+// (PT.DEC "três casas decimais" puts three digits after the point).
+#include <gtest/gtest.h>
+
+#include "modbus/storage/profile_store.hpp"
+
+namespace mb = mbscope::modbus;
+
+namespace {
+
+const mb::Profile& bundled(const std::string& id) {
+    static const mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    static std::map<std::string, mb::Profile> loaded;
+    auto it = loaded.find(id);
+    if (it == loaded.end()) it = loaded.emplace(id, store.load(id).value()).first;
+    return it->second;
+}
+
+mb::NamedValue one(const std::string& id, std::uint16_t address, std::uint16_t word) {
+    const auto v = mb::decode_registers(bundled(id), mb::Table::HoldingRegisters, address, {word});
+    EXPECT_EQ(v.size(), 1u);
+    return v.empty() ? mb::NamedValue{} : v[0];
+}
+
+}  // namespace
+
+TEST(CthValues, TheCurrentOutputIsTheManualsFormulaInMilliamperes) {
+    // R = 0 → 4 mA, 32768 → 12 mA, 65535 → 19.99976 mA (the manual's three examples)
+    EXPECT_EQ(one("cth2265i", 4011, 0).text, "4");
+    EXPECT_DOUBLE_EQ(*one("cth2265i", 4011, 0).number, 4.0);
+    EXPECT_EQ(one("cth2265i", 4011, 32768).text, "12");
+    EXPECT_EQ(one("cth2265i", 4011, 65535).text, "19.99976");
+    EXPECT_EQ(one("cth2265i", 4011, 0).point->unit, "mA");
+}
+
+TEST(CthValues, TwoEightBitFieldsAreShownEachOnItsOwn) {
+    // Alarm types 3 = HI and 4 = SHI (003:621); which alarm is in which byte the manual does not say.
+    EXPECT_EQ(one("cth2265i", 4021, 0x0304).text, "alarm 1 or 2: 3 (HI), alarm 2 or 1: 4 (SHI)");
+    // Time base 2 = hour, volume unit 16 = m³ (003:631), bytes not named by the manual.
+    EXPECT_EQ(one("cth2265i", 4029, 0x0210).text, "high byte: 2 (hour), low byte: 16 (m³)");
+    // TAG characters, "8 bits ascii" each (003:634).
+    EXPECT_EQ(one("cth2265i", 4032, 0x4142).text, "Tag 0: 65 'A', Tag 1: 66 'B'");
+    EXPECT_EQ(one("cth2265i", 4035, 0x2001).text, "Tag 6: 32 ' ', Tag 7: 1");
+    // K-factor points and digital filter (003:632): numbers.
+    EXPECT_EQ(one("cth2265i", 4030, 0x0A05).text, "high byte: 10, low byte: 5");
+    // The register's number stays the register's.
+    EXPECT_DOUBLE_EQ(*one("cth2265i", 4021, 0x0304).number, 0x0304);
+}
+
+TEST(MkValues, ATotalTakesTheDecimalPointOfItsTotalization) {
+    struct Case {
+        const char* id;
+        std::uint16_t total;     // the first four digits of channel 1's total; the last four follow
+        std::uint16_t decimals;  // the totalization's PT.DEC
+    };
+    // 3.13: registers 2-3 and 125 (000:1243, 1355); 3.22: registers 0-1 and 32 (000:3859, 3894).
+    for (const Case c : {Case{"mmk-2030-tot", 2, 125}, Case{"mmk-2030-tot-fcs", 0, 32}}) {
+        SCOPED_TRACE(c.id);
+        const auto& p = bundled(c.id);
+        auto v =
+            mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1234, 5678}, {{c.decimals, 3}});
+        ASSERT_EQ(v.size(), 2u);
+        EXPECT_DOUBLE_EQ(*v[0].number, 12345.678);
+        EXPECT_EQ(v[0].text, "12345.678");
+        EXPECT_FALSE(v[0].partial);
+        // With register 125 not known, the digits are shown, said to be unscaled, and carry no number.
+        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1234, 5678});
+        EXPECT_TRUE(v[0].partial);
+        EXPECT_EQ(v[0].text, "12345678 (unscaled: decimal point unknown)");
+        EXPECT_EQ(v[0].number, std::nullopt);
+    }
+}
