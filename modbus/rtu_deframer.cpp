@@ -102,6 +102,20 @@ DeframeStep skip_at_end(std::span<const std::uint8_t> buf, Candidates c) noexcep
     return {Kind::Skip, valid_at, true, UnparsedReason::Truncated};
 }
 
+// At the end of the input, bytes that fill the shorter candidate exactly while the longer runs past the end:
+// a frame damaged in its CRC, or the first bytes of a longer one cut by the end of the input. FC3's
+// "11 03 00 60 00" is a request to read 96 cut after five bytes, and a reply with byte count 0, which no
+// reply to a read carries. Damaged when they decode as a PDU that breaks no rule either way; else cut. Out of
+// rtu_step's hot path, as skip_at_end.
+bool cut_rather_than_damaged(std::span<const std::uint8_t> buf, Candidates c) noexcept {
+    const bool longer_runs_past = c.need > buf.size() || (c.count == 2 && c.longer > buf.size());
+    if (!longer_runs_past || buf.size() < 4) return false;
+    const std::span<const std::uint8_t> pdu(buf.data() + 1, buf.size() - 3);
+    const auto request = decode_request(pdu);
+    const auto response = decode_response(pdu);
+    return !(request && request->violations.empty()) && !(response && response->violations.empty());
+}
+
 }  // namespace
 
 DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept {
@@ -127,7 +141,8 @@ DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept {
         for (std::size_t i = 0; i < c.count; ++i) {
             const std::size_t len = c.length(i);
             if (buf.size() < len) continue;
-            if (len == buf.size() && at_end) return {Kind::Complete, len, false};
+            if (len == buf.size() && at_end && !cut_rather_than_damaged(buf, c))
+                return {Kind::Complete, len, false};
             const ProbeResult after = probe_valid(from(buf, len), at_end);
             switch (after.probe) {
                 case Probe::Yes:

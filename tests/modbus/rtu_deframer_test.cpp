@@ -263,6 +263,49 @@ TEST(RtuTimedDeframer, TheEndOfTheInputCutsAFrameASilenceEndsIt) {
     EXPECT_FALSE(std::get<mb::Frame>(out[0]).checksum_ok);
 }
 
+// A request cut after five bytes, "11 03 00 60 00", reads also as a whole reply to FC3 with byte count 0
+// and a bad CRC: it was taken for that frame (a reply to nobody, a malformed PDU, a device sending what no
+// device sends). No reply to a read carries byte count 0: the bytes are the start of the longer frame, cut
+// by the end of the input, in the untimed and the timed deframer alike. A damaged reply of the shorter
+// length whose PDU breaks no rule ("11 03 02 00 01": one register) stays a frame whose CRC fails.
+TEST(RtuDeframer, AtTheEndBytesThatOnlyAMalformedShorterFrameFitsAreCut) {
+    const auto request = hex("11 03 00 60 00 03 07 45");
+    struct Case {
+        const char* tail;
+        bool cut;
+    };
+    for (const Case c : {Case{"11 03 00 60 00", true}, Case{"11 03 02 00 01 00 00", false}}) {
+        SCOPED_TRACE(c.tail);
+        const auto tail = hex(c.tail);
+        for (const bool timed : {false, true}) {
+            mb::DeframeEvents out;
+            if (timed) {
+                mb::RtuTimedDeframer d(mb::SerialLine{});
+                d.feed(request, 1s, out);
+                d.feed(tail, 2s, out);
+                d.finish(out);
+            } else {
+                mb::RtuDeframer d;
+                d.feed(concat({request, tail}), out);
+                d.finish(out);
+            }
+            expect_every_byte_accounted(out, request.size() + tail.size());
+            ASSERT_EQ(out.size(), 2u) << timed;
+            EXPECT_TRUE(std::get<mb::Frame>(out[0]).checksum_ok);
+            if (c.cut) {
+                const auto& u = std::get<mb::Unparsed>(out[1]);
+                EXPECT_EQ(u.reason, mb::UnparsedReason::Truncated);
+                EXPECT_EQ(u.offset, 8u);
+                EXPECT_EQ(u.length, tail.size());
+            } else {
+                const auto& f = std::get<mb::Frame>(out[1]);
+                EXPECT_FALSE(f.checksum_ok);
+                EXPECT_EQ(f.wire_length, tail.size());
+            }
+        }
+    }
+}
+
 TEST(RtuTimedDeframer, FramesGluedInOneChunkAreSplitByContent) {
     // A USB adapter delivered request and response in one read: no silence visible between them.
     auto glued = hex("11 03 00 60 00 03 07 45 11 03 06 02 2B 00 00 00 64 C8 BA");
