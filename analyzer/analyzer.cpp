@@ -44,6 +44,11 @@ struct Analyzer::Flow {
         std::memcpy(last_response.data(), r.frame.bytes.data(), r.frame.length);
         last_response_index = r.index;
     }
+    // The last request to unit 0 on the link whose checksum failed (frame index, 0: none), and when: a reply
+    // nobody waits for right after it answers a frame every slave should have discarded, or one the capture
+    // damaged.
+    std::uint64_t damaged_request = 0;
+    Timestamp damaged_request_time{0};
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
     // "server unit N" and its statistics, made once per unit seen on the link rather than once per frame.
     struct Unit {
@@ -467,14 +472,15 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
         else
             r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
                       std::to_string(pdu.error().offset);
-        on_frame(flow, r, *stats);
+        on_frame(flow, r, stats);
     }
     events.clear();
 }
 
-void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats& stats) {
+void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     ++summary_.frames;
-    if (r.frame.framing != Framing::Tcp && !r.frame.checksum_ok) ++stats.checksum_errors;
+    const bool damaged = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok;
+    if (damaged && stats) ++stats->checksum_errors;
     sink_.frame(r);
     for (auto code : r.frame.findings) {
         std::string message(info(code).summary);
@@ -493,10 +499,19 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         for (auto code : r.pdu->violations)
             report(code, r, std::string(info(code).summary));
     if (!r.error.empty()) report(FindingCode::PduMalformed, r, "PDU could not be decoded: " + r.error);
-    if (r.direction == Direction::Request)
-        on_request(flow, r, stats);
-    else
-        on_response(flow, r);
+    if (r.direction == Direction::Response) return on_response(flow, r);
+    if (damaged && r.frame.unit_id() == 0) {
+        // Every slave discards a frame whose CRC or LRC fails (SL §2.5.1.2, §2.5.2.2; MK-ERR-01,
+        // 000:270-272): one to unit 0 is no broadcast that every slave executes (line noise of four bytes
+        // made one, and a device "unit 0"). Its checksum finding says what happened; it is counted. (A
+        // damaged request to another unit still waits: a capture can damage what the device got whole,
+        // and its reply is then paired with it.)
+        ++summary_.damaged_broadcasts;
+        flow.damaged_request = r.index;
+        flow.damaged_request_time = r.time;
+        return;
+    }
+    on_request(flow, r, *stats);
 }
 
 namespace {
@@ -712,7 +727,9 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             return;
         }
     }
+    // (Not after a damaged request since: that is the one it answers, the same question again.)
     if (it == pending_.end() && r.frame.checksum_ok && r.frame.length == flow.last_response_length &&
+        flow.damaged_request < flow.last_response_index &&
         std::memcmp(r.frame.bytes.data(), flow.last_response.data(), r.frame.length) == 0) {
         // No request waits for it. (Over Modbus/TCP a request that does was found above by its transaction
         // id; on a serial line with a request waiting, the same bytes may be that request's own reply to the
@@ -752,7 +769,14 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                                                        " waits for a reply on this link") +
                     (after_gap ? " (bytes of the request stream were not captured: its request may be "
                                  "among them)"
-                               : ""));
+                               : "") +
+                    (flow.damaged_request && r.time.count() && r.time >= flow.damaged_request_time &&
+                             r.time - flow.damaged_request_time <= options_.serial_timeout
+                         ? " (after frame " + std::to_string(flow.damaged_request) +
+                               ", a request whose checksum failed: the device answered a frame it should "
+                               "have "
+                               "discarded, or the capture damaged the request)"
+                         : ""));
             return;
         }
     }
@@ -1165,14 +1189,20 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         if (r.direction == Direction::Response && !frame.checksum_ok)
             if (const auto it = pending_.find({flow.id, pairing_id(frame)}); it != pending_.end())
                 unit = it->second.request.frame.unit_id();
-        r.device = device_of(flow, unit, stats);
+        // A request to unit 0 whose checksum fails is no broadcast (see on_frame), and its unit byte may be
+        // among the damage, or the frame line noise: it is unit 0's only when broadcasts were seen on the
+        // line, else no device's, rather than a device the noise made up.
+        const bool named_by_damage =
+            r.direction == Direction::Request && !frame.checksum_ok && unit == 0 &&
+            std::none_of(flow.units.begin(), flow.units.end(), [](const Flow::Unit& u) { return u.id == 0; });
+        if (!named_by_damage) r.device = device_of(flow, unit, stats);
         auto pdu = decode_pdu(r.frame.pdu(), r.direction);
         if (pdu)
             r.pdu = std::move(pdu.value());
         else
             r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
                       std::to_string(pdu.error().offset);
-        on_frame(flow, r, *stats);
+        on_frame(flow, r, stats);
     }
     events.clear();
 }

@@ -135,6 +135,9 @@ struct NaturalOrder {
 
 struct Summary {
     std::uint64_t packets = 0, frames = 0, transactions = 0, unparsed_bytes = 0;
+    // Requests to unit 0 on serial lines (and RTU over TCP) whose CRC or LRC fails: every slave discards
+    // them, so none is a broadcast transaction; their checksum findings name them.
+    std::uint64_t damaged_broadcasts = 0;
     std::map<std::string, DeviceStats, NaturalOrder> devices;
     std::map<std::string, std::uint64_t> findings;  // code name → count
     std::uint64_t errors = 0;                       // error-severity findings

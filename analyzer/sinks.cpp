@@ -137,7 +137,10 @@ void TextSink::unparsed(const UnparsedRecord&) {}  // reported through its findi
 
 void TextSink::end(const Summary& s) {
     out_ << "\nsummary: " << s.packets << " packets, " << s.frames << " frames, " << s.transactions
-         << " transactions, " << s.unparsed_bytes << " unparsed bytes\n";
+         << " transactions, " << s.unparsed_bytes << " unparsed bytes";
+    if (s.damaged_broadcasts)
+        out_ << ", " << s.damaged_broadcasts << " damaged frames to unit 0 (bad CRC/LRC: no broadcast)";
+    out_ << '\n';
     for (const auto& [device, d] : s.devices) {
         out_ << "  " << device << ": " << d.requests << " requests, " << d.responses << " responses, "
              << d.exceptions << " exceptions, " << d.timeouts << " timeouts";
@@ -365,6 +368,7 @@ json summary_to_json(const Summary& s) {
            {"frames", s.frames},
            {"transactions", s.transactions},
            {"unparsed_bytes", s.unparsed_bytes},
+           {"damaged_broadcasts", s.damaged_broadcasts},
            {"errors", s.errors},
            {"findings", s.findings}};
     json devices = json::object();

@@ -192,6 +192,41 @@ TEST(SerialInput, AGarbledReplyIsTheAskedUnitsNotAnotherDevice) {
     }
 }
 
+// Four bytes of line noise between two polls, "00 03 07 45", read as a frame to unit 0 whose CRC fails: it
+// was a broadcast transaction and a device "unit 0" with one request. Every slave discards a frame whose CRC
+// fails (MK-ERR-01, 000:270-272), so it is no broadcast and names no device; its CRC finding stays, and the
+// summary counts it. A reply right after such a frame is unsolicited, and says what it may answer.
+TEST(SerialInput, NoiseToUnitZeroIsNoBroadcastAndNoDevice) {
+    const auto path = write_temp("noise_unit0.txt",
+                                 "1.000 > 11 03 00 60 00 03 07 45\n"
+                                 "1.050 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "1.500 00 03 07 45\n"
+                                 "2.000 > 11 03 00 60 00 03 07 45\n"
+                                 "2.050 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "3.000 > 00 06 00 01 00 03 98 1A\n"  // a write to unit 0, its CRC damaged
+                                 "3.050 < 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_EQ(r->summary.devices.size(), 1u);
+    const auto& device = r->summary.devices.at("serial " + path + " unit 17");
+    EXPECT_EQ(device.requests, 2u);
+    EXPECT_EQ(device.checksum_errors, 0u);
+    EXPECT_EQ(r->summary.damaged_broadcasts, 2u);
+    ASSERT_EQ(r->sink.transactions.size(), 2u);
+    for (const auto& t : r->sink.transactions)
+        EXPECT_FALSE(t.broadcast);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::RtuCrcMismatch), 2);
+    // The reply after the damaged write: not "one request answered twice", though its bytes are the last
+    // reply's again.
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 0);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    for (const auto& f : r->sink.findings) {
+        if (f.code != mb::FindingCode::PairUnsolicitedResponse) continue;
+        EXPECT_NE(f.message.find("after frame 6, a request whose checksum failed"), std::string::npos)
+            << f.message;
+    }
+    EXPECT_EQ(an::summary_to_json(r->summary)["damaged_broadcasts"], 2);
+}
+
 TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
     const auto path = write_temp("bad.txt",
                                  "1.0 11 03 00 60 00 03 07 45\nnot-a-time 11\n1.5 zz\n1.6 > 11 3 0 60\n"
