@@ -584,6 +584,11 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
                 report(rule.code, r, rule.message);
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
+        if (const auto pdu = r.frame.pdu(); !pdu.empty() && only_reads(pdu[0]))
+            report(FindingCode::PairBroadcastRead, r,
+                   describe_request(r) +
+                       " sent to unit 0: broadcast requests are writes, and nobody answers "
+                       "this one");
         auto told = follow_broadcast(flow, r);
         if (!sink_wants_transactions_) {
             if (told) report(FindingCode::ProfileLineSettingsChanged, r, std::move(*told), {r.index});

@@ -122,6 +122,10 @@ constexpr std::array findings{
                 "too many unanswered requests on one link: the oldest were given up", "capture"},
     FindingInfo{PairBroadcastResponse, "pair.broadcast_response", S::Error,
                 "a slave answered a broadcast (unit 0) request", "SL §2.1; 000:248, 285"},
+    FindingInfo{PairBroadcastRead, "pair.broadcast_read", S::Warning,
+                "a request that only reads sent in broadcast (unit 0): no slave answers it, so nothing it "
+                "reads comes back",
+                "SL §2.1; 000:313"},
     FindingInfo{
         PairDuplicateResponse, "pair.duplicate_response", S::Error,
         "the last response again, byte for byte, after its request was answered: one request answered "

@@ -73,6 +73,7 @@ enum class FindingCode : std::uint16_t {
     PairLateResponse = 614,
     PairGatewayPathUnavailable = 615,
     PairGatewayTargetNoResponse = 616,
+    PairBroadcastRead = 617,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

@@ -56,6 +56,26 @@ bool is_public_function(std::uint8_t function_code) noexcept {
     return function_name(function_code).has_value();
 }
 
+bool only_reads(std::uint8_t fc) noexcept {
+    using F = FunctionCode;
+    switch (static_cast<F>(fc)) {
+        case F::ReadCoils:
+        case F::ReadDiscreteInputs:
+        case F::ReadHoldingRegisters:
+        case F::ReadInputRegisters:
+        case F::ReadExceptionStatus:
+        case F::GetCommEventCounter:
+        case F::GetCommEventLog:
+        case F::ReportServerId:
+        case F::ReadFileRecord:
+        case F::ReadFifoQueue:
+        case F::EncapsulatedInterface:
+            return true;
+        default:
+            return false;
+    }
+}
+
 bool is_user_defined_function(std::uint8_t fc) noexcept {
     return (fc >= 65 && fc <= 72) || (fc >= 100 && fc <= 110);
 }

@@ -227,6 +227,24 @@ TEST(SerialInput, NoiseToUnitZeroIsNoBroadcastAndNoDevice) {
     EXPECT_EQ(an::summary_to_json(r->summary)["damaged_broadcasts"], 2);
 }
 
+// Broadcast requests are writes (SL §2.1; the MK manual runs FC5, 6, 15 and 16 in broadcast, 000:313): a
+// read sent to unit 0 passed without a word, though nothing it reads can ever come back. A broadcast write
+// and a broadcast of FC8 (whose sub-functions change a device's state) are what broadcasts are for.
+TEST(SerialInput, ABroadcastThatOnlyReadsIsSaid) {
+    const auto path = write_temp("broadcast_read.txt",
+                                 "1.000 > 00 03 00 60 00 03 04 04\n"    // FC3, read 96+3
+                                 "2.000 > 00 06 00 01 00 03 99 DA\n"    // FC6, write 1 = 3
+                                 "3.000 > 00 08 00 04 00 00 A0 1B\n");  // FC8/04, force listen only
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_EQ(r->sink.transactions.size(), 3u);
+    for (const auto& t : r->sink.transactions)
+        EXPECT_TRUE(t.broadcast);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairBroadcastRead), 1);
+    for (const auto& f : r->sink.findings)
+        EXPECT_EQ(f.frames, std::vector<std::uint64_t>{1}) << f.message;
+    EXPECT_EQ(r->sink.findings.size(), 1u);
+}
+
 TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
     const auto path = write_temp("bad.txt",
                                  "1.0 11 03 00 60 00 03 07 45\nnot-a-time 11\n1.5 zz\n1.6 > 11 3 0 60\n"
