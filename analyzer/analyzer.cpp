@@ -912,6 +912,17 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                     pair_finding(FindingCode::PairResponseSizeMismatch,
                                  describe_request(q) + " needs " + std::to_string(*expected) +
                                      " data bytes, the response has " + std::to_string(*got));
+                // The bits of the last byte past the quantity asked are padded with zeros (AP §6.1, §6.2):
+                // only the request says how many are used, so the response is judged with it, as an FC15
+                // request is on its own.
+                const auto* bits = std::get_if<ReadBitsResponse>(&a.body);
+                const auto* read = std::get_if<ReadRequest>(&q.body);
+                if (bits && read && expected && got && *expected == *got && read->quantity % 8 != 0 &&
+                    !bits->values.empty() && (bits->values.back() >> (read->quantity % 8)) != 0)
+                    pair_finding(FindingCode::PduPaddingBitsSet,
+                                 describe_request(q) + ": the response's last byte, " +
+                                     hex8(bits->values.back()) + ", sets bits past the " +
+                                     std::to_string(read->quantity) + " asked");
                 if (!echo_matches(q, a))
                     pair_finding(FindingCode::PairEchoMismatch,
                                  describe_request(q) + ": the response does not echo the request");

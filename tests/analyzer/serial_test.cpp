@@ -245,6 +245,26 @@ TEST(SerialInput, ABroadcastThatOnlyReadsIsSaid) {
     EXPECT_EQ(r->sink.findings.size(), 1u);
 }
 
+// A read of 21 coils answered in three bytes leaves the last byte's three high bits unused, padded with zeros
+// (AP §6.1; the MK manual's example answers 1B, 000:343). Bits set there passed: only the request says how
+// many are used, and the response was judged alone.
+TEST(SerialInput, PaddingBitsSetInACoilReplyAreSaid) {
+    const auto path = write_temp("coil_padding.txt",
+                                 "1.000 > 11 01 00 13 00 15 0E 90\n"
+                                 "1.050 < 11 01 03 B2 0E 1B DA 92\n"  // the manual's reply
+                                 "2.000 > 11 01 00 13 00 15 0E 90\n"
+                                 "2.050 < 11 01 03 CD 6B F5 40 56\n");  // F5: bits 5-7 set
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_EQ(r->sink.transactions.size(), 2u);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PduPaddingBitsSet), 1);
+    for (const auto& f : r->sink.findings) {
+        EXPECT_EQ(f.frames, (std::vector<std::uint64_t>{3, 4}));
+        EXPECT_NE(f.message.find("the response's last byte, 0xF5, sets bits past the 21 asked"),
+                  std::string::npos)
+            << f.message;
+    }
+}
+
 TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
     const auto path = write_temp("bad.txt",
                                  "1.0 11 03 00 60 00 03 07 45\nnot-a-time 11\n1.5 zz\n1.6 > 11 3 0 60\n"
