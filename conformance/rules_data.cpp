@@ -1,9 +1,11 @@
 // Echoes and data: FC5, FC6 and FC8/00 echo the request exactly; a written value reads back; 32-bit values
-// travel in the profile's word order; reserved registers read their documented fixed value.
+// travel in the profile's word order; a reply to FC1 or FC2 pads its last byte with zeros; reserved registers
+// read their documented fixed value.
 #include <cmath>
 #include <cstring>
 
 #include "conformance/context.hpp"
+#include "modbus/describe.hpp"
 
 namespace mbscope::conformance {
 
@@ -157,6 +159,48 @@ void check_data(Context& c) {
                   r.outcome = is_normal(ex, 16) && back && (*back)[0] == words[0] && (*back)[1] == words[1]
                                   ? Outcome::Pass
                                   : Outcome::Fail;
+              });
+    }
+    // A reply to FC1 or FC2 pads the bits of its last byte past the quantity asked with zeros (AP §6.1,
+    // §6.2; the MK manual's example answers 21 coils with 1B, 000:343). Asked for the longest run of valid
+    // points the device's limit allows, cut to leave a byte part-used.
+    for (const std::uint8_t fc : {std::uint8_t{1}, std::uint8_t{2}}) {
+        const Table t = fc == 1 ? Table::Coils : Table::DiscreteInputs;
+        if (!c.profile.functions.supports(fc) || !c.facts(t).present) continue;
+        c.run({"data.padding.fc" + std::to_string(fc), "echoes and data", fc == 1 ? "AP §6.1" : "AP §6.2",
+               "The bits of a reply's last byte past the quantity asked are zero.", Authority::Specification,
+               false},
+              [&, fc, t](RuleResult& r) {
+                  std::pair<std::uint16_t, std::uint32_t> longest{0, 0};  // start, length
+                  for (const auto& [first, last] : c.facts(t).runs)
+                      if (std::uint32_t{last} - first + 1 > longest.second)
+                          longest = {first, last - first + 1u};
+                  std::uint32_t quantity = std::min<std::uint32_t>(
+                      longest.second, static_cast<std::uint32_t>(c.profile.functions.max_for(fc)));
+                  if (quantity % 8 == 0 && quantity > 0) --quantity;
+                  if (quantity == 0) {
+                      r.outcome = Outcome::Skip;
+                      r.reason = "no valid point known in this table";
+                      return;
+                  }
+                  const auto pdu = modbus::encode_pdu(
+                      modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), longest.first,
+                                                static_cast<std::uint16_t>(quantity)));
+                  const auto ex = c.session.request(pdu, "read " + std::to_string(quantity) + " points");
+                  const auto rsp = response_pdu(ex);
+                  const auto* bits = rsp ? std::get_if<modbus::ReadBitsResponse>(&rsp->body) : nullptr;
+                  r.expected = "bits " + std::to_string(quantity % 8) + " to 7 of the last byte zero";
+                  if (!bits || bits->values.size() != (quantity + 7) / 8) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the read of " + std::to_string(quantity) +
+                                 " points was not answered with " + std::to_string((quantity + 7) / 8) +
+                                 " bytes of them: " + describe(ex);
+                      return;
+                  }
+                  const std::uint8_t last = bits->values.back();
+                  r.observed =
+                      "last byte " + modbus::hex8(last) + " for " + std::to_string(quantity) + " points";
+                  r.outcome = (last >> (quantity % 8)) == 0 ? Outcome::Pass : Outcome::Fail;
               });
     }
     // Reserved registers with a documented read value (the CTH2265I's 0x55AA, 003:574).

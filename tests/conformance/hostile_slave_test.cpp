@@ -10,6 +10,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <mutex>
 #include <optional>
@@ -34,11 +35,15 @@ class HostileServer {
   public:
     // `honest_for`: answer that many requests as a correct slave would, then none at all (a device that
     // hung mid-run, its connection still open).
-    // `dropping_one_point_reads`: answer as a correct slave would, except a read of one point, never answered
-    // (a device that drops some requests, or an RS-485 line that loses them).
+    // A slave that answers as a correct one would, but in one way:
+    enum class Lapse : std::uint8_t {
+        None,
+        DropsOnePointReads,  // a read of one point is never answered (a device or an RS-485 line losing some)
+        SetsPaddingBits,     // a reply to FC1 or FC2 has every bit set, past the quantity asked too
+    };
     explicit HostileServer(unsigned seed, std::optional<std::size_t> honest_for = std::nullopt,
-                           bool dropping_one_point_reads = false)
-        : random_(seed), honest_for_(honest_for), dropping_one_point_reads_(dropping_one_point_reads) {
+                           Lapse lapse = Lapse::None)
+        : random_(seed), honest_for_(honest_for), lapse_(lapse) {
         listener_ = ::socket(AF_INET, SOCK_STREAM, 0);
         sockaddr_in a{};
         a.sin_family = AF_INET;
@@ -160,9 +165,14 @@ class HostileServer {
             if (requests_ <= *honest_for_) send(c, tid, 0, unit, plausible(pdu));
             return;
         }
-        if (dropping_one_point_reads_) {
+        if (lapse_ != Lapse::None) {
             const std::uint8_t fc = pdu.empty() ? 0 : pdu[0];
-            if (fc >= 1 && fc <= 4 && pdu.size() == 5 && pdu[3] == 0 && pdu[4] == 1) return;
+            if (lapse_ == Lapse::DropsOnePointReads && fc >= 1 && fc <= 4 && pdu.size() == 5 && pdu[3] == 0 &&
+                pdu[4] == 1)
+                return;
+            auto reply = plausible(pdu);
+            if (lapse_ == Lapse::SetsPaddingBits && (fc == 1 || fc == 2) && reply.size() > 2)
+                std::fill(reply.begin() + 2, reply.end(), std::uint8_t{0xFF});
             // FC23 writes at its second address; the others at their first.
             const std::size_t at = fc == 23 ? 5 : 1;
             if ((fc == 5 || fc == 6 || fc == 15 || fc == 16 || fc == 22 || fc == 23) &&
@@ -172,7 +182,7 @@ class HostileServer {
                     fc == 5 || fc == 15 ? modbus::Table::Coils : modbus::Table::HoldingRegisters,
                     static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]));
             }
-            send(c, tid, 0, unit, plausible(pdu));
+            send(c, tid, 0, unit, reply);
             return;
         }
         switch (random_() % 11) {
@@ -218,7 +228,7 @@ class HostileServer {
 
     std::mt19937 random_;
     std::optional<std::size_t> honest_for_;
-    bool dropping_one_point_reads_ = false;
+    Lapse lapse_ = Lapse::None;
     mutable std::mutex mutex_;
     std::vector<std::pair<modbus::Table, std::uint16_t>> writes_;
     int listener_ = -1;
@@ -322,7 +332,7 @@ TEST(Restore, StopsWritingToADeviceThatStoppedAnswering) {
 // unanswered it writes nothing. value.fc5.invalid wrote 0x1234 to its coil anyway (and a device that took it
 // was left changed, the report saying everything was restored), as did fc.unsupported.N for a write.
 TEST(Restore, NothingIsWrittenWhereTheOriginalCouldNotBeRead) {
-    HostileServer server(1, std::nullopt, true);
+    HostileServer server(1, std::nullopt, HostileServer::Lapse::DropsOnePointReads);
     auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(server.port())));
     ASSERT_TRUE(client.has_value()) << client.error();
     CheckOptions options;
@@ -349,6 +359,24 @@ TEST(Restore, NothingIsWrittenWhereTheOriginalCouldNotBeRead) {
                       "address 0 of the table it would write could not be read, so nothing was sent");
         }
     EXPECT_EQ(report.results.size(), 4u);
+}
+
+// The bits of a reply to FC1 or FC2 past the quantity asked are zero (AP §6.1, §6.2): a slave that sets them
+// fails data.padding.fcN; the reference slave passes it (runner_test's clean runs).
+TEST(Padding, BitsSetPastTheQuantityAskedFailTheRule) {
+    HostileServer server(1, std::nullopt, HostileServer::Lapse::SetsPaddingBits);
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(server.port())));
+    ASSERT_TRUE(client.has_value()) << client.error();
+    CheckOptions options;
+    options.session.timeout = std::chrono::milliseconds(100);
+    options.run.rule_globs = {"data.padding.*"};
+    const Report report = run_check(*client, profile("mmk-2030"), options);
+    ASSERT_EQ(report.results.size(), 1u);  // the MK 3.8 map has coils, no discrete inputs
+    const RuleResult& r = report.results[0];
+    EXPECT_EQ(r.rule.id, "data.padding.fc1");
+    EXPECT_EQ(r.outcome, Outcome::Fail) << r.reason;
+    EXPECT_EQ(r.expected, "bits 6 to 7 of the last byte zero");  // 30 coils, the manual's limit
+    EXPECT_EQ(r.observed, "last byte 0xFF for 30 points");
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, AgainstAHostileSlave,

@@ -332,6 +332,19 @@ TEST(ExchangeOracle, SilenceIsDemandedForABadCrcAndARepliedOneIsAViolation) {
     EXPECT_EQ(v[0].source, "SL §2.5.1.2");
 }
 
+// A reply to 21 coils answers them in three bytes, the last one's three high bits padded with zeros (AP
+// §6.1; the MK manual's example, 000:343, answers B2 0E 1B).
+TEST(ExchangeOracle, PaddingBitsSetInACoilReplyAreAViolation) {
+    const auto& p = mbscope::slave::test::profile("mmk-2030");
+    cf::ExchangeOracle oracle(Framing::Rtu, {{17, &p}}, false);
+    const auto request = pdu(1, {0x13, 0x15});
+    EXPECT_TRUE(judge_rtu(oracle, 17, request, {0x01, 0x03, 0xB2, 0x0E, 0x1B}).empty());
+    const auto v = judge_rtu(oracle, 17, request, {0x01, 0x03, 0xB2, 0x0E, 0xFB});
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].rule, "reply.padding");
+    EXPECT_EQ(v[0].source, "AP §6.1");
+}
+
 // Over Modbus/TCP the client sets aside a late reply to an earlier request (its transaction id) but keeps its
 // bytes in `received`, before this request's own. They are not this request's reply: not trailing bytes
 // after it, and no reply where silence is due.
