@@ -39,7 +39,12 @@ struct Analyzer::Flow {
     std::size_t last_response_length = 0;
     std::uint64_t last_response_index = 0;
     void keep_last_response(const FrameRecord& r) {
-        if (!r.frame.checksum_ok) return;
+        // A damaged one is the last response too: a copy of the one before it is no longer "the last
+        // response again" (another request came between them, and was answered).
+        if (!r.frame.checksum_ok) {
+            last_response_length = 0;
+            return;
+        }
         last_response_length = r.frame.length;
         std::memcpy(last_response.data(), r.frame.bytes.data(), r.frame.length);
         last_response_index = r.index;

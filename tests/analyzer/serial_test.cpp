@@ -265,6 +265,21 @@ TEST(SerialInput, PaddingBitsSetInACoilReplyAreSaid) {
     }
 }
 
+// "One request answered twice" means the last reply again. After a request answered with a damaged reply,
+// a copy of the good reply before it is not that: it was called a duplicate of frame 2 across frames 3 and
+// 4. It is a reply nobody waits for.
+TEST(SerialInput, AReplyAfterADamagedOneIsNoCopyOfTheOneBefore) {
+    const auto path = write_temp("after_damaged.txt",
+                                 "1.000 > 11 03 00 60 00 03 07 45\n"
+                                 "1.050 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "2.000 > 11 03 00 60 00 03 07 45\n"
+                                 "2.050 < 11 03 06 02 2B 00 00 00 64 C8 BB\n"  // its CRC damaged
+                                 "3.000 < 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+}
+
 TEST(SerialInput, MalformedTextLinesAreNamedAndTheRestDecoded) {
     const auto path = write_temp("bad.txt",
                                  "1.0 11 03 00 60 00 03 07 45\nnot-a-time 11\n1.5 zz\n1.6 > 11 3 0 60\n"
