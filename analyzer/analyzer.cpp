@@ -333,7 +333,7 @@ void Analyzer::packet_in_source(const Packet& p) {
     // at its own time; requests are timed out at this record's time once its bytes are in.
     const bool serial_record =
         (p.linktype >= link_user0 && p.linktype <= link_user15) || p.linktype == link_rtac_serial;
-    if (!serial_links_.empty()) end_silent_frames(now_, serial_record ? &source_.str() : nullptr);
+    if (!serial_links_.empty()) end_silent_frames(now_, serial_record ? &source_.str() : nullptr, true);
     if (serial_record) {
         if (p.linktype == link_rtac_serial)
             rtac_packet(p);
@@ -1749,7 +1749,7 @@ std::optional<SerialLine> Analyzer::serial_line(const std::string& source) const
     return it->second->line;
 }
 
-void Analyzer::end_silent_frames(Timestamp now, const std::string* except) {
+void Analyzer::end_silent_frames(Timestamp now, const std::string* except, bool only_when_due) {
     const SharedText source = source_;
     for (auto& [name, link] : serial_links_) {
         // A timed RTU line holding the start of a frame: its t3.5 of silence has passed by now. (An ASCII
@@ -1758,6 +1758,14 @@ void Analyzer::end_silent_frames(Timestamp now, const std::string* except) {
             !link->last_received.count() || now - link->last_received < link->line.t3_5() ||
             (except && link->source == *except))
             continue;
+        // A packet of another input says nothing of this line: its next record may carry the rest of the
+        // frame with no gap (a reply read in two chunks, the second stamped at its last byte). Only a request
+        // on the line about to be timed out at `now` makes the frame end here, so that its reply, if this is
+        // it, is paired first. (In a live capture's quiet time the silence is the line's own.)
+        if (only_when_due)
+            if (const auto it = pending_.find({link->flow->id, 0});
+                it == pending_.end() || now - it->second.request.time < options_.serial_timeout)
+                continue;
         source_ = link->source;
         close_frames(*link, now);
     }
@@ -1766,7 +1774,7 @@ void Analyzer::end_silent_frames(Timestamp now, const std::string* except) {
 
 void Analyzer::idle(Timestamp now) {
     if (now <= now_) return flush_output();
-    end_silent_frames(now, nullptr);
+    end_silent_frames(now, nullptr, false);
     now_ = now;
     expire(now_, false);
     flush_output();

@@ -203,10 +203,11 @@ class Analyzer {
     // chunks around it.
     void close_frames(SerialLink& link, modbus::Timestamp t, std::uint64_t packet = 0);
     // Ends the frame in progress, at its own time, on every timed RTU line whose t3.5 of silence has passed
-    // by `now`, but the line of the source named `except` (whose bytes at `now` are still to come): before
-    // requests are timed out at `now`, a reply held for the silence after it until the line's next bytes,
-    // more than a timeout later, was a timeout and then a late reply.
-    void end_silent_frames(modbus::Timestamp now, const std::string* except);
+    // by `now`, but the line of the source named `except` (whose bytes at `now` are still to come), and with
+    // `only_when_due` only on lines whose request is about to be timed out at `now`: before requests are
+    // timed out, a reply held for the silence after it until the line's next bytes, more than a timeout
+    // later, was a timeout and then a late reply.
+    void end_silent_frames(modbus::Timestamp now, const std::string* except, bool only_when_due);
     void deframe(SerialLink& link, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
                  modbus::Direction hint, std::uint64_t packet);
     // `input_ended`: at the end of the input, where a frame is cut rather than ended by a silence.

@@ -133,6 +133,32 @@ TEST(UserLinkType, AReplyHeldForItsSilenceIsPairedBeforeRequestsTimeOut) {
     EXPECT_EQ(a.summary().devices.at("serial b.pcap unit 17").responses, 1u);
     for (const auto& f : sink.findings)
         EXPECT_EQ(f.code, mb::FindingCode::PairNoResponseAtEnd) << f.message;
+
+    // Another input's record says nothing of a line's silence: a reply read in two records, the second
+    // stamped at its last byte (six bytes, 6.25 ms at 9600 baud, after the first), with another capture's
+    // record between them, is one frame, not two damaged ones.
+    const std::vector<std::uint8_t> head(rtu_response.begin(), rtu_response.begin() + 5),
+        tail(rtu_response.begin() + 5, rtu_response.end());
+    Collect split_sink;
+    an::Analyzer b(user_dlt(mb::Framing::Rtu), split_sink);
+    const auto split_record = [&](const char* source, mb::Timestamp t,
+                                  const std::vector<std::uint8_t>& bytes) {
+        an::Packet p;
+        p.number = ++number;
+        p.time = t;
+        p.linktype = link_user0;
+        p.data = bytes;
+        p.original_length = static_cast<std::uint32_t>(bytes.size());
+        b.packet(source, p);
+    };
+    split_record("a.pcap", 1s, rtu_request);
+    split_record("a.pcap", 1050ms, head);
+    split_record("b.pcap", 1054500us, {0x05, 0x03, 0x00, 0x60, 0x00, 0x01, 0x85, 0x90});
+    split_record("a.pcap", 1056500us, tail);
+    b.finish();
+    EXPECT_EQ(b.summary().devices.at("serial a.pcap unit 17").responses, 1u);
+    EXPECT_EQ(b.summary().devices.at("serial a.pcap unit 17").checksum_errors, 0u);
+    EXPECT_EQ(split_sink.count(mb::FindingCode::RtuCrcMismatch), 0);
 }
 
 TEST(UserLinkType, AnyOfTheSixteenCarriesAscii) {
