@@ -655,7 +655,10 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
             Pending given_up = std::move(oldest->second);
             pending_.erase(oldest);
             --flow.pending;
-            // A timeout like any other, reported as one: the overflow warning is about the new request.
+            // A timeout like any other, reported as one (the overflow warning is about the new request), and
+            // like any other its reply may still come: late then, not unsolicited.
+            remember_timed_out({flow.id, late_id(given_up.request.frame)}, given_up,
+                               r.time - given_up.request.time, describe_request(given_up.request), r.index);
             give_up(given_up, true,
                     {FindingCode::PairNoResponse,
                      no_response_message(given_up.request,

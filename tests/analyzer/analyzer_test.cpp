@@ -1014,8 +1014,11 @@ TEST(Analyzer, ARequestGivenUpForRoomIsReportedAsUnanswered) {
     for (std::uint16_t tid = 1; tid <= 4; ++tid)
         h.send(true, read_request(tid), 1s + tid * 1ms);
     h.send(false, read_response(4), 1s + 5ms);
+    h.send(false, read_response(1), 1s + 6ms);  // its reply after all: late, as any timeout's
     h.analyzer.finish();
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairPendingOverflow), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairLateResponse), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
     ASSERT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
     for (const auto& f : h.sink.findings)
         if (f.code == mb::FindingCode::PairNoResponse) {
