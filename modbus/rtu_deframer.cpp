@@ -118,7 +118,7 @@ bool cut_rather_than_damaged(std::span<const std::uint8_t> buf, Candidates c) no
 
 }  // namespace
 
-DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept {
+DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end, bool input_ended) noexcept {
     if (buf.size() < 4) {
         if (!at_end) return {Kind::NeedMore, 4};
         return {Kind::Skip, buf.size(), true, UnparsedReason::Truncated};
@@ -141,7 +141,7 @@ DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept {
         for (std::size_t i = 0; i < c.count; ++i) {
             const std::size_t len = c.length(i);
             if (buf.size() < len) continue;
-            if (len == buf.size() && at_end && !cut_rather_than_damaged(buf, c))
+            if (len == buf.size() && at_end && !(input_ended && cut_rather_than_damaged(buf, c)))
                 return {Kind::Complete, len, false};
             const ProbeResult after = probe_valid(from(buf, len), at_end);
             switch (after.probe) {
@@ -169,7 +169,7 @@ void RtuDeframer::flush_unparsed(DeframeEvents& out) {
 void RtuDeframer::run(bool at_end, DeframeEvents& out) {
     while (head_ < buf_.size()) {
         const std::span<const std::uint8_t> rest(buf_.data() + head_, buf_.size() - head_);
-        const DeframeStep step = rtu_step(rest, at_end);
+        const DeframeStep step = rtu_step(rest, at_end, at_end);
         if (step.kind == Kind::NeedMore) break;
         if (step.kind == Kind::Skip) {
             if (pending_.length != 0 && pending_.reason != step.reason) flush_unparsed(out);
@@ -275,7 +275,7 @@ void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {
             run_length = 0;
         };
         while (pos < n) {
-            const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, true);
+            const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, true, end == SegmentEnd::Input);
             if (step.kind == Kind::Complete) {
                 flush_run();
                 emit_frame(pos, step.length, out);
@@ -306,7 +306,7 @@ void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {
         // A long run without silence: frame its front by content, keep the tail for more bytes.
         std::size_t pos = 0;
         while (n - pos > 2 * max_rtu_adu_length) {
-            const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, false);
+            const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, false, false);
             if (step.kind == Kind::NeedMore) break;
             if (step.kind == Kind::Complete)
                 emit_frame(pos, step.length, out);

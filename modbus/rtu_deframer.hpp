@@ -20,8 +20,10 @@
 
 namespace mbscope::modbus {
 
-// One step over the front of buf (see DeframeStep). at_end: no more bytes will come.
-DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end) noexcept;
+// One step over the front of buf (see DeframeStep). at_end: no more bytes will come, because a silence
+// ended them or (input_ended) the input did: bytes that only a malformed frame shorter than the one they
+// begin fits exactly are then that frame cut by the end, where a silence makes them a damaged frame.
+DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end, bool input_ended) noexcept;
 
 class RtuDeframer {
   public:

@@ -458,7 +458,7 @@ struct Server::Impl {
         }
         while (head < c.rtu.size()) {
             const std::span<const std::uint8_t> rest(c.rtu.data() + head, c.rtu.size() - head);
-            const auto step = modbus::rtu_step(rest, at_end);
+            const auto step = modbus::rtu_step(rest, at_end, false);
             // A frame whose length the content does not give (an unknown function code, FC8 with any
             // number of data bytes): the shortest prefix with a valid CRC is taken as the frame.
             const bool unsized =

@@ -32,7 +32,7 @@ Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silen
         case Framing::Rtu: {
             std::size_t head = 0;
             while (head < bytes.size()) {
-                const auto step = rtu_step(bytes.subspan(head), silence);
+                const auto step = rtu_step(bytes.subspan(head), silence, false);
                 if (step.kind == DeframeStep::Kind::Complete) return {head, head + step.length};
                 if (step.kind == DeframeStep::Kind::NeedMore) break;
                 head += step.length ? step.length : 1;

@@ -62,17 +62,17 @@ mb::DeframeEvents run_untimed(const std::vector<std::uint8_t>& data, const std::
 TEST(RtuStep, ThreeWayOutcome) {
     using K = mb::DeframeStep::Kind;
     auto full = hex("11 03 00 60 00 03 07 45");
-    EXPECT_EQ(mb::rtu_step(full, false).kind, K::Complete);
-    EXPECT_EQ(mb::rtu_step(full, false).length, 8u);
-    EXPECT_EQ(mb::rtu_step(std::span(full).first(3), false).kind, K::NeedMore);
+    EXPECT_EQ(mb::rtu_step(full, false, false).kind, K::Complete);
+    EXPECT_EQ(mb::rtu_step(full, false, false).length, 8u);
+    EXPECT_EQ(mb::rtu_step(std::span(full).first(3), false, false).kind, K::NeedMore);
     auto garbage = hex("FF FF FF FF FF FF FF FF FF FF");
-    EXPECT_EQ(mb::rtu_step(garbage, false).kind, K::Skip);
+    EXPECT_EQ(mb::rtu_step(garbage, false, false).kind, K::Skip);
 }
 
 TEST(RtuStep, FrameNeedsTheCrcCandidateNotJustFourBytes) {
     // A response whose byte count promises more: the stepper waits instead of guessing.
     auto prefix = hex("11 03 06 02 2B 00");
-    const auto step = mb::rtu_step(prefix, false);
+    const auto step = mb::rtu_step(prefix, false, false);
     EXPECT_EQ(step.kind, mb::DeframeStep::Kind::NeedMore);
 }
 
@@ -302,6 +302,28 @@ TEST(RtuDeframer, AtTheEndBytesThatOnlyAMalformedShorterFrameFitsAreCut) {
                 EXPECT_FALSE(f.checksum_ok);
                 EXPECT_EQ(f.wire_length, tail.size());
             }
+        }
+    }
+}
+
+// The same five bytes after a frame in one chunk, then a silence: the silence ends them, a frame however
+// short (the device stopped sending), whose CRC fails; only the end of the input cuts them.
+TEST(RtuTimedDeframer, BytesASilenceEndsAreAFrameEvenWhereTheEndWouldCutThem) {
+    const auto glued = hex("11 03 06 02 2B 00 00 00 64 C8 BA 11 03 00 60 00");
+    for (const bool silence : {true, false}) {
+        mb::RtuTimedDeframer d(mb::SerialLine{});
+        mb::DeframeEvents out;
+        d.feed(glued, 1s, out);
+        if (silence) d.advance(2s, out);
+        d.finish(out);
+        expect_every_byte_accounted(out, glued.size());
+        ASSERT_EQ(out.size(), 2u) << silence;
+        EXPECT_TRUE(std::get<mb::Frame>(out[0]).checksum_ok);
+        if (silence) {
+            EXPECT_FALSE(std::get<mb::Frame>(out[1]).checksum_ok);
+            EXPECT_EQ(std::get<mb::Frame>(out[1]).wire_length, 5u);
+        } else {
+            EXPECT_EQ(std::get<mb::Unparsed>(out[1]).reason, mb::UnparsedReason::Truncated);
         }
     }
 }
