@@ -104,7 +104,8 @@ void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& 
 }
 
 bool Context::silent() const {
-    return session.requests() >= silent_after && session.response_times().empty() && !session.late_replies();
+    return session.requests_owed_reply() >= silent_after && session.response_times().empty() &&
+           !session.late_replies();
 }
 
 bool Context::serial_framing() const {

@@ -186,6 +186,17 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     }
     // A stop during the last family, or before the first (while the address space was probed).
     if (stop && stop->load()) report.stopped = true;
+    // Rules whose requests every slave must ignore (a bad CRC, half a request, a broadcast) pass on silence,
+    // which a target that answers nothing (a wrong unit id) gives as well: with no request owed a reply in
+    // the run, one read that any device of the profile answers tells the two apart (it was taken for a target
+    // answering nothing, exit 2, for `--rules framing.bad_checksum` against a correct device).
+    if (!report.stopped && session.requests() > 0 && session.requests_owed_reply() == 0 &&
+        session.response_times().empty() && !session.late_replies())
+        if (const auto probe = c.probe_read()) {
+            (void)session.request(probe->pdu,
+                                  "is the target answering? a read any device of the profile answers");
+            (void)session.take_evidence();
+        }
     // Nothing lost: every point a rule wrote goes back to its original value, even after a stop.
     if (const auto text = session.restore_announcement(); options.run.note && !text.empty())
         options.run.note(text);

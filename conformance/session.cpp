@@ -149,6 +149,7 @@ tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::stri
                               std::optional<std::chrono::milliseconds> timeout) {
     pace();
     const std::uint8_t to = unit.value_or(options_.unit);
+    if (to != 0 || client_.framing() == modbus::Framing::Tcp) ++owed_reply_;
     settle_late(to, pdu);
     auto ex = client_.transact(to, pdu, timeout.value_or(options_.timeout), owed().list());
     if (ex.closed) {
@@ -184,6 +185,12 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
         pace();
         settle_late(unit, pdu);
     }
+    // Bytes that are one whole request with a good checksum to a unit are owed a reply like request()'s.
+    if (!rest && frames > 0)
+        if (auto f = modbus::decode_adu(client_.framing(), bytes);
+            f && f->checksum_ok && f->wire_length == bytes.size() &&
+            (f->unit_id() != 0 || client_.framing() == modbus::Framing::Tcp))
+            ++owed_reply_;
     auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames, {},
                           rest ? std::span<const tp::OwedRequest>{} : owed().list());
     if (ex.closed) (void)client_.reconnect();

@@ -101,6 +101,10 @@ class Session {
         reply_times_.clear();
     }
     std::uint64_t requests() const noexcept { return requests_; }
+    // Of those, the ones a slave owes a reply: whole requests with a good checksum to a unit (not a
+    // broadcast on a serial framing). A target that answered none of these is silent; one sent only requests
+    // every slave must ignore (a bad CRC, a broadcast, half a request) got the silence it asked for.
+    std::uint64_t requests_owed_reply() const noexcept { return owed_reply_; }
     // Replies (or bytes) that came after their request was given up: set aside during a later request, or
     // found waiting before one.
     std::uint64_t late_replies() const noexcept { return late_replies_; }
@@ -154,6 +158,7 @@ class Session {
     std::vector<std::chrono::nanoseconds> reply_times_;
     bool last_read_refused_ = false;
     std::uint64_t requests_ = 0;
+    std::uint64_t owed_reply_ = 0;
     std::uint64_t late_replies_ = 0;
     std::vector<Evidence> repeated_;
     // The reply to the last exchange of one request, when it came whole, and that request: a copy of it

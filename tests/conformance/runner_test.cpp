@@ -511,6 +511,33 @@ TEST(Restore, ConsecutivePointsGoBackInBlocks) {
     EXPECT_TRUE(server.device().image().changes().empty());
 }
 
+// Rules whose requests every slave must ignore pass on silence, which a target answering nothing gives too.
+// `--rules framing.bad_checksum` against a correct device was "the target answered none of the run's 1
+// requests", every rule in error, exit 2: a run with no request owed a reply now ends with one read any
+// device of the profile answers, which tells a correct device from a silent one.
+TEST(Runner, ARunOfRequestsThatAskForSilenceIsJudged) {
+    for (const std::uint8_t unit : {std::uint8_t{1}, std::uint8_t{5}}) {
+        SCOPED_TRACE(int{unit});
+        RunningServer server({}, 1, "mmk-2030");
+        auto options = options_for(std::chrono::milliseconds(100));
+        options.session.unit = unit;
+        options.run.rule_globs = {"framing.bad_checksum"};
+        const auto run = certify(server, "rtu-tcp", "mmk-2030", options);
+        const Report& r = run.report;
+        EXPECT_EQ(r.requests, 2u);
+        if (unit == 1) {
+            EXPECT_EQ(r.unanswered, "");
+            ASSERT_EQ(r.results.size(), 1u);
+            EXPECT_EQ(r.results[0].outcome, Outcome::Pass) << r.results[0].reason;
+            EXPECT_EQ(verdict(r), 0);
+        } else {  // a unit nobody serves: the read goes unanswered too
+            EXPECT_NE(r.unanswered.find("answered none of the run's"), std::string::npos) << r.unanswered;
+            ASSERT_EQ(r.results.size(), 2u);
+            EXPECT_EQ(r.results[0].rule.id, "target.answered");
+        }
+    }
+}
+
 // The values kept for restoring and the read-backs that call a point restored come only from replies the
 // rules accept as the read's answer: one carrying another transaction id, another unit or another
 // function's code (of the same shape: FC4 for FC3) answers some other request and is no value of these
