@@ -331,6 +331,25 @@ std::string format_number(double v, int decimals) {
     return buf;
 }
 
+// A formula's value in full, to the microunit (the CTH's 19.999756 mA for 65535), without an exponent below
+// 10^15 (65535000, not 6.5535e+07), trailing zeros dropped; one the arithmetic leaves undefined (a division
+// by zero) said as such, never "-nan".
+std::string formula_text(double v) {
+    if (std::isnan(v)) return "undefined (the formula divides by zero)";
+    if (std::isinf(v)) return std::string(v < 0 ? "-" : "") + "infinite (the formula divides by zero)";
+    if (v == 0) v = 0;  // not "-0"
+    char buf[64];
+    if (std::fabs(v) >= 1e15) {
+        std::snprintf(buf, sizeof buf, "%.6e", v);
+        return buf;
+    }
+    std::snprintf(buf, sizeof buf, "%.6f", v);
+    std::string text = buf;
+    text.erase(text.find_last_not_of('0') + 1);
+    if (text.back() == '.') text.pop_back();
+    return text == "-0" ? "0" : text;
+}
+
 bool in_block(std::uint16_t address, std::uint16_t start, const std::vector<std::uint16_t>& words) {
     return address >= start && address - start < static_cast<int>(words.size());
 }
@@ -343,15 +362,30 @@ std::optional<std::uint16_t> word_at(std::uint16_t address, std::uint16_t start,
     return std::nullopt;
 }
 
-// The decimals of a value: the encoding's own, or those another register gives (`decimals_from`, 0 to 9);
-// nullopt when that register is neither in the block nor known from earlier, or holds no such number.
-std::optional<int> decimals_of(const Encoding& e, std::uint16_t start,
-                               const std::vector<std::uint16_t>& words,
-                               const std::map<std::uint16_t, std::uint16_t>& context) {
-    if (!e.decimals_from) return e.decimals;
+// The decimals of a value: the encoding's own, or those another register gives (`decimals_from`).
+struct Decimals {
+    std::optional<int> places;
+    std::string why_not;  // when there are none: " (unscaled: ...)"
+};
+Decimals decimals_of(const Profile& profile, const Encoding& e, std::uint16_t start,
+                     const std::vector<std::uint16_t>& words,
+                     const std::map<std::uint16_t, std::uint16_t>& context) {
+    if (!e.decimals_from) return {e.decimals, {}};
     const auto d = word_at(e.decimals_from->address, start, words, context);
-    if (!d || *d > 9) return std::nullopt;
-    return *d;
+    if (!d) return {std::nullopt, " (unscaled: decimal point unknown)"};
+    // What that register may hold: 0 to 9, and within its own enumeration and range (MK's PT.DEC of a
+    // totalization, 0 to 7: 000:1358). Another value is no number of places, and is said to be.
+    const Point* from = profile.find(e.decimals_from->table, e.decimals_from->address);
+    bool valid = *d <= 9;
+    if (from && !from->encoding.values.empty())
+        valid &= std::any_of(from->encoding.values.begin(), from->encoding.values.end(),
+                             [&](const EnumValue& v) { return v.value == *d; });
+    if (from && from->max) valid &= *d <= *from->max;
+    if (!valid)
+        return {std::nullopt, " (unscaled: its decimal point register " +
+                                  std::to_string(e.decimals_from->address) + " holds " + std::to_string(*d) +
+                                  ", no number of places)"};
+    return {*d, {}};
 }
 
 // What one 8-bit field holds: its enumeration's meaning, its bits' names, its character, else its number.
@@ -462,12 +496,10 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 break;
             case EncodingType::Scaled: {
                 const double raw = e.is_signed ? static_cast<std::int16_t>(w) : w;
-                const auto known = decimals_of(e, start, words, context);
-                const int decimals = known.value_or(0);
-                v.partial = !known;  // decimal point register not known: shown unscaled
-                v.number = raw / std::pow(10.0, decimals);
-                v.text = format_number(*v.number, decimals) +
-                         (v.partial ? " (unscaled: decimal point unknown)" : "");
+                const auto decimals = decimals_of(profile, e, start, words, context);
+                v.partial = !decimals.places;  // shown unscaled, and said to be
+                v.number = raw / std::pow(10.0, decimals.places.value_or(0));
+                v.text = format_number(*v.number, decimals.places.value_or(0)) + decimals.why_not;
                 break;
             }
             case EncodingType::Enum:
@@ -509,11 +541,10 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 earlier(*e.pair);
                 // A total whose decimal point another register gives (MK 3.13, 3.22: PT.DEC of the
                 // totalization, 000:1243): shown unscaled, and said to be, while that register is unknown.
-                const auto decimals = decimals_of(e, start, words, context);
-                v.number = whole / std::pow(10.0, decimals.value_or(0));
-                v.text = format_number(*v.number, decimals.value_or(0)) +
-                         (decimals ? "" : " (unscaled: decimal point unknown)");
-                v.partial = !decimals;
+                const auto decimals = decimals_of(profile, e, start, words, context);
+                v.number = whole / std::pow(10.0, decimals.places.value_or(0));
+                v.text = format_number(*v.number, decimals.places.value_or(0)) + decimals.why_not;
+                v.partial = !decimals.places;
                 break;
             }
             case EncodingType::U32:
@@ -548,13 +579,10 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 v.number = w;
                 v.text = byte_fields_text(e, w);
                 break;
-            case EncodingType::Formula: {
+            case EncodingType::Formula:
                 v.number = evaluate(e.formula, e.is_signed ? static_cast<std::int16_t>(w) : w);
-                char text[32];
-                std::snprintf(text, sizeof text, "%.7g", *v.number);
-                v.text = text;
+                v.text = formula_text(*v.number);
                 break;
-            }
         }
         out.push_back(with_text(std::move(v)));
     }

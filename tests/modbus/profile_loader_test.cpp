@@ -457,7 +457,10 @@ TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
         {"address": 12, "name": "i", "access": "r", "encoding": {"type": "formula", "expr": "I = 4 + * R"},
          "source": "000:12"},
         {"address": 13, "name": "j", "access": "r", "encoding": {"type": "formula", "expr": "I = 4 + 16 * R / 65536"},
-         "source": "000:13"}
+         "source": "000:13"},
+        {"address": 14, "name": "k", "access": "r", "encoding": {"type": "formula", "expr": "R * 1000"}, "source": "000:14"},
+        {"address": 15, "name": "l", "access": "r", "encoding": {"type": "formula", "expr": "-R"}, "source": "000:15"},
+        {"address": 16, "name": "m", "access": "r", "encoding": {"type": "formula", "expr": "0 / R"}, "source": "000:16"}
       ]},
       "models": [{"id": "m"}]
     })";
@@ -479,9 +482,14 @@ TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
     EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 1)->encoding.words, 2);
     EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 2), p.find(mb::Table::HoldingRegisters, 1));
     EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 4), p.find(mb::Table::HoldingRegisters, 3));
-    const auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 13, {32768});
-    ASSERT_EQ(v.size(), 1u);
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 13, {32768, 65535, 0, 0});
+    ASSERT_EQ(v.size(), 4u);
     EXPECT_EQ(v[0].text, "12");
+    EXPECT_EQ(v[1].text, "65535000");  // in full, not 6.5535e+07
+    EXPECT_EQ(v[2].text, "0");         // not -0
+    EXPECT_EQ(v[3].text, "undefined (the formula divides by zero)");
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 13, {1});
+    EXPECT_EQ(v[0].text, "4.000244");
 }
 
 // Fields of the wrong type where the loader used to take a default with nlohmann's value(), which throws on

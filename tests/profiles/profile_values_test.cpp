@@ -31,7 +31,7 @@ TEST(CthValues, TheCurrentOutputIsTheManualsFormulaInMilliamperes) {
     EXPECT_EQ(one("cth2265i", 4011, 0).text, "4");
     EXPECT_DOUBLE_EQ(*one("cth2265i", 4011, 0).number, 4.0);
     EXPECT_EQ(one("cth2265i", 4011, 32768).text, "12");
-    EXPECT_EQ(one("cth2265i", 4011, 65535).text, "19.99976");
+    EXPECT_EQ(one("cth2265i", 4011, 65535).text, "19.999756");  // the manual rounds to 19,99976
     EXPECT_EQ(one("cth2265i", 4011, 0).point->unit, "mA");
 }
 
@@ -70,5 +70,10 @@ TEST(MkValues, ATotalTakesTheDecimalPointOfItsTotalization) {
         EXPECT_TRUE(v[0].partial);
         EXPECT_EQ(v[0].text, "12345678 (unscaled: decimal point unknown)");
         EXPECT_EQ(v[0].number, std::nullopt);
+        // A PT.DEC its own enumeration does not allow (0 to 7 places, 000:1358) is no number of places.
+        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1234, 5678}, {{c.decimals, 8}});
+        EXPECT_TRUE(v[0].partial);
+        EXPECT_EQ(v[0].text, "12345678 (unscaled: its decimal point register " + std::to_string(c.decimals) +
+                                 " holds 8, no number of places)");
     }
 }
