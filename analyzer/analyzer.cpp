@@ -469,17 +469,28 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
         r.link = flow.link;
         r.direction = to_server ? Direction::Request : Direction::Response;
         r.carrier = flow.carrier;
-        DeviceStats* stats = nullptr;
-        r.device = device_of(flow, r.frame.unit_id(), stats);
-        auto pdu = decode_pdu(r.frame.pdu(), r.direction);
-        if (pdu)
-            r.pdu = std::move(pdu.value());
-        else
-            r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
-                      std::to_string(pdu.error().offset);
-        on_frame(flow, r, stats);
+        decode_and_judge(flow, r, r.frame.unit_id());
     }
     events.clear();
+}
+
+void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
+    // A request to unit 0 whose checksum fails is no broadcast (see on_frame), and its unit byte may be among
+    // the damage, or the frame line noise: it is unit 0's only when broadcasts were seen on the link, else no
+    // device's, rather than a device the noise made up.
+    const bool named_by_damage =
+        r.direction == Direction::Request && r.frame.framing != Framing::Tcp && !r.frame.checksum_ok &&
+        unit == 0 &&
+        std::none_of(flow.units.begin(), flow.units.end(), [](const Flow::Unit& u) { return u.id == 0; });
+    DeviceStats* stats = nullptr;
+    if (!named_by_damage) r.device = device_of(flow, unit, stats);
+    auto pdu = decode_pdu(r.frame.pdu(), r.direction);
+    if (pdu)
+        r.pdu = std::move(pdu.value());
+    else
+        r.error =
+            std::string(to_string(pdu.error().code)) + " at PDU byte " + std::to_string(pdu.error().offset);
+    on_frame(flow, r, stats);
 }
 
 void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
@@ -1205,7 +1216,6 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             std::find(link.answered.begin(), link.answered.end(), frame.unit_id()) == link.answered.end())
             link.answered.push_back(frame.unit_id());
         r.carrier = flow.carrier;
-        DeviceStats* stats = nullptr;
         // A reply whose checksum fails may have its unit byte damaged: while a request waits on the line it
         // is that unit's reply, garbled on the way (the other units do not talk unasked), not a unit nobody
         // asked, which would stand in the summary as a device of its own.
@@ -1213,20 +1223,7 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         if (r.direction == Direction::Response && !frame.checksum_ok)
             if (const auto it = pending_.find({flow.id, pairing_id(frame)}); it != pending_.end())
                 unit = it->second.request.frame.unit_id();
-        // A request to unit 0 whose checksum fails is no broadcast (see on_frame), and its unit byte may be
-        // among the damage, or the frame line noise: it is unit 0's only when broadcasts were seen on the
-        // line, else no device's, rather than a device the noise made up.
-        const bool named_by_damage =
-            r.direction == Direction::Request && !frame.checksum_ok && unit == 0 &&
-            std::none_of(flow.units.begin(), flow.units.end(), [](const Flow::Unit& u) { return u.id == 0; });
-        if (!named_by_damage) r.device = device_of(flow, unit, stats);
-        auto pdu = decode_pdu(r.frame.pdu(), r.direction);
-        if (pdu)
-            r.pdu = std::move(pdu.value());
-        else
-            r.error = std::string(to_string(pdu.error().code)) + " at PDU byte " +
-                      std::to_string(pdu.error().offset);
-        on_frame(flow, r, stats);
+        decode_and_judge(flow, r, unit);
     }
     events.clear();
 }

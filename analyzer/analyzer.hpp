@@ -187,6 +187,8 @@ class Analyzer {
     void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);
     // Records pass by reference down the pipeline (a frame record is over 500 bytes): the request is moved
     // once into the pending table, and both frames once into their transaction.
+    // A frame of `flow` from or to `unit`: named by its device, decoded, judged (on_frame).
+    void decode_and_judge(Flow& flow, FrameRecord& record, std::uint8_t unit);
     void on_frame(Flow& flow, FrameRecord& record, DeviceStats* stats);  // null: no device's
     struct SerialLink;
     SerialLink& serial_link(const std::string& key, const std::string& link, const std::string& server,

@@ -66,6 +66,21 @@ TEST(RtuOverTcp, FramesArePairedAndABadCrcIsFlagged) {
     EXPECT_EQ(d->summary.unparsed_bytes, 0u);
 }
 
+// A frame to unit 0 whose CRC fails is no broadcast and names no device through a gateway as on a serial
+// line (it stood in the summary as a device "unit 0" with a bad CRC).
+TEST(RtuOverTcp, AFrameToUnitZeroWhoseCrcFailsNamesNoDevice) {
+    Conversation c;
+    c.send(true, request, 1s);
+    c.send(false, response, 1s + 12ms);
+    c.send(true, bytes({0x00, 0x06, 0x00, 0x01, 0x00, 0x03, 0x98, 0x1A}), 2s);  // CRC 99 DA, damaged
+    auto d = decode_pcap(c.file(), gateway_options());
+    ASSERT_EQ(d->summary.devices.size(), 1u);
+    EXPECT_EQ(d->summary.devices.count("10.0.0.2:4001 unit 17"), 1u);
+    EXPECT_EQ(d->summary.damaged_broadcasts, 1u);
+    EXPECT_EQ(d->sink.transactions.size(), 1u);
+    EXPECT_EQ(d->sink.count(mb::FindingCode::RtuCrcMismatch), 1);
+}
+
 TEST(RtuOverTcp, FramesSplitAcrossSegmentsAreReassembled) {
     Conversation c;
     c.send(true, {request.begin(), request.begin() + 3}, 1s);  // one frame over two segments
