@@ -600,7 +600,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
                 report(rule.code, r, rule.message);
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
-        if (const auto pdu = r.frame.pdu(); !pdu.empty() && only_reads(pdu[0]))
+        if (only_reads(r.frame.pdu()))
             report(FindingCode::PairBroadcastRead, r,
                    describe_request(r) +
                        " sent to unit 0: broadcast requests are writes, and nobody answers "

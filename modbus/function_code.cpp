@@ -56,9 +56,15 @@ bool is_public_function(std::uint8_t function_code) noexcept {
     return function_name(function_code).has_value();
 }
 
-bool only_reads(std::uint8_t fc) noexcept {
+bool only_reads(std::span<const std::uint8_t> pdu) noexcept {
     using F = FunctionCode;
-    switch (static_cast<F>(fc)) {
+    if (pdu.empty()) return false;
+    if (pdu[0] == static_cast<std::uint8_t>(F::Diagnostics)) {
+        if (pdu.size() < 3) return false;
+        const unsigned sub = (pdu[1] << 8) | pdu[2];
+        return sub == 0x00 || sub == 0x02 || (sub >= 0x0B && sub <= 0x12);
+    }
+    switch (static_cast<F>(pdu[0])) {
         case F::ReadCoils:
         case F::ReadDiscreteInputs:
         case F::ReadHoldingRegisters:

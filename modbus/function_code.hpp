@@ -40,10 +40,11 @@ bool is_public_function(std::uint8_t function_code) noexcept;
 // AP §5.1: 65-72 and 100-110 are user-defined; 9, 10, 13, 14, 41, 42, 90, 91, 125, 126, 127 are reserved.
 bool is_user_defined_function(std::uint8_t function_code) noexcept;
 bool is_reserved_function(std::uint8_t function_code) noexcept;
-// A public function that only reads (FC1-4, 7, 11, 12, 17, 20, 24, 43): one sent in broadcast asks what no
-// slave will ever return (SL §2.1: broadcast requests are writes). FC8, whose sub-functions change a
-// device's state (restart, listen-only), and FC23, which writes, are not among them.
-bool only_reads(std::uint8_t function_code) noexcept;
+// A request PDU that only reads (FC1-4, 7, 11, 12, 17, 20, 24, 43, and FC8's sub-functions that return data
+// or a counter: 00, 02, 0B-12, AP §6.8.1): one sent in broadcast asks what no slave will ever return (SL
+// §2.1: broadcast requests are writes). FC8's restart, listen-only and clearing sub-functions change a
+// device's state, and FC23 writes: not among them.
+bool only_reads(std::span<const std::uint8_t> pdu) noexcept;
 // AP §6.8.1: FC8 sub-function 01 with the data the specification allows (0000 or FF00), the one request a
 // device in listen-only mode acts upon.
 bool is_restart_communications(std::span<const std::uint8_t> pdu) noexcept;

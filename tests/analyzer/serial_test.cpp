@@ -228,21 +228,25 @@ TEST(SerialInput, NoiseToUnitZeroIsNoBroadcastAndNoDevice) {
 }
 
 // Broadcast requests are writes (SL §2.1; the MK manual runs FC5, 6, 15 and 16 in broadcast, 000:313): a
-// read sent to unit 0 passed without a word, though nothing it reads can ever come back. A broadcast write
-// and a broadcast of FC8 (whose sub-functions change a device's state) are what broadcasts are for.
+// read sent to unit 0 passed without a word, though nothing it reads can ever come back; so did FC8's
+// sub-functions that return a counter. A broadcast write and FC8's listen-only (which changes a device's
+// state) are what broadcasts are for.
 TEST(SerialInput, ABroadcastThatOnlyReadsIsSaid) {
     const auto path = write_temp("broadcast_read.txt",
                                  "1.000 > 00 03 00 60 00 03 04 04\n"    // FC3, read 96+3
                                  "2.000 > 00 06 00 01 00 03 99 DA\n"    // FC6, write 1 = 3
-                                 "3.000 > 00 08 00 04 00 00 A0 1B\n");  // FC8/04, force listen only
+                                 "3.000 > 00 08 00 04 00 00 A0 1B\n"    // FC8/04, force listen only
+                                 "4.000 > 00 08 00 0B 00 00 90 18\n");  // FC8/0B, a counter: reads
     auto r = decode(path, an::InputFormat::Text);
-    ASSERT_EQ(r->sink.transactions.size(), 3u);
+    ASSERT_EQ(r->sink.transactions.size(), 4u);
     for (const auto& t : r->sink.transactions)
         EXPECT_TRUE(t.broadcast);
-    ASSERT_EQ(r->sink.count(mb::FindingCode::PairBroadcastRead), 1);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairBroadcastRead), 2);
+    std::vector<std::uint64_t> frames;
     for (const auto& f : r->sink.findings)
-        EXPECT_EQ(f.frames, std::vector<std::uint64_t>{1}) << f.message;
-    EXPECT_EQ(r->sink.findings.size(), 1u);
+        frames.insert(frames.end(), f.frames.begin(), f.frames.end());
+    EXPECT_EQ(frames, (std::vector<std::uint64_t>{1, 4}));
+    EXPECT_EQ(r->sink.findings.size(), 2u);
 }
 
 // A read of 21 coils answered in three bytes leaves the last byte's three high bits unused, padded with zeros
