@@ -1,7 +1,8 @@
 // The profile loader on hostile JSON: structure, ranges, references between points, simulation blocks and
 // modular-device configurations. The include callback offers one shared map file so the Walchem path is
 // reachable. Properties: no crash, no exception escapes, every problem is an error record with a pointer;
-// a profile that loads is self-consistent enough to be queried over its whole address space.
+// a profile that loads is self-consistent enough to be queried over its whole address space, and every
+// point's value can be shown.
 #include <string>
 #include <string_view>
 
@@ -21,11 +22,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     for (const auto& p : loaded.profiles) {
         for (int t : {0, 1, 3, 4}) {
             const auto table = static_cast<modbus::Table>(t);
-            for (const auto& point : p.table(table))
+            for (const auto& point : p.table(table)) {
                 if (p.find(table, point.address) == nullptr)
                     fuzz::fail("fuzz_profile", "point '" + point.name + "' at " +
                                                    std::to_string(point.address) +
                                                    " is not found at its own address");
+                // Every encoding shows a value, its formula evaluated and its decimal point looked up.
+                (void)modbus::decode_registers(p, table, point.address, {0x8001, 0xFFFF},
+                                               {{point.address, 0x0003}});
+            }
             (void)modbus::check_read(p, table, 0, 125);
             (void)modbus::check_writes(p, table, 0, std::vector<std::uint16_t>(16, 0xFFFF));
         }
