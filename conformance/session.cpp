@@ -174,30 +174,29 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
     // The rest of a request send_part() began is paced and settled there, and what arrives now is its
     // reply, whoever it answers: its last part alone does not say what it asks.
     const bool rest = std::exchange(part_sent_, false);
+    // What the bytes are, decoded once (the rest of a split request is nothing on its own).
+    std::optional<modbus::Frame> decoded;
+    if (!rest)
+        if (auto f = modbus::decode_adu(client_.framing(), bytes)) decoded = std::move(f).value();
     // Bytes that decode as one request (whatever their checksum: a device that skips the check answers
     // them) are owed a reply like any other; others are no request anyone could answer.
-    std::optional<modbus::Frame> request;
-    if (!rest && client_.framing() != modbus::Framing::Tcp && frames == 1)
-        if (auto f = modbus::decode_adu(client_.framing(), bytes)) request = std::move(f).value();
+    const modbus::Frame* request =
+        decoded && client_.framing() != modbus::Framing::Tcp && frames == 1 ? &*decoded : nullptr;
     const std::uint8_t unit = request ? request->unit_id() : 0;
     const auto pdu = request ? request->pdu() : std::span<const std::uint8_t>{};
     if (!rest) {
         pace();
         settle_late(unit, pdu);
     }
-    // Bytes that are one whole request with a good checksum to a unit are owed a reply like request()'s.
-    if (!rest && frames > 0)
-        if (auto f = modbus::decode_adu(client_.framing(), bytes);
-            f && f->checksum_ok && f->wire_length == bytes.size() &&
-            (f->unit_id() != 0 || client_.framing() == modbus::Framing::Tcp))
-            ++owed_reply_;
+    const bool whole = decoded && decoded->wire_length == bytes.size();
+    // One whole request with a good checksum to a unit is owed a reply as request()'s are.
+    if (whole && frames > 0 && decoded->checksum_ok &&
+        (decoded->unit_id() != 0 || client_.framing() == modbus::Framing::Tcp))
+        ++owed_reply_;
     auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames, {},
                           rest ? std::span<const tp::OwedRequest>{} : owed().list());
     if (ex.closed) (void)client_.reconnect();
-    bool one_request = false;
-    if (!rest && frames == 1)
-        if (auto f = modbus::decode_adu(client_.framing(), bytes))
-            one_request = f->wire_length == bytes.size();
+    const bool one_request = whole && frames == 1;
     log(ex, note, one_request);
     account(ex, unit, pdu);
     return ex;

@@ -113,20 +113,22 @@ TEST(UserLinkType, AReplyHeldForItsSilenceIsPairedBeforeRequestsTimeOut) {
     Collect sink;
     an::Analyzer a(user_dlt(mb::Framing::Rtu), sink);
     std::uint64_t number = 0;
-    const auto record = [&](const char* source, mb::Timestamp t, const std::vector<std::uint8_t>& bytes) {
+    // A USER0 record of `source` to analyzer `to`.
+    const auto record = [&number](an::Analyzer& to, const char* source, mb::Timestamp t,
+                                  const std::vector<std::uint8_t>& bytes) {
         an::Packet p;
         p.number = ++number;
         p.time = t;
         p.linktype = link_user0;
         p.data = bytes;
         p.original_length = static_cast<std::uint32_t>(bytes.size());
-        a.packet(source, p);
+        to.packet(source, p);
     };
-    record("a.pcap", 1s, rtu_request);
-    record("a.pcap", 1s + 50ms, rtu_response);
-    record("b.pcap", 2500ms, rtu_request);  // past a.pcap's deadline for its request, 2 s
-    record("b.pcap", 2550ms, rtu_response);
-    record("a.pcap", 3s, rtu_request);
+    record(a, "a.pcap", 1s, rtu_request);
+    record(a, "a.pcap", 1s + 50ms, rtu_response);
+    record(a, "b.pcap", 2500ms, rtu_request);  // past a.pcap's deadline for its request, 2 s
+    record(a, "b.pcap", 2550ms, rtu_response);
+    record(a, "a.pcap", 3s, rtu_request);
     a.finish();
     EXPECT_EQ(a.summary().devices.at("serial a.pcap unit 17").responses, 1u);
     EXPECT_EQ(a.summary().devices.at("serial a.pcap unit 17").timeouts, 0u);
@@ -141,20 +143,10 @@ TEST(UserLinkType, AReplyHeldForItsSilenceIsPairedBeforeRequestsTimeOut) {
         tail(rtu_response.begin() + 5, rtu_response.end());
     Collect split_sink;
     an::Analyzer b(user_dlt(mb::Framing::Rtu), split_sink);
-    const auto split_record = [&](const char* source, mb::Timestamp t,
-                                  const std::vector<std::uint8_t>& bytes) {
-        an::Packet p;
-        p.number = ++number;
-        p.time = t;
-        p.linktype = link_user0;
-        p.data = bytes;
-        p.original_length = static_cast<std::uint32_t>(bytes.size());
-        b.packet(source, p);
-    };
-    split_record("a.pcap", 1s, rtu_request);
-    split_record("a.pcap", 1050ms, head);
-    split_record("b.pcap", 1054500us, {0x05, 0x03, 0x00, 0x60, 0x00, 0x01, 0x85, 0x90});
-    split_record("a.pcap", 1056500us, tail);
+    record(b, "a.pcap", 1s, rtu_request);
+    record(b, "a.pcap", 1050ms, head);
+    record(b, "b.pcap", 1054500us, {0x05, 0x03, 0x00, 0x60, 0x00, 0x01, 0x85, 0x90});
+    record(b, "a.pcap", 1056500us, tail);
     b.finish();
     EXPECT_EQ(b.summary().devices.at("serial a.pcap unit 17").responses, 1u);
     EXPECT_EQ(b.summary().devices.at("serial a.pcap unit 17").checksum_errors, 0u);
