@@ -603,8 +603,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         if (only_reads(r.frame.pdu()))
             report(FindingCode::PairBroadcastRead, r,
                    describe_request(r) +
-                       " sent to unit 0: broadcast requests are writes, and nobody answers "
-                       "this one");
+                       " sent to unit 0: broadcast requests are writes, and nobody answers this one");
         auto told = follow_broadcast(flow, r);
         if (!sink_wants_transactions_) {
             if (told) report(FindingCode::ProfileLineSettingsChanged, r, std::move(*told), {r.index});
@@ -797,9 +796,8 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                     (flow.damaged_request && r.time.count() && r.time >= flow.damaged_request_time &&
                              r.time - flow.damaged_request_time <= options_.serial_timeout
                          ? " (after frame " + std::to_string(flow.damaged_request) +
-                               ", a request whose checksum failed: the device answered a frame it should "
-                               "have "
-                               "discarded, or the capture damaged the request)"
+                               ", a request whose checksum failed: the device answered a frame "
+                               "it should have discarded, or the capture damaged the request)"
                          : ""));
             return;
         }
