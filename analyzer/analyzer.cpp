@@ -934,8 +934,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                 // request is on its own.
                 const auto* bits = std::get_if<ReadBitsResponse>(&a.body);
                 const auto* read = std::get_if<ReadRequest>(&q.body);
-                if (bits && read && expected && got && *expected == *got && read->quantity % 8 != 0 &&
-                    !bits->values.empty() && (bits->values.back() >> (read->quantity % 8)) != 0)
+                if (bits && read && padding_bits_set(bits->values, read->quantity))
                     pair_finding(FindingCode::PduPaddingBitsSet,
                                  describe_request(q) + ": the response's last byte, " +
                                      hex8(bits->values.back()) + ", sets bits past the " +

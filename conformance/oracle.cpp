@@ -282,7 +282,7 @@ void ExchangeOracle::check_normal_shape(const Request& r, const modbus::Pdu& rep
             const auto* bits = std::get_if<modbus::ReadBitsResponse>(&reply.body);
             if (!bits || bits->values.size() != (rr.quantity + 7u) / 8u)
                 bad("reply.byte_count", "AP §6.1", std::to_string((rr.quantity + 7) / 8) + " data bytes");
-            else if (rr.quantity % 8 != 0 && (bits->values.back() >> (rr.quantity % 8)) != 0)
+            else if (modbus::padding_bits_set(bits->values, rr.quantity))
                 bad("reply.padding", "AP §6.1", "the bits of the last byte past the quantity asked zero");
             break;
         }

@@ -200,7 +200,9 @@ void check_data(Context& c) {
                   const std::uint8_t last = bits->values.back();
                   r.observed =
                       "last byte " + modbus::hex8(last) + " for " + std::to_string(quantity) + " points";
-                  r.outcome = (last >> (quantity % 8)) == 0 ? Outcome::Pass : Outcome::Fail;
+                  r.outcome = modbus::padding_bits_set(bits->values, static_cast<std::uint16_t>(quantity))
+                                  ? Outcome::Fail
+                                  : Outcome::Pass;
               });
     }
     // Reserved registers with a documented read value (the CTH2265I's 0x55AA, 003:574).

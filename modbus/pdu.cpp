@@ -51,10 +51,7 @@ void check_span(Pdu& pdu, std::uint16_t start, std::uint16_t quantity) {
 }
 
 void check_padding(Pdu& pdu, std::span<const std::uint8_t> packed, std::uint16_t quantity) {
-    if (packed.empty() || quantity == 0) return;
-    const unsigned used = quantity % 8;
-    if (used == 0 || packed.size() != (quantity + 7u) / 8u) return;
-    if ((packed.back() >> used) != 0) pdu.violations.add(FindingCode::PduPaddingBitsSet);
+    if (padding_bits_set(packed, quantity)) pdu.violations.add(FindingCode::PduPaddingBitsSet);
 }
 
 Result<Pdu> decode_file_sub_requests(Pdu pdu, ByteReader& r, bool with_data) {
@@ -587,6 +584,12 @@ std::vector<std::uint8_t> pack_bits(std::span<const bool> bits) {
     for (std::size_t i = 0; i < bits.size(); ++i)
         if (bits[i]) packed[i / 8] = static_cast<std::uint8_t>(packed[i / 8] | (1u << (i % 8)));
     return packed;
+}
+
+bool padding_bits_set(std::span<const std::uint8_t> packed, std::uint16_t quantity) noexcept {
+    const unsigned used = quantity % 8;
+    if (packed.empty() || used == 0 || packed.size() != (quantity + 7u) / 8u) return false;
+    return (packed.back() >> used) != 0;
 }
 
 bool bit_at(std::span<const std::uint8_t> packed, std::size_t index) noexcept {

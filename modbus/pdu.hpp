@@ -235,6 +235,9 @@ Pdu make_exception(std::uint8_t function_code, std::uint8_t exception_code);
 // Packed coil helpers (AP §6.1: LSB of the first byte is the first coil; unused high bits are zero).
 std::vector<std::uint8_t> pack_bits(std::span<const bool> bits);
 bool bit_at(std::span<const std::uint8_t> packed, std::size_t index) noexcept;
+// Whether `packed`, holding exactly `quantity` bits, sets a bit of its last byte past them (zero padding,
+// AP §6.1, §6.2, §6.11): judged for an FC15 request on its own, for an FC1/FC2 reply with its request.
+bool padding_bits_set(std::span<const std::uint8_t> packed, std::uint16_t quantity) noexcept;
 
 // ---- length prediction: how long is the PDU that starts here? ----
 // Used by the RTU deframer without timing (and by any framing that must find frame ends from content),
