@@ -144,7 +144,15 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     if (unrestored)
         std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\", "
                      "\"not_read\", \"unanswered_writes\" and \"unanswered_unread\")\n";
-    return summary.findings.empty() && !unrestored ? exit_ok : exit_findings;
+    if (!summary.findings.empty() || unrestored) return exit_findings;
+    // Nothing found in part of the budget is not the clean result exit 0 promises (a CI job's timeout
+    // sends SIGTERM): an interrupted run without findings could not complete.
+    if (summary.stopped) {
+        std::cerr << "mbscope fuzz: interrupted after " << summary.requests
+                  << " requests, nothing found so far; the run did not complete\n";
+        return exit_failure;
+    }
+    return exit_ok;
 }
 
 }  // namespace
@@ -167,7 +175,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
         "Every point written is read first and written back at the end; --read-only writes nothing.\n"
         "Output: progress on a terminal (stderr), findings on stderr, a JSON summary on stdout.\n"
         "Exit codes: 0 nothing found, 1 at least one finding (or a point not restored), 2 the target could\n"
-        "not be reached or never answered.\n"
+        "not be reached or never answered, or the run was interrupted (SIGINT, SIGTERM) before it found\n"
+        "anything.\n"
         "Example: mbscope fuzz --target tcp://127.0.0.1:5020 --profile mmk-2030 --duration 60s --artifacts "
         "out");
     cmd->add_option("--target", o->target, "The slave to fuzz (URI)")->required();

@@ -150,12 +150,17 @@ int run_replay_command(const ReplayCliOptions& o) {
         if (!restored.empty())
             std::cout << "restored " << back << " of " << restored.size()
                       << " points the steps may have written\n";
-        std::cout << (again ? "reproduced: " : "not reproduced: ") << r.rule << " (" << r.source << ")";
+        std::cout << (again     ? "reproduced: "
+                      : stopped ? "not reproduced in the steps sent before the interrupt: "
+                                : "not reproduced: ")
+                  << r.rule << " (" << r.source << ")";
         if (!again && violations) std::cout << "; other rules broken: " << violations;
         std::cout << '\n';
     }
     if (unrestored) std::cerr << "mbscope replay: some points the steps may have written were not restored\n";
-    return again || violations || unrestored ? exit_findings : exit_ok;
+    if (again || violations || unrestored) return exit_findings;
+    // Steps left unsent cannot show the rule kept: "not reproduced" is said only of a whole replay.
+    return stopped ? exit_failure : exit_ok;
 }
 
 }  // namespace
@@ -171,7 +176,8 @@ void register_replay(CLI::App& app, int& exit_code) {
         "the steps leave it); an interrupt (Ctrl-C) stops the steps, not the restore. Points outside the\n"
         "profile's map are not read; a write there the device acknowledges is listed as not restored.\n"
         "Exit codes: 0 no rule broken, 1 the recorded rule (or another) broken again or a point not\n"
-        "restored, 2 the file or the target could not be used.\n"
+        "restored, 2 the file or the target could not be used, or the steps were interrupted before the\n"
+        "rule was broken again.\n"
         "Example: mbscope replay --target tcp://127.0.0.1:5020 out/reply.checksum-fc3.json");
     cmd->add_option("file", o->file, "Reproducer (JSON) written by mbscope fuzz --artifacts")->required();
     cmd->add_option("--target", o->target, "The slave (URI; default: the one recorded)");

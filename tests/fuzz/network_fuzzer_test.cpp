@@ -1539,7 +1539,10 @@ TEST(FuzzCommand, AnInterruptedReplayStillRestores) {
     // SIGINT once the write has landed: the steps are under way.
     const auto stopped = interrupt_after_the_write(file.string(), "mbscope-replay-interrupted", image,
                                                    std::chrono::milliseconds(0));
-    EXPECT_EQ(stopped.status, 0) << stopped.out;
+    // Steps left unsent cannot show the rule kept: not the 0 of a replay that did not reproduce.
+    EXPECT_EQ(stopped.status, 2) << stopped.out;
+    EXPECT_NE(stopped.out.find("not reproduced in the steps sent before the interrupt"), std::string::npos)
+        << stopped.out;
     EXPECT_NE(stopped.out.find("stopped after step "), std::string::npos) << stopped.out;
     EXPECT_NE(stopped.out.find(" of 39 (interrupted)"), std::string::npos) << stopped.out;
     EXPECT_NE(stopped.out.find("restored 1 of 1 points"), std::string::npos) << stopped.out;
@@ -1577,10 +1580,29 @@ TEST(FuzzCommand, AnInterruptCutsAPauseInsideAStep) {
     // Into the pause after the first piece.
     const auto stopped =
         interrupt_after_the_write(file, "mbscope-replay-paused", image, std::chrono::milliseconds(100));
-    EXPECT_EQ(stopped.status, 0) << stopped.out;
+    EXPECT_EQ(stopped.status, 2) << stopped.out;
     EXPECT_NE(stopped.out.find("stopped after step 1 of 2 (interrupted)"), std::string::npos) << stopped.out;
     EXPECT_NE(stopped.out.find("restored 1 of 1 points"), std::string::npos) << stopped.out;
     EXPECT_EQ(image.reg(Table::HoldingRegisters, 20), 0x0042);
+}
+
+// A campaign interrupted before it found anything did not complete its budget: exit 2, and it says so.
+// Before, it exited 0 as a clean run does, and a CI job stopped by its timeout (SIGTERM) passed.
+TEST(FuzzCommand, AnInterruptedCampaignWithoutFindingsIsNotAPass) {
+    RunningServer server({}, 7, "modbus");
+    const auto target = "tcp://127.0.0.1:" + std::to_string(server.start("tcp"));
+    auto& image = server.device().image();
+    Background fuzz("fuzz --target " + target + " --duration 60s --seed 1 --no-progress",
+                    "mbscope-fuzz-interrupted");
+    ASSERT_TRUE(fuzz.started());
+    // Under way: a write has landed (the handler for the signal is installed before the first request).
+    EXPECT_TRUE(mbscope::test::wait_for([&] { return image.modifications() > 0; }));
+    fuzz.signal(SIGINT);
+    const auto ended = fuzz.finish();
+    EXPECT_EQ(ended.status, 2) << ended.out;
+    EXPECT_NE(ended.out.find("interrupted after "), std::string::npos) << ended.out;
+    EXPECT_NE(ended.out.find("\"stopped\": true"), std::string::npos) << ended.out;
+    EXPECT_EQ(ended.out.find("finding "), std::string::npos) << ended.out;
 }
 
 // Until the target is open an interrupt or SIGTERM ends `mbscope replay` as any command: reading a FIFO no
