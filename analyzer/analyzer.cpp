@@ -637,33 +637,40 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     if (auto it = pending_.find(key); it != pending_.end()) {
         report(FindingCode::PairTransactionIdDuplicate, r,
                "transaction id " + std::to_string(key.tid) + " reused while frame " +
-                   std::to_string(it->second.request.index) + " is still unanswered",
+                   std::to_string(it->second.request.index) +
+                   " is still unanswered; replies with it are paired with the requests in turn",
                {it->second.request.index, r.index});
-        Pending old = std::move(it->second);
+        // Both still wait: a server answers a connection's requests in turn, and a client that numbers
+        // every request alike (some do) gets every reply. Giving the older one up here blamed the device
+        // with a timeout, its reply with an echo mismatch and the last reply as unsolicited.
+        auto& older = reused_[key];
+        if (older.size() >= max_reused_per_id) {
+            Pending old = std::move(older.front());
+            older.pop_front();
+            --flow.pending;
+            give_up(old, true,
+                    {FindingCode::PairNoResponse,
+                     no_response_message(old.request,
+                                         "before its transaction id was used " +
+                                             std::to_string(max_reused_per_id + 1) + " more times",
+                                         r.time)});
+        }
+        older.push_back(std::move(it->second));
         pending_.erase(it);
-        --flow.pending;
-        // The client has given up on it: a timeout like any other, which its transaction and the exit
-        // code must show (the reuse is the client's doing, the silence the device's).
-        give_up(old, true,
-                {FindingCode::PairNoResponse,
-                 no_response_message(old.request, "before its transaction id was used again", r.time)});
     }
     if (flow.pending >= options_.max_pending_per_flow) {
         report(FindingCode::PairPendingOverflow, r,
                std::to_string(flow.pending) + " requests unanswered on this link; the oldest is given up");
         // The link's oldest request still pending: the one with the smallest serial, in whichever queue.
-        std::unordered_map<PendingKey, Pending, PendingHash>::iterator oldest = pending_.end();
+        std::optional<Expiry> oldest;
         for (const auto& queue : expiries_)
             for (const Expiry& e : queue) {
-                if (e.key.flow != flow.id) continue;
-                auto it = pending_.find(e.key);
-                if (it == pending_.end() || it->second.serial != e.serial) continue;
-                if (oldest == pending_.end() || e.serial < oldest->second.serial) oldest = it;
+                if (e.key.flow != flow.id || !find_pending(e.key, e.serial)) continue;
+                if (!oldest || e.serial < oldest->serial) oldest = e;
                 break;  // each queue is in the order requests came
             }
-        if (oldest != pending_.end()) {
-            Pending given_up = std::move(oldest->second);
-            pending_.erase(oldest);
+        if (auto taken = oldest ? take_pending(oldest->key, oldest->serial) : std::nullopt) {
+            Pending given_up = std::move(*taken);
             --flow.pending;
             // A timeout like any other, reported as one (the overflow warning is about the new request), and
             // like any other its reply may still come: late then, not unsolicited.
@@ -723,6 +730,24 @@ bool echo_matches(const Pdu& request, const Pdu& response) {
         default:
             return true;
     }
+}
+
+// Could `response` be the reply to `request`, as far as its bytes tell: its unit, its function (or the
+// exception to it), and for a pair that decodes, the echo and the data size the request asks for.
+bool could_answer(const FrameRecord& request, const FrameRecord& response) {
+    const auto q = request.frame.pdu();
+    const auto a = response.frame.pdu();
+    if (request.frame.unit_id() != response.frame.unit_id() || q.empty() || a.empty() ||
+        (a[0] & 0x7F) != q[0])
+        return false;
+    if (!request.pdu || !response.pdu || response.pdu->is_exception()) return true;
+    if (!echo_matches(*request.pdu, *response.pdu)) return false;
+    const auto expected = expected_response_data(*request.pdu);
+    if (const auto* regs = std::get_if<ReadRegistersResponse>(&response.pdu->body))
+        return !expected || *expected == regs->values.size() * 2;
+    if (const auto* bits = std::get_if<ReadBitsResponse>(&response.pdu->body))
+        return !expected || *expected == bits->values.size();
+    return true;
 }
 
 }  // namespace
@@ -803,12 +828,63 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         }
     }
     --flow.pending;
+    // The transaction id reused while older requests with it still wait: the oldest the reply fits is the
+    // one it answers (a server answers in turn), else the oldest.
+    Pending* answered = &it->second;
+    std::deque<Pending>* older = nullptr;
+    std::deque<Pending>::iterator chosen;
+    if (!reused_.empty())
+        if (auto o = reused_.find(it->first); o != reused_.end()) {
+            older = &o->second;
+            chosen = std::find_if(older->begin(), older->end(),
+                                  [&](const Pending& p) { return could_answer(p.request, r); });
+            if (chosen == older->end() && !could_answer(it->second.request, r)) chosen = older->begin();
+            if (chosen != older->end()) answered = &*chosen;
+        }
     // A request after the lost bytes answered: the replies to those before it have had their turn.
-    if (flow.first_request_after_gap && it->second.serial >= flow.first_request_after_gap)
+    if (flow.first_request_after_gap && answered->serial >= flow.first_request_after_gap)
         flow.first_request_after_gap = 0;
     flow.keep_last_response(r);
-    complete(it->second, &r, false);  // reports and sinks never touch the pending table
-    pending_.erase(it);
+    complete(*answered, &r, false);  // reports and sinks never touch the pending table
+    if (answered == &it->second) {
+        (void)take_pending(it->first, answered->serial);
+    } else {
+        older->erase(chosen);
+        if (older->empty()) reused_.erase(it->first);
+    }
+}
+
+Analyzer::Pending* Analyzer::find_pending(const PendingKey& key, std::uint64_t serial) {
+    if (auto it = pending_.find(key); it != pending_.end() && it->second.serial == serial) return &it->second;
+    if (reused_.empty()) return nullptr;
+    auto older = reused_.find(key);
+    if (older == reused_.end()) return nullptr;
+    for (Pending& p : older->second)
+        if (p.serial == serial) return &p;
+    return nullptr;
+}
+
+std::optional<Analyzer::Pending> Analyzer::take_pending(PendingKey key, std::uint64_t serial) {
+    std::optional<Pending> out;
+    auto older = reused_.empty() ? reused_.end() : reused_.find(key);
+    if (auto it = pending_.find(key); it != pending_.end() && it->second.serial == serial) {
+        out.emplace(std::move(it->second));
+        pending_.erase(it);
+        if (older != reused_.end()) {  // the one before it with the id is now the newest
+            pending_.try_emplace(key, std::move(older->second.back()));
+            older->second.pop_back();
+        }
+    } else if (older != reused_.end()) {
+        auto p = std::find_if(older->second.begin(), older->second.end(),
+                              [&](const Pending& q) { return q.serial == serial; });
+        if (p == older->second.end()) return out;
+        out.emplace(std::move(*p));
+        older->second.erase(p);
+    } else {
+        return out;
+    }
+    if (older != reused_.end() && older->second.empty()) reused_.erase(older);
+    return out;
 }
 
 void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late,
@@ -1044,9 +1120,7 @@ void Analyzer::expire(Timestamp now, bool at_end) {
     for (auto& queue : expiries_)
         while (expiry_entries_ > 2 * pending_.size() + 64 && !queue.empty()) {
             const Expiry& e = queue.front();
-            const auto it = pending_.find(e.key);
-            if (it != pending_.end() && it->second.serial == e.serial)
-                break;  // still pending: its deadline decides
+            if (find_pending(e.key, e.serial)) break;  // still pending: its deadline decides
             queue.pop_front();
             --expiry_entries_;
         }
@@ -1061,10 +1135,9 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         if (!at_end && e.deadline > now) break;
         next->pop_front();
         --expiry_entries_;
-        auto it = pending_.find(e.key);
-        if (it == pending_.end() || it->second.serial != e.serial) continue;  // answered meanwhile
-        Pending p = std::move(it->second);
-        pending_.erase(it);
+        auto taken = take_pending(e.key, e.serial);
+        if (!taken) continue;  // answered meanwhile
+        Pending p = std::move(*taken);
         for (auto& [k, f] : flows_)
             if (f->id == e.key.flow) --f->pending;
         const bool ended = at_end && e.deadline > now_;
@@ -1704,6 +1777,15 @@ void Analyzer::give_up_waiting(Flow& f, Timestamp t, const std::string& how) {
         }
         waiting.push_back(std::move(it->second));
         it = pending_.erase(it);
+    }
+    for (auto it = reused_.begin(); it != reused_.end();) {
+        if (it->first.flow != f.id) {
+            ++it;
+            continue;
+        }
+        for (Pending& p : it->second)
+            waiting.push_back(std::move(p));
+        it = reused_.erase(it);
     }
     f.pending = 0;
     std::sort(waiting.begin(), waiting.end(),

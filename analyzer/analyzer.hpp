@@ -292,6 +292,17 @@ class Analyzer {
     std::map<std::string, std::unique_ptr<SerialLink>> serial_links_;
     std::map<std::string, std::string> serial_parts_;  // source → the line it continues (serial_part_of)
     std::unordered_map<PendingKey, Pending, PendingHash> pending_;
+    // Over Modbus/TCP, requests still waiting whose transaction id a later request on the link reused, oldest
+    // first (the newest with the id is in pending_). Clients that number every request alike exist; a server
+    // answers them in turn, so each keeps waiting for its own reply (take_pending, on_response).
+    std::unordered_map<PendingKey, std::deque<Pending>, PendingHash> reused_;
+    static constexpr std::size_t max_reused_per_id = 16;
+    // The waiting request with this key and serial, from pending_ or reused_; nullptr when answered or given
+    // up meanwhile.
+    Pending* find_pending(const PendingKey& key, std::uint64_t serial);
+    // Takes it out; when it was the newest with its key, the one before it (reused_) takes its place.
+    std::optional<Pending> take_pending(PendingKey key,
+                                        std::uint64_t serial);  // a copy: it may erase its key
     // Requests by deadline, one queue per timeout: each is then in deadline order, and a serial request (1 s)
     // is not held up behind a Modbus/TCP one (3 s) sent before it. Requests without a time stamp (raw
     // dumps) wait in a queue of their own: they end only when the master moves on, or the capture.
