@@ -570,7 +570,13 @@ std::string describe_request(const Pdu& p) {
 }
 
 std::string describe_request(const FrameRecord& r) {
-    return r.pdu ? describe_request(*r.pdu) : std::string("request");
+    if (r.pdu) return describe_request(*r.pdu);
+    const auto pdu = r.frame.pdu();
+    if (pdu.empty()) return "request";
+    // Its function code byte still says what it asked for.
+    std::string s = "FC" + std::to_string(pdu[0]);
+    if (auto n = function_name(pdu[0])) s += " " + std::string(*n);
+    return s + " (malformed request)";
 }
 
 // pair.no_response's message wherever a request is given up: "FC3 Read Holding Registers 0+2 to
@@ -976,6 +982,23 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             pair_finding(FindingCode::PairUnitMismatch,
                          "request to unit " + std::to_string(request.frame.unit_id()) +
                              ", response from unit " + std::to_string(rsp.frame.unit_id()));
+        // An exception is the device's answer whatever it answers: to a request that does not decode (the
+        // device's very reason to refuse it) or to another function than asked. Counted only for a request
+        // that decoded, the summary's exceptions fell short of the replies that carried one.
+        const bool exception = !damaged && rsp.pdu && rsp.pdu->is_exception();
+        if (exception) {
+            const auto code = std::get<ExceptionResponse>(rsp.pdu->body).exception_code;
+            if (!late) {  // of the responses; a late one is among the timeouts
+                ++stats.exceptions;
+                ++stats.exception_codes[code];
+            }
+            const auto name = exception_name(code);
+            pair_finding(code == 10   ? FindingCode::PairGatewayPathUnavailable
+                         : code == 11 ? FindingCode::PairGatewayTargetNoResponse
+                                      : FindingCode::PairExceptionResponse,
+                         "exception " + std::to_string(code) + " (" +
+                             (name ? std::string(*name) : "undefined") + ") to " + describe_request(request));
+        }
         if (!damaged && request.pdu && rsp.pdu) {
             const Pdu& q = *request.pdu;
             const Pdu& a = *rsp.pdu;
@@ -983,19 +1006,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                 pair_finding(FindingCode::PairFunctionMismatch,
                              "request FC" + std::to_string(q.function_code()) + ", response FC" +
                                  std::to_string(a.function_code()));
-            } else if (a.is_exception()) {
-                const auto code = std::get<ExceptionResponse>(a.body).exception_code;
-                if (!late) {  // of the responses; a late one is among the timeouts
-                    ++stats.exceptions;
-                    ++stats.exception_codes[code];
-                }
-                const auto name = exception_name(code);
-                pair_finding(code == 10   ? FindingCode::PairGatewayPathUnavailable
-                             : code == 11 ? FindingCode::PairGatewayTargetNoResponse
-                                          : FindingCode::PairExceptionResponse,
-                             "exception " + std::to_string(code) + " (" +
-                                 (name ? std::string(*name) : "undefined") + ") to " + describe_request(q));
-            } else {
+            } else if (!exception) {
                 auto expected = expected_response_data(q);
                 std::optional<std::size_t> got;
                 if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) got = bits->values.size();

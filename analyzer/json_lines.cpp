@@ -74,7 +74,10 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
             out.value(to_string(c));
         out.end_array();
     }
-    if (q.pdu) out.member("function", q.pdu->function_code());
+    if (q.pdu)
+        out.member("function", q.pdu->function_code());
+    else if (!q.frame.pdu().empty())  // a malformed request still asked for its function
+        out.member("function", static_cast<std::uint8_t>(q.frame.pdu()[0] & 0x7F));
     if (r && t.late_past) out.member("late", true);
     if (r && t.latency)
         out.member("latency_ms", std::chrono::duration<double, std::milli>(*t.latency).count());

@@ -308,7 +308,10 @@ json transaction_to_json(const TransactionRecord& t) {
         {"type", "transaction"},  {"ts", seconds(t.request.time)},    {"source", t.request.source},
         {"link", t.request.link}, {"request_frame", t.request.index}, {"unit_id", t.request.frame.unit_id()}};
     j["transport"] = std::string(to_string(t.request.carrier));
-    if (t.request.pdu) j["function"] = t.request.pdu->function_code();
+    if (t.request.pdu)
+        j["function"] = t.request.pdu->function_code();
+    else if (!t.request.frame.pdu().empty())  // a malformed request still asked for its function
+        j["function"] = t.request.frame.pdu()[0] & 0x7F;
     if (t.request.frame.framing == Framing::Tcp) j["transaction_id"] = t.request.frame.transaction_id();
     if (t.response) {
         j["response_frame"] = t.response->index;

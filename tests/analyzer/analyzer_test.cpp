@@ -1021,6 +1021,31 @@ TEST(Analyzer, AReplyUnderAReusedIdAnswersTheRequestItFits) {
     EXPECT_TRUE(h.sink.transactions[1].timed_out);
 }
 
+// An exception is counted as the device's answer whatever the request was: one that does not decode (the
+// very reason a device refuses it) or one for another function. Before, only exceptions to a request that
+// decoded, with the same function, reached the summary: ITI's modbus_test_data_part2.pcap showed 121 of the
+// 130 exception replies tshark and the transactions list.
+TEST(Analyzer, EveryExceptionReplyIsCounted) {
+    Harness h;
+    h.send(true, mb::encode_tcp(1, 17, std::vector<std::uint8_t>{0x06, 0x00, 0x00}),
+           1s);  // FC6 cut short: does not decode
+    h.send(false, mb::encode_tcp(1, 17, std::vector<std::uint8_t>{0x86, 0x03}), 1s + 1ms);
+    h.send(true, read_request(2), 2s);
+    h.send(false, mb::encode_tcp(2, 17, std::vector<std::uint8_t>{0x84, 0x02}),
+           2s + 1ms);  // FC4's exception to an FC3 request
+    h.analyzer.finish();
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.exceptions, 2u);
+    EXPECT_EQ(device.exception_codes.at(3), 1u);
+    EXPECT_EQ(device.exception_codes.at(2), 1u);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairExceptionResponse), 2);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairFunctionMismatch), 1);
+    bool named = false;
+    for (const auto& f : h.sink.findings)
+        named |= f.message.find("to FC6 Write Single Register (malformed request)") != std::string::npos;
+    EXPECT_TRUE(named) << "the exception names what the malformed request asked for";
+}
+
 // A request still waiting when its connection ends (a reset from either side, or the client opening the
 // connection again, as a PLC with a fixed source port does after its own timeout) will not be answered:
 // given up then, as a timeout with its finding. Left waiting, it clashed with the next connection's first

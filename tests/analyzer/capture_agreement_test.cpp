@@ -151,6 +151,32 @@ TEST(TsharkAgreement, RtuOverUdpWhereTsharkMustBeToldTheFraming) {
 
 }  // namespace
 
+// Every exception reply counts in its device's summary, code by code as tshark finds them: exceptions to
+// requests that do not decode, or for another function, included (before, ITI's part2 capture summed 121
+// of its 130).
+TEST(TsharkAgreement, ExceptionCodesCountedAsTsharkFindsThem) {
+    // (part1's exceptions answer requests the capture does not hold: unsolicited, in no device's count.)
+    const std::string file = "ITI__ICS-Security-Tools/modbus_test_data_part2.pcap";
+    std::map<long, long> theirs;
+    std::istringstream t(run("tshark -r '" + captures + file +
+                             "' -Y modbus.exception_code -T fields -e modbus.exception_code"));
+    for (std::string line; std::getline(t, line);)
+        for (const auto& code : split(line, ','))
+            if (!code.empty()) ++theirs[std::stol(code)];
+    std::map<long, long> ours;
+    std::istringstream o(
+        run(std::string(MBSCOPE_BINARY) + " decode --jsonl --no-progress '" + captures + file + "'"));
+    for (std::string line; std::getline(o, line);) {
+        auto j = nlohmann::json::parse(line);
+        if (j["type"] != "summary") continue;
+        for (const auto& [device, d] : j["devices"].items())
+            for (const auto& [code, n] : d["exception_codes"].items())
+                ours[std::stol(code)] += n.get<long>();
+    }
+    EXPECT_EQ(theirs.size(), 3u) << "codes 1, 2 and 3";
+    EXPECT_EQ(ours, theirs);
+}
+
 // ITI's modbus_test.pcap: a client sends three FC6 writes to unit 7, all with transaction id 504, and the
 // device echoes each in turn. Each reply is its own request's: no echo mismatch, nothing unsolicited, no
 // timeout (before: five errors held against the device). tshark links all three replies to one request.
