@@ -1717,13 +1717,21 @@ void Analyzer::rtac_packet(const Packet& p) {
 
 bool Analyzer::read_capture(CaptureSource& capture) {
     set_source(capture.name());  // once, not a comparison of names for every packet
+    bool any = false;
     while (auto p = capture.next()) {
+        any = true;
         packet_in_source(*p);
         if (options_.progress && p->number % packets_between_progress == 0)
             options_.progress(summary_, capture.offset());
     }
     if (!capture.error().empty()) {
         input_error(capture.error());
+        return false;
+    }
+    // A file header and nothing after it: a tap that recorded nothing is not a quiet network, as an empty
+    // serial dump is not a quiet line.
+    if (!any) {
+        input_error(capture.name() + ": the capture holds no packets, nothing to decode");
         return false;
     }
     return true;

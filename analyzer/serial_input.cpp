@@ -15,6 +15,7 @@
 
 #include "analyzer/serial_logs.hpp"
 #include "analyzer/timestamps.hpp"
+#include "modbus/describe.hpp"    // hex_bytes()
 #include "modbus/frame_text.hpp"  // parse_hex(), quote_excerpt()
 #include "modbus/storage/text_file.hpp"
 #include "modbus/transport/unique_fd.hpp"
@@ -227,6 +228,20 @@ bool read_log(Analyzer& a, const Input& input, InputFormat format, const SerialL
                                               : read_socat_log(in, path, options, chunk, error);
 }
 
+// A name that says "capture": .pcap, .pcapng, .cap, .ntar, .dmp (Wireshark's own), any case.
+bool named_as_capture(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (auto& c : ext)
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return ext == ".pcap" || ext == ".pcapng" || ext == ".cap" || ext == ".ntar" || ext == ".dmp";
+}
+
+std::string first_bytes(const std::vector<char>& head) {
+    if (head.empty()) return "none";
+    return modbus::hex_bytes(
+        {reinterpret_cast<const std::uint8_t*>(head.data()), std::min<std::size_t>(head.size(), 4)});
+}
+
 // Opens and is at its end; a file that cannot be opened is left to the reader, which names that.
 bool holds_no_bytes(const Input& input) {
     std::ifstream in(input.path, std::ios::binary);
@@ -305,6 +320,14 @@ std::optional<Prepared> prepare(Analyzer& a, const std::string& name, InputForma
                           ": holds a pcap or pcapng capture (its magic number) but --format reads it as "
                           "serial bytes; leave --format out to decode the capture");
         if (format == InputFormat::Auto) p.format = detected;
+        // Named as a capture and holding none: the wrong file, or one damaged from its first byte. Read as
+        // serial bytes it "decoded" to unparsed bytes and exit 0; --format still reads it as asked.
+        if (format == InputFormat::Auto && detected != InputFormat::Pcap && named_as_capture(path)) {
+            a.input_error(path + ": named as a capture, but its first bytes (" + first_bytes(head) +
+                          ") are no pcap or pcapng magic number: not a capture file (--format reads it "
+                          "as another format)");
+            return std::nullopt;
+        }
     }
     // A file of no bytes decodes to nothing in every serial format; reporting that as a clean decode would
     // pass off a tap that recorded nothing (or the wrong file) as a quiet line. libpcap names an empty pcap

@@ -118,6 +118,14 @@ int run_decode(const DecodeOptions& o) {
                    "as one stream\n";
     }
     if (!all_read) return exit_failure;
+    // Bytes read and not one frame among them: nothing was decoded (the wrong file, format or framing),
+    // which is not a clean result.
+    if (a.summary().frames == 0 && a.summary().unparsed_bytes > 0) {
+        std::cerr << "mbscope decode: no Modbus frame in the " << a.summary().unparsed_bytes
+                  << " bytes read, every one unparsed: not Modbus, or read in the wrong format or framing "
+                     "(--format, --framing)\n";
+        return exit_failure;
+    }
     return a.summary().errors ? exit_findings : exit_ok;
 }
 

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -80,6 +81,17 @@ std::vector<std::size_t> record_ends(const std::vector<std::uint8_t>& f) {
     return ends;
 }
 
+// A command's exit status and what it printed, standard error included.
+std::pair<int, std::string> run(const std::string& command) {
+    FILE* p = popen((command + " 2>&1").c_str(), "r");
+    std::string out;
+    char buf[4096];
+    while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
+        out.append(buf, n);
+    const int status = pclose(p);
+    return std::make_pair(WEXITSTATUS(status), out);
+}
+
 }  // namespace
 
 TEST(DamagedCapture, TruncatedAtEveryKindOfPlaceKeepsWhatCameBefore) {
@@ -103,7 +115,10 @@ TEST(DamagedCapture, TruncatedAtEveryKindOfPlaceKeepsWhatCameBefore) {
         EXPECT_GE(o.summary.packets, previous_packets);  // a longer prefix never yields fewer packets
         previous_packets = o.summary.packets;
         const bool at_record_end = std::find(ends.begin(), ends.end(), cut) != ends.end();
-        if (at_record_end) {
+        if (cut == 24) {
+            // The file header alone: nothing damaged, and nothing recorded either, which is no quiet network.
+            EXPECT_NE(o.error.find("holds no packets"), std::string::npos) << o.error;
+        } else if (at_record_end) {
             EXPECT_TRUE(o.error.empty()) << o.error;  // nothing is damaged: no error may be claimed
         } else {
             EXPECT_NE(o.error.find("packet " + std::to_string(o.summary.packets + 1)), std::string::npos)
@@ -263,15 +278,6 @@ TEST(DamagedCapture, PcapngInterfacesOfDifferentLinkTypesAreNamedForWhatTheyAre)
 
 // "-" is standard input: a capture piped in (over ssh, out of an archive) decodes as the file does.
 TEST(DamagedCapture, StandardInputDecodesAsTheFileDoes) {
-    const auto run = [](const std::string& command) {
-        FILE* p = popen((command + " 2>&1").c_str(), "r");
-        std::string out;
-        char buf[4096];
-        while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
-            out.append(buf, n);
-        const int status = pclose(p);
-        return std::make_pair(WEXITSTATUS(status), out);
-    };
     const std::string decode = std::string(MBSCOPE_BINARY) + " decode --summary ";
     const auto file = run(decode + sample);
     const auto piped = run("cat " + sample + " | " + decode + "-");
@@ -282,4 +288,43 @@ TEST(DamagedCapture, StandardInputDecodesAsTheFileDoes) {
     const auto empty = run(decode + "- < /dev/null");
     EXPECT_EQ(empty.first, 2) << empty.second;
     EXPECT_NE(empty.second.find("-: empty file, nothing to decode"), std::string::npos) << empty.second;
+}
+
+// The wrong file handed over must not pass for a quiet network or line (exit 0, "0 frames"): a file named
+// as a capture that holds none, a capture of no packets, bytes among which not one frame is found. Each is
+// exit 2, with the file named and why.
+TEST(DamagedCapture, TheWrongFileIsNotACleanDecode) {
+    const auto dir = std::filesystem::path(::testing::TempDir());
+    const auto write = [&](const std::string& name, const std::string& bytes) {
+        const auto path = (dir / name).string();
+        std::ofstream(path, std::ios::binary) << bytes;
+        return path;
+    };
+    const std::string decode = std::string(MBSCOPE_BINARY) + " decode --no-progress ";
+    std::string text;
+    for (int i = 0; i < 10; ++i)
+        text += "This is not a capture file\n";
+
+    const auto named = write("mbscope-not-a-capture.pcap", text);
+    const auto as_capture = run(decode + named);
+    EXPECT_EQ(as_capture.first, 2) << as_capture.second;
+    EXPECT_NE(as_capture.second.find(named + ": named as a capture, but its first bytes (54 68 69 73)"),
+              std::string::npos)
+        << as_capture.second;
+    // Told to, it is read as asked (and finds nothing).
+    EXPECT_EQ(run(decode + "--format rtu " + named).first, 2);
+
+    const auto header = read_file(sample);
+    const auto no_packets =
+        write("mbscope-no-packets.pcap", std::string(header.begin(), header.begin() + 24));  // file header
+    const auto empty = run(decode + no_packets);
+    EXPECT_EQ(empty.first, 2) << empty.second;
+    EXPECT_NE(empty.second.find(no_packets + ": the capture holds no packets, nothing to decode"),
+              std::string::npos)
+        << empty.second;
+
+    const auto garbage = run(decode + write("mbscope-no-frames.bin", text));
+    EXPECT_EQ(garbage.first, 2) << garbage.second;
+    EXPECT_NE(garbage.second.find("no Modbus frame in the 270 bytes read"), std::string::npos)
+        << garbage.second;
 }
