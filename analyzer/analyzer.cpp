@@ -280,19 +280,35 @@ FrameRecord Analyzer::about_stream(const Flow& f, Timestamp t) const {
 
 void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) {
     DeframeEvents events;
+    std::optional<CutAdu> cut;  // the ADU the hole cuts, named by its header
     if (f.rtu_over_tcp) {
         f.rtu_deframer[dir].finish(events);  // the frame in progress ends at the hole
         shift_offsets(events, f.rtu_lost[dir]);
         f.rtu_lost[dir] += missing;
     } else {
+        cut = cut_adu(f.deframer[dir].incomplete(), cutting_);
         f.deframer[dir].gap(missing, events);
     }
     if (dir == 0) f.first_request_after_gap = next_serial_ + 1;
     report(FindingCode::StreamGap, about_stream(f, t),
            std::to_string(missing) + " bytes of the " + (dir == 0 ? "request" : "response") +
-               " stream were not captured; decoding resumes at the next " +
-               (f.rtu_over_tcp ? "RTU frame" : "plausible MBAP header"));
+               " stream were not captured" +
+               (cutting_ ? " (a packet cut to the capture's snapshot length)" : "") +
+               "; decoding resumes at the next " + (f.rtu_over_tcp ? "RTU frame" : "plausible MBAP header"));
     deframed(f, dir == 0, events, t);
+    if (!cut) return;
+    if (dir == 1) return reply_cut(f, *cut, t);
+    if (cut_requests_.size() >= max_cut_requests) cut_requests_.clear();
+    cut_requests_.insert_or_assign({f.id, cut->tid}, *cut);
+}
+
+std::optional<Analyzer::CutAdu> Analyzer::cut_adu(std::span<const std::uint8_t> b, bool snapshot_length) {
+    // Transaction id, protocol id 0, length, unit, function code: enough to name it.
+    if (b.size() < 8 || b[2] != 0 || b[3] != 0) return std::nullopt;
+    const std::size_t length = 6u + ((std::size_t{b[4]} << 8) | b[5]);
+    if (length < 8 || length <= b.size()) return std::nullopt;
+    return CutAdu{
+        static_cast<std::uint16_t>((b[0] << 8) | b[1]), b[6], b[7], b.size(), length, snapshot_length};
 }
 
 // Two copies of the same stream bytes that disagree: a broken TCP stack, a middlebox rewriting the stream,
@@ -394,6 +410,15 @@ void Analyzer::packet_in_source(const Packet& p) {
         // bytes (a request behind a lost segment is released before the reply to it is paired).
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
         stream.segment(l4.seq, l4.syn, l4.payload, p.time);
+        if (l4.payload_cut) {
+            // Its bytes past the snapshot length are a gap now, at this packet: found only when
+            // later bytes showed the hole, the gap was put at the next packet, or nowhere for the last.
+            ++summary_.packets_cut;
+            cutting_ = true;
+            stream.cut_by_capture(l4.seq + (l4.syn ? 1u : 0u) + static_cast<std::uint32_t>(l4.payload.size()),
+                                  l4.payload_cut, p.time);
+            cutting_ = false;
+        }
         if (l4.fin) stream.finished_at(l4.seq + static_cast<std::uint32_t>(l4.payload.size()));
         // The server closed its side with every byte it sent delivered: no reply will follow on this
         // connection. (A client's FIN is no end: a half-closed client may still be answered.)
@@ -813,6 +838,21 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                    "response transaction id " + std::to_string(key.tid) + " answers the request with id " +
                        std::to_string(only->tid),
                    {it->second.request.index, r.index});
+        } else if (auto cut = r.frame.framing == Framing::Tcp && !cut_requests_.empty()
+                                  ? cut_requests_.find(key)
+                                  : cut_requests_.end();
+                   cut != cut_requests_.end() && cut->second.unit == r.frame.unit_id() &&
+                   !r.frame.pdu().empty() && (r.frame.pdu()[0] & 0x7F) == cut->second.function) {
+            // Its request was cut by a gap in the request stream: its header names this reply's transaction.
+            report(FindingCode::PairRequestNotCaptured, r,
+                   "the reply to transaction id " + std::to_string(key.tid) +
+                       ", whose request the capture holds only in part (" +
+                       std::to_string(cut->second.captured) + " of its " +
+                       std::to_string(cut->second.length) + " bytes" +
+                       (cut->second.snapshot_length ? ", cut to the capture's snapshot length" : "") + ")");
+            cut_requests_.erase(cut);
+            flow.keep_last_response(r);
+            return;
         } else {
             // A serial line has no transaction ids: name the unit whose reply nobody asked for.
             report(
@@ -891,6 +931,49 @@ std::optional<Analyzer::Pending> Analyzer::take_pending(PendingKey key, std::uin
     }
     if (older != reused_.end() && older->second.empty()) reused_.erase(older);
     return out;
+}
+
+void Analyzer::reply_cut(Flow& f, const CutAdu& cut, Timestamp t) {
+    const PendingKey key{f.id, cut.tid};
+    // The oldest request waiting with the id whose unit and function the reply's header names.
+    const auto fits = [&](const Pending& p) {
+        const auto pdu = p.request.frame.pdu();
+        return p.request.frame.unit_id() == cut.unit && !pdu.empty() && pdu[0] == (cut.function & 0x7F);
+    };
+    const Pending* answered = nullptr;
+    if (auto older = reused_.find(key); older != reused_.end())
+        for (const Pending& p : older->second)
+            if (!answered && fits(p)) answered = &p;
+    if (auto it = pending_.find(key); !answered && it != pending_.end() && fits(it->second))
+        answered = &it->second;
+    if (!answered) {
+        // Its request cut too: one transaction, both halves partly in the capture. Else a reply to nothing
+        // waiting, whose bytes are reported unparsed as they are.
+        const auto request = cut_requests_.find(key);
+        if (request == cut_requests_.end() || request->second.unit != cut.unit ||
+            request->second.function != (cut.function & 0x7F))
+            return;
+        const auto part = [](const CutAdu& c) {
+            return std::to_string(c.captured) + " of its " + std::to_string(c.length) + " bytes" +
+                   (c.snapshot_length ? ", cut to the snapshot length" : "");
+        };
+        report(FindingCode::PairRequestNotCaptured, about_stream(f, t),
+               "transaction id " + std::to_string(cut.tid) + " to unit " + std::to_string(cut.unit) +
+                   ": the capture holds only part of its request (" + part(request->second) +
+                   ") and of its reply (" + part(cut) + ")");
+        cut_requests_.erase(request);
+        return;
+    }
+    auto taken = take_pending(key, answered->serial);
+    --f.pending;
+    Unanswered why{FindingCode::PairResponseNotCaptured,
+                   describe_request(taken->request) + " to " + taken->request.device.str() +
+                       " was answered (transaction id " + std::to_string(cut.tid) +
+                       "), but the capture holds only " + std::to_string(cut.captured) + " of the reply's " +
+                       std::to_string(cut.length) + " bytes" +
+                       (cut.snapshot_length ? " (a packet cut to the capture's snapshot length)" : "") +
+                       ": its values are unknown"};
+    complete(*taken, nullptr, false, nullptr, &why);
 }
 
 void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late,
@@ -1033,7 +1116,12 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         }
     } else {
         if (made) made->timed_out = timed_out;
-        ++(timed_out ? stats.timeouts : stats.unanswered_at_end);
+        if (unanswered && unanswered->code == FindingCode::PairResponseNotCaptured) {
+            ++stats.replies_not_captured;  // answered: neither a timeout nor waiting at the end
+            if (made) made->reply_not_captured = true;
+        } else {
+            ++(timed_out ? stats.timeouts : stats.unanswered_at_end);
+        }
         // Why there is none: in the transaction's findings too, as an exception's is in its own (a CSV row
         // of a timeout must not read as a clean exchange).
         if (unanswered) {
@@ -1823,6 +1911,7 @@ void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
     // whose timeouts went unreported, or timed out seconds after the reset that ended them.
     give_up_waiting(f, t, how);
     f.first_request_after_gap = 0;
+    std::erase_if(cut_requests_, [&f](const auto& entry) { return entry.first.flow == f.id; });
     std::erase_if(timed_out_,
                   [&f](const auto& entry) { return entry.first.flow == f.id; });  // ids start over
     for (int dir = 0; dir < 2; ++dir) {

@@ -300,9 +300,28 @@ class Analyzer {
     // The waiting request with this key and serial, from pending_ or reused_; nullptr when answered or given
     // up meanwhile.
     Pending* find_pending(const PendingKey& key, std::uint64_t serial);
-    // Takes it out; when it was the newest with its key, the one before it (reused_) takes its place.
-    std::optional<Pending> take_pending(PendingKey key,
-                                        std::uint64_t serial);  // a copy: it may erase its key
+    // Takes it out; when it was the newest with its key, the one before it (reused_) takes its place. `key`
+    // is a copy: it may name the entry erased.
+    std::optional<Pending> take_pending(PendingKey key, std::uint64_t serial);
+    // An ADU cut by a gap in its stream (a record cut to the snapshot length), as far as its MBAP header
+    // tells: the transaction it belongs to, how long it is and how much of it the capture holds.
+    struct CutAdu {
+        std::uint16_t tid = 0;
+        std::uint8_t unit = 0;
+        std::uint8_t function = 0;
+        std::size_t captured = 0;
+        std::size_t length = 0;
+        bool snapshot_length = false;  // the gap is a packet's bytes past the capture's snapshot length
+    };
+    static std::optional<CutAdu> cut_adu(std::span<const std::uint8_t> incomplete, bool snapshot_length);
+    // The request a cut reply answers is given up as answered, its values unknown (not a timeout).
+    void reply_cut(Flow& flow, const CutAdu& cut, modbus::Timestamp t);
+    // Requests cut by a gap, by flow and transaction id: a reply to one is not unsolicited. Bounded.
+    std::unordered_map<PendingKey, CutAdu, PendingHash> cut_requests_;
+    static constexpr std::size_t max_cut_requests = 1024;
+    // While the bytes a packet's snapshot length cut make a gap. (Named by time, not by packet number: in
+    // captures merged by time that is ambiguous.)
+    bool cutting_ = false;
     // Requests by deadline, one queue per timeout: each is then in deadline order, and a serial request (1 s)
     // is not held up behind a Modbus/TCP one (3 s) sent before it. Requests without a time stamp (raw
     // dumps) wait in a queue of their own: they end only when the master moves on, or the capture.

@@ -31,6 +31,14 @@ ParseStatus parse_gre(std::span<const std::uint8_t> d, L4Packet& out, IpFragment
 ParseStatus by_ethertype(std::uint16_t type, std::span<const std::uint8_t> d, L4Packet& out,
                          IpFragment* fragment, int depth);
 
+// The bytes an IP header counts past the capture's end are the TCP payload's last (a header they cut is
+// Malformed): the innermost IP header that says so is the one that counts.
+ParseStatus cut_after(ParseStatus status, std::size_t missing, L4Packet& out) noexcept {
+    if (status == ParseStatus::Ok && out.transport == Transport::Tcp && missing && !out.payload_cut)
+        out.payload_cut = static_cast<std::uint32_t>(missing);
+    return status;
+}
+
 ParseStatus parse_l4(std::uint8_t protocol, std::span<const std::uint8_t> d, L4Packet& out,
                      IpFragment* fragment, int depth) {
     if (protocol == 47) return parse_gre(d, out, fragment, depth + 1);
@@ -116,7 +124,7 @@ ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment*
                                        .data = payload};
             return ParseStatus::Fragment;
         }
-        return parse_l4(d[9], payload, out, fragment, depth);
+        return cut_after(parse_l4(d[9], payload, out, fragment, depth), total - header - payload.size(), out);
     }
     if (version == 6) {
         if (d.size() < 40) return ParseStatus::Malformed;
@@ -145,7 +153,8 @@ ParseStatus parse_ip(std::span<const std::uint8_t> d, L4Packet& out, IpFragment*
                                        .data = d.subspan(pos + 8, end - pos - 8)};
             return ParseStatus::Fragment;
         }
-        return parse_l4(next, d.subspan(pos, end - pos), out, fragment, depth);
+        return cut_after(parse_l4(next, d.subspan(pos, end - pos), out, fragment, depth), 40 + payload - end,
+                         out);
     }
     return ParseStatus::NotIp;
 }

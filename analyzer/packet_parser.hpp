@@ -38,6 +38,9 @@ struct L4Packet {
     bool syn = false, fin = false, rst = false, has_ack = false;
     std::span<const std::uint8_t> payload;
     bool truncated = false;  // the capture holds less than the IP header says (snap length)
+    // TCP: the bytes at the end of the payload that the IP header counts and the capture does not hold
+    // (the record cut to the snapshot length).
+    std::uint32_t payload_cut = 0;
 };
 
 enum class ParseStatus : std::uint8_t { Ok, UnsupportedLink, NotIp, NotTcpUdp, Fragment, Malformed };

@@ -62,6 +62,8 @@ struct TransactionRecord {
     std::optional<modbus::Timestamp> late_past;
     bool late_moved_on = false;
     bool broadcast = false;  // serial unit 0: executed by every slave, answered by none
+    // Answered, but the capture holds only the reply's first bytes (pair.response_not_captured).
+    bool reply_not_captured = false;
     std::vector<modbus::FindingCode> findings;
     std::vector<modbus::NamedValue> values;  // with a profile: the values named in the device's terms
     const modbus::Profile* profile = nullptr;
@@ -117,6 +119,9 @@ struct DeviceStats {
     // Timeouts whose reply came after all (not counted as responses or exceptions; their latencies are in
     // the histogram).
     std::uint64_t late_responses = 0;
+    // Requests answered with a reply the capture holds only in part (pair.response_not_captured): neither
+    // responses (nothing of their values is known) nor timeouts.
+    std::uint64_t replies_not_captured = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests
     // The exception codes among `exceptions` (code → count): what the device refused, or the gateway in front
@@ -149,6 +154,8 @@ struct Summary {
     // Packets whose link, IP or transport header is damaged or cut short by the snapshot length: whatever
     // they carried was not decoded.
     std::uint64_t packets_malformed = 0;
+    // TCP segments whose record was cut to the snapshot length: their missing bytes are stream gaps.
+    std::uint64_t packets_cut = 0;
     // Packets with data on TCP port 802, Modbus/TCP Security: TLS, which no capture alone can decrypt.
     std::uint64_t modbus_security_packets = 0;
     // Packets on ports not decoded as Modbus whose payload is one whole Modbus/TCP ADU (protocol 0, a length

@@ -90,9 +90,10 @@ void TextSink::transaction(const TransactionRecord& t) {
         }
     } else
         out_ << "  -> "
-             << (t.broadcast   ? "broadcast, no response expected"
-                 : t.timed_out ? "no response"
-                               : "no response before the capture ended");
+             << (t.broadcast            ? "broadcast, no response expected"
+                 : t.reply_not_captured ? "answered, the reply not captured whole"
+                 : t.timed_out          ? "no response"
+                                        : "no response before the capture ended");
     out_ << '\n';
     for (const auto& v : t.values) {
         out_ << "                   " << v.address << "  ";
@@ -146,6 +147,8 @@ void TextSink::end(const Summary& s) {
              << d.exceptions << " exceptions, " << d.timeouts << " timeouts";
         if (d.late_responses) out_ << " (" << d.late_responses << " answered late)";
         if (d.unanswered_at_end) out_ << ", " << d.unanswered_at_end << " unanswered at the end";
+        if (d.replies_not_captured)
+            out_ << ", " << d.replies_not_captured << " answered with replies not captured whole";
         if (d.checksum_errors) out_ << ", " << d.checksum_errors << " frames with a bad CRC/LRC";
         if (d.latency.count())
             out_ << "; latency min " << milliseconds_text(d.latency.min()) << " / median "
@@ -199,6 +202,11 @@ void TextSink::end(const Summary& s) {
     if (s.packets_malformed)
         out_ << "  not decoded: " << s.packets_malformed
              << " packets whose link, IP or TCP/UDP header is damaged or cut short\n";
+    if (s.packets_cut)
+        out_
+            << "  cut short: " << s.packets_cut
+            << " TCP segments cut to the capture's snapshot length, their missing bytes stream gaps (capture "
+               "with a larger snapshot length: tcpdump -s 0)\n";
     if (s.modbus_security_packets)
         out_ << "  not decoded: " << s.modbus_security_packets
              << " packets on TCP port 802, Modbus/TCP Security: TLS, encrypted\n";
@@ -323,6 +331,7 @@ json transaction_to_json(const TransactionRecord& t) {
         j["broadcast"] = true;
     } else {
         j["timeout"] = t.timed_out;
+        if (t.reply_not_captured) j["reply_not_captured"] = true;
     }
     if (!t.findings.empty()) {
         for (auto c : t.findings)
@@ -382,6 +391,7 @@ json summary_to_json(const Summary& s) {
                  {"timeouts", d.timeouts},
                  {"unanswered_at_end", d.unanswered_at_end}};
         if (d.late_responses) dev["late_responses"] = d.late_responses;
+        if (d.replies_not_captured) dev["replies_not_captured"] = d.replies_not_captured;
         if (d.checksum_errors) dev["checksum_errors"] = d.checksum_errors;
         if (!d.findings.empty()) dev["findings"] = d.findings;
         json fcs = json::object();
@@ -411,6 +421,7 @@ json summary_to_json(const Summary& s) {
                                          {"fragments_incomplete", s.ip_fragments_incomplete},
                                          {"fragments_invalid", s.ip_fragments_invalid}};
     if (s.packets_malformed) j["packets_malformed"] = s.packets_malformed;
+    if (s.packets_cut) j["packets_cut"] = s.packets_cut;
     if (s.modbus_security_packets) j["modbus_security_packets"] = s.modbus_security_packets;
     if (!s.serial_lines.empty()) {
         json lines = json::object();

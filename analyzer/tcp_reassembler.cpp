@@ -171,6 +171,14 @@ void TcpReassembler::skip(std::uint64_t missing, modbus::Timestamp t) {
     drain(t);
 }
 
+void TcpReassembler::cut_by_capture(std::uint32_t end, std::uint32_t missing, modbus::Timestamp t) {
+    if (!next_ || missing == 0 || *next_ != end) return;
+    // Bytes already here from past the cut (a retransmission captured whole) are not lost.
+    std::uint64_t lost = missing;
+    if (!pending_.empty()) lost = std::min<std::uint64_t>(lost, pending_.front().at - base_);
+    if (lost) skip(lost, t);
+}
+
 void TcpReassembler::acknowledged(std::uint32_t ack, modbus::Timestamp t) {
     if (!next_) return;
     if (fin_at_ && static_cast<std::int32_t>(ack - *fin_at_) > 0) ack = *fin_at_;

@@ -47,6 +47,11 @@ class TcpReassembler {
     // it are here already: the hole's bytes would have to come after their own successors, and until
     // then a request pipelined behind a lost one waited, its reply taken for unsolicited.
     void acknowledged(std::uint32_t ack, modbus::Timestamp t);
+    // The `missing` bytes after sequence number `end` (a segment's last captured byte's next) are in no
+    // capture: its record was cut to the snapshot length. When the stream had reached `end`, they are a gap
+    // at once, at this segment, rather than when later bytes or an acknowledgement show the hole (or never,
+    // for a stream's last segment). A segment still waiting behind a hole is left to that hole's handling.
+    void cut_by_capture(std::uint32_t end, std::uint32_t missing, modbus::Timestamp t);
     static constexpr modbus::Timestamp reordering_wait{1'000'000'000};
     // A FIN at sequence number `seq` (after its segment's payload): it takes one number of its own, which
     // the peer's acknowledgement covers without any byte having been lost.

@@ -122,8 +122,11 @@ int run_decode(const DecodeOptions& o) {
     // which is not a clean result.
     if (a.summary().frames == 0 && a.summary().unparsed_bytes > 0) {
         std::cerr << "mbscope decode: no Modbus frame in the " << a.summary().unparsed_bytes
-                  << " bytes read, every one unparsed: not Modbus, or read in the wrong format or framing "
-                     "(--format, --framing)\n";
+                  << " bytes read, every one unparsed: "
+                  << (a.summary().packets_cut
+                          ? "the capture's snapshot length cut them (capture with a larger one: tcpdump -s 0)"
+                          : "not Modbus, or read in the wrong format or framing (--format, --framing)")
+                  << '\n';
         return exit_failure;
     }
     return a.summary().errors ? exit_findings : exit_ok;

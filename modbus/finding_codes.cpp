@@ -126,6 +126,15 @@ constexpr std::array findings{
                 "a request that only reads sent in broadcast (unit 0): no slave answers it, so nothing it "
                 "reads comes back",
                 "SL §2.1; 000:313"},
+    FindingInfo{PairResponseNotCaptured, "pair.response_not_captured", S::Warning,
+                "the request was answered (the reply's MBAP header names it), but the capture holds only "
+                "the reply's first bytes (a record cut to the snapshot length, a tap's drop): its values are "
+                "unknown, and the device is not blamed with a timeout",
+                "capture"},
+    FindingInfo{PairRequestNotCaptured, "pair.request_not_captured", S::Warning,
+                "a reply to a request the capture holds only in part (its MBAP header names the transaction "
+                "id and function): not unsolicited",
+                "capture"},
     FindingInfo{
         PairDuplicateResponse, "pair.duplicate_response", S::Error,
         "the last response again, byte for byte, after its request was answered: one request answered "

@@ -74,6 +74,8 @@ enum class FindingCode : std::uint16_t {
     PairGatewayPathUnavailable = 615,
     PairGatewayTargetNoResponse = 616,
     PairBroadcastRead = 617,
+    PairResponseNotCaptured = 618,
+    PairRequestNotCaptured = 619,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

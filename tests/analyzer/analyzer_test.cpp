@@ -48,14 +48,24 @@ struct Harness {
         seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
         raw(bytes, t);
     }
-    void raw(const std::vector<std::uint8_t>& bytes, mb::Timestamp t) {
+    void raw(const std::vector<std::uint8_t>& bytes, mb::Timestamp t, std::uint32_t original_length = 0) {
         an::Packet p;
         p.number = ++number;
         p.time = t;
         p.linktype = link_raw;
         p.data = bytes;
-        p.original_length = static_cast<std::uint32_t>(bytes.size());
+        p.original_length = std::max(original_length, static_cast<std::uint32_t>(bytes.size()));
         analyzer.packet("test", p);
+    }
+    // As send, the record cut to the snapshot length: only the payload's first `kept` bytes captured.
+    void send_cut(bool to_server, const std::vector<std::uint8_t>& payload, std::size_t kept,
+                  mb::Timestamp t) {
+        auto bytes =
+            packet(to_server, seq[to_server ? 0 : 1], payload, false, 0x18, 502, seq[to_server ? 1 : 0]);
+        seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
+        const auto whole = static_cast<std::uint32_t>(bytes.size());
+        bytes.resize(bytes.size() - (payload.size() - kept));
+        raw(bytes, t, whole);
     }
 };
 
@@ -1337,4 +1347,85 @@ TEST(LatencyHistogram, QuantilesAreNearestRank) {
         skewed.add(std::chrono::milliseconds(i < 95 ? 10 : 150));
     EXPECT_NEAR(ms(skewed.quantile(0.99)).count(), 150, 150 * 0.02);
     EXPECT_NEAR(ms(skewed.quantile(0.95)).count(), 10, 10 * 0.02);
+}
+
+// A record cut to the snapshot length (tcpdump -s 64/96, old defaults) holds the first bytes of a reply: its
+// MBAP header names the transaction it answers. Answered, its values unknown: not a timeout against the
+// device. Before, the cut bytes were a gap found only at the next packet (or never, for the last), and the
+// request was "no response".
+TEST(Analyzer, AReplyCutByTheSnapshotLengthIsAnAnswerNotATimeout) {
+    Harness h;
+    h.send(true, read_request(1, 0, 10), 1s);
+    h.send_cut(false, read_response(1, {0, 1, 2, 3, 4, 5, 6, 7, 8, 9}), 10, 1s + 10ms);  // 10 of 29 bytes
+    h.send(true, read_request(2, 0, 1), 1s + 20ms);
+    h.send(false, read_response(2, {77}), 1s + 30ms);
+    h.send(true, read_request(3, 0, 1), 6s);  // past the first request's timeout
+    h.send(false, read_response(3, {78}), 6s + 10ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
+    ASSERT_EQ(h.sink.count(mb::FindingCode::PairResponseNotCaptured), 1);
+    for (const auto& f : h.sink.findings) {
+        if (f.code == mb::FindingCode::PairResponseNotCaptured) {
+            EXPECT_EQ(f.frames, std::vector<std::uint64_t>{1});
+            EXPECT_NE(f.message.find("holds only 10 of the reply's 29 bytes (a packet cut"),
+                      std::string::npos)
+                << f.message;
+        }
+        if (f.code == mb::FindingCode::StreamGap) {
+            EXPECT_NE(f.message.find("19 bytes of the response stream were not captured (a packet cut"),
+                      std::string::npos)
+                << f.message;
+        }
+    }
+    EXPECT_EQ(h.analyzer.summary().packets_cut, 1u);
+    EXPECT_EQ(h.analyzer.summary().errors, 0u);
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.timeouts, 0u);
+    EXPECT_EQ(device.responses, 2u);
+    EXPECT_EQ(device.replies_not_captured, 1u);
+    ASSERT_EQ(h.sink.transactions.size(), 3u);
+    EXPECT_TRUE(h.sink.transactions[0].reply_not_captured);
+    EXPECT_FALSE(h.sink.transactions[0].timed_out);
+}
+
+// The same cut in the request stream: the reply that answers the cut request is not unsolicited; and a
+// transaction whose request and reply are both cut is named once, not left as two runs of unparsed bytes.
+TEST(Analyzer, ARequestCutByTheSnapshotLengthLeavesItsReplyNotUnsolicited) {
+    Harness h;
+    h.send_cut(true, read_request(4, 0, 1), 10, 1s);  // 10 of 12 bytes
+    h.send(false, read_response(4, {5}), 1s + 10ms);
+    h.send_cut(true, read_request(5, 0, 10), 10, 2s);
+    h.send_cut(false, read_response(5, {0, 1, 2, 3, 4, 5, 6, 7, 8, 9}), 10, 2s + 10ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    ASSERT_EQ(h.sink.count(mb::FindingCode::PairRequestNotCaptured), 2);
+    std::string said;
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::PairRequestNotCaptured) said += f.message + "\n";
+    EXPECT_NE(
+        said.find("the reply to transaction id 4, whose request the capture holds only in part (10 of its 12 "
+                  "bytes, cut to the capture"),
+        std::string::npos)
+        << said;
+    EXPECT_NE(
+        said.find("transaction id 5 to unit 17: the capture holds only part of its request (10 of its 12 "
+                  "bytes, cut to the snapshot length) and of its reply (10 of its 29 bytes"),
+        std::string::npos)
+        << said;
+    EXPECT_EQ(h.analyzer.summary().packets_cut, 3u);
+    EXPECT_EQ(h.analyzer.summary().errors, 0u);
+}
+
+TEST(PacketParser, TheBytesASnapshotLengthCutAreCounted) {
+    const std::vector<std::uint8_t> payload(29, 0x42);
+    const auto whole = packet(false, 7, payload);
+    an::L4Packet l4;
+    ASSERT_EQ(an::parse_packet(link_raw, whole, l4), an::ParseStatus::Ok);
+    EXPECT_EQ(l4.payload_cut, 0u);
+    an::L4Packet cut;
+    ASSERT_EQ(an::parse_packet(link_raw, std::span(whole).first(whole.size() - 19), cut),
+              an::ParseStatus::Ok);
+    EXPECT_EQ(cut.payload.size(), 10u);
+    EXPECT_EQ(cut.payload_cut, 19u);
 }
