@@ -148,6 +148,8 @@ Report unreachable_report(const modbus::Profile& profile, const CheckOptions& op
     r.expected = "the connection or device opens";
     r.observed = why;
     r.reason = "cannot reach the target: " + why;
+    // Nothing judged: the verdict is "error", not "fail" (no device defect was found).
+    report.unanswered = r.reason;
     report.results.push_back(std::move(r));
     return report;
 }
