@@ -199,9 +199,19 @@ struct ToValidate {
     bool found = false;
 };
 
+// What validating one file (or listing one directory) found: a line of the text output, an entry of the JSON.
+struct Validated {
+    std::string file;
+    std::string status;  // "ok", "errors", "not_a_profile", "skipped", "not_listed", "no_json_files"
+    std::vector<std::string> notes;  // the text output's lines, each after "FILE: "
+    std::vector<std::string> errors;
+    nlohmann::json profiles = nlohmann::json::array();
+};
+
 // Each file named, and for a directory every .json file under it, in name order (`mbscope profile validate
 // profiles/` in a CI job). A directory without a .json file is reported, not passed.
-std::vector<ToValidate> files_to_validate(const std::vector<std::string>& named, int& rc) {
+std::vector<ToValidate> files_to_validate(const std::vector<std::string>& named,
+                                          std::vector<Validated>& out) {
     std::vector<ToValidate> files;
     for (const auto& f : named) {
         std::error_code ec;
@@ -215,13 +225,11 @@ std::vector<ToValidate> files_to_validate(const std::vector<std::string>& named,
              it.increment(ec))
             if (it->path().extension() == ".json" && it->is_regular_file(ec))
                 found.push_back(it->path().string());
-        if (ec) {
-            std::cout << f << ": cannot list: " << ec.message() << '\n';
-            rc = std::max(rc, exit_findings);
-        } else if (found.empty()) {
-            std::cout << f << ": no .json file in this directory\n";
-            rc = std::max(rc, exit_findings);
-        }
+        if (ec)
+            out.push_back({f, "not_listed", {"cannot list: " + ec.message()}, {}, nlohmann::json::array()});
+        else if (found.empty())
+            out.push_back(
+                {f, "no_json_files", {"no .json file in this directory"}, {}, nlohmann::json::array()});
         std::sort(found.begin(), found.end());
         for (auto& path : found)
             files.push_back({std::move(path), true});
@@ -230,33 +238,61 @@ std::vector<ToValidate> files_to_validate(const std::vector<std::string>& named,
 }
 
 int run_validate(const ProfileOptions& o) {
-    int rc = exit_ok;
+    std::vector<Validated> results;
+    const auto files = files_to_validate(o.files, results);
     std::size_t documents = 0;  // profile documents among the files, valid or not
-    for (const auto& [f, found] : files_to_validate(o.files, rc)) {
+    for (const auto& [f, found] : files) {
         auto loaded = storage::load_profile_file(f, parse_config(o).value_or(ProfileConfig{}));
+        Validated v{f, "ok", {}, {}, nlohmann::json::array()};
         if (!loaded.is_profile && loaded.errors.empty()) {
             // Named, it was meant as a profile; found beside profiles (a JSON schema, a note), it is passed
             // over as the profile search passes over it.
-            std::cout << f << ": not a profile document (no \"format\": \"mbscope-profile/1\")"
-                      << (found ? ", skipped" : "") << '\n';
-            if (!found) rc = std::max(rc, exit_findings);
+            v.status = found ? "skipped" : "not_a_profile";
+            v.notes.push_back(std::string("not a profile document (no \"format\": \"mbscope-profile/1\")") +
+                              (found ? ", skipped" : ""));
+            results.push_back(std::move(v));
             continue;
         }
         ++documents;
-        print_errors(loaded.errors);
         if (!loaded.errors.empty()) {
-            rc = std::max(rc, exit_findings);
-            std::cout << f << ": " << loaded.errors.size() << " error(s)\n";
+            if (!o.json) print_errors(loaded.errors);
+            v.status = "errors";
+            v.notes.push_back(std::to_string(loaded.errors.size()) + " error(s)");
+            for (const auto& e : loaded.errors)
+                v.errors.push_back(to_string(e));
+            results.push_back(std::move(v));
             continue;
         }
-        for (const auto& p : loaded.profiles)
-            std::cout << f << ": " << p.id << " ok (" << p.point_count(Table::Coils) << " coils, "
-                      << p.point_count(Table::HoldingRegisters) << " holding registers)\n";
+        for (const auto& p : loaded.profiles) {
+            const auto coils = p.point_count(Table::Coils);
+            const auto holding = p.point_count(Table::HoldingRegisters);
+            v.notes.push_back(p.id + " ok (" + std::to_string(coils) + " coils, " + std::to_string(holding) +
+                              " holding registers)");
+            v.profiles.push_back({{"id", p.id}, {"coils", coils}, {"holding_registers", holding}});
+        }
+        results.push_back(std::move(v));
     }
-    if (documents == 0 && rc == exit_ok) {
-        std::cout << "no profile document among the files\n";
-        rc = exit_findings;
+    const bool any_failed = std::any_of(results.begin(), results.end(), [](const Validated& v) {
+        return v.status != "ok" && v.status != "skipped";
+    });
+    const int rc = any_failed || documents == 0 ? exit_findings : exit_ok;
+    if (o.json) {
+        auto list = nlohmann::json::array();
+        for (const auto& v : results) {
+            nlohmann::json e{{"file", v.file}, {"status", v.status}};
+            if (!v.profiles.empty()) e["profiles"] = v.profiles;
+            if (!v.errors.empty()) e["errors"] = v.errors;
+            list.push_back(std::move(e));
+        }
+        std::cout << nlohmann::json{{"files", list}, {"documents", documents}, {"valid", rc == exit_ok}}.dump(
+                         2)
+                  << '\n';
+        return rc;
     }
+    for (const auto& v : results)
+        for (const auto& note : v.notes)
+            std::cout << v.file << ": " << note << '\n';
+    if (documents == 0 && !any_failed) std::cout << "no profile document among the files\n";
     return rc;
 }
 

@@ -162,6 +162,35 @@ TEST(ProfileCommand, ValidateADirectoryChecksEveryProfileUnderIt) {
     EXPECT_NE(frames.out.find(fixtures + ": is a directory, not a file"), std::string::npos) << frames.out;
 }
 
+// `validate --json`, which its help lists, printed the text lines: a CI job parsing them failed. Each file
+// is an entry with its status and what it holds or why it is refused; `valid` is the exit code's verdict.
+TEST(ProfileCommand, ValidateJsonIsJson) {
+    const auto r = run_mbscope("profile validate --json " + fixtures + "/broken/broken.json " + fixtures +
+                               "/profiles/test-device.json");
+    EXPECT_EQ(r.exit_code, 1) << r.out;
+    const auto j = nlohmann::json::parse(r.out);  // throws on text
+    EXPECT_FALSE(j["valid"].get<bool>());
+    EXPECT_EQ(j["documents"], 2);
+    ASSERT_EQ(j["files"].size(), 2u);
+    EXPECT_EQ(j["files"][0]["status"], "errors");
+    bool pointer = false;
+    for (const auto& e : j["files"][0]["errors"])
+        pointer |= e.get<std::string>().find("/tables/holding_registers/1/access: must be r, w or rw") !=
+                   std::string::npos;
+    EXPECT_TRUE(pointer) << j.dump();
+    EXPECT_EQ(j["files"][1]["status"], "ok");
+    EXPECT_EQ(j["files"][1]["profiles"][0]["id"], "test-device");
+
+    const auto ok = run_mbscope("profile validate --json " + std::string(MBSCOPE_SOURCE_DIR) + "/profiles");
+    EXPECT_EQ(ok.exit_code, 0) << ok.out;
+    const auto bundled = nlohmann::json::parse(ok.out);
+    EXPECT_TRUE(bundled["valid"].get<bool>());
+    bool schema_skipped = false;
+    for (const auto& f : bundled["files"])
+        schema_skipped |= f["status"] == "skipped";
+    EXPECT_TRUE(schema_skipped) << "the schema beside the profiles is passed over";
+}
+
 TEST(ProfileCommand, HelpOnEverySubcommand) {
     for (const char* sub : {"", " list", " show", " validate", " lookup", " decode"})
         EXPECT_EQ(run_mbscope(std::string("profile") + sub + " --help").exit_code, 0) << sub;
