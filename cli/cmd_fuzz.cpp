@@ -144,15 +144,16 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     if (unrestored)
         std::cerr << "mbscope fuzz: some written points could not be restored (see \"restored\", "
                      "\"not_read\", \"unanswered_writes\" and \"unanswered_unread\")\n";
-    if (!summary.findings.empty() || unrestored) return exit_findings;
-    // Nothing found in part of the budget is not the clean result exit 0 promises (a CI job's timeout
-    // sends SIGTERM): an interrupted run without findings could not complete.
-    if (summary.stopped) {
-        std::cerr << "mbscope fuzz: interrupted after " << summary.requests
-                  << " requests, nothing found so far; the run did not complete\n";
-        return exit_failure;
-    }
-    return exit_ok;
+    // Said whatever was found: a log of findings alone does not tell a run cut short. Nothing found in part
+    // of the budget is not the clean result exit 0 promises (a CI job's timeout sends SIGTERM): an
+    // interrupted run without findings could not complete.
+    const bool found = !summary.findings.empty() || unrestored;
+    if (summary.stopped)
+        std::cerr << "mbscope fuzz: interrupted after " << summary.requests << " requests"
+                  << (found ? "; what is above comes from the part of the run that was made\n"
+                            : ", nothing found so far; the run did not complete\n");
+    if (found) return exit_findings;
+    return summary.stopped ? exit_failure : exit_ok;
 }
 
 }  // namespace
@@ -213,9 +214,11 @@ void register_fuzz(CLI::App& app, int& exit_code) {
                     "Milliseconds between requests (default: the profile's minimum polling interval)")
         ->check(CLI::Range(0, 600000));
     cmd->add_option("--minimise", o->minimise,
-                    "Replays spent shortening each reproducer (default 64, 0: none)");
+                    "Replays spent shortening each reproducer (default 64, 0: none)")
+        ->check(whole_number("N"));
     cmd->add_option("--max-findings", o->max_findings,
-                    "Stop once N findings are saved (default: run the whole budget)");
+                    "Stop once N findings are saved (default: run the whole budget)")
+        ->check(whole_number("N"));
     cmd->add_flag("!--no-progress", o->progress, "No progress line, even on a terminal");
     cmd->add_option("--profile-dir", o->profile_dirs, "Extra directory of profile files (repeatable)");
     cmd->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");

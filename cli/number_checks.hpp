@@ -71,10 +71,10 @@ inline CLI::Validator duration_text() {
         "TIME");
 }
 
-// A --seed option: a whole number from 0 to 2^64-1. CLI11 converts "-1" to an unsigned 64-bit number by
-// wrapping it, so --seed -1 (a common spelling of "a random seed") ran with seed 18446744073709551615 and
-// said nothing.
-inline CLI::Validator seed_value() {
+// A whole number from 0 to 2^64-1 for an unsigned option. CLI11 converts "-1" to an unsigned 64-bit number by
+// wrapping it (its Range check sees the wrapped value), so --seed -1 (a common spelling of "a random seed")
+// ran with seed 18446744073709551615 and said nothing, and --max-findings -1 had no limit.
+inline CLI::Validator whole_number(const std::string& name) {
     return CLI::Validator(
         [](std::string& text) -> std::string {
             const bool digits = !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
@@ -82,7 +82,11 @@ inline CLI::Validator seed_value() {
                 return {};
             return "a whole number from 0 to 18446744073709551615, not '" + text + "'";
         },
-        "SEED");
+        name);
+}
+
+inline CLI::Validator seed_value() {
+    return whole_number("SEED");
 }
 
 }  // namespace mbscope::cli

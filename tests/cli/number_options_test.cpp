@@ -46,6 +46,9 @@ TEST(NumberOptions, ValuesOutsideTheirMeaningAreRefusedBeforeAnythingRuns) {
         {"slave --listen tcp://127.0.0.1:0 --seed -1", "--seed: a whole number from 0 to"},
         {"fuzz --target tcp://127.0.0.1:1 --seed 18446744073709551616", "--seed: a whole number from 0 to"},
         {"fuzz --target tcp://127.0.0.1:1 --seed 1e3", "--seed: a whole number from 0 to"},
+        // Wrapped to 2^64-1 as well: a run with no limit on findings and on shortening.
+        {"fuzz --target tcp://127.0.0.1:1 --max-findings -1", "--max-findings: a whole number from 0 to"},
+        {"fuzz --target tcp://127.0.0.1:1 --minimise -1", "--minimise: a whole number from 0 to"},
     };
     for (const auto& c : cases) {
         const auto r = run_mbscope(c.args);
