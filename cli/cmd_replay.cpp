@@ -20,6 +20,7 @@ struct ReplayCliOptions {
     std::string profile;  // empty: the reproducer's
     int unit = -1;        // -1: the reproducer's
     int timeout_ms = 1000;
+    int slow_ms = -1;  // -1: the reproducer's (timing.slow_reply), else none
     bool json = false;
     bool no_restore = false;
     std::vector<std::string> profile_dirs;
@@ -61,6 +62,10 @@ int run_replay_command(const ReplayCliOptions& o) {
                                            endpoint->scheme == modbus::transport::Scheme::Udp);
     fuzz::network::ReplayOptions options;
     options.timeout = std::chrono::milliseconds(o.timeout_ms);
+    // A slow reply is judged by the limit it broke when it was found, unless told another (0: not judged).
+    options.slow =
+        std::chrono::milliseconds(o.slow_ms >= 0 ? static_cast<std::uint32_t>(o.slow_ms) : r.slow_ms);
+    options.slow_source = o.slow_ms >= 0 ? "--slow" : r.source;
     options.silence_wait = options.timeout;
     options.stop = &stop;
     // What the steps may write is read first and written back after them, as `mbscope fuzz` and
@@ -186,6 +191,11 @@ void register_replay(CLI::App& app, int& exit_code) {
         ->check(CLI::Range(0, 255));
     cmd->add_option("--timeout", o->timeout_ms, "Milliseconds to wait for each reply (default 1000)")
         ->check(CLI::Range(1, 60000));
+    cmd->add_option(
+           "--slow", o->slow_ms,
+           "A reply later than this many ms breaks timing.slow_reply (default: the limit recorded with a "
+           "timing.slow_reply finding, else not judged; 0: not judged)")
+        ->check(CLI::Range(0, 600000));
     cmd->add_flag("--json", o->json, "Print the exchanges as JSON");
     cmd->add_flag("--no-restore", o->no_restore,
                   "Leave what the steps write as they leave it (to look at the device afterwards)");

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <deque>
 #include <filesystem>
+#include <map>
+#include <memory>
 #include <random>
 #include <ranges>
 #include <set>
@@ -113,8 +115,12 @@ class Campaign {
     std::optional<Probe> round_trip();
     void pace();
     void classify(const Probe& p, const ReplayedStep& r);
-    void record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable);
-    std::vector<Step> minimise(const std::string& rule, bool& reproduced);
+    // `before`: steps from before the trace the finding needs (the write a lost write was made by).
+    void record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable,
+                const std::vector<Step>& before = {});
+    std::vector<Step> minimise(const std::string& rule, std::vector<Step> window, bool& reproduced);
+    // The acknowledged writes that set the points a read reads, those no longer in the trace, in order.
+    std::vector<Step> writes_before_trace(std::span<const std::uint8_t> read_pdu) const;
     conformance::OracleViolation slow_reply(std::chrono::nanoseconds first,
                                             std::chrono::nanoseconds second) const;
     void progress(bool force = false);
@@ -155,6 +161,13 @@ class Campaign {
     std::vector<std::uint8_t> health_;
     CampaignSummary s_;
     std::deque<Step> trace_;
+    // The step of the last acknowledged write to each point, with its request's number: a lost write shows
+    // on a read after a health check cleared the trace, and its reproducer needs the write.
+    struct WrittenBy {
+        std::uint64_t request = 0;
+        Step step;
+    };
+    std::map<std::pair<Table, std::uint16_t>, std::shared_ptr<const WrittenBy>> written_by_;
     std::set<std::string> classes_;
     std::map<std::string, std::size_t> finding_index_;  // rule + function -> index in s_.findings
     Clock::time_point start_{}, last_send_{}, last_progress_{};
@@ -597,8 +610,33 @@ void Campaign::classify(const Probe& p, const ReplayedStep& r) {
     s_.response_classes = classes_.size();
 }
 
-std::vector<Step> Campaign::minimise(const std::string& rule, bool& reproduced) {
-    std::vector<Step> window(trace_.begin(), trace_.end());
+std::vector<Step> Campaign::writes_before_trace(std::span<const std::uint8_t> pdu) const {
+    if (pdu.size() < 5 || pdu[0] < 1 || pdu[0] > 4) return {};
+    // The table the read reaches, as the oracle resolves it (a map whose input registers are its holding
+    // registers: a write shows on FC4 too).
+    const Table table = profile_.resolve(pdu[0] == 1   ? Table::Coils
+                                         : pdu[0] == 2 ? Table::DiscreteInputs
+                                         : pdu[0] == 3 ? Table::HoldingRegisters
+                                                       : Table::InputRegisters);
+    const std::uint32_t start = (pdu[1] << 8) | pdu[2];
+    const std::uint32_t count = (pdu[3] << 8) | pdu[4];
+    std::vector<const WrittenBy*> found;
+    for (auto it = written_by_.lower_bound({table, static_cast<std::uint16_t>(start)});
+         it != written_by_.end() && it->first.first == table && it->first.second < start + count; ++it)
+        if (std::find(found.begin(), found.end(), it->second.get()) == found.end())
+            found.push_back(it->second.get());
+    std::sort(found.begin(), found.end(), [](auto* a, auto* b) { return a->request < b->request; });
+    std::vector<Step> out;
+    for (const WrittenBy* w : found) {
+        const auto bytes = w->step.joined();
+        const bool traced =
+            std::any_of(trace_.begin(), trace_.end(), [&](const Step& s) { return s.joined() == bytes; });
+        if (!traced) out.push_back(w->step);
+    }
+    return out;
+}
+
+std::vector<Step> Campaign::minimise(const std::string& rule, std::vector<Step> window, bool& reproduced) {
     reproduced = false;
     std::size_t budget = options_.minimise_budget;
     replay_.silence_wait = silence_wait();
@@ -651,7 +689,8 @@ std::vector<Step> Campaign::minimise(const std::string& rule, bool& reproduced) 
     return found;
 }
 
-void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable) {
+void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable,
+                      const std::vector<Step>& before) {
     const std::string key = v.rule + "|" + std::to_string(fc);
     if (auto it = finding_index_.find(key); it != finding_index_.end()) {
         ++s_.findings[it->second].count;
@@ -676,11 +715,14 @@ void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bo
     r.framing = std::string(modbus::to_string(framing_));
     r.seed = options_.seed;
     r.request = s_.requests;
-    r.original_steps = trace_.size();
+    std::vector<Step> window = before;
+    window.insert(window.end(), trace_.begin(), trace_.end());
+    r.original_steps = window.size();
+    if (v.rule == "timing.slow_reply") r.slow_ms = static_cast<std::uint32_t>(slow_.count());
     if (replayable && options_.minimise_budget > 0)
-        r.steps = minimise(v.rule, r.minimised);
+        r.steps = minimise(v.rule, std::move(window), r.minimised);
     else
-        r.steps.assign(trace_.begin(), trace_.end());
+        r.steps = std::move(window);
     if (!options_.artifacts.empty()) {
         std::error_code ec;
         std::filesystem::create_directories(options_.artifacts, ec);
@@ -797,7 +839,9 @@ CampaignSummary Campaign::run() {
                     continue;
                 }
             }
-            record(v, fc, !s_.target_lost);
+            // A lost write's reproducer holds the write, however long ago the trace was cleared.
+            record(v, fc, !s_.target_lost,
+                   v.rule == "state.lost_write" ? writes_before_trace(p.pdu) : std::vector<Step>{});
         }
         if (step.reconnect_after) {
             (void)client_.reconnect();
@@ -822,6 +866,10 @@ CampaignSummary Campaign::run() {
         if (const auto range = write_range(p.pdu); range && range->count && r.violations.empty()) {
             const auto reply = reply_pdu(r.exchange);
             if (reply && !reply->empty() && !(reply->front() & 0x80) && p.unit == options_.unit) {
+                const auto by = std::make_shared<const WrittenBy>(WrittenBy{s_.requests, step});
+                for (std::uint32_t a = range->start;
+                     a < std::uint32_t{range->start} + range->count && a <= 0xFFFF; ++a)
+                    written_by_[{range->table, static_cast<std::uint16_t>(a)}] = by;
                 const bool bits = range->table == Table::Coils;
                 Probe back;
                 back.unit = options_.unit;

@@ -135,6 +135,7 @@ nlohmann::json to_json(const Reproducer& r) {
             {"seed", r.seed},
             {"request", r.request},
             {"minimised", r.minimised},
+            {"slow_ms", r.slow_ms},
             {"original_steps", r.original_steps},
             {"steps", steps},
             {"replay", "mbscope replay --target " + r.target + " --profile " + r.profile + " --unit " +
@@ -160,8 +161,10 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
         const auto seed = count(j, "seed", UINT64_MAX, 0);
         const auto request = count(j, "request", UINT64_MAX, 0);
         const auto original = count(j, "original_steps", SIZE_MAX, 0);
-        for (const auto* field : {&unit, &seed, &request, &original})
+        const auto slow = count(j, "slow_ms", 600'000, 0);
+        for (const auto* field : {&unit, &seed, &request, &original, &slow})
             if (!*field) return field->error();
+        r.slow_ms = static_cast<std::uint32_t>(slow.value());
         r.unit = static_cast<std::uint8_t>(unit.value());
         r.seed = seed.value();
         r.request = request.value();
@@ -420,6 +423,12 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
         }
         out.push_back(std::move(done));
         const auto& ex = out.back().exchange;
+        // As the campaign judges a slow target: the first byte of the step's own reply past the limit.
+        if (options.slow.count() && !ex.own_received().empty() && ex.first_byte > options.slow)
+            out.back().violations.push_back(
+                {"timing.slow_reply", options.slow_source,
+                 "a reply within " + std::to_string(options.slow.count()) + " ms",
+                 "a reply after " + std::to_string(ex.first_byte.count() / 1'000'000) + " ms"});
         if (framing == modbus::Framing::Tcp) {
             for (const auto& frame : ex.stale_replies) {
                 if (unanswered.claim(frame, claimed) || out.size() < 2) continue;

@@ -39,6 +39,8 @@ struct Reproducer {
     std::uint64_t seed = 0;
     std::uint64_t request = 0;  // index of the request that showed it in the campaign
     bool minimised = false;     // shortened and shown to break the rule again when replayed
+    // timing.slow_reply: the limit the replies broke, which a replay judges every reply by (0: none).
+    std::uint32_t slow_ms = 0;
     std::size_t original_steps = 0;
     std::vector<Step> steps;
 };
@@ -69,6 +71,9 @@ struct ReplayedStep {
 struct ReplayOptions {
     std::chrono::milliseconds timeout{1000};
     std::chrono::microseconds silence_wait{1'000'000};
+    // A reply later than this breaks timing.slow_reply (`slow_source` its source); 0: not judged.
+    std::chrono::milliseconds slow{0};
+    std::string slow_source;
     // Once set, no further step is sent, nor the rest of a step paused between its pieces; the replies still
     // due are awaited and judged as usual.
     const std::atomic<bool>* stop = nullptr;

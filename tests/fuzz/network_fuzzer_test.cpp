@@ -661,6 +661,54 @@ INSTANTIATE_TEST_SUITE_P(Slave, SlowTarget,
                                            SlowCase{"cth2265i", "tcp"}),
                          profile_and_scheme);
 
+// A finding's reproducer breaks its rule again when replayed against the same device. Two did not: a slow
+// reply was never judged by the replay (no limit to judge it by), and a lost write found on a read after a
+// health check had cleared the trace was saved without the write. The device: the reference slave slowed
+// down, or dropping every write it acknowledges.
+TEST(NetworkFuzzer, ReproducersOfASlowReplyAndALostWriteReplayAsFound) {
+    struct Case {
+        std::string fault, profile, rule;
+    };
+    for (const Case& c : {Case{"slow-reply=450", "cth2265i", "timing.slow_reply"},
+                          Case{"drop-write", "mmk-2030", "state.lost_write"}}) {
+        SCOPED_TRACE(c.fault);
+        RunningServer server({c.fault}, 7, c.profile);
+        auto o = options_for("tcp", server.start("tcp"));
+        o.timeout = milliseconds(1000);
+        o.requests = 2000;
+        if (c.rule == "timing.slow_reply") {  // each slow exchange takes half a second: nothing to restore
+            o.max_findings = 1;
+            o.read_only = true;
+        }
+        o.seed = 1;
+        const auto& profile = mbscope::slave::test::profile(c.profile);
+        const auto s = fz::run_campaign(profile, o);
+        ASSERT_TRUE(s.reachable) << s.error;
+        std::size_t checked = 0;
+        for (const auto& f : s.findings) {
+            if (f.rule != c.rule) continue;
+            ++checked;
+            const auto& r = f.reproducer;
+            if (c.rule == "timing.slow_reply") {
+                EXPECT_GT(r.slow_ms, 0u) << "the limit is saved with the finding";
+            }
+            const auto loaded = fz::reproducer_from_json(fz::to_json(r));
+            ASSERT_TRUE(loaded) << loaded.error();
+            EXPECT_EQ(loaded->slow_ms, r.slow_ms);
+            auto client = mbscope::modbus::transport::Client::open(o.endpoint);
+            ASSERT_TRUE(client);
+            mbscope::conformance::ExchangeOracle oracle(mbscope::modbus::Framing::Tcp, {{1, &profile}}, true);
+            fz::ReplayOptions options;
+            options.timeout = o.timeout;
+            options.slow = milliseconds(loaded->slow_ms);
+            const auto replayed = fz::replay(*client, oracle, loaded->steps, options);
+            EXPECT_TRUE(fz::breaks(replayed, c.rule))
+                << f.expected << "; " << f.observed << " (" << loaded->steps.size() << " steps)";
+        }
+        EXPECT_GT(checked, 0u) << "no " << c.rule << " found:" << listing(s);
+    }
+}
+
 // A replay over RTU keeps owed steps as the campaign does: the first step's reply, late, comes while the
 // second waits and is set aside as the first's; the second's own reply, late too, is waited for after
 // the last step, so that nothing is left to come during what follows.
