@@ -1115,8 +1115,27 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             }
         }
     } else {
-        if (made) made->timed_out = timed_out;
-        if (unanswered && unanswered->code == FindingCode::PairResponseNotCaptured) {
+        // A request whose checksum failed is discarded by every slave (SL §2.5.1.2, §2.5.2.2): its silence is
+        // right, not a timeout held against the device. (It waited all the same: a capture can damage what
+        // the device got whole, and a reply then answers it.)
+        const bool discarded = request.frame.framing != Framing::Tcp && !request.frame.checksum_ok &&
+                               unanswered &&
+                               (unanswered->code == FindingCode::PairNoResponse ||
+                                unanswered->code == FindingCode::PairNoResponseAtEnd);
+        if (discarded) {
+            unanswered->code = FindingCode::PairDamagedRequestUnanswered;
+            unanswered->message = describe_request(request) + " to " + request.device.str() + ": its " +
+                                  (request.frame.framing == Framing::Ascii ? "LRC" : "CRC") +
+                                  " failed and no reply came, as a slave that discards such a frame does";
+            timed_out = false;
+        }
+        if (made) {
+            made->timed_out = timed_out;
+            made->discarded = discarded;
+        }
+        if (discarded) {
+            ++stats.damaged_unanswered;
+        } else if (unanswered && unanswered->code == FindingCode::PairResponseNotCaptured) {
             ++stats.replies_not_captured;  // answered: neither a timeout nor waiting at the end
             if (made) made->reply_not_captured = true;
         } else {

@@ -65,6 +65,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
     const FrameRecord* r = t.response ? &*t.response : nullptr;
     out.begin_object();
     if (!r && t.broadcast) out.member("broadcast", true);
+    if (t.discarded) out.member("discarded", true);  // the keys in order, as the JSON output has them
     if (r && r->pdu && r->pdu->is_exception())
         out.member("exception_code", std::get<ExceptionResponse>(r->pdu->body).exception_code);
     if (!t.findings.empty()) {

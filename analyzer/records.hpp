@@ -64,6 +64,8 @@ struct TransactionRecord {
     bool broadcast = false;  // serial unit 0: executed by every slave, answered by none
     // Answered, but the capture holds only the reply's first bytes (pair.response_not_captured).
     bool reply_not_captured = false;
+    // The request's CRC or LRC failed and no reply came: discarded, as the rules want.
+    bool discarded = false;
     std::vector<modbus::FindingCode> findings;
     std::vector<modbus::NamedValue> values;  // with a profile: the values named in the device's terms
     const modbus::Profile* profile = nullptr;
@@ -122,6 +124,9 @@ struct DeviceStats {
     // Requests answered with a reply the capture holds only in part (pair.response_not_captured): neither
     // responses (nothing of their values is known) nor timeouts.
     std::uint64_t replies_not_captured = 0;
+    // Requests whose CRC or LRC failed and that drew no reply (pair.damaged_request_unanswered): the device
+    // was right to discard them, so they are not timeouts.
+    std::uint64_t damaged_unanswered = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests
     // The exception codes among `exceptions` (code → count): what the device refused, or the gateway in front

@@ -92,6 +92,7 @@ void TextSink::transaction(const TransactionRecord& t) {
         out_ << "  -> "
              << (t.broadcast            ? "broadcast, no response expected"
                  : t.reply_not_captured ? "answered, the reply not captured whole"
+                 : t.discarded          ? "no response: the request's checksum failed, discarded"
                  : t.timed_out          ? "no response"
                                         : "no response before the capture ended");
     out_ << '\n';
@@ -149,6 +150,9 @@ void TextSink::end(const Summary& s) {
         if (d.unanswered_at_end) out_ << ", " << d.unanswered_at_end << " unanswered at the end";
         if (d.replies_not_captured)
             out_ << ", " << d.replies_not_captured << " answered with replies not captured whole";
+        if (d.damaged_unanswered)
+            out_ << ", " << d.damaged_unanswered
+                 << " damaged requests discarded (no reply, as the rules want)";
         if (d.checksum_errors) out_ << ", " << d.checksum_errors << " frames with a bad CRC/LRC";
         if (d.latency.count())
             out_ << "; latency min " << milliseconds_text(d.latency.min()) << " / median "
@@ -332,6 +336,7 @@ json transaction_to_json(const TransactionRecord& t) {
     } else {
         j["timeout"] = t.timed_out;
         if (t.reply_not_captured) j["reply_not_captured"] = true;
+        if (t.discarded) j["discarded"] = true;
     }
     if (!t.findings.empty()) {
         for (auto c : t.findings)
@@ -392,6 +397,7 @@ json summary_to_json(const Summary& s) {
                  {"unanswered_at_end", d.unanswered_at_end}};
         if (d.late_responses) dev["late_responses"] = d.late_responses;
         if (d.replies_not_captured) dev["replies_not_captured"] = d.replies_not_captured;
+        if (d.damaged_unanswered) dev["damaged_unanswered"] = d.damaged_unanswered;
         if (d.checksum_errors) dev["checksum_errors"] = d.checksum_errors;
         if (!d.findings.empty()) dev["findings"] = d.findings;
         json fcs = json::object();

@@ -131,6 +131,10 @@ constexpr std::array findings{
                 "the reply's first bytes (a record cut to the snapshot length, a tap's drop): its values are "
                 "unknown, and the device is not blamed with a timeout",
                 "capture"},
+    FindingInfo{PairDamagedRequestUnanswered, "pair.damaged_request_unanswered", S::Note,
+                "no reply to a request whose CRC or LRC failed: a slave discards such a frame, so the "
+                "silence is what the rules want (its checksum finding says what went wrong)",
+                "SL §2.5.1.2, §2.5.2.2"},
     FindingInfo{PairRequestNotCaptured, "pair.request_not_captured", S::Warning,
                 "a reply to a request the capture holds only in part (its MBAP header names the transaction "
                 "id and function): not unsolicited",

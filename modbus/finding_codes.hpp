@@ -76,6 +76,7 @@ enum class FindingCode : std::uint16_t {
     PairBroadcastRead = 617,
     PairResponseNotCaptured = 618,
     PairRequestNotCaptured = 619,
+    PairDamagedRequestUnanswered = 620,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

@@ -227,6 +227,41 @@ TEST(SerialInput, NoiseToUnitZeroIsNoBroadcastAndNoDevice) {
     EXPECT_EQ(an::summary_to_json(r->summary)["damaged_broadcasts"], 2);
 }
 
+// A request to a unit whose CRC fails is discarded by the slave (SL §2.5.1.2; MK-ERR-01, 000:270-272): its
+// silence is right. Before, it was pair.no_response, an error and a timeout held against unit 17, which did
+// what the rules want. It is a note now, counted apart; a reply that does come is still paired with it (the
+// capture may have damaged what the device got whole).
+TEST(SerialInput, ADamagedRequestLeftUnansweredIsNoTimeout) {
+    const auto path = write_temp("damaged_request.txt",
+                                 "1.000 > 11 03 00 60 00 03 07 46\n"  // its CRC damaged: no reply
+                                 "2.500 > 11 03 00 60 00 03 07 45\n"
+                                 "2.550 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "3.000 > 11 03 00 60 00 03 07 46\n"  // damaged, and answered all the same
+                                 "3.050 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "4.000 > 11 03 00 60 00 03 07 46\n");  // damaged, the capture ends
+    auto r = decode(path, an::InputFormat::Text);
+    const auto& device = r->summary.devices.at("serial " + path + " unit 17");
+    EXPECT_EQ(device.requests, 4u);
+    EXPECT_EQ(device.responses, 2u);
+    EXPECT_EQ(device.timeouts, 0u);
+    EXPECT_EQ(device.unanswered_at_end, 0u);
+    EXPECT_EQ(device.damaged_unanswered, 2u);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairDamagedRequestUnanswered), 2);
+    for (const auto& f : r->sink.findings) {
+        if (f.code != mb::FindingCode::PairDamagedRequestUnanswered) continue;
+        EXPECT_NE(f.message.find("its CRC failed and no reply came"), std::string::npos) << f.message;
+    }
+    EXPECT_EQ(r->summary.errors, 3u);  // the three CRC mismatches, nothing more
+    ASSERT_EQ(r->sink.transactions.size(), 4u);
+    EXPECT_TRUE(r->sink.transactions[0].discarded);
+    EXPECT_FALSE(r->sink.transactions[0].timed_out);
+    EXPECT_TRUE(r->sink.transactions[2].response.has_value());
+    EXPECT_EQ(an::summary_to_json(r->summary)["devices"]["serial " + path + " unit 17"]["damaged_unanswered"],
+              2);
+}
+
 // Broadcast requests are writes (SL §2.1; the MK manual runs FC5, 6, 15 and 16 in broadcast, 000:313): a
 // read sent to unit 0 passed without a word, though nothing it reads can ever come back; so did FC8's
 // sub-functions that return a counter. A broadcast write and FC8's listen-only (which changes a device's
