@@ -535,6 +535,15 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                     break;
                 }
                 const std::uint16_t hi = high_first ? w : *other, lo = high_first ? *other : w;
+                if (digits && (hi > 9999 || lo > 9999)) {
+                    // Four digits a register ("4 primeiros / 4 últimos dígitos", 000:1243): a half above 9999
+                    // is no digits, and read as such made a total that never was (10000 0 as 100000000).
+                    v.raw = {hi, lo};
+                    earlier(*e.pair);
+                    v.text = std::to_string(hi) + " " + std::to_string(lo) +
+                             " (not digits: each half holds four, 0 to 9999)";
+                    break;
+                }
                 const double whole =
                     digits ? hi * 10000.0 + lo : static_cast<double>((std::uint32_t{hi} << 16) | lo);
                 v.raw = {hi, lo};

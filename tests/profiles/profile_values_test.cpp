@@ -75,5 +75,12 @@ TEST(MkValues, ATotalTakesTheDecimalPointOfItsTotalization) {
         EXPECT_TRUE(v[0].partial);
         EXPECT_EQ(v[0].text, "12345678 (unscaled: its decimal point register " + std::to_string(c.decimals) +
                                  " holds 8, no number of places)");
+        // Four digits a register (000:1243): a half above 9999 is no total. Before, 10000 and 0 read as
+        // 100000000.
+        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {10000, 0}, {{c.decimals, 3}});
+        EXPECT_EQ(v[0].number, std::nullopt);
+        EXPECT_EQ(v[0].text, "10000 0 (not digits: each half holds four, 0 to 9999)");
+        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1, 65535}, {{c.decimals, 3}});
+        EXPECT_EQ(v[0].number, std::nullopt);
     }
 }
