@@ -286,14 +286,16 @@ void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) 
         shift_offsets(events, f.rtu_lost[dir]);
         f.rtu_lost[dir] += missing;
     } else {
-        cut = cut_adu(f.deframer[dir].incomplete(), cutting_);
+        cut = cut_adu(f.deframer[dir].incomplete(), f.reassembler[dir]->gap_is_cut());
         f.deframer[dir].gap(missing, events);
     }
     if (dir == 0) f.first_request_after_gap = next_serial_ + 1;
     report(FindingCode::StreamGap, about_stream(f, t),
            std::to_string(missing) + " bytes of the " + (dir == 0 ? "request" : "response") +
                " stream were not captured" +
-               (cutting_ ? " (a packet cut to the capture's snapshot length)" : "") +
+               (f.reassembler[dir] && f.reassembler[dir]->gap_is_cut()
+                    ? " (a packet cut to the capture's snapshot length)"
+                    : "") +
                "; decoding resumes at the next " + (f.rtu_over_tcp ? "RTU frame" : "plausible MBAP header"));
     deframed(f, dir == 0, events, t);
     if (!cut) return;
@@ -409,15 +411,19 @@ void Analyzer::packet_in_source(const Packet& p) {
         // The acknowledgement first: it says what the sender had received before it sent this segment's
         // bytes (a request behind a lost segment is released before the reply to it is paired).
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
+        if (!l4.payload.empty()) flow.reassembler[to_server ? 1 : 0]->peer_spoke();
         stream.segment(l4.seq, l4.syn, l4.payload, p.time);
-        if (l4.payload_cut) {
-            // Its bytes past the snapshot length are a gap now, at this packet: found only when
-            // later bytes showed the hole, the gap was put at the next packet, or nowhere for the last.
+        // Bytes the IP header counts past the record's end are cut only when the record says so (its
+        // original length): an IP length that lies about a whole record is not a snapshot length's doing.
+        const std::uint32_t record_cut = !whole && p.original_length > p.data.size()
+                                             ? p.original_length - static_cast<std::uint32_t>(p.data.size())
+                                             : 0;
+        if (const auto cut = std::min(l4.payload_cut, record_cut)) {
+            // A hole at once, at this packet (a whole copy may still fill it): found only when later bytes
+            // showed it, the gap was put at the next packet, or nowhere for the last.
             ++summary_.packets_cut;
-            cutting_ = true;
             stream.cut_by_capture(l4.seq + (l4.syn ? 1u : 0u) + static_cast<std::uint32_t>(l4.payload.size()),
-                                  l4.payload_cut, p.time);
-            cutting_ = false;
+                                  cut, p.time);
         }
         if (l4.fin) stream.finished_at(l4.seq + static_cast<std::uint32_t>(l4.payload.size()));
         // The server closed its side with every byte it sent delivered: no reply will follow on this
@@ -797,7 +803,16 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     const bool other_unit_waits = it != pending_.end() && r.frame.framing != Framing::Tcp &&
                                   r.frame.checksum_ok &&
                                   it->second.request.frame.unit_id() != r.frame.unit_id();
-    if ((it == pending_.end() || other_unit_waits) && !timed_out_.empty()) {
+    // Over Modbus/TCP a request timed out while later ones that reused its id waited (a timed-out request's
+    // entry is dropped when its id is sent again, so one that is here timed out after they were sent): a
+    // reply that fits it is its late one, the oldest's, as a server answers in turn. Before, the reply went
+    // to a waiting request, and every reply after it shifted by one.
+    const bool late_behind_reuse =
+        it != pending_.end() && r.frame.framing == Framing::Tcp && !timed_out_.empty() && [&] {
+            const auto t = timed_out_.find({flow.id, late_id(r.frame)});
+            return t != timed_out_.end() && could_answer(t->second.pending.request, r);
+        }();
+    if ((it == pending_.end() || other_unit_waits || late_behind_reuse) && !timed_out_.empty()) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
         // again (a poll's late reply on a serial line often carries the same bytes as the one before).
         if (auto late = late_for({flow.id, late_id(r.frame)})) {
@@ -806,6 +821,21 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             return;
         }
     }
+    // Its request was cut by a gap in the request stream, and its header names this reply's transaction: not
+    // unsolicited, nor (a client that sends the same id and request again) the last reply again.
+    if (it == pending_.end() && r.frame.framing == Framing::Tcp && !cut_requests_.empty())
+        if (auto cut = cut_requests_.find(key);
+            cut != cut_requests_.end() && cut->second.unit == r.frame.unit_id() && !r.frame.pdu().empty() &&
+            (r.frame.pdu()[0] & 0x7F) == cut->second.function) {
+            report(FindingCode::PairRequestNotCaptured, r,
+                   "the reply to transaction id " + std::to_string(key.tid) +
+                       ", whose request the capture holds only in part (" +
+                       std::to_string(cut->second.captured) + " of its " +
+                       std::to_string(cut->second.length) + " bytes" +
+                       (cut->second.snapshot_length ? ", cut to the capture's snapshot length" : "") + ")");
+            cut_requests_.erase(cut);
+            return;
+        }
     // (Not after a damaged request since: that is the one it answers, the same question again.)
     if (it == pending_.end() && r.frame.checksum_ok && r.frame.length == flow.last_response_length &&
         flow.damaged_request < flow.last_response_index &&
@@ -838,21 +868,6 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                    "response transaction id " + std::to_string(key.tid) + " answers the request with id " +
                        std::to_string(only->tid),
                    {it->second.request.index, r.index});
-        } else if (auto cut = r.frame.framing == Framing::Tcp && !cut_requests_.empty()
-                                  ? cut_requests_.find(key)
-                                  : cut_requests_.end();
-                   cut != cut_requests_.end() && cut->second.unit == r.frame.unit_id() &&
-                   !r.frame.pdu().empty() && (r.frame.pdu()[0] & 0x7F) == cut->second.function) {
-            // Its request was cut by a gap in the request stream: its header names this reply's transaction.
-            report(FindingCode::PairRequestNotCaptured, r,
-                   "the reply to transaction id " + std::to_string(key.tid) +
-                       ", whose request the capture holds only in part (" +
-                       std::to_string(cut->second.captured) + " of its " +
-                       std::to_string(cut->second.length) + " bytes" +
-                       (cut->second.snapshot_length ? ", cut to the capture's snapshot length" : "") + ")");
-            cut_requests_.erase(cut);
-            flow.keep_last_response(r);
-            return;
         } else {
             // A serial line has no transaction ids: name the unit whose reply nobody asked for.
             report(

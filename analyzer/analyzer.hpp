@@ -319,9 +319,6 @@ class Analyzer {
     // Requests cut by a gap, by flow and transaction id: a reply to one is not unsolicited. Bounded.
     std::unordered_map<PendingKey, CutAdu, PendingHash> cut_requests_;
     static constexpr std::size_t max_cut_requests = 1024;
-    // While the bytes a packet's snapshot length cut make a gap. (Named by time, not by packet number: in
-    // captures merged by time that is ambiguous.)
-    bool cutting_ = false;
     // Requests by deadline, one queue per timeout: each is then in deadline order, and a serial request (1 s)
     // is not held up behind a Modbus/TCP one (3 s) sent before it. Requests without a time stamp (raw
     // dumps) wait in a queue of their own: they end only when the master moves on, or the capture.

@@ -72,7 +72,12 @@ void CaptureMerge::open(Member& m) {
         return;
     }
     active_.push_back(m.order);
-    advance(m);
+    m.head = m.source->next();
+    if (m.head) return;
+    // A file header and nothing after it, as a capture read alone says (Analyzer::read_capture).
+    const bool damaged = !m.source->error().empty();
+    close(m);
+    if (!damaged) errors_.push_back(m.file.name + ": the capture holds no packets, nothing to decode");
 }
 
 void CaptureMerge::advance(Member& m) {

@@ -1,6 +1,7 @@
 #include "analyzer/tcp_reassembler.hpp"
 
 #include <algorithm>
+#include <utility>
 
 namespace mbscope::analyzer {
 namespace {
@@ -23,6 +24,7 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     buffered_ = 0;
     retransmitted_ = 0;
     recent_from_ = 0;
+    cut_.reset();
 }
 
 bool TcpReassembler::reset_in_window(std::uint32_t seq) const noexcept {
@@ -48,6 +50,22 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
     }
     if (!next_) next_ = seq;  // capture started mid-connection
     if (payload.empty()) return;
+    if (!cut_) return take_segment(seq, payload, t);
+    // A record was cut at the next byte: this segment fills the hole from its start (a whole copy), lies
+    // before it (nothing to do with it), or lies beyond it, and then the hole's bytes are not coming.
+    const auto rel = static_cast<std::int32_t>(seq - *next_);
+    if (rel > 0) give_up_cut();
+    take_segment(seq, payload, t);
+    if (!cut_) return;
+    const auto filled = static_cast<std::uint32_t>(*next_ - cut_->end);
+    if (filled >= cut_->missing)
+        cut_.reset();
+    else if (filled > 0)  // a copy cut again, shorter: the rest of the hole waits
+        cut_ = CutHole{*next_, cut_->missing - filled, cut_->time};
+}
+
+void TcpReassembler::take_segment(std::uint32_t seq, std::span<const std::uint8_t> payload,
+                                  modbus::Timestamp t) {
     // A keep-alive probe (RFC 9293 §3.8.4): one garbage octet at the sequence number before the next, sent
     // to make the peer acknowledge. Its byte is not the stream's (BSD and Windows send 0x00): taken for a
     // retransmission, every probe was a retransmission conflict.
@@ -173,10 +191,20 @@ void TcpReassembler::skip(std::uint64_t missing, modbus::Timestamp t) {
 
 void TcpReassembler::cut_by_capture(std::uint32_t end, std::uint32_t missing, modbus::Timestamp t) {
     if (!next_ || missing == 0 || *next_ != end) return;
-    // Bytes already here from past the cut (a retransmission captured whole) are not lost.
-    std::uint64_t lost = missing;
+    if (cut_) give_up_cut();  // an earlier hole the stream has not moved past: not coming either
+    if (*next_ == end) cut_ = CutHole{end, missing, t};
+}
+
+void TcpReassembler::give_up_cut() {
+    const auto c = *std::exchange(cut_, std::nullopt);
+    if (*next_ != c.end) return;
+    // Bytes already waiting from past the cut (a copy of them captured whole) are not lost.
+    std::uint64_t lost = c.missing;
     if (!pending_.empty()) lost = std::min<std::uint64_t>(lost, pending_.front().at - base_);
-    if (lost) skip(lost, t);
+    if (!lost) return;
+    cut_gap_ = true;
+    skip(lost, c.time);  // at the cut segment's time
+    cut_gap_ = false;
 }
 
 void TcpReassembler::acknowledged(std::uint32_t ack, modbus::Timestamp t) {
@@ -207,6 +235,7 @@ void TcpReassembler::acknowledged(std::uint32_t ack, modbus::Timestamp t) {
 void TcpReassembler::give_up_acknowledged(modbus::Timestamp t) {
     const std::uint32_t ack = *acknowledged_;
     acknowledged_.reset();
+    if (cut_) give_up_cut();  // named for what it is, before the holes after it
     for (auto rel = static_cast<std::int32_t>(ack - *next_); rel > 0;
          rel = static_cast<std::int32_t>(ack - *next_)) {
         std::uint64_t missing = static_cast<std::uint64_t>(rel);
@@ -217,6 +246,7 @@ void TcpReassembler::give_up_acknowledged(modbus::Timestamp t) {
 }
 
 void TcpReassembler::flush(modbus::Timestamp t) {
+    if (cut_) give_up_cut();
     if (acknowledged_) give_up_acknowledged(t);
     while (!pending_.empty())
         skip_to_first_buffered(t);

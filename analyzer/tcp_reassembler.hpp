@@ -47,11 +47,21 @@ class TcpReassembler {
     // it are here already: the hole's bytes would have to come after their own successors, and until
     // then a request pipelined behind a lost one waited, its reply taken for unsolicited.
     void acknowledged(std::uint32_t ack, modbus::Timestamp t);
-    // The `missing` bytes after sequence number `end` (a segment's last captured byte's next) are in no
-    // capture: its record was cut to the snapshot length. When the stream had reached `end`, they are a gap
-    // at once, at this segment, rather than when later bytes or an acknowledgement show the hole (or never,
-    // for a stream's last segment). A segment still waiting behind a hole is left to that hole's handling.
+    // The `missing` bytes after sequence number `end` (a segment's last captured byte's next) are not in its
+    // record: the capture cut it to the snapshot length. When the stream had reached `end`, they are a hole
+    // that a whole copy may still fill (a retransmission, a second tap's copy merged in); it is given up, a
+    // gap at the cut segment's time, when this direction's next segment does not fill it, when the other
+    // direction sends data (peer_spoke), or at flush(): not only when bytes beyond it show the hole, which
+    // for a stream's last segment never happened. A segment still waiting behind another hole is left to that
+    // hole's handling.
     void cut_by_capture(std::uint32_t end, std::uint32_t missing, modbus::Timestamp t);
+    // The other direction sent data: a hole cut_by_capture left is given up (a request cut is answered, its
+    // whole copy not coming; a reply cut is followed by the client's next request).
+    void peer_spoke() {
+        if (cut_) give_up_cut();
+    }
+    // While the gap callback runs: whether the gap is a record's bytes past the snapshot length.
+    bool gap_is_cut() const noexcept { return cut_gap_; }
     static constexpr modbus::Timestamp reordering_wait{1'000'000'000};
     // A FIN at sequence number `seq` (after its segment's payload): it takes one number of its own, which
     // the peer's acknowledgement covers without any byte having been lost.
@@ -73,6 +83,8 @@ class TcpReassembler {
     void reset(std::size_t max_buffered) noexcept;
 
   private:
+    void take_segment(std::uint32_t seq, std::span<const std::uint8_t> payload, modbus::Timestamp t);
+    void give_up_cut();  // a gap at the cut segment's time
     // Bytes that arrived ahead of a hole: arena_[begin, begin + size), to go at stream position `at`, and
     // when they arrived (delivered with that time, or the last delivery's if later: a request that waited
     // behind a lost segment keeps its own time, and a stream's times never go back).
@@ -120,6 +132,14 @@ class TcpReassembler {
     static constexpr std::size_t recent_size = 4096;
     std::array<std::uint8_t, recent_size> recent_{};
     std::uint64_t recent_from_ = 0;  // recent_ holds nothing before this offset (a gap was skipped to it)
+    // A record's bytes past the snapshot length, from the stream's next byte (cut_by_capture).
+    struct CutHole {
+        std::uint32_t end = 0;
+        std::uint32_t missing = 0;
+        modbus::Timestamp time{0};
+    };
+    std::optional<CutHole> cut_;
+    bool cut_gap_ = false;
 };
 
 }  // namespace mbscope::analyzer

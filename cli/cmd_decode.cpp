@@ -120,7 +120,7 @@ int run_decode(const DecodeOptions& o) {
     if (!all_read) return exit_failure;
     // Bytes read and not one frame among them: nothing was decoded (the wrong file, format or framing),
     // which is not a clean result.
-    if (a.summary().frames == 0 && a.summary().unparsed_bytes > 0) {
+    if (a.summary().frames == 0 && (a.summary().unparsed_bytes > 0 || a.summary().packets_cut > 0)) {
         std::cerr << "mbscope decode: no Modbus frame in the " << a.summary().unparsed_bytes
                   << " bytes read, every one unparsed: "
                   << (a.summary().packets_cut

@@ -161,7 +161,7 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
         const auto seed = count(j, "seed", UINT64_MAX, 0);
         const auto request = count(j, "request", UINT64_MAX, 0);
         const auto original = count(j, "original_steps", SIZE_MAX, 0);
-        const auto slow = count(j, "slow_ms", 600'000, 0);
+        const auto slow = count(j, "slow_ms", UINT32_MAX, 0);  // --slow's 600,000 and a serial line's frames
         for (const auto* field : {&unit, &seed, &request, &original, &slow})
             if (!*field) return field->error();
         r.slow_ms = static_cast<std::uint32_t>(slow.value());

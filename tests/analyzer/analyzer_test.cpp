@@ -57,6 +57,10 @@ struct Harness {
         p.original_length = std::max(original_length, static_cast<std::uint32_t>(bytes.size()));
         analyzer.packet("test", p);
     }
+    // A copy of what was sent from sequence number `at` (a retransmission, a second tap's copy).
+    void resend(bool to_server, const std::vector<std::uint8_t>& payload, std::uint32_t at, mb::Timestamp t) {
+        raw(packet(to_server, at, payload, false, 0x18, 502, seq[to_server ? 1 : 0]), t);
+    }
     // As send, the record cut to the snapshot length: only the payload's first `kept` bytes captured.
     void send_cut(bool to_server, const std::vector<std::uint8_t>& payload, std::size_t kept,
                   mb::Timestamp t) {
@@ -1428,4 +1432,78 @@ TEST(PacketParser, TheBytesASnapshotLengthCutAreCounted) {
               an::ParseStatus::Ok);
     EXPECT_EQ(cut.payload.size(), 10u);
     EXPECT_EQ(cut.payload_cut, 19u);
+}
+
+// A cut copy followed by a whole one (a second tap merged in, a retransmission): the whole copy fills the
+// hole. Before, the hole was given up at the cut copy and the whole one dropped as a retransmission.
+TEST(Analyzer, AWholeCopyAfterACutOneFillsTheHole) {
+    Harness h;
+    h.send(true, read_request(1, 0, 10), 1s);
+    const std::uint32_t at = h.seq[1];
+    const auto reply = read_response(1, {0, 1, 2, 3, 4, 5, 6, 7, 8, 9});
+    h.send_cut(false, reply, 10, 1s + 10ms);
+    h.resend(false, reply, at, 1s + 11ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::StreamGap), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairResponseNotCaptured), 0);
+    ASSERT_EQ(h.sink.transactions.size(), 1u);
+    ASSERT_TRUE(h.sink.transactions[0].response);
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").responses, 1u);
+}
+
+// An IP header whose length is more than its whole record holds (the record's own lengths agree) is no cut
+// by the snapshot length: nothing is skipped. Before, the bytes it claimed were skipped as a cut, every
+// later segment dropped as old, and the device blamed with timeouts.
+TEST(Analyzer, AnIpLengthThatLiesIsNoSnapshotCut) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    auto lying = packet(false, h.seq[1], read_response(1), false, 0x18, 502, h.seq[0]);
+    h.seq[1] += static_cast<std::uint32_t>(read_response(1).size());
+    lying[2] = 0x0F;  // IPv4 total length 0x0FFF, the record whole
+    lying[3] = 0xFF;
+    h.raw(lying, 1s + 10ms);
+    for (int i = 2; i < 6; ++i) {
+        h.send(true, read_request(static_cast<std::uint16_t>(i)), std::chrono::seconds(i));
+        h.send(false, read_response(static_cast<std::uint16_t>(i)), std::chrono::seconds(i) + 10ms);
+    }
+    h.analyzer.finish();
+    EXPECT_EQ(h.analyzer.summary().packets_cut, 0u);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::StreamGap), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").responses, 5u);
+}
+
+// Three writes under one transaction id, the first answered after its timeout: its late echo is its own, and
+// the other two echoes their own. Before, the late echo went to the second write and each after it shifted by
+// one: three echo mismatches against a device that echoed every write exactly.
+TEST(Analyzer, ALateReplyUnderAReusedIdIsTheOldestRequests) {
+    Harness h;
+    h.send(true, write_register(504, 4, 2500), 1s);
+    h.send(true, write_register(504, 4, 0), 2s);
+    h.send(true, write_register(504, 5, 14017), 3s);
+    h.send(false, write_register(504, 4, 2500), 4500ms);
+    h.send(false, write_register(504, 4, 0), 4600ms);
+    h.send(false, write_register(504, 5, 14017), 4700ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairEchoMismatch), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairLateResponse), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);  // the first, reported when it timed out
+    for (const auto& t : h.sink.transactions)
+        if (t.response) {
+            EXPECT_EQ(t.request.pdu->body, t.response->pdu->body) << "frame " << t.request.index;
+        }
+}
+
+// Cut requests from a client that sends the same id and request again, each echoed whole: each echo is the
+// reply to its cut request, not "one request answered twice".
+TEST(Analyzer, RepliesToCutRequestsUnderOneIdAreNoDuplicates) {
+    Harness h;
+    for (int i = 1; i <= 3; ++i) {
+        h.send_cut(true, write_register(0, 7, 42), 8, std::chrono::seconds(i));
+        h.send(false, write_register(0, 7, 42), std::chrono::seconds(i) + 10ms);
+    }
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairDuplicateResponse), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairRequestNotCaptured), 3);
+    EXPECT_EQ(h.analyzer.summary().errors, 0u);
 }

@@ -96,6 +96,19 @@ TEST(CaptureMerge, AFileThatCannotBeReadIsNamedAndTheOthersAreMergedWhole) {
     EXPECT_NE(merge.errors()[1].find("damaged: packet 3"), std::string::npos) << merge.errors()[1];
 }
 
+// A capture of no packets among others is refused as it is alone (exit 2): before, merged, it passed without
+// a word.
+TEST(CaptureMerge, ACaptureOfNoPacketsIsNamed) {
+    const auto good = datagrams("good_beside_empty.pcap", {1, 2});
+    const auto empty =
+        write_temp("capture_merge_empty.pcap", mbscope::test::pcap_file(mbscope::test::link_raw, {}));
+    an::CaptureMerge merge({{good, "good"}, {empty, "empty"}});
+    const std::vector<Merged> expected{{"good", 1, 1}, {"good", 2, 2}};
+    EXPECT_EQ(merge_all(merge), expected);
+    ASSERT_EQ(merge.errors().size(), 1u);
+    EXPECT_EQ(merge.errors()[0], "empty: the capture holds no packets, nothing to decode");
+}
+
 TEST(CaptureMerge, ARingBufferHoldsOnlyTheFilesItIsReading) {
     // 300 parts named last first: every packet in time order, and never more than two files open (the one
     // being read and the next, opened when its first packet is due).
