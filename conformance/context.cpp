@@ -149,6 +149,8 @@ std::optional<std::uint16_t> valid_alternative(const modbus::Point* p, std::uint
                 return static_cast<std::uint16_t>(v.value);
         return std::nullopt;
     }
+    // A boolean in a register takes 0 or 1 (Walchem, 002:424-429), not the register's whole range.
+    if (e.type == modbus::EncodingType::Bool) return static_cast<std::uint16_t>(current == 0 ? 1 : 0);
     if (e.type == modbus::EncodingType::AsciiChar && !e.allowed.empty()) {
         for (char ch : e.allowed)
             if (static_cast<unsigned char>(ch) != current) return static_cast<unsigned char>(ch);

@@ -649,6 +649,10 @@ std::optional<WriteRejection> check_word(const Profile& profile, const Point& p,
             return WriteRejection{exception_for(profile, "bad_value", 3), address,
                                   "value " + std::to_string(v) + " not among the enumeration's values"};
     }
+    // A boolean in a register is its least significant bit (Walchem, 002:424-429): 0 or 1, nothing else.
+    if (e.type == EncodingType::Bool && value > 1)
+        return WriteRejection{exception_for(profile, "bad_value", 3), address,
+                              "value " + std::to_string(value) + " is no boolean (0 or 1)"};
     if (e.type == EncodingType::AsciiChar && !e.allowed.empty() &&
         (value > 0x7F || e.allowed.find(static_cast<char>(value)) == std::string::npos))
         return WriteRejection{exception_for(profile, "bad_value", 3), address,
@@ -670,8 +674,9 @@ std::optional<std::uint8_t> check_read(const Profile& profile, Table t, std::uin
     return std::nullopt;
 }
 
-std::optional<WriteRejection> check_writes(const Profile& profile, Table table, std::uint16_t start,
-                                           const std::vector<std::uint16_t>& values) {
+std::optional<WriteRejection> check_writes(
+    const Profile& profile, Table table, std::uint16_t start, const std::vector<std::uint16_t>& values,
+    const std::function<std::optional<std::uint16_t>(std::uint16_t)>& held) {
     if (profile.open_address_space || values.empty()) return std::nullopt;
     const std::size_t checked_addresses =
         profile.functions.address_check == AddressCheck::First ? 1 : values.size();
@@ -686,15 +691,25 @@ std::optional<WriteRejection> check_writes(const Profile& profile, Table table, 
             continue;  // unchecked addresses (first-only devices)
         const Encoding& e = p->encoding;
         if (e.words == 2) {
-            if (p->address != address || i + 1 >= values.size()) continue;  // a lone half
-            const double v = value_32(e, values[i], values[i + 1]);
+            const bool whole = p->address == address && i + 1 < values.size();
+            std::uint16_t first = values[i], second = whole ? values[i + 1] : 0;
+            if (!whole) {  // a lone half: with the other half the device holds, when it is known
+                const bool is_first = p->address == address;
+                const auto other =
+                    held ? held(static_cast<std::uint16_t>(is_first ? address + 1 : address - 1))
+                         : std::nullopt;
+                if (!other) continue;
+                first = is_first ? values[i] : *other;
+                second = is_first ? *other : values[i];
+            }
+            const double v = value_32(e, first, second);
             if (!std::isfinite(v))  // a float's NaN or infinity
                 return WriteRejection{exception_for(profile, "bad_value", 3), address,
                                       "value is not a finite number"};
             const std::string shown =
                 e.type == EncodingType::F32 ? format_limit(v) : std::to_string(static_cast<std::int64_t>(v));
             if (auto r = check_range(profile, *p, address, v, shown)) return r;
-            ++i;
+            if (whole) ++i;
             continue;
         }
         if (auto r = check_word(profile, *p, address, values[i])) return r;

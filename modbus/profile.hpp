@@ -327,9 +327,13 @@ struct WriteRejection {
 // value per coil, 0 or 1)? Applies the specification's order: every address first (exception 02, only the
 // first one when the profile says the device checks only that), then every value (exception 03). A 32-bit
 // point whose two registers are both in the block is checked as one value (floats against their range in
-// engineering units); a lone half of it can only be checked as a 16-bit word and is not range-checked.
-std::optional<WriteRejection> check_writes(const Profile& profile, Table table, std::uint16_t start,
-                                           const std::vector<std::uint16_t>& values);
+// engineering units). A lone half of it is checked with the other half the device holds, when `held` says
+// (a slave knows its registers: Walchem's manual tells clients to write a 32-bit set-point's halves with
+// FC6, 002:499, and each write must leave the whole value within range and a number); without `held` it is
+// not range-checked.
+std::optional<WriteRejection> check_writes(
+    const Profile& profile, Table table, std::uint16_t start, const std::vector<std::uint16_t>& values,
+    const std::function<std::optional<std::uint16_t>(std::uint16_t)>& held = {});
 
 // The exception code the profile gives for a condition ("bad_address", "bad_value", "bad_quantity",
 // "unsupported_function", "write_read_only"), or the specification's when the manual is silent.

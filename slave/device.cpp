@@ -202,7 +202,10 @@ std::optional<std::uint8_t> Device::check_write_block(Table t, std::uint16_t sta
                                                       const std::vector<std::uint16_t>& values) {
     if (start + values.size() > 65536u)
         return modbus::exception_for(*profile_, "bad_address", exc_illegal_address);
-    auto rejection = modbus::check_writes(*profile_, t, start, values);
+    // A lone half of a 32-bit point is judged with the other half held.
+    auto rejection = modbus::check_writes(*profile_, t, start, values, [&](std::uint16_t a) {
+        return std::optional<std::uint16_t>(image_.reg(t, a));
+    });
     if (!rejection) rejection = check_linked_limits(*profile_, image_, t, start, values);
     if (!rejection) return std::nullopt;
     const bool is_value_rule =

@@ -517,3 +517,21 @@ TEST(ExchangeOracle, AWritePastTheLastAddressIsNotRememberedAtZero) {
 }
 
 }  // namespace
+
+namespace {
+// A lone half of a 32-bit value is judged by the device with the other half it holds (002:499 has clients
+// write a Walchem set-point with FC6): the oracle, which does not know that half, takes a normal reply or
+// 03; the whole value written by FC16 it judges itself. Booleans in a register take 0 or 1 (002:424-429).
+TEST(ExchangeOracle, ALoneHalfOfA32BitValueMayBeRefusedAndABooleanTakesZeroOrOne) {
+    const auto& p = mbscope::slave::test::profile("walchem-w600");
+    cf::ExchangeOracle oracle(Framing::Tcp, {{1, &p}}, true);
+    const auto expect = [&](std::vector<std::uint8_t> request) {
+        return oracle.expectation(mb::encode_tcp(1, 1, request));
+    };
+    EXPECT_EQ(expect(pdu(6, {0x95, 0x44FA})), "a normal response or exception 03 (Illegal Data Value)");
+    EXPECT_EQ(expect({0x10, 0x00, 0x94, 0x00, 0x02, 0x04, 0x00, 0x00, 0x44, 0xFA}),
+              "exception 03 (Illegal Data Value)");
+    EXPECT_EQ(expect(pdu(6, {0x2300, 0xFFFF})), "exception 03 (Illegal Data Value)");
+    EXPECT_EQ(expect(pdu(6, {0x2300, 1})), "a normal response");
+}
+}  // namespace

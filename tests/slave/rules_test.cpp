@@ -682,6 +682,27 @@ const std::vector<ManualCase> mk_cases = {
 };
 
 const std::vector<ManualCase> walchem_cases = {
+    // A 32-bit value's halves written one at a time (002:499 tells clients to write a 32-bit set-point with
+    // FC6): each write must leave the whole value a number within range (002:391, Ajuste Fino 0-90 %,
+    // 002:880). Before, 589 := 4316 made it 150.0 and 7FC0 NaN, both acknowledged.
+    {"WA_32_01_W600_AHalfWriteKeepsTheValueInRange",
+     "002:391, 454, 463, 499, 880",
+     "walchem-w600",
+     {{"06 02 4C 00 00", "06 02 4C 00 00"},
+      {"06 02 4D 43 16", "86 03"},
+      {"10 02 4D 00 01 02 7F C0", "90 03"},
+      {"06 02 4D 42 20", "06 02 4D 42 20"},
+      {"03 02 4C 00 02", "03 04 00 00 42 20"}},
+     [](RegisterImage& i) {
+         i.set_reg(HR, 588, 0);
+         i.set_reg(HR, 589, 0);
+     }},
+    // A boolean in a register is its least significant bit (002:424-429): 0 or 1. Before, 0xFFFF was
+    // acknowledged and read back.
+    {"WA_BOOL_01_W600_ABooleanRegisterTakesZeroOrOne",
+     "002:391, 424-429",
+     "walchem-w600",
+     {{"06 23 00 FF FF", "86 03"}, {"06 23 00 00 02", "86 03"}, {"06 23 00 00 01", "06 23 00 00 01"}}},
     {"WA_FC_01_W600_SevenFunctionsOnly",
      "002:226-238",
      "walchem-w600",
@@ -960,14 +981,18 @@ TEST(GenericRules, AP_6_21_Fc43ReadDeviceIdentification) {
     EXPECT_EQ(ask(device, "2B 0E 04 01"), hex(one));
 }
 
-// WA-ADR-04 (002:499): a 32-bit set-point written "as FC6" takes two writes, each a lone half that cannot be
-// range-checked (the manual's contradiction); FC16 writes it whole and is range-checked.
-TEST(WalchemRules, WA_ADR_04_W600_HalfAFloatIsNotRangeChecked) {
+// WA-ADR-04 (002:499): a 32-bit set-point written "as FC6" takes two writes, each a lone half. Each is judged
+// with the other half the device holds: a write that leaves the whole value out of range is refused, as FC16
+// writing it whole is (002:391). Before, a lone half was not range-checked, and 2000.0 was taken.
+TEST(WalchemRules, WA_ADR_04_W600_HalfAFloatIsCheckedWithTheOtherHalfHeld) {
     Device device(profile("walchem-w600"), 1);
+    device.image().set_reg(Table::HoldingRegisters, 148, 0);
     // 2000.0 (above the 1440 maximum) = 0x44FA0000: CDAB words 0000 44FA.
     EXPECT_EQ(ask(device, "10 00 94 00 02 04 00 00 44 FA"), "90 03");
-    EXPECT_EQ(ask(device, "06 00 95 44 FA"), "06 00 95 44 FA");
-    EXPECT_EQ(device.image().f32(Table::HoldingRegisters, 148, mb::WordOrder::Cdab), 2000.0f);
+    EXPECT_EQ(ask(device, "06 00 95 44 FA"), "86 03");
+    // 1000.0 = 0x447A0000: within range, taken.
+    EXPECT_EQ(ask(device, "06 00 95 44 7A"), "06 00 95 44 7A");
+    EXPECT_EQ(device.image().f32(Table::HoldingRegisters, 148, mb::WordOrder::Cdab), 1000.0f);
 }
 
 }  // namespace
