@@ -891,28 +891,25 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     --flow.pending;
     // The transaction id reused while older requests with it still wait: the oldest the reply fits is the
     // one it answers (a server answers in turn), else the oldest.
-    Pending* answered = &it->second;
-    std::deque<Pending>* older = nullptr;
-    std::deque<Pending>::iterator chosen;
-    if (!reused_.empty())
-        if (auto o = reused_.find(it->first); o != reused_.end()) {
-            older = &o->second;
-            chosen = std::find_if(older->begin(), older->end(),
-                                  [&](const Pending& p) { return could_answer(p.request, r); });
-            if (chosen == older->end() && !could_answer(it->second.request, r)) chosen = older->begin();
-            if (chosen != older->end()) answered = &*chosen;
-        }
+    const PendingKey waiting = it->first;
+    Pending* answered = oldest_waiting(waiting, [&](const Pending& p) { return could_answer(p.request, r); });
+    if (!answered) answered = oldest_waiting(waiting, [](const Pending&) { return true; });
     // A request after the lost bytes answered: the replies to those before it have had their turn.
     if (flow.first_request_after_gap && answered->serial >= flow.first_request_after_gap)
         flow.first_request_after_gap = 0;
     flow.keep_last_response(r);
     complete(*answered, &r, false);  // reports and sinks never touch the pending table
-    if (answered == &it->second) {
-        (void)take_pending(it->first, answered->serial);
-    } else {
-        older->erase(chosen);
-        if (older->empty()) reused_.erase(it->first);
-    }
+    (void)take_pending(waiting, answered->serial);
+}
+
+template <typename Fits>
+Analyzer::Pending* Analyzer::oldest_waiting(const PendingKey& key, Fits fits) {
+    if (!reused_.empty())
+        if (auto older = reused_.find(key); older != reused_.end())
+            for (Pending& p : older->second)
+                if (fits(p)) return &p;
+    if (auto it = pending_.find(key); it != pending_.end() && fits(it->second)) return &it->second;
+    return nullptr;
 }
 
 Analyzer::Pending* Analyzer::find_pending(const PendingKey& key, std::uint64_t serial) {
@@ -951,16 +948,10 @@ std::optional<Analyzer::Pending> Analyzer::take_pending(PendingKey key, std::uin
 void Analyzer::reply_cut(Flow& f, const CutAdu& cut, Timestamp t) {
     const PendingKey key{f.id, cut.tid};
     // The oldest request waiting with the id whose unit and function the reply's header names.
-    const auto fits = [&](const Pending& p) {
+    const Pending* answered = oldest_waiting(key, [&](const Pending& p) {
         const auto pdu = p.request.frame.pdu();
         return p.request.frame.unit_id() == cut.unit && !pdu.empty() && pdu[0] == (cut.function & 0x7F);
-    };
-    const Pending* answered = nullptr;
-    if (auto older = reused_.find(key); older != reused_.end())
-        for (const Pending& p : older->second)
-            if (!answered && fits(p)) answered = &p;
-    if (auto it = pending_.find(key); !answered && it != pending_.end() && fits(it->second))
-        answered = &it->second;
+    });
     if (!answered) {
         // Its request cut too: one transaction, both halves partly in the capture. Else a reply to nothing
         // waiting, whose bytes are reported unparsed as they are.

@@ -300,6 +300,10 @@ class Analyzer {
     // The waiting request with this key and serial, from pending_ or reused_; nullptr when answered or given
     // up meanwhile.
     Pending* find_pending(const PendingKey& key, std::uint64_t serial);
+    // The oldest request waiting with this key that `fits` (those that reused its id first, then the newest);
+    // nullptr when none does.
+    template <typename Fits>
+    Pending* oldest_waiting(const PendingKey& key, Fits fits);
     // Takes it out; when it was the newest with its key, the one before it (reused_) takes its place. `key`
     // is a copy: it may name the entry erased.
     std::optional<Pending> take_pending(PendingKey key, std::uint64_t serial);
