@@ -18,6 +18,7 @@
 #include "fuzz/network/reply_latency.hpp"
 #include "fuzz/network/unanswered.hpp"
 #include "fuzz/network/written_points.hpp"
+#include "modbus/addressing.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/pdu.hpp"
@@ -614,10 +615,7 @@ std::vector<Step> Campaign::writes_before_trace(std::span<const std::uint8_t> pd
     if (pdu.size() < 5 || pdu[0] < 1 || pdu[0] > 4) return {};
     // The table the read reaches, as the oracle resolves it (a map whose input registers are its holding
     // registers: a write shows on FC4 too).
-    const Table table = profile_.resolve(pdu[0] == 1   ? Table::Coils
-                                         : pdu[0] == 2 ? Table::DiscreteInputs
-                                         : pdu[0] == 3 ? Table::HoldingRegisters
-                                                       : Table::InputRegisters);
+    const Table table = profile_.resolve(*modbus::table_of_function(pdu[0]));
     const std::uint32_t start = (pdu[1] << 8) | pdu[2];
     const std::uint32_t count = (pdu[3] << 8) | pdu[4];
     std::vector<const WrittenBy*> found;
