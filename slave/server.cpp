@@ -460,11 +460,13 @@ struct Server::Impl {
             const std::span<const std::uint8_t> rest(c.rtu.data() + head, c.rtu.size() - head);
             const auto step = modbus::rtu_step(rest, at_end, false);
             // A frame whose length the content does not give (an unknown function code, FC8 with any
-            // number of data bytes): the shortest prefix with a valid CRC is taken as the frame.
-            const bool unsized =
-                (step.kind == modbus::DeframeStep::Kind::NeedMore && rest.size() >= 2 && rest[1] == 8) ||
-                (step.kind == modbus::DeframeStep::Kind::Skip &&
-                 step.reason == modbus::UnparsedReason::UnknownFunction);
+            // number of data bytes): the shortest prefix with a valid CRC is taken as the frame. For FC8
+            // that is whatever rtu_step made of it short of a valid frame of the usual five-byte PDU: with
+            // more data bytes it sees a bad CRC at that length and, no frame following, garbage to skip.
+            const bool diagnostics = rest.size() >= 2 && rest[1] == 8 &&
+                                     !(step.kind == modbus::DeframeStep::Kind::Complete && step.checksum_ok);
+            const bool unsized = diagnostics || (step.kind == modbus::DeframeStep::Kind::Skip &&
+                                                 step.reason == modbus::UnparsedReason::UnknownFunction);
             if (unsized) {
                 if (const std::size_t n = crc_valid_prefix(rest); n > 0) {
                     if (auto f = modbus::decode_rtu(rest.first(n)); f) on_frame(id, *f);

@@ -285,6 +285,27 @@ TEST(ServerRouting, AnAddressWriteTakenBackLeavesTheDeviceWhereItWas) {
     EXPECT_EQ(device.image().reg(Table::HoldingRegisters, 7), 1);
 }
 
+// Over rtu-tcp a frame's end comes from its content, and FC8 sub-function 00 (Return Query Data, AP §6.8)
+// echoes any number of data bytes: a request longer than the usual two data bytes is answered as soon as
+// its CRC closes it, whatever its bytes (these, with their CRCs computed by pymodbus, were never answered:
+// their first byte was dropped as garbage at the five-byte PDU's length), and the connection goes on.
+TEST(ServerRouting, RtuOverTcpEchoesReturnQueryDataOfAnyLength) {
+    FaultSet faults;
+    Device device(profile("modbus"), 1, &faults);
+    ServedLine line({&device}, faults);
+    ASSERT_TRUE(line.opened());
+    Client client(line.port());
+    ASSERT_TRUE(client.connected());
+    for (const char* request :
+         {"01 08 00 00 83 80 7D 50 28 50 12 59 62 56 0E",
+          "01 08 00 00 6B 4A 84 CB D9 45 76 58 A2 6A 4A 6B 85 6E",
+          "01 08 00 00 97 8B 21 5E EA 9A 79 A0 94 10 9B 03 E8 D6 78 42 8D 3B 31 D7 48"}) {
+        const std::size_t size = bytes(request).size();
+        EXPECT_EQ(client.exchange(request, size, silence), request);
+    }
+    EXPECT_EQ(client.exchange("01 03 00 00 00 01 84 0A", 7), "01 03 02 00 00 B8 44");
+}
+
 // A profile whose address register is read-only (CTH2265I 3999, 003:599) is never moved.
 TEST(Device, AReadOnlyAddressRegisterMovesNothing) {
     Device device(profile("cth2265i"), 3);
