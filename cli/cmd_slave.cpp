@@ -57,6 +57,13 @@ int run_slave(const SlaveOptions& o) {
         }
         specs.push_back(*spec);
     }
+    for (const auto& f : specs)
+        if (const auto why =
+                slave::fault_without_effect(f.fault, modbus::transport::framing_of(endpoint->scheme))) {
+            std::cerr << "mbscope slave: --fault " << to_string(f.fault) << " has no effect on "
+                      << endpoint->text() << ": " << *why << '\n';
+            return exit_failure;
+        }
     const auto config = parse_config_options(o.config, "slave");
     if (!config) return exit_failure;
     const auto store = open_profile_store(o.profile_dirs, "slave");
@@ -239,8 +246,11 @@ void register_slave(CLI::App& app, int& exit_code) {
         "  register (MK ENDER) moves it at once, after its acknowledgement; --state keeps the move.\n\n"
         "Faults (--fault NAME[=ARG], repeatable, deterministic under --seed):\n" +
         slave::fault_help() +
-        "\nExit codes: 0 stopped by SIGINT/SIGTERM, 2 could not start (bad option, profile, endpoint or "
-        "state file).");
+        "  A fault tied to one framing (bad-crc, bad-lrc, wrong-tid, the protocol id ones, "
+        "gap-inside-frame)\n"
+        "  is refused on an endpoint whose frames have nothing for it to change.\n"
+        "\nExit codes: 0 stopped by SIGINT/SIGTERM, 2 could not start (bad option, profile, endpoint, "
+        "fault or state file).");
     cmd->add_option("--profile", o->profile,
                     "Device profile id or alias for the units (default: modbus, the generic one)");
     cmd->add_option("--listen", o->listen, "Endpoint to serve (default tcp://127.0.0.1:5020)");

@@ -69,6 +69,33 @@ std::string_view to_string(Fault f) noexcept {
     return info(f).name;
 }
 
+std::optional<std::string> fault_without_effect(Fault f, modbus::Framing framing) {
+    using modbus::Framing;
+    switch (f) {
+        case Fault::BadCrc:
+            if (framing != Framing::Rtu) return "it changes the CRC, which only RTU frames carry";
+            break;
+        case Fault::BadLrc:
+            if (framing != Framing::Ascii) return "it changes the LRC, which only ASCII frames carry";
+            break;
+        case Fault::WrongTid:
+            if (framing != Framing::Tcp)
+                return "it changes the transaction id, which only MBAP headers carry";
+            break;
+        case Fault::BadProtocolId:
+        case Fault::AnyProtocolId:
+            if (framing != Framing::Tcp) return "it changes the protocol id, which only MBAP headers carry";
+            break;
+        case Fault::GapInsideFrame:
+            if (framing == Framing::Tcp)
+                return "it opens a silence inside a frame, which only RTU and ASCII framing delimit by time";
+            break;
+        default:
+            break;
+    }
+    return std::nullopt;
+}
+
 std::string fault_help() {
     std::string out;
     for (const auto& f : faults) {

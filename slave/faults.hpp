@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "modbus/framing.hpp"
 #include "modbus/result.hpp"
 
 namespace mbscope::slave {
@@ -55,6 +56,11 @@ struct FaultSpec {
 };
 // "no-reply=0.25", "slow-reply=300", "bad-crc". Errors name the text and what was expected.
 modbus::Result<FaultSpec, std::string> parse_fault(std::string_view text);
+
+// Why `f` cannot show on a transport of `framing` (bad-crc over Modbus/TCP, whose frames carry no CRC),
+// nothing when it can. A fault planted where it has no effect would make a run that catches nothing look
+// like a clean device: the slave refuses it.
+std::optional<std::string> fault_without_effect(Fault f, modbus::Framing framing);
 
 class FaultSet {
   public:

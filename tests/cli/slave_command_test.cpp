@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "tests/cli/cli_run.hpp"
 #include "tests/slave/slave_process.hpp"
 
 TEST(SlaveCommand, APseudoTerminalIsNamedAsATargetTheOtherCommandsTake) {
@@ -17,4 +18,19 @@ TEST(SlaveCommand, APseudoTerminalIsNamedAsATargetTheOtherCommandsTake) {
                         "?baud=19200&parity=N&stop=1&data=7'"),
               std::string::npos)
         << said;
+}
+
+// A fault planted where the transport has nothing for it to change (bad-crc over Modbus/TCP) would let a
+// checker that catches nothing pass as if it had caught it: the slave refuses to start, naming why.
+TEST(SlaveCommand, AFaultWithoutEffectOnTheEndpointIsRefused) {
+    using mbscope::test::run_mbscope;
+    const auto refused = run_mbscope("slave --listen tcp://127.0.0.1:0 --fault bad-crc");
+    EXPECT_EQ(refused.exit_code, 2);
+    EXPECT_NE(refused.out.find("--fault bad-crc has no effect on tcp://127.0.0.1:0: it changes the CRC, "
+                               "which only RTU frames carry"),
+              std::string::npos)
+        << refused.out;
+    EXPECT_EQ(refused.out.find("planted"), std::string::npos) << refused.out;
+    EXPECT_EQ(run_mbscope("slave --listen udp://127.0.0.1:0 --fault gap-inside-frame=4").exit_code, 2);
+    EXPECT_EQ(run_mbscope("slave --listen rtu-tcp://127.0.0.1:0 --fault wrong-tid").exit_code, 2);
 }

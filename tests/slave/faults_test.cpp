@@ -4,6 +4,7 @@
 // ascii-tcp://). Expected bytes are written by hand (CRCs and LRCs computed outside the code under test).
 #include <gtest/gtest.h>
 
+#include <map>
 #include <set>
 
 #include "tests/slave/slave_test_support.hpp"
@@ -64,6 +65,30 @@ TEST(Faults, ParseNamesTheProblem) {
     EXPECT_NE(parse_fault("crash-after=2.5").error().find("whole number"), std::string::npos);
     EXPECT_DOUBLE_EQ(parse_fault("crash-after=40")->arg, 40.0);
     EXPECT_DOUBLE_EQ(parse_fault("gap-inside-frame=3.5")->arg, 3.5);
+}
+
+// Which faults a transport can show: each of those tied to one framing's fields is refused on the others
+// (the slave will not plant it there), every other fault is accepted on every framing. Enumerated, so a
+// new fault's place here is decided, not defaulted.
+TEST(Faults, ThoseOfOneFramingAreWithoutEffectOnTheOthers) {
+    using mb::Framing;
+    const std::map<Fault, std::set<Framing>> shows_on = {
+        {Fault::BadCrc, {Framing::Rtu}},        {Fault::BadLrc, {Framing::Ascii}},
+        {Fault::WrongTid, {Framing::Tcp}},      {Fault::BadProtocolId, {Framing::Tcp}},
+        {Fault::AnyProtocolId, {Framing::Tcp}}, {Fault::GapInsideFrame, {Framing::Rtu, Framing::Ascii}},
+    };
+    for (std::size_t i = 0; i < fault_count; ++i) {
+        const auto f = static_cast<Fault>(i);
+        const auto tied = shows_on.find(f);
+        for (Framing framing : {Framing::Rtu, Framing::Ascii, Framing::Tcp}) {
+            const bool shows = tied == shows_on.end() || tied->second.count(framing) == 1;
+            const auto why = fault_without_effect(f, framing);
+            EXPECT_EQ(why.has_value(), !shows) << to_string(f) << " over " << mb::to_string(framing);
+            if (why) {
+                EXPECT_NE(why->find("only"), std::string::npos) << *why;
+            }
+        }
+    }
 }
 
 // A rate draws from the seeded generator: the same seed gives the same sequence of outcomes.
