@@ -508,11 +508,13 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
 void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
     // A request to unit 0 whose checksum fails is no broadcast (see on_frame), and its unit byte may be among
     // the damage, or the frame line noise: it is unit 0's only when broadcasts were seen on the link, else no
-    // device's, rather than a device the noise made up.
-    const bool named_by_damage =
-        r.direction == Direction::Request && r.frame.framing != Framing::Tcp && !r.frame.checksum_ok &&
-        unit == 0 &&
-        std::none_of(flow.units.begin(), flow.units.end(), [](const Flow::Unit& u) { return u.id == 0; });
+    // device's, rather than a device the noise made up. So is a damaged reply that no waiting request made
+    // some unit's (serial_bytes) and whose unit byte names no unit seen on the link: the tail of a reply cut
+    // by a silence, five bytes of noise, were "unit 0 answering a broadcast".
+    const bool known = std::any_of(flow.units.begin(), flow.units.end(),
+                                   [unit](const Flow::Unit& u) { return u.id == unit; });
+    const bool named_by_damage = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok && !known &&
+                                 (r.direction == Direction::Response || unit == 0);
     DeviceStats* stats = nullptr;
     if (!named_by_damage) r.device = device_of(flow, unit, stats);
     auto pdu = decode_pdu(r.frame.pdu(), r.direction);
@@ -790,7 +792,8 @@ bool could_answer(const FrameRecord& request, const FrameRecord& response) {
 }  // namespace
 
 void Analyzer::on_response(Flow& flow, FrameRecord& r) {
-    if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
+    // (A damaged frame's unit byte may be the damage: its checksum finding says what it is.)
+    if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0 && r.frame.checksum_ok) {
         report(FindingCode::PairBroadcastResponse, r,
                "a response carries unit 0: no slave may answer a broadcast");
         return;
@@ -869,6 +872,9 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                        std::to_string(only->tid),
                    {it->second.request.index, r.index});
         } else {
+            // Damaged bytes on a serial line that no request waits for, naming no unit seen there: their
+            // checksum finding is all that can be said (no unit sent them that the bytes can show).
+            if (r.frame.framing != Framing::Tcp && !r.frame.checksum_ok && r.device.empty()) return;
             // A serial line has no transaction ids: name the unit whose reply nobody asked for.
             report(
                 FindingCode::PairUnsolicitedResponse, r,

@@ -227,6 +227,41 @@ TEST(SerialInput, NoiseToUnitZeroIsNoBroadcastAndNoDevice) {
     EXPECT_EQ(an::summary_to_json(r->summary)["damaged_broadcasts"], 2);
 }
 
+// On the slaves' side too: five bytes of noise after a poll's reply, "00 00 00 00 00", and the tail of a
+// reply cut by a silence, "00 00 00 64 C8 BA", were frames from unit 0 whose CRC fails, each reported as
+// pair.broadcast_response (an error: a slave answering a broadcast nobody sent) from a device "unit 0".
+// A damaged reply that no request waits for, naming no unit seen on the line, is its CRC finding alone.
+// A unit the line knows still has a damaged reply nobody asked for held against it.
+TEST(SerialInput, DamagedBytesFromTheSlavesSideNameNoDeviceTheLineDoesNotHave) {
+    const auto path = write_temp("damaged_replies.txt",
+                                 "1.000 > 11 03 00 60 00 03 07 45\n"
+                                 "1.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "1.500 < 00 00 00 00 00\n"
+                                 "2.000 > 11 03 00 60 00 03 07 45\n"
+                                 "2.020 < 11 03 06 02 2B\n"  // the reply cut by a 20 ms silence
+                                 "2.040 < 00 00 00 64 C8 BA\n"
+                                 "3.000 < 11 03 06 02 2B 00 00 00 64 C8 BB\n");  // unasked, damaged
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_TRUE(r->ok);
+    ASSERT_EQ(r->summary.devices.size(), 1u);
+    const auto& device = r->summary.devices.at("serial " + path + " unit 17");
+    EXPECT_EQ(device.requests, 2u);
+    EXPECT_EQ(device.checksum_errors, 2u);  // the cut reply, and the unasked one
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairBroadcastResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::RtuCrcMismatch), 4);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    for (const auto& f : r->sink.findings) {
+        if (f.code == mb::FindingCode::PairUnsolicitedResponse) {
+            EXPECT_EQ(f.device.str(), "serial " + path + " unit 17");
+        }
+        const bool noise =
+            f.frames == std::vector<std::uint64_t>{3} || f.frames == std::vector<std::uint64_t>{6};
+        if (f.code == mb::FindingCode::RtuCrcMismatch && noise) {
+            EXPECT_TRUE(f.device.empty()) << f.message;
+        }
+    }
+}
+
 // A request to a unit whose CRC fails is discarded by the slave (SL §2.5.1.2; MK-ERR-01, 000:270-272): its
 // silence is right. Before, it was pair.no_response, an error and a timeout held against unit 17, which did
 // what the rules want. It is a note now, counted apart; a reply that does come is still paired with it (the
