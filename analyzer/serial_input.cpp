@@ -261,18 +261,37 @@ InputFormat detect_input_format(std::span<const std::uint8_t> h) {
     if (looks_like_jpnevulator_log(text)) return InputFormat::Jpnevulator;
     if (looks_like_socat_log(text)) return InputFormat::Socat;
     // text: printable first line that starts with a number
-    std::size_t i = 0;
-    while (i < h.size() && (h[i] == ' ' || h[i] == '\t'))
-        ++i;
-    if (i < h.size() && (std::isdigit(h[i]) || h[i] == '#')) {
+    const auto text_line = [&](std::size_t i) {
+        while (i < h.size() && (h[i] == ' ' || h[i] == '\t'))
+            ++i;
+        if (i >= h.size()) return false;
+        // A sign before the time ("-5 > 11 03 ..."): still a time, one the reader refuses by name.
+        const std::size_t digit = i + (h[i] == '-' || h[i] == '+' ? 1 : 0);
+        if (digit >= h.size() || !(std::isdigit(h[digit]) || h[i] == '#')) return false;
         bool printable = true;
         bool words = h[i] == '#';  // a time and bytes: a line of one word is no chunk (an ASCII dump's tail)
         for (std::size_t k = i; k < h.size() && h[k] != '\n'; ++k) {
             printable &= h[k] == '\t' || h[k] == '\r' || (h[k] >= 0x20 && h[k] < 0x7F);
             words |= (h[k] == ' ' || h[k] == '\t') && k + 1 < h.size() && h[k + 1] > ' ';
         }
-        if (printable && words) return InputFormat::Text;
-    }
+        return printable && words;
+    };
+    if (text_line(0)) return InputFormat::Text;
+    // A first line the text format cannot read ("abc > 11 03 ...", a time of -5) made the whole log a raw
+    // dump of its characters, "no Modbus frame", its good lines lost and no line named. Printable lines
+    // throughout, a later one in the format: a text log with a bad line, which the reader names.
+    const bool printable = std::all_of(h.begin(), h.end(), [](std::uint8_t c) {
+        return c == '\t' || c == '\r' || c == '\n' || (c >= 0x20 && c < 0x7F);
+    });
+    const auto first_newline = std::find(h.begin(), h.end(), std::uint8_t{'\n'});
+    if (printable && first_newline != h.end())
+        for (std::size_t i = static_cast<std::size_t>(first_newline - h.begin()) + 1; i < h.size();) {
+            if (text_line(i)) return InputFormat::Text;
+            const auto next =
+                std::find(h.begin() + static_cast<std::ptrdiff_t>(i), h.end(), std::uint8_t{'\n'});
+            if (next == h.end()) break;
+            i = static_cast<std::size_t>(next - h.begin()) + 1;
+        }
     return InputFormat::RtuRaw;
 }
 

@@ -69,6 +69,31 @@ TEST(SerialInput, FormatDetection) {
     // An ASCII dump cut inside its first frame is a raw dump (its line then tells ASCII), not a text log.
     EXPECT_EQ(d("0060000389\r\n:11030060000389\r\n"), an::InputFormat::RtuRaw);
     EXPECT_EQ(d(bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45})), an::InputFormat::RtuRaw);
+    // A text log whose first line the format cannot read was its characters as a raw dump ("no Modbus
+    // frame", no line named, its good lines lost): the reader now names the bad line.
+    EXPECT_EQ(d("abc > 11 03 00 60 00 03 07 45\n1.0 > 11 03 00 60 00 03 07 45\n"), an::InputFormat::Text);
+    EXPECT_EQ(d("-5 > 11 03 00 60 00 03 07 45\n"), an::InputFormat::Text);
+    EXPECT_EQ(d("nan 11 03\n\n  2.5 M 11 03 00 60 00 03 07 45\n"), an::InputFormat::Text);
+    // Printable lines none of which is in the format, or bytes that are not all printable: still raw.
+    EXPECT_EQ(d("abc def\nghi jkl\n"), an::InputFormat::RtuRaw);
+    EXPECT_EQ(d(bytes({'a', ' ', 'b', '\n', '1', ' ', '2', 0x11, '\n'})), an::InputFormat::RtuRaw);
+}
+
+// The same bad line first or later: named, and the good lines decode either way.
+TEST(SerialInput, ABadFirstLineOfATextLogIsNamedAndTheRestDecodes) {
+    const auto path = write_temp("bad_first_line.txt",
+                                 "abc > 11 03 00 60 00 03 07 45\n"
+                                 "1.000 > 11 03 00 60 00 03 07 45\n"
+                                 "1.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path);
+    EXPECT_FALSE(r->ok);
+    ASSERT_EQ(r->summary.input_errors.size(), 1u);
+    EXPECT_NE(r->summary.input_errors[0].find("bad_first_line"), std::string::npos);
+    EXPECT_NE(r->summary.input_errors[0].find(".txt:1: not a time"), std::string::npos)
+        << r->summary.input_errors[0];
+    ASSERT_EQ(r->sink.transactions.size(), 1u);
+    EXPECT_TRUE(r->sink.transactions[0].response.has_value());
+    EXPECT_EQ(r->summary.unparsed_bytes, 0u);
 }
 
 TEST(SerialInput, RawRtuDumpPairsEchoesAndExceptions) {
