@@ -564,6 +564,15 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
 }
 
 namespace {
+// A frame's own findings, as its transaction carries them: the codec's about its bytes, the specification's
+// about its PDU, a PDU that does not decode, and the manual's rules the request breaks.
+void add_frame_findings(const FrameRecord& r, std::vector<FindingCode>& out) {
+    out.insert(out.end(), r.frame.findings.begin(), r.frame.findings.end());
+    if (r.pdu) out.insert(out.end(), r.pdu->violations.begin(), r.pdu->violations.end());
+    if (!r.error.empty()) out.push_back(FindingCode::PduMalformed);
+    out.insert(out.end(), r.rule_findings.begin(), r.rule_findings.end());
+}
+
 // Serial framings carry no transaction id: a link has one outstanding request at a time (key 0).
 std::uint16_t pairing_id(const Frame& f) {
     return f.framing == Framing::Tcp ? f.transaction_id() : 0;
@@ -635,14 +644,18 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     if (const auto pdu = r.frame.pdu(); !pdu.empty()) ++stats.functions[pdu[0]];
     if (options_.semantics && r.pdu)
         if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id()))
-            for (auto& rule : options_.semantics->check_request(*profile, *r.pdu))
+            for (auto& rule : options_.semantics->check_request(*profile, *r.pdu)) {
+                r.rule_findings.push_back(rule.code);
                 report(rule.code, r, rule.message);
+            }
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
-        if (only_reads(r.frame.pdu()))
+        if (only_reads(r.frame.pdu())) {
+            r.rule_findings.push_back(FindingCode::PairBroadcastRead);
             report(FindingCode::PairBroadcastRead, r,
                    describe_request(r) +
                        " sent to unit 0: broadcast requests are writes, and nobody answers this one");
+        }
         auto told = follow_broadcast(flow, r);
         if (!sink_wants_transactions_) {
             if (told) report(FindingCode::ProfileLineSettingsChanged, r, std::move(*told), {r.index});
@@ -650,6 +663,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         }
         TransactionRecord t(std::move(r));
         t.broadcast = true;
+        add_frame_findings(t.request, t.findings);
         sink_.transaction(t);
         if (told)
             report(FindingCode::ProfileLineSettingsChanged, t.request, std::move(*told), {t.request.index});
@@ -1018,19 +1032,11 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
     // A transaction's findings include its frames' own (a response with a bad CRC, a request breaking the
     // specification): a CSV row or a transaction record alone must not pass for a clean exchange.
     if (made)
-        for (const FrameRecord* frame : {&request, rsp_record}) {
-            if (!frame) continue;
-            made->findings.insert(made->findings.end(), frame->frame.findings.begin(),
-                                  frame->frame.findings.end());
-            if (frame->pdu)
-                made->findings.insert(made->findings.end(), frame->pdu->violations.begin(),
-                                      frame->pdu->violations.end());
-            if (!frame->error.empty()) made->findings.push_back(FindingCode::PduMalformed);
-        }
+        for (const FrameRecord* frame : {&request, rsp_record})
+            if (frame) add_frame_findings(*frame, made->findings);
     const auto pair_finding = [&](FindingCode code, std::string message) {
         // the frames a finding about the pair names
         found.push_back({code, rsp_record, std::move(message), {request.index, rsp_record->index}});
-        if (made) made->findings.push_back(code);
     };
     if (rsp_record && late) {
         // Counted as a timeout already, and as a transaction: a late reply is neither a second one nor a
@@ -1155,10 +1161,8 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         }
         // Why there is none: in the transaction's findings too, as an exception's is in its own (a CSV row
         // of a timeout must not read as a clean exchange).
-        if (unanswered) {
+        if (unanswered)
             found.push_back({unanswered->code, &request, std::move(unanswered->message), {request.index}});
-            if (made) made->findings.push_back(unanswered->code);
-        }
     }
     if (options_.semantics && rsp_record && request.pdu && rsp_record->pdu) {
         // The flow's server, as on_request took it: "client -> server" over IP, the link itself on a line.
@@ -1215,6 +1219,11 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         }
     }
     if (!late) ++summary_.transactions;
+    // Everything found about the pair is the transaction's too (a profile rule its reply breaks, the reason
+    // there is none): a CSV row or a transaction record alone must not pass for a clean exchange.
+    if (made)
+        for (const auto& f : found)
+            made->findings.push_back(f.code);
     if (made) sink_.transaction(*made);
     for (auto& f : found)
         report(f.code, *f.about, std::move(f.message), std::move(f.frames));

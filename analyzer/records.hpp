@@ -47,6 +47,9 @@ struct FrameRecord {
     modbus::Frame frame;
     std::optional<modbus::Pdu> pdu;
     std::string error;  // why the PDU could not be decoded
+    // What the device's manual says this request breaks (profile.*), found when it was seen: carried into its
+    // transaction's findings with the frame's own.
+    std::vector<modbus::FindingCode> rule_findings;
 };
 
 struct TransactionRecord {

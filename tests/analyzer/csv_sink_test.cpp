@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <nlohmann/json.hpp>
 
 #include <cstdio>
 #include <fstream>
@@ -268,5 +269,40 @@ TEST(CsvSink, AReplyWithABadCrcIsNotOk) {
     EXPECT_EQ(rows[0].at("findings"), "rtu.crc_mismatch");
     EXPECT_EQ(rows[1].at("status"), "ok");
     EXPECT_EQ(rows[1].at("findings"), "");
+    std::remove(path.c_str());
+}
+
+// What the device's manual says a request or its reply breaks (profile.*), and a broadcast that only reads
+// (pair.broadcast_read), were reported as findings but left out of the transaction's: an acknowledged write
+// of 100 to the MK's slave address, which its manual bounds at 0..99 (000:500), was a row "ok" with no
+// findings, and so was its JSON transaction record. CRCs by hand (MK manual's frames, 000:396-405 shape).
+TEST(CsvSink, TheManualsFindingsAreTheTransactionsToo) {
+    const std::string path = testing::TempDir() + "csv_profile_findings.txt";
+    {
+        std::ofstream f(path);
+        f << "1.000 > 11 06 00 07 00 64 3B 70\n"   // ENDER := 100
+          << "1.020 < 11 06 00 07 00 64 3B 70\n"   // acknowledged
+          << "3.000 > 00 03 0F A0 00 02 C6 EC\n";  // a broadcast read of 4000, which no MK has
+    }
+    const auto [exit_code, out] = decode("--profile mmk-2030 --csv - " + path);
+    EXPECT_EQ(exit_code, 1) << out;
+    const auto rows = rows_of(out);
+    ASSERT_EQ(rows.size(), 2u) << out;
+    EXPECT_EQ(rows[0].at("status"), "ok");
+    EXPECT_NE(rows[0].at("findings").find("profile.value_out_of_range"), std::string::npos) << out;
+    EXPECT_EQ(rows[1].at("status"), "broadcast");
+    EXPECT_EQ(rows[1].at("findings"), "profile.address_unknown pair.broadcast_read");
+    const auto [json_exit, jsonl] = decode("--profile mmk-2030 --jsonl " + path);
+    EXPECT_EQ(json_exit, 1);
+    std::vector<nlohmann::json> transactions;
+    std::istringstream lines(jsonl);
+    for (std::string line; std::getline(lines, line);)
+        if (auto j = nlohmann::json::parse(line, nullptr, false);
+            !j.is_discarded() && j["type"] == "transaction")
+            transactions.push_back(j);
+    ASSERT_EQ(transactions.size(), 2u) << jsonl;
+    EXPECT_NE(transactions[0]["findings"].dump().find("profile.value_out_of_range"), std::string::npos);
+    EXPECT_EQ(transactions[1]["findings"],
+              nlohmann::json::array({"profile.address_unknown", "pair.broadcast_read"}));
     std::remove(path.c_str());
 }
