@@ -1021,6 +1021,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
     // its checksum finding says so, and its unit, function code and data are not held against the request
     // as if the device had sent them, nor named from the map, remembered or checked against the manual.
     const bool damaged = rsp_record && !rsp_record->frame.checksum_ok;
+    // A serial reply from another unit than asked is no answer to this request (from_other_unit): not counted
+    // as this device's response, exception or latency, and its values are not named from this device's map
+    // nor remembered as its (the decimal places another unit reported scaled every later value of this one).
+    const bool other_unit = rsp_record && from_other_unit(request, *rsp_record);
     // The transaction is written first, then what was found in it.
     struct Deferred {
         FindingCode code;
@@ -1059,6 +1063,8 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         else
             message += "past the " + ms(late->timeout) + " ms timeout";
         pair_finding(FindingCode::PairLateResponse, message + ": the request was reported unanswered");
+    } else if (other_unit) {
+        ++stats.answered_by_other_unit;
     } else if (rsp_record) {
         ++stats.responses;
     }
@@ -1067,7 +1073,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         if (rsp.time.count() && request.time.count()) {  // raw dumps carry no time: no latency either
             const Timestamp latency = rsp.time - request.time;
             if (latency >= Timestamp{0}) {
-                stats.latency.add(latency);
+                if (!other_unit) stats.latency.add(latency);
                 if (made) made->latency = latency;
             } else {
                 // A device cannot answer before it is asked: the clock is wrong, not the device.
@@ -1080,16 +1086,20 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             }
         }
         if (!damaged && rsp.frame.unit_id() != request.frame.unit_id())
-            pair_finding(FindingCode::PairUnitMismatch,
-                         "request to unit " + std::to_string(request.frame.unit_id()) +
-                             ", response from unit " + std::to_string(rsp.frame.unit_id()));
+            pair_finding(
+                FindingCode::PairUnitMismatch,
+                "request to unit " + std::to_string(request.frame.unit_id()) + ", response from unit " +
+                    std::to_string(rsp.frame.unit_id()) +
+                    (other_unit ? ": no answer from unit " + std::to_string(request.frame.unit_id()) +
+                                      " (a master discards it), nor its values"
+                                : ""));
         // An exception is the device's answer whatever it answers: to a request that does not decode (the
         // device's very reason to refuse it) or to another function than asked. Counted only for a request
         // that decoded, the summary's exceptions fell short of the replies that carried one.
         const bool exception = !damaged && rsp.pdu && rsp.pdu->is_exception();
         if (exception) {
             const auto code = std::get<ExceptionResponse>(rsp.pdu->body).exception_code;
-            if (!late) {  // of the responses; a late one is among the timeouts
+            if (!late && !other_unit) {  // of the responses; a late one is among the timeouts
                 ++stats.exceptions;
                 ++stats.exception_codes[code];
             }
@@ -1164,7 +1174,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         if (unanswered)
             found.push_back({unanswered->code, &request, std::move(unanswered->message), {request.index}});
     }
-    if (options_.semantics && rsp_record && request.pdu && rsp_record->pdu) {
+    if (options_.semantics && rsp_record && !other_unit && request.pdu && rsp_record->pdu) {
         // The flow's server, as on_request took it: "client -> server" over IP, the link itself on a line.
         const std::string& link = request.link.str();
         const auto arrow = link.find(" -> ");

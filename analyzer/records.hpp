@@ -52,6 +52,15 @@ struct FrameRecord {
     std::vector<modbus::FindingCode> rule_findings;
 };
 
+// On a serial line, a reply whose checksum holds (so that its unit byte is what was sent) from another unit
+// than the request's: no answer to it, as a slave answers only frames with its own address (SL §2.2;
+// MK-MS-02, 000:285) and a master discards it. Over Modbus/TCP the transaction id pairs them whatever the
+// unit says.
+inline bool from_other_unit(const FrameRecord& request, const FrameRecord& response) noexcept {
+    return request.frame.framing != modbus::Framing::Tcp && response.frame.checksum_ok &&
+           response.frame.unit_id() != request.frame.unit_id();
+}
+
 struct TransactionRecord {
     TransactionRecord() = default;
     explicit TransactionRecord(FrameRecord&& r) : request(std::move(r)) {}  // see FrameRecord(const Frame&)
@@ -130,6 +139,10 @@ struct DeviceStats {
     // Requests whose CRC or LRC failed and that drew no reply (pair.damaged_request_unanswered): the device
     // was right to discard them, so they are not timeouts.
     std::uint64_t damaged_unanswered = 0;
+    // Requests on a serial line whose only reply came from another unit (pair.unit_mismatch): a master
+    // discards it, so it is neither this device's response nor its exception, and its values are not this
+    // device's.
+    std::uint64_t answered_by_other_unit = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests
     // The exception codes among `exceptions` (code → count): what the device refused, or the gateway in front

@@ -79,6 +79,8 @@ void TextSink::transaction(const TransactionRecord& t) {
         if (!t.response->frame.checksum_ok)
             out_ << "  bad " << (t.response->frame.framing == Framing::Ascii ? "LRC" : "CRC")
                  << ", a master discards it";
+        else if (from_other_unit(t.request, *t.response))
+            out_ << "  from unit " << int(t.response->frame.unit_id()) << ", a master discards it";
         if (t.late_past) {
             const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(*t.late_past).count();
             if (!t.late_moved_on)
@@ -153,6 +155,7 @@ void TextSink::end(const Summary& s) {
         if (d.damaged_unanswered)
             out_ << ", " << d.damaged_unanswered
                  << " damaged requests discarded (no reply, as the rules want)";
+        if (d.answered_by_other_unit) out_ << ", " << d.answered_by_other_unit << " answered by another unit";
         if (d.checksum_errors) out_ << ", " << d.checksum_errors << " frames with a bad CRC/LRC";
         if (d.latency.count())
             out_ << "; latency min " << milliseconds_text(d.latency.min()) << " / median "
@@ -398,6 +401,7 @@ json summary_to_json(const Summary& s) {
         if (d.late_responses) dev["late_responses"] = d.late_responses;
         if (d.replies_not_captured) dev["replies_not_captured"] = d.replies_not_captured;
         if (d.damaged_unanswered) dev["damaged_unanswered"] = d.damaged_unanswered;
+        if (d.answered_by_other_unit) dev["answered_by_other_unit"] = d.answered_by_other_unit;
         if (d.checksum_errors) dev["checksum_errors"] = d.checksum_errors;
         if (!d.findings.empty()) dev["findings"] = d.findings;
         json fcs = json::object();

@@ -306,3 +306,45 @@ TEST(CsvSink, TheManualsFindingsAreTheTransactionsToo) {
               nlohmann::json::array({"profile.address_unknown", "pair.broadcast_read"}));
     std::remove(path.c_str());
 }
+
+// Two MKs on one line; the master asks unit 12 for its decimal places and unit 17 answers [3, 3] with a
+// CRC that holds. That reply was counted as unit 12's and its values remembered as unit 12's settings, so
+// unit 12's process values read later were scaled 100 and 1000 times off, with nothing said. A slave answers
+// only frames with its own address (SL §2.2; MK-MS-02, 000:285): the reply is no answer from unit 12 (a
+// master discards it), counted apart, its values neither named nor remembered. CRCs computed by pymodbus.
+TEST(CsvSink, ASerialReplyFromAnotherUnitIsNotTheAskedUnitsAnswer) {
+    const std::string path = testing::TempDir() + "csv_other_unit.txt";
+    {
+        std::ofstream f(path);
+        f << "1.000 > 11 03 00 11 00 02 96 9E\n"      // unit 17: decimal places of both channels
+          << "1.020 < 11 03 04 00 01 00 02 3B F3\n"   // 1 and 2
+          << "3.000 > 0C 03 00 11 00 02 95 13\n"      // unit 12: the same
+          << "3.020 < 11 03 04 00 03 00 03 5B F3\n"   // unit 17 answers: 3 and 3
+          << "4.000 > 0C 03 00 00 00 02 C5 16\n"      // unit 12: its process values
+          << "4.020 < 0C 03 04 04 D2 16 2E 09 86\n";  // 1234, 5678
+    }
+    const auto [exit_code, out] = decode("--profile mmk-2030 --csv - " + path);
+    EXPECT_EQ(exit_code, 1) << out;
+    const auto rows = rows_of(out);
+    ASSERT_EQ(rows.size(), 3u) << out;
+    EXPECT_EQ(rows[1].at("unit_id"), "12");
+    EXPECT_EQ(rows[1].at("status"), "other_unit");
+    EXPECT_EQ(rows[1].at("values"), "3 3");  // the reply's registers, not named as unit 12's
+    EXPECT_EQ(rows[1].at("findings"), "pair.unit_mismatch");
+    // Not 1.234 and 5.678: unit 12's decimal places were never read.
+    EXPECT_EQ(rows[2].at("values").find("1.234"), std::string::npos) << rows[2].at("values");
+    EXPECT_NE(rows[2].at("values").find("decimal point unknown"), std::string::npos) << rows[2].at("values");
+    const auto [json_exit, jsonl] = decode("--profile mmk-2030 --jsonl " + path);
+    EXPECT_EQ(json_exit, 1);
+    nlohmann::json summary;
+    std::istringstream lines(jsonl);
+    for (std::string line; std::getline(lines, line);)
+        if (auto j = nlohmann::json::parse(line, nullptr, false); !j.is_discarded() && j["type"] == "summary")
+            summary = j;
+    const auto& twelve = summary["devices"]["serial " + path + " unit 12"];
+    EXPECT_EQ(twelve["requests"], 2);
+    EXPECT_EQ(twelve["responses"], 1);
+    EXPECT_EQ(twelve["answered_by_other_unit"], 1);
+    EXPECT_EQ(summary["devices"]["serial " + path + " unit 17"]["findings"]["pair.unit_mismatch"], 1);
+    std::remove(path.c_str());
+}
