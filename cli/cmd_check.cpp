@@ -125,11 +125,8 @@ int run_check_command(const CheckCliOptions& o) {
     else
         conformance::write_text(std::cout, report, o.verbose);
     const bool written = write_reports(o, report);
-    if (report.results.empty() && !report.stopped) {
-        std::string globs;
-        for (const auto& g : o.rules)
-            globs += (globs.empty() ? "'" : ", '") + g + "'";
-        std::cerr << "mbscope check: --rules " << globs << " match no rule for " << profile->id << '\n';
+    if (const auto none = conformance::nothing_selected(report); !none.empty()) {
+        std::cerr << "mbscope check: " << none << '\n';
         return exit_failure;
     }
     // Rules that send nothing (all skipped: broadcast rules over Modbus/TCP) are no sign of a silent target.

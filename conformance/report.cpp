@@ -150,7 +150,12 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
         out << report.late_replies << " replies came after the " << report.timeout_ms
             << " ms timeout (\"late\" in the evidence): the rules saw no reply; a longer --timeout may suit "
                "the device\n";
-    out << report.restored.size() << " points written and restored";
+    // "84 points written and restored, 84 NOT restored" contradicted itself.
+    if (not_restored)
+        out << report.restored.size() << " points written, " << report.restored.size() - not_restored
+            << " restored";
+    else
+        out << report.restored.size() << " points written and restored";
     if (not_restored) {
         out << ", " << not_restored << " NOT restored:";
         for (const auto& t : report.restored)
@@ -164,6 +169,7 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
         if (t.restored && !t.problem.empty())
             out << "\n  note: " << modbus::to_string(t.table) << " " << t.address << ": " << t.problem;
     if (!report.unanswered.empty()) out << "\nnothing judged: " << report.unanswered;
+    if (const auto none = nothing_selected(report); !none.empty()) out << "\nnothing judged: " << none;
     out << (report.stopped ? "\nstopped before the end (interrupted)\n" : "\n");
 }
 
@@ -241,22 +247,25 @@ nlohmann::json to_json(const Report& report) {
 }
 
 void write_junit(std::ostream& out, const Report& report) {
+    const std::string run_error =
+        report.stopped ? "the run was interrupted before every rule ran" : nothing_selected(report);
     std::map<std::string, std::vector<const RuleResult*>> suites;
     for (const auto& r : report.results)
         suites[r.rule.family].push_back(&r);
     out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
     out << "<testsuites name=\"" << xml_escape("mbscope check " + report.profile_id + " " + report.target)
-        << "\" tests=\"" << report.results.size() + (report.stopped ? 1 : 0) << "\" failures=\""
+        << "\" tests=\"" << report.results.size() + (run_error.empty() ? 0 : 1) << "\" failures=\""
         << report.failures_of(Authority::Specification) + report.failures_of(Authority::Manual)
-        << "\" errors=\"" << report.count(Outcome::Error) + (report.stopped ? 1 : 0) << "\" skipped=\""
+        << "\" errors=\"" << report.count(Outcome::Error) + (run_error.empty() ? 0 : 1) << "\" skipped=\""
         << report.count(Outcome::Skip) << "\" time=\"" << static_cast<double>(report.wall.count()) / 1e9
         << "\">\n";
-    // An interrupted run certifies nothing: one testcase in error says so, so that a CI job fails on it.
-    if (report.stopped)
+    // An interrupted run, or one that judged no rule, certifies nothing: one testcase in error says so, so
+    // that a CI job fails on it.
+    if (!run_error.empty())
         out << "  <testsuite name=\"run\" tests=\"1\" failures=\"0\" errors=\"1\" skipped=\"0\" time=\"0\">\n"
             << "    <testcase classname=\"" << xml_escape("mbscope." + report.profile_id + ".run")
-            << "\" name=\"run.interrupted\" time=\"0\">\n"
-            << "      <error message=\"the run was interrupted before every rule ran\"/>\n    </testcase>\n"
+            << "\" name=\"" << (report.stopped ? "run.interrupted" : "run.no_rules") << "\" time=\"0\">\n"
+            << "      <error message=\"" << xml_escape(run_error) << "\"/>\n    </testcase>\n"
             << "  </testsuite>\n";
     for (const auto& [family, rules] : suites) {
         Tally t;

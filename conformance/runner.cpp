@@ -37,9 +37,18 @@ int verdict(const Report& report) {
     return failed ? 1 : 0;
 }
 
+std::string nothing_selected(const Report& report) {
+    if (!report.results.empty() || report.stopped) return {};
+    std::string globs;
+    for (const auto& g : report.rule_globs)
+        globs += (globs.empty() ? "'" : ", '") + g + "'";
+    return "--rules " + (globs.empty() ? std::string("(all)") : globs) + " match no rule for " +
+           report.profile_id;
+}
+
 std::string_view verdict_text(const Report& report) {
     if (report.stopped) return "interrupted";
-    if (!report.unanswered.empty()) return "error";
+    if (!report.unanswered.empty() || !nothing_selected(report).empty()) return "error";
     return verdict(report) == 0 ? "pass" : "fail";
 }
 

@@ -777,6 +777,51 @@ TEST(Reports, JsonCarriesEveryRuleWithEvidenceAndTheSummaryAddsUp) {
 
 // A target and a profile's text may hold any bytes: the JUnit report stays XML an XML parser takes (bytes
 // that are not UTF-8, and U+FFFE, were copied in, and Python's expat refused the file).
+// --rules that match nothing: the command exits 2, but its reports said "pass" and JUnit was an empty
+// green run, which a CI job with a typo in its glob published as a certificate. Every report now says the
+// run judged nothing.
+TEST(Reports, ARunWhoseRulesMatchNothingIsAnErrorInEveryReport) {
+    Report report;
+    report.profile_id = "mmk-2030";
+    report.rule_globs = {"nosuch.*"};
+    EXPECT_EQ(nothing_selected(report), "--rules 'nosuch.*' match no rule for mmk-2030");
+    EXPECT_EQ(verdict_text(report), "error");
+    EXPECT_EQ(to_json(report)["summary"]["verdict"], "error");
+    std::ostringstream junit, text;
+    write_junit(junit, report);
+    EXPECT_NE(junit.str().find("tests=\"1\" failures=\"0\" errors=\"1\""), std::string::npos) << junit.str();
+    EXPECT_NE(junit.str().find("name=\"run.no_rules\""), std::string::npos) << junit.str();
+    EXPECT_NE(junit.str().find("<error message=\"--rules &apos;nosuch.*&apos; match no rule for mmk-2030\""),
+              std::string::npos)
+        << junit.str();
+    write_text(text, report, false);
+    EXPECT_NE(text.str().find("nothing judged: --rules 'nosuch.*' match no rule for mmk-2030"),
+              std::string::npos)
+        << text.str();
+    report.stopped = true;  // interrupted before the first rule: said as such
+    EXPECT_EQ(nothing_selected(report), "");
+    EXPECT_EQ(verdict_text(report), "interrupted");
+}
+
+// The restore ledger in words: "84 points written and restored, 84 NOT restored" contradicted itself.
+TEST(Reports, TheTextLedgerCountsWhatWasRestoredAndWhatWasNot) {
+    Report report;
+    report.results.push_back({});
+    report.restored.push_back({modbus::Table::HoldingRegisters, 10, 5, true, ""});
+    report.restored.push_back({modbus::Table::HoldingRegisters, 11, 6, false, "no reply"});
+    std::ostringstream text;
+    write_text(text, report, false);
+    EXPECT_NE(
+        text.str().find("2 points written, 1 restored, 1 NOT restored:\n  holding_registers 11: original 6, "
+                        "no reply"),
+        std::string::npos)
+        << text.str();
+    report.restored[1].restored = true;
+    std::ostringstream all;
+    write_text(all, report, false);
+    EXPECT_NE(all.str().find("2 points written and restored"), std::string::npos) << all.str();
+}
+
 TEST(Reports, JunitIsWellFormedWhateverTheTextsHold) {
     Report report;
     report.target = "tcp://<b>x\xff&\"\x01:502";
