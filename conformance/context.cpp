@@ -68,6 +68,10 @@ bool TableFacts::valid(std::uint16_t address) const {
     return false;
 }
 
+std::string TableFacts::no_address_reason() const {
+    return unknown.empty() ? "the map has no address in " + std::string(modbus::to_string(table)) : unknown;
+}
+
 bool Context::selected(const std::string& rule_id) const {
     if (options.rule_globs.empty()) return true;
     for (const auto& g : options.rule_globs)
@@ -250,6 +254,27 @@ std::string describe(const tp::Exchange& ex) {
     return out;
 }
 
+std::vector<std::optional<modbus::Pdu>> replies_in(const Context& c, const tp::Exchange& ex) {
+    std::vector<std::optional<modbus::Pdu>> out;
+    for (const auto& f : tp::frames_in(c.session.client().framing(), ex.received)) {
+        auto& reply = out.emplace_back();
+        if (!f.checksum_ok || f.unit_id() != c.session.options().unit) continue;
+        if (auto p = modbus::decode_response(f.pdu())) reply = std::move(p).value();
+    }
+    return out;
+}
+
+std::string describe_reply(const std::optional<modbus::Pdu>& p) {
+    if (!p) return "a damaged or foreign frame";
+    if (!p->is_exception()) return "normal response, function " + std::to_string(p->function_code());
+    return exception_text(std::get<modbus::ExceptionResponse>(p->body).exception_code) + " to function " +
+           std::to_string(p->function_code());
+}
+
+bool is_normal_reply(const std::optional<modbus::Pdu>& p, std::uint8_t fc) {
+    return p && !p->is_exception() && p->function_code() == fc && p->violations.empty();
+}
+
 bool is_exception(const tp::Exchange& ex, std::uint8_t fc, std::uint8_t code) {
     auto pdu = response_pdu(ex);
     return pdu && pdu->is_exception() && pdu->function_code() == fc &&
@@ -280,12 +305,32 @@ void expect_silence(RuleResult& r, const tp::Exchange& ex) {
 }
 
 std::optional<Context::ProbeRead> Context::probe_read() const {
-    const std::uint8_t fc = profile.functions.supports(3) ? 3 : 4;
-    const auto address =
-        facts(fc == 3 ? modbus::Table::HoldingRegisters : modbus::Table::InputRegisters).first_valid();
-    if (!address) return std::nullopt;
-    return ProbeRead{fc, modbus::encode_pdu(
-                             modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), *address, 1))};
+    // The first table the device reads that has a point: a device with input registers but no holding
+    // register at all (or none found) lost the whole Modbus/TCP family and two robustness rules, unsaid.
+    using modbus::Table;
+    const std::pair<std::uint8_t, Table> reads[] = {{3, Table::HoldingRegisters},
+                                                    {4, Table::InputRegisters},
+                                                    {1, Table::Coils},
+                                                    {2, Table::DiscreteInputs}};
+    for (const auto& [fc, table] : reads) {
+        if (!profile.functions.supports(fc)) continue;
+        const auto address = facts(table).first_valid();
+        if (!address) continue;
+        return ProbeRead{fc, modbus::encode_pdu(modbus::make_read_request(
+                                 static_cast<modbus::FunctionCode>(fc), *address, 1))};
+    }
+    return std::nullopt;
+}
+
+void Context::run_with_probe(const RuleInfo& rule, const std::function<void(RuleResult&)>& body) {
+    const bool known = probe_read().has_value();
+    run(rule, [&](RuleResult& r) {
+        if (known) return body(r);
+        r.outcome = Outcome::Skip;
+        r.reason =
+            "no point the device reads is known (the map lists none in a table it reads, or none "
+            "answered when the address space was probed): nothing to send as the valid request";
+    });
 }
 
 }  // namespace mbscope::conformance

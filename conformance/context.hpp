@@ -20,6 +20,10 @@ namespace mbscope::conformance {
 struct TableFacts {
     modbus::Table table = modbus::Table::HoldingRegisters;
     bool present = false;  // the function codes of this table are supported
+    // Probing (the generic profile) could not tell: whether the table has points at all (`unknown`), or
+    // where it ends (`end_unknown`: runs hold what was found readable). Why, for the rules it skips.
+    std::string unknown;
+    std::string end_unknown;
     std::vector<std::pair<std::uint16_t, std::uint16_t>>
         runs;  // [first, last] of consecutive valid addresses
     std::optional<std::uint16_t> first_valid() const;
@@ -29,6 +33,8 @@ struct TableFacts {
     // An address inside [first, last] that no point occupies (a hole in the map), if any.
     std::optional<std::uint16_t> hole() const;
     bool valid(std::uint16_t address) const;
+    // Why a rule that needs an address of this table has none: the map has none, or probing could not tell.
+    std::string no_address_reason() const;
 };
 
 struct RunOptions {
@@ -65,13 +71,17 @@ struct Context {
     bool rules_not_run = false;   // a rule was not run for silence
     bool serial_framing() const;  // RTU or ASCII framing (serial lines and serial over TCP)
     bool true_serial() const;     // a real serial line or pseudo-terminal
-    // A read of one valid register (FC3, else FC4) that every healthy device answers normally: the
-    // reference request of the framing, TCP and robustness rules. nullopt when no register is known.
+    // A read of one valid point (a holding register, else an input register, a coil, a discrete input)
+    // that every healthy device answers normally: the reference request of the framing, TCP and robustness
+    // rules. nullopt when no such point is known.
     struct ProbeRead {
         std::uint8_t fc = 3;
         std::vector<std::uint8_t> pdu;
     };
     std::optional<ProbeRead> probe_read() const;
+    // run() for a rule that sends the probe read: without one it is skipped, saying why, rather than left
+    // out of the report.
+    void run_with_probe(const RuleInfo& rule, const std::function<void(RuleResult&)>& body);
 };
 
 // "exception 02 (Illegal Data Address)", "normal response", "no reply", "reply with a bad CRC" ...
@@ -82,6 +92,12 @@ std::string envelope_fault(const modbus::transport::Exchange& ex);
 // The response PDU when the reply is a well-formed frame with a good checksum and the request's envelope,
 // else nullopt.
 std::optional<modbus::Pdu> response_pdu(const modbus::transport::Exchange& ex);
+// Every whole frame among an exchange's bytes (several requests sent in one write), in order: its PDU when
+// its checksum holds and it comes from the unit asked, nullopt otherwise.
+std::vector<std::optional<modbus::Pdu>> replies_in(const Context& c, const modbus::transport::Exchange& ex);
+// "normal response, function 3", "exception 04 (...) to function 3", "a damaged or foreign frame".
+std::string describe_reply(const std::optional<modbus::Pdu>& reply);
+bool is_normal_reply(const std::optional<modbus::Pdu>& reply, std::uint8_t fc);
 bool is_exception(const modbus::transport::Exchange& ex, std::uint8_t fc, std::uint8_t code);
 bool is_normal(const modbus::transport::Exchange& ex, std::uint8_t fc);
 // Judges "expect exception `code`" and fills the result.

@@ -22,27 +22,31 @@ void check_addresses(Context& c) {
         const auto read = [&](std::uint16_t start, std::uint16_t n, const std::string& note) {
             return c.session.request(modbus::encode_pdu(modbus::make_read_request(fcode, start, n)), note);
         };
+        // Whose map says these addresses are valid: the manual's, or (the generic profile) the device's own
+        // answers while it was probed, judged by the specification alone.
+        const Authority map_authority =
+            c.profile.open_address_space ? Authority::Specification : Authority::Manual;
         const auto need_map = [&](RuleResult& r) {
             if (f.first_valid()) return true;
             r.outcome = Outcome::Skip;
-            r.reason = "the map has no address in " + table_name;
+            r.reason = f.no_address_reason();
             return false;
         };
         // A map, and room after its last address (a map reaching 65535 has no "past the end").
         const auto need_end = [&](RuleResult& r) {
             if (!need_map(r)) return false;
-            if (*f.last_valid() != 0xFFFF) return true;
+            if (*f.last_valid() != 0xFFFF && f.end_unknown.empty()) return true;
             r.outcome = Outcome::Skip;
-            r.reason = "the map reaches address 65535";
+            r.reason = f.end_unknown.empty() ? "the map reaches address 65535" : f.end_unknown;
             return false;
         };
         c.run({id + ".first", "addresses", spec_section(fc) + "; " + c.profile.source,
-               "The first valid address of " + table_name + " is read normally.", Authority::Manual, false},
+               "The first valid address of " + table_name + " is read normally.", map_authority, false},
               [&](RuleResult& r) {
                   if (need_map(r)) expect_normal(r, read(*f.first_valid(), 1, "first valid address"), fc);
               });
         c.run({id + ".last", "addresses", spec_section(fc) + "; " + c.profile.source,
-               "The last valid address of " + table_name + " is read normally.", Authority::Manual, false},
+               "The last valid address of " + table_name + " is read normally.", map_authority, false},
               [&](RuleResult& r) {
                   if (need_map(r)) expect_normal(r, read(*f.last_valid(), 1, "last valid address"), fc);
               });
@@ -87,7 +91,7 @@ void check_addresses(Context& c) {
               });
         // Precedence: quantity 0 at an address outside the map breaks two rules; AP §6 checks the quantity
         // first.
-        if (f.first_valid() && *f.last_valid() < 0xFFFF) {
+        if (f.first_valid() && *f.last_valid() < 0xFFFF && f.end_unknown.empty()) {
             c.run({"precedence.fc" + std::to_string(fc) + ".quantity_before_address", "exception precedence",
                    spec_section(fc) + " (state diagram)",
                    "Quantity 0 at an address outside the map gets exception 03, the quantity being checked "

@@ -33,7 +33,7 @@ std::optional<std::vector<std::uint8_t>> harmless_request(Context& c, std::uint8
         case 4: {
             const Table t = *modbus::table_of_function(fc);
             if (!first(t)) {
-                why_not = "the map has no address in " + std::string(modbus::to_string(t));
+                why_not = c.facts(t).no_address_reason();
                 return std::nullopt;
             }
             return modbus::encode_pdu(

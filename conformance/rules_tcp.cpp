@@ -15,114 +15,117 @@ namespace tp = modbus::transport;
 void check_tcp(Context& c) {
     if (c.serial_framing()) return;
     const bool udp = c.session.client().endpoint().scheme == tp::Scheme::Udp;
-    const auto probe = c.probe_read();
-    if (!probe) return;
-    const std::uint8_t fc = probe->fc;
-    const auto& pdu = probe->pdu;
+    const auto probe = c.probe_read().value_or(Context::ProbeRead{});  // run_with_probe skips without one
+    const std::uint8_t fc = probe.fc;
+    const auto& pdu = probe.pdu;
     const std::uint8_t unit = c.session.options().unit;
     const auto tid_of = [](const tp::Exchange& ex) -> std::optional<std::uint16_t> {
         if (!ex.response) return std::nullopt;
         return ex.response->transaction_id();
     };
     for (std::uint16_t tid : {std::uint16_t{0}, std::uint16_t{0x1234}, std::uint16_t{0xFFFF}}) {
-        c.run({"tcp.tid_echo." + std::to_string(tid), "Modbus/TCP", "TCP §3.1.3",
-               "Transaction id " + std::to_string(tid) + " is copied into the reply.",
-               Authority::Specification, false},
-              [&](RuleResult& r) {
-                  const auto ex = c.session.raw(modbus::encode_tcp(tid, unit, pdu),
-                                                "transaction id " + std::to_string(tid));
-                  r.expected = "normal response with transaction id " + std::to_string(tid);
-                  r.observed =
-                      describe(ex) + (tid_of(ex) ? ", transaction id " + std::to_string(*tid_of(ex)) : "");
-                  r.outcome = is_normal(ex, fc) && tid_of(ex) == tid ? Outcome::Pass : Outcome::Fail;
-              });
+        c.run_with_probe(
+            {"tcp.tid_echo." + std::to_string(tid), "Modbus/TCP", "TCP §3.1.3",
+             "Transaction id " + std::to_string(tid) + " is copied into the reply.", Authority::Specification,
+             false},
+            [&](RuleResult& r) {
+                const auto ex = c.session.raw(modbus::encode_tcp(tid, unit, pdu),
+                                              "transaction id " + std::to_string(tid));
+                r.expected = "normal response with transaction id " + std::to_string(tid);
+                r.observed =
+                    describe(ex) + (tid_of(ex) ? ", transaction id " + std::to_string(*tid_of(ex)) : "");
+                r.outcome = is_normal(ex, fc) && tid_of(ex) == tid ? Outcome::Pass : Outcome::Fail;
+            });
     }
-    c.run({"tcp.protocol_id_nonzero", "Modbus/TCP", "TCP §3.1.3",
-           "A request with protocol id 1 gets no Modbus reply.", Authority::Specification, false},
-          [&](RuleResult& r) {
-              const auto ex = c.session.raw(modbus::encode_tcp(7, unit, pdu, 1), "protocol id 1");
-              r.expected = "no Modbus reply (silence or a closed connection)";
-              r.observed = describe(ex);
-              r.outcome = !is_normal(ex, fc) && !response_pdu(ex) ? Outcome::Pass : Outcome::Fail;
-              if (!udp) (void)c.session.client().reconnect();
-          });
+    c.run_with_probe({"tcp.protocol_id_nonzero", "Modbus/TCP", "TCP §3.1.3",
+                      "A request with protocol id 1 gets no Modbus reply.", Authority::Specification, false},
+                     [&](RuleResult& r) {
+                         const auto ex = c.session.raw(modbus::encode_tcp(7, unit, pdu, 1), "protocol id 1");
+                         r.expected = "no Modbus reply (silence or a closed connection)";
+                         r.observed = describe(ex);
+                         r.outcome = !is_normal(ex, fc) && !response_pdu(ex) ? Outcome::Pass : Outcome::Fail;
+                         if (!udp) (void)c.session.client().reconnect();
+                     });
     if (!udp) {
-        c.run({"tcp.length_too_large", "Modbus/TCP", "TCP §3.1.3",
-               "A request whose length field claims more bytes than follow gets no reply to it.",
-               Authority::Specification, false},
-              [&](RuleResult& r) {
-                  auto adu = modbus::encode_tcp(8, unit, pdu);
-                  adu[5] = static_cast<std::uint8_t>(adu[5] + 2);
-                  const auto ex = c.session.raw(adu, "length field + 2");
-                  r.expected = "no reply (the slave waits for bytes that never come, or closes)";
-                  r.observed = describe(ex);
-                  r.outcome = !response_pdu(ex) ? Outcome::Pass : Outcome::Fail;
-                  (void)c.session.client().reconnect();
-              });
-        c.run({"tcp.length_too_small", "Modbus/TCP", "TCP §3.1.3",
-               "A request whose length field cuts its PDU short is not answered as if it were whole.",
-               Authority::Specification, false},
-              [&](RuleResult& r) {
-                  auto adu = modbus::encode_tcp(9, unit, pdu);
-                  adu[5] = static_cast<std::uint8_t>(adu[5] - 2);
-                  const auto ex = c.session.raw(adu, "length field - 2");
-                  r.expected = "no normal reply (silence, a closed connection or exception 03)";
-                  r.observed = describe(ex);
-                  r.outcome = !is_normal(ex, fc) ? Outcome::Pass : Outcome::Fail;
-                  (void)c.session.client().reconnect();
-              });
-        c.run({"tcp.split_segments", "Modbus/TCP", "TCP §4.2 (stream)",
-               "A request split across two TCP segments is answered.", Authority::Specification, false},
-              [&](RuleResult& r) {
-                  const auto adu = modbus::encode_tcp(10, unit, pdu);
-                  (void)c.session.client().write(std::span<const std::uint8_t>(adu.data(), 5));
-                  std::this_thread::sleep_for(std::chrono::milliseconds(30));
-                  auto ex = c.session.raw(std::span<const std::uint8_t>(adu.data() + 5, adu.size() - 5),
-                                          "the rest of the request, 30 ms after its first 5 bytes");
-                  ex.sent = adu;  // the reply answers the whole request
-                  expect_normal(r, ex, fc);
-              });
-        c.run({"tcp.pipelined", "Modbus/TCP", "TCP §4.2 (stream)",
-               "Three requests pipelined in one segment are each answered, in order.",
-               Authority::Specification, false},
-              [&](RuleResult& r) {
-                  std::vector<std::uint8_t> all;
-                  for (std::uint16_t tid : {21, 22, 23}) {
-                      const auto adu = modbus::encode_tcp(tid, unit, pdu);
-                      all.insert(all.end(), adu.begin(), adu.end());
-                  }
-                  const auto ex = c.session.raw(all, "three requests in one write", 3);
-                  // The three replies, in order, each judged as a reply of its own: a normal response of the
-                  // probe's function to its request's transaction, from the unit asked (TCP §3.1.3, §4.4.1).
-                  r.expected = "three normal responses, function " + std::to_string(fc) +
-                               ", transaction ids 21, "
-                               "22, 23 in that order";
-                  r.observed.clear();
-                  bool all_right = true;
-                  std::size_t at = 0;
-                  for (std::uint16_t tid : {21, 22, 23}) {
-                      tp::Exchange one;
-                      one.sent = modbus::encode_tcp(tid, unit, pdu);
-                      if (at + 6 <= ex.received.size()) {
-                          const std::size_t length =
-                              6u + ((std::size_t{ex.received[at + 4]} << 8) | ex.received[at + 5]);
-                          const std::size_t end = std::min(at + length, ex.received.size());
-                          one.received.assign(ex.received.begin() + static_cast<std::ptrdiff_t>(at),
-                                              ex.received.begin() + static_cast<std::ptrdiff_t>(end));
-                          if (auto frame = modbus::decode_tcp(one.received))
-                              one.response = std::move(frame).value();
-                          at = end;
-                      }
-                      all_right = all_right && is_normal(one, fc);
-                      r.observed +=
-                          (r.observed.empty() ? "" : "; ") + std::to_string(tid) + ": " + describe(one);
-                  }
-                  if (at < ex.received.size())
-                      r.observed += "; then " + std::to_string(ex.received.size() - at) + " more bytes";
-                  r.outcome = all_right ? Outcome::Pass : Outcome::Fail;
-              });
+        c.run_with_probe({"tcp.length_too_large", "Modbus/TCP", "TCP §3.1.3",
+                          "A request whose length field claims more bytes than follow gets no reply to it.",
+                          Authority::Specification, false},
+                         [&](RuleResult& r) {
+                             auto adu = modbus::encode_tcp(8, unit, pdu);
+                             adu[5] = static_cast<std::uint8_t>(adu[5] + 2);
+                             const auto ex = c.session.raw(adu, "length field + 2");
+                             r.expected = "no reply (the slave waits for bytes that never come, or closes)";
+                             r.observed = describe(ex);
+                             r.outcome = !response_pdu(ex) ? Outcome::Pass : Outcome::Fail;
+                             (void)c.session.client().reconnect();
+                         });
+        c.run_with_probe(
+            {"tcp.length_too_small", "Modbus/TCP", "TCP §3.1.3",
+             "A request whose length field cuts its PDU short is not answered as if it were whole.",
+             Authority::Specification, false},
+            [&](RuleResult& r) {
+                auto adu = modbus::encode_tcp(9, unit, pdu);
+                adu[5] = static_cast<std::uint8_t>(adu[5] - 2);
+                const auto ex = c.session.raw(adu, "length field - 2");
+                r.expected = "no normal reply (silence, a closed connection or exception 03)";
+                r.observed = describe(ex);
+                r.outcome = !is_normal(ex, fc) ? Outcome::Pass : Outcome::Fail;
+                (void)c.session.client().reconnect();
+            });
+        c.run_with_probe(
+            {"tcp.split_segments", "Modbus/TCP", "TCP §4.2 (stream)",
+             "A request split across two TCP segments is answered.", Authority::Specification, false},
+            [&](RuleResult& r) {
+                const auto adu = modbus::encode_tcp(10, unit, pdu);
+                (void)c.session.client().write(std::span<const std::uint8_t>(adu.data(), 5));
+                std::this_thread::sleep_for(std::chrono::milliseconds(30));
+                auto ex = c.session.raw(std::span<const std::uint8_t>(adu.data() + 5, adu.size() - 5),
+                                        "the rest of the request, 30 ms after its first 5 bytes");
+                ex.sent = adu;  // the reply answers the whole request
+                expect_normal(r, ex, fc);
+            });
+        c.run_with_probe(
+            {"tcp.pipelined", "Modbus/TCP", "TCP §4.2 (stream)",
+             "Three requests pipelined in one segment are each answered, in order.", Authority::Specification,
+             false},
+            [&](RuleResult& r) {
+                std::vector<std::uint8_t> all;
+                for (std::uint16_t tid : {21, 22, 23}) {
+                    const auto adu = modbus::encode_tcp(tid, unit, pdu);
+                    all.insert(all.end(), adu.begin(), adu.end());
+                }
+                const auto ex = c.session.raw(all, "three requests in one write", 3);
+                // The three replies, in order, each judged as a reply of its own: a normal response of the
+                // probe's function to its request's transaction, from the unit asked (TCP §3.1.3, §4.4.1).
+                r.expected = "three normal responses, function " + std::to_string(fc) +
+                             ", transaction ids 21, "
+                             "22, 23 in that order";
+                r.observed.clear();
+                bool all_right = true;
+                std::size_t at = 0;
+                for (std::uint16_t tid : {21, 22, 23}) {
+                    tp::Exchange one;
+                    one.sent = modbus::encode_tcp(tid, unit, pdu);
+                    if (at + 6 <= ex.received.size()) {
+                        const std::size_t length =
+                            6u + ((std::size_t{ex.received[at + 4]} << 8) | ex.received[at + 5]);
+                        const std::size_t end = std::min(at + length, ex.received.size());
+                        one.received.assign(ex.received.begin() + static_cast<std::ptrdiff_t>(at),
+                                            ex.received.begin() + static_cast<std::ptrdiff_t>(end));
+                        if (auto frame = modbus::decode_tcp(one.received))
+                            one.response = std::move(frame).value();
+                        at = end;
+                    }
+                    all_right = all_right && is_normal(one, fc);
+                    r.observed +=
+                        (r.observed.empty() ? "" : "; ") + std::to_string(tid) + ": " + describe(one);
+                }
+                if (at < ex.received.size())
+                    r.observed += "; then " + std::to_string(ex.received.size() - at) + " more bytes";
+                r.outcome = all_right ? Outcome::Pass : Outcome::Fail;
+            });
     }
-    c.run(
+    c.run_with_probe(
         {"tcp.survives_exception", "Modbus/TCP", "TCP §4.2",
          "After an exception the connection still serves a valid request.", Authority::Specification, false},
         [&](RuleResult& r) {
@@ -137,16 +140,17 @@ void check_tcp(Context& c) {
         });
     if (c.profile.line.any_unit_answered) {
         for (std::uint8_t other : {2, 247, 255}) {
-            c.run({"tcp.unit." + std::to_string(other), "Modbus/TCP", "002:213-215",
-                   "Unit id " + std::to_string(other) + " is answered, echoing the unit id.",
-                   Authority::Manual, false},
-                  [&](RuleResult& r) {
-                      const auto ex = c.session.request(pdu, "unit " + std::to_string(other), other);
-                      r.expected = "normal response with unit id " + std::to_string(other);
-                      r.observed = describe(ex);
-                      r.outcome = is_normal(ex, fc) && ex.response->unit_id() == other ? Outcome::Pass
-                                                                                       : Outcome::Fail;
-                  });
+            c.run_with_probe(
+                {"tcp.unit." + std::to_string(other), "Modbus/TCP", "002:213-215",
+                 "Unit id " + std::to_string(other) + " is answered, echoing the unit id.", Authority::Manual,
+                 false},
+                [&](RuleResult& r) {
+                    const auto ex = c.session.request(pdu, "unit " + std::to_string(other), other);
+                    r.expected = "normal response with unit id " + std::to_string(other);
+                    r.observed = describe(ex);
+                    r.outcome =
+                        is_normal(ex, fc) && ex.response->unit_id() == other ? Outcome::Pass : Outcome::Fail;
+                });
         }
     }
 }

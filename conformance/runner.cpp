@@ -91,29 +91,55 @@ void facts_from_profile(const modbus::Profile& p, TableFacts& f) {
     }
 }
 
-// The generic profile names no addresses: find how far the table reaches from 0 by bisection.
+// The generic profile names no addresses: find how far the table reaches from 0 by bisection. Only a reply
+// tells: a normal one that the address is readable, an exception that it is not. A request lost on the way
+// (no reply, or one that is damaged or someone else's) is asked again; one that stays unanswered makes the
+// table's extent unknown and says so, rather than deleting the table (its rules skipped as "no address in
+// the map") or moving its end (a readable address failed as "past the end").
 void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f, const std::atomic<bool>* stop) {
+    enum class Read : std::uint8_t { Yes, No, Unknown };
     const auto readable = [&](std::uint16_t a) {
-        const auto ex = s.request(
-            modbus::encode_pdu(modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), a, 1)),
-            "probe the address space");
-        return is_normal(ex, fc);
+        for (int attempt = 0; attempt < 3; ++attempt) {
+            const auto ex = s.request(
+                modbus::encode_pdu(modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), a, 1)),
+                "probe the address space");
+            if (is_normal(ex, fc)) return Read::Yes;
+            if (const auto pdu = response_pdu(ex); pdu && pdu->is_exception()) return Read::No;
+            if (stop && stop->load()) break;
+        }
+        return Read::Unknown;
     };
-    if (!readable(0)) return;
-    std::uint32_t lo = 0, hi = 65536;  // lo readable, hi not (or the end)
-    if (readable(0xFFFF)) {
+    const auto unanswered = [&](std::uint32_t a) {
+        return "address " + std::to_string(a) + " got no usable reply to three reads while the " +
+               std::string(modbus::to_string(f.table)) + " were probed";
+    };
+    if (const Read at_0 = readable(0); at_0 != Read::Yes) {
+        if (at_0 == Read::Unknown) f.unknown = unanswered(0) + ": whether the table has points is unknown";
+        return;
+    }
+    const Read at_end = readable(0xFFFF);
+    if (at_end == Read::Yes) {
         f.runs.push_back({0, 0xFFFF});
         return;
     }
-    hi = 0xFFFF;
-    while (hi - lo > 1) {
+    std::uint32_t lo = 0, hi = 0xFFFF;  // lo readable, hi not
+    if (at_end == Read::Unknown) f.end_unknown = unanswered(0xFFFF);
+    while (hi - lo > 1 && f.end_unknown.empty()) {
         if (stop && stop->load()) return;  // Ctrl-C: the run ends before its rules
         const auto mid = (lo + hi) / 2;
-        if (readable(static_cast<std::uint16_t>(mid)))
-            lo = mid;
-        else
-            hi = mid;
+        switch (readable(static_cast<std::uint16_t>(mid))) {
+            case Read::Yes:
+                lo = mid;
+                break;
+            case Read::No:
+                hi = mid;
+                break;
+            case Read::Unknown:
+                f.end_unknown = unanswered(mid);
+                break;
+        }
     }
+    if (!f.end_unknown.empty()) f.end_unknown += ": the table reaches at least " + std::to_string(lo);
     f.runs.push_back({0, static_cast<std::uint16_t>(lo)});
 }
 

@@ -726,6 +726,53 @@ TEST(Restore, AReadBackWithoutAnswerIsReadAgain) {
     EXPECT_EQ(regs[2], 3);
 }
 
+// The generic profile's address space is found by probing, and a reply lost on the way decided it: the read
+// of holding register 0 unanswered once deleted the table (its rules skipped as "the map has no address"),
+// a bisection read unanswered once moved the table's end, and a readable address failed as "past the end".
+// Only a reply tells: an unanswered read is asked again. A device of 100 points per table that loses the
+// first read of register 0 and the first of register 63 (a point the bisection reads) is certified whole.
+TEST(GenericProfile, AReadLostWhileProbingIsAskedAgainNotTakenForTheMapsEnd) {
+    int asked_0 = 0, asked_63 = 0;
+    ScriptedDevice device(
+        [&](const std::vector<std::uint8_t>& pdu) -> std::optional<std::vector<std::uint8_t>> {
+            const std::uint8_t fc = pdu.empty() ? 0 : pdu[0];
+            if (pdu.size() < 5 || fc < 1 || fc > 4)
+                return std::vector<std::uint8_t>{static_cast<std::uint8_t>(fc | 0x80), 0x01};
+            const unsigned start = (pdu[1] << 8) | pdu[2];
+            const unsigned n = (pdu[3] << 8) | pdu[4];
+            if (fc == 3 && n == 1 && start == 0 && ++asked_0 == 1) return std::nullopt;
+            if (fc == 3 && n == 1 && start == 63 && ++asked_63 == 1) return std::nullopt;
+            if (n == 0 || n > (fc <= 2 ? 2000u : 125u))
+                return std::vector<std::uint8_t>{static_cast<std::uint8_t>(fc | 0x80), 0x03};
+            if (start + n > 100) return std::vector<std::uint8_t>{static_cast<std::uint8_t>(fc | 0x80), 0x02};
+            std::vector<std::uint8_t> r{fc, static_cast<std::uint8_t>(fc <= 2 ? (n + 7) / 8 : 2 * n)};
+            r.resize(2 + r[1], 0);
+            return r;
+        });
+    Report report;
+    {
+        auto client =
+            tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(device.port())));
+        ASSERT_TRUE(client.has_value());
+        auto options = options_for();
+        options.run.rule_globs = {"address.fc3.*"};
+        report = run_check(*client, slave::test::profile("modbus"), options);
+    }
+    device.finish();
+    EXPECT_GE(asked_0, 2);
+    EXPECT_GE(asked_63, 2);
+    std::map<std::string, RuleResult> by_id;
+    for (const auto& r : report.results)
+        by_id[r.rule.id] = r;
+    for (const char* id : {"address.fc3.first", "address.fc3.last", "address.fc3.past_end"}) {
+        ASSERT_TRUE(by_id.count(id)) << id;
+        EXPECT_EQ(by_id[id].outcome, Outcome::Pass) << id << ": " << by_id[id].observed << by_id[id].reason;
+    }
+    // The map is the device's own answers, judged by the specification: no manual here.
+    EXPECT_EQ(by_id["address.fc3.last"].rule.authority, Authority::Specification);
+    EXPECT_EQ(report.failures_of(Authority::Manual), 0u);
+}
+
 // What a block did not bring back of a 32-bit value goes back with its other half in one FC16, in the
 // one-by-one path and in the passes that retry refused points: never a lone half.
 TEST(Restore, A32BitValueGoesBackWhole) {

@@ -2,7 +2,10 @@
 """A Modbus server nobody here wrote: pymodbus (Debian python3-pymodbus) serving 10000 of each table, as
 libmodbus_server.c does, on loopback. The conformance runner's peer (conformance/README.md).
 
-    pymodbus_server.py tcp|udp|rtu-tcp PORT
+    pymodbus_server.py tcp|udp|rtu-tcp PORT [--holding-registers-at-50000]
+
+The option moves the holding registers away from 0 to one at 50000: a device whose probe read cannot be a
+holding register at the start of its map.
 """
 import logging
 import sys
@@ -16,7 +19,9 @@ def main():
     scheme, port = sys.argv[1], int(sys.argv[2])
     logging.basicConfig(level=logging.CRITICAL)
     block = lambda: ModbusSequentialDataBlock(0, [0] * 10000)  # noqa: E731
-    store = ModbusSlaveContext(di=block(), co=block(), hr=block(), ir=block(), zero_mode=True)
+    far = len(sys.argv) > 3 and sys.argv[3] == "--holding-registers-at-50000"
+    holding = ModbusSequentialDataBlock(50000, [0]) if far else block()
+    store = ModbusSlaveContext(di=block(), co=block(), hr=holding, ir=block(), zero_mode=True)
     context = ModbusServerContext(slaves=store, single=True)
     address = ("127.0.0.1", port)
     if scheme == "udp":
