@@ -73,8 +73,11 @@ void check_framing(Context& c) {
     if (c.true_serial() && !ascii) {
         const auto& line = c.session.client().endpoint().line;
         c.run_with_probe(
-            {"framing.reply_after_t3_5", "framing", "SL §2.5.1.1",
-             "The reply starts no sooner than t3.5 after the request.", Authority::Specification, false},
+            // Timed by this host from the end of the request's transmission: its scheduler and a USB adapter
+            // move that by a millisecond or more, and a pseudo-terminal has no line to time at all (a prompt
+            // device there answers in microseconds). A warning, as conformance/README.md says.
+            {"framing.reply_after_t3_5", "framing", "SL §2.5.1.1 (as this host times it)",
+             "The reply starts no sooner than t3.5 after the request.", Authority::Implied, false},
             [&](RuleResult& r) {
                 const auto ex = c.session.raw(good, "a request");
                 r.expected = "first reply byte ≥ " + std::to_string(line.t3_5().count() / 1000) +

@@ -3,6 +3,9 @@
 #include <poll.h>
 #include <sched.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -76,6 +79,17 @@ Result<void, std::string> Client::write(std::span<const std::uint8_t> bytes) {
             return endpoint_.text() + ": write: " + std::strerror(errno);
         }
         done += static_cast<std::size_t>(n);
+    }
+    // On a serial port write() returns once the bytes are in the kernel's buffer, while the line still
+    // carries them for a character time each (4 ms for a request of 8 bytes at 19200): a reply timed from
+    // then was timed from the request's first characters, and framing.reply_after_t3_5 could not fail. The
+    // clock starts when the last character has left. (Not on a pseudo-terminal, whose bytes are at the
+    // other side at once, and where tcdrain may wait for them to be read.)
+    if (is_serial(endpoint_.scheme)) {
+        struct stat st {};
+        const bool pty = ::fstat(fd_.get(), &st) == 0 && S_ISCHR(st.st_mode) && major(st.st_rdev) >= 136 &&
+                         major(st.st_rdev) <= 143;  // UNIX98 pseudo-terminal slaves
+        if (!pty) ::tcdrain(fd_.get());
     }
     return {};
 }
