@@ -5,6 +5,7 @@
 #include <ctime>
 #include <fstream>
 #include <iterator>
+#include <span>
 
 namespace mbscope::conformance {
 
@@ -210,16 +211,32 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     }
     session.take_evidence();
     using Family = void (*)(Context&);
-    const Family families[] = {check_function_codes, check_quantities,     check_addresses,
-                               check_values,         check_write_encoding, check_data,
-                               check_broadcast,      check_framing,        check_tcp,
-                               check_robustness,     check_response_times, check_unsolicited};
-    for (Family family : families) {
-        if (stop && stop->load()) {
-            report.stopped = true;
-            break;
+    // The families that write, then those that send frames a faulty device may not survive (half frames,
+    // garbage, bad headers) and write nothing: what the first wrote goes back between them, while the device
+    // still answers (one that hung on a half frame kept every value a rule had written).
+    const Family writing[] = {check_function_codes, check_quantities, check_addresses, check_values,
+                              check_write_encoding, check_data,       check_broadcast};
+    const Family after_restore[] = {check_framing, check_tcp, check_robustness, check_response_times,
+                                    check_unsolicited};
+    const auto run_families = [&](std::span<const Family> families) {
+        for (Family family : families) {
+            if (stop && stop->load()) {
+                report.stopped = true;
+                break;
+            }
+            family(c);
         }
-        family(c);
+    };
+    run_families(writing);
+    const auto restore = [&] {
+        if (const auto text = session.restore_announcement(); options.run.note && !text.empty())
+            options.run.note(text);
+        for (auto& t : session.restore_and_forget())
+            report.restored.push_back(std::move(t));
+    };
+    if (!report.stopped) {
+        restore();
+        run_families(after_restore);
     }
     // A stop during the last family, or before the first (while the address space was probed).
     if (stop && stop->load()) report.stopped = true;
@@ -234,10 +251,9 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
                                   "is the target answering? a read any device of the profile answers");
             (void)session.take_evidence();
         }
-    // Nothing lost: every point a rule wrote goes back to its original value, even after a stop.
-    if (const auto text = session.restore_announcement(); options.run.note && !text.empty())
-        options.run.note(text);
-    report.restored = session.restore();
+    // Nothing lost: every point a rule wrote goes back to its original value, even after a stop (and any a
+    // later family wrote, none today).
+    restore();
     report.results = std::move(c.results);
     report.response_times = session.response_times();
     report.requests = session.requests();

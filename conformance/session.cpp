@@ -390,6 +390,13 @@ std::string Session::restore_announcement() const {
            " ms (the polling interval)";
 }
 
+std::vector<Touched> Session::restore_and_forget() {
+    if (touched_.empty()) return {};
+    auto ledger = restore();
+    touched_.clear();
+    return ledger;
+}
+
 std::vector<Touched> Session::restore() {
     unanswered_in_a_row_ = 0;  // the rules before may have asked for silence on purpose
     std::vector<Touched> out;

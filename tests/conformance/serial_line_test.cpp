@@ -137,52 +137,100 @@ TEST(SerialLine, APauseInsideTheDevicesRepliesIsReported) {
         << failures(report);
 }
 
-// A device on a pseudo-terminal that answers the moment a request's eighth byte arrives, far sooner than the
-// t3.5 of 1200 baud (32 ms): framing.reply_after_t3_5 failed it as a breach of the specification, though a
-// pseudo-terminal has no line and this host's clock is all that times it (conformance/README.md: "a
-// warning, timed by this host"). It is a warning: seen, and not counted in the verdict.
-TEST(SerialLine, AReplySoonerThanT35IsAWarningTimedByThisHost) {
-    int master = -1, slave_fd = -1;
-    char name[128] = {};
-    ASSERT_EQ(::openpty(&master, &slave_fd, name, nullptr, nullptr), 0);
-    termios raw{};
-    ::tcgetattr(slave_fd, &raw);
-    ::cfmakeraw(&raw);
-    ::tcsetattr(slave_fd, TCSANOW, &raw);
-    std::atomic<bool> stop{false};
-    std::thread device([&] {
+// A device on a pseudo-terminal that keeps every byte it receives and answers the moment they hold one
+// request of eight bytes, with one register of zeros: no timing of its own at all.
+class InstantDevice {
+  public:
+    InstantDevice() {
+        opened_ = ::openpty(&master_, &slave_, name_, nullptr, nullptr) == 0;
+        if (!opened_) return;
+        termios raw{};
+        ::tcgetattr(slave_, &raw);
+        ::cfmakeraw(&raw);
+        ::tcsetattr(slave_, TCSANOW, &raw);
+        thread_ = std::thread([this] { serve(); });
+    }
+    ~InstantDevice() {
+        stop_ = true;
+        if (thread_.joinable()) thread_.join();
+        if (opened_) {
+            ::close(master_);
+            ::close(slave_);
+        }
+    }
+    InstantDevice(const InstantDevice&) = delete;
+    InstantDevice& operator=(const InstantDevice&) = delete;
+    bool opened() const noexcept { return opened_; }
+    std::string path() const { return name_; }
+
+  private:
+    void serve() {
         std::vector<std::uint8_t> got;
-        while (!stop) {
-            pollfd p{master, POLLIN, 0};
+        while (!stop_) {
+            pollfd p{master_, POLLIN, 0};
             if (::poll(&p, 1, 20) != 1) continue;
             std::uint8_t b[64];
-            const ssize_t n = ::read(master, b, sizeof b);
+            const ssize_t n = ::read(master_, b, sizeof b);
             if (n <= 0) break;
             got.insert(got.end(), b, b + n);
-            if (got.size() < 8) continue;
-            // Any request of eight bytes: one register, zero, from the unit asked.
+            if (got.size() != 8) continue;  // a frame is eight bytes from the first it kept: no resync
             const std::uint8_t pdu[] = {got[1], 0x02, 0x00, 0x00};
             const auto reply = modbus::encode_rtu(got[0], pdu);
-            (void)!::write(master, reply.data(), reply.size());
+            (void)!::write(master_, reply.data(), reply.size());
             got.clear();
         }
-    });
-    auto target = tp::parse_endpoint(std::string("rtu:") + name + "?baud=1200");
-    ASSERT_TRUE(target.has_value());
+    }
+
+    int master_ = -1, slave_ = -1;
+    char name_[128] = {};
+    bool opened_ = false;
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+};
+
+Report check_instant_device(const InstantDevice& device, std::vector<std::string> rules) {
+    auto target = tp::parse_endpoint("rtu:" + device.path() + "?baud=1200");
+    EXPECT_TRUE(target.has_value());
     auto client = tp::Client::open(*target);
-    ASSERT_TRUE(client.has_value()) << (client ? "" : client.error());
+    EXPECT_TRUE(client.has_value()) << (client ? "" : client.error());
+    if (!client) return {};
     auto options = options_for(std::chrono::milliseconds(500));
-    options.run.rule_globs = {"framing.reply_after_t3_5"};
-    const auto report = run_check(*client, slave::test::profile("mmk-2030"), options);
-    stop = true;
-    device.join();
-    ::close(master);
-    ::close(slave_fd);
+    options.run.rule_globs = std::move(rules);
+    return run_check(*client, slave::test::profile("mmk-2030"), options);
+}
+
+// It answers far sooner than the t3.5 of 1200 baud (32 ms): framing.reply_after_t3_5 failed it as a breach
+// of the specification, though a pseudo-terminal has no line and this host's clock is all that times it
+// (conformance/README.md: "a warning, timed by this host"). It is a warning: seen, and not counted.
+TEST(SerialLine, AReplySoonerThanT35IsAWarningTimedByThisHost) {
+    InstantDevice device;
+    ASSERT_TRUE(device.opened());
+    const auto report = check_instant_device(device, {"framing.reply_after_t3_5"});
     ASSERT_EQ(report.results.size(), 1u);
     const RuleResult& r = report.results.front();
     EXPECT_EQ(r.outcome, Outcome::Fail) << r.observed;
     EXPECT_EQ(r.rule.authority, Authority::Implied);
     EXPECT_EQ(verdict(report), 0) << failures(report);
+}
+
+// It keeps the first half of a truncated request after the silence (SL §2.5.1.1 wants it discarded) and so
+// never answers again: framing.truncated passed on the silence alone, the rules after it failed in its place
+// and the points the run had written stayed written. framing.truncated_discarded asks again after the
+// silence, and fails.
+TEST(SerialLine, ADeviceThatKeepsATruncatedRequestFailsTheRuleThatSentIt) {
+    InstantDevice device;
+    ASSERT_TRUE(device.opened());
+    // (A read first, answered: a device that answers nothing in a run is a silent target, nothing judged.)
+    const auto report = check_instant_device(device, {"fc.supported.3", "framing.truncated*"});
+    ASSERT_EQ(report.results.size(), 3u) << failures(report);
+    EXPECT_EQ(report.results[0].outcome, Outcome::Pass);
+    EXPECT_EQ(report.results[2].rule.id, "framing.truncated");
+    EXPECT_EQ(report.results[2].outcome, Outcome::Pass);  // silence it was
+    const RuleResult& r = report.results[1];
+    ASSERT_EQ(r.rule.id, "framing.truncated_discarded");
+    EXPECT_EQ(r.outcome, Outcome::Fail) << r.observed;
+    EXPECT_EQ(r.rule.authority, Authority::Specification);
+    EXPECT_NE(r.observed.find("the next request: no reply"), std::string::npos) << r.observed;
 }
 
 INSTANTIATE_TEST_SUITE_P(Serial, OverPseudoTerminal, ::testing::Values("rtu", "ascii"));
