@@ -181,12 +181,21 @@ TEST(MkCoverage, EveryModelNameResolves) {
 }
 
 TEST(CthCoverage, RegistersOfTheManual) {
-    // manual-rules.md §7.4: 123 holding registers 3999-4121, no coils, five reserved reading 0x55AA.
+    // manual-rules.md §7.4: 123 holding registers 3999-4121, five reserved reading 0x55AA. And one row that
+    // count stops short of, the table's last (003:728, a line without a final newline): BOBINA 0 at 1000,
+    // read-only, bits 0, 1, 5 and 6 alarms and 7 the display overflow, the coils 1000-1007 (CTH-COIL-01).
     auto p = store().load("cth2265i");
     ASSERT_TRUE(p.has_value());
     const auto& regs = p->table(mb::Table::HoldingRegisters);
     EXPECT_EQ(regs.size(), 123u);
-    EXPECT_TRUE(p->table(mb::Table::Coils).empty());
+    const auto& coils = p->table(mb::Table::Coils);
+    ASSERT_EQ(coils.size(), 8u);
+    for (std::size_t i = 0; i < coils.size(); ++i) {
+        EXPECT_EQ(coils[i].address, 1000 + i);
+        EXPECT_EQ(coils[i].access, mb::Access::Read) << coils[i].address;
+        EXPECT_EQ(coils[i].reserved, i >= 2 && i <= 4) << coils[i].address;
+    }
+    EXPECT_EQ(coils[7].name_en, "display overflow (bit 7 of coil block 0)");
     int fixed = 0;
     for (const auto& pt : regs)
         fixed += pt.fixed_value == 0x55AA;

@@ -825,11 +825,18 @@ const std::vector<ManualCase> cth_cases = {
      "003:540-546",
      "cth2265i",
      {{"08 00 00 A5 37", "08 00 00 A5 37"}, {"08 00 01 00 00", "88 01"}}},
-    // FC1/5/15 are listed but no coil is defined (a contradiction): the profile answers 02 to every coil.
-    {"CTH_NOCOIL_01_CoilFunctionsWithoutCoils",
-     "003:498 vs 598-727",
+    // The register table's last row, BOBINA 0 at 1000 (read-only; bits 0, 1, 5, 6 alarms, 7 the display
+    // overflow), is the coils 1000-1007, one byte to FC1: read whole or in part, not past 1007 nor below
+    // 1000, and never written (no writable coil).
+    {"CTH_COIL_01_AlarmCoilsAt1000ReadOnly",
+     "003:498-510, 728",
      "cth2265i",
-     {{"01 00 00 00 01", "81 02"}, {"05 00 00 FF 00", "85 02"}, {"0F 00 00 00 01 01 01", "8F 02"}}},
+     {{"01 03 E8 00 08", "01 01 00"},
+      {"01 03 EF 00 01", "01 01 00"},
+      {"01 03 E8 00 09", "81 02"},
+      {"01 00 00 00 01", "81 02"},
+      {"05 03 E8 FF 00", "85 02"},
+      {"0F 03 E8 00 01 01 01", "8F 02"}}},
     // No FC1 maximum is stated: the specification's 2000 applies (profile note, 003:502-510).
     {"CTH_FC01_01_NoMaximumStated",
      "003:502-510",
