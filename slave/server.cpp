@@ -461,10 +461,11 @@ struct Server::Impl {
             const auto step = modbus::rtu_step(rest, at_end, false);
             // A frame whose length the content does not give (an unknown function code, FC8 with any
             // number of data bytes): the shortest prefix with a valid CRC is taken as the frame. For FC8
-            // that is whatever rtu_step made of it short of a valid frame of the usual five-byte PDU: with
-            // more data bytes it sees a bad CRC at that length and, no frame following, garbage to skip.
-            const bool diagnostics = rest.size() >= 2 && rest[1] == 8 &&
-                                     !(step.kind == modbus::DeframeStep::Kind::Complete && step.checksum_ok);
+            // that is whatever rtu_step could not end: with more data bytes than the usual two it sees a bad
+            // CRC at that length and, no frame following, garbage to skip, or waits. (A frame it ends, with a
+            // bad CRC because a valid one follows, is a damaged request dropped at once, as before.)
+            const bool diagnostics =
+                rest.size() >= 2 && rest[1] == 8 && step.kind != modbus::DeframeStep::Kind::Complete;
             const bool unsized = diagnostics || (step.kind == modbus::DeframeStep::Kind::Skip &&
                                                  step.reason == modbus::UnparsedReason::UnknownFunction);
             if (unsized) {
