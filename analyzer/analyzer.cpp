@@ -570,7 +570,7 @@ void add_frame_findings(const FrameRecord& r, std::vector<FindingCode>& out) {
     out.insert(out.end(), r.frame.findings.begin(), r.frame.findings.end());
     if (r.pdu) out.insert(out.end(), r.pdu->violations.begin(), r.pdu->violations.end());
     if (!r.error.empty()) out.push_back(FindingCode::PduMalformed);
-    out.insert(out.end(), r.rule_findings.begin(), r.rule_findings.end());
+    out.insert(out.end(), r.reported_findings.begin(), r.reported_findings.end());
 }
 
 // Serial framings carry no transaction id: a link has one outstanding request at a time (key 0).
@@ -645,13 +645,13 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     if (options_.semantics && r.pdu)
         if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id()))
             for (auto& rule : options_.semantics->check_request(*profile, *r.pdu)) {
-                r.rule_findings.push_back(rule.code);
+                r.reported_findings.push_back(rule.code);
                 report(rule.code, r, rule.message);
             }
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
         if (only_reads(r.frame.pdu())) {
-            r.rule_findings.push_back(FindingCode::PairBroadcastRead);
+            r.reported_findings.push_back(FindingCode::PairBroadcastRead);
             report(FindingCode::PairBroadcastRead, r,
                    describe_request(r) +
                        " sent to unit 0: broadcast requests are writes, and nobody answers this one");
@@ -664,6 +664,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         TransactionRecord t(std::move(r));
         t.broadcast = true;
         add_frame_findings(t.request, t.findings);
+        if (told) t.findings.push_back(FindingCode::ProfileLineSettingsChanged);  // as a unicast's has it
         sink_.transaction(t);
         if (told)
             report(FindingCode::ProfileLineSettingsChanged, t.request, std::move(*told), {t.request.index});
@@ -838,6 +839,25 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             return;
         }
     }
+    // A reply from another unit than the one asked, its checksum holding (so its unit byte is what was sent),
+    // and no late request of that unit: no answer to the waiting request, as a slave answers only frames
+    // with its own address (SL §2.2; MK-MS-02, 000:285) and a master discards it. The request keeps waiting
+    // for its own unit's reply; what the other unit sent is held against that unit, and its values are
+    // neither named from the asked unit's map nor remembered as its (the decimal places another unit reported
+    // scaled every later value of the asked one).
+    if (other_unit_waits) {
+        Pending& waiting = it->second;
+        waiting.other_unit_reply = r.index;
+        waiting.other_unit = r.frame.unit_id();
+        report(FindingCode::PairUnitMismatch, r,
+               "request to unit " + std::to_string(waiting.request.frame.unit_id()) + " (frame " +
+                   std::to_string(waiting.request.index) + ") waits, response from unit " +
+                   std::to_string(r.frame.unit_id()) + ": no answer from unit " +
+                   std::to_string(waiting.request.frame.unit_id()) +
+                   " (a master discards it), nor its values",
+               {waiting.request.index, r.index});
+        return;
+    }
     // Its request was cut by a gap in the request stream, and its header names this reply's transaction: not
     // unsolicited, nor (a client that sends the same id and request again) the last reply again.
     if (it == pending_.end() && r.frame.framing == Framing::Tcp && !cut_requests_.empty())
@@ -881,6 +901,7 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                 }
         if (only && !after_gap) {
             it = pending_.find(*only);
+            r.reported_findings.push_back(FindingCode::PairTransactionIdMismatch);
             report(FindingCode::PairTransactionIdMismatch, r,
                    "response transaction id " + std::to_string(key.tid) + " answers the request with id " +
                        std::to_string(only->tid),
@@ -1004,6 +1025,11 @@ void Analyzer::reply_cut(Flow& f, const CutAdu& cut, Timestamp t) {
 
 void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late,
                         Unanswered* unanswered) {
+    if (unanswered && pending.other_unit_reply) {
+        unanswered->only_other_unit = true;
+        unanswered->message += " (only unit " + std::to_string(pending.other_unit) + " replied, frame " +
+                               std::to_string(pending.other_unit_reply) + ", which a master discards)";
+    }
     // The transaction record is made only when the sink takes transactions (--summary does not): moving
     // both frames into it and destroying it were a twentieth of a summary run. The checks read the frames
     // where they are, so that they are the same either way.
@@ -1021,10 +1047,6 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
     // its checksum finding says so, and its unit, function code and data are not held against the request
     // as if the device had sent them, nor named from the map, remembered or checked against the manual.
     const bool damaged = rsp_record && !rsp_record->frame.checksum_ok;
-    // A serial reply from another unit than asked is no answer to this request (from_other_unit): not counted
-    // as this device's response, exception or latency, and its values are not named from this device's map
-    // nor remembered as its (the decimal places another unit reported scaled every later value of this one).
-    const bool other_unit = rsp_record && from_other_unit(request, *rsp_record);
     // The transaction is written first, then what was found in it.
     struct Deferred {
         FindingCode code;
@@ -1063,8 +1085,6 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         else
             message += "past the " + ms(late->timeout) + " ms timeout";
         pair_finding(FindingCode::PairLateResponse, message + ": the request was reported unanswered");
-    } else if (other_unit) {
-        ++stats.answered_by_other_unit;
     } else if (rsp_record) {
         ++stats.responses;
     }
@@ -1073,7 +1093,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         if (rsp.time.count() && request.time.count()) {  // raw dumps carry no time: no latency either
             const Timestamp latency = rsp.time - request.time;
             if (latency >= Timestamp{0}) {
-                if (!other_unit) stats.latency.add(latency);
+                stats.latency.add(latency);
                 if (made) made->latency = latency;
             } else {
                 // A device cannot answer before it is asked: the clock is wrong, not the device.
@@ -1086,20 +1106,16 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             }
         }
         if (!damaged && rsp.frame.unit_id() != request.frame.unit_id())
-            pair_finding(
-                FindingCode::PairUnitMismatch,
-                "request to unit " + std::to_string(request.frame.unit_id()) + ", response from unit " +
-                    std::to_string(rsp.frame.unit_id()) +
-                    (other_unit ? ": no answer from unit " + std::to_string(request.frame.unit_id()) +
-                                      " (a master discards it), nor its values"
-                                : ""));
+            pair_finding(FindingCode::PairUnitMismatch,
+                         "request to unit " + std::to_string(request.frame.unit_id()) +
+                             ", response from unit " + std::to_string(rsp.frame.unit_id()));
         // An exception is the device's answer whatever it answers: to a request that does not decode (the
         // device's very reason to refuse it) or to another function than asked. Counted only for a request
         // that decoded, the summary's exceptions fell short of the replies that carried one.
         const bool exception = !damaged && rsp.pdu && rsp.pdu->is_exception();
         if (exception) {
             const auto code = std::get<ExceptionResponse>(rsp.pdu->body).exception_code;
-            if (!late && !other_unit) {  // of the responses; a late one is among the timeouts
+            if (!late) {  // of the responses; a late one is among the timeouts
                 ++stats.exceptions;
                 ++stats.exception_codes[code];
             }
@@ -1157,12 +1173,20 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                                   " failed and no reply came, as a slave that discards such a frame does";
             timed_out = false;
         }
+        // Only another unit replied (on_response): neither a timeout of the device's own making nor silence.
+        const bool other_unit = !discarded && unanswered && unanswered->only_other_unit &&
+                                (unanswered->code == FindingCode::PairNoResponse ||
+                                 unanswered->code == FindingCode::PairNoResponseAtEnd);
         if (made) {
             made->timed_out = timed_out;
             made->discarded = discarded;
+            made->answered_by_other_unit = other_unit;
+            if (other_unit) made->findings.push_back(FindingCode::PairUnitMismatch);
         }
         if (discarded) {
             ++stats.damaged_unanswered;
+        } else if (other_unit) {
+            ++stats.answered_by_other_unit;
         } else if (unanswered && unanswered->code == FindingCode::PairResponseNotCaptured) {
             ++stats.replies_not_captured;  // answered: neither a timeout nor waiting at the end
             if (made) made->reply_not_captured = true;
@@ -1174,7 +1198,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         if (unanswered)
             found.push_back({unanswered->code, &request, std::move(unanswered->message), {request.index}});
     }
-    if (options_.semantics && rsp_record && !other_unit && request.pdu && rsp_record->pdu) {
+    if (options_.semantics && rsp_record && request.pdu && rsp_record->pdu) {
         // The flow's server, as on_request took it: "client -> server" over IP, the link itself on a line.
         const std::string& link = request.link.str();
         const auto arrow = link.find(" -> ");
@@ -1219,7 +1243,9 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             }
         }
     }
-    if (made && options_.word_order && !made->profile && rsp_record && request.pdu && rsp_record->pdu) {
+    // (Not from a damaged reply: its registers are not what the device holds.)
+    if (made && options_.word_order && !made->profile && rsp_record && !damaged && request.pdu &&
+        rsp_record->pdu) {
         const auto fc = request.pdu->function_code();
         const auto* read = std::get_if<ReadRequest>(&request.pdu->body);
         const auto* regs = std::get_if<ReadRegistersResponse>(&rsp_record->pdu->body);

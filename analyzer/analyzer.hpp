@@ -129,6 +129,10 @@ class Analyzer {
         FrameRecord request;
         std::uint64_t serial = 0;
         DeviceStats* stats = nullptr;  // its device's, in the summary
+        // On a serial line, the frame of a reply from another unit that came while it waited (no answer to
+        // it: see on_response), and that unit; 0 when none.
+        std::uint64_t other_unit_reply = 0;
+        std::uint8_t other_unit = 0;
     };
     struct PendingKey {
         std::uint64_t flow;
@@ -239,6 +243,8 @@ class Analyzer {
     struct Unanswered {
         modbus::FindingCode code;
         std::string message;
+        bool only_other_unit =
+            false;  // only another unit replied while it waited (Pending::other_unit_reply)
     };
     // `late`: the response came after the request's timeout, which was reported and counted already.
     // `unanswered`: there is no response, and this is why.

@@ -64,6 +64,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
     const FrameRecord& q = t.request;
     const FrameRecord* r = t.response ? &*t.response : nullptr;
     out.begin_object();
+    if (t.answered_by_other_unit) out.member("answered_by_other_unit", true);
     if (!r && t.broadcast) out.member("broadcast", true);
     if (t.discarded) out.member("discarded", true);  // the keys in order, as the JSON output has them
     if (r && r->pdu && r->pdu->is_exception())

@@ -47,19 +47,11 @@ struct FrameRecord {
     modbus::Frame frame;
     std::optional<modbus::Pdu> pdu;
     std::string error;  // why the PDU could not be decoded
-    // What the device's manual says this request breaks (profile.*), found when it was seen: carried into its
-    // transaction's findings with the frame's own.
-    std::vector<modbus::FindingCode> rule_findings;
+    // Findings reported about this frame as it was seen, before its transaction was made (the manual's rules
+    // a request breaks, a broadcast that only reads, a reply whose transaction id is not its request's):
+    // carried into its transaction's findings with the frame's own.
+    std::vector<modbus::FindingCode> reported_findings;
 };
-
-// On a serial line, a reply whose checksum holds (so that its unit byte is what was sent) from another unit
-// than the request's: no answer to it, as a slave answers only frames with its own address (SL §2.2;
-// MK-MS-02, 000:285) and a master discards it. Over Modbus/TCP the transaction id pairs them whatever the
-// unit says.
-inline bool from_other_unit(const FrameRecord& request, const FrameRecord& response) noexcept {
-    return request.frame.framing != modbus::Framing::Tcp && response.frame.checksum_ok &&
-           response.frame.unit_id() != request.frame.unit_id();
-}
 
 struct TransactionRecord {
     TransactionRecord() = default;
@@ -78,6 +70,9 @@ struct TransactionRecord {
     bool reply_not_captured = false;
     // The request's CRC or LRC failed and no reply came: discarded, as the rules want.
     bool discarded = false;
+    // On a serial line no reply came from the unit asked, only one from another unit (pair.unit_mismatch),
+    // which a master discards.
+    bool answered_by_other_unit = false;
     std::vector<modbus::FindingCode> findings;
     std::vector<modbus::NamedValue> values;  // with a profile: the values named in the device's terms
     const modbus::Profile* profile = nullptr;
@@ -141,7 +136,7 @@ struct DeviceStats {
     std::uint64_t damaged_unanswered = 0;
     // Requests on a serial line whose only reply came from another unit (pair.unit_mismatch): a master
     // discards it, so it is neither this device's response nor its exception, and its values are not this
-    // device's.
+    // device's; not a timeout or unanswered at the end either.
     std::uint64_t answered_by_other_unit = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests

@@ -79,8 +79,6 @@ void TextSink::transaction(const TransactionRecord& t) {
         if (!t.response->frame.checksum_ok)
             out_ << "  bad " << (t.response->frame.framing == Framing::Ascii ? "LRC" : "CRC")
                  << ", a master discards it";
-        else if (from_other_unit(t.request, *t.response))
-            out_ << "  from unit " << int(t.response->frame.unit_id()) << ", a master discards it";
         if (t.late_past) {
             const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(*t.late_past).count();
             if (!t.late_moved_on)
@@ -92,11 +90,12 @@ void TextSink::transaction(const TransactionRecord& t) {
         }
     } else
         out_ << "  -> "
-             << (t.broadcast            ? "broadcast, no response expected"
-                 : t.reply_not_captured ? "answered, the reply not captured whole"
-                 : t.discarded          ? "no response: the request's checksum failed, discarded"
-                 : t.timed_out          ? "no response"
-                                        : "no response before the capture ended");
+             << (t.broadcast                ? "broadcast, no response expected"
+                 : t.reply_not_captured     ? "answered, the reply not captured whole"
+                 : t.discarded              ? "no response: the request's checksum failed, discarded"
+                 : t.answered_by_other_unit ? "no response from the unit asked, only from another unit"
+                 : t.timed_out              ? "no response"
+                                            : "no response before the capture ended");
     out_ << '\n';
     for (const auto& v : t.values) {
         out_ << "                   " << v.address << "  ";
@@ -340,6 +339,7 @@ json transaction_to_json(const TransactionRecord& t) {
         j["timeout"] = t.timed_out;
         if (t.reply_not_captured) j["reply_not_captured"] = true;
         if (t.discarded) j["discarded"] = true;
+        if (t.answered_by_other_unit) j["answered_by_other_unit"] = true;
     }
     if (!t.findings.empty()) {
         for (auto c : t.findings)

@@ -269,6 +269,12 @@ TEST(CsvSink, AReplyWithABadCrcIsNotOk) {
     EXPECT_EQ(rows[0].at("findings"), "rtu.crc_mismatch");
     EXPECT_EQ(rows[1].at("status"), "ok");
     EXPECT_EQ(rows[1].at("findings"), "");
+    // Nor are its registers read as 32-bit values (--word-order): they are not what the device holds.
+    const auto [words_exit, words] = decode("--format text --word-order abcd --csv - " + path);
+    const auto word_rows = rows_of(words);
+    ASSERT_EQ(word_rows.size(), 2u) << words;
+    EXPECT_EQ(word_rows[0].at("registers32"), "");
+    EXPECT_NE(word_rows[1].at("registers32"), "");
     std::remove(path.c_str());
 }
 
@@ -311,7 +317,9 @@ TEST(CsvSink, TheManualsFindingsAreTheTransactionsToo) {
 // CRC that holds. That reply was counted as unit 12's and its values remembered as unit 12's settings, so
 // unit 12's process values read later were scaled 100 and 1000 times off, with nothing said. A slave answers
 // only frames with its own address (SL §2.2; MK-MS-02, 000:285): the reply is no answer from unit 12 (a
-// master discards it), counted apart, its values neither named nor remembered. CRCs computed by pymodbus.
+// master discards it) and the request keeps waiting. Where unit 12 then answers, its own reply is paired
+// (it was "unsolicited"); where it does not, the request is counted apart, neither a response nor a
+// timeout, and nothing of the other unit's reply is named or remembered. CRCs computed by pymodbus.
 TEST(CsvSink, ASerialReplyFromAnotherUnitIsNotTheAskedUnitsAnswer) {
     const std::string path = testing::TempDir() + "csv_other_unit.txt";
     {
@@ -319,21 +327,34 @@ TEST(CsvSink, ASerialReplyFromAnotherUnitIsNotTheAskedUnitsAnswer) {
         f << "1.000 > 11 03 00 11 00 02 96 9E\n"      // unit 17: decimal places of both channels
           << "1.020 < 11 03 04 00 01 00 02 3B F3\n"   // 1 and 2
           << "3.000 > 0C 03 00 11 00 02 95 13\n"      // unit 12: the same
-          << "3.020 < 11 03 04 00 03 00 03 5B F3\n"   // unit 17 answers: 3 and 3
-          << "4.000 > 0C 03 00 00 00 02 C5 16\n"      // unit 12: its process values
-          << "4.020 < 0C 03 04 04 D2 16 2E 09 86\n";  // 1234, 5678
+          << "3.020 < 11 03 04 00 03 00 03 5B F3\n"   // unit 17 answers: 3 and 3; unit 12 never does
+          << "5.000 > 0C 03 00 00 00 02 C5 16\n"      // unit 12: its process values
+          << "5.020 < 0C 03 04 04 D2 16 2E 09 86\n"   // 1234, 5678
+          << "6.000 > 0C 03 00 11 00 02 95 13\n"      // unit 12: decimal places again
+          << "6.020 < 11 03 04 00 03 00 03 5B F3\n"   // unit 17 answers again
+          << "6.040 < 0C 03 04 00 02 00 01 46 F3\n"   // and unit 12 does: 2 and 1
+          << "7.000 > 0C 03 00 00 00 02 C5 16\n"      // unit 12: its process values
+          << "7.020 < 0C 03 04 04 D2 16 2E 09 86\n";  // 1234, 5678
     }
     const auto [exit_code, out] = decode("--profile mmk-2030 --csv - " + path);
     EXPECT_EQ(exit_code, 1) << out;
     const auto rows = rows_of(out);
-    ASSERT_EQ(rows.size(), 3u) << out;
+    ASSERT_EQ(rows.size(), 5u) << out;
     EXPECT_EQ(rows[1].at("unit_id"), "12");
     EXPECT_EQ(rows[1].at("status"), "other_unit");
-    EXPECT_EQ(rows[1].at("values"), "3 3");  // the reply's registers, not named as unit 12's
-    EXPECT_EQ(rows[1].at("findings"), "pair.unit_mismatch");
-    // Not 1.234 and 5.678: unit 12's decimal places were never read.
-    EXPECT_EQ(rows[2].at("values").find("1.234"), std::string::npos) << rows[2].at("values");
+    EXPECT_EQ(rows[1].at("values"), "");
+    EXPECT_EQ(rows[1].at("findings"), "pair.unit_mismatch pair.no_response");
+    // Not 1.234 and 5.678: unit 12's decimal places were not read yet.
     EXPECT_NE(rows[2].at("values").find("decimal point unknown"), std::string::npos) << rows[2].at("values");
+    // Its own reply after the other unit's answers its request, and names its values.
+    EXPECT_EQ(rows[3].at("status"), "ok");
+    EXPECT_NE(rows[3].at("values").find("decimal places channel 1=duas casas decimais"), std::string::npos)
+        << rows[3].at("values");
+    EXPECT_EQ(rows[3].at("findings"), "");
+    EXPECT_NE(rows[4].at("values").find("channel 1 process value=12.34"), std::string::npos)
+        << rows[4].at("values");
+    EXPECT_NE(rows[4].at("values").find("channel 2 process value=567.8"), std::string::npos)
+        << rows[4].at("values");
     const auto [json_exit, jsonl] = decode("--profile mmk-2030 --jsonl " + path);
     EXPECT_EQ(json_exit, 1);
     nlohmann::json summary;
@@ -342,9 +363,41 @@ TEST(CsvSink, ASerialReplyFromAnotherUnitIsNotTheAskedUnitsAnswer) {
         if (auto j = nlohmann::json::parse(line, nullptr, false); !j.is_discarded() && j["type"] == "summary")
             summary = j;
     const auto& twelve = summary["devices"]["serial " + path + " unit 12"];
-    EXPECT_EQ(twelve["requests"], 2);
-    EXPECT_EQ(twelve["responses"], 1);
+    EXPECT_EQ(twelve["requests"], 4);
+    EXPECT_EQ(twelve["responses"], 3);
+    EXPECT_EQ(twelve["timeouts"], 0);
     EXPECT_EQ(twelve["answered_by_other_unit"], 1);
-    EXPECT_EQ(summary["devices"]["serial " + path + " unit 17"]["findings"]["pair.unit_mismatch"], 1);
+    EXPECT_FALSE(summary["findings"].contains("pair.unsolicited_response")) << summary.dump();
+    EXPECT_EQ(summary["devices"]["serial " + path + " unit 17"]["findings"]["pair.unit_mismatch"], 2);
+    std::remove(path.c_str());
+}
+
+// Findings reported as a frame is seen, before its transaction is made, are the transaction's too: a reply
+// whose transaction id is not its request's (the only one outstanding), and a broadcast write that changes
+// a device's line settings (MK BAUD, as a unicast one's record carries it). Both rows were clean.
+TEST(CsvSink, FindingsReportedBeforeTheTransactionAreItsOwn) {
+    mbscope::test::Conversation c;
+    const std::uint16_t registers[] = {555};
+    c.send(true, adu(1, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 96, 1)), 1s);
+    c.send(
+        false,
+        adu(2, response(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, registers))),
+        1s + 1ms);
+    auto rows = rows_of(csv_of(c));
+    ASSERT_EQ(rows.size(), 1u);
+    EXPECT_EQ(rows[0].at("findings"), "pair.transaction_id_mismatch");
+
+    const std::string path = testing::TempDir() + "csv_broadcast_baud.txt";
+    {
+        std::ofstream f(path);
+        f << "1.000 > 11 03 00 60 00 03 07 45\n"  // unit 17 answers: it is on the line
+          << "1.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+          << "2.000 > 00 06 00 09 00 04 59 DA\n";  // broadcast BAUD := 4 (CRC by pymodbus)
+    }
+    const auto [exit_code, out] = decode("--profile mmk-2030 --csv - " + path);
+    rows = rows_of(out);
+    ASSERT_EQ(rows.size(), 2u) << out;
+    EXPECT_EQ(rows[1].at("status"), "broadcast");
+    EXPECT_EQ(rows[1].at("findings"), "profile.line_settings_changed") << out;
     std::remove(path.c_str());
 }
