@@ -125,11 +125,10 @@ int run_check_command(const CheckCliOptions& o) {
     else
         conformance::write_text(std::cout, report, o.verbose);
     const bool written = write_reports(o, report);
-    if (const auto none = conformance::nothing_selected(report); !none.empty()) {
+    if (const auto none = conformance::nothing_judged(report); !none.empty()) {
         std::cerr << "mbscope check: " << none << '\n';
         return exit_failure;
     }
-    // Rules that send nothing (all skipped: broadcast rules over Modbus/TCP) are no sign of a silent target.
     if (!report.unanswered.empty()) {
         std::cerr << "mbscope check: " << report.unanswered << '\n';
         return exit_failure;

@@ -169,7 +169,7 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
         if (t.restored && !t.problem.empty())
             out << "\n  note: " << modbus::to_string(t.table) << " " << t.address << ": " << t.problem;
     if (!report.unanswered.empty()) out << "\nnothing judged: " << report.unanswered;
-    if (const auto none = nothing_selected(report); !none.empty()) out << "\nnothing judged: " << none;
+    if (const auto none = nothing_judged(report); !none.empty()) out << "\nnothing judged: " << none;
     out << (report.stopped ? "\nstopped before the end (interrupted)\n" : "\n");
 }
 
@@ -248,7 +248,7 @@ nlohmann::json to_json(const Report& report) {
 
 void write_junit(std::ostream& out, const Report& report) {
     const std::string run_error =
-        report.stopped ? "the run was interrupted before every rule ran" : nothing_selected(report);
+        report.stopped ? "the run was interrupted before every rule ran" : nothing_judged(report);
     std::map<std::string, std::vector<const RuleResult*>> suites;
     for (const auto& r : report.results)
         suites[r.rule.family].push_back(&r);
@@ -264,7 +264,11 @@ void write_junit(std::ostream& out, const Report& report) {
     if (!run_error.empty())
         out << "  <testsuite name=\"run\" tests=\"1\" failures=\"0\" errors=\"1\" skipped=\"0\" time=\"0\">\n"
             << "    <testcase classname=\"" << xml_escape("mbscope." + report.profile_id + ".run")
-            << "\" name=\"" << (report.stopped ? "run.interrupted" : "run.no_rules") << "\" time=\"0\">\n"
+            << "\" name=\""
+            << (report.stopped           ? "run.interrupted"
+                : report.results.empty() ? "run.no_rules"
+                                         : "run.nothing_judged")
+            << "\" time=\"0\">\n"
             << "      <error message=\"" << xml_escape(run_error) << "\"/>\n    </testcase>\n"
             << "  </testsuite>\n";
     for (const auto& [family, rules] : suites) {

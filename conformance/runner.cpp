@@ -38,18 +38,28 @@ int verdict(const Report& report) {
     return failed ? 1 : 0;
 }
 
-std::string nothing_selected(const Report& report) {
-    if (!report.results.empty() || report.stopped) return {};
-    std::string globs;
-    for (const auto& g : report.rule_globs)
-        globs += (globs.empty() ? "'" : ", '") + g + "'";
-    return "--rules " + (globs.empty() ? std::string("(all)") : globs) + " match no rule for " +
-           report.profile_id;
+std::string nothing_judged(const Report& report) {
+    if (report.stopped) return {};
+    if (report.results.empty()) {
+        std::string globs;
+        for (const auto& g : report.rule_globs)
+            globs += (globs.empty() ? "'" : ", '") + g + "'";
+        return "--rules " + (globs.empty() ? std::string("(all)") : globs) + " match no rule for " +
+               report.profile_id;
+    }
+    // Every rule skipped (--read-only with writing rules only, broadcast rules over Modbus/TCP): as empty a
+    // run, whatever the target is, even one that never answers (it was sent nothing).
+    const auto skipped = report.count(Outcome::Skip);
+    if (skipped < report.results.size()) return {};
+    const RuleResult& first = report.results.front();
+    return (skipped == 1 ? std::string("the one rule selected was skipped (")
+                         : "all " + std::to_string(skipped) + " rules selected were skipped (") +
+           first.rule.id + ": " + first.reason + (skipped > 1 ? ", ..." : "") + ")";
 }
 
 std::string_view verdict_text(const Report& report) {
     if (report.stopped) return "interrupted";
-    if (!report.unanswered.empty() || !nothing_selected(report).empty()) return "error";
+    if (!report.unanswered.empty() || !nothing_judged(report).empty()) return "error";
     return verdict(report) == 0 ? "pass" : "fail";
 }
 

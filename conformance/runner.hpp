@@ -57,12 +57,13 @@ struct Report {
 // rules are warnings) or a point could not be restored.
 int verdict(const Report& report);
 // "pass" or "fail" as verdict() says; "interrupted" for a run stopped before every rule ran, and "error"
-// for a target that answered nothing (Report::unanswered) or a run whose --rules selected no rule
-// (nothing_selected), which certify nothing whatever their rules said.
+// for a target that answered nothing (Report::unanswered) or a run that judged no rule (nothing_judged),
+// which certify nothing whatever their rules said.
 std::string_view verdict_text(const Report& report);
-// "--rules 'x.*' match no rule for PROFILE" for a run that was not interrupted and judged no rule, "" else:
-// an empty run is no pass (a CI job with a typo in its glob published a green report).
-std::string nothing_selected(const Report& report);
+// Why a run that was not interrupted judged nothing: its --rules matched no rule ("--rules 'x.*' match no
+// rule for PROFILE"), or every rule it selected was skipped; "" when a rule was judged. An empty run is no
+// pass (a CI job with a typo in its glob published a green report).
+std::string nothing_judged(const Report& report);
 
 Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,
                  const CheckOptions& options, const std::atomic<bool>* stop = nullptr);

@@ -24,10 +24,15 @@ TEST(CheckCommand, RulesThatSelectNothingOrSendNothingAreToldApartFromASilentTar
     EXPECT_NE(r.out.find("--rules 'nosuch.*', 'quantity' match no rule for mmk-2030"), std::string::npos)
         << r.out;
     EXPECT_EQ(r.out.find("never answered"), std::string::npos) << r.out;
-    // Broadcast rules over Modbus/TCP are skipped with a reason and send nothing: a clean run, exit 0.
+    // Broadcast rules over Modbus/TCP are skipped with a reason and send nothing: no silent target either,
+    // but nothing judged, which is no pass (exit 2, as for a glob that matches nothing; it was exit 0, and
+    // so was --read-only with writing rules only against a target that never answered).
     r = run_mbscope(check + "--rules 'broadcast*'");
-    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_EQ(r.exit_code, 2) << r.out;
     EXPECT_NE(r.out.find("1 skipped"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("nothing judged: the one rule selected was skipped (broadcast: "), std::string::npos)
+        << r.out;
+    EXPECT_EQ(r.out.find("never answered"), std::string::npos) << r.out;
 }
 
 // A target that cannot be reached still gets the reports asked for (a CI job publishing the JUnit file found

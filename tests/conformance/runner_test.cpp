@@ -831,7 +831,7 @@ TEST(Reports, ARunWhoseRulesMatchNothingIsAnErrorInEveryReport) {
     Report report;
     report.profile_id = "mmk-2030";
     report.rule_globs = {"nosuch.*"};
-    EXPECT_EQ(nothing_selected(report), "--rules 'nosuch.*' match no rule for mmk-2030");
+    EXPECT_EQ(nothing_judged(report), "--rules 'nosuch.*' match no rule for mmk-2030");
     EXPECT_EQ(verdict_text(report), "error");
     EXPECT_EQ(to_json(report)["summary"]["verdict"], "error");
     std::ostringstream junit, text;
@@ -846,8 +846,33 @@ TEST(Reports, ARunWhoseRulesMatchNothingIsAnErrorInEveryReport) {
               std::string::npos)
         << text.str();
     report.stopped = true;  // interrupted before the first rule: said as such
-    EXPECT_EQ(nothing_selected(report), "");
+    EXPECT_EQ(nothing_judged(report), "");
     EXPECT_EQ(verdict_text(report), "interrupted");
+
+    // Every rule selected skipped (--read-only with writing rules only), against a target that was sent
+    // nothing and may answer nothing: "pass", exit 0 and a green JUnit of 111 skipped tests before.
+    Report skipped;
+    skipped.profile_id = "mmk-2030";
+    for (const char* id : {"value.hr23.limits", "value.hr24.limits"}) {
+        RuleResult r;
+        r.rule.id = id;
+        r.outcome = Outcome::Skip;
+        r.reason = "writes to the device (--read-only)";
+        skipped.results.push_back(r);
+    }
+    EXPECT_EQ(
+        nothing_judged(skipped),
+        "all 2 rules selected were skipped (value.hr23.limits: writes to the device (--read-only), ...)");
+    EXPECT_EQ(verdict_text(skipped), "error");
+    std::ostringstream skipped_junit;
+    write_junit(skipped_junit, skipped);
+    EXPECT_NE(skipped_junit.str().find("tests=\"3\" failures=\"0\" errors=\"1\" skipped=\"2\""),
+              std::string::npos)
+        << skipped_junit.str();
+    EXPECT_NE(skipped_junit.str().find("name=\"run.nothing_judged\""), std::string::npos);
+    skipped.results.front().outcome = Outcome::Pass;  // one rule judged: a run like any other
+    EXPECT_EQ(nothing_judged(skipped), "");
+    EXPECT_EQ(verdict_text(skipped), "pass");
 }
 
 // The restore ledger in words: "84 points written and restored, 84 NOT restored" contradicted itself.
