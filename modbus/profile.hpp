@@ -214,6 +214,7 @@ struct SimulationSignal {
         Walk,       // a measured value: mean-reverting random walk around `start`, within [min, max]
         Integrate,  // a total: accumulates `per_second` x the source's value each second (wraps at `max`)
         Alarm,      // an alarm output: trips past the setpoint, releases past setpoint -/+ hysteresis
+        Constant,   // a value the device reports and never changes (a firmware version): `start`
     };
     std::string id;
     Model model = Model::Walk;

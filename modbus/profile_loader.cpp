@@ -748,7 +748,8 @@ std::optional<double> number(Reader& r, const json& j, const std::string& key, c
     return c->get<double>();
 }
 
-// "simulation": {"source": ..., "signals": [{"id", "model": "walk"|"integrate"|"alarm", "point", ...}]}
+// "simulation": {"source": ..., "signals": [{"id", "model": "walk"|"integrate"|"alarm"|"constant", "point",
+// ...}]}
 Simulation parse_simulation(Reader& r, const json& doc) {
     Simulation sim;
     const json* j = r.child(doc, "simulation");
@@ -805,8 +806,13 @@ Simulation parse_simulation(Reader& r, const json& doc) {
             if (const json* h = r.child(x, "hysteresis"))
                 s.hysteresis = point_ref(r, *h, ptr + "/hysteresis", Table::HoldingRegisters);
             if (s.hidden) r.error(ptr, "missing required field \"point\" (an alarm is an output)");
+        } else if (model == "constant") {
+            s.model = SimulationSignal::Model::Constant;
+            s.start = s.min = s.max = number(r, x, "value", ptr, true).value_or(0);
+            if (s.hidden)
+                r.error(ptr, "missing required field \"point\" (a constant is a value the map shows)");
         } else {
-            r.error(ptr + "/model", "unknown model \"" + model + "\" (walk, integrate, alarm)");
+            r.error(ptr + "/model", "unknown model \"" + model + "\" (walk, integrate, alarm, constant)");
             continue;
         }
         // Modular devices: {"CHANNEL": "MAP"}, the configuration the signal's addresses belong to.

@@ -118,6 +118,8 @@ struct Process::Impl {
                     if (s.value < 0) s.value = 0;
                     break;
                 }
+                case Model::Constant:
+                    break;  // written again every step: only the process moves the points it names
                 case Model::Alarm: {
                     const double pv = states[s.source].value;
                     const double sp = read(*sig.setpoint);

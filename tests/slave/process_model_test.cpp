@@ -264,21 +264,39 @@ TEST(ProcessModel, WalchemSensorsDriftAsFloatsAndTheirAlarmsFollowSetPointsAndDe
 TEST(ProcessModel, WalchemSignalsExistOnlyInTheConfigurationTheyName) {
     auto w900 = store().load("walchem-w900");
     ASSERT_TRUE(w900.has_value());
-    EXPECT_EQ(w900->simulation.signals.size(), 4u);
+    EXPECT_EQ(w900->simulation.signals.size(), 5u);
     auto card = store().load(
         "walchem-w900",
         {{"sensor-1-1", "none"}, {"sensor-1-2", "none"}, {"ao-1-1", "ao-manual"}, {"ao-1-2", "ao-manual"}});
     ASSERT_TRUE(card.has_value());
     EXPECT_TRUE(card->find(Table::HoldingRegisters, 1152)) << "analog output 1-1 takes sensor 1-1's address";
-    EXPECT_TRUE(card->simulation.signals.empty());
+    ASSERT_EQ(card->simulation.signals.size(), 1u) << "the system map's firmware version is in every one";
+    EXPECT_EQ(card->simulation.signals[0].id, "firmware");
     Device d(*card, 1);
     Process p(d, 1);
     p.step(100);
-    EXPECT_TRUE(d.image().changes().empty());
+    const auto changes = d.image().changes();
+    ASSERT_EQ(changes.count(Table::HoldingRegisters), 1u);
+    EXPECT_EQ(changes.at(Table::HoldingRegisters).size(), 2u) << "the firmware version's two registers only";
+    EXPECT_TRUE(changes.at(Table::HoldingRegisters).count(38));
     auto flowmeter = store().load("walchem-w900", {{"sensor-1-1", "sensor-ai-flowmeter"}});
     ASSERT_TRUE(flowmeter.has_value());
-    ASSERT_EQ(flowmeter->simulation.signals.size(), 1u) << "sensor 1-2 still drifts";
+    ASSERT_EQ(flowmeter->simulation.signals.size(), 2u) << "sensor 1-2 still drifts";
     EXPECT_EQ(flowmeter->simulation.signals[0].id, "temperature");
+}
+
+// The Walchem manual covers controller software 3.01 and later (002:158); the reference slave's firmware
+// version (system map index 2, read as FC4 30039-30040 in the manual's own example, 002:495) read 0.0. It is
+// a constant 3.01, the same after any number of steps, least significant word first (002:461-468).
+TEST(ProcessModel, WalchemFirmwareVersionIsAConstantTheManualCovers) {
+    for (const char* id : {"walchem-w600", "walchem-w900", "walchem-intuition9"}) {
+        Device d(profile(id), 1);
+        Process p(d, 3);
+        // 3.01f is 0x4040A3D7: low word A3D7 first.
+        EXPECT_EQ(ask(d, "04 00 26 00 02"), "04 04 A3 D7 40 40") << id;
+        p.step(500);
+        EXPECT_EQ(ask(d, "04 00 26 00 02"), "04 04 A3 D7 40 40") << id;
+    }
 }
 
 TEST(ProcessModel, FloatPointsCarryTheValueAsAnIeee754Float) {
