@@ -461,11 +461,14 @@ struct Server::Impl {
             const auto step = modbus::rtu_step(rest, at_end, false);
             // A frame whose length the content does not give (an unknown function code, FC8 with any
             // number of data bytes): the shortest prefix with a valid CRC is taken as the frame. For FC8
-            // that is whatever rtu_step could not end: with more data bytes than the usual two it sees a bad
-            // CRC at that length and, no frame following, garbage to skip, or waits. (A frame it ends, with a
-            // bad CRC because a valid one follows, is a damaged request dropped at once, as before.)
-            const bool diagnostics =
-                rest.size() >= 2 && rest[1] == 8 && step.kind != modbus::DeframeStep::Kind::Complete;
+            // that is whatever rtu_step does not end with a good CRC at the usual five PDU bytes: with more
+            // data bytes it sees a bad CRC there and, no frame following, garbage to skip or more to wait
+            // for; or a damaged frame, when the data bytes from there on happen to hold a valid frame (which
+            // would then be executed, a write nobody sent). A frame rtu_step ended with a bad CRC that no
+            // valid prefix explains is a damaged request, dropped at once for the one after it.
+            const bool ended_damaged = step.kind == modbus::DeframeStep::Kind::Complete && !step.checksum_ok;
+            const bool diagnostics = rest.size() >= 2 && rest[1] == 8 &&
+                                     (step.kind != modbus::DeframeStep::Kind::Complete || ended_damaged);
             const bool unsized = diagnostics || (step.kind == modbus::DeframeStep::Kind::Skip &&
                                                  step.reason == modbus::UnparsedReason::UnknownFunction);
             if (unsized) {
@@ -474,7 +477,8 @@ struct Server::Impl {
                     head += n;
                     continue;
                 }
-                if (!at_end && rest.size() < modbus::max_rtu_adu_length) break;  // its CRC may still come
+                // Its CRC may still come.
+                if (!at_end && !ended_damaged && rest.size() < modbus::max_rtu_adu_length) break;
             }
             if (step.kind == modbus::DeframeStep::Kind::NeedMore) break;
             if (step.kind == modbus::DeframeStep::Kind::Complete) {

@@ -304,6 +304,11 @@ TEST(ServerRouting, RtuOverTcpEchoesReturnQueryDataOfAnyLength) {
         EXPECT_EQ(client.exchange(request, size, silence), request);
     }
     EXPECT_EQ(client.exchange("01 03 00 00 00 01 84 0A", 7), "01 03 02 00 00 B8 44");
+    // Data bytes that hold a frame of their own (an FC6 writing 0x1234 to register 5, its CRC right) are
+    // echoed, not executed: a write nobody sent. (CRCs computed by pymodbus.)
+    const char* hiding = "01 08 00 00 AA BB CC DD 01 06 00 05 12 34 94 BC DF 04";
+    EXPECT_EQ(client.exchange(hiding, 18, silence), hiding);
+    EXPECT_EQ(client.exchange("01 03 00 05 00 01 94 0B", 7), "01 03 02 00 00 B8 44");
 }
 
 // A profile whose address register is read-only (CTH2265I 3999, 003:599) is never moved.
