@@ -241,8 +241,17 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     const auto restore = [&] {
         if (const auto text = session.restore_announcement(); options.run.note && !text.empty())
             options.run.note(text);
-        for (auto& t : session.restore_and_forget())
-            report.restored.push_back(std::move(t));
+        // One entry per point, its last outcome: a point that did not go back the first time and did the
+        // second is restored.
+        for (auto& t : session.restore_and_forget()) {
+            const auto same =
+                std::find_if(report.restored.begin(), report.restored.end(),
+                             [&](const Touched& r) { return r.table == t.table && r.address == t.address; });
+            if (same != report.restored.end())
+                *same = std::move(t);
+            else
+                report.restored.push_back(std::move(t));
+        }
     };
     if (!report.stopped) {
         restore();

@@ -393,7 +393,11 @@ std::string Session::restore_announcement() const {
 std::vector<Touched> Session::restore_and_forget() {
     if (touched_.empty()) return {};
     auto ledger = restore();
-    touched_.clear();
+    // What went back is forgotten; what did not stays, to be tried again by the next call (a device that
+    // did not answer then may answer later), from the state before any try.
+    std::erase_if(touched_, [](const auto& kept) { return kept.second.restored; });
+    for (auto& [point, t] : touched_)
+        t.problem.clear();
     return ledger;
 }
 

@@ -81,8 +81,8 @@ class Session {
     bool last_read_refused() const noexcept { return last_read_refused_; }
     // Write back every remembered value, verify, and return the ledger.
     std::vector<Touched> restore();
-    // restore(), then forget the points: a later write remembers its point's value again, and a later call
-    // restores only what was written since.
+    // restore(), then forget the points restored: a later write remembers its point's value again, and a
+    // later call restores what was written since and tries again what did not go back.
     std::vector<Touched> restore_and_forget();
     // What a person at a terminal is told before restore() at a polling interval, where it can take minutes
     // (Walchem's 5 s: a minute for every 12 points); empty without an interval or a point to restore.

@@ -15,6 +15,7 @@
 #include <poll.h>
 #include <sys/socket.h>
 
+#include <atomic>
 #include <cctype>
 #include <cstdlib>
 #include <filesystem>
@@ -771,6 +772,55 @@ TEST(GenericProfile, AReadLostWhileProbingIsAskedAgainNotTakenForTheMapsEnd) {
     // The map is the device's own answers, judged by the specification: no manual here.
     EXPECT_EQ(by_id["address.fc3.last"].rule.authority, Authority::Specification);
     EXPECT_EQ(report.failures_of(Authority::Manual), 0u);
+}
+
+// The runner restores between the families that write and those that send malformed frames, and again at
+// the end. A point the first restore could not bring back (the device silent then) was forgotten with the
+// others, and the end's restore, the device answering again, left it written. It is tried again.
+TEST(Restore, APointTheFirstRestoreCouldNotBringBackIsTriedAgain) {
+    std::atomic<std::uint16_t> reg{1};
+    std::atomic<bool> answering{true};
+    ScriptedDevice device(
+        [&](const std::vector<std::uint8_t>& pdu) -> std::optional<std::vector<std::uint8_t>> {
+            if (!answering) return std::nullopt;
+            const std::uint8_t fc = pdu.empty() ? 0 : pdu[0];
+            const unsigned start = pdu.size() >= 5 ? (pdu[1] << 8) | pdu[2] : 0;
+            const unsigned word = pdu.size() >= 5 ? (pdu[3] << 8) | pdu[4] : 0;
+            if (fc == 3 && start == 10 && word == 1)
+                return std::vector<std::uint8_t>{3, 2, static_cast<std::uint8_t>(reg >> 8),
+                                                 static_cast<std::uint8_t>(reg)};
+            if (fc == 6 && start == 10) {
+                reg = static_cast<std::uint16_t>(word);
+                return pdu;
+            }
+            if (fc == 16 && start == 10 && word == 1 && pdu.size() >= 8) {
+                reg = static_cast<std::uint16_t>((pdu[6] << 8) | pdu[7]);
+                return std::vector<std::uint8_t>(pdu.begin(), pdu.begin() + 5);
+            }
+            return std::vector<std::uint8_t>{static_cast<std::uint8_t>(fc | 0x80), 0x02};
+        });
+    {
+        auto client =
+            tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(device.port())));
+        ASSERT_TRUE(client.has_value());
+        Session session(*client, options_for().session, &slave::test::profile("modbus"));
+        ASSERT_TRUE(session.remember(modbus::Table::HoldingRegisters, 10, 1));
+        ASSERT_TRUE(is_normal(
+            session.request(modbus::encode_pdu(modbus::make_write_single_register(10, 7)), "write"), 6));
+        answering = false;
+        const auto first = session.restore_and_forget();
+        ASSERT_EQ(first.size(), 1u);
+        EXPECT_FALSE(first[0].restored);
+        EXPECT_EQ(reg, 7);
+        answering = true;
+        const auto second = session.restore_and_forget();
+        ASSERT_EQ(second.size(), 1u);
+        EXPECT_TRUE(second[0].restored) << second[0].problem;
+        EXPECT_EQ(second[0].problem, "");
+        EXPECT_TRUE(session.restore_and_forget().empty());
+    }
+    device.finish();
+    EXPECT_EQ(reg, 1);
 }
 
 // What a block did not bring back of a 32-bit value goes back with its other half in one FC16, in the
