@@ -1173,7 +1173,8 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                                   " failed and no reply came, as a slave that discards such a frame does";
             timed_out = false;
         }
-        // Only another unit replied (on_response): neither a timeout of the device's own making nor silence.
+        // Only another unit replied while it waited (on_response): a timeout (or unanswered at the end) all
+        // the same, counted among them and said apart.
         const bool other_unit = !discarded && unanswered && unanswered->only_other_unit &&
                                 (unanswered->code == FindingCode::PairNoResponse ||
                                  unanswered->code == FindingCode::PairNoResponseAtEnd);
@@ -1183,10 +1184,9 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             made->answered_by_other_unit = other_unit;
             if (other_unit) made->findings.push_back(FindingCode::PairUnitMismatch);
         }
+        if (other_unit) ++stats.answered_by_other_unit;
         if (discarded) {
             ++stats.damaged_unanswered;
-        } else if (other_unit) {
-            ++stats.answered_by_other_unit;
         } else if (unanswered && unanswered->code == FindingCode::PairResponseNotCaptured) {
             ++stats.replies_not_captured;  // answered: neither a timeout nor waiting at the end
             if (made) made->reply_not_captured = true;

@@ -108,11 +108,10 @@ std::string named_values(const std::vector<NamedValue>& values) {
 std::string status_of(const TransactionRecord& t) {
     if (t.broadcast) return "broadcast";
     if (!t.response)
-        return t.reply_not_captured       ? "reply_not_captured"
-               : t.discarded              ? "discarded"
-               : t.answered_by_other_unit ? "other_unit"
-               : t.timed_out              ? "timeout"
-                                          : "unanswered";
+        return t.reply_not_captured ? "reply_not_captured"
+               : t.discarded        ? "discarded"
+               : t.timed_out        ? "timeout"
+                                    : "unanswered";
     if (!t.response->pdu) return "malformed";
     // The master discards a reply whose CRC or LRC fails (serial line §2.5.1.2): decoded, but no answer.
     if (!t.response->frame.checksum_ok) return "bad_checksum";

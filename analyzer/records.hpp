@@ -70,7 +70,7 @@ struct TransactionRecord {
     bool reply_not_captured = false;
     // The request's CRC or LRC failed and no reply came: discarded, as the rules want.
     bool discarded = false;
-    // On a serial line no reply came from the unit asked, only one from another unit (pair.unit_mismatch),
+    // Unanswered (timed out, or at the end) on a serial line while another unit replied (pair.unit_mismatch),
     // which a master discards.
     bool answered_by_other_unit = false;
     std::vector<modbus::FindingCode> findings;
@@ -134,9 +134,9 @@ struct DeviceStats {
     // Requests whose CRC or LRC failed and that drew no reply (pair.damaged_request_unanswered): the device
     // was right to discard them, so they are not timeouts.
     std::uint64_t damaged_unanswered = 0;
-    // Requests on a serial line whose only reply came from another unit (pair.unit_mismatch): a master
-    // discards it, so it is neither this device's response nor its exception, and its values are not this
-    // device's; not a timeout or unanswered at the end either.
+    // Of the timeouts and the requests unanswered at the end, those on a serial line during which another
+    // unit replied (pair.unit_mismatch): a master discards that reply, so it is neither this device's
+    // response nor its exception, and its values are not this device's.
     std::uint64_t answered_by_other_unit = 0;
     LatencyHistogram latency;
     std::map<int, std::uint64_t> functions;  // function code → requests

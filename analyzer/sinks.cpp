@@ -93,7 +93,7 @@ void TextSink::transaction(const TransactionRecord& t) {
              << (t.broadcast                ? "broadcast, no response expected"
                  : t.reply_not_captured     ? "answered, the reply not captured whole"
                  : t.discarded              ? "no response: the request's checksum failed, discarded"
-                 : t.answered_by_other_unit ? "no response from the unit asked, only from another unit"
+                 : t.answered_by_other_unit ? "no response from the unit asked, only another unit replied"
                  : t.timed_out              ? "no response"
                                             : "no response before the capture ended");
     out_ << '\n';
@@ -149,12 +149,13 @@ void TextSink::end(const Summary& s) {
              << d.exceptions << " exceptions, " << d.timeouts << " timeouts";
         if (d.late_responses) out_ << " (" << d.late_responses << " answered late)";
         if (d.unanswered_at_end) out_ << ", " << d.unanswered_at_end << " unanswered at the end";
+        if (d.answered_by_other_unit)
+            out_ << ", " << d.answered_by_other_unit << " of these unanswered while another unit replied";
         if (d.replies_not_captured)
             out_ << ", " << d.replies_not_captured << " answered with replies not captured whole";
         if (d.damaged_unanswered)
             out_ << ", " << d.damaged_unanswered
                  << " damaged requests discarded (no reply, as the rules want)";
-        if (d.answered_by_other_unit) out_ << ", " << d.answered_by_other_unit << " answered by another unit";
         if (d.checksum_errors) out_ << ", " << d.checksum_errors << " frames with a bad CRC/LRC";
         if (d.latency.count())
             out_ << "; latency min " << milliseconds_text(d.latency.min()) << " / median "

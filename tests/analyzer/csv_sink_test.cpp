@@ -318,8 +318,8 @@ TEST(CsvSink, TheManualsFindingsAreTheTransactionsToo) {
 // unit 12's process values read later were scaled 100 and 1000 times off, with nothing said. A slave answers
 // only frames with its own address (SL §2.2; MK-MS-02, 000:285): the reply is no answer from unit 12 (a
 // master discards it) and the request keeps waiting. Where unit 12 then answers, its own reply is paired
-// (it was "unsolicited"); where it does not, the request is counted apart, neither a response nor a
-// timeout, and nothing of the other unit's reply is named or remembered. CRCs computed by pymodbus.
+// (it was "unsolicited"); where it does not, the request times out, said to have drawn only the other
+// unit's reply, and nothing of that reply is named or remembered. CRCs computed by pymodbus.
 TEST(CsvSink, ASerialReplyFromAnotherUnitIsNotTheAskedUnitsAnswer) {
     const std::string path = testing::TempDir() + "csv_other_unit.txt";
     {
@@ -341,7 +341,7 @@ TEST(CsvSink, ASerialReplyFromAnotherUnitIsNotTheAskedUnitsAnswer) {
     const auto rows = rows_of(out);
     ASSERT_EQ(rows.size(), 5u) << out;
     EXPECT_EQ(rows[1].at("unit_id"), "12");
-    EXPECT_EQ(rows[1].at("status"), "other_unit");
+    EXPECT_EQ(rows[1].at("status"), "timeout");
     EXPECT_EQ(rows[1].at("values"), "");
     EXPECT_EQ(rows[1].at("findings"), "pair.unit_mismatch pair.no_response");
     // Not 1.234 and 5.678: unit 12's decimal places were not read yet.
@@ -358,18 +358,48 @@ TEST(CsvSink, ASerialReplyFromAnotherUnitIsNotTheAskedUnitsAnswer) {
     const auto [json_exit, jsonl] = decode("--profile mmk-2030 --jsonl " + path);
     EXPECT_EQ(json_exit, 1);
     nlohmann::json summary;
+    std::vector<nlohmann::json> transactions;
     std::istringstream lines(jsonl);
-    for (std::string line; std::getline(lines, line);)
-        if (auto j = nlohmann::json::parse(line, nullptr, false); !j.is_discarded() && j["type"] == "summary")
-            summary = j;
+    for (std::string line; std::getline(lines, line);) {
+        auto j = nlohmann::json::parse(line, nullptr, false);
+        if (!j.is_discarded() && j["type"] == "summary") summary = j;
+        if (!j.is_discarded() && j["type"] == "transaction") transactions.push_back(j);
+    }
+    ASSERT_EQ(transactions.size(), 5u);
+    EXPECT_EQ(transactions[1]["answered_by_other_unit"], true);
+    EXPECT_EQ(transactions[1]["timeout"], true);
+    EXPECT_FALSE(transactions[3].contains("answered_by_other_unit"));
     const auto& twelve = summary["devices"]["serial " + path + " unit 12"];
     EXPECT_EQ(twelve["requests"], 4);
     EXPECT_EQ(twelve["responses"], 3);
-    EXPECT_EQ(twelve["timeouts"], 0);
+    EXPECT_EQ(twelve["timeouts"], 1);
     EXPECT_EQ(twelve["answered_by_other_unit"], 1);
     EXPECT_FALSE(summary["findings"].contains("pair.unsolicited_response")) << summary.dump();
     EXPECT_EQ(summary["devices"]["serial " + path + " unit 17"]["findings"]["pair.unit_mismatch"], 2);
     std::remove(path.c_str());
+
+    // A request that timed out with only another unit's reply, then answered late by its own: a timeout
+    // answered late, its late row after its timeout row, as for any late reply.
+    const std::string late = testing::TempDir() + "csv_other_unit_late.txt";
+    {
+        std::ofstream f(late);
+        f << "1.000 > 0C 03 00 11 00 02 95 13\n"     // unit 12: decimal places
+          << "1.020 < 11 03 04 00 03 00 03 5B F3\n"  // unit 17 answers
+          << "2.500 < 0C 03 04 00 02 00 01 46 F3\n"  // unit 12, 1.5 s later
+          << "3.000 > 0C 03 00 11 00 02 95 13\n"
+          << "3.020 < 0C 03 04 00 02 00 01 46 F3\n";
+    }
+    const auto [late_exit, late_out] = decode("--csv - " + late);
+    const auto late_rows = rows_of(late_out);
+    ASSERT_EQ(late_rows.size(), 3u) << late_out;
+    EXPECT_EQ(late_rows[0].at("status"), "timeout");
+    EXPECT_EQ(late_rows[1].at("status"), "late");
+    EXPECT_EQ(late_rows[2].at("status"), "ok");
+    const auto [text_exit, text] = decode(late);
+    EXPECT_NE(text.find("1 timeouts (1 answered late), 1 of these unanswered while another unit replied"),
+              std::string::npos)
+        << text;
+    std::remove(late.c_str());
 }
 
 // Findings reported as a frame is seen, before its transaction is made, are the transaction's too: a reply
