@@ -192,11 +192,15 @@ ExchangeOracle::Expected ExchangeOracle::expect_pdu(const Request& r, const modb
         // A limit held in another register (MK-RNG-02), and a lone half of a 32-bit value (judged with the
         // other half the device holds), depend on the image: 03 may also be right.
         const std::uint32_t end = start + static_cast<std::uint32_t>(values.size());
-        for (std::size_t i = 0; i < values.size(); ++i)
-            if (const auto* pt = p.find(t, static_cast<std::uint16_t>(start + i));
-                pt && (pt->min_from || pt->max_from ||
+        for (std::size_t i = 0; i < values.size(); ++i) {
+            const auto* pt = p.find(t, static_cast<std::uint16_t>(start + i));
+            if (pt && (pt->min_from || pt->max_from ||
                        (pt->encoding.words == 2 && (pt->address < start || pt->address + 2u > end))))
                 e.exceptions.insert(modbus::exception_for(p, "bad_value", 0x03));
+            // Read-only while another point holds certain values (conditional_access): so is its refusal.
+            if (pt && pt->read_only_when)
+                e.exceptions.insert(modbus::exception_for(p, "write_read_only", 0x02));
+        }
         return e;
     };
     switch (fc) {

@@ -123,6 +123,14 @@ struct Point {
     Encoding encoding;
     std::optional<std::int64_t> min, max;  // raw units (two's complement values as signed numbers)
     std::optional<PointRef> min_from, max_from;
+    // Read-only while the point `when` holds one of `values` (MK: a control output in automatic mode,
+    // 000:731; a program's repetitions while it runs, 000:737): the manual's conditional access, applied by
+    // the reference slave with the state it holds.
+    struct ReadOnlyWhen {
+        PointRef when;
+        std::vector<std::uint16_t> values;
+    };
+    std::optional<ReadOnlyWhen> read_only_when;
     std::string range_text;
     std::string range_source;  // where range_text comes from when a model override replaced it (a footnote)
     std::string unit;

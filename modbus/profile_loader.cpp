@@ -261,6 +261,25 @@ void apply_range(Reader& r, const json& j, const std::string& ptr, Point& p) {
         if (auto mx = r.child(*rf, "max")) p.max_from = point_ref(r, *mx, ptr + "/range_from/max", p.table);
     }
     if (auto t = r.string(j, "range_text", ptr, false)) p.range_text = *t;
+    // "conditional_access": {"text", "source", "read_only_when": {"table", "address", "values": [..]}}
+    if (auto ca = r.child(j, "conditional_access"); ca && ca->is_object())
+        if (auto when = r.child(*ca, "read_only_when")) {
+            const std::string wptr = ptr + "/conditional_access/read_only_when";
+            auto ref = point_ref(r, *when, wptr, p.table);
+            const auto values = when->is_object() ? when->find("values") : when->end();
+            if (!when->is_object() || values == when->end() || !values->is_array() || values->empty()) {
+                r.error(wptr,
+                        "needs \"values\": a non-empty array of the values that make the point read-only");
+            } else if (ref) {
+                Point::ReadOnlyWhen c{*ref, {}};
+                for (const auto& v : *values)
+                    if (!v.is_number_integer() || v.get<std::int64_t>() < 0 || v.get<std::int64_t>() > 65535)
+                        r.error(wptr + "/values", "each value must be an integer 0 to 65535");
+                    else
+                        c.values.push_back(static_cast<std::uint16_t>(v.get<int>()));
+                p.read_only_when = std::move(c);
+            }
+        }
 }
 
 struct RawPoint {
@@ -921,7 +940,8 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
         for (const auto& pt : p.points[idx(t)]) {
             for (const auto* ref :
                  {pt.encoding.decimals_from ? &*pt.encoding.decimals_from : nullptr,
-                  pt.min_from ? &*pt.min_from : nullptr, pt.max_from ? &*pt.max_from : nullptr})
+                  pt.min_from ? &*pt.min_from : nullptr, pt.max_from ? &*pt.max_from : nullptr,
+                  pt.read_only_when ? &pt.read_only_when->when : nullptr})
                 if (ref && !p.find(ref->table, ref->address) && !p.open_address_space)
                     r.error(mptr, p.id + ": " + std::string(to_string(t)) + " " + std::to_string(pt.address) +
                                       " refers to " + std::string(to_string(ref->table)) + " " +

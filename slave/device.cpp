@@ -68,6 +68,29 @@ std::optional<modbus::WriteRejection> check_linked_limits(const modbus::Profile&
     return std::nullopt;
 }
 
+// A point the manual makes read-only while another holds certain values (conditional_access): refused as a
+// read-only point is, with what the device holds now.
+std::optional<modbus::WriteRejection> check_conditional_access(const modbus::Profile& profile,
+                                                               const RegisterImage& image, Table t,
+                                                               std::uint16_t start, std::size_t count) {
+    for (std::size_t i = 0; i < count; ++i) {
+        const auto address = static_cast<std::uint16_t>(start + i);
+        const modbus::Point* p = profile.find(t, address);
+        if (!p || !p->read_only_when) continue;
+        const auto& when = p->read_only_when->when;
+        const std::uint16_t now = modbus::is_bit_table(when.table)
+                                      ? (image.bit(when.table, when.address) ? 1 : 0)
+                                      : image.reg(when.table, when.address);
+        const auto& values = p->read_only_when->values;
+        if (std::find(values.begin(), values.end(), now) != values.end())
+            return modbus::WriteRejection{
+                modbus::exception_for(profile, "write_read_only", exc_illegal_address), address,
+                "read-only while " + std::string(modbus::to_string(when.table)) + " " +
+                    std::to_string(when.address) + " holds " + std::to_string(now)};
+    }
+    return std::nullopt;
+}
+
 }  // namespace
 
 Device::Device(const modbus::Profile& profile, std::uint8_t unit, FaultSet* faults)
@@ -206,6 +229,7 @@ std::optional<std::uint8_t> Device::check_write_block(Table t, std::uint16_t sta
     auto rejection = modbus::check_writes(*profile_, t, start, values, [&](std::uint16_t a) {
         return std::optional<std::uint16_t>(image_.reg(t, a));
     });
+    if (!rejection) rejection = check_conditional_access(*profile_, image_, t, start, values.size());
     if (!rejection) rejection = check_linked_limits(*profile_, image_, t, start, values);
     if (!rejection) return std::nullopt;
     const bool is_value_rule =
