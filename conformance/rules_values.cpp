@@ -152,6 +152,50 @@ void check_values(Context& c) {
                   expect_exception(r, write(*p, (*now)[0], "its own value"), 6, read_only_code);
               });
     }
+    // Read-only while another point holds certain values (conditional_access, MK-RO-02: a loop's output in
+    // automatic mode): the condition is set, the point written with its own value (a device that wrongly
+    // takes it changes nothing), and the condition set back at once (the ledger restores it again). The
+    // manual states the condition (the specification knows nothing of it): graded against the manual.
+    for (const auto& p : c.profile.table(Table::HoldingRegisters)) {
+        if (!p.read_only_when || p.reserved) continue;
+        const auto& when = p.read_only_when->when;
+        const modbus::Point* condition = c.profile.find(when.table, when.address);
+        const bool coil = when.table == Table::Coils;
+        if (!condition || condition->access != modbus::Access::ReadWrite || condition->reserved ||
+            !c.profile.functions.supports(coil ? 5 : 6))
+            continue;
+        const std::uint16_t set_to = p.read_only_when->values.front();
+        const std::string condition_text =
+            (coil ? "coil " : "register ") + std::to_string(when.address) + " := " + std::to_string(set_to);
+        c.run({"access.hr" + std::to_string(p.address) + ".read_only_when", "values and access",
+               p.source.empty() ? c.profile.source : p.source,
+               "Register " + point_label(p) + " refuses a write with " + exception_text(read_only_code) +
+                   " while " + condition_text + ".",
+               Authority::Manual, true},
+              [&, set_to, coil](RuleResult& r) {
+                  if (!c.session.remember(when.table, when.address, 1) ||
+                      !c.session.remember(Table::HoldingRegisters, p.address, 1)) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the points' values could not be read, so nothing was written";
+                      return;
+                  }
+                  const auto original = c.session.touched().at({when.table, when.address}).original;
+                  const auto own = c.session.touched().at({Table::HoldingRegisters, p.address}).original;
+                  const auto set_condition = [&](std::uint16_t v, const std::string& note) {
+                      const auto pdu = coil ? modbus::make_write_single_coil(when.address, v != 0)
+                                            : modbus::make_write_single_register(when.address, v);
+                      return c.session.request(modbus::encode_pdu(pdu), note);
+                  };
+                  const auto set = set_condition(set_to, condition_text);
+                  if (!is_normal(set, coil ? 5 : 6)) {
+                      r.outcome = Outcome::Error;
+                      r.reason = "the condition (" + condition_text + ") was not taken: " + describe(set);
+                      return;
+                  }
+                  expect_exception(r, write(p, own, "its own value, " + condition_text), 6, read_only_code);
+                  (void)set_condition(original, "the condition set back");
+              });
+    }
 }
 
 void check_write_encoding(Context& c) {

@@ -243,6 +243,34 @@ TEST(Peer, PymodbusServerWithoutHoldingRegistersAtZeroStillGetsEveryTcpRule) {
         << "failing:" << listed(failing(report));
 }
 
+// A server nobody here wrote judged as an MK DCY-2050, whose loop output registers are read-only in
+// automatic mode (000:731, coil 0 the loop's mode, 000:918): pymodbus serves whatever its datastore holds,
+// so the write is taken. The rule fails against the manual, which states the condition, and the coil and
+// register it touched are restored.
+TEST(Peer, PymodbusServerAsADcy2050TakesAWriteItsManualForbidsInAutomaticMode) {
+    if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
+    const auto port = free_port();
+    Peer peer({"/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py", "tcp",
+               std::to_string(port)});
+    ASSERT_TRUE(peer.spawned());
+    auto client = connect("tcp://127.0.0.1:" + std::to_string(port));
+    ASSERT_TRUE(client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    modbus::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    const auto dcy = store.load("dcy-2050");
+    ASSERT_TRUE(dcy.has_value());
+    CheckOptions o;
+    o.session.timeout = std::chrono::milliseconds(1000);
+    o.run.rule_globs = {"access.hr2.read_only_when"};
+    const auto report = run_check(*client, *dcy, o);
+    ASSERT_EQ(report.results.size(), 1u);
+    const auto& r = report.results.front();
+    EXPECT_EQ(r.outcome, Outcome::Fail) << r.observed;
+    EXPECT_EQ(r.rule.authority, Authority::Manual);
+    EXPECT_NE(r.observed.find("normal response"), std::string::npos) << r.observed;
+    ASSERT_EQ(report.restored.size(), 2u);
+    EXPECT_TRUE(report.all_restored());
+}
+
 // RTU over a stream has no silence between frames: two requests in one write are told apart only by content,
 // which the specification never asks of a device, and nothing ends half a request. pymodbus's RTU framer
 // answers neither of two requests in one write, and keeps half a request until more bytes complete it (the
