@@ -52,6 +52,24 @@ std::optional<tp::Client> connect(const std::string& uri) {
     return std::nullopt;
 }
 
+// pymodbus's server (tests/peers/pymodbus_server.py SCHEME PORT [OPTION]) on a free loopback port, and a
+// client connected to it once it listens; `client` is empty when it did not start.
+struct PymodbusPeer {
+    explicit PymodbusPeer(const std::string& scheme, const std::string& option = "")
+        : port(free_port()),
+          peer([&] {
+              std::vector<std::string> argv{
+                  "/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py",
+                  scheme, std::to_string(port)};
+              if (!option.empty()) argv.push_back(option);
+              return argv;
+          }()),
+          client(peer.spawned() ? connect(scheme + "://127.0.0.1:" + std::to_string(port)) : std::nullopt) {}
+    std::uint16_t port;
+    Peer peer;
+    std::optional<tp::Client> client;
+};
+
 const modbus::Profile& generic() {
     static const modbus::Profile p = [] {
         modbus::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
@@ -202,12 +220,9 @@ TEST(Peer, LibmodbusServerAsAnMk2030BreaksTheManualsLimits) {
 
 TEST(Peer, PymodbusServerFailsExactlyWhereItDepartsFromTheSpecification) {
     if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
-    const auto port = free_port();
-    Peer peer({"/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py", "tcp",
-               std::to_string(port)});
-    ASSERT_TRUE(peer.spawned());
-    auto client = connect("tcp://127.0.0.1:" + std::to_string(port));
-    ASSERT_TRUE(client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    PymodbusPeer server("tcp");
+    ASSERT_TRUE(server.client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    auto& client = server.client;
     const auto report = certify(*client, {});
     const std::set<std::string> departures = {
         "value.fc5.invalid",        // FC5 value 0x1234 is accepted (and writes 0) instead of exception 03
@@ -225,12 +240,9 @@ TEST(Peer, PymodbusServerFailsExactlyWhereItDepartsFromTheSpecification) {
 // departures). The read is now of the first table the device has a point in; every such rule is run.
 TEST(Peer, PymodbusServerWithoutHoldingRegistersAtZeroStillGetsEveryTcpRule) {
     if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
-    const auto port = free_port();
-    Peer peer({"/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py", "tcp",
-               std::to_string(port), "--holding-registers-at-50000"});
-    ASSERT_TRUE(peer.spawned());
-    auto client = connect("tcp://127.0.0.1:" + std::to_string(port));
-    ASSERT_TRUE(client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    PymodbusPeer server("tcp", "--holding-registers-at-50000");
+    ASSERT_TRUE(server.client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    auto& client = server.client;
     const auto report = certify(*client, {"tcp.*", "robustness.*"});
     std::set<std::string> run;
     for (const auto& x : report.results)
@@ -249,12 +261,9 @@ TEST(Peer, PymodbusServerWithoutHoldingRegistersAtZeroStillGetsEveryTcpRule) {
 // register it touched are restored.
 TEST(Peer, PymodbusServerAsADcy2050TakesAWriteItsManualForbidsInAutomaticMode) {
     if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
-    const auto port = free_port();
-    Peer peer({"/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py", "tcp",
-               std::to_string(port)});
-    ASSERT_TRUE(peer.spawned());
-    auto client = connect("tcp://127.0.0.1:" + std::to_string(port));
-    ASSERT_TRUE(client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    PymodbusPeer server("tcp");
+    ASSERT_TRUE(server.client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    auto& client = server.client;
     modbus::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
     const auto dcy = store.load("dcy-2050");
     ASSERT_TRUE(dcy.has_value());
@@ -277,12 +286,9 @@ TEST(Peer, PymodbusServerAsADcy2050TakesAWriteItsManualForbidsInAutomaticMode) {
 // request after it goes unanswered): warnings, not failures of the specification.
 TEST(Peer, PymodbusRtuOverTcpPipeliningIsAWarning) {
     if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
-    const auto port = free_port();
-    Peer peer({"/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py",
-               "rtu-tcp", std::to_string(port)});
-    ASSERT_TRUE(peer.spawned());
-    auto client = connect("rtu-tcp://127.0.0.1:" + std::to_string(port));
-    ASSERT_TRUE(client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    PymodbusPeer server("rtu-tcp");
+    ASSERT_TRUE(server.client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    auto& client = server.client;
     const auto report = certify(*client, {"framing.*", "robustness.pipeline_after_exception"});
     std::set<std::string> warned;
     for (const auto& x : report.results) {
@@ -298,12 +304,9 @@ TEST(Peer, PymodbusRtuOverTcpPipeliningIsAWarning) {
 // pymodbus's server judged as an MMK-2030: like libmodbus's, it serves whatever its datastore holds.
 TEST(Peer, PymodbusServerAsAnMk2030BreaksTheManualsLimits) {
     if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
-    const auto port = free_port();
-    Peer peer({"/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py", "tcp",
-               std::to_string(port)});
-    ASSERT_TRUE(peer.spawned());
-    auto client = connect("tcp://127.0.0.1:" + std::to_string(port));
-    ASSERT_TRUE(client.has_value());
+    PymodbusPeer server("tcp");
+    ASSERT_TRUE(server.client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    auto& client = server.client;
     expect_mk2030_departures(*client);
 }
 
