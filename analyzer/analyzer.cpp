@@ -511,10 +511,11 @@ void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
     // device's, rather than a device the noise made up. So is a damaged reply that no waiting request made
     // some unit's (serial_bytes) and whose unit byte names no unit seen on the link: the tail of a reply cut
     // by a silence, five bytes of noise, were "unit 0 answering a broadcast".
-    const bool known = std::any_of(flow.units.begin(), flow.units.end(),
-                                   [unit](const Flow::Unit& u) { return u.id == unit; });
-    const bool named_by_damage = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok && !known &&
-                                 (r.direction == Direction::Response || unit == 0);
+    // (The units are looked through only for such a frame: this runs for every frame.)
+    const bool named_by_damage = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok &&
+                                 (r.direction == Direction::Response || unit == 0) &&
+                                 std::none_of(flow.units.begin(), flow.units.end(),
+                                              [unit](const Flow::Unit& u) { return u.id == unit; });
     DeviceStats* stats = nullptr;
     if (!named_by_damage) r.device = device_of(flow, unit, stats);
     auto pdu = decode_pdu(r.frame.pdu(), r.direction);
