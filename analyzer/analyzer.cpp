@@ -645,7 +645,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     if (const auto pdu = r.frame.pdu(); !pdu.empty()) ++stats.functions[pdu[0]];
     if (options_.semantics && r.pdu)
         if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id()))
-            for (auto& rule : options_.semantics->check_request(*profile, *r.pdu)) {
+            for (auto& rule : options_.semantics->check_request(*profile, r.device.str(), *r.pdu)) {
                 r.reported_findings.push_back(rule.code);
                 report(rule.code, r, rule.message);
             }
@@ -1226,10 +1226,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                 made->values =
                     options_.semantics->values(*profile, request.device, *request.pdu, *rsp_record->pdu);
             else if (!damaged)
-                options_.semantics->remember(request.device, *request.pdu, *rsp_record->pdu);
+                options_.semantics->remember(*profile, request.device, *request.pdu, *rsp_record->pdu);
             if (!damaged)
-                for (auto& rule :
-                     options_.semantics->check_response(*profile, *request.pdu, *rsp_record->pdu))
+                for (auto& rule : options_.semantics->check_response(*profile, request.device, *request.pdu,
+                                                                     *rsp_record->pdu))
                     found.push_back(
                         {rule.code, rsp_record, std::move(rule.message), {request.index, rsp_record->index}});
             if (auto moved =

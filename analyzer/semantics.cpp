@@ -104,7 +104,8 @@ void check_write_value(const Profile& profile, Table table, std::uint16_t addres
 
 }  // namespace
 
-std::vector<RuleBreak> Semantics::check_request(const Profile& profile, const Pdu& q) const {
+std::vector<RuleBreak> Semantics::check_request(const Profile& profile, const std::string& device,
+                                                const Pdu& q) const {
     std::vector<RuleBreak> out;
     const std::uint8_t fc = q.function_code();
     if (!profile.functions.supports(fc)) {
@@ -153,10 +154,12 @@ std::vector<RuleBreak> Semantics::check_request(const Profile& profile, const Pd
              ++i)
             check_write_value(profile, Table::Coils, static_cast<std::uint16_t>(w->starting_address + i),
                               bit_at(w->values, i) ? 1 : 0, out);
+    check_conditional(profile, device, q, out, nullptr);
     return out;
 }
 
-std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const Pdu& q, const Pdu& a) const {
+std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const std::string& device,
+                                                 const Pdu& q, const Pdu& a) const {
     std::vector<RuleBreak> out;
     if (!a.is_exception() || profile.open_address_space) return out;
     const auto code = std::get<ExceptionResponse>(a.body).exception_code;
@@ -164,7 +167,13 @@ std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const P
         out.push_back({FindingCode::ProfileExceptionUnexpected,
                        "exception 1 (illegal function) to FC" + std::to_string(q.function_code()) +
                            ", which " + profile.id + "'s manual lists as supported"});
-    if (code == 2 && check_request(profile, q).empty())
+    bool condition_unknown = false;
+    std::vector<RuleBreak> conditional;
+    check_conditional(profile, device, q, conditional, &condition_unknown);
+    // The refusal a conditionally read-only point gets (the code a read-only one gets) is the manual's
+    // when the traffic never showed the condition's value: the device may well be in that state.
+    if (condition_unknown && code == exception_for(profile, "write_read_only", 2)) return out;
+    if (code == 2 && check_request(profile, device, q).empty())
         out.push_back(
             {FindingCode::ProfileExceptionUnexpected,
              "exception 2 (illegal data address) to a request whose addresses are all in the map of " +
@@ -220,7 +229,80 @@ std::string setting_text(LineSetting s, const std::string& means) {
     return means;
 }
 
+// Every point a write request writes, with the value written (a coil as 0 or 1): holding registers (FC6,
+// FC16, FC23's write part) and coils (FC5, FC15), those within the address space.
+struct WrittenPoint {
+    Table table;
+    std::uint16_t address;
+    std::uint16_t value;
+};
+std::vector<WrittenPoint> written_points(const Pdu& q) {
+    std::vector<WrittenPoint> out;
+    if (const auto w = written_registers(q))
+        for (std::size_t i = 0; i < w->values.size(); ++i)
+            out.push_back({Table::HoldingRegisters, static_cast<std::uint16_t>(w->start + i), w->values[i]});
+    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 5)
+        out.push_back({Table::Coils, w->address, static_cast<std::uint16_t>(w->value == 0xFF00 ? 1 : 0)});
+    if (const auto* w = std::get_if<WriteMultipleCoilsRequest>(&q.body))
+        for (std::size_t i = 0;
+             i < count_within_address_space(w->starting_address, w->quantity) && i / 8 < w->values.size();
+             ++i)
+            out.push_back({Table::Coils, static_cast<std::uint16_t>(w->starting_address + i),
+                           static_cast<std::uint16_t>(bit_at(w->values, i) ? 1 : 0)});
+    return out;
+}
+
+// "coil 0 (loop 1 operating mode (auto/manual)) holds 1 (automatic mode)"
+std::string condition_text(const Profile& profile, const PointRef& when, std::uint16_t value) {
+    std::string text =
+        std::string(is_bit_table(when.table) ? "coil " : "register ") + std::to_string(when.address);
+    const Point* c = profile.find(when.table, when.address);
+    if (c) text += " (" + point_name(*c) + ")";
+    text += " holds " + std::to_string(value);
+    if (c)
+        for (const auto& v : c->encoding.values)
+            if (v.value == value) text += " (" + (v.text_en.empty() ? v.text : v.text_en) + ")";
+    return text;
+}
+
 }  // namespace
+
+std::optional<std::uint16_t> Semantics::known(const std::string& device, const Profile& profile,
+                                              const PointRef& ref) const {
+    const auto d = state_.find(device);
+    if (d == state_.end()) return std::nullopt;
+    const auto v = d->second.find({profile.resolve(ref.table), ref.address});
+    if (v == d->second.end()) return std::nullopt;
+    return v->second;
+}
+
+void Semantics::keep_state(const Profile& profile, const std::string& device, Table table,
+                           std::uint16_t start, std::span<const std::uint16_t> values) {
+    auto& state = state_[device];
+    const Table resolved = profile.resolve(table);
+    for (std::size_t i = 0; i < count_within_address_space(start, values.size()); ++i)
+        state[{resolved, static_cast<std::uint16_t>(start + i)}] = values[i];
+}
+
+void Semantics::check_conditional(const Profile& profile, const std::string& device, const Pdu& q,
+                                  std::vector<RuleBreak>& out, bool* unknown) const {
+    for (const WrittenPoint& w : written_points(q)) {
+        const Point* p = profile.find(w.table, w.address);
+        if (!p || !p->read_only_when || p->access == Access::Read) continue;
+        const auto& condition = *p->read_only_when;
+        const auto now = known(device, profile, condition.when);
+        if (!now) {
+            if (unknown) *unknown = true;
+            continue;
+        }
+        if (std::find(condition.values.begin(), condition.values.end(), *now) == condition.values.end())
+            continue;
+        out.push_back({FindingCode::ProfileWriteReadOnly,
+                       "writes " + std::to_string(w.value) + " to " + std::to_string(w.address) + " (" +
+                           point_name(*p) + ") while " + condition_text(profile, condition.when, *now) +
+                           " as last seen, which makes it read-only [" + p->source + "]"});
+    }
+}
 
 std::optional<Semantics::LineSettingsTold> Semantics::line_settings_written(
     const std::string& device, const Profile& profile, std::uint16_t start,
@@ -263,6 +345,8 @@ std::optional<Semantics::LineSettingsTold> Semantics::follow_line_settings(const
 std::optional<Semantics::LineSettingsTold> Semantics::follow_broadcast_line_settings(
     const std::string& device, const Profile& profile, const Pdu& q) {
     if (!profile.functions.allows_broadcast(q.function_code())) return std::nullopt;
+    for (const WrittenPoint& p : written_points(q))  // taken without a reply: as acknowledged writes are
+        keep_state(profile, device, p.table, p.address, std::span<const std::uint16_t>(&p.value, 1));
     const auto w = written_registers(q);
     if (!w) return std::nullopt;
     auto told = line_settings_written(device, profile, w->start, w->values, "broadcast");
@@ -293,13 +377,24 @@ std::optional<RuleBreak> Semantics::follow_address(const std::string& server, co
                                          : " from now on (" + profile.id + "'s manual)")};
 }
 
-void Semantics::remember(const std::string& device, const Pdu& q, const Pdu& a) {
+void Semantics::remember(const Profile& profile, const std::string& device, const Pdu& q, const Pdu& a) {
     if (a.is_exception()) return;
     if (const auto w = written_registers(q))
         keep(device, w->start, w->values, true);  // FC23: before its read
-    if (const auto span = read_span(q))
-        if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
-            keep(device, span->start, regs->values, span->table == Table::HoldingRegisters);
+    for (const WrittenPoint& p : written_points(q))
+        keep_state(profile, device, p.table, p.address, std::span<const std::uint16_t>(&p.value, 1));
+    const auto span = read_span(q);
+    if (!span) return;
+    if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body)) {
+        keep(device, span->start, regs->values, span->table == Table::HoldingRegisters);
+        keep_state(profile, device, span->table, span->start, regs->values);
+    }
+    if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) {
+        std::vector<std::uint16_t> values;
+        for (std::size_t i = 0; i < span->quantity && i / 8 < bits->values.size(); ++i)
+            values.push_back(bit_at(bits->values, i) ? 1 : 0);
+        keep_state(profile, device, span->table, span->start, values);
+    }
 }
 
 void Semantics::keep(const std::string& device, std::uint16_t start, std::span<const std::uint16_t> words,
@@ -316,7 +411,7 @@ void Semantics::keep(const std::string& device, std::uint16_t start, std::span<c
 std::vector<NamedValue> Semantics::values(const Profile& profile, const std::string& device, const Pdu& q,
                                           const Pdu& a) {
     if (a.is_exception()) return {};
-    remember(device, q, a);
+    remember(profile, device, q, a);
     const auto& seen = registers_[device];
     if (auto s = read_span(q)) {
         if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))

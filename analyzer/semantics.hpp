@@ -1,11 +1,14 @@
 #pragma once
 // Device meaning for traffic: which profile describes which device (--profile for all, --map per unit or
 // address), the manual's rules applied to each request, and raw registers turned into named, scaled values.
-// Decimal-point registers seen in earlier replies are remembered per device so later values scale right.
+// Decimal-point registers seen in earlier replies are remembered per device so later values scale right,
+// and so are the points that make another read-only (a loop's operating mode, MK-RO-02), so that a write the
+// manual forbids in the state the traffic showed is named.
 
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -33,11 +36,16 @@ class Semantics {
     // The most specific match: host and unit, then unit, then host, then the default.
     const modbus::Profile* profile_for(const std::string& server, std::uint8_t unit) const;
 
-    // The manual's rules on a request: supported function, quantity limit, addresses, written values.
-    std::vector<RuleBreak> check_request(const modbus::Profile& profile, const modbus::Pdu& request) const;
-    // The response judged against the map (an exception where the map says the request is valid).
-    std::vector<RuleBreak> check_response(const modbus::Profile& profile, const modbus::Pdu& request,
-                                          const modbus::Pdu& response) const;
+    // The manual's rules on a request to `device`: supported function, quantity limit, addresses, written
+    // values, and writes to a point the manual makes read-only while another holds values earlier traffic
+    // showed it holding (conditional_access).
+    std::vector<RuleBreak> check_request(const modbus::Profile& profile, const std::string& device,
+                                         const modbus::Pdu& request) const;
+    // The response judged against the map (an exception where the map says the request is valid). A write
+    // to a conditionally read-only point refused while the condition's value is unknown is no departure:
+    // the device may be in the state that forbids it.
+    std::vector<RuleBreak> check_response(const modbus::Profile& profile, const std::string& device,
+                                          const modbus::Pdu& request, const modbus::Pdu& response) const;
     // A write to the device's address register that it acknowledged (MK ENDER: the device obeys at once,
     // MK-CFG-01): from then on `server`'s unit at the new address is described by `profile` too. The note
     // to report, or nullopt when the transaction moved nothing.
@@ -64,7 +72,8 @@ class Semantics {
                                                                    const modbus::Pdu& request);
     // What a completed transaction shows the device's registers hold (reads, and writes it acknowledged),
     // kept for `device`: a later write of the same code is no change. values() does it too.
-    void remember(const std::string& device, const modbus::Pdu& request, const modbus::Pdu& response);
+    void remember(const modbus::Profile& profile, const std::string& device, const modbus::Pdu& request,
+                  const modbus::Pdu& response);
     // Named values of a completed transaction (reads: the reply's values; writes: the values written).
     std::vector<modbus::NamedValue> values(const modbus::Profile& profile, const std::string& device,
                                            const modbus::Pdu& request, const modbus::Pdu& response);
@@ -80,6 +89,17 @@ class Semantics {
               bool holding_table);
     std::map<std::string, std::map<std::uint16_t, std::uint16_t>> registers_;  // device → last values seen
     std::map<std::string, std::map<std::uint16_t, std::uint16_t>> holding_;    // the holding registers alone
+    // device → (table as the profile resolves it, address) → the last value seen, bits as 0/1: what a
+    // conditional access asks (registers_ mixes the tables, and keeps no bits).
+    std::map<std::string, std::map<std::pair<modbus::Table, std::uint16_t>, std::uint16_t>> state_;
+    void keep_state(const modbus::Profile& profile, const std::string& device, modbus::Table table,
+                    std::uint16_t start, std::span<const std::uint16_t> values);
+    std::optional<std::uint16_t> known(const std::string& device, const modbus::Profile& profile,
+                                       const modbus::PointRef& ref) const;
+    // The conditionally read-only points a request writes: the rule break for each whose condition is
+    // known to hold; `unknown` is set when one's condition was never seen.
+    void check_conditional(const modbus::Profile& profile, const std::string& device, const modbus::Pdu& q,
+                           std::vector<RuleBreak>& out, bool* unknown) const;
     // (host, unit) → the profile of a device that moved there (follow_address): before any --map.
     std::map<std::pair<std::string, std::uint8_t>, const modbus::Profile*> moved_;
 };

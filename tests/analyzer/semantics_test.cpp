@@ -368,3 +368,73 @@ TEST(Semantics, AnAddressWriteOnASerialLineMovesTheProfileForRequestsAndReplies)
     ASSERT_NE(sink.transactions[2].profile, nullptr);
     EXPECT_FALSE(sink.transactions[2].values.empty());
 }
+
+// DCY-2050 (000:731-738): a loop's control output is read-only while the loop is in automatic mode (coil 0
+// or 1 holds 1), a program's repetitions while the program runs or is suspended (register 6 or 7 holds 1
+// or 2). A write in the state the traffic showed is named; a refusal while the state was never seen is no
+// departure from the manual; a refusal in the state that allows the write is one.
+namespace {
+mb::Pdu coils_response(std::initializer_list<bool> bits) {
+    const std::vector<bool> v(bits);
+    std::unique_ptr<bool[]> b(new bool[v.size()]);
+    for (std::size_t i = 0; i < v.size(); ++i)
+        b[i] = v[i];
+    return mb::make_read_bits_response(mb::FunctionCode::ReadCoils, std::span<const bool>(b.get(), v.size()));
+}
+}  // namespace
+
+TEST(Semantics, AWriteToAnOutputInAutomaticModeIsAWriteToAReadOnlyRegister) {
+    Harness h("dcy-2050", 1);
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadCoils, 0, 2), coils_response({true, false}));
+    h.exchange(mb::make_write_single_register(2, 500), mb::make_exception(6, 2));  // loop 1: automatic
+    h.exchange(mb::make_write_single_register(3, 500), mb::make_write_single_register(3, 500));  // manual
+    h.analyzer->finish();
+    ASSERT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileExceptionUnexpected), 0);
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::ProfileWriteReadOnly) {
+            EXPECT_NE(f.message.find("writes 500 to 2 "), std::string::npos) << f.message;
+            EXPECT_NE(f.message.find("while coil 0 "), std::string::npos) << f.message;
+            EXPECT_NE(f.message.find("holds 1"), std::string::npos) << f.message;
+            EXPECT_NE(f.message.find("[000:731]"), std::string::npos) << f.message;
+        }
+}
+
+TEST(Semantics, TheModeAWriteLeftIsTheModeLaterWritesAreJudgedIn) {
+    Harness h("dcy-2050", 1);
+    h.exchange(mb::make_write_single_coil(0, true), mb::make_write_single_coil(0, true));
+    h.exchange(mb::make_write_single_register(2, 500), mb::make_exception(6, 2));
+    h.exchange(mb::make_write_single_coil(0, false), mb::make_write_single_coil(0, false));
+    h.exchange(mb::make_write_single_register(2, 500), mb::make_exception(6, 2));
+    h.analyzer->finish();
+    // In automatic mode the write is the master's mistake; in manual mode the refusal is the device's.
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileExceptionUnexpected), 1);
+}
+
+TEST(Semantics, ARefusalWhileTheModeWasNeverSeenBlamesNobody) {
+    Harness h("dcy-2050", 1);
+    h.exchange(mb::make_write_single_register(2, 500), mb::make_exception(6, 2));
+    h.exchange(mb::make_write_single_register(3, 500), mb::make_write_single_register(3, 500));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileExceptionUnexpected), 0);
+}
+
+TEST(Semantics, ARunningProgramsRepetitionsAreReadOnlyAsAnInputRegisterReadShowed) {
+    Harness h("dcy-2050", 1);
+    const std::vector<std::uint16_t> running{2};  // suspended (000:735)
+    // FC4 reads the same registers as FC3 on this model (MK-FC04-01).
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadInputRegisters, 6, 1),
+               mb::make_read_registers_response(mb::FunctionCode::ReadInputRegisters, running));
+    const std::vector<std::uint16_t> repetitions{10, 10};
+    h.exchange(mb::make_write_multiple_registers(8, repetitions), mb::make_exception(16, 2));
+    h.analyzer->finish();
+    ASSERT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 1);  // 8; register 7 was never seen
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileExceptionUnexpected), 0);
+    for (const auto& f : h.sink.findings) {
+        if (f.code == mb::FindingCode::ProfileWriteReadOnly) {
+            EXPECT_NE(f.message.find("while register 6 "), std::string::npos) << f.message;
+        }
+    }
+}
