@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <functional>
 #include <span>
 
 #include "modbus/addressing.hpp"
@@ -77,6 +78,25 @@ std::string point_name(const Point& p) {
     return p.name_en.empty() ? p.name : p.name_en;
 }
 
+// The holding registers a write request writes (FC6, FC16, FC23's write part): the first address and the
+// values (those within the address space). nullopt for any other request.
+struct WrittenRegisters {
+    std::uint16_t start = 0;
+    std::vector<std::uint16_t> values;
+};
+std::optional<WrittenRegisters> written_registers(const Pdu& q) {
+    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
+        return WrittenRegisters{w->address, {w->value}};
+    const auto within = [](std::uint16_t start, const std::vector<std::uint16_t>& values) {
+        const auto n = count_within_address_space(start, values.size());
+        return WrittenRegisters{start, std::vector<std::uint16_t>(values.begin(), values.begin() + n)};
+    };
+    if (const auto* m = std::get_if<WriteMultipleRegistersRequest>(&q.body))
+        return within(m->starting_address, m->values);
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&q.body))
+        return within(rw->write_starting_address, rw->write_values);
+    return std::nullopt;
+}
 void check_write_value(const Profile& profile, Table table, std::uint16_t address, std::uint16_t value,
                        std::vector<RuleBreak>& out) {
     const Point* p = profile.find(table, address);
@@ -91,12 +111,40 @@ void check_write_value(const Profile& profile, Table table, std::uint16_t addres
                                                               ") is read-only [" + p->source + "]"});
         return;
     }
+    if (p->encoding.words == 2) return;  // judged whole by check_32bit_writes
     if (check_write(profile, table, address, value) == 3) {
         const bool is_signed = p->encoding.type == EncodingType::S16 || p->encoding.is_signed;
         const long long v = is_signed ? static_cast<std::int16_t>(value) : value;
         out.push_back({FindingCode::ProfileValueOutOfRange,
                        "writes " + std::to_string(v) + " to " + std::to_string(address) + " (" +
                            point_name(*p) + "); the manual allows " +
+                           (p->range_text.empty() ? std::string("other values") : p->range_text) + " [" +
+                           p->source + "]"});
+    }
+}
+
+// The 32-bit points among registers written from `start`: each judged as one value (a float against its
+// range in engineering units, and as a number), both halves from the request, or a lone half with the
+// other half `held` says the device holds (Walchem's manual has clients write a 32-bit set-point's halves
+// one at a time, 002:499). A half whose other half is unknown is not judged.
+void check_32bit_writes(const Profile& profile, std::uint16_t start, std::span<const std::uint16_t> values,
+                        const std::function<std::optional<std::uint16_t>(std::uint16_t)>& held,
+                        std::vector<RuleBreak>& out) {
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        const auto address = static_cast<std::uint16_t>(start + i);
+        const Point* p = profile.find(Table::HoldingRegisters, address);
+        if (!p || p->encoding.words != 2 || p->access == Access::Read || p->reserved) continue;
+        const bool whole = p->address == address && i + 1 < values.size();
+        std::vector<std::uint16_t> written{values[i]};
+        if (whole) written.push_back(values[i + 1]);
+        const auto rejected = check_writes(profile, Table::HoldingRegisters, address, written, held);
+        if (whole) ++i;
+        if (!rejected || rejected->exception_code == exception_for(profile, "bad_address", 2)) continue;
+        out.push_back({FindingCode::ProfileValueOutOfRange,
+                       "writes " + std::string(whole ? "" : "one half of ") + std::to_string(p->address) +
+                           "-" + std::to_string(p->address + 1) + " (" + point_name(*p) +
+                           "): " + rejected->reason + (whole ? "" : " with the other half as last seen") +
+                           "; the manual allows " +
                            (p->range_text.empty() ? std::string("other values") : p->range_text) + " [" +
                            p->source + "]"});
     }
@@ -138,16 +186,17 @@ std::vector<RuleBreak> Semantics::check_request(const Profile& profile, const st
             }
         }
     }
-    if (const auto* w = std::get_if<WriteSingle>(&q.body)) {
-        if (fc == 5)
-            check_write_value(profile, Table::Coils, w->address, w->value == 0xFF00 ? 1 : 0, out);
-        else
-            check_write_value(profile, Table::HoldingRegisters, w->address, w->value, out);
+    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && fc == 5)
+        check_write_value(profile, Table::Coils, w->address, w->value == 0xFF00 ? 1 : 0, out);
+    if (const auto w = written_registers(q)) {  // FC6, FC16 and FC23's write part
+        for (std::size_t i = 0; i < w->values.size(); ++i)
+            check_write_value(profile, Table::HoldingRegisters, static_cast<std::uint16_t>(w->start + i),
+                              w->values[i], out);
+        const auto held = [&](std::uint16_t address) {
+            return known(device, profile, PointRef{Table::HoldingRegisters, address});
+        };
+        check_32bit_writes(profile, w->start, w->values, held, out);
     }
-    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&q.body))
-        for (std::size_t i = 0; i < count_within_address_space(w->starting_address, w->values.size()); ++i)
-            check_write_value(profile, Table::HoldingRegisters,
-                              static_cast<std::uint16_t>(w->starting_address + i), w->values[i], out);
     if (const auto* w = std::get_if<WriteMultipleCoilsRequest>(&q.body))
         for (std::size_t i = 0;
              i < count_within_address_space(w->starting_address, w->quantity) && i / 8 < w->values.size();
@@ -183,25 +232,6 @@ std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const s
 
 namespace {
 
-// The holding registers a write request writes (FC6, FC16, FC23's write part): the first address and the
-// values (those within the address space). nullopt for any other request.
-struct WrittenRegisters {
-    std::uint16_t start = 0;
-    std::vector<std::uint16_t> values;
-};
-std::optional<WrittenRegisters> written_registers(const Pdu& q) {
-    if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
-        return WrittenRegisters{w->address, {w->value}};
-    const auto within = [](std::uint16_t start, const std::vector<std::uint16_t>& values) {
-        const auto n = count_within_address_space(start, values.size());
-        return WrittenRegisters{start, std::vector<std::uint16_t>(values.begin(), values.begin() + n)};
-    };
-    if (const auto* m = std::get_if<WriteMultipleRegistersRequest>(&q.body))
-        return within(m->starting_address, m->values);
-    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&q.body))
-        return within(rw->write_starting_address, rw->write_values);
-    return std::nullopt;
-}
 // What the device took: the request's writes when the response acknowledges them (its own function code,
 // not an exception; AP §6.17: FC23 writes before it reads).
 std::optional<WrittenRegisters> acknowledged_registers(const Pdu& q, const Pdu& a) {

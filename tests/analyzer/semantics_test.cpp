@@ -438,3 +438,32 @@ TEST(Semantics, ARunningProgramsRepetitionsAreReadOnlyAsAnInputRegisterReadShowe
         }
     }
 }
+
+// A 32-bit point is judged as one value: Walchem's network "Fluent update rate" (holding registers 148-149,
+// float, least significant word first, 1..1440 minutes). Written whole by FC16, or a half at a time by FC6
+// as the manual has clients do (002:499) with the other half the traffic showed.
+TEST(Semantics, A32BitWriteIsJudgedAsOneValue) {
+    Harness h("walchem-w600");
+    const std::vector<std::uint16_t> ten{0x0000, 0x4120}, two_thousand{0x0000, 0x44FA}, nan{0x0000, 0x7FC0};
+    h.exchange(mb::make_write_multiple_registers(148, ten),
+               mb::make_write_multiple_response(mb::FunctionCode::WriteMultipleRegisters, 148, 2));
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileValueOutOfRange), 0);
+    h.exchange(mb::make_write_multiple_registers(148, two_thousand), mb::make_exception(16, 3));
+    h.exchange(mb::make_write_multiple_registers(148, nan), mb::make_exception(16, 3));
+    // 10.0 acknowledged above; its high half replaced by 2000.0's.
+    h.exchange(mb::make_write_single_register(149, 0x44FA), mb::make_exception(6, 3));
+    // A half whose other half was never seen is not judged.
+    Harness unseen("walchem-w600");
+    unseen.exchange(mb::make_write_single_register(149, 0x44FA), mb::make_exception(6, 3));
+    h.analyzer->finish();
+    unseen.analyzer->finish();
+    EXPECT_EQ(unseen.sink.count(mb::FindingCode::ProfileValueOutOfRange), 0);
+    ASSERT_EQ(h.sink.count(mb::FindingCode::ProfileValueOutOfRange), 3);
+    std::vector<std::string> messages;
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::ProfileValueOutOfRange) messages.push_back(f.message);
+    EXPECT_NE(messages[0].find("value 2000 above maximum 1440"), std::string::npos) << messages[0];
+    EXPECT_NE(messages[1].find("not a finite number"), std::string::npos) << messages[1];
+    EXPECT_NE(messages[2].find("one half of 148-149"), std::string::npos) << messages[2];
+    EXPECT_NE(messages[2].find("value 2000 above maximum 1440"), std::string::npos) << messages[2];
+}
