@@ -1113,9 +1113,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         // An exception is the device's answer whatever it answers: to a request that does not decode (the
         // device's very reason to refuse it) or to another function than asked. Counted only for a request
         // that decoded, the summary's exceptions fell short of the replies that carried one.
-        const bool exception = !damaged && rsp.pdu && rsp.pdu->is_exception();
+        // One whose PDU did not decode for a byte too many after its code still carries the code.
+        const auto exception = damaged ? std::nullopt : exception_code_of(rsp);
         if (exception) {
-            const auto code = std::get<ExceptionResponse>(rsp.pdu->body).exception_code;
+            const auto code = *exception;
             if (!late) {  // of the responses; a late one is among the timeouts
                 ++stats.exceptions;
                 ++stats.exception_codes[code];

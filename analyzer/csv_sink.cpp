@@ -160,9 +160,8 @@ void CsvSink::transaction(const TransactionRecord& t) {
     row.push_back(extent ? std::to_string(extent->address) : "");
     row.push_back(extent ? std::to_string(extent->quantity) : "");
     row.push_back(status_of(t));
-    row.push_back(response && response->is_exception()
-                      ? std::to_string(std::get<ExceptionResponse>(response->body).exception_code)
-                      : "");
+    const auto exception = t.response ? exception_code_of(*t.response) : std::nullopt;
+    row.push_back(exception ? std::to_string(*exception) : "");
     if (t.latency) {
         char buf[32];
         std::snprintf(buf, sizeof buf, "%.3f", std::chrono::duration<double, std::milli>(*t.latency).count());

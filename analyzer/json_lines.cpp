@@ -67,8 +67,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
     if (t.answered_by_other_unit) out.member("answered_by_other_unit", true);
     if (!r && t.broadcast) out.member("broadcast", true);
     if (t.discarded) out.member("discarded", true);  // the keys in order, as the JSON output has them
-    if (r && r->pdu && r->pdu->is_exception())
-        out.member("exception_code", std::get<ExceptionResponse>(r->pdu->body).exception_code);
+    if (const auto code = r ? exception_code_of(*r) : std::nullopt) out.member("exception_code", *code);
     if (!t.findings.empty()) {
         out.key("findings");
         out.begin_array();

@@ -20,6 +20,17 @@ std::string_view to_string(Carrier c) noexcept {
     return "?";
 }
 
+std::optional<std::uint8_t> exception_code_of(const FrameRecord& response) noexcept {
+    if (response.pdu) {
+        if (const auto* e = std::get_if<modbus::ExceptionResponse>(&response.pdu->body))
+            return e->exception_code;
+        return std::nullopt;
+    }
+    const auto pdu = response.frame.pdu();
+    if (pdu.size() >= 2 && (pdu[0] & 0x80) != 0) return pdu[1];
+    return std::nullopt;
+}
+
 namespace {
 int bucket_of(std::uint64_t ns) {
     if (ns < 32) return static_cast<int>(ns);

@@ -53,6 +53,11 @@ struct FrameRecord {
     std::vector<modbus::FindingCode> reported_findings;
 };
 
+// The exception code a response carries: its decoded PDU's, or, when the PDU did not decode (an exception
+// with bytes after its code: "83 06 00"), the byte after an exception function code, as the device sent it
+// (tshark reads it so too). nullopt for anything else.
+std::optional<std::uint8_t> exception_code_of(const FrameRecord& response) noexcept;
+
 struct TransactionRecord {
     TransactionRecord() = default;
     explicit TransactionRecord(FrameRecord&& r) : request(std::move(r)) {}  // see FrameRecord(const Frame&)

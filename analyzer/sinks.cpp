@@ -21,7 +21,14 @@ double seconds(Timestamp t) {
 namespace {
 
 std::string pdu_brief(const FrameRecord& f) {
-    if (!f.pdu) return "undecodable PDU (" + f.error + ")";
+    if (!f.pdu) {
+        if (const auto code = exception_code_of(f)) {  // "83 06 00": the code is there all the same
+            const auto name = exception_name(*code);
+            return "FC" + std::to_string(f.frame.pdu()[0] & 0x7F) + " exception " + std::to_string(*code) +
+                   (name ? " " + std::string(*name) : "") + ", undecodable PDU (" + f.error + ")";
+        }
+        return "undecodable PDU (" + f.error + ")";
+    }
     const Pdu& p = *f.pdu;
     std::string s = "FC" + std::to_string(p.function_code());
     if (p.is_exception()) {
@@ -332,8 +339,7 @@ json transaction_to_json(const TransactionRecord& t) {
         j["response_frame"] = t.response->index;
         if (t.latency) j["latency_ms"] = std::chrono::duration<double, std::milli>(*t.latency).count();
         if (t.late_past) j["late"] = true;
-        if (t.response->pdu && t.response->pdu->is_exception())
-            j["exception_code"] = std::get<ExceptionResponse>(t.response->pdu->body).exception_code;
+        if (const auto code = exception_code_of(*t.response)) j["exception_code"] = *code;
     } else if (t.broadcast) {
         j["broadcast"] = true;
     } else {

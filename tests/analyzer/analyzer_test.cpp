@@ -614,6 +614,31 @@ TEST(Analyzer, ADevicesExceptionsAreCountedByCode) {
     EXPECT_EQ(json["exception_codes"], (nlohmann::json{{"2", 1}, {"11", 2}}));
 }
 
+// An exception reply with a byte after its code ("83 06 00", as one device in suricata-verify's modbus.pcap
+// sends) is malformed, and still the device's exception 6: counted, named in the transaction and its JSON
+// record, as tshark reads it. Before, the code was lost with the PDU and the device had "0 exceptions".
+TEST(Analyzer, AnExceptionWithATrailingByteStillCarriesItsCode) {
+    Harness h;
+    h.send(true, read_request(1), 1s);
+    h.send(false, {0x00, 0x01, 0x00, 0x00, 0x00, 0x04, 17, 0x83, 0x06, 0x00}, 1s + 10ms);
+    h.analyzer.finish();
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.exceptions, 1u);
+    EXPECT_EQ(device.exception_codes, (std::map<int, std::uint64_t>{{6, 1}}));
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PduMalformed), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairExceptionResponse), 1);
+    ASSERT_EQ(h.sink.transactions.size(), 1u);
+    const auto& t = h.sink.transactions[0];
+    ASSERT_TRUE(t.response.has_value());
+    EXPECT_EQ(an::exception_code_of(*t.response), std::optional<std::uint8_t>(6));
+    EXPECT_EQ(an::transaction_to_json(t)["exception_code"], 6);
+    std::ostringstream text;
+    an::TextSink(text).transaction(t);
+    EXPECT_NE(text.str().find("-> FC3 exception 6 Server Device Busy, undecodable PDU (trailing bytes"),
+              std::string::npos)
+        << text.str();
+}
+
 // A gateway's exceptions 10 (no path to the unit) and 11 (the unit did not respond) say that the request
 // reached no answer: errors, as the unit's timeout is on a line the master drives itself, where before they
 // were warnings like any exception and a capture of a gateway that never reached its unit exited 0. An
