@@ -305,12 +305,20 @@ void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) 
 }
 
 std::optional<Analyzer::CutAdu> Analyzer::cut_adu(std::span<const std::uint8_t> b, bool snapshot_length) {
-    // Transaction id, protocol id 0, length, unit, function code: enough to name it.
-    if (b.size() < 8 || b[2] != 0 || b[3] != 0) return std::nullopt;
+    // Transaction id, protocol id 0 and length name it (on its connection the transaction id is the
+    // client's own); the unit and function code, when the cut kept them, confirm it.
+    if (b.size() < 6 || b[2] != 0 || b[3] != 0) return std::nullopt;
     const std::size_t length = 6u + ((std::size_t{b[4]} << 8) | b[5]);
     if (length < 8 || length <= b.size()) return std::nullopt;
-    return CutAdu{
-        static_cast<std::uint16_t>((b[0] << 8) | b[1]), b[6], b[7], b.size(), length, snapshot_length};
+    CutAdu cut{static_cast<std::uint16_t>((b[0] << 8) | b[1]),
+               std::nullopt,
+               std::nullopt,
+               b.size(),
+               length,
+               snapshot_length};
+    if (b.size() > 6) cut.unit = b[6];
+    if (b.size() > 7) cut.function = static_cast<std::uint8_t>(b[7] & 0x7F);
+    return cut;
 }
 
 // Two copies of the same stream bytes that disagree: a broken TCP stack, a middlebox rewriting the stream,
@@ -862,9 +870,8 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     // Its request was cut by a gap in the request stream, and its header names this reply's transaction: not
     // unsolicited, nor (a client that sends the same id and request again) the last reply again.
     if (it == pending_.end() && r.frame.framing == Framing::Tcp && !cut_requests_.empty())
-        if (auto cut = cut_requests_.find(key);
-            cut != cut_requests_.end() && cut->second.unit == r.frame.unit_id() && !r.frame.pdu().empty() &&
-            (r.frame.pdu()[0] & 0x7F) == cut->second.function) {
+        if (auto cut = cut_requests_.find(key); cut != cut_requests_.end() && !r.frame.pdu().empty() &&
+                                                cut->second.names(r.frame.unit_id(), r.frame.pdu()[0])) {
             report(FindingCode::PairRequestNotCaptured, r,
                    "the reply to transaction id " + std::to_string(key.tid) +
                        ", whose request the capture holds only in part (" +
@@ -992,21 +999,24 @@ void Analyzer::reply_cut(Flow& f, const CutAdu& cut, Timestamp t) {
     // The oldest request waiting with the id whose unit and function the reply's header names.
     const Pending* answered = oldest_waiting(key, [&](const Pending& p) {
         const auto pdu = p.request.frame.pdu();
-        return p.request.frame.unit_id() == cut.unit && !pdu.empty() && pdu[0] == (cut.function & 0x7F);
+        return !pdu.empty() && cut.names(p.request.frame.unit_id(), pdu[0]);
     });
     if (!answered) {
         // Its request cut too: one transaction, both halves partly in the capture. Else a reply to nothing
         // waiting, whose bytes are reported unparsed as they are.
         const auto request = cut_requests_.find(key);
-        if (request == cut_requests_.end() || request->second.unit != cut.unit ||
-            request->second.function != (cut.function & 0x7F))
+        if (request == cut_requests_.end() ||
+            (request->second.unit && cut.unit && *request->second.unit != *cut.unit) ||
+            (request->second.function && cut.function && *request->second.function != *cut.function))
             return;
         const auto part = [](const CutAdu& c) {
             return std::to_string(c.captured) + " of its " + std::to_string(c.length) + " bytes" +
                    (c.snapshot_length ? ", cut to the snapshot length" : "");
         };
+        const auto unit = cut.unit ? cut.unit : request->second.unit;
         report(FindingCode::PairRequestNotCaptured, about_stream(f, t),
-               "transaction id " + std::to_string(cut.tid) + " to unit " + std::to_string(cut.unit) +
+               "transaction id " + std::to_string(cut.tid) +
+                   (unit ? " to unit " + std::to_string(*unit) : "") +
                    ": the capture holds only part of its request (" + part(request->second) +
                    ") and of its reply (" + part(cut) + ")");
         cut_requests_.erase(request);
@@ -1312,6 +1322,14 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         if (!at_end && e.deadline > now) break;
         next->pop_front();
         --expiry_entries_;
+        // A reply cut to the snapshot length waits as a hole in its stream, which a whole copy may still
+        // fill, until the client speaks again. Cut before this request's deadline it answered in time: given
+        // up now, it completes the request as answered, not captured whole (a poll slower than the timeout
+        // made a device's cut reply a timeout).
+        if (!at_end && find_pending(e.key, e.serial))
+            for (auto& [k, f] : flows_)
+                if (f->id == e.key.flow && f->reassembler[1] && f->reassembler[1]->cut_before(e.deadline))
+                    f->reassembler[1]->peer_spoke();
         auto taken = take_pending(e.key, e.serial);
         if (!taken) continue;  // answered meanwhile
         Pending p = std::move(*taken);

@@ -317,8 +317,13 @@ class Analyzer {
     // tells: the transaction it belongs to, how long it is and how much of it the capture holds.
     struct CutAdu {
         std::uint16_t tid = 0;
-        std::uint8_t unit = 0;
-        std::uint8_t function = 0;
+        // nullopt when the cut kept the header only up to the length (unit) or the unit (function).
+        std::optional<std::uint8_t> unit;
+        std::optional<std::uint8_t> function;  // without the exception bit
+        // Whether a frame or request with this unit and function (exception bit ignored) is the one cut.
+        bool names(std::uint8_t unit_id, std::uint8_t function_code) const noexcept {
+            return (!unit || *unit == unit_id) && (!function || *function == (function_code & 0x7F));
+        }
         std::size_t captured = 0;
         std::size_t length = 0;
         bool snapshot_length = false;  // the gap is a packet's bytes past the capture's snapshot length

@@ -60,6 +60,8 @@ class TcpReassembler {
     void peer_spoke() {
         if (cut_) give_up_cut();
     }
+    // Whether a hole cut_by_capture left waits, from a segment captured before `t`.
+    bool cut_before(modbus::Timestamp t) const noexcept { return cut_ && cut_->time <= t; }
     // While the gap callback runs: whether the gap is a record's bytes past the snapshot length.
     bool gap_is_cut() const noexcept { return cut_gap_; }
     static constexpr modbus::Timestamp reordering_wait{1'000'000'000};

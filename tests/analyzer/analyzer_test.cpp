@@ -1418,6 +1418,41 @@ TEST(Analyzer, AReplyCutByTheSnapshotLengthIsAnAnswerNotATimeout) {
     EXPECT_FALSE(h.sink.transactions[0].timed_out);
 }
 
+// The same when the client polls more slowly than the timeout: the cut reply waits in its stream for a
+// whole copy until the client speaks again, 5 s later, past the request's 3 s deadline; it answered in
+// time all the same. And a cut that keeps only the header up to the unit id (7 bytes) or the length (6)
+// still names its transaction. Before, these were timeouts (errors, exit 1) or unanswered at the end.
+TEST(Analyzer, AReplyCutByTheSnapshotLengthIsAnAnswerWhenPollingIsSlowerThanTheTimeout) {
+    for (const std::size_t kept : {10u, 7u, 6u}) {
+        Harness h;
+        h.send(true, read_request(1, 0, 10), 1s);
+        h.send_cut(false, read_response(1, {0, 1, 2, 3, 4, 5, 6, 7, 8, 9}), kept, 1s + 10ms);
+        h.send(true, read_request(2, 0, 1), 6s);
+        h.send(false, read_response(2, {78}), 6s + 10ms);
+        h.analyzer.finish();
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0) << kept;
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 0) << kept;
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairResponseNotCaptured), 1) << kept;
+        const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+        EXPECT_EQ(device.timeouts, 0u) << kept;
+        EXPECT_EQ(device.replies_not_captured, 1u) << kept;
+        EXPECT_EQ(device.responses, 1u) << kept;
+        EXPECT_EQ(h.analyzer.summary().errors, 0u) << kept;
+    }
+}
+
+// A reply cut after a request timed out is no answer in time: the timeout stands.
+TEST(Analyzer, AReplyCutAfterTheTimeoutLeavesTheTimeout) {
+    Harness h;
+    h.send(true, read_request(1, 0, 10), 1s);
+    h.send_cut(false, read_response(1, {0, 1, 2, 3, 4, 5, 6, 7, 8, 9}), 10, 5s);
+    h.send(true, read_request(2, 0, 1), 9s);
+    h.send(false, read_response(2, {78}), 9s + 10ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").timeouts, 1u);
+}
+
 // The same cut in the request stream: the reply that answers the cut request is not unsolicited; and a
 // transaction whose request and reply are both cut is named once, not left as two runs of unparsed bytes.
 TEST(Analyzer, ARequestCutByTheSnapshotLengthLeavesItsReplyNotUnsolicited) {
