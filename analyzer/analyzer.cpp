@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
 
 #include "analyzer/exported_pdu.hpp"
 #include "analyzer/rtac_serial.hpp"
@@ -23,6 +24,16 @@ struct Analyzer::Flow {
     Carrier carrier = Carrier::Tcp;                  // Tcp: reassembled; the others come whole
     std::unique_ptr<TcpReassembler> reassembler[2];  // [0] client → server, [1] server → client
     TcpStreamDeframer deframer[2];
+    // Per direction, the stream offset each packet's bytes reached the deframer at, and that packet's
+    // number, from the one holding the deframer's first unreported byte on: unparsed bytes are reported
+    // at the packet that carried them, not at whatever packet (of any connection) ends them.
+    std::deque<std::pair<std::uint64_t, std::uint64_t>> fed[2];
+    std::uint64_t packet_at(int dir, std::uint64_t offset, std::uint64_t otherwise) const {
+        const auto& f = fed[dir];
+        auto after = std::upper_bound(f.begin(), f.end(), offset,
+                                      [](std::uint64_t o, const auto& entry) { return o < entry.first; });
+        return after == f.begin() ? otherwise : std::prev(after)->second;
+    }
     // A serial gateway's port: the stream holds raw RTU frames, delimited by content and CRC.
     bool rtu_over_tcp = false;
     RtuDeframer rtu_deframer[2];
@@ -251,8 +262,14 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
     DeframeEvents& events = stream_events_;  // reused: one allocation for the run, not one a packet
     events.clear();
     if (!f.rtu_over_tcp) {
+        auto& fed = f.fed[dir];
+        if (fed.empty() || fed.back().second != packet_number_)
+            fed.emplace_back(f.deframer[dir].offset(), packet_number_);
         f.deframer[dir].feed(bytes, t, events);
         deframed(f, dir == 0, events, t);
+        const std::uint64_t first = f.deframer[dir].unreported();
+        while (fed.size() > 1 && fed[1].first <= first)
+            fed.pop_front();
         return;
     }
     // A gateway carries one request and its response at a time: when one side speaks, what the other side
@@ -476,16 +493,19 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
     for (auto& e : events) {
         if (auto* u = std::get_if<Unparsed>(&e)) {
             summary_.unparsed_bytes += u->length;
-            UnparsedRecord rec{
-                source_,   flow.link,      to_server ? Direction::Request : Direction::Response,
-                t,         packet_number_, u->offset,
-                u->length, u->reason};
+            // Where the bytes came: their first byte's packet and its time (a Modbus/TCP stream's; a
+            // datagram's or a serial record's are the packet being read).
+            const std::uint64_t packet = flow.packet_at(to_server ? 0 : 1, u->offset, packet_number_);
+            const Timestamp when = u->time.count() != 0 && !flow.rtu_over_tcp ? u->time : t;
+            UnparsedRecord rec{source_,   flow.link, to_server ? Direction::Request : Direction::Response,
+                               when,      packet,    u->offset,
+                               u->length, u->reason};
             sink_.unparsed(rec);
             FrameRecord about;
-            about.time = t;
+            about.time = when;
             about.source = source_;
             about.link = flow.link;
-            about.packet = packet_number_;
+            about.packet = packet;
             const FindingCode code = u->reason == UnparsedReason::BadHeader
                                          ? FindingCode::TcpLengthInvalid
                                          : FindingCode::StreamUnparsedBytes;
@@ -2013,6 +2033,7 @@ void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
     for (int dir = 0; dir < 2; ++dir) {
         f.reassembler[dir]->reset(TcpReassembler::default_max_buffered);
         f.deframer[dir].reset();
+        f.fed[dir].clear();
         f.rtu_deframer[dir].reset();
         f.rtu_lost[dir] = 0;
     }

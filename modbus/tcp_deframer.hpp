@@ -25,6 +25,9 @@ class TcpStreamDeframer {
     void finish(DeframeEvents& out);
     std::uint64_t offset() const noexcept { return base_ + (buf_.size() - head_); }
     std::size_t buffered() const noexcept { return buf_.size() - head_; }  // bytes of an incomplete frame
+    // The stream offset of the first byte no event has reported yet: unparsed bytes still gathering, or
+    // the buffered ones.
+    std::uint64_t unreported() const noexcept { return pending_.length != 0 ? pending_.offset : base_; }
     // Those bytes, valid until the next call (a frame cut by a gap: its MBAP header still names it).
     std::span<const std::uint8_t> incomplete() const noexcept { return {buf_.data() + head_, buffered()}; }
     // Back to a new deframer's state at stream offset 0, keeping the buffer's capacity.

@@ -439,6 +439,32 @@ TEST(Analyzer, BytesBeforeAMidStreamCapturesFirstAreReportedUnparsed) {
     EXPECT_EQ(h.sink.transactions.size(), 1u);
 }
 
+// Bytes that form no frame are reported when the next frame (or the end) shows where they stop, often a
+// later packet: the record and its finding name the packet that carried their first byte and its time.
+// Before, they named the packet being read then, seconds later, even one of another connection.
+TEST(Analyzer, UnparsedBytesAreReportedAtThePacketThatCarriedThem) {
+    Harness h;
+    auto bad = read_request(1);
+    bad[4] = 0;
+    bad[5] = 0;                                  // MBAP length 0
+    h.send(true, bad, 1s);                       // packet 1
+    h.send(true, {0xDE, 0xAD, 0xBE, 0xEF}, 2s);  // packet 2: more garbage
+    h.send(true, read_request(2), 5s);           // packet 3
+    h.send(false, read_response(2), 5s + 10ms);
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.unparsed_records.size(), 1u);
+    EXPECT_EQ(h.sink.unparsed_records[0].length, bad.size() + 4);
+    EXPECT_EQ(h.sink.unparsed_records[0].packet, 1u);
+    EXPECT_EQ(h.sink.unparsed_records[0].time, mb::Timestamp(1s));
+    ASSERT_EQ(h.sink.count(mb::FindingCode::TcpLengthInvalid), 1);
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::TcpLengthInvalid) {
+            EXPECT_EQ(f.packet, 1u);
+            EXPECT_EQ(f.time, mb::Timestamp(1s));
+        }
+    EXPECT_EQ(h.sink.transactions.size(), 1u);
+}
+
 TEST(Analyzer, NoResponseWithinTimeout) {
     Harness h;
     h.send(true, read_request(1), 1s);
@@ -858,7 +884,8 @@ TEST(Analyzer, AResetConnectionsHalfAduDoesNotSwallowTheNextConnectionsRequest) 
         EXPECT_EQ(cut.length, 7u);
         EXPECT_EQ(cut.offset, 0u);
         EXPECT_EQ(cut.reason, mb::UnparsedReason::Truncated);
-        EXPECT_EQ(cut.time, reset_seen ? 1s + 2ms : 2s);  // reported when the connection ended
+        EXPECT_EQ(cut.time, 1s + 1ms);  // where the bytes are, though reported when the connection ended
+        EXPECT_EQ(cut.packet, 2u);
         EXPECT_EQ(h.analyzer.summary().unparsed_bytes, 7u);
     }
 }
