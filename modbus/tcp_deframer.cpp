@@ -95,10 +95,17 @@ void TcpStreamDeframer::flush_unparsed(DeframeEvents& out) {
     pending_ = Unparsed{};
 }
 
+bool TcpStreamDeframer::last_frame_decodes() const noexcept {
+    return last_pdu_size_ == 0 || plausible_pdu({last_pdu_.data(), last_pdu_size_});
+}
+
 void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
     while (head_ < buf_.size()) {
         const std::span<const std::uint8_t> rest(buf_.data() + head_, buf_.size() - head_);
-        const DeframeStep step = tcp_step(rest, at_end, in_sync_);
+        // A non-zero protocol id after an ADU that does not decode is that ADU's own bytes, not a header.
+        const bool in_sync =
+            in_sync_ && (rest.size() < 6 || (rest[2] == 0 && rest[3] == 0) || last_frame_decodes());
+        const DeframeStep step = tcp_step(rest, at_end, in_sync);
         if (step.kind == Kind::NeedMore) break;
         if (step.kind == Kind::Skip) {
             if (pending_.length != 0 && pending_.reason != step.reason) flush_unparsed(out);
@@ -121,6 +128,8 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
             frame.end = last_;
             if (frame.protocol_id() != 0) frame.findings.add(FindingCode::TcpProtocolIdNonzero);
             if (frame.length_field() > max_pdu_length + 1) frame.findings.add(FindingCode::TcpLengthInvalid);
+            last_pdu_size_ = step.length - 7;
+            std::memcpy(last_pdu_.data(), rest.data() + 7, last_pdu_size_);
             in_sync_ = true;
         }
         head_ += step.length;
@@ -165,6 +174,7 @@ void TcpStreamDeframer::reset() noexcept {
     head_ = 0;
     base_ = 0;
     in_sync_ = true;
+    last_pdu_size_ = 0;
     last_ = Timestamp{0};
     first_ = Timestamp{0};
     pending_ = Unparsed{};

@@ -3,8 +3,12 @@
 // many chunks. The MBAP length field delimits each ADU (TCP §3.1.3). A length outside 2..254 cannot be
 // trusted: the bytes are reported as unparsed and the deframer resynchronises on the next plausible MBAP
 // header (protocol id 0, length 2..254, function code 1..127). While in sync, a header with a non-zero
-// protocol id is still a frame (flagged tcp.protocol_id_nonzero) so the analyzer can say what it was.
+// protocol id is still a frame (flagged tcp.protocol_id_nonzero) so the analyzer can say what it was;
+// but not right after an ADU whose PDU does not decode: a length field too short for its PDU ("length 2"
+// on a 12-byte read request) puts the rest of that ADU in front of the next header, where it reads as a
+// header with a non-zero protocol id. The stream is out of sync there, and resynchronises.
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -41,6 +45,10 @@ class TcpStreamDeframer {
     std::size_t head_ = 0;
     std::uint64_t base_ = 0;
     bool in_sync_ = true;
+    // The PDU of the last frame, judged only when the next header's protocol id is not 0.
+    std::array<std::uint8_t, max_frame_bytes> last_pdu_{};
+    std::size_t last_pdu_size_ = 0;
+    bool last_frame_decodes() const noexcept;
     Timestamp last_{0};
     Timestamp first_{0};  // time of the chunk that held the first buffered byte
     Unparsed pending_{};

@@ -100,6 +100,35 @@ TEST(TcpStreamDeframer, ProtocolIdNonZeroInSyncIsAFlaggedFrame) {
     EXPECT_TRUE(std::get<mb::Frame>(events[0]).findings.contains(mb::FindingCode::TcpProtocolIdNonzero));
 }
 
+// A read request whose length field says 2 (unit and function) is a frame of 8 bytes whose PDU does not
+// decode; its address and quantity ("00 6B 00 03") then start what reads as a header with protocol id 3.
+// That is the stream out of sync, not a frame: the 4 bytes are unparsed and the next request is whole.
+// After a frame that decodes, a non-zero protocol id is still a (flagged) frame.
+TEST(TcpStreamDeframer, ANonZeroProtocolIdAfterAnAduThatDoesNotDecodeIsResynchronisedOn) {
+    const auto good = sample_adus();
+    const auto short_length = hex("00 01 00 00 00 02 11 03 00 6B 00 03");
+    // Transaction id 2: "00 6B | 00 03 | 00 02" reads as a header of length 2 (1 would be impossible).
+    const auto next = hex("00 02 00 00 00 06 11 03 00 6B 00 03");
+    const auto data = concat({short_length, next, good[1]});
+    for (const std::vector<std::size_t>& sizes :
+         {std::vector<std::size_t>{data.size()}, std::vector<std::size_t>{12, 12, data.size() - 24}}) {
+        auto events = run(data, sizes);
+        expect_every_byte_accounted(events, data.size());
+        EXPECT_EQ(frames_bytes(events),
+                  (std::vector{std::vector<std::uint8_t>(short_length.begin(), short_length.begin() + 8),
+                               next, good[1]}));
+        for (const auto& e : events) {
+            if (const auto* f = std::get_if<mb::Frame>(&e)) {
+                EXPECT_FALSE(f->findings.contains(mb::FindingCode::TcpProtocolIdNonzero));
+            }
+        }
+    }
+    const auto flagged = concat({good[0], hex("00 02 00 01 00 06 11 03 00 6B 00 03")});
+    auto events = run(flagged, {flagged.size()});
+    ASSERT_EQ(events.size(), 2u);
+    EXPECT_TRUE(std::get<mb::Frame>(events[1]).findings.contains(mb::FindingCode::TcpProtocolIdNonzero));
+}
+
 TEST(TcpStreamDeframer, GapLosesTheFrameInProgressAndResyncs) {
     const auto adus = sample_adus();
     mb::TcpStreamDeframer d;
