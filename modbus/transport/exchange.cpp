@@ -3,6 +3,8 @@
 #include <algorithm>
 
 #include "modbus/adu.hpp"
+#include "modbus/checksum.hpp"
+#include "modbus/pdu.hpp"
 #include "modbus/rtu_deframer.hpp"
 
 namespace mbscope::modbus::transport {
@@ -12,6 +14,24 @@ struct Span {
     std::size_t begin = 0, end = 0;  // end == 0: no complete frame
 };
 
+// An RTU reply's length as its function code and byte count say (address, PDU, CRC), once the bytes so
+// far tell it.
+std::optional<std::size_t> rtu_reply_length(std::span<const std::uint8_t> b) noexcept {
+    if (b.size() < 2) return std::nullopt;
+    const LengthPrediction p = predict_pdu_length(b.subspan(1), Direction::Response);
+    if (p.kind != LengthPrediction::Kind::Known) return std::nullopt;
+    return 1 + p.length + 2;
+}
+
+bool crc_ok(std::span<const std::uint8_t> frame) noexcept {
+    const std::size_t n = frame.size() - 2;
+    return crc16(frame.first(n)) == static_cast<std::uint16_t>(frame[n] | (frame[n + 1] << 8));
+}
+
+// The bytes here are replies. The RTU deframer, which serves either direction, takes the first length whose
+// CRC checks; inside a longer reply a request's length may check too ("01 01 04 62 F2 02 58 45" is the
+// start of a read-coils reply and a whole FC1 request): a reply's own length, when its bytes say it and
+// their CRC checks, is preferred, and waited for while the line is not silent.
 Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silence, bool datagram) {
     switch (framing) {
         case Framing::Tcp: {
@@ -33,7 +53,17 @@ Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silen
             std::size_t head = 0;
             while (head < bytes.size()) {
                 const auto step = rtu_step(bytes.subspan(head), silence, false);
-                if (step.kind == DeframeStep::Kind::Complete) return {head, head + step.length};
+                if (step.kind == DeframeStep::Kind::Complete) {
+                    const auto want = rtu_reply_length(bytes.subspan(head));
+                    if (want && *want > step.length && *want <= max_frame_bytes) {
+                        if (head + *want <= bytes.size()) {
+                            if (crc_ok(bytes.subspan(head, *want))) return {head, head + *want};
+                        } else if (!silence) {
+                            return {};  // the rest of the reply is on its way
+                        }
+                    }
+                    return {head, head + step.length};
+                }
                 if (step.kind == DeframeStep::Kind::NeedMore) break;
                 head += step.length ? step.length : 1;
             }

@@ -84,6 +84,33 @@ TEST(ReplyScanner, RtuEndsAtTheCrcOrAtASilence) {
     EXPECT_EQ(garbage.response->wire_length, 5u);
 }
 
+// A read-coils reply whose first 8 bytes are also a whole FC1 request with a valid CRC ("01 01 04 62 F2 02"
+// and its CRC 58 45): the reply's own length (its byte count says 9 bytes) is the frame, waited for while
+// the line is not silent. Taking the first length whose CRC checks cut a correct slave's reply into a
+// malformed one (reply.malformed against the reference slave in the network fuzzer).
+TEST(ReplyScanner, RtuTakesAReplysOwnLengthOverARequestShapedPrefix) {
+    const std::vector<std::uint8_t> reply{0x01, 0x01, 0x04, 0x62, 0xF2, 0x02, 0x58, 0x45, 0x00};
+    Exchange ex;
+    ex.sent = {0x01, 0x01, 0x00, 0x00, 0x00, 0x20, 0x3D, 0xD2};
+    append(ex, std::vector<std::uint8_t>(reply.begin(), reply.begin() + 8));
+    ReplyScanner scanner(Framing::Rtu, false, 1);
+    EXPECT_EQ(scanner.scan(ex, false), 0u);
+    append(ex, std::vector<std::uint8_t>(reply.begin() + 8, reply.end()));
+    EXPECT_EQ(scanner.scan(ex, false), 1u);
+    ASSERT_TRUE(ex.response.has_value());
+    EXPECT_EQ(ex.response->wire_length, 9u);
+    EXPECT_TRUE(ex.response->checksum_ok);
+    const auto frames = transport::frames_in(Framing::Rtu, reply);
+    ASSERT_EQ(frames.size(), 1u);
+    EXPECT_EQ(frames[0].wire_length, 9u);
+    // Cut at the prefix and silent after it: the 8 bytes are what came.
+    Exchange cut;
+    append(cut, std::vector<std::uint8_t>(reply.begin(), reply.begin() + 8));
+    ReplyScanner by_silence(Framing::Rtu, false, 1);
+    EXPECT_EQ(by_silence.scan(cut, true), 1u);
+    EXPECT_EQ(cut.response->wire_length, 8u);
+}
+
 TEST(ReplyScanner, AsciiEndsAtCrLf) {
     Exchange ex;
     const auto text = encode_ascii(0x11, reply_pdu);
