@@ -153,6 +153,13 @@ int run_fuzz_command(const FuzzCliOptions& o) {
                   << (found ? "; what is above comes from the part of the run that was made\n"
                             : ", nothing found so far; the run did not complete\n");
     if (found) return exit_findings;
+    // A run that sent no request judged nothing (every planned write skipped because its points could
+    // not be read first): not the clean result exit 0 promises.
+    if (summary.requests == 0 && !summary.stopped) {
+        std::cerr << "mbscope fuzz: no request was sent in the budget (" << summary.skipped_writes
+                  << " planned writes skipped: their points could not be read first); nothing was judged\n";
+        return exit_failure;
+    }
     return summary.stopped ? exit_failure : exit_ok;
 }
 
@@ -176,8 +183,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
         "Every point written is read first and written back at the end; --read-only writes nothing.\n"
         "Output: progress on a terminal (stderr), findings on stderr, a JSON summary on stdout.\n"
         "Exit codes: 0 nothing found, 1 at least one finding (or a point not restored), 2 the target could\n"
-        "not be reached or never answered, or the run was interrupted (SIGINT, SIGTERM) before it found\n"
-        "anything.\n"
+        "not be reached or never answered the health check with a frame, no request was sent,\n"
+        "or the run was interrupted (SIGINT, SIGTERM) before it found anything.\n"
         "Example: mbscope fuzz --target tcp://127.0.0.1:5020 --profile mmk-2030 --duration 60s --artifacts "
         "out");
     cmd->add_option("--target", o->target, "The slave to fuzz (URI)")->required();

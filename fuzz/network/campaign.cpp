@@ -106,7 +106,9 @@ class Campaign {
     bool await_due_replies(std::chrono::milliseconds timeout);
     void judge_arrivals();
     bool last_unanswered() const;
-    bool healthy(std::chrono::nanoseconds* latency = nullptr);
+    // `strict`: only a frame counts (the run's first check: a target that answers bytes that form no
+    // frame was never shown to be a Modbus slave at all).
+    bool healthy(std::chrono::nanoseconds* latency = nullptr, bool strict = false);
     bool prepare_writes(const Probe& p);
     bool keep_line_settings(Probe& p);
     bool remember_before_write(const WriteRange& range, const std::function<bool()>& read);
@@ -358,7 +360,7 @@ void Campaign::judge_arrivals() {
         record(v, last_function_, true);
 }
 
-bool Campaign::healthy(std::chrono::nanoseconds* latency) {
+bool Campaign::healthy(std::chrono::nanoseconds* latency, bool strict) {
     const auto late_before = s_.late_replies;
     for (int attempt = 0; attempt < health_attempts; ++attempt) {
         ++s_.health_checks;
@@ -373,8 +375,14 @@ bool Campaign::healthy(std::chrono::nanoseconds* latency) {
         }
         // Alive is answering at all, if late (the reply to an earlier attempt, heard while waiting it out
         // or during this one): whether the answer keeps the rules is the probes' business. A late reply's
-        // latency is at least the timeout it missed.
-        if (!r.exchange.received.empty() || s_.late_replies > late_before) {
+        // latency is at least the timeout it missed. At the start, the answer must be a frame that names
+        // the unit asked or the function asked (or its exception): a faulty reply still does (a wrong
+        // function, a wrong unit, a bad CRC are what the probes are for), bytes that form none do not.
+        const auto& reply = r.exchange.response;
+        const bool normal = reply && !reply->pdu().empty() &&
+                            (reply->unit_id() == options_.unit || (reply->pdu()[0] & 0x7F) == health_[0]);
+        const bool late = s_.late_replies > late_before;  // a frame, set aside as an earlier attempt's
+        if (late || (strict ? normal : !r.exchange.received.empty())) {
             if (latency)
                 *latency = !r.exchange.own_received().empty()
                                ? r.exchange.first_byte
@@ -770,7 +778,7 @@ bool Campaign::done() const {
 
 CampaignSummary Campaign::run() {
     start_ = Clock::now();
-    if (!healthy()) {
+    if (!healthy(nullptr, true)) {
         s_.error = "no normal reply to the health-check request " + modbus::hex_bytes(health_) + " (unit " +
                    std::to_string(options_.unit) + ")";
         return s_;

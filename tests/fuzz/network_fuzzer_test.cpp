@@ -14,6 +14,7 @@
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -759,6 +760,42 @@ TEST(NetworkFuzzer, UnreachableTargetIsReportedNotFuzzed) {
     const auto s = fz::run_campaign(mbscope::slave::test::profile("mmk-2030"), o);
     EXPECT_FALSE(s.reachable);
     EXPECT_FALSE(s.error.empty());
+    EXPECT_EQ(s.requests, 0u);
+}
+
+// A peer that answers every request with bytes that form no frame ("DE AD BE EF" three times) was never
+// shown to be a Modbus slave: the first health check fails and nothing is fuzzed (exit 2), where before any
+// byte passed it and the run went on to send nothing, every planned write skipped for points it could not
+// read, and exited 0, "nothing found".
+TEST(NetworkFuzzer, APeerWhoseBytesFormNoFrameIsNotFuzzed) {
+    auto listener = mbscope::modbus::transport::listen_tcp("127.0.0.1", 0);
+    ASSERT_TRUE(listener.has_value());
+    const auto port = mbscope::modbus::transport::bound_port(listener.value().get());
+    std::atomic<bool> stop{false};
+    std::thread peer([&] {
+        while (!stop) {
+            pollfd p{listener.value().get(), POLLIN, 0};
+            if (::poll(&p, 1, 50) != 1) continue;
+            mbscope::modbus::transport::UniqueFd c(::accept(listener.value().get(), nullptr, nullptr));
+            std::uint8_t buf[512];
+            while (!stop) {
+                pollfd q{c.get(), POLLIN, 0};
+                if (::poll(&q, 1, 50) != 1) continue;
+                if (::recv(c.get(), buf, sizeof buf, 0) <= 0) break;
+                const std::uint8_t garbage[] = {0xDE, 0xAD, 0xBE, 0xEF, 0xDE, 0xAD,
+                                                0xBE, 0xEF, 0xDE, 0xAD, 0xBE, 0xEF};
+                (void)::send(c.get(), garbage, sizeof garbage, MSG_NOSIGNAL);
+            }
+        }
+    });
+    auto o = options_for("tcp", port);
+    o.requests = 50;
+    o.duration = std::chrono::seconds(5);
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("modbus"), o);
+    stop = true;
+    peer.join();
+    EXPECT_FALSE(s.reachable);
+    EXPECT_NE(s.error.find("health-check"), std::string::npos) << s.error;
     EXPECT_EQ(s.requests, 0u);
 }
 
