@@ -267,9 +267,16 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
             fed.emplace_back(f.deframer[dir].offset(), packet_number_);
         f.deframer[dir].feed(bytes, t, events);
         deframed(f, dir == 0, events, t);
+        // Kept: the entry holding the first unreported byte (a run of unparsed bytes still gathering needs
+        // only its first byte's packet), and those from the one holding the first buffered byte on.
         const std::uint64_t first = f.deframer[dir].unreported();
+        const std::uint64_t buffered = f.deframer[dir].offset() - f.deframer[dir].buffered();
         while (fed.size() > 1 && fed[1].first <= first)
             fed.pop_front();
+        std::size_t from = 1;
+        while (from + 1 < fed.size() && fed[from + 1].first <= buffered)
+            ++from;
+        if (from > 1) fed.erase(fed.begin() + 1, fed.begin() + static_cast<std::ptrdiff_t>(from));
         return;
     }
     // A gateway carries one request and its response at a time: when one side speaks, what the other side
@@ -494,9 +501,12 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
         if (auto* u = std::get_if<Unparsed>(&e)) {
             summary_.unparsed_bytes += u->length;
             // Where the bytes came: their first byte's packet and its time (a Modbus/TCP stream's; a
-            // datagram's or a serial record's are the packet being read).
-            const std::uint64_t packet = flow.packet_at(to_server ? 0 : 1, u->offset, packet_number_);
-            const Timestamp when = u->time.count() != 0 && !flow.rtu_over_tcp ? u->time : t;
+            // datagram's or a serial record's are the packet being read, as are bytes that came before the
+            // stream's start, which were never fed to the deframer).
+            const bool fed = u->reason != UnparsedReason::BeforeStreamStart && !flow.rtu_over_tcp;
+            const std::uint64_t packet =
+                fed ? flow.packet_at(to_server ? 0 : 1, u->offset, packet_number_) : packet_number_;
+            const Timestamp when = fed && u->time.count() != 0 ? u->time : t;
             UnparsedRecord rec{source_,   flow.link, to_server ? Direction::Request : Direction::Response,
                                when,      packet,    u->offset,
                                u->length, u->reason};
@@ -1263,8 +1273,8 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                                                                      *rsp_record->pdu))
                     found.push_back(
                         {rule.code, rsp_record, std::move(rule.message), {request.index, rsp_record->index}});
-            if (auto moved =
-                    options_.semantics->follow_address(server, *profile, *request.pdu, *rsp_record->pdu)) {
+            if (auto moved = options_.semantics->follow_address(server, request.device.str(), *profile,
+                                                                *request.pdu, *rsp_record->pdu)) {
                 // The unit no longer answers at its old address: it is not on the line there any more.
                 if (SerialLink* line = serial_line_of(request.link.str(), request.carrier)) {
                     std::erase(line->answered, request.frame.unit_id());

@@ -384,8 +384,8 @@ std::optional<Semantics::LineSettingsTold> Semantics::follow_broadcast_line_sett
     return told;
 }
 
-std::optional<RuleBreak> Semantics::follow_address(const std::string& server, const Profile& profile,
-                                                   const Pdu& q, const Pdu& a) {
+std::optional<RuleBreak> Semantics::follow_address(const std::string& server, const std::string& device,
+                                                   const Profile& profile, const Pdu& q, const Pdu& a) {
     if (profile.open_address_space) return std::nullopt;
     const auto w = acknowledged_registers(q, a);
     if (!w) return std::nullopt;
@@ -399,6 +399,19 @@ std::optional<RuleBreak> Semantics::follow_address(const std::string& server, co
     if (value > 0xFF) return std::nullopt;
     const auto unit = static_cast<std::uint8_t>(value);
     moved_[{server.substr(0, server.rfind(':')), unit}] = &profile;
+    if (const std::string there = server + " unit " + std::to_string(unit); there != device) {
+        const auto move = [&](auto& memory) {
+            auto node = memory.extract(device);
+            memory.erase(there);
+            if (!node.empty()) {
+                node.key() = there;
+                memory.insert(std::move(node));
+            }
+        };
+        move(state_);
+        move(registers_);
+        move(holding_);
+    }
     return RuleBreak{
         FindingCode::ProfileAddressMoved,
         register_name(*p) + " := " + std::to_string(unit) + " acknowledged: the device answers at unit " +

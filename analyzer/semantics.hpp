@@ -49,8 +49,11 @@ class Semantics {
     // A write to the device's address register that it acknowledged (MK ENDER: the device obeys at once,
     // MK-CFG-01): from then on `server`'s unit at the new address is described by `profile` too. The note
     // to report, or nullopt when the transaction moved nothing.
-    std::optional<RuleBreak> follow_address(const std::string& server, const modbus::Profile& profile,
-                                            const modbus::Pdu& request, const modbus::Pdu& response);
+    // What earlier traffic showed `device` holding goes with it to "server unit N" (and what was remembered
+    // there, of a device that moved away, is dropped).
+    std::optional<RuleBreak> follow_address(const std::string& server, const std::string& device,
+                                            const modbus::Profile& profile, const modbus::Pdu& request,
+                                            const modbus::Pdu& response);
     // A write to the registers mirroring the device's framing, speed or parity (MK PROT, BAUD, PARID:
     // MK-CFG-01) that it acknowledged, with codes the manual defines and, where the registers were read
     // before on `device`, other than they held: the device talks with them from then on. The note and the

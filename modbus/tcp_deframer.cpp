@@ -95,17 +95,42 @@ void TcpStreamDeframer::flush_unparsed(DeframeEvents& out) {
     pending_ = Unparsed{};
 }
 
+namespace {
+// Whether a PDU decodes as a Modbus function's, in either direction, other rule violations or not (a read
+// of quantity 0 is a frame a tester sends on purpose, not a stream out of sync).
+bool decodes(std::span<const std::uint8_t> pdu) noexcept {
+    for (const bool request : {true, false}) {
+        const auto decoded = request ? decode_request(pdu) : decode_response(pdu);
+        if (decoded && !decoded->violations.contains(FindingCode::PduUnknownFunction)) return true;
+    }
+    return false;
+}
+}  // namespace
+
 bool TcpStreamDeframer::last_frame_decodes() const noexcept {
-    return last_pdu_size_ == 0 || plausible_pdu({last_pdu_.data(), last_pdu_size_});
+    return last_pdu_size_ == 0 || decodes({last_pdu_.data(), last_pdu_size_});
+}
+
+// After a frame that did not decode, a header with a non-zero protocol id is taken for one only when its
+// PDU decodes (waited for while the bytes so far can start a PDU of its length): otherwise it is the rest
+// of that frame.
+bool TcpStreamDeframer::trusted_header(std::span<const std::uint8_t> rest) const noexcept {
+    if (rest.size() < 6 || (rest[2] == 0 && rest[3] == 0) || last_frame_decodes()) return true;
+    if (!length_ok(length_field(rest))) return false;
+    const std::size_t total = 6 + length_field(rest);
+    if (rest.size() < total) {
+        const auto pdu_so_far = rest.size() > 7 ? rest.subspan(7) : std::span<const std::uint8_t>{};
+        return length_consistent(pdu_so_far, total - 7);
+    }
+    return decodes(rest.subspan(7, total - 7));
 }
 
 void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
     while (head_ < buf_.size()) {
         const std::span<const std::uint8_t> rest(buf_.data() + head_, buf_.size() - head_);
-        // A non-zero protocol id after an ADU that does not decode is that ADU's own bytes, not a header.
-        const bool in_sync =
-            in_sync_ && (rest.size() < 6 || (rest[2] == 0 && rest[3] == 0) || last_frame_decodes());
-        const DeframeStep step = tcp_step(rest, at_end, in_sync);
+        // A non-zero protocol id after an ADU that does not decode is, unless it makes a frame that
+        // does, that ADU's own bytes, not a header.
+        const DeframeStep step = tcp_step(rest, at_end, in_sync_ && trusted_header(rest));
         if (step.kind == Kind::NeedMore) break;
         if (step.kind == Kind::Skip) {
             if (pending_.length != 0 && pending_.reason != step.reason) flush_unparsed(out);

@@ -6,7 +6,8 @@
 // protocol id is still a frame (flagged tcp.protocol_id_nonzero) so the analyzer can say what it was;
 // but not right after an ADU whose PDU does not decode: a length field too short for its PDU ("length 2"
 // on a 12-byte read request) puts the rest of that ADU in front of the next header, where it reads as a
-// header with a non-zero protocol id. The stream is out of sync there, and resynchronises.
+// header with a non-zero protocol id. Unless that header's own ADU decodes, the stream is out of sync
+// there, and resynchronises.
 
 #include <array>
 #include <cstdint>
@@ -49,6 +50,7 @@ class TcpStreamDeframer {
     std::array<std::uint8_t, max_frame_bytes> last_pdu_{};
     std::size_t last_pdu_size_ = 0;
     bool last_frame_decodes() const noexcept;
+    bool trusted_header(std::span<const std::uint8_t> rest) const noexcept;
     Timestamp last_{0};
     Timestamp first_{0};  // time of the chunk that held the first buffered byte
     Unparsed pending_{};

@@ -434,6 +434,7 @@ TEST(Analyzer, BytesBeforeAMidStreamCapturesFirstAreReportedUnparsed) {
     ASSERT_EQ(h.sink.unparsed_records.size(), 1u);
     EXPECT_EQ(h.sink.unparsed_records[0].length, a.size());
     EXPECT_EQ(h.sink.unparsed_records[0].reason, mb::UnparsedReason::BeforeStreamStart);
+    EXPECT_EQ(h.sink.unparsed_records[0].packet, 2u);  // the packet that carried them
     EXPECT_EQ(h.analyzer.summary().unparsed_bytes, a.size());
     ASSERT_EQ(h.sink.count(mb::FindingCode::StreamUnparsedBytes), 1);
     EXPECT_EQ(h.sink.transactions.size(), 1u);

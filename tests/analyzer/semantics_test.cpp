@@ -467,3 +467,23 @@ TEST(Semantics, A32BitWriteIsJudgedAsOneValue) {
     EXPECT_NE(messages[2].find("one half of 148-149"), std::string::npos) << messages[2];
     EXPECT_NE(messages[2].find("value 2000 above maximum 1440"), std::string::npos) << messages[2];
 }
+
+// What the traffic showed a device holding goes with it when it moves (MK ENDER, register 42 on the
+// DCY-2050): device A, seen in automatic mode at unit 1, moves to 5; device B moves from 3 to 1. A write
+// of loop 1's output at unit 1 is B's, whose mode was never seen; at unit 5 it is A's, in automatic mode.
+TEST(Semantics, WhatADeviceWasSeenHoldingMovesWithItsAddress) {
+    Harness h("dcy-2050");
+    h.unit = 1;
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadCoils, 0, 2), coils_response({true, false}));
+    h.exchange(mb::make_write_single_register(42, 5), mb::make_write_single_register(42, 5));
+    h.unit = 3;
+    h.exchange(mb::make_write_single_register(42, 1), mb::make_write_single_register(42, 1));
+    h.unit = 1;
+    h.exchange(mb::make_write_single_register(2, 500), mb::make_write_single_register(2, 500));
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 0);
+    h.unit = 5;
+    h.exchange(mb::make_write_single_register(2, 500), mb::make_exception(6, 2));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileAddressMoved), 2);
+}

@@ -123,10 +123,15 @@ TEST(TcpStreamDeframer, ANonZeroProtocolIdAfterAnAduThatDoesNotDecodeIsResynchro
             }
         }
     }
-    const auto flagged = concat({good[0], hex("00 02 00 01 00 06 11 03 00 6B 00 03")});
-    auto events = run(flagged, {flagged.size()});
-    ASSERT_EQ(events.size(), 2u);
-    EXPECT_TRUE(std::get<mb::Frame>(events[1]).findings.contains(mb::FindingCode::TcpProtocolIdNonzero));
+    // After a frame that decodes, though it breaks a rule (a read of quantity 0, as testers send), or one
+    // that does not, a non-zero protocol id whose own ADU decodes is still a (flagged) frame.
+    for (const auto& before :
+         {good[0], hex("00 01 00 00 00 06 11 03 00 00 00 00"), hex("00 01 00 00 00 02 11 03")}) {
+        const auto flagged = concat({before, hex("00 02 00 01 00 06 11 03 00 6B 00 03")});
+        auto events = run(flagged, {flagged.size()});
+        ASSERT_EQ(events.size(), 2u);
+        EXPECT_TRUE(std::get<mb::Frame>(events[1]).findings.contains(mb::FindingCode::TcpProtocolIdNonzero));
+    }
 }
 
 TEST(TcpStreamDeframer, GapLosesTheFrameInProgressAndResyncs) {
