@@ -141,6 +141,10 @@ struct Point {
     std::vector<std::string> notes;
     std::string ref;  // the manual's printed reference when it differs from the address
     std::optional<LineSetting> mirrors;
+    // A point of an alternative map (Walchem 5.3.9): it reads what the holding register at this address
+    // holds (and the next, for a two-register value), its object's own field, rather than a value of its
+    // own.
+    std::optional<std::uint16_t> same_value_as;
 };
 
 // What a point mirroring a line setting reads under `line`: the unit id itself, or the code the map gives

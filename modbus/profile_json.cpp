@@ -46,6 +46,7 @@ json point_to_json(const Point& p) {
     if (!p.notes.empty()) j["notes"] = p.notes;
     if (!p.ref.empty()) j["ref"] = p.ref;
     if (p.mirrors) j["mirrors"] = std::string(to_string(*p.mirrors));
+    if (p.same_value_as) j["same_value_as"] = *p.same_value_as;
     return j;
 }
 

@@ -622,12 +622,34 @@ struct ModularMaps {
     json maps;  // map id → map
     json status_codes;
     json alarm_bits;
+    json alternative;  // alternative map id → map (Walchem 5.3.9)
 };
 
 struct MapField {
     RawPoint point;  // address = index inside the 36-address block
     bool coil = false;
 };
+
+// A maps file's field as a point's JSON: its printed value as the range text, the alarm bit names and the
+// status codes it refers to filled in.
+void complete_field(json& f, const ModularMaps& maps) {
+    if (f.contains("value_text") && !f.contains("range_text")) f["range_text"] = f["value_text"];
+    if (auto e = f.find("encoding");
+        e != f.end() && e->is_object() && e->contains("bits_ref") && (*e)["bits_ref"].is_string()) {
+        const auto ref = (*e)["bits_ref"].get<std::string>();
+        if (maps.alarm_bits.contains(ref)) (*e)["bits"] = maps.alarm_bits[ref];
+    }
+    if (auto e = f.find("encoding"); e != f.end() && e->is_object() && (*e)["type"] == "status" &&
+                                     maps.status_codes.is_object() && !e->contains("values")) {
+        json values = json::array();
+        for (auto it = maps.status_codes.begin(); it != maps.status_codes.end(); ++it) {
+            json v = it->is_object() ? *it : json{{"text", *it}};
+            v["value"] = std::stoi(it.key());
+            values.push_back(v);
+        }
+        (*e)["values"] = values;
+    }
+}
 
 // The fields of one type map as points at their index; status codes and alarm bit names filled in.
 std::vector<MapField> parse_map_fields(Reader& r, const json& map, const std::string& map_id, int block,
@@ -641,22 +663,7 @@ std::vector<MapField> parse_map_fields(Reader& r, const json& map, const std::st
         auto index = r.integer(f, "index", fptr, true, 0, block - 1);
         if (!index) continue;
         f["address"] = *index;
-        if (f.contains("value_text") && !f.contains("range_text")) f["range_text"] = f["value_text"];
-        if (auto e = f.find("encoding");
-            e != f.end() && e->is_object() && e->contains("bits_ref") && (*e)["bits_ref"].is_string()) {
-            const auto ref = (*e)["bits_ref"].get<std::string>();
-            if (maps.alarm_bits.contains(ref)) (*e)["bits"] = maps.alarm_bits[ref];
-        }
-        if (auto e = f.find("encoding"); e != f.end() && e->is_object() && (*e)["type"] == "status" &&
-                                         maps.status_codes.is_object() && !e->contains("values")) {
-            json values = json::array();
-            for (auto it = maps.status_codes.begin(); it != maps.status_codes.end(); ++it) {
-                json v = it->is_object() ? *it : json{{"text", *it}};
-                v["value"] = std::stoi(it.key());
-                values.push_back(v);
-            }
-            (*e)["values"] = values;
-        }
+        complete_field(f, maps);
         auto rp = parse_point(r, f, fptr, Table::HoldingRegisters);
         if (!rp) continue;
         out.push_back(
@@ -665,9 +672,187 @@ std::vector<MapField> parse_map_fields(Reader& r, const json& map, const std::st
     return out;
 }
 
+// A channel the configuration gives a map: what the alternative maps number and read.
+struct PlacedChannel {
+    std::string id;
+    std::string kind;
+    std::string map_id;
+    std::uint16_t start = 0;
+    const std::vector<MapField>* fields = nullptr;
+};
+
+// The field of an object's map an alternative map's column reads: the column's own name, or what its
+// "from_field" gives for the map ("pulse-manual" exactly, else the longest "prefix-*", else "*"); nullopt
+// when that is null (the column is not served in that map).
+std::optional<std::string> column_field(const json& column, const std::string& map_id) {
+    const std::string name = column.contains("name") && column["name"].is_string()
+                                 ? column["name"].get<std::string>()
+                                 : std::string();
+    const auto from = column.find("from_field");
+    if (from == column.end() || !from->is_object()) return name;
+    const json* chosen = nullptr;
+    std::size_t best = 0;
+    for (auto it = from->begin(); it != from->end(); ++it) {
+        const std::string& key = it.key();
+        if (key == map_id) {
+            chosen = &*it;
+            break;
+        }
+        if (!key.empty() && key.back() == '*' &&
+            map_id.compare(0, key.size() - 1, key, 0, key.size() - 1) == 0 &&
+            (!chosen || key.size() > best)) {
+            chosen = &*it;
+            best = key.size();
+        }
+    }
+    if (!chosen) return name;
+    if (chosen->is_string()) return chosen->get<std::string>();
+    return std::nullopt;
+}
+
+// The alternative maps (Walchem 5.3.9, 002:750-776): the same field of objects of one kind at consecutive
+// addresses, the objects numbered in the order of the channels the configuration gives a map. Each point
+// reads what its object's own field holds (Point::same_value_as); a column whose field the object's map
+// lacks is not served for it. Where the manual prints an address twice (Sensor 32's x9278 inside Sensor
+// 31's float), the first point keeps it.
+void expand_alternative(Reader& r, const json& modular, const ModularMaps& maps,
+                        const std::vector<PlacedChannel>& placed, Tables& tables, Profile& profile) {
+    const json* ids = r.child(modular, "alternative_maps");
+    if (!ids || !ids->is_array()) return;
+    std::vector<bool> occupied(65536, false);
+    for (const auto& rp : tables[idx(Table::HoldingRegisters)].points)
+        for (int w = 0; w < rp.point.encoding.words && rp.point.address + w <= 0xFFFF; ++w)
+            occupied[rp.point.address + static_cast<std::size_t>(w)] = true;
+    for (std::size_t i = 0; i < ids->size(); ++i) {
+        const std::string ptr = "/modular/alternative_maps/" + std::to_string(i);
+        const json& id = (*ids)[i];
+        if (!id.is_string() || !maps.alternative.is_object() ||
+            !maps.alternative.contains(id.get<std::string>())) {
+            r.error(ptr, "alternative map " + id.dump() + " is not defined in the maps file");
+            continue;
+        }
+        const json& alt = maps.alternative[id.get<std::string>()];
+        const std::string aptr = "alternative_maps/" + id.get<std::string>();
+        const auto kind = r.string(alt, "kind", aptr, true).value_or("");
+        const json* columns = r.child(alt, "columns");
+        const json* rows = r.child(alt, "rows");
+        if (!columns || !columns->is_array() || !rows || !rows->is_array()) {
+            r.error(aptr, "an alternative map needs \"columns\" and \"rows\" lists");
+            continue;
+        }
+        std::vector<const PlacedChannel*> objects;
+        for (const auto& ch : placed)
+            if (ch.kind == kind) objects.push_back(&ch);
+        for (std::size_t k = 0; k < rows->size() && k < objects.size(); ++k) {
+            const json& row = (*rows)[k];
+            const PlacedChannel& object = *objects[k];
+            const std::string rptr = aptr + "/rows/" + std::to_string(k);
+            const json* addresses = r.child(row, "addresses");
+            if (!addresses || !addresses->is_array() || addresses->size() != columns->size()) {
+                r.error(rptr, "a row needs one address per column");
+                continue;
+            }
+            const std::string object_name = r.string(row, "object", rptr, true).value_or("");
+            for (std::size_t c = 0; c < columns->size(); ++c) {
+                const json& column = (*columns)[c];
+                const auto field_name = column_field(column, object.map_id);
+                if (!field_name) continue;
+                const auto field =
+                    std::find_if(object.fields->begin(), object.fields->end(),
+                                 [&](const MapField& f) { return f.point.point.name == *field_name; });
+                if (field == object.fields->end()) continue;
+                json pj = column;
+                pj.erase("from_field");
+                pj["address"] = (*addresses)[c];
+                pj["name"] = object_name + " (" + object.id + "): " + column.value("name", "");
+                if (column.contains("name_en") && column["name_en"].is_string())
+                    pj["name_en"] =
+                        object_name + " (" + object.id + ") " + column["name_en"].get<std::string>();
+                if (const json* refs = r.child(row, "refs");
+                    refs && refs->is_array() && c < refs->size() && (*refs)[c].is_string())
+                    pj["ref"] = (*refs)[c];
+                complete_field(pj, maps);
+                auto rp =
+                    parse_point(r, pj, rptr + "/addresses/" + std::to_string(c), Table::HoldingRegisters);
+                if (!rp) continue;
+                Point& p = rp->point;
+                if (p.encoding.words != field->point.point.encoding.words) continue;  // no such value to read
+                if (p.address + p.encoding.words - 1 > 0xFFFF) continue;
+                bool taken = false;
+                for (int w = 0; w < p.encoding.words; ++w)
+                    taken = taken || occupied[p.address + static_cast<std::size_t>(w)];
+                if (taken) continue;
+                for (int w = 0; w < p.encoding.words; ++w)
+                    occupied[p.address + static_cast<std::size_t>(w)] = true;
+                p.access = Access::Read;  // 002:3061-3064 and every other alternative map: "Leitura"
+                p.same_value_as = static_cast<std::uint16_t>(object.start + field->point.point.address);
+                p.notes.push_back("alternative map " + alt.value("heading", std::string()) + ", " +
+                                  object_name + " [" + row.value("source", std::string()) + "]: reads " +
+                                  object.id + "'s \"" + *field_name + "\" (holding register " +
+                                  std::to_string(*p.same_value_as) + ")");
+                if (field->coil) {
+                    profile.coils_view_registers = true;
+                    RawPoint coil = *rp;
+                    coil.point.table = Table::Coils;
+                    coil.point.encoding = Encoding{};
+                    coil.point.encoding.type = EncodingType::Bool;
+                    tables[idx(Table::Coils)].points.push_back(std::move(coil));
+                }
+                tables[idx(Table::HoldingRegisters)].points.push_back(std::move(*rp));
+            }
+        }
+    }
+}
+
+// A configuration's "slot-N" keys resolved (walchem/README.md, "Configuration"): every channel of slot N
+// becomes none, then the card's channels get the card's maps; the channel keys are applied after them, so
+// a channel named on its own takes the map it names.
+ProfileConfig resolve_slots(Reader& r, const json& modular, const ProfileConfig& given) {
+    ProfileConfig out;
+    const json* cards = r.child(modular, "cards");
+    const json* channels = r.child(modular, "channels");
+    for (const auto& [key, card_id] : given) {
+        if (key.rfind("slot-", 0) != 0) continue;
+        const std::string slot = key.substr(5);
+        const bool number =
+            !slot.empty() && slot.size() <= 2 &&
+            std::all_of(slot.begin(), slot.end(), [](char c) { return c >= '0' && c <= '9'; });
+        const json* card = nullptr;
+        if (cards && cards->is_array())
+            for (const auto& c : *cards)
+                if (c.is_object() && c.value("id", std::string()) == card_id) card = &c;
+        if (!number || !card) {
+            r.error("/modular",
+                    std::string(number ? "unknown card \"" + card_id + "\" for " : "no such slot: ") + "\"" +
+                        key + "\"");
+            continue;
+        }
+        bool any = false;
+        if (channels && channels->is_array())
+            for (const auto& ch : *channels)
+                if (ch.is_object() && ch.contains("slot") && ch["slot"].is_number_integer() &&
+                    std::to_string(ch["slot"].get<long long>()) == slot) {
+                    out[ch.value("id", std::string())] = "none";
+                    any = true;
+                }
+        if (!any) r.error("/modular", "\"" + key + "\": this controller has no channel in slot " + slot);
+        if (const auto fills = card->find("channels"); fills != card->end() && fills->is_object())
+            for (auto it = fills->begin(); it != fills->end(); ++it) {
+                std::string id = it.key();
+                if (const auto at = id.find("{slot}"); at != std::string::npos) id.replace(at, 6, slot);
+                if (it->is_string()) out[id] = it->get<std::string>();
+            }
+    }
+    for (const auto& [key, map] : given)
+        if (key.rfind("slot-", 0) != 0) out[key] = map;
+    return out;
+}
+
 void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, const std::string& model_id,
-                    const ProfileConfig& config, Tables& tables, Profile& profile) {
+                    const ProfileConfig& given, Tables& tables, Profile& profile) {
+    const ProfileConfig config = resolve_slots(r, modular, given);
     std::map<std::string, std::vector<MapField>> templates;
+    std::vector<PlacedChannel> placed;
     const int block =
         static_cast<int>(r.integer(modular, "block_size", "/modular", false, 1, 1000).value_or(36));
     const json* channels = r.child(modular, "channels");
@@ -723,6 +908,8 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
         auto parsed = templates.find(map_id);
         if (parsed == templates.end())
             parsed = templates.emplace(map_id, parse_map_fields(r, map, map_id, block, maps)).first;
+        placed.push_back({*id, r.string(ch, "kind", ptr, false).value_or(""), map_id,
+                          static_cast<std::uint16_t>(*start), &parsed->second});
         for (const MapField& field : parsed->second) {
             RawPoint rp = field.point;
             // Placed past 65535 the point would wrap round to a low address another point may hold.
@@ -750,6 +937,7 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
     for (const auto& [channel, map] : config)
         if (std::find(known_channels.begin(), known_channels.end(), channel) == known_channels.end())
             r.error("/modular", "configuration names unknown channel \"" + channel + "\"");
+    expand_alternative(r, modular, maps, placed, tables, profile);
     (void)block;
 }
 
@@ -1060,7 +1248,8 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
                     } else {
                         Reader maps_reader(*name, out.errors);  // errors name the maps file
                         check_text(maps_reader, m, "");
-                        maps = ModularMaps{take("maps"), take("status_codes"), take("alarm_bits")};
+                        maps = ModularMaps{take("maps"), take("status_codes"), take("alarm_bits"),
+                                           take("alternative_maps")};
                     }
                 } catch (const json::exception& e) {
                     r.error("/maps_file", *name + " is not valid JSON: " + e.what());

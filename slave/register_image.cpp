@@ -1,5 +1,6 @@
 #include "slave/register_image.hpp"
 
+#include <algorithm>
 #include <cstring>
 
 namespace mbscope::slave {
@@ -18,6 +19,15 @@ RegisterImage::RegisterImage(const modbus::Profile& profile, std::optional<modbu
     : profile_(&profile), line_(line) {
     for (auto& w : tables_)
         w.page.fill(&zero_page);
+    for (const modbus::Point& p : profile.table(Table::HoldingRegisters)) {
+        if (!p.same_value_as) continue;
+        for (int w = 0; w < p.encoding.words; ++w) {
+            const auto address = static_cast<std::uint16_t>(p.address + w);
+            aliases_.emplace_back(address, static_cast<std::uint16_t>(*p.same_value_as + w));
+            aliased_page_[address / page_words] = true;
+        }
+    }
+    std::sort(aliases_.begin(), aliases_.end());
     initialise();
     // What initialise() wrote becomes the initial image, shared by every page until it is written again.
     for (int i = 0; i < 5; ++i) {
@@ -61,14 +71,26 @@ std::uint16_t& RegisterImage::writable(Words& w, std::uint16_t address) {
     return (*w.own[p])[address % page_words];
 }
 
+std::uint16_t RegisterImage::seen_through(const Words& w, std::uint16_t address) const noexcept {
+    if (!aliased_page_[address / page_words] || &w != &tables_[index_of(Table::HoldingRegisters)])
+        return address;
+    const auto it = std::lower_bound(aliases_.begin(), aliases_.end(),
+                                     std::pair<std::uint16_t, std::uint16_t>{address, 0});
+    return it != aliases_.end() && it->first == address ? it->second : address;
+}
+
 std::uint16_t RegisterImage::reg(Table t, std::uint16_t address) const noexcept {
-    return (*words(t).page[address / page_words])[address % page_words];
+    const Words& w = words(t);
+    address = seen_through(w, address);
+    return (*w.page[address / page_words])[address % page_words];
 }
 std::uint16_t RegisterImage::initial_holding(std::uint16_t address) const noexcept {
+    address = seen_through(tables_[index_of(Table::HoldingRegisters)], address);
     return (*initial_[index_of(Table::HoldingRegisters)][address / page_words])[address % page_words];
 }
 void RegisterImage::set_reg(Table t, std::uint16_t address, std::uint16_t value) noexcept {
     Words& w = words(t);
+    address = seen_through(w, address);
     const std::uint16_t before = (*w.page[address / page_words])[address % page_words];
     if (before == value) return;
     std::uint16_t& word = writable(w, address);
@@ -133,6 +155,7 @@ void RegisterImage::initialise() {
             continue;  // the registers' values are the coils'
         for (const modbus::Point& p : profile_->table(t)) {
             const modbus::Encoding& e = p.encoding;
+            if (p.same_value_as) continue;  // its object's field holds its value
             if (p.fixed_value) {
                 set_reg(t, p.address, *p.fixed_value);
                 continue;

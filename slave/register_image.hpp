@@ -1,7 +1,8 @@
 #pragma once
 // The data a slave serves: its four tables as the device holds them. Tables a profile declares the same as
 // another (MK FC3/FC4, Walchem FC1/FC2 and FC3/FC4) share storage, so a write through one is read through the
-// other; Walchem coils are views of the holding registers at the same address (profile.coils_view_registers).
+// other; Walchem coils are views of the holding registers at the same address (profile.coils_view_registers),
+// and its alternative maps' registers views of their objects' own fields (Point::same_value_as).
 // Initial values follow the map: fixed read values (CTH2265I 0x55AA), an enumeration's first value, a
 // range's minimum when zero is outside it (floats encoded in the profile's word order).
 
@@ -73,6 +74,12 @@ class RegisterImage {
     const Words& words(Table t) const noexcept;
     std::uint16_t& writable(Words& w, std::uint16_t address);
     void initialise();
+
+    // The holding registers that read another (alternative maps), by page: what reg() and set_reg() look
+    // through, at the cost of one test for the pages that have none.
+    std::uint16_t seen_through(const Words& w, std::uint16_t address) const noexcept;
+    std::array<bool, page_count> aliased_page_{};
+    std::vector<std::pair<std::uint16_t, std::uint16_t>> aliases_;  // sorted: address → the one it reads
 
     const modbus::Profile* profile_;
     std::optional<modbus::LineState> line_;

@@ -76,7 +76,10 @@ std::uint16_t Generator::address_in(Table t, bool write) {
         static constexpr std::array<std::uint16_t, 6> edges = {0, 1, 0x7FFF, 0x8000, 0xFFFE, 0xFFFF};
         return r < 40 ? edges[below(edges.size())] : static_cast<std::uint16_t>(below(0x10000));
     }
-    const std::uint16_t first = points.front().address, last = points.back().address;
+    // The last point's last register: a 32-bit value at the end of the map ends a word after its address.
+    const std::uint16_t first = points.front().address,
+                        last = static_cast<std::uint16_t>(points.back().address +
+                                                          points.back().encoding.words - 1);
     if (r < 45) return points[below(static_cast<std::uint32_t>(points.size()))].address;
     if (r < 55) return first;
     if (r < 65) return last;

@@ -468,6 +468,30 @@ TEST(Semantics, A32BitWriteIsJudgedAsOneValue) {
     EXPECT_NE(messages[2].find("value 2000 above maximum 1440"), std::string::npos) << messages[2];
 }
 
+// A read of Walchem's alternative map (002:752: "os valores primários para todos os sensores ... em um
+// único ciclo ... FC4 iniciando no endereço 39217") is a read of the map: its values named by object and
+// field, not profile.address_unknown.
+TEST(Semantics, AReadOfAnAlternativeMapIsNamedByItsObjects) {
+    Harness h("walchem-w600");
+    const std::vector<std::uint16_t> values{0x0000, 0x40F0, 0x0000, 0x41C8};  // 7.5 and 25.0, cdab
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadInputRegisters, 9216, 4),
+               mb::make_read_registers_response(mb::FunctionCode::ReadInputRegisters, values));
+    h.analyzer->finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileAddressUnknown), 0);
+    ASSERT_EQ(h.sink.transactions.size(), 1u);
+    const auto& v = h.sink.transactions[0].values;
+    ASSERT_GE(v.size(), 2u);
+    ASSERT_NE(v[0].point, nullptr);
+    EXPECT_NE(v[0].point->name.find("Sensor 1 (sensor-1-1): Valor primário"), std::string::npos)
+        << v[0].point->name;
+    EXPECT_EQ(v[0].text, "7.500");
+    const auto second = std::find_if(v.begin(), v.end(), [](const auto& x) { return x.address == 9218; });
+    ASSERT_NE(second, v.end());
+    ASSERT_NE(second->point, nullptr);
+    EXPECT_NE(second->point->name.find("Sensor 2 (sensor-1-2)"), std::string::npos) << second->point->name;
+    EXPECT_EQ(second->number, std::optional<double>(25.0));
+}
+
 // What the traffic showed a device holding goes with it when it moves (MK ENDER, register 42 on the
 // DCY-2050): device A, seen in automatic mode at unit 1, moves to 5; device B moves from 3 to 1. A write
 // of loop 1's output at unit 1 is B's, whose mode was never seen; at unit 5 it is A's, in automatic mode.

@@ -212,6 +212,82 @@ TEST(WalchemCoverage, ControllersLoadWithTheirDefaultConfiguration) {
     }
 }
 
+// The alternative maps number the objects the configuration installs (002:762-776): with a dual sensor
+// card in slot 1 and a dual analog input card in slot 3, sensors 5 and 6 are slot 3's inputs; with a single
+// sensor card in slot 2 as well, they are slot 2's and slot 3's inputs become sensors 7 and 8. Each
+// alternative point reads its object's own field (Point::same_value_as): the primary value (index 0),
+// the status (34), the low alarm (28, a coil too), every one read-only.
+TEST(WalchemCoverage, AlternativeMapsNumberTheInstalledObjectsAsTheManualsScenarios) {
+    const auto w900 = [](const mb::ProfileConfig& config) {
+        auto p = store().load("walchem-w900", config);
+        EXPECT_TRUE(p.has_value()) << mb::to_string(p.error().front());
+        return std::move(p.value());
+    };
+    const auto reads = [](const mb::Profile& p, std::uint16_t address) -> std::optional<std::uint16_t> {
+        const mb::Point* pt = p.find(mb::Table::HoldingRegisters, address);
+        if (!pt || pt->address != address) return std::nullopt;
+        EXPECT_EQ(pt->access, mb::Access::Read) << address;
+        return pt->same_value_as;
+    };
+    const auto one = w900({{"slot-1", "dual-sensor"},
+                           {"slot-2", "empty"},
+                           {"slot-3", "dual-analog-input"},
+                           {"slot-4", "empty"}});
+    EXPECT_EQ(reads(one, 9216), 1152);          // Sensor 1: Entra S 1-1, x1153
+    EXPECT_EQ(reads(one, 9222), 1260);          // Sensor 4: Entra S 1-4, x1261
+    EXPECT_EQ(reads(one, 9224), 2304);          // Sensor 5: Entra S 3-1, x2305
+    EXPECT_EQ(reads(one, 9226), 2340);          // Sensor 6: Entra S 3-2, x2341
+    EXPECT_EQ(reads(one, 9228), std::nullopt);  // no sensor 7
+    EXPECT_EQ(reads(one, 9280), 1152 + 34);     // Sensor 1's status
+    EXPECT_EQ(reads(one, 9284), 2304 + 34);     // Sensor 5's status
+    EXPECT_EQ(reads(one, 9344), 1152 + 28);     // Sensor 1's low alarm
+    EXPECT_NE(one.find(mb::Table::Coils, 9344), nullptr);
+    const auto* primary = one.find(mb::Table::HoldingRegisters, 9216);
+    ASSERT_NE(primary, nullptr);
+    EXPECT_EQ(primary->encoding.type, mb::EncodingType::F32);
+    EXPECT_EQ(primary->ref, "x9217");
+    const auto two = w900({{"slot-1", "dual-sensor"},
+                           {"slot-2", "single-sensor"},
+                           {"slot-3", "dual-analog-input"},
+                           {"slot-4", "empty"}});
+    EXPECT_EQ(reads(two, 9224), 1728);  // Sensor 5: Entra S 2-1, x1729
+    EXPECT_EQ(reads(two, 9226), 1764);  // Sensor 6: Entra S 2-2, x1765
+    EXPECT_EQ(reads(two, 9228), 2304);  // Sensor 7: Entra S 3-1
+    EXPECT_EQ(reads(two, 9230), 2340);  // Sensor 8: Entra S 3-2
+    // A card no controller file names, and a slot the controller does not have, are errors.
+    EXPECT_FALSE(store().load("walchem-w900", {{"slot-2", "no-such-card"}}).has_value());
+    EXPECT_FALSE(store().load("walchem-w900", {{"slot-9", "empty"}}).has_value());
+}
+
+// A column is served for an object only when the object's map has its field: a digital input's "Tempo
+// Total" in state mode, its "Vazão" (the map's "Vazão atual") and "Fluxo total" as a paddlewheel flowmeter
+// (002:3108-3112, "Modos de controle"); a relay's state except as a pulse output, its pulse output only as
+// one (002:3161).
+TEST(WalchemCoverage, AlternativeMapsServeAColumnInTheModesThatHaveIt) {
+    auto state = store().load("walchem-w600");
+    auto paddle =
+        store().load("walchem-w600", {{"di-1", "di-paddlewheel"}, {"relay-1", "pulse-proportional"}});
+    ASSERT_TRUE(state.has_value() && paddle.has_value());
+    const auto di1 = state->find(mb::Table::HoldingRegisters, 9648);  // x9649: Tempo Total / Fluxo total
+    ASSERT_NE(di1, nullptr);
+    EXPECT_EQ(di1->encoding.type, mb::EncodingType::U32);
+    EXPECT_EQ(state->find(mb::Table::HoldingRegisters, 9616), nullptr);  // x9617 Vazão: not in state mode
+    EXPECT_NE(state->find(mb::Table::HoldingRegisters, 9680), nullptr);  // x9681 Estado da DI
+    const auto flow = paddle->find(mb::Table::HoldingRegisters, 9648);
+    ASSERT_NE(flow, nullptr);
+    EXPECT_EQ(flow->encoding.type, mb::EncodingType::F32);
+    const auto rate = paddle->find(mb::Table::HoldingRegisters, 9616);
+    ASSERT_NE(rate, nullptr);
+    const mb::Point* di = paddle->find(mb::Table::HoldingRegisters, *rate->same_value_as);
+    ASSERT_NE(di, nullptr);
+    EXPECT_NE(di->name.find("Vazão atual"), std::string::npos) << di->name;
+    EXPECT_EQ(paddle->find(mb::Table::HoldingRegisters, 9680), nullptr);  // no DI state as a flowmeter
+    EXPECT_NE(state->find(mb::Table::HoldingRegisters, 9600), nullptr);   // x9601 Estado do relé 1
+    EXPECT_EQ(state->find(mb::Table::HoldingRegisters, 9792), nullptr);   // x9793 Saída de pulso 1
+    EXPECT_EQ(paddle->find(mb::Table::HoldingRegisters, 9600), nullptr);
+    EXPECT_NE(paddle->find(mb::Table::HoldingRegisters, 9792), nullptr);
+}
+
 TEST(WalchemCoverage, TypeMapsMatchTheManualsFieldCounts) {
     // manual-rules.md §7.3: 53 type-specific maps, 821 defined fields, 402 read-only and 419 read/write.
     std::ifstream in(profiles_dir / "walchem" / "type-maps.json");

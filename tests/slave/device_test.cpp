@@ -135,6 +135,28 @@ TEST(Device, InitialImageFollowsTheMap) {
     }
 }
 
+// The alternative maps (002:750-776) serve their objects' own fields: W600 sensor 1 (sensor-1-1, holding
+// registers 576.., x0577) as its primary value at 9216 (FC3 or FC4), its status at 9280 and its low alarm
+// as coil 9344; they are read-only (a write is refused and changes nothing), and a value stored at an
+// alternative address is its object's.
+TEST(Device, AlternativeMapsReadTheirObjectsOwnFields) {
+    Device w600(profile("walchem-w600"), 1);
+    auto& image = w600.image();
+    image.set_f32(Table::HoldingRegisters, 576, 7.5f, mb::WordOrder::Cdab);
+    image.set_reg(Table::HoldingRegisters, 576 + 34, 12);
+    image.set_reg(Table::HoldingRegisters, 576 + 28, 1);
+    EXPECT_EQ(ask(w600, "04 24 00 00 02"), "04 04 00 00 40 F0");
+    EXPECT_EQ(ask(w600, "04 24 00 00 02"), ask(w600, "04 02 40 00 02"));
+    EXPECT_EQ(ask(w600, "03 24 00 00 02"), "03 04 00 00 40 F0");
+    EXPECT_EQ(ask(w600, "03 24 40 00 01"), "03 02 00 0C");
+    EXPECT_EQ(ask(w600, "01 24 80 00 01"), "01 01 01");
+    const auto before = w600.image().modifications();
+    EXPECT_EQ(ask(w600, "06 24 00 12 34").substr(0, 2), "86");
+    EXPECT_EQ(w600.image().modifications(), before);
+    image.set_reg(Table::HoldingRegisters, 9280, 3);
+    EXPECT_EQ(w600.image().reg(Table::HoldingRegisters, 576 + 34), 3);
+}
+
 // A new image counts no modifications, though making it stored the map's initial values (a fixed value,
 // a range's minimum): "unchanged since made" is a count of zero, as after reset().
 TEST(Device, NewImageCountsNoModifications) {

@@ -129,7 +129,8 @@ void reads_writes_and_exceptions_as_the_manual_says(Served& s) {
 
     // An address past the map's end: exception 02 (errno EMBXILADD).
     if (p.functions.supports(3) && !open && !p.table(Table::HoldingRegisters).empty()) {
-        const auto last = p.table(Table::HoldingRegisters).back().address;
+        const auto& end = p.table(Table::HoldingRegisters).back();  // a 32-bit value ends a word later
+        const auto last = static_cast<std::uint16_t>(end.address + end.encoding.words - 1);
         if (last < 0xFFFF) {
             std::uint16_t v = 0;
             errno = 0;
