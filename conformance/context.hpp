@@ -132,6 +132,7 @@ void check_framing(Context& c);
 void check_tcp(Context& c);
 void check_robustness(Context& c);
 void check_response_times(Context& c);
+void check_alternative_maps(Context& c);  // from check_data
 void check_unsolicited(Context& c);
 
 }  // namespace mbscope::conformance

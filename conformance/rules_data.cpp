@@ -1,8 +1,11 @@
 // Echoes and data: FC5, FC6 and FC8/00 echo the request exactly; a written value reads back; 32-bit values
 // travel in the profile's word order; a reply to FC1 or FC2 pads its last byte with zeros; reserved registers
 // read their documented fixed value.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <map>
 
 #include "conformance/context.hpp"
 #include "modbus/describe.hpp"
@@ -270,6 +273,81 @@ void check_data(Context& c) {
                   r.observed = v ? named((*v)[0]) : "no normal reply";
                   r.outcome = v && (*v)[0] == *expected ? Outcome::Pass : Outcome::Fail;
               });
+    }
+    check_alternative_maps(c);
+}
+
+namespace {
+
+// "Sensor 1 (sensor-1-1)" of "Sensor 1 (sensor-1-1): Valor primário".
+std::string object_of(const modbus::Point& p) {
+    const auto end = p.name.find("): ");
+    return end == std::string::npos ? p.name : p.name.substr(0, end + 1);
+}
+
+std::string words_text(const std::vector<std::uint16_t>& words) {
+    std::string out;
+    for (const auto w : words) {
+        char b[8];
+        std::snprintf(b, sizeof b, "%04X", w);
+        out += (out.empty() ? "" : " ") + std::string(b);
+    }
+    return out;
+}
+
+}  // namespace
+
+// Walchem's alternative maps (5.3.9, 002:750-776): each address reads what its object's own field holds
+// (Point::same_value_as). One rule per map (its points share the line they cite), for its first and last
+// object: the field read, the alternative address, and the field again when they differ (a value that
+// moved between the reads). Which field a column reads the manual does not say (the profile takes the one of
+// the same name): a failure is a warning.
+void check_alternative_maps(Context& c) {
+    if (!c.profile.functions.supports(3)) return;
+    std::map<std::string, std::vector<const modbus::Point*>> maps;  // by the line they cite
+    for (const auto& p : c.profile.table(Table::HoldingRegisters))
+        if (p.same_value_as && !p.reserved) maps[p.source].push_back(&p);
+    for (const auto& [source, points] : maps) {
+        std::vector<std::string> objects;  // in their numbering: the first column is in object order
+        for (const auto* p : points)
+            if (std::find(objects.begin(), objects.end(), object_of(*p)) == objects.end())
+                objects.push_back(object_of(*p));
+        std::vector<const modbus::Point*> checked;
+        for (const auto* p : points)
+            if (object_of(*p) == objects.front() || object_of(*p) == objects.back()) checked.push_back(p);
+        const std::string first = std::to_string(points.front()->address);
+        c.run(
+            {"data.alternative.hr" + first, "echoes and data", source,
+             "The alternative map from holding register " + first +
+                 " reads what its objects' own fields hold (" + objects.front() +
+                 (objects.size() > 1 ? " and " + objects.back() : std::string()) + ").",
+             Authority::Implied, false},
+            [&c, checked](RuleResult& r) {
+                for (const auto* p : checked) {
+                    const auto n = static_cast<std::uint16_t>(p->encoding.words);
+                    const std::string what = std::to_string(p->address) + " (" + p->name + ")";
+                    auto field = c.session.read_registers(Table::HoldingRegisters, *p->same_value_as, n,
+                                                          "the object's own field");
+                    auto alt = c.session.read_registers(Table::HoldingRegisters, p->address, n, what);
+                    if (field && alt && *field != *alt)  // the value may have moved between the reads
+                        if (auto again = c.session.read_registers(Table::HoldingRegisters, *p->same_value_as,
+                                                                  n, "the object's own field again"))
+                            if (*again == *alt) field = again;
+                    if (!field || !alt || *field != *alt) {
+                        r.outcome = Outcome::Fail;
+                        r.expected = "holding register " + what + " reads what " +
+                                     std::to_string(*p->same_value_as) + " holds" +
+                                     (field ? " (" + words_text(*field) + ")" : std::string());
+                        r.observed =
+                            !field ? "no normal reply to the read of " + std::to_string(*p->same_value_as)
+                            : !alt ? "no normal reply to the read of " + std::to_string(p->address)
+                                   : words_text(*alt);
+                        return;
+                    }
+                }
+                r.outcome = Outcome::Pass;
+                r.observed = std::to_string(checked.size()) + " addresses read their objects' values";
+            });
     }
 }
 

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include "conformance/runner.hpp"
@@ -52,8 +53,9 @@ std::optional<tp::Client> connect(const std::string& uri) {
     return std::nullopt;
 }
 
-// pymodbus's server (tests/peers/pymodbus_server.py SCHEME PORT [OPTION]) on a free loopback port, and a
-// client connected to it once it listens; `client` is empty when it did not start.
+// pymodbus's server (tests/peers/pymodbus_server.py SCHEME PORT [OPTIONS], the options separated by spaces)
+// on a free loopback port, and a client connected to it once it listens; `client` is empty when it did not
+// start.
 struct PymodbusPeer {
     explicit PymodbusPeer(const std::string& scheme, const std::string& option = "")
         : port(free_port()),
@@ -61,7 +63,9 @@ struct PymodbusPeer {
               std::vector<std::string> argv{
                   "/usr/bin/python3", std::string(MBSCOPE_SOURCE_DIR) + "/tests/peers/pymodbus_server.py",
                   scheme, std::to_string(port)};
-              if (!option.empty()) argv.push_back(option);
+              std::istringstream words(option);
+              for (std::string w; words >> w;)
+                  argv.push_back(w);
               return argv;
           }()),
           client(peer.spawned() ? connect(scheme + "://127.0.0.1:" + std::to_string(port)) : std::nullopt) {}
@@ -253,6 +257,35 @@ TEST(Peer, PymodbusServerWithoutHoldingRegistersAtZeroStillGetsEveryTcpRule) {
         EXPECT_TRUE(run.count(id)) << id << " not run; run:" << listed(run);
     EXPECT_EQ(failing(report), (std::set<std::string>{"tcp.protocol_id_nonzero", "tcp.split_segments"}))
         << "failing:" << listed(failing(report));
+}
+
+// A server nobody here wrote judged as a Walchem W600, whose alternative maps read their objects' own fields
+// (002:750-776): pymodbus serves whatever its datastore holds at each address, so sensor 1's primary value
+// (holding registers 576-577, 10.0 as a float, least significant word first) is not at 9216-9217. The rule
+// fails, a warning (which field a column reads is the profile's reading of the manual); the other
+// alternative maps, all zeros in both places, pass.
+TEST(Peer, PymodbusServerAsAWalchemW600DoesNotMirrorItsAlternativeMap) {
+    if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
+    PymodbusPeer server("tcp", "--register 577=0x4120");
+    ASSERT_TRUE(server.client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    modbus::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    const auto w600 = store.load("walchem-w600");
+    ASSERT_TRUE(w600.has_value());
+    CheckOptions o;
+    o.session.timeout = std::chrono::milliseconds(1000);
+    o.run.rule_globs = {"data.alternative.*"};
+    const auto report = run_check(*server.client, *w600, o);
+    std::set<std::string> run;
+    for (const auto& x : report.results)
+        if (x.outcome != Outcome::Skip) run.insert(x.rule.id);
+    EXPECT_EQ(run.size(), 5u) << listed(run);  // sensors, digital inputs, virtual inputs, relays, outputs
+    EXPECT_EQ(failing(report), (std::set<std::string>{"data.alternative.hr9216"})) << listed(failing(report));
+    for (const auto& x : report.results)
+        if (x.rule.id == "data.alternative.hr9216") {
+            EXPECT_EQ(x.rule.authority, Authority::Implied);
+            EXPECT_NE(x.expected.find("4120"), std::string::npos) << x.expected;
+            EXPECT_EQ(x.observed, "0000 0000");
+        }
 }
 
 // A server nobody here wrote judged as an MK DCY-2050, whose loop output registers are read-only in

@@ -2,10 +2,12 @@
 """A Modbus server nobody here wrote: pymodbus (Debian python3-pymodbus) serving 10000 of each table, as
 libmodbus_server.c does, on loopback. The conformance runner's peer (conformance/README.md).
 
-    pymodbus_server.py tcp|udp|rtu-tcp PORT [--holding-registers-at-50000]
+    pymodbus_server.py tcp|udp|rtu-tcp PORT [--holding-registers-at-50000 | --register ADDRESS=VALUE ...]
 
-The option moves the holding registers away from 0 to one at 50000: a device whose probe read cannot be a
-holding register at the start of its map.
+--holding-registers-at-50000 moves the holding registers away from 0 to one at 50000: a device whose probe
+read cannot be a holding register at the start of its map. --register sets a holding register's value
+before serving (repeatable): a datastore that holds what a device's map says elsewhere (a Walchem
+alternative map's object field) and not there.
 """
 import logging
 import sys
@@ -19,8 +21,13 @@ def main():
     scheme, port = sys.argv[1], int(sys.argv[2])
     logging.basicConfig(level=logging.CRITICAL)
     block = lambda: ModbusSequentialDataBlock(0, [0] * 10000)  # noqa: E731
-    far = len(sys.argv) > 3 and sys.argv[3] == "--holding-registers-at-50000"
+    options = sys.argv[3:]
+    far = "--holding-registers-at-50000" in options
     holding = ModbusSequentialDataBlock(50000, [0]) if far else block()
+    for option, value in zip(options, options[1:]):
+        if option == "--register":
+            address, word = value.split("=")
+            holding.setValues(int(address, 0), [int(word, 0)])
     store = ModbusSlaveContext(di=block(), co=block(), hr=holding, ir=block(), zero_mode=True)
     context = ModbusServerContext(slaves=store, single=True)
     address = ("127.0.0.1", port)
