@@ -94,13 +94,18 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     j["unit"] = o.unit;
     j["seed"] = o.seed;
     for (const auto& f : summary.findings)
-        std::cerr << "mbscope fuzz: finding " << f.rule << " (" << f.source << ") on function "
-                  << int(f.function) << ", " << f.count << "x: expected " << f.expected << "; observed "
-                  << f.observed
-                  << (f.file.empty() ? ""
-                                     : "\n  reproducer: " + f.file + "  (mbscope replay --target " +
-                                           o.target + " " + f.file + ")")
-                  << (f.file_error.empty() ? "" : "\n  reproducer not saved: " + f.file_error) << '\n';
+        std::cerr
+            << "mbscope fuzz: finding " << f.rule << " (" << f.source << ") on function " << int(f.function)
+            << ", " << f.count << "x: expected " << f.expected << "; observed " << f.observed
+            << (f.file.empty() ? ""
+                               : "\n  reproducer: " + f.file + "  (mbscope replay --target " + o.target +
+                                     " " + f.file + ")")
+            << (f.file_error.empty() ? "" : "\n  reproducer not saved: " + f.file_error)
+            << (f.reproducer.replays_on_new_connection == false
+                    ? "\n  the reproducer broke the rule again on the fuzzer's connection but not on a new "
+                      "one, as mbscope replay sends it: it depends on the connection's history or timing"
+                    : "")
+            << '\n';
     std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
     if (summary.replies_after_timeout > 0)
         std::cerr << "mbscope fuzz: " << summary.replies_after_timeout << " replies came after --timeout ("

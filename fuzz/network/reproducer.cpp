@@ -123,23 +123,25 @@ nlohmann::json to_json(const Reproducer& r) {
         if (s.void_by_gap) j["void_by_gap"] = true;
         steps.push_back(std::move(j));
     }
-    return {{"mbscope_reproducer", 1},
-            {"rule", r.rule},
-            {"source", r.source},
-            {"expected", r.expected},
-            {"observed", r.observed},
-            {"target", r.target},
-            {"profile", r.profile},
-            {"unit", r.unit},
-            {"framing", r.framing},
-            {"seed", r.seed},
-            {"request", r.request},
-            {"minimised", r.minimised},
-            {"slow_ms", r.slow_ms},
-            {"original_steps", r.original_steps},
-            {"steps", steps},
-            {"replay", "mbscope replay --target " + r.target + " --profile " + r.profile + " --unit " +
-                           std::to_string(r.unit) + " FILE"}};
+    nlohmann::json j{{"mbscope_reproducer", 1},
+                     {"rule", r.rule},
+                     {"source", r.source},
+                     {"expected", r.expected},
+                     {"observed", r.observed},
+                     {"target", r.target},
+                     {"profile", r.profile},
+                     {"unit", r.unit},
+                     {"framing", r.framing},
+                     {"seed", r.seed},
+                     {"request", r.request},
+                     {"minimised", r.minimised},
+                     {"slow_ms", r.slow_ms},
+                     {"original_steps", r.original_steps},
+                     {"steps", steps},
+                     {"replay", "mbscope replay --target " + r.target + " --profile " + r.profile +
+                                    " --unit " + std::to_string(r.unit) + " FILE"}};
+    if (r.replays_on_new_connection) j["replays_on_new_connection"] = *r.replays_on_new_connection;
+    return j;
 }
 
 modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::json& j) {
@@ -172,6 +174,11 @@ modbus::Result<Reproducer, std::string> reproducer_from_json(const nlohmann::jso
         const auto minimised = flag(j, "minimised");
         if (!minimised) return minimised.error();
         r.minimised = minimised.value();
+        if (j.contains("replays_on_new_connection")) {
+            const auto fresh = flag(j, "replays_on_new_connection");
+            if (!fresh) return fresh.error();
+            r.replays_on_new_connection = fresh.value();
+        }
         if (!j.contains("steps") || !j["steps"].is_array()) return std::string("no \"steps\" array");
         if (j["steps"].empty()) return std::string("\"steps\" is empty: nothing to replay");
         if (j["steps"].size() > max_reproducer_steps)

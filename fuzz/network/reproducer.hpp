@@ -39,6 +39,10 @@ struct Reproducer {
     std::uint64_t seed = 0;
     std::uint64_t request = 0;  // index of the request that showed it in the campaign
     bool minimised = false;     // shortened and shown to break the rule again when replayed
+    // Whether the steps broke the rule again sent on a connection opened for them, as `mbscope replay` sends
+    // them: the minimisation replays on the campaign's own connection, and a rule broken there may depend
+    // on that connection's history or timing. nullopt: not tried (a serial line, or not reproduced).
+    std::optional<bool> replays_on_new_connection;
     // timing.slow_reply: the limit the replies broke, which a replay judges every reply by (0: none).
     std::uint32_t slow_ms = 0;
     std::size_t original_steps = 0;
