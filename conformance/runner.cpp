@@ -278,8 +278,18 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     report.requests = session.requests();
     report.late_replies = session.late_replies();
     if (report.requests > 0 && report.response_times.empty() && !report.late_replies && !report.stopped) {
-        report.unanswered = "the target answered none of the run's " + std::to_string(report.requests) +
-                            " requests (wrong unit id, transport or line settings?)";
+        // Bytes that came back all the same are no silence: a peer that speaks something else, or breaks
+        // off its replies, is not a wrong unit id.
+        std::size_t heard = 0;
+        for (const auto& r : report.results)
+            for (const auto& e : r.evidence)
+                heard += e.received.size();
+        report.unanswered =
+            "the target answered none of the run's " + std::to_string(report.requests) + " requests " +
+            (heard == 0 ? std::string("(wrong unit id, transport or line settings?)")
+                        : "with a reply: the " + std::to_string(heard) +
+                              " bytes it sent form none for this framing and unit (another protocol, or "
+                              "replies cut off?)");
         // What the rules saw is silence, not the device's behaviour: nothing was judged. Rules that pass on
         // silence pass vacuously, and failures for want of a reply are no failures of the device.
         for (auto& r : report.results) {

@@ -29,6 +29,7 @@
 #include "conformance/session.hpp"
 #include "modbus/transport/socket.hpp"
 #include "tests/conformance/runner_support.hpp"
+#include "tests/support/garbage_peer.hpp"
 
 namespace mbscope::conformance {
 namespace {
@@ -205,6 +206,21 @@ TEST(ResponseTime, CountsOnlyRepliesToTheirRequest) {
                   std::string(c.fault) == "wrong-tid=0.5")
             << r.observed;
     }
+}
+
+// A peer that answers every request with bytes that form no frame is no silent target: the report says
+// it sent bytes that are no reply, not "wrong unit id, transport or line settings?", which sent the user
+// off to check those.
+TEST(Runner, ATargetWhoseBytesFormNoReplyIsToldApartFromASilentOne) {
+    mbscope::test::GarbagePeer peer;
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(peer.port())));
+    ASSERT_TRUE(client.has_value());
+    const Report r = run_check(*client, slave::test::profile("mmk-2030"), options_for());
+    EXPECT_NE(r.unanswered.find("answered none of the run's"), std::string::npos) << r.unanswered;
+    EXPECT_NE(r.unanswered.find("bytes it sent form none for this framing and unit"), std::string::npos)
+        << r.unanswered;
+    EXPECT_EQ(r.unanswered.find("wrong unit id"), std::string::npos) << r.unanswered;
+    EXPECT_EQ(verdict_text(r), "error");
 }
 
 // The generic profile maps no coil: FC5 and FC15 were skipped as having "no readable and writable coil"

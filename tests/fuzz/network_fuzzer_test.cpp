@@ -33,6 +33,7 @@
 #include "modbus/describe.hpp"
 #include "modbus/transport/socket.hpp"
 #include "slave/slave_test_support.hpp"
+#include "tests/support/garbage_peer.hpp"
 #include "tests/support/process_support.hpp"
 
 namespace {
@@ -768,32 +769,11 @@ TEST(NetworkFuzzer, UnreachableTargetIsReportedNotFuzzed) {
 // byte passed it and the run went on to send nothing, every planned write skipped for points it could not
 // read, and exited 0, "nothing found".
 TEST(NetworkFuzzer, APeerWhoseBytesFormNoFrameIsNotFuzzed) {
-    auto listener = mbscope::modbus::transport::listen_tcp("127.0.0.1", 0);
-    ASSERT_TRUE(listener.has_value());
-    const auto port = mbscope::modbus::transport::bound_port(listener.value().get());
-    std::atomic<bool> stop{false};
-    std::thread peer([&] {
-        while (!stop) {
-            pollfd p{listener.value().get(), POLLIN, 0};
-            if (::poll(&p, 1, 50) != 1) continue;
-            mbscope::modbus::transport::UniqueFd c(::accept(listener.value().get(), nullptr, nullptr));
-            std::uint8_t buf[512];
-            while (!stop) {
-                pollfd q{c.get(), POLLIN, 0};
-                if (::poll(&q, 1, 50) != 1) continue;
-                if (::recv(c.get(), buf, sizeof buf, 0) <= 0) break;
-                const std::uint8_t garbage[] = {0xDE, 0xAD, 0xBE, 0xEF, 0xDE, 0xAD,
-                                                0xBE, 0xEF, 0xDE, 0xAD, 0xBE, 0xEF};
-                (void)::send(c.get(), garbage, sizeof garbage, MSG_NOSIGNAL);
-            }
-        }
-    });
-    auto o = options_for("tcp", port);
+    mbscope::test::GarbagePeer peer;
+    auto o = options_for("tcp", peer.port());
     o.requests = 50;
     o.duration = std::chrono::seconds(5);
     const auto s = fz::run_campaign(mbscope::slave::test::profile("modbus"), o);
-    stop = true;
-    peer.join();
     EXPECT_FALSE(s.reachable);
     EXPECT_NE(s.error.find("health-check"), std::string::npos) << s.error;
     EXPECT_EQ(s.requests, 0u);
