@@ -24,11 +24,15 @@ struct Analyzer::Flow {
     Carrier carrier = Carrier::Tcp;                  // Tcp: reassembled; the others come whole
     std::unique_ptr<TcpReassembler> reassembler[2];  // [0] client → server, [1] server → client
     TcpStreamDeframer deframer[2];
-    // Per direction, the stream offset each packet's bytes reached the deframer at, and that packet's
-    // number, from the one holding the deframer's first unreported byte on: unparsed bytes are reported
-    // at the packet that carried them, not at whatever packet (of any connection) ends them.
+    // Unparsed bytes are reported at the packet that carried them, not at whatever packet (of any
+    // connection) ends them. Per direction: the last packet fed to the deframer and the stream offset its
+    // bytes start at, and, for earlier packets whose bytes were still unreported when the next came, the
+    // same (offset, packet) from the one holding the first unreported byte on (empty while every packet's
+    // bytes form frames, as they do on a healthy stream).
+    std::uint64_t last_fed_from[2] = {0, 0}, last_fed_packet[2] = {0, 0};
     std::deque<std::pair<std::uint64_t, std::uint64_t>> fed[2];
     std::uint64_t packet_at(int dir, std::uint64_t offset, std::uint64_t otherwise) const {
+        if (last_fed_packet[dir] && offset >= last_fed_from[dir]) return last_fed_packet[dir];
         const auto& f = fed[dir];
         auto after = std::upper_bound(f.begin(), f.end(), offset,
                                       [](std::uint64_t o, const auto& entry) { return o < entry.first; });
@@ -263,13 +267,24 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
     events.clear();
     if (!f.rtu_over_tcp) {
         auto& fed = f.fed[dir];
-        if (fed.empty() || fed.back().second != packet_number_)
-            fed.emplace_back(f.deframer[dir].offset(), packet_number_);
+        const std::uint64_t at = f.deframer[dir].offset();
+        if (f.last_fed_packet[dir] != packet_number_) {
+            // The packet before left bytes unreported: kept where they start.
+            if (f.last_fed_packet[dir] && f.deframer[dir].unreported() < at)
+                fed.emplace_back(f.last_fed_from[dir], f.last_fed_packet[dir]);
+            f.last_fed_from[dir] = at;
+            f.last_fed_packet[dir] = packet_number_;
+        }
         f.deframer[dir].feed(bytes, t, events);
         deframed(f, dir == 0, events, t);
+        if (fed.empty()) return;
         // Kept: the entry holding the first unreported byte (a run of unparsed bytes still gathering needs
         // only its first byte's packet), and those from the one holding the first buffered byte on.
         const std::uint64_t first = f.deframer[dir].unreported();
+        if (first >= f.last_fed_from[dir]) {
+            fed.clear();
+            return;
+        }
         const std::uint64_t buffered = f.deframer[dir].offset() - f.deframer[dir].buffered();
         while (fed.size() > 1 && fed[1].first <= first)
             fed.pop_front();
@@ -2044,6 +2059,7 @@ void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
         f.reassembler[dir]->reset(TcpReassembler::default_max_buffered);
         f.deframer[dir].reset();
         f.fed[dir].clear();
+        f.last_fed_from[dir] = f.last_fed_packet[dir] = 0;
         f.rtu_deframer[dir].reset();
         f.rtu_lost[dir] = 0;
     }

@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <span>
 #include <string>
 #include <utility>
@@ -95,6 +96,8 @@ class Semantics {
     // device → (table as the profile resolves it, address) → the last value seen, bits as 0/1: what a
     // conditional access asks (registers_ mixes the tables, and keeps no bits).
     std::map<std::string, std::map<std::pair<modbus::Table, std::uint16_t>, std::uint16_t>> state_;
+    // Per profile, the points others' access depends on (read_only_when), by resolved table.
+    std::map<const modbus::Profile*, std::set<std::pair<modbus::Table, std::uint16_t>>> conditions_;
     void keep_state(const modbus::Profile& profile, const std::string& device, modbus::Table table,
                     std::uint16_t start, std::span<const std::uint16_t> values);
     std::optional<std::uint16_t> known(const std::string& device, const modbus::Profile& profile,
