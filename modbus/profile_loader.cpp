@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "modbus/frame_text.hpp"  // printable(), first_unprintable()
@@ -251,8 +252,25 @@ void apply_range(Reader& r, const json& j, const std::string& ptr, Point& p) {
         if (!rg->is_object())
             r.error(ptr + "/range", "must be {\"min\", \"max\"}");
         else {
-            if (auto mn = r.integer(*rg, "min", ptr + "/range", false)) p.min = *mn;
-            if (auto mx = r.integer(*rg, "max", ptr + "/range", false)) p.max = *mx;
+            // A float's range is in engineering units, and may have decimals (Walchem's PID gain, 0.001 -
+            // 1000, 002:2630); ranges are held as integers, so it is widened to the integers around it (no
+            // value the manual allows is refused) and the range text keeps the exact one.
+            const auto widened = [&](const char* key, bool lower) -> std::optional<std::int64_t> {
+                const auto it = rg->find(key);
+                if (p.encoding.type != EncodingType::F32 || it == rg->end() || !it->is_number_float() ||
+                    !std::isfinite(it->get<double>()) || std::abs(it->get<double>()) > 1e15)
+                    return std::nullopt;
+                const double v = it->get<double>();
+                return static_cast<std::int64_t>(lower ? std::floor(v) : std::ceil(v));
+            };
+            if (auto mn = widened("min", true))
+                p.min = *mn;
+            else if (auto m = r.integer(*rg, "min", ptr + "/range", false))
+                p.min = *m;
+            if (auto mx = widened("max", false))
+                p.max = *mx;
+            else if (auto m = r.integer(*rg, "max", ptr + "/range", false))
+                p.max = *m;
             if (p.min && p.max && *p.min > *p.max) r.error(ptr + "/range", "min is above max");
         }
     }
@@ -790,7 +808,11 @@ void expand_alternative(Reader& r, const json& modular, const ModularMaps& maps,
                                   object_name + " [" + row.value("source", std::string()) + "]: reads " +
                                   object.id + "'s \"" + *field_name + "\" (holding register " +
                                   std::to_string(*p.same_value_as) + ")");
-                if (field->coil) {
+                // Coil access where the column's cell says so (5.3.9's bold "Est Alarme" columns) and the
+                // object's own field has it.
+                const bool column_coil =
+                    column.contains("coil") && column["coil"].is_boolean() && column["coil"].get<bool>();
+                if (column_coil && field->coil) {
                     profile.coils_view_registers = true;
                     RawPoint coil = *rp;
                     coil.point.table = Table::Coils;

@@ -282,10 +282,63 @@ TEST(WalchemCoverage, AlternativeMapsServeAColumnInTheModesThatHaveIt) {
     ASSERT_NE(di, nullptr);
     EXPECT_NE(di->name.find("Vazão atual"), std::string::npos) << di->name;
     EXPECT_EQ(paddle->find(mb::Table::HoldingRegisters, 9680), nullptr);  // no DI state as a flowmeter
-    EXPECT_NE(state->find(mb::Table::HoldingRegisters, 9600), nullptr);   // x9601 Estado do relé 1
-    EXPECT_EQ(state->find(mb::Table::HoldingRegisters, 9792), nullptr);   // x9793 Saída de pulso 1
+    // A pulse output in delay-output mode names its output "Saída percentual" (002:2710).
+    auto delay = store().load("walchem-w600", {{"relay-2", "pulse-delay-output"}});
+    ASSERT_TRUE(delay.has_value());
+    EXPECT_NE(delay->find(mb::Table::HoldingRegisters, 9794), nullptr);  // x9795 Saída de pulso 2
+    EXPECT_NE(state->find(mb::Table::HoldingRegisters, 9600), nullptr);  // x9601 Estado do relé 1
+    EXPECT_EQ(state->find(mb::Table::HoldingRegisters, 9792), nullptr);  // x9793 Saída de pulso 1
     EXPECT_EQ(paddle->find(mb::Table::HoldingRegisters, 9600), nullptr);
     EXPECT_NE(paddle->find(mb::Table::HoldingRegisters, 9792), nullptr);
+}
+
+// Every map a channel may take loads, on every controller: a configuration naming it gave an error nobody
+// saw before (the PID gain's range 0.001-1000 on a pulse output, pulse-pid, refused as "not an integer").
+// Each map is taken once per controller, by a channel that allows it, several channels at a time, with the
+// channels that share its addresses (exclusive_groups) set to none.
+TEST(WalchemCoverage, EveryMapAChannelMayTakeLoads) {
+    for (const char* file : {"walchem-w600.json", "walchem-w900.json", "walchem-intuition9.json"}) {
+        std::ifstream in(profiles_dir / "walchem" / file);
+        ASSERT_TRUE(in) << file;
+        const auto device = nlohmann::json::parse(in);
+        const std::string id = device["models"][0]["id"];
+        std::set<std::string> uncovered;
+        for (const auto& ch : device["modular"]["channels"])
+            for (const auto& m : ch["maps"])
+                if (m != "none") uncovered.insert(m.get<std::string>());
+        std::map<std::string, std::vector<std::string>> partners;
+        for (const auto& group : device["modular"]["exclusive_groups"])
+            for (const auto& a : group)
+                for (const auto& b : group)
+                    if (a != b) partners[a.get<std::string>()].push_back(b.get<std::string>());
+        int rounds = 0;
+        while (!uncovered.empty() && ++rounds <= 40) {
+            mb::ProfileConfig config;
+            for (const auto& ch : device["modular"]["channels"]) {
+                const std::string channel = ch["id"];
+                if (config.count(channel)) continue;  // set to none as another's partner
+                for (const auto& m : ch["maps"]) {
+                    if (!uncovered.count(m.get<std::string>())) continue;
+                    config[channel] = m.get<std::string>();
+                    uncovered.erase(m.get<std::string>());
+                    for (const auto& other : partners[channel])
+                        config[other] = "none";
+                    break;
+                }
+            }
+            std::string named;
+            for (const auto& [channel, map] : config)
+                named += " " + channel + "=" + map;
+            const auto p = store().load(id, config);
+            ASSERT_TRUE(p.has_value()) << id << named << ": " << mb::to_string(p.error().front());
+            for (const auto& [channel, map] : config) {
+                if (map != "none") {
+                    EXPECT_EQ(p->configuration.at(channel), map) << id << " " << channel;
+                }
+            }
+        }
+        EXPECT_TRUE(uncovered.empty()) << id << ": " << uncovered.size() << " maps no channel took";
+    }
 }
 
 TEST(WalchemCoverage, TypeMapsMatchTheManualsFieldCounts) {
