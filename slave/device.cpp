@@ -138,8 +138,13 @@ void Device::count_frame(bool checksum_ok) noexcept {
 }
 
 bool Device::frozen(Table t, std::uint16_t address) const noexcept {
-    return faults_->enabled(Fault::StuckValue) && !modbus::is_bit_table(t) &&
-           static_cast<std::uint16_t>(faults_->arg(Fault::StuckValue)) == address;
+    if (!faults_->enabled(Fault::StuckValue) || modbus::is_bit_table(t)) return false;
+    const auto stuck = static_cast<std::uint16_t>(faults_->arg(Fault::StuckValue));
+    if (stuck == address) return true;
+    // An address of an alternative map (Walchem) is stuck where its value is held: its object's field.
+    const modbus::Point* p = profile_->find(Table::HoldingRegisters, stuck);
+    return p && p->same_value_as &&
+           static_cast<std::uint16_t>(*p->same_value_as + (stuck - p->address)) == address;
 }
 
 std::uint16_t Device::served(std::uint16_t address) const noexcept {

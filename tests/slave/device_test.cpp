@@ -157,6 +157,17 @@ TEST(Device, AlternativeMapsReadTheirObjectsOwnFields) {
     EXPECT_EQ(w600.image().reg(Table::HoldingRegisters, 576 + 34), 3);
 }
 
+// stuck-value at an alternative address stops its value where it is held, its object's field: the
+// simulation writes sensor 1's primary value at 576, which 9216 reads.
+TEST(Device, AStuckAlternativeAddressIsStuckWhereItsValueIsHeld) {
+    FaultSet faults({*parse_fault("stuck-value=9216")}, 1);
+    const Device w600(profile("walchem-w600"), 1, &faults);
+    EXPECT_TRUE(w600.frozen(Table::HoldingRegisters, 9216));
+    EXPECT_TRUE(w600.frozen(Table::HoldingRegisters, 576));
+    EXPECT_FALSE(w600.frozen(Table::HoldingRegisters, 577));  // the float's other half is not the one named
+    EXPECT_FALSE(w600.frozen(Table::HoldingRegisters, 612));
+}
+
 // A new image counts no modifications, though making it stored the map's initial values (a fixed value,
 // a range's minimum): "unchanged since made" is a count of zero, as after reset().
 TEST(Device, NewImageCountsNoModifications) {
