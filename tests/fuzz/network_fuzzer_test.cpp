@@ -779,6 +779,17 @@ TEST(NetworkFuzzer, APeerWhoseBytesFormNoFrameIsNotFuzzed) {
     EXPECT_EQ(s.requests, 0u);
 }
 
+// A slave whose replies name neither the unit nor the function asked is still a Modbus slave over
+// Modbus/TCP (its MBAP header delimits the frame): it is fuzzed and its faults found, not "cannot reach".
+TEST(NetworkFuzzer, AFaultySlaveWhoseRepliesNameNothingAskedIsFuzzed) {
+    RunningServer server({"wrong-unit", "wrong-function"}, 1, "modbus");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.requests = 30;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("modbus"), o);
+    EXPECT_TRUE(s.reachable) << s.error;
+    EXPECT_FALSE(s.findings.empty());
+}
+
 TEST(NetworkFuzzer, ReproducerIsSavedMinimisedAndReplaysTheSameRule) {
     const auto dir = std::filesystem::path(::testing::TempDir()) / "mbscope-netfuzz-artifacts";
     std::filesystem::remove_all(dir);
