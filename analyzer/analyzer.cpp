@@ -17,13 +17,21 @@ namespace mbscope::analyzer {
 
 using namespace mbscope::modbus;
 
+namespace {
+TcpStreamDeframer passive() {
+    TcpStreamDeframer d;
+    d.observe_passively();
+    return d;
+}
+}  // namespace
+
 struct Analyzer::Flow {
     std::uint64_t id = 0;
     SharedText link;                                 // "client -> server"
     std::string server;                              // "server"
     Carrier carrier = Carrier::Tcp;                  // Tcp: reassembled; the others come whole
     std::unique_ptr<TcpReassembler> reassembler[2];  // [0] client → server, [1] server → client
-    TcpStreamDeframer deframer[2];
+    TcpStreamDeframer deframer[2] = {passive(), passive()};
     // Unparsed bytes are reported at the packet that carried them, not at whatever packet (of any
     // connection) ends them. Per direction: the last packet fed to the deframer and the stream offset its
     // bytes start at, and, for earlier packets whose bytes were still unreported when the next came, the

@@ -24,6 +24,9 @@ constexpr const char* target = "fuzz_tcp_stream";
 // on fresh memory; the fuzzing build's vector annotations still catch a read past a buffer's size), so the
 // callbacks reach the input's state through this.
 struct Run {
+    Run() {
+        deframer.observe_passively();
+    }  // as the analyzer reads streams: its checks are the endpoint's and more
     std::span<const std::uint8_t> stream;
     std::uint64_t position = 0;  // stream position of the next byte the reassembler must deliver
     modbus::TcpStreamDeframer deframer;

@@ -130,7 +130,7 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
         const std::span<const std::uint8_t> rest(buf_.data() + head_, buf_.size() - head_);
         // A non-zero protocol id after an ADU that does not decode is, unless it makes a frame that
         // does, that ADU's own bytes, not a header.
-        const DeframeStep step = tcp_step(rest, at_end, in_sync_ && trusted_header(rest));
+        const DeframeStep step = tcp_step(rest, at_end, in_sync_ && (!passive_ || trusted_header(rest)));
         if (step.kind == Kind::NeedMore) break;
         if (step.kind == Kind::Skip) {
             if (pending_.length != 0 && pending_.reason != step.reason) flush_unparsed(out);
@@ -153,8 +153,10 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
             frame.end = last_;
             if (frame.protocol_id() != 0) frame.findings.add(FindingCode::TcpProtocolIdNonzero);
             if (frame.length_field() > max_pdu_length + 1) frame.findings.add(FindingCode::TcpLengthInvalid);
-            last_pdu_size_ = step.length - 7;
-            std::memcpy(last_pdu_.data(), rest.data() + 7, last_pdu_size_);
+            if (passive_) {
+                last_pdu_size_ = step.length - 7;
+                std::memcpy(last_pdu_.data(), rest.data() + 7, last_pdu_size_);
+            }
             in_sync_ = true;
         }
         head_ += step.length;

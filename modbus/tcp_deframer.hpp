@@ -3,11 +3,12 @@
 // many chunks. The MBAP length field delimits each ADU (TCP §3.1.3). A length outside 2..254 cannot be
 // trusted: the bytes are reported as unparsed and the deframer resynchronises on the next plausible MBAP
 // header (protocol id 0, length 2..254, function code 1..127). While in sync, a header with a non-zero
-// protocol id is still a frame (flagged tcp.protocol_id_nonzero) so the analyzer can say what it was;
-// but not right after an ADU whose PDU does not decode: a length field too short for its PDU ("length 2"
-// on a 12-byte read request) puts the rest of that ADU in front of the next header, where it reads as a
-// header with a non-zero protocol id. Unless that header's own ADU decodes, the stream is out of sync
-// there, and resynchronises.
+// protocol id is still a frame (flagged tcp.protocol_id_nonzero) so the analyzer can say what it was.
+// A passive observer (observe_passively(): the analyzer) goes further: right after an ADU whose PDU does
+// not decode, a length field too short for its PDU ("length 2" on a 12-byte read request) puts the rest of
+// that ADU in front of the next header, where it reads as a header with a non-zero protocol id; unless that
+// header's own ADU decodes, the stream is out of sync there, and resynchronises. An endpoint (the slave,
+// a client) reads the stream as a device does, by the length fields alone.
 
 #include <array>
 #include <cstdint>
@@ -35,8 +36,10 @@ class TcpStreamDeframer {
     std::uint64_t unreported() const noexcept { return pending_.length != 0 ? pending_.offset : base_; }
     // Those bytes, valid until the next call (a frame cut by a gap: its MBAP header still names it).
     std::span<const std::uint8_t> incomplete() const noexcept { return {buf_.data() + head_, buffered()}; }
-    // Back to a new deframer's state at stream offset 0, keeping the buffer's capacity.
+    // Back to a new deframer's state at stream offset 0, keeping the buffer's capacity (and the mode).
     void reset() noexcept;
+    // Reads the stream as a passive observer (the analyzer), see above.
+    void observe_passively() noexcept { passive_ = true; }
 
   private:
     void run(bool at_end, DeframeEvents& out);
@@ -46,6 +49,7 @@ class TcpStreamDeframer {
     std::size_t head_ = 0;
     std::uint64_t base_ = 0;
     bool in_sync_ = true;
+    bool passive_ = false;
     // The PDU of the last frame, judged only when the next header's protocol id is not 0.
     std::array<std::uint8_t, max_frame_bytes> last_pdu_{};
     std::size_t last_pdu_size_ = 0;

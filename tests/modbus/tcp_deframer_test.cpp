@@ -17,8 +17,10 @@ std::vector<std::vector<std::uint8_t>> sample_adus() {
             hex("12 34 00 00 00 0B 01 10 00 01 00 02 04 00 0A 01 02")};
 }
 
-mb::DeframeEvents run(const std::vector<std::uint8_t>& data, const std::vector<std::size_t>& sizes) {
+mb::DeframeEvents run(const std::vector<std::uint8_t>& data, const std::vector<std::size_t>& sizes,
+                      bool passive = false) {
     mb::TcpStreamDeframer d;
+    if (passive) d.observe_passively();
     mb::DeframeEvents out;
     std::size_t pos = 0;
     for (auto n : sizes) {
@@ -102,8 +104,9 @@ TEST(TcpStreamDeframer, ProtocolIdNonZeroInSyncIsAFlaggedFrame) {
 
 // A read request whose length field says 2 (unit and function) is a frame of 8 bytes whose PDU does not
 // decode; its address and quantity ("00 6B 00 03") then start what reads as a header with protocol id 3.
-// That is the stream out of sync, not a frame: the 4 bytes are unparsed and the next request is whole.
-// After a frame that decodes, a non-zero protocol id is still a (flagged) frame.
+// To a passive observer (the analyzer) that is the stream out of sync, not a frame: the 4 bytes are
+// unparsed and the next request is whole. After a frame that decodes, a non-zero protocol id is still a
+// (flagged) frame. An endpoint (the slave) reads by the length fields alone, as a device does.
 TEST(TcpStreamDeframer, ANonZeroProtocolIdAfterAnAduThatDoesNotDecodeIsResynchronisedOn) {
     const auto good = sample_adus();
     const auto short_length = hex("00 01 00 00 00 02 11 03 00 6B 00 03");
@@ -112,7 +115,7 @@ TEST(TcpStreamDeframer, ANonZeroProtocolIdAfterAnAduThatDoesNotDecodeIsResynchro
     const auto data = concat({short_length, next, good[1]});
     for (const std::vector<std::size_t>& sizes :
          {std::vector<std::size_t>{data.size()}, std::vector<std::size_t>{12, 12, data.size() - 24}}) {
-        auto events = run(data, sizes);
+        auto events = run(data, sizes, true);
         expect_every_byte_accounted(events, data.size());
         EXPECT_EQ(frames_bytes(events),
                   (std::vector{std::vector<std::uint8_t>(short_length.begin(), short_length.begin() + 8),
@@ -128,10 +131,15 @@ TEST(TcpStreamDeframer, ANonZeroProtocolIdAfterAnAduThatDoesNotDecodeIsResynchro
     for (const auto& before :
          {good[0], hex("00 01 00 00 00 06 11 03 00 00 00 00"), hex("00 01 00 00 00 02 11 03")}) {
         const auto flagged = concat({before, hex("00 02 00 01 00 06 11 03 00 6B 00 03")});
-        auto events = run(flagged, {flagged.size()});
+        auto events = run(flagged, {flagged.size()}, true);
         ASSERT_EQ(events.size(), 2u);
         EXPECT_TRUE(std::get<mb::Frame>(events[1]).findings.contains(mb::FindingCode::TcpProtocolIdNonzero));
     }
+    const auto endpoint = run(data, {data.size()});
+    ASSERT_GE(endpoint.size(), 2u);
+    const auto* second = std::get_if<mb::Frame>(&endpoint[1]);
+    ASSERT_NE(second, nullptr);
+    EXPECT_TRUE(second->findings.contains(mb::FindingCode::TcpProtocolIdNonzero));
 }
 
 TEST(TcpStreamDeframer, GapLosesTheFrameInProgressAndResyncs) {
