@@ -188,8 +188,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
         "Every point written is read first and written back at the end; --read-only writes nothing.\n"
         "Output: progress on a terminal (stderr), findings on stderr, a JSON summary on stdout.\n"
         "Exit codes: 0 nothing found, 1 at least one finding (or a point not restored), 2 the target could\n"
-        "not be reached or never answered the health check with a frame, no request was sent,\n"
-        "or the run was interrupted (SIGINT, SIGTERM) before it found anything.\n"
+        "not be reached or never answered the health check (over Modbus/TCP, with a frame), no request\n"
+        "was sent, or the run was interrupted (SIGINT, SIGTERM) before it found anything.\n"
         "Example: mbscope fuzz --target tcp://127.0.0.1:5020 --profile mmk-2030 --duration 60s --artifacts "
         "out");
     cmd->add_option("--target", o->target, "The slave to fuzz (URI)")->required();

@@ -376,16 +376,14 @@ bool Campaign::healthy(std::chrono::nanoseconds* latency, bool strict) {
         }
         // Alive is answering at all, if late (the reply to an earlier attempt, heard while waiting it out
         // or during this one): whether the answer keeps the rules is the probes' business. A late reply's
-        // latency is at least the timeout it missed. At the start, the answer must be a frame: over
-        // Modbus/TCP one its MBAP header delimits, whatever it holds (wrong unit, function, transaction or
-        // protocol id are what the probes are for); on a serial framing, where the line's silence ends any
-        // bytes, one whose checksum holds or that names the unit or the function asked. Bytes that form
-        // none were never shown to come from a Modbus slave.
-        const auto& reply = r.exchange.response;
-        const bool normal =
-            reply && !reply->pdu().empty() &&
-            (framing_ == modbus::Framing::Tcp || reply->checksum_ok || reply->unit_id() == options_.unit ||
-             (reply->pdu()[0] & 0x7F) == health_[0]);
+        // latency is at least the timeout it missed. At the start, over Modbus/TCP, the answer must be a
+        // frame its MBAP header delimits, whatever it holds (wrong unit, function, transaction or protocol
+        // id are what the probes are for): bytes that form none were never shown to come from a Modbus
+        // slave. On a serial framing the line's silence ends any bytes, and a faulty reply is told from
+        // noise by no rule the probes do not apply themselves (extra bytes inside a valid CRC).
+        const bool normal = framing_ != modbus::Framing::Tcp
+                                ? !r.exchange.received.empty()
+                                : r.exchange.response && !r.exchange.response->pdu().empty();
         const bool late = s_.late_replies > late_before;  // a frame, set aside as an earlier attempt's
         if (late || (strict ? normal : !r.exchange.received.empty())) {
             if (latency)
