@@ -690,6 +690,20 @@ std::vector<MapField> parse_map_fields(Reader& r, const json& map, const std::st
     return out;
 }
 
+// A modular map's field placed as a holding register and, when it is coil-accessible, as a coil that views
+// the register at its address (profile.coils_view_registers).
+void place_field(RawPoint rp, bool coil, Tables& tables, Profile& profile) {
+    if (coil) {
+        profile.coils_view_registers = true;
+        RawPoint view = rp;
+        view.point.table = Table::Coils;
+        view.point.encoding = Encoding{};
+        view.point.encoding.type = EncodingType::Bool;
+        tables[idx(Table::Coils)].points.push_back(std::move(view));
+    }
+    tables[idx(Table::HoldingRegisters)].points.push_back(std::move(rp));
+}
+
 // A channel the configuration gives a map: what the alternative maps number and read.
 struct PlacedChannel {
     std::string id;
@@ -812,15 +826,7 @@ void expand_alternative(Reader& r, const json& modular, const ModularMaps& maps,
                 // object's own field has it.
                 const bool column_coil =
                     column.contains("coil") && column["coil"].is_boolean() && column["coil"].get<bool>();
-                if (column_coil && field->coil) {
-                    profile.coils_view_registers = true;
-                    RawPoint coil = *rp;
-                    coil.point.table = Table::Coils;
-                    coil.point.encoding = Encoding{};
-                    coil.point.encoding.type = EncodingType::Bool;
-                    tables[idx(Table::Coils)].points.push_back(std::move(coil));
-                }
-                tables[idx(Table::HoldingRegisters)].points.push_back(std::move(*rp));
+                place_field(std::move(*rp), column_coil && field->coil, tables, profile);
             }
         }
     }
@@ -945,15 +951,7 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
             rp.point.address = static_cast<std::uint16_t>(*start + rp.point.address);
             rp.point.name = *id + ": " + rp.point.name;
             if (!rp.point.name_en.empty()) rp.point.name_en = *id + " " + rp.point.name_en;
-            if (field.coil) {
-                profile.coils_view_registers = true;
-                RawPoint coil = rp;
-                coil.point.table = Table::Coils;
-                coil.point.encoding = Encoding{};
-                coil.point.encoding.type = EncodingType::Bool;
-                tables[idx(Table::Coils)].points.push_back(std::move(coil));
-            }
-            tables[idx(Table::HoldingRegisters)].points.push_back(std::move(rp));
+            place_field(std::move(rp), field.coil, tables, profile);
         }
     }
     for (const auto& [channel, map] : config)
