@@ -111,6 +111,10 @@ int run_fuzz_command(const FuzzCliOptions& o) {
         std::cerr << "mbscope fuzz: " << summary.replies_after_timeout << " replies came after --timeout ("
                   << options.timeout.count() << " ms); each was judged as its request's, "
                   << "and a longer --timeout may suit the target\n";
+    if (summary.writes_past_deadline > 0)
+        std::cerr << "mbscope fuzz: " << summary.writes_past_deadline
+                  << " write probes not sent: with a request every " << options.interval.count()
+                  << " ms, reading their points first would have run past --duration\n";
     if (!summary.reachable) {
         std::cerr << "mbscope fuzz: cannot reach the target: " << summary.error << '\n';
         return exit_failure;

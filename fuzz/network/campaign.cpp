@@ -109,7 +109,17 @@ class Campaign {
     // `strict`: only a frame counts (the run's first check: a target that answers bytes that form no
     // frame was never shown to be a Modbus slave at all).
     bool healthy(std::chrono::nanoseconds* latency = nullptr, bool strict = false);
+    // Whether a write in `p` can land: addressed to the unit, broadcast, or to any unit over Modbus/TCP
+    // (devices that ignore the unit id are common there).
+    bool lands(const Probe& p) const {
+        return framing_ == modbus::Framing::Tcp || p.unit == options_.unit || p.unit == 0;
+    }
     bool prepare_writes(const Probe& p);
+    // The reads prepare_writes would send before `p` (none unless it writes where a write can land).
+    std::size_t reads_before(const Probe& p) const;
+    // With a polling interval every request is paced: whether `reads` reads and then the step itself would
+    // all go out before --duration ends.
+    bool fits_before_deadline(std::size_t reads) const;
     bool keep_line_settings(Probe& p);
     bool remember_before_write(const WriteRange& range, const std::function<bool()>& read);
     void note_unread(const modbus::transport::Exchange& ex);
@@ -398,13 +408,24 @@ bool Campaign::healthy(std::chrono::nanoseconds* latency, bool strict) {
     return false;
 }
 
+std::size_t Campaign::reads_before(const Probe& p) const {
+    const auto range = write_range(p.pdu);
+    if (!range || range->count == 0 || !lands(p)) return 0;
+    return reads_to_remember(session_, profile_, *range);
+}
+
+bool Campaign::fits_before_deadline(std::size_t reads) const {
+    if (!options_.duration || options_.interval.count() == 0) return true;
+    // The first probe goes out whatever the budget when it needs no reads: a run sends at least one.
+    if (s_.requests == 0 && reads == 0) return true;
+    const auto first = std::max(Clock::now(), last_send_ + options_.interval);
+    return first + options_.interval * static_cast<long>(reads) <= start_ + *options_.duration;
+}
+
 bool Campaign::prepare_writes(const Probe& p) {
     unread_.clear();
     const auto range = write_range(p.pdu);
-    if (!range || range->count == 0) return true;
-    // Only where the write can land: the unit, a broadcast, or any unit over Modbus/TCP (devices that
-    // ignore the unit id are common there).
-    if (framing_ != modbus::Framing::Tcp && p.unit != options_.unit && p.unit != 0) return true;
+    if (!range || range->count == 0 || !lands(p)) return true;
     // A write the device's own rules let through (a function it supports, a quantity within its limits) is
     // sent only once its points are read. One they forbid is sent whatever (the device must refuse it: that
     // is the test), its points read first all the same where the device lets them be read, so that a device
@@ -802,6 +823,13 @@ CampaignSummary Campaign::run() {
         std::optional<Probe> chosen = std::exchange(follow_up_, std::nullopt);
         if (!chosen && !options_.read_only && rng_() % 100 < 5) chosen = round_trip();
         Probe p = chosen ? std::move(*chosen) : generator_.next();
+        // A polling interval (Walchem's 5 s) makes the reads before a write cost seconds each: a step that
+        // would run past --duration is not begun (a write's is skipped, another probe may fit).
+        if (const std::size_t reads = reads_before(p); !fits_before_deadline(reads)) {
+            if (reads == 0) break;
+            ++s_.writes_past_deadline;
+            continue;
+        }
         if (!prepare_writes(p) || !keep_line_settings(p)) {
             ++s_.skipped_writes;
             continue;
@@ -1001,6 +1029,7 @@ nlohmann::json to_json(const CampaignSummary& s) {
                      {"replies_after_timeout", s.replies_after_timeout},
                      {"silence_wait_ms", std::chrono::duration<double, std::milli>(s.silence_wait).count()},
                      {"skipped_writes", s.skipped_writes},
+                     {"writes_past_deadline", s.writes_past_deadline},
                      {"line_settings_kept", s.line_settings_kept},
                      {"unconfirmed", s.unconfirmed},
                      {"health_checks", s.health_checks},

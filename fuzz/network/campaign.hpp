@@ -77,6 +77,9 @@ struct CampaignSummary {
     std::uint64_t requests = 0;
     std::uint64_t replies = 0, exceptions = 0, silences = 0;
     std::uint64_t skipped_writes = 0;  // write probes not sent: the original values could not be read
+    // Write probes not sent because, paced at the polling interval, the reads before them and the write
+    // would have run past --duration.
+    std::uint64_t writes_past_deadline = 0;
     // Write probes sent with the values the line-setting points they reach hold (Campaign's
     // keep_line_settings).
     std::uint64_t line_settings_kept = 0;

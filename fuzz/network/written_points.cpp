@@ -137,16 +137,59 @@ std::string to_string(const WriteRange& range) {
            std::to_string(range.count) + (range.count == 1 ? " point)" : " points)");
 }
 
-bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range) {
+std::vector<WriteRange> read_blocks(const modbus::Profile& profile, const WriteRange& range) {
+    std::vector<WriteRange> out;
     const std::uint32_t end = range.end();
-    if (profile.open_address_space)
-        return session.remember(range.table, range.start, static_cast<std::uint16_t>(end - range.start), 100);
-    bool ok = true;
-    for (std::uint32_t a = range.start; a < end && ok; ++a)
-        if (const auto* point = profile.find(range.table, static_cast<std::uint16_t>(a));
-            point && point->access != modbus::Access::Write)
-            ok = session.remember(range.table, static_cast<std::uint16_t>(a), 1);
-    return ok;
+    if (profile.open_address_space) {
+        for (std::uint32_t a = range.start; a < end; a += 100)
+            out.push_back({range.table, static_cast<std::uint16_t>(a),
+                           static_cast<std::uint16_t>(std::min<std::uint32_t>(100, end - a))});
+        return out;
+    }
+    const std::uint8_t read_fc = range.table == modbus::Table::Coils              ? 1
+                                 : range.table == modbus::Table::DiscreteInputs   ? 2
+                                 : range.table == modbus::Table::HoldingRegisters ? 3
+                                                                                  : 4;
+    const auto limit = static_cast<std::uint32_t>(std::max(1, profile.functions.max_for(read_fc)));
+    for (std::uint32_t a = range.start; a < end; ++a) {
+        const auto* point = profile.find(range.table, static_cast<std::uint16_t>(a));
+        if (!point || point->access == modbus::Access::Write) continue;
+        if (!out.empty() && out.back().end() == a && out.back().count < limit) {
+            ++out.back().count;
+            continue;
+        }
+        out.push_back({range.table, static_cast<std::uint16_t>(a), 1});
+    }
+    return out;
+}
+
+bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range) {
+    for (const auto& block : read_blocks(profile, range)) {
+        if (session.remember(block.table, block.start, block.count, block.count)) continue;
+        // A block refused as a whole is read point by point: a device may refuse a range for one point in
+        // it (a condition, a part of a value) and still let the others be read.
+        if (profile.open_address_space || block.count == 1 || !session.last_read_refused() ||
+            !session.remember(block.table, block.start, block.count, 1))
+            return false;
+    }
+    return true;
+}
+
+std::size_t reads_to_remember(const conformance::Session& session, const modbus::Profile& profile,
+                              const WriteRange& range) {
+    std::size_t reads = 0;
+    const auto count_unknown = [&](const WriteRange& r) {
+        for (const auto& block : read_blocks(profile, r))
+            for (std::uint32_t a = block.start; a < block.end(); ++a)
+                if (!session.touched().count({block.table, static_cast<std::uint16_t>(a)})) {
+                    ++reads;
+                    break;
+                }
+    };
+    count_unknown(range);
+    if (range.table == modbus::Table::Coils && profile.coils_view_registers)  // Session::remember
+        count_unknown({modbus::Table::HoldingRegisters, range.start, range.count});
+    return reads;
 }
 
 std::vector<std::pair<modbus::Table, std::uint16_t>> points_not_read(const conformance::Session& session,

@@ -100,12 +100,19 @@ nlohmann::json to_json(const std::vector<WriteRange>& ranges);
 // "holding_registers 5000 (3 points)"
 std::string to_string(const WriteRange& range);
 
-// Reads, through `session`, the original values of the points of `range` that exist on the device: those
-// of the profile's map, or every one of an open address space (read in blocks). False when a read failed
-// (the points read before it are kept). A write-only point is not read: what a read returns there is not
-// what it holds (the reference slave answers 0), and writing it is a command (an alarm acknowledge), not
-// a value to put back.
+// The reads that tell the original values of the points of `range` that exist on the device: runs of
+// consecutive points of the profile's map, each as long as the table's read function allows, or blocks of
+// 100 of an open address space. A write-only point is not read: what a read returns there is not what it
+// holds (the reference slave answers 0), and writing it is a command (an alarm acknowledge), not a value to
+// put back. One read a point cost minutes where a manual asks for slow polling (Walchem: a request every
+// 5 s, and one write of 60 registers reaches some 50 points).
+std::vector<WriteRange> read_blocks(const modbus::Profile& profile, const WriteRange& range);
+// Reads, through `session`, the original values of the points of `range` (read_blocks); a block the device
+// refuses as a whole is read point by point. False when a read failed (the points read before it are kept).
 bool remember_range(conformance::Session& session, const modbus::Profile& profile, const WriteRange& range);
+// How many reads remember_range would send now: the blocks holding a point `session` has no original of.
+std::size_t reads_to_remember(const conformance::Session& session, const modbus::Profile& profile,
+                              const WriteRange& range);
 // The points of `range` a write may change whose values `session` holds no original of: outside the map of
 // a closed one, or a read that failed. Write-only points are not among them (remember_range).
 std::vector<std::pair<modbus::Table, std::uint16_t>> points_not_read(const conformance::Session& session,

@@ -1407,6 +1407,67 @@ TEST(NetworkFuzzer, TheRestoreAtAPollingIntervalIsAnnounced) {
                                 " points written, a request every 1 ms (the polling interval)");
 }
 
+// The originals of a write's points are read before it in blocks of consecutive points, each as long as the
+// device's read allows: one read a point made one write of 60 registers to a Walchem W900, polled every 5 s
+// as its manual asks, cost over four minutes before it was sent, and as long again to restore.
+TEST(NetworkFuzzer, TheOriginalsOfAWriteAreReadInBlocksAsLongAsTheReadAllows) {
+    for (const char* id : {"walchem-w900", "mmk-2030"}) {
+        SCOPED_TRACE(id);
+        RunningServer server({}, 1, id);
+        const auto port = server.start("tcp");
+        const auto& p = mbscope::slave::test::profile(id);
+        const auto& first = p.table(Table::HoldingRegisters).front();
+        const fz::WriteRange range{Table::HoldingRegisters, first.address, 60};
+        const auto blocks = fz::read_blocks(p, range);
+        std::size_t readable = 0, in_blocks = 0;
+        for (std::uint32_t a = range.start; a < range.end(); ++a) {
+            const auto* point = p.find(Table::HoldingRegisters, static_cast<std::uint16_t>(a));
+            readable += point && point->access != mbscope::modbus::Access::Write;
+        }
+        for (const auto& b : blocks) {
+            in_blocks += b.count;
+            EXPECT_LE(b.count, p.functions.max_for(3));
+            for (std::uint32_t a = b.start; a < b.end(); ++a)
+                EXPECT_NE(p.find(Table::HoldingRegisters, static_cast<std::uint16_t>(a)), nullptr) << a;
+        }
+        EXPECT_EQ(in_blocks, readable);
+        EXPECT_LT(blocks.size() * 4, readable) << "blocks, not points";
+
+        auto client = mbscope::modbus::transport::Client::open(
+            *mbscope::modbus::transport::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+        ASSERT_TRUE(client.has_value()) << client.error();
+        mbscope::conformance::Session session(*client, {1, std::chrono::milliseconds(1000), {}}, &p);
+        EXPECT_EQ(fz::reads_to_remember(session, p, range), blocks.size());
+        ASSERT_TRUE(fz::remember_range(session, p, range));
+        EXPECT_EQ(session.requests(), blocks.size());
+        EXPECT_EQ(fz::reads_to_remember(session, p, range), 0u);
+        EXPECT_EQ(session.touched().size(), readable);
+        for (const auto& [where, t] : session.touched())
+            EXPECT_EQ(t.original, server.device().image().reg(Table::HoldingRegisters, t.address))
+                << t.address;
+    }
+}
+
+// At a polling interval every request is paced, the reads before a write too: a write whose reads would
+// run past --duration is not sent (`writes_past_deadline`), so that a run of a few seconds against a
+// Walchem (5 s between requests) did not take minutes. The probes sent fit the duration's slots.
+TEST(NetworkFuzzer, AtAPollingIntervalAWriteWhoseReadsWouldRunPastTheDurationIsNotSent) {
+    RunningServer server({}, 1, "walchem-w900");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.requests.reset();
+    o.duration = std::chrono::milliseconds(2000);
+    o.interval = std::chrono::milliseconds(250);
+    o.minimise_budget = 0;
+    const auto s = fz::run_campaign(mbscope::slave::test::profile("walchem-w900"), o);
+    ASSERT_TRUE(s.reachable) << s.error;
+    EXPECT_TRUE(s.findings.empty()) << listing(s);
+    EXPECT_GT(s.writes_past_deadline, 0u);
+    EXPECT_GT(s.requests, 0u);
+    EXPECT_LE(s.requests, 2000u / 250u + 1u);
+    for (const auto& t : s.restored)
+        EXPECT_TRUE(t.restored) << t.address << ": " << t.problem;
+}
+
 // At a manual's polling interval the single reads after a refusal are those that fit in about a minute.
 TEST(NetworkFuzzer, TheSingleReadsAfterARefusalFitAMinuteOfThePollingInterval) {
     using std::chrono::milliseconds;
