@@ -12,6 +12,7 @@
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/frame_text.hpp"
+#include "modbus/reply_fit.hpp"
 
 namespace mbscope::analyzer {
 
@@ -818,36 +819,6 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
 
 namespace {
 
-std::optional<std::size_t> expected_response_data(const Pdu& request) {
-    const auto* read = std::get_if<ReadRequest>(&request.body);
-    if (read) return request.function_code() <= 2 ? (read->quantity + 7u) / 8u : 2u * read->quantity;
-    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&request.body))
-        return 2u * rw->quantity_to_read;
-    return std::nullopt;
-}
-
-bool echo_matches(const Pdu& request, const Pdu& response) {
-    switch (request.function_code()) {
-        case 5:
-        case 6:
-        case 8:
-        case 22:
-            return request.body == response.body;
-        case 15:
-        case 16: {
-            const auto* rsp = std::get_if<WriteMultipleResponse>(&response.body);
-            if (!rsp) return false;
-            if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&request.body))
-                return rsp->starting_address == c->starting_address && rsp->quantity == c->quantity;
-            if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&request.body))
-                return rsp->starting_address == w->starting_address && rsp->quantity == w->quantity;
-            return false;
-        }
-        default:
-            return true;
-    }
-}
-
 // Could `response` be the reply to `request`, as far as its bytes tell: its unit, its function (or the
 // exception to it), and for a pair that decodes, the echo and the data size the request asks for.
 bool could_answer(const FrameRecord& request, const FrameRecord& response) {
@@ -857,13 +828,9 @@ bool could_answer(const FrameRecord& request, const FrameRecord& response) {
         (a[0] & 0x7F) != q[0])
         return false;
     if (!request.pdu || !response.pdu || response.pdu->is_exception()) return true;
-    if (!echo_matches(*request.pdu, *response.pdu)) return false;
-    const auto expected = expected_response_data(*request.pdu);
-    if (const auto* regs = std::get_if<ReadRegistersResponse>(&response.pdu->body))
-        return !expected || *expected == regs->values.size() * 2;
-    if (const auto* bits = std::get_if<ReadBitsResponse>(&response.pdu->body))
-        return !expected || *expected == bits->values.size();
-    return true;
+    const auto misfit = reply_misfit(*request.pdu, *response.pdu);
+    return !misfit ||
+           misfit->kind == ReplyMisfit::Kind::Padding;  // padding is the reply's fault, not another's
 }
 
 }  // namespace
@@ -1199,28 +1166,32 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                              "request FC" + std::to_string(q.function_code()) + ", response FC" +
                                  std::to_string(a.function_code()));
             } else if (!exception) {
-                auto expected = expected_response_data(q);
-                std::optional<std::size_t> got;
-                if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) got = bits->values.size();
-                if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
-                    got = regs->values.size() * 2;
-                if (expected && got && *expected != *got)
-                    pair_finding(FindingCode::PairResponseSizeMismatch,
-                                 describe_request(q) + " needs " + std::to_string(*expected) +
-                                     " data bytes, the response has " + std::to_string(*got));
-                // The bits of the last byte past the quantity asked are padded with zeros (AP §6.1, §6.2):
-                // only the request says how many are used, so the response is judged with it, as an FC15
-                // request is on its own.
-                const auto* bits = std::get_if<ReadBitsResponse>(&a.body);
-                const auto* read = std::get_if<ReadRequest>(&q.body);
-                if (bits && read && padding_bits_set(bits->values, read->quantity))
-                    pair_finding(FindingCode::PduPaddingBitsSet,
-                                 describe_request(q) + ": the response's last byte, " +
-                                     hex8(bits->values.back()) + ", sets bits past the " +
-                                     std::to_string(read->quantity) + " asked");
-                if (!echo_matches(q, a))
-                    pair_finding(FindingCode::PairEchoMismatch,
-                                 describe_request(q) + ": the response does not echo the request");
+                if (const auto misfit = reply_misfit(q, a)) {
+                    switch (misfit->kind) {
+                        case ReplyMisfit::Kind::DataSize:
+                            pair_finding(
+                                FindingCode::PairResponseSizeMismatch,
+                                describe_request(q) + " needs " + std::to_string(misfit->expected_bytes) +
+                                    " data bytes, the response has " + std::to_string(misfit->got_bytes));
+                            break;
+                        // The bits of the last byte past the quantity asked are padded with zeros (AP §6.1,
+                        // §6.2): only the request says how many are used, so the response is judged with it,
+                        // as an FC15 request is on its own.
+                        case ReplyMisfit::Kind::Padding: {
+                            const auto& bits = std::get<ReadBitsResponse>(a.body);
+                            pair_finding(FindingCode::PduPaddingBitsSet,
+                                         describe_request(q) + ": the response's last byte, " +
+                                             hex8(bits.values.back()) + ", sets bits past the " +
+                                             std::to_string(std::get<ReadRequest>(q.body).quantity) +
+                                             " asked");
+                            break;
+                        }
+                        case ReplyMisfit::Kind::Echo:
+                            pair_finding(FindingCode::PairEchoMismatch,
+                                         describe_request(q) + ": the response is not " + misfit->expected);
+                            break;
+                    }
+                }
             }
         }
     } else {

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <map>
 
+#include "modbus/adu.hpp"
 #include "modbus/function_code.hpp"
 #include "modbus/hex.hpp"
 
@@ -231,6 +232,37 @@ std::optional<modbus::Pdu> response_pdu(const tp::Exchange& ex) {
     return std::move(pdu).value();
 }
 
+std::optional<modbus::Pdu> request_pdu(const tp::Exchange& ex) {
+    if (!ex.response) return std::nullopt;
+    const auto frame = modbus::decode_adu(ex.response->framing, ex.sent);
+    if (!frame) return std::nullopt;
+    auto pdu = modbus::decode_request(frame->pdu());
+    if (!pdu) return std::nullopt;
+    return std::move(pdu).value();
+}
+
+std::optional<modbus::ReplyMisfit> reply_misfit(const tp::Exchange& ex) {
+    const auto reply = response_pdu(ex);
+    if (!reply) return std::nullopt;
+    const auto request = request_pdu(ex);
+    if (!request) return std::nullopt;
+    return modbus::reply_misfit(*request, *reply);
+}
+
+std::string misfit_text(const modbus::ReplyMisfit& m) {
+    switch (m.kind) {
+        case modbus::ReplyMisfit::Kind::DataSize:
+            return "the request asks for " + m.expected + ", the reply carries " +
+                   std::to_string(m.got_bytes) + " data bytes (" + m.source + ")";
+        case modbus::ReplyMisfit::Kind::Padding:
+            return "the reply sets bits of its last byte past the quantity asked (" + std::string(m.source) +
+                   ")";
+        case modbus::ReplyMisfit::Kind::Echo:
+            break;
+    }
+    return "the reply is not " + m.expected + " (" + m.source + ")";
+}
+
 std::string describe(const tp::Exchange& ex) {
     if (ex.closed && ex.received.empty()) return "connection closed, no reply";
     if (ex.received.empty()) return "no reply";
@@ -251,6 +283,7 @@ std::string describe(const tp::Exchange& ex) {
     std::string out = "normal response, function " + std::to_string(pdu->function_code());
     if (!pdu->violations.empty())
         out += " (breaks " + std::string(modbus::info(*pdu->violations.begin()).name) + ")";
+    if (const auto misfit = reply_misfit(ex)) out += "; " + misfit_text(*misfit);
     return out;
 }
 
@@ -283,7 +316,8 @@ bool is_exception(const tp::Exchange& ex, std::uint8_t fc, std::uint8_t code) {
 
 bool is_normal(const tp::Exchange& ex, std::uint8_t fc) {
     auto pdu = response_pdu(ex);
-    return pdu && !pdu->is_exception() && pdu->function_raw == fc && pdu->violations.empty();
+    return pdu && !pdu->is_exception() && pdu->function_raw == fc && pdu->violations.empty() &&
+           !reply_misfit(ex);
 }
 
 void expect_exception(RuleResult& r, const tp::Exchange& ex, std::uint8_t fc, std::uint8_t code) {

@@ -13,6 +13,7 @@
 #include "conformance/session.hpp"
 #include "modbus/pdu.hpp"
 #include "modbus/profile.hpp"
+#include "modbus/reply_fit.hpp"
 
 namespace mbscope::conformance {
 
@@ -95,6 +96,14 @@ std::optional<modbus::Pdu> response_pdu(const modbus::transport::Exchange& ex);
 // Every whole frame among an exchange's bytes (several requests sent in one write), in order: its PDU when
 // its checksum holds and it comes from the unit asked, nullopt otherwise.
 std::vector<std::optional<modbus::Pdu>> replies_in(const Context& c, const modbus::transport::Exchange& ex);
+// The request an exchange sent, when its bytes are one whole request in the reply's framing (not a rule's
+// deliberately broken or split frame).
+std::optional<modbus::Pdu> request_pdu(const modbus::transport::Exchange& ex);
+// How the reply fails to answer the request sent (modbus::reply_misfit: a read's data size, a write's
+// echo), nothing when it answers it or either cannot be decoded. A normal reply that does not answer its
+// request is not normal (is_normal), and describe() says why.
+std::optional<modbus::ReplyMisfit> reply_misfit(const modbus::transport::Exchange& ex);
+std::string misfit_text(const modbus::ReplyMisfit& misfit);
 // "normal response, function 3", "exception 04 (...) to function 3", "a damaged or foreign frame".
 std::string describe_reply(const std::optional<modbus::Pdu>& reply);
 bool is_normal_reply(const std::optional<modbus::Pdu>& reply, std::uint8_t fc);

@@ -9,6 +9,7 @@
 #include "modbus/adu.hpp"
 #include "modbus/function_code.hpp"
 #include "modbus/pdu.hpp"
+#include "modbus/reply_fit.hpp"
 
 namespace mbscope::conformance {
 
@@ -273,65 +274,14 @@ ExchangeOracle::Expected ExchangeOracle::expect_pdu(const Request& r, const modb
 
 void ExchangeOracle::check_normal_shape(const Request& r, const modbus::Pdu& reply,
                                         std::vector<OracleViolation>& out) const {
-    const auto bad = [&](const char* rule, const char* source, std::string expected) {
-        out.push_back({rule, source, std::move(expected), "a response that differs"});
-    };
     if (!r.decoded) return;
-    const modbus::Pdu& req = *r.decoded;
-    const std::uint8_t fc = req.function_code();
-    const auto echo_of_request = [&] {
-        if (modbus::encode_pdu(reply) != r.pdu) bad("reply.echo", "AP §6", "an echo of the request");
-    };
-    switch (fc) {
-        case 1:
-        case 2: {
-            const auto& rr = std::get<modbus::ReadRequest>(req.body);
-            const auto* bits = std::get_if<modbus::ReadBitsResponse>(&reply.body);
-            if (!bits || bits->values.size() != (rr.quantity + 7u) / 8u)
-                bad("reply.byte_count", "AP §6.1", std::to_string((rr.quantity + 7) / 8) + " data bytes");
-            else if (modbus::padding_bits_set(bits->values, rr.quantity))
-                bad("reply.padding", "AP §6.1", "the bits of the last byte past the quantity asked zero");
-            break;
-        }
-        case 3:
-        case 4: {
-            const auto& rr = std::get<modbus::ReadRequest>(req.body);
-            const auto* regs = std::get_if<modbus::ReadRegistersResponse>(&reply.body);
-            if (!regs || regs->values.size() != rr.quantity)
-                bad("reply.byte_count", "AP §6.3", std::to_string(rr.quantity) + " registers");
-            break;
-        }
-        case 5:
-        case 6:
-        case 22:
-            echo_of_request();
-            break;
-        case 8:
-            if (std::get<modbus::Diagnostics>(req.body).sub_function == 0) echo_of_request();
-            break;
-        case 15:
-        case 16: {
-            const auto* w = std::get_if<modbus::WriteMultipleResponse>(&reply.body);
-            const auto [start, quantity] =
-                fc == 15
-                    ? std::pair{std::get<modbus::WriteMultipleCoilsRequest>(req.body).starting_address,
-                                std::get<modbus::WriteMultipleCoilsRequest>(req.body).quantity}
-                    : std::pair{std::get<modbus::WriteMultipleRegistersRequest>(req.body).starting_address,
-                                std::get<modbus::WriteMultipleRegistersRequest>(req.body).quantity};
-            if (!w || w->starting_address != start || w->quantity != quantity)
-                bad("reply.echo", "AP §6.11-6.12", "the request's starting address and quantity");
-            break;
-        }
-        case 23: {
-            const auto& rw = std::get<modbus::ReadWriteMultipleRequest>(req.body);
-            const auto* regs = std::get_if<modbus::ReadRegistersResponse>(&reply.body);
-            if (!regs || regs->values.size() != rw.quantity_to_read)
-                bad("reply.byte_count", "AP §6.17", std::to_string(rw.quantity_to_read) + " registers");
-            break;
-        }
-        default:
-            break;
-    }
+    const auto misfit = modbus::reply_misfit(*r.decoded, reply);
+    if (!misfit) return;
+    using Kind = modbus::ReplyMisfit::Kind;
+    const char* rule = misfit->kind == Kind::DataSize  ? "reply.byte_count"
+                       : misfit->kind == Kind::Padding ? "reply.padding"
+                                                       : "reply.echo";
+    out.push_back({rule, misfit->source, misfit->expected, "a response that differs"});
 }
 
 bool ExchangeOracle::tracked(const modbus::Profile& p, Table t, std::uint16_t address) const {

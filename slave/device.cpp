@@ -147,6 +147,10 @@ bool Device::frozen(Table t, std::uint16_t address) const noexcept {
            static_cast<std::uint16_t>(*p->same_value_as + (stuck - p->address)) == address;
 }
 
+std::uint16_t Device::acknowledged(std::uint16_t quantity) {
+    return faults_->fires(Fault::WrongQuantity) ? static_cast<std::uint16_t>(quantity + 1) : quantity;
+}
+
 std::uint16_t Device::served(std::uint16_t address) const noexcept {
     return faults_->enabled(Fault::OffByOneAddress) ? static_cast<std::uint16_t>(address + 1) : address;
 }
@@ -347,6 +351,7 @@ std::vector<std::uint8_t> Device::read_bits(const Pdu& req) {
     for (std::uint32_t i = 0; i < r.quantity; ++i)
         if (read_word(t, static_cast<std::uint16_t>(start + i)) != 0)
             bits.values[i / 8] = static_cast<std::uint8_t>(bits.values[i / 8] | (1u << (i % 8)));
+    if (faults_->fires(Fault::WrongQuantity)) bits.values.push_back(0);
     bits.byte_count = static_cast<std::uint8_t>(bits.values.size());
     if (faults_->fires(Fault::WrongByteCount)) ++bits.byte_count;
     return encode(Pdu{fc, modbus::Direction::Response, bits, {}});
@@ -362,6 +367,13 @@ std::vector<std::uint8_t> Device::read_registers(const Pdu& req) {
     std::vector<std::uint16_t> words(r.quantity);
     for (std::uint32_t i = 0; i < r.quantity; ++i)
         words[i] = read_word(t, static_cast<std::uint16_t>(start + i));
+    // One more register, or one fewer where one more would not fit in a PDU (125 asked).
+    if (faults_->fires(Fault::WrongQuantity)) {
+        if (words.size() < modbus::max_read_registers)
+            words.push_back(read_word(t, static_cast<std::uint16_t>(start + r.quantity)));
+        else
+            words.pop_back();
+    }
     Pdu rsp = modbus::make_read_registers_response(static_cast<modbus::FunctionCode>(fc), words);
     if (faults_->fires(Fault::WrongByteCount)) ++std::get<modbus::ReadRegistersResponse>(rsp.body).byte_count;
     return encode(rsp);
@@ -405,7 +417,7 @@ std::vector<std::uint8_t> Device::write_multiple_coils(const Pdu& req, bool& wro
     write_words(Table::Coils, start, values);
     wrote = true;
     return encode(modbus::make_write_multiple_response(modbus::FunctionCode::WriteMultipleCoils,
-                                                       w.starting_address, w.quantity));
+                                                       w.starting_address, acknowledged(w.quantity)));
 }
 
 std::vector<std::uint8_t> Device::write_multiple_registers(const Pdu& req, bool& wrote) {
@@ -418,7 +430,7 @@ std::vector<std::uint8_t> Device::write_multiple_registers(const Pdu& req, bool&
     write_words(Table::HoldingRegisters, start, w.values);
     wrote = true;
     return encode(modbus::make_write_multiple_response(modbus::FunctionCode::WriteMultipleRegisters,
-                                                       w.starting_address, w.quantity));
+                                                       w.starting_address, acknowledged(w.quantity)));
 }
 
 std::vector<std::uint8_t> Device::mask_write(const Pdu& req, bool& wrote) {

@@ -95,6 +95,7 @@ class Device {
     std::uint16_t read_word(modbus::Table t, std::uint16_t address) const noexcept;
     void write_words(modbus::Table t, std::uint16_t start, const std::vector<std::uint16_t>& values);
     std::uint16_t served(std::uint16_t address) const noexcept;  // off-by-one-address fault
+    std::uint16_t acknowledged(std::uint16_t quantity);          // wrong-quantity fault
 
     std::vector<std::uint8_t> read_bits(const modbus::Pdu& req);
     std::vector<std::uint8_t> read_registers(const modbus::Pdu& req);

@@ -43,8 +43,9 @@ enum class Fault : std::uint8_t {
     NoEcho,             // FC5, FC6 and FC8/00 answers do not echo the request
     CrashAfter,         // after ARG answered requests the slave never answers again
     DuplicateReply,     // every response is sent twice, back to back
+    WrongQuantity,      // reads answer one item more than asked, FC15/FC16 acknowledge one more than written
 };
-inline constexpr std::size_t fault_count = static_cast<std::size_t>(Fault::DuplicateReply) + 1;
+inline constexpr std::size_t fault_count = static_cast<std::size_t>(Fault::WrongQuantity) + 1;
 
 std::string_view to_string(Fault f) noexcept;
 // One line per fault: "bad-crc  RTU: the response's CRC is wrong", for --help and the README.

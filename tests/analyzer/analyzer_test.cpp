@@ -1248,6 +1248,33 @@ TEST(Analyzer, EchoMismatch) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairEchoMismatch), 1);
 }
 
+// FC8's counters (sub-functions 0x0B-0x12) return a count, not the request's data (AP §6.8.1): a reply
+// with the count is no echo mismatch. One under another sub-function, or a changed echo of sub-function 0x0A
+// (clear counters), is. The whole body was compared for every sub-function, an error against a healthy
+// device for every counter read.
+TEST(Analyzer, Fc8CountersReturnACountAndOnlyEchoingSubFunctionsAreJudgedAsEchoes) {
+    const auto diagnostics = [](std::uint16_t sub, std::uint16_t data, mb::Direction direction) {
+        const std::uint8_t bytes[] = {static_cast<std::uint8_t>(data >> 8), static_cast<std::uint8_t>(data)};
+        auto pdu = mb::make_diagnostics(sub, bytes);
+        pdu.direction = direction;
+        return mb::encode_pdu(pdu);
+    };
+    Harness h;
+    h.send(true, mb::encode_tcp(1, 17, diagnostics(0x0B, 0, mb::Direction::Request)), 1s);
+    h.send(false, mb::encode_tcp(1, 17, diagnostics(0x0B, 42, mb::Direction::Response)), 1s + 1ms);
+    h.send(true, mb::encode_tcp(2, 17, diagnostics(0x0C, 0, mb::Direction::Request)), 2s);
+    h.send(false, mb::encode_tcp(2, 17, diagnostics(0x0D, 3, mb::Direction::Response)), 2s + 1ms);
+    h.send(true, mb::encode_tcp(3, 17, diagnostics(0x0A, 0, mb::Direction::Request)), 3s);
+    h.send(false, mb::encode_tcp(3, 17, diagnostics(0x0A, 1, mb::Direction::Response)), 3s + 1ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairEchoMismatch), 2);
+    for (const auto& f : h.sink.findings) {
+        if (f.code == mb::FindingCode::PairEchoMismatch) {
+            EXPECT_EQ(f.message.find("sub-function 11"), std::string::npos) << f.message;
+        }
+    }
+}
+
 TEST(Analyzer, ProtocolIdAndGarbageBetweenAdus) {
     Harness h;
     auto bad = read_request(1);

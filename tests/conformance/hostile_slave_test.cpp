@@ -40,6 +40,7 @@ class HostileServer {
         None,
         DropsOnePointReads,  // a read of one point is never answered (a device or an RS-485 line losing some)
         SetsPaddingBits,     // a reply to FC1 or FC2 has every bit set, past the quantity asked too
+        AcknowledgesOneMore,  // FC15 and FC16 replies carry a quantity one more than written
     };
     explicit HostileServer(unsigned seed, std::optional<std::size_t> honest_for = std::nullopt,
                            Lapse lapse = Lapse::None)
@@ -173,6 +174,9 @@ class HostileServer {
             auto reply = plausible(pdu);
             if (lapse_ == Lapse::SetsPaddingBits && (fc == 1 || fc == 2) && reply.size() > 2)
                 std::fill(reply.begin() + 2, reply.end(), std::uint8_t{0xFF});
+            if (lapse_ == Lapse::AcknowledgesOneMore && (fc == 15 || fc == 16) && reply.size() == 5 &&
+                ++reply[4] == 0)
+                ++reply[3];
             // FC23 writes at its second address; the others at their first.
             const std::size_t at = fc == 23 ? 5 : 1;
             if ((fc == 5 || fc == 6 || fc == 15 || fc == 16 || fc == 22 || fc == 23) &&
@@ -377,6 +381,31 @@ TEST(Padding, BitsSetPastTheQuantityAskedFailTheRule) {
     EXPECT_EQ(r.outcome, Outcome::Fail) << r.reason;
     EXPECT_EQ(r.expected, "bits 6 to 7 of the last byte zero");  // 30 coils, the manual's limit
     EXPECT_EQ(r.observed, "last byte 0xFF for 30 points");
+}
+
+// FC15 and FC16 are answered with the starting address and quantity written (AP §6.11, §6.12): a slave
+// acknowledging one more than it was sent fails the rules that write with them, which used to look at the
+// reply's function code only.
+TEST(Echo, AWriteAcknowledgedWithAnotherQuantityFailsTheRule) {
+    HostileServer server(1, std::nullopt, HostileServer::Lapse::AcknowledgesOneMore);
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(server.port())));
+    ASSERT_TRUE(client.has_value()) << client.error();
+    CheckOptions options;
+    options.session.timeout = std::chrono::milliseconds(100);
+    options.run.rule_globs = {"fc.supported.15", "fc.supported.16", "fc.supported.3"};
+    const Report report = run_check(*client, profile("mmk-2030"), options);
+    ASSERT_EQ(report.results.size(), 3u);
+    for (const auto& r : report.results) {
+        if (r.rule.id == "fc.supported.3") {
+            EXPECT_EQ(r.outcome, Outcome::Pass) << r.observed;
+            continue;
+        }
+        EXPECT_EQ(r.outcome, Outcome::Fail) << r.rule.id << ": " << r.observed;
+        EXPECT_NE(r.observed.find("the reply is not an echo of the request's starting address and quantity "
+                                  "(AP §6.11-6.12)"),
+                  std::string::npos)
+            << r.rule.id << ": " << r.observed;
+    }
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, AgainstAHostileSlave,

@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -411,6 +412,7 @@ std::vector<FaultCase> fault_cases() {
         {"no-echo", "mmk-2030", "tcp", "echo.fc6"},
         {"crash-after=20", "cth2265i", "tcp", "quantity.*", false, {"fc.supported.*", "quantity.*"}},
         {"duplicate-reply", "mmk-2030", "tcp", "reply.once", false, {"fc.supported.*", "reply.once"}},
+        {"wrong-quantity", "mmk-2030", "tcp", "quantity.fc3.one", false, {"fc.supported.*", "quantity.*"}},
     };
 }
 
@@ -430,6 +432,34 @@ INSTANTIATE_TEST_SUITE_P(Slave, PlantedFault, ::testing::ValuesIn(fault_cases())
         if (ch == '-') ch = '_';
     return n;
 });
+
+// A normal reply that does not answer its request is not a normal reply: one register more than the one
+// asked passed every rule that expected a normal reply (only the function code and the PDU's own
+// consistency were looked at). (FC15 and FC16 acknowledging another quantity: hostile_slave_test.cpp; here
+// the writes cannot be made, their points' reads failing the same way.)
+TEST(PlantedFaults, ARepliesQuantityIsJudgedAgainstTheRequest) {
+    RunningServer server({"wrong-quantity"}, 7, "mmk-2030");
+    auto options = options_for();
+    options.run.rule_globs = {"fc.supported.1", "fc.supported.3", "quantity.fc3.one"};
+    const auto run = certify(server, "tcp", "mmk-2030", options);
+    std::map<std::string, const RuleResult*> by_id;
+    for (const auto& x : run.report.results)
+        by_id[x.rule.id] = &x;
+    for (const char* id : {"quantity.fc3.one", "fc.supported.1", "fc.supported.3"}) {
+        ASSERT_TRUE(by_id.count(id)) << id;
+        EXPECT_EQ(by_id[id]->outcome, Outcome::Fail) << id << ": " << by_id[id]->observed;
+    }
+    EXPECT_NE(by_id["quantity.fc3.one"]->observed.find(
+                  "the request asks for 1 register, the reply carries 4 data bytes (AP §6.3)"),
+              std::string::npos)
+        << by_id["quantity.fc3.one"]->observed;
+    // Without the fault the same rules pass.
+    RunningServer clean({}, 7, "mmk-2030");
+    const auto good = certify(clean, "tcp", "mmk-2030", options);
+    ASSERT_EQ(good.report.results.size(), 3u);
+    for (const auto& x : good.report.results)
+        EXPECT_EQ(x.outcome, Outcome::Pass) << x.rule.id << ": " << x.observed;
+}
 
 // ---- late replies over RTU and ASCII, which carry no transaction id
 

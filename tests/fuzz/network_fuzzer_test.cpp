@@ -133,6 +133,7 @@ std::vector<FaultCase> fault_cases() {
         {"no-echo", "mmk-2030", "tcp", {"reply.echo"}},
         {"crash-after=200", "cth2265i", "tcp", {"target.unresponsive", "reply.missing"}},
         {"duplicate-reply", "mmk-2030", "rtu-tcp", {"reply.duplicate"}},
+        {"wrong-quantity", "mmk-2030", "tcp", {"reply.byte_count", "reply.echo"}},
     };
 }
 

@@ -270,6 +270,7 @@ std::vector<FaultCase> fault_cases() {
         {"no-echo", "mmk-2030", Framing::Tcp, {"reply.echo"}},
         {"crash-after=3", "cth2265i", Framing::Rtu, {"reply.missing"}},
         {"duplicate-reply", "mmk-2030", Framing::Rtu, {"reply.duplicate"}},
+        {"wrong-quantity", "mmk-2030", Framing::Tcp, {"reply.byte_count"}},
     };
 }
 

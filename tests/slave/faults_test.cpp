@@ -27,8 +27,8 @@ std::string ascii_hex(std::string_view text) {
     return hex(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
 }
 
-TEST(Faults, TwentyFiveAreDeclaredWithTheirCommandLineNames) {
-    EXPECT_EQ(fault_count, 25u);
+TEST(Faults, TwentySixAreDeclaredWithTheirCommandLineNames) {
+    EXPECT_EQ(fault_count, 26u);
     std::set<std::string> names;
     for (std::size_t i = 0; i < fault_count; ++i) {
         const std::string name(to_string(static_cast<Fault>(i)));
@@ -39,6 +39,7 @@ TEST(Faults, TwentyFiveAreDeclaredWithTheirCommandLineNames) {
     EXPECT_EQ(to_string(Fault::ReplyToBroadcast), "reply-to-broadcast");
     EXPECT_EQ(to_string(Fault::CrashAfter), "crash-after");
     EXPECT_EQ(to_string(Fault::DuplicateReply), "duplicate-reply");
+    EXPECT_EQ(to_string(Fault::WrongQuantity), "wrong-quantity");
 }
 
 TEST(Faults, ParseNamesTheProblem) {
@@ -300,6 +301,16 @@ const std::vector<WireFaultCase> wire_faults = {
     {"DuplicateReply", "duplicate-reply", "tcp", tcp_request, tcp_reply, tcp_reply + " " + tcp_reply},
     {"DuplicateReplyRtu", "duplicate-reply", "rtu-tcp", "01 03 00 00 00 01 84 0A", "01 03 02 00 00 B8 44",
      "01 03 02 00 00 B8 44 01 03 02 00 00 B8 44"},
+    // One register more than asked, its byte count to match; FC1's 8 coils in two bytes; FC16 and FC15
+    // acknowledging one more than written.
+    {"WrongQuantityRead", "wrong-quantity", "tcp", tcp_request, tcp_reply,
+     "00 01 00 00 00 07 01 03 04 00 00 00 00"},
+    {"WrongQuantityCoils", "wrong-quantity", "tcp", "00 04 00 00 00 06 01 01 00 00 00 08",
+     "00 04 00 00 00 04 01 01 01 00", "00 04 00 00 00 05 01 01 02 00 00"},
+    {"WrongQuantityWriteRegisters", "wrong-quantity", "tcp", "00 03 00 00 00 09 01 10 00 00 00 01 02 00 07",
+     "00 03 00 00 00 06 01 10 00 00 00 01", "00 03 00 00 00 06 01 10 00 00 00 02"},
+    {"WrongQuantityWriteCoils", "wrong-quantity", "tcp", "00 05 00 00 00 08 01 0F 00 00 00 03 01 05",
+     "00 05 00 00 00 06 01 0F 00 00 00 03", "00 05 00 00 00 06 01 0F 00 00 00 04"},
 };
 
 INSTANTIATE_TEST_SUITE_P(Server, WireFault, ::testing::ValuesIn(wire_faults),

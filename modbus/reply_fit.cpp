@@ -1,0 +1,90 @@
+#include "modbus/reply_fit.hpp"
+
+namespace mbscope::modbus {
+
+namespace {
+
+using Kind = ReplyMisfit::Kind;
+
+std::string registers(std::uint16_t n) {
+    return std::to_string(n) + (n == 1 ? " register" : " registers");
+}
+
+// AP §6.8.1: the sub-functions whose normal response echoes the request's data.
+bool echoing_sub_function(std::uint16_t sub) {
+    return sub == 0x00 || sub == 0x01 || sub == 0x03 || sub == 0x0A || sub == 0x14;
+}
+
+}  // namespace
+
+std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response) {
+    if (response.is_exception() || response.function_code() != request.function_code()) return std::nullopt;
+    const std::uint8_t fc = request.function_code();
+    const auto echo = [&](const char* source) -> std::optional<ReplyMisfit> {
+        if (request.body == response.body) return std::nullopt;
+        return ReplyMisfit{Kind::Echo, "an echo of the request", source};
+    };
+    if (const auto* read = std::get_if<ReadRequest>(&request.body)) {
+        if (fc <= 2) {
+            const std::size_t bytes = (read->quantity + 7u) / 8u;
+            const auto* bits = std::get_if<ReadBitsResponse>(&response.body);
+            if (!bits || bits->values.size() != bytes)
+                return ReplyMisfit{Kind::DataSize, std::to_string(bytes) + " data bytes", "AP §6.1", bytes,
+                                   bits ? bits->values.size() : 0};
+            if (padding_bits_set(bits->values, read->quantity))
+                return ReplyMisfit{Kind::Padding, "the bits of the last byte past the quantity asked zero",
+                                   "AP §6.1"};
+            return std::nullopt;
+        }
+        const auto* regs = std::get_if<ReadRegistersResponse>(&response.body);
+        if (!regs || regs->values.size() != read->quantity)
+            return ReplyMisfit{Kind::DataSize, registers(read->quantity), "AP §6.3",
+                               2u * read->quantity, regs ? 2 * regs->values.size() : 0};
+        return std::nullopt;
+    }
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&request.body)) {
+        const auto* regs = std::get_if<ReadRegistersResponse>(&response.body);
+        if (!regs || regs->values.size() != rw->quantity_to_read)
+            return ReplyMisfit{Kind::DataSize, registers(rw->quantity_to_read),
+                               "AP §6.17", 2u * rw->quantity_to_read, regs ? 2 * regs->values.size() : 0};
+        return std::nullopt;
+    }
+    switch (fc) {
+        case 5:
+            return echo("AP §6.5");
+        case 6:
+            return echo("AP §6.6");
+        case 22:
+            return echo("AP §6.16");
+        case 8: {
+            const auto* q = std::get_if<Diagnostics>(&request.body);
+            const auto* a = std::get_if<Diagnostics>(&response.body);
+            if (!q) return std::nullopt;
+            if (!a || a->sub_function != q->sub_function)
+                return ReplyMisfit{Kind::Echo, "an echo of the request's sub-function", "AP §6.8"};
+            return echoing_sub_function(q->sub_function) ? echo("AP §6.8.1") : std::nullopt;
+        }
+        case 15:
+        case 16: {
+            const auto* a = std::get_if<WriteMultipleResponse>(&response.body);
+            std::uint16_t start = 0, quantity = 0;
+            if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&request.body)) {
+                start = c->starting_address;
+                quantity = c->quantity;
+            } else if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&request.body)) {
+                start = w->starting_address;
+                quantity = w->quantity;
+            } else {
+                return std::nullopt;
+            }
+            if (!a || a->starting_address != start || a->quantity != quantity)
+                return ReplyMisfit{Kind::Echo, "an echo of the request's starting address and quantity",
+                                   "AP §6.11-6.12"};
+            return std::nullopt;
+        }
+        default:
+            return std::nullopt;
+    }
+}
+
+}  // namespace mbscope::modbus

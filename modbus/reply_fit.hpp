@@ -1,0 +1,33 @@
+#pragma once
+// Whether a normal response answers the request it is paired with, as far as the two PDUs tell (AP §6): a
+// read returns as many items as it asked for, a write's reply echoes what it wrote. One judgement for the
+// analyzer's pairing, the conformance rules and the fuzzing oracle; each names the breach in its own terms.
+
+#include <optional>
+#include <string>
+
+#include "modbus/pdu.hpp"
+
+namespace mbscope::modbus {
+
+struct ReplyMisfit {
+    enum class Kind : std::uint8_t {
+        DataSize,  // a read's data is not as long as its quantity asks (FC1-4, FC23)
+        Padding,   // FC1/FC2: bits of the last byte past the quantity asked are set
+        Echo,  // FC5, 6, 22, FC8's echoing sub-functions: not the request; FC15/16: another start or quantity
+    };
+    Kind kind;
+    std::string expected;  // what the request asks for, in words: "3 registers", "an echo of the request"
+    const char* source;    // the specification's section: "AP §6.3"
+    // DataSize: the data bytes the request asks for and those the response carries.
+    std::size_t expected_bytes = 0;
+    std::size_t got_bytes = 0;
+};
+
+// The first way `response`, a normal (non-exception) response of the request's function, fails to answer
+// `request`; nothing when it fits or when the function's reply says nothing checkable about the request
+// (FC7, 11, 12, 17, 20, 21, 24, 43). FC8 echoes its sub-function always and its data where the
+// specification says the reply is an echo (sub-functions 00, 01, 03, 0A, 14); the others return a value.
+std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response);
+
+}  // namespace mbscope::modbus
