@@ -1,6 +1,7 @@
 // Framing on serial lines and serial framing over TCP (SL §2.5): a bad CRC or LRC is never answered, nor a
 // truncated frame, nor one holding a silence above t1.5; the reply starts after t3.5 and holds no such
-// silence either; requests back to back are each answered; ASCII accepts lower-case hex.
+// silence either; requests back to back are each answered; ASCII replies are in upper-case hex, and a
+// request in lower case is ignored or read as in upper case.
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -176,15 +177,40 @@ void check_framing(Context& c) {
             });
     }
     if (ascii) {
-        c.run_with_probe({"framing.ascii_lower_case", "framing", "SL §2.5.2.1",
-                          "A request in lower-case hex is answered.", Authority::Specification, false},
+        c.run_with_probe({"framing.ascii_upper_case", "framing", "SL §2.5.2.1",
+                          "A reply is written in the hex digits 0-9 and A-F only (upper case).",
+                          Authority::Specification, false},
                          [&](RuleResult& r) {
-                             auto lower = good;
-                             std::transform(lower.begin(), lower.end(), lower.begin(), [](std::uint8_t ch) {
-                                 return static_cast<std::uint8_t>(std::tolower(ch));
-                             });
-                             expect_normal(r, c.session.raw(lower, "lower-case hex"), fc);
+                             const auto ex = c.session.raw(good, "a valid request");
+                             r.expected = "a normal response in upper-case hex";
+                             r.observed = describe(ex);
+                             if (!is_normal(ex, fc)) {
+                                 r.outcome = Outcome::Error;
+                                 r.reason = "the valid request got no normal reply: nothing to judge";
+                                 return;
+                             }
+                             const bool lower =
+                                 ex.response->findings.contains(modbus::FindingCode::AsciiLowercaseHex);
+                             if (lower) r.observed += ", in lower-case hex";
+                             r.outcome = lower ? Outcome::Fail : Outcome::Pass;
                          });
+        // The specification allows upper case only and says nothing of a request in lower case: a device
+        // may ignore it (the MK manual lists '0'-'9' and 'A'-'F' alone, 000:258) or read it as its
+        // upper-case twin. What it must not do is misread it, so only a different answer is a warning.
+        c.run_with_probe(
+            {"framing.ascii_lower_case", "framing", "SL §2.5.2.1 (lower case undefined)",
+             "A request in lower-case hex is ignored or answered as the same request in upper "
+             "case, never misread.",
+             Authority::Implied, false},
+            [&](RuleResult& r) {
+                auto lower = good;
+                std::transform(lower.begin(), lower.end(), lower.begin(),
+                               [](std::uint8_t ch) { return static_cast<std::uint8_t>(std::tolower(ch)); });
+                const auto ex = c.session.raw(lower, "lower-case hex");
+                r.expected = "no reply, or a normal response to function " + std::to_string(fc);
+                r.observed = describe(ex);
+                r.outcome = ex.received.empty() || is_normal(ex, fc) ? Outcome::Pass : Outcome::Fail;
+            });
     }
 }
 

@@ -8,6 +8,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <map>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -332,6 +333,27 @@ TEST(Peer, PymodbusRtuOverTcpPipeliningIsAWarning) {
     EXPECT_EQ(warned, (std::set<std::string>{"framing.back_to_back", "framing.truncated_discarded",
                                              "robustness.pipeline_after_exception"}));
     EXPECT_EQ(report.failures_of(Authority::Specification), 0u);
+}
+
+// ASCII's hex digits are 0-9 and A-F (SL §2.5.2.1; the MK manual, 000:258): pymodbus's ASCII framer writes
+// its replies in upper case and reads a request in either. A request in lower case, which the specification
+// leaves undefined, may be read or ignored; a reply in lower case fails the specification. Both rules used to
+// be one, backwards: a device ignoring lower-case requests failed, one replying in lower case passed.
+TEST(Peer, PymodbusAsciiServerRepliesInUpperCaseAndAReplyInLowerCaseFails) {
+    if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
+    for (const bool lower : {false, true}) {
+        SCOPED_TRACE(lower ? "replies in lower case" : "pymodbus as it is");
+        PymodbusPeer server("ascii-tcp", lower ? "--lower-case-replies" : "");
+        ASSERT_TRUE(server.client.has_value())
+            << "pymodbus server did not start (python3-pymodbus installed?)";
+        const auto report = certify(*server.client, {"framing.ascii_*"});
+        std::map<std::string, Outcome> outcomes;
+        for (const auto& x : report.results)
+            outcomes[x.rule.id] = x.outcome;
+        EXPECT_EQ(outcomes["framing.ascii_upper_case"], lower ? Outcome::Fail : Outcome::Pass);
+        EXPECT_EQ(outcomes["framing.ascii_lower_case"], Outcome::Pass);
+        EXPECT_EQ(report.failures_of(Authority::Specification), lower ? 1u : 0u);
+    }
 }
 
 // pymodbus's server judged as an MMK-2030: like libmodbus's, it serves whatever its datastore holds.
