@@ -252,10 +252,18 @@ void write_junit(std::ostream& out, const Report& report) {
     std::map<std::string, std::vector<const RuleResult*>> suites;
     for (const auto& r : report.results)
         suites[r.rule.family].push_back(&r);
+    // Points written and not put back fail the run (verdict): a testcase of their own says so, or a CI job
+    // reading the JUnit report alone publishes a green run for a device the run left changed.
+    std::size_t not_restored = 0;
+    for (const auto& t : report.restored)
+        not_restored += !t.restored;
+    const bool restore_case = !report.restored.empty();
     out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
     out << "<testsuites name=\"" << xml_escape("mbscope check " + report.profile_id + " " + report.target)
-        << "\" tests=\"" << report.results.size() + (run_error.empty() ? 0 : 1) << "\" failures=\""
-        << report.failures_of(Authority::Specification) + report.failures_of(Authority::Manual)
+        << "\" tests=\"" << report.results.size() + (run_error.empty() ? 0 : 1) + (restore_case ? 1 : 0)
+        << "\" failures=\""
+        << report.failures_of(Authority::Specification) + report.failures_of(Authority::Manual) +
+               (not_restored ? 1 : 0)
         << "\" errors=\"" << report.count(Outcome::Error) + (run_error.empty() ? 0 : 1) << "\" skipped=\""
         << report.count(Outcome::Skip) << "\" time=\"" << static_cast<double>(report.wall.count()) / 1e9
         << "\">\n";
@@ -309,6 +317,27 @@ void write_junit(std::ostream& out, const Report& report) {
             out << "    </testcase>\n";
         }
         out << "  </testsuite>\n";
+    }
+    if (restore_case) {
+        std::string body;
+        for (const auto& t : report.restored)
+            body += std::string(modbus::to_string(t.table)) + " " + std::to_string(t.address) +
+                    ": original " + std::to_string(t.original) +
+                    (t.restored ? (t.problem.empty() ? ", restored" : ", restored; " + t.problem)
+                                : ", NOT restored: " + t.problem) +
+                    "\n";
+        out << "  <testsuite name=\"restore\" tests=\"1\" failures=\"" << (not_restored ? 1 : 0)
+            << "\" errors=\"0\" skipped=\"0\" time=\"0\">\n"
+            << "    <testcase classname=\"" << xml_escape("mbscope." + report.profile_id + ".restore")
+            << "\" name=\"restore.all_points\" time=\"0\">\n";
+        if (not_restored)
+            out << "      <failure message=\""
+                << xml_escape(std::to_string(not_restored) + " of " + std::to_string(report.restored.size()) +
+                              " points written NOT restored")
+                << "\" type=\"restore\">" << xml_escape(body) << "</failure>\n";
+        else
+            out << "      <system-out>" << xml_escape(body) << "</system-out>\n";
+        out << "    </testcase>\n  </testsuite>\n";
     }
     out << "</testsuites>\n";
 }

@@ -1026,7 +1026,10 @@ TEST(Reports, JunitHasOneTestcasePerRuleAndMatchingCounts) {
             ++n;
         return n;
     };
-    EXPECT_EQ(count("<testcase "), run.report.results.size());
+    // One testcase a rule, and one for the points written and restored.
+    ASSERT_FALSE(run.report.restored.empty());
+    EXPECT_EQ(count("<testcase "), run.report.results.size() + 1);
+    EXPECT_EQ(count("name=\"restore.all_points\""), 1u);
     // Rules the manual only implies are warnings: in the output, not counted as failures.
     const std::size_t failing =
         run.report.failures_of(Authority::Specification) + run.report.failures_of(Authority::Manual);
@@ -1040,7 +1043,7 @@ TEST(Reports, JunitHasOneTestcasePerRuleAndMatchingCounts) {
         const auto at = root.find(" " + name + "=\"");
         return at == std::string::npos ? std::string::npos : std::stoul(root.substr(at + name.size() + 3));
     };
-    EXPECT_EQ(attribute("tests"), run.report.results.size()) << root;
+    EXPECT_EQ(attribute("tests"), run.report.results.size() + 1) << root;
     EXPECT_EQ(attribute("failures"), failing) << root;
     // Well-formed for an XML parser nobody here wrote (Python's expat), which also checks the counts of
     // every testsuite against its testcases.
@@ -1108,6 +1111,21 @@ TEST(Reports, AReadOnlyPointThatMovedIsShownWithWhatItReads) {
     EXPECT_NE(html.str().find(">yes<"), std::string::npos);
     const auto json = to_json(report.restored);
     EXPECT_EQ(json[1]["problem"], "read-only in the map, not written back; reads 133, was 120");
+    // A point not restored fails the run (verdict 1): the JUnit report, which a CI job may read alone, has a
+    // failing testcase for it, not only the rules' (here none, all passed).
+    std::ostringstream junit;
+    write_junit(junit, report);
+    EXPECT_NE(junit.str().find("<testsuites name=\"mbscope check  \" tests=\"2\" failures=\"1\""),
+              std::string::npos)
+        << junit.str();
+    EXPECT_NE(junit.str().find("name=\"restore.all_points\""), std::string::npos) << junit.str();
+    EXPECT_NE(junit.str().find("<failure message=\"1 of 3 points written NOT restored\" type=\"restore\">"),
+              std::string::npos)
+        << junit.str();
+    EXPECT_NE(junit.str().find("coils 3: original 1, NOT restored: reads 0 after restoring 1"),
+              std::string::npos)
+        << junit.str();
+    EXPECT_EQ(verdict(report), 1);
 }
 
 }  // namespace
