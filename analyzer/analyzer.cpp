@@ -78,6 +78,11 @@ struct Analyzer::Flow {
     // damaged.
     std::uint64_t damaged_request = 0;
     Timestamp damaged_request_time{0};
+    // The last run of serial bytes that formed no frame, and how many frames the capture had when it came: a
+    // reply nobody waits for after it may answer a request among those bytes.
+    std::uint64_t unparsed_offset = 0;
+    std::uint32_t unparsed_length = 0;
+    std::uint64_t unparsed_after_frame = 0;
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
     // "server unit N" and its statistics, made once per unit seen on the link rather than once per frame.
     struct Unit {
@@ -901,6 +906,20 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             cut_requests_.erase(cut);
             return;
         }
+    // On a serial line, bytes that formed no frame since the last reply (a request cut short, noise over
+    // its first bytes, an ASCII request whose LF came too late): a reply nobody waits for may answer a
+    // request among them, and is neither a request answered twice nor a reply nobody asked for.
+    if (it == pending_.end() && r.frame.framing != Framing::Tcp && flow.unparsed_length != 0 &&
+        flow.unparsed_after_frame >= flow.last_response_index) {
+        report(FindingCode::PairRequestNotCaptured, r,
+               "no request to unit " + std::to_string(r.frame.unit_id()) + " waits, but the " +
+                   std::to_string(flow.unparsed_length) + " bytes at offset " +
+                   std::to_string(flow.unparsed_offset) +
+                   " before it formed no frame: its request may be among them");
+        flow.unparsed_length = 0;
+        flow.keep_last_response(r);
+        return;
+    }
     // (Not after a damaged request since: that is the one it answers, the same question again.)
     if (it == pending_.end() && r.frame.checksum_ok && r.frame.length == flow.last_response_length &&
         flow.damaged_request < flow.last_response_index &&
@@ -1448,10 +1467,14 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
     if (auto it = pending_.find({flow.id, pairing_id(frame)}); it != pending_.end()) {
         // A request is outstanding: this is its response if it comes from that unit with that function
         // (or its exception); otherwise the master has moved on.
+        // A master's retry after its own timeout (000:274) carries the unit and the function too: bytes that
+        // decode cleanly as a request and only with violations as a response are the retry (an FC3 request
+        // read as a reply has byte count 0 and three bytes too many), not a malformed reply. An echo (FC5,
+        // FC6, FC8) is both, and stays the reply.
         const FrameRecord& q = it->second.request;
         if (rsp_ok && frame.unit_id() == q.frame.unit_id() && q.pdu &&
             response->function_code() == q.pdu->function_code())
-            return Direction::Response;
+            return req_clean && !response->violations.empty() ? Direction::Request : Direction::Response;
         return req_clean ? Direction::Request : (rsp_ok ? Direction::Response : Direction::Request);
     }
     if (req_clean) return Direction::Request;
@@ -1471,6 +1494,9 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             const SharedText& source = link.source_at(u->offset, source_);
             sink_.unparsed(
                 UnparsedRecord{source, flow.link, link.hint, when, packet, u->offset, u->length, u->reason});
+            flow.unparsed_offset = u->offset;
+            flow.unparsed_length = u->length;
+            flow.unparsed_after_frame = next_frame_;
             FrameRecord about;
             about.time = when;
             about.source = source;
@@ -1531,6 +1557,33 @@ void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> b
 
 void Analyzer::serial_part_of(const std::string& source, const std::string& line) {
     if (source != line) serial_parts_[source] = line;
+}
+
+void Analyzer::end_serial(const std::string& source) {
+    if (serial_parts_.count(source)) return;  // a part: the line goes on in the next
+    const auto it = serial_links_.find(serial_line_name(source));
+    if (it == serial_links_.end()) return;
+    SerialLink& link = *it->second;
+    set_source(link.source);
+    if (link.probe) tell_framing(link, {}, true);
+    do {
+        if (link.restart_at) restart(link);
+        pump(link);
+        flush_deframers(link, link.last_received, 0, true);
+    } while (link.restart_at);
+    Flow& flow = *link.flow;
+    std::vector<std::pair<PendingKey, std::uint64_t>> ended;
+    for (const auto& [key, p] : pending_)
+        if (key.flow == flow.id && p.request.time + options_.serial_timeout > link.last_received)
+            ended.emplace_back(key, p.serial);
+    std::sort(ended.begin(), ended.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    for (const auto& [key, serial] : ended)
+        if (auto p = take_pending(key, serial)) {
+            --flow.pending;
+            give_up(*p, false,
+                    {FindingCode::PairNoResponseAtEnd,
+                     describe_request(p->request) + " unanswered when its input ended"});
+        }
 }
 
 void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,

@@ -82,6 +82,12 @@ class Analyzer {
     // The bytes of `source` continue the line of `line` (a log written a file an hour, a capture in pieces):
     // one stream, one set of devices named after `line`; records keep `source` as the file they came from.
     void serial_part_of(const std::string& source, const std::string& line);
+    // The input `source` ended, and with it its line (not a part that another input continues): what its
+    // deframers hold is framed now, as at the end of the capture, and the requests still waiting within
+    // their timeout when its last bytes came are unanswered at its end. Without it, the line's last frame
+    // waited for the end of every input while the next input's clock ran on: the last request of the
+    // first of two logs was timed out by the second's times and its reply, read last, came "late".
+    void end_serial(const std::string& source);
     // Nothing was captured up to `now` (a live capture's quiet line or network, by the host's clock): a
     // frame the line's silence has ended is complete, and a request whose timeout has run out is unanswered,
     // said now rather than at the next byte or packet, or at the end as "unanswered when the capture ended".

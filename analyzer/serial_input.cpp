@@ -426,6 +426,7 @@ bool read_inputs(Analyzer& a, const std::vector<std::string>& names, InputFormat
     for (auto& p : inputs) {
         if (!is_capture(p) || captures == 1) {
             all_read &= read_prepared(a, p, options);
+            if (!is_capture(p) && inputs.size() > 1 && !options.parts_of_one_line) a.end_serial(p.input.name);
             if (done) done(p.input.name);
             continue;
         }

@@ -137,7 +137,7 @@ constexpr std::array findings{
                 "SL §2.5.1.2, §2.5.2.2"},
     FindingInfo{PairRequestNotCaptured, "pair.request_not_captured", S::Warning,
                 "a reply to a request the capture holds only in part (its MBAP header names the transaction "
-                "id and function): not unsolicited",
+                "id and function; on a serial line, bytes before it formed no frame): not unsolicited",
                 "capture"},
     FindingInfo{
         PairDuplicateResponse, "pair.duplicate_response", S::Error,

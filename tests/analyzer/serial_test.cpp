@@ -749,3 +749,88 @@ TEST(SerialInput, PartsOfOneLineAreReadAsOneStream) {
     ASSERT_TRUE(dump->sink.transactions[0].response.has_value());
     EXPECT_TRUE(dump->sink.findings.empty());
 }
+
+// A master retries after its own timeout (000:274: a master that gets no valid reply sends again), here
+// shorter than the analyzer's (AMastersRetryAfterATimeoutIsARequest has it longer): the retry carries the
+// request's unit and function, and decodes as a reply only with violations (byte count 0, three bytes too
+// many). It is a request, and the reply that follows answers it; it was taken for a malformed reply to the
+// first, four errors against a healthy device and the real reply "unsolicited". MK manual's FC3 example
+// (000:356, 365), without direction markers, and FC1's (000:330, 343).
+TEST(SerialInput, AMastersRetryBeforeOurTimeoutIsARequestNotAMalformedReply) {
+    const std::string fc3 =
+        "1.000 11 03 00 60 00 03 07 45\n"
+        "1.500 11 03 00 60 00 03 07 45\n"
+        "1.520 11 03 06 02 2B 00 00 00 64 C8 BA\n";
+    const std::string fc1 =
+        "1.000 11 01 00 13 00 15 0E 90\n"
+        "1.500 11 01 00 13 00 15 0E 90\n"
+        "1.520 11 01 03 B2 0E 1B DA 92\n";
+    for (const auto& log : {fc3, fc1}) {
+        SCOPED_TRACE(log);
+        auto r = decode(write_temp("retry.txt", log));
+        ASSERT_TRUE(r->ok);
+        ASSERT_EQ(r->sink.frames.size(), 3u);
+        EXPECT_EQ(r->sink.frames[1].direction, mb::Direction::Request);
+        EXPECT_EQ(r->sink.frames[2].direction, mb::Direction::Response);
+        ASSERT_EQ(r->sink.transactions.size(), 2u);
+        EXPECT_EQ(r->sink.transactions[1].request.index, 2u);
+        ASSERT_TRUE(r->sink.transactions[1].response.has_value());
+        EXPECT_EQ(r->sink.transactions[1].response->index, 3u);
+        // The first went unanswered before the master moved on; nothing else is wrong.
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
+        EXPECT_EQ(r->sink.findings.size(), 1u);
+    }
+    // An echo (FC6, 000:396, 405) is both a request and its reply: it stays the reply.
+    auto echo =
+        decode(write_temp("echo.txt", "1.000 11 06 00 54 03 9E 4B D2\n1.020 11 06 00 54 03 9E 4B D2\n"));
+    ASSERT_EQ(echo->sink.transactions.size(), 1u);
+    ASSERT_TRUE(echo->sink.transactions[0].response.has_value());
+    EXPECT_EQ(echo->sink.transactions[0].response->index, 2u);
+    EXPECT_TRUE(echo->sink.findings.empty());
+}
+
+// A reply nobody waits for, after bytes that formed no frame (a request cut short on the line): its request
+// may be among them. It was "the response of frame 1 again: one request answered twice", an error, when the
+// device polled twice gave the same answer, as an idle device does.
+TEST(SerialInput, AReplyAfterBytesThatFormedNoFrameMayAnswerThem) {
+    auto r = decode(write_temp("cut.txt",
+                               "1.000 > 11 03 00 60 00 03 07 45\n"
+                               "1.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                               "2.000 > 11 03 00\n"
+                               "2.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"));
+    ASSERT_TRUE(r->ok);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairRequestNotCaptured), 1);
+    EXPECT_EQ(r->summary.unparsed_bytes, 3u);
+    // Without the cut request, the same reply twice is one request answered twice.
+    auto twice = decode(write_temp("twice.txt",
+                                   "1.000 > 11 03 00 60 00 03 07 45\n"
+                                   "1.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                   "1.060 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"));
+    EXPECT_EQ(twice->sink.count(mb::FindingCode::PairDuplicateResponse), 1);
+}
+
+// Two logs of two lines: each ends with its input. The last reply of the first was held until every input
+// was read, while the second's clock timed out its request: "no response within 1000 ms" and then "the reply
+// came 20 ms after it, past the timeout", a contradiction, exit code 1 for two healthy devices.
+TEST(SerialInput, EachLineEndsWithItsOwnInput) {
+    const auto a = write_temp("line_a.txt",
+                              "1.000 > 11 03 00 60 00 03 07 45\n"
+                              "1.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                              "2.000 > 11 03 00 60 00 03 07 45\n"
+                              "2.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                              "2.500 > 11 03 00 60 00 03 07 45\n");
+    std::string b_log;
+    for (int i = 0; i < 8; ++i)
+        b_log += std::to_string(1 + i / 2.0) + " > 12 03 00 60 00 03 07 76\n" +
+                 std::to_string(1.02 + i / 2.0) + " < 12 03 06 02 2B 00 00 00 64 DC 4A\n";
+    const auto b = write_temp("line_b.txt", b_log);
+    auto r = decode_all({a, b}, false);
+    ASSERT_TRUE(r->ok);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 0);
+    // The first line's last request, 0 ms before its input ended: unanswered at its end, not timed out.
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), 1);
+    EXPECT_EQ(r->sink.transactions.size(), 11u);
+}
