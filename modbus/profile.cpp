@@ -535,10 +535,15 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                     break;
                 }
                 const std::uint16_t hi = high_first ? w : *other, lo = high_first ? *other : w;
+                // The registers in address order, as for every other value (raw[0] is the one at the value's
+                // address): CTH2265I's low word comes first (003:600), MK's first four digits do (000:1243).
+                const std::vector<std::uint16_t> in_address_order =
+                    *e.pair > address ? std::vector<std::uint16_t>{w, *other}
+                                      : std::vector<std::uint16_t>{*other, w};
                 if (digits && (hi > 9999 || lo > 9999)) {
                     // Four digits a register ("4 primeiros / 4 últimos dígitos", 000:1243): a half above 9999
                     // is no digits, and read as such made a total that never was (10000 0 as 100000000).
-                    v.raw = {hi, lo};
+                    v.raw = in_address_order;
                     earlier(*e.pair);
                     v.text = std::to_string(hi) + " " + std::to_string(lo) +
                              " (not digits: each half holds four, 0 to 9999)";
@@ -546,7 +551,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 }
                 const double whole =
                     digits ? hi * 10000.0 + lo : static_cast<double>((std::uint32_t{hi} << 16) | lo);
-                v.raw = {hi, lo};
+                v.raw = in_address_order;
                 earlier(*e.pair);
                 // A total whose decimal point another register gives (MK 3.13, 3.22: PT.DEC of the
                 // totalization, 000:1243): shown unscaled, and said to be, while that register is unknown.

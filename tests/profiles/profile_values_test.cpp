@@ -49,6 +49,24 @@ TEST(CthValues, TwoEightBitFieldsAreShownEachOnItsOwn) {
     EXPECT_DOUBLE_EQ(*one("cth2265i", 4021, 0x0304).number, 0x0304);
 }
 
+// A value made of a Low and a High register (003:600-601: flow, Low at 4000) gives its registers in address
+// order, as every other value does: raw[0] is the register at the first address. It gave {High, Low}, so a
+// reader of the JSON took 4000's word for 4001's.
+TEST(CthValues, APairsRegistersAreGivenInAddressOrder) {
+    const auto& p = bundled("cth2265i");
+    const auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4000, {60418, 1});
+    ASSERT_EQ(v.size(), 2u);
+    for (const auto& x : v) {
+        EXPECT_EQ(x.raw, (std::vector<std::uint16_t>{60418, 1})) << x.address;
+        EXPECT_EQ(x.text, "1259.54") << x.address;  // 1 × 65536 + 60418 = 125954, two decimals
+    }
+    // MK's four first digits are at the lower address (000:1243): the same order is theirs.
+    const auto mk = mb::decode_registers(bundled("mmk-2030-tot"), mb::Table::HoldingRegisters, 2,
+                                         {1234, 5678}, {{125, 0}});
+    ASSERT_FALSE(mk.empty());
+    EXPECT_EQ(mk[0].raw, (std::vector<std::uint16_t>{1234, 5678}));
+}
+
 TEST(MkValues, ATotalTakesTheDecimalPointOfItsTotalization) {
     struct Case {
         const char* id;
