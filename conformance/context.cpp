@@ -314,10 +314,13 @@ bool is_exception(const tp::Exchange& ex, std::uint8_t fc, std::uint8_t code) {
            std::get<modbus::ExceptionResponse>(pdu->body).exception_code == code;
 }
 
-bool is_normal(const tp::Exchange& ex, std::uint8_t fc) {
+bool is_normal_of_function(const tp::Exchange& ex, std::uint8_t fc) {
     auto pdu = response_pdu(ex);
-    return pdu && !pdu->is_exception() && pdu->function_raw == fc && pdu->violations.empty() &&
-           !reply_misfit(ex);
+    return pdu && !pdu->is_exception() && pdu->function_raw == fc && pdu->violations.empty();
+}
+
+bool is_normal(const tp::Exchange& ex, std::uint8_t fc) {
+    return is_normal_of_function(ex, fc) && !reply_misfit(ex);
 }
 
 void expect_exception(RuleResult& r, const tp::Exchange& ex, std::uint8_t fc, std::uint8_t code) {

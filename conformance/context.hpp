@@ -108,7 +108,12 @@ std::string misfit_text(const modbus::ReplyMisfit& misfit);
 std::string describe_reply(const std::optional<modbus::Pdu>& reply);
 bool is_normal_reply(const std::optional<modbus::Pdu>& reply, std::uint8_t fc);
 bool is_exception(const modbus::transport::Exchange& ex, std::uint8_t fc, std::uint8_t code);
+// A normal reply of function `fc` that answers the request sent (reply_misfit).
 bool is_normal(const modbus::transport::Exchange& ex, std::uint8_t fc);
+// A normal reply of function `fc`, consistent in itself, whether or not it answers the request: that the
+// device took the request as one it serves (the address space's probing: a table whose reads come back one
+// item too long is there, and the rules judge those replies).
+bool is_normal_of_function(const modbus::transport::Exchange& ex, std::uint8_t fc);
 // Judges "expect exception `code`" and fills the result.
 void expect_exception(RuleResult& r, const modbus::transport::Exchange& ex, std::uint8_t fc,
                       std::uint8_t code);

@@ -69,7 +69,7 @@ void check_tcp(Context& c) {
                 const auto ex = c.session.raw(adu, "length field - 2");
                 r.expected = "no normal reply (silence, a closed connection or exception 03)";
                 r.observed = describe(ex);
-                r.outcome = !is_normal(ex, fc) ? Outcome::Pass : Outcome::Fail;
+                r.outcome = !is_normal_of_function(ex, fc) ? Outcome::Pass : Outcome::Fail;
                 (void)c.session.client().reconnect();
             });
         c.run_with_probe(

@@ -114,7 +114,7 @@ void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f, const std::ato
             const auto ex = s.request(
                 modbus::encode_pdu(modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), a, 1)),
                 "probe the address space");
-            if (is_normal(ex, fc)) return Read::Yes;
+            if (is_normal_of_function(ex, fc)) return Read::Yes;
             if (const auto pdu = response_pdu(ex); pdu && pdu->is_exception()) return Read::No;
             if (stop && stop->load()) break;
         }

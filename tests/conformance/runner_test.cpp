@@ -453,6 +453,17 @@ TEST(PlantedFaults, ARepliesQuantityIsJudgedAgainstTheRequest) {
                   "the request asks for 1 register, the reply carries 4 data bytes (AP §6.3)"),
               std::string::npos)
         << by_id["quantity.fc3.one"]->observed;
+    // With the generic profile, whose tables are found by probing: a read answered with one item too many
+    // still shows the table is there (it was taken for no answer, the table unknown and every rule on it
+    // skipped: the fault passed, exit code 0).
+    RunningServer generic({"wrong-quantity"}, 7, "modbus");
+    auto generic_options = options_for();
+    generic_options.run.rule_globs = {"quantity.fc3.one", "fc.supported.3"};
+    const auto probed = certify(generic, "tcp", "modbus", generic_options);
+    ASSERT_EQ(probed.report.results.size(), 2u);
+    for (const auto& x : probed.report.results)
+        EXPECT_EQ(x.outcome, Outcome::Fail) << x.rule.id << ": " << x.observed << x.reason;
+    EXPECT_EQ(verdict(probed.report), 1);
     // Without the fault the same rules pass.
     RunningServer clean({}, 7, "mmk-2030");
     const auto good = certify(clean, "tcp", "mmk-2030", options);
