@@ -909,8 +909,8 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     // On a serial line, bytes that formed no frame since the last reply (a request cut short, noise over
     // its first bytes, an ASCII request whose LF came too late): a reply nobody waits for may answer a
     // request among them, and is neither a request answered twice nor a reply nobody asked for.
-    if (it == pending_.end() && r.frame.framing != Framing::Tcp && flow.unparsed_length != 0 &&
-        flow.unparsed_after_frame >= flow.last_response_index) {
+    if (it == pending_.end() && r.frame.framing != Framing::Tcp && r.frame.checksum_ok &&
+        flow.unparsed_length != 0 && flow.unparsed_after_frame >= flow.last_response_index) {
         report(FindingCode::PairRequestNotCaptured, r,
                "no request to unit " + std::to_string(r.frame.unit_id()) + " waits, but the " +
                    std::to_string(flow.unparsed_length) + " bytes at offset " +
@@ -1467,14 +1467,19 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
     if (auto it = pending_.find({flow.id, pairing_id(frame)}); it != pending_.end()) {
         // A request is outstanding: this is its response if it comes from that unit with that function
         // (or its exception); otherwise the master has moved on.
-        // A master's retry after its own timeout (000:274) carries the unit and the function too: bytes that
-        // decode cleanly as a request and only with violations as a response are the retry (an FC3 request
-        // read as a reply has byte count 0 and three bytes too many), not a malformed reply. An echo (FC5,
-        // FC6, FC8) is both, and stays the reply.
+        // A master's retry after its own timeout (000:274) carries the unit and the function too: the very
+        // bytes of the request waiting, decoding cleanly as a request and only with violations as a response
+        // (an FC3 request read as a reply has byte count 0 and three bytes too many), are the retry, not a
+        // malformed reply. Only those bytes: a malformed reply can decode as some other request (a short FC3
+        // reply "11 03 04 00 00 01" reads as a request for register 1024), and is the device's fault to
+        // report. An echo (FC5, FC6, FC8) is both, and stays the reply.
         const FrameRecord& q = it->second.request;
         if (rsp_ok && frame.unit_id() == q.frame.unit_id() && q.pdu &&
-            response->function_code() == q.pdu->function_code())
-            return req_clean && !response->violations.empty() ? Direction::Request : Direction::Response;
+            response->function_code() == q.pdu->function_code()) {
+            const bool retry = req_clean && !response->violations.empty() && frame.length == q.frame.length &&
+                               std::memcmp(frame.bytes.data(), q.frame.bytes.data(), frame.length) == 0;
+            return retry ? Direction::Request : Direction::Response;
+        }
         return req_clean ? Direction::Request : (rsp_ok ? Direction::Response : Direction::Request);
     }
     if (req_clean) return Direction::Request;
@@ -1494,9 +1499,20 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             const SharedText& source = link.source_at(u->offset, source_);
             sink_.unparsed(
                 UnparsedRecord{source, flow.link, link.hint, when, packet, u->offset, u->length, u->reason});
-            flow.unparsed_offset = u->offset;
-            flow.unparsed_length = u->length;
-            flow.unparsed_after_frame = next_frame_;
+            // Bytes that may hold a request: the master's side of the line, or, where the capture does not
+            // tell sides, at least a unit and a function (RTU; ASCII: ':' and their four digits). A glitch
+            // byte at a turnaround holds none, and must not excuse the reply after it.
+            // The longest such run since the last reply is named (an ASCII request's characters, not the LF
+            // that came late after them).
+            const bool may_hold_request =
+                link.hint == Direction::Request ||
+                (link.hint == Direction::Unknown && u->length >= (link.framing == Framing::Ascii ? 5u : 3u));
+            if (may_hold_request && (flow.unparsed_after_frame < flow.last_response_index ||
+                                     flow.unparsed_length == 0 || u->length > flow.unparsed_length)) {
+                flow.unparsed_offset = u->offset;
+                flow.unparsed_length = u->length;
+                flow.unparsed_after_frame = next_frame_;
+            }
             FrameRecord about;
             about.time = when;
             about.source = source;

@@ -780,6 +780,14 @@ TEST(SerialInput, AMastersRetryBeforeOurTimeoutIsARequestNotAMalformedReply) {
         EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
         EXPECT_EQ(r->sink.findings.size(), 1u);
     }
+    // A short reply that decodes as some other request (byte count 4, three data bytes: "read register 1024")
+    // is the device's malformed reply, not a retry: only the waiting request's own bytes are one.
+    auto short_reply =
+        decode(write_temp("short.txt", "1.000 11 03 00 6B 00 02 B7 47\n1.020 11 03 04 00 00 01 87 AA\n"));
+    ASSERT_EQ(short_reply->sink.frames.size(), 2u);
+    EXPECT_EQ(short_reply->sink.frames[1].direction, mb::Direction::Response);
+    EXPECT_EQ(short_reply->sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(short_reply->sink.count(mb::FindingCode::PduByteCountMismatch), 1);
     // An echo (FC6, 000:396, 405) is both a request and its reply: it stays the reply.
     auto echo =
         decode(write_temp("echo.txt", "1.000 11 06 00 54 03 9E 4B D2\n1.020 11 06 00 54 03 9E 4B D2\n"));
@@ -803,6 +811,19 @@ TEST(SerialInput, AReplyAfterBytesThatFormedNoFrameMayAnswerThem) {
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
     ASSERT_EQ(r->sink.count(mb::FindingCode::PairRequestNotCaptured), 1);
     EXPECT_EQ(r->summary.unparsed_bytes, 3u);
+    // A byte from the slave's side (a turnaround glitch), too short to hold a request, excuses nothing: the
+    // same reply again is one request answered twice. Nor does noise before a frame whose CRC fails make it
+    // a reply to a request the noise held.
+    auto glitch = decode(write_temp("glitch.txt",
+                                    "1.000 > 11 03 00 60 00 03 07 45\n"
+                                    "1.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                    "1.500 < 00\n"
+                                    "2.020 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"));
+    EXPECT_EQ(glitch->sink.count(mb::FindingCode::PairDuplicateResponse), 1);
+    EXPECT_EQ(glitch->sink.count(mb::FindingCode::PairRequestNotCaptured), 0);
+    auto damaged = decode(write_temp("damaged.txt", "1.000 AA BB CC DD EE\n2.000 5A 03 02 00 01 1C 48\n"));
+    EXPECT_EQ(damaged->sink.count(mb::FindingCode::PairRequestNotCaptured), 0);
+    EXPECT_GE(damaged->sink.count(mb::FindingCode::RtuCrcMismatch), 1);
     // Without the cut request, the same reply twice is one request answered twice.
     auto twice = decode(write_temp("twice.txt",
                                    "1.000 > 11 03 00 60 00 03 07 45\n"
