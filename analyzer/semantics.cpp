@@ -223,11 +223,53 @@ std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const s
     // The refusal a conditionally read-only point gets (the code a read-only one gets) is the manual's
     // when the traffic never showed the condition's value: the device may well be in that state.
     if (condition_unknown && code == exception_for(profile, "write_read_only", 2)) return out;
-    if (code == 2 && check_request(profile, device, q).empty())
+    const auto breaks = check_request(profile, device, q);
+    if (code == 2 && breaks.empty())
         out.push_back(
             {FindingCode::ProfileExceptionUnexpected,
              "exception 2 (illegal data address) to a request whose addresses are all in the map of " +
                  profile.id});
+    // The code the manual gives for what the request breaks (MK 000:475-477, CTH 003:572-574), the first in
+    // the specification's order (function, quantity, address, value, AP §7): another code is the device's
+    // error too. Where the manual only implies the code, no other is held against the device.
+    struct Due {
+        int order;
+        const char* condition;
+        std::uint8_t code;
+        const RuleBreak* why;
+    };
+    std::optional<Due> due;
+    for (const auto& b : breaks) {
+        std::optional<Due> d;
+        switch (b.code) {
+            case FindingCode::ProfileFunctionUnsupported:
+                d = Due{0, "unsupported_function", 1, &b};
+                break;
+            case FindingCode::ProfileQuantityAboveLimit:
+                d = Due{1, "bad_quantity", 3, &b};
+                break;
+            case FindingCode::ProfileAddressUnknown:
+                d = Due{2, "bad_address", 2, &b};
+                break;
+            case FindingCode::ProfileWriteReadOnly:
+                d = Due{2, "write_read_only", 2, &b};
+                break;
+            case FindingCode::ProfileValueOutOfRange:
+                d = Due{3, "bad_value", 3, &b};
+                break;
+            default:
+                break;
+        }
+        if (d && (!due || d->order < due->order)) due = d;
+    }
+    if (due && !profile.functions.implied_exceptions.count(due->condition)) {
+        const std::uint8_t expected = exception_for(profile, due->condition, due->code);
+        if (code != expected && code != 1)  // 1 to a supported function is said above
+            out.push_back({FindingCode::ProfileExceptionUnexpected,
+                           "exception " + std::to_string(code) + " where the manual of " + profile.id +
+                               " answers exception " + std::to_string(expected) + " (" + due->why->message +
+                               ")"});
+    }
     return out;
 }
 

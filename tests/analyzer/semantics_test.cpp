@@ -231,6 +231,32 @@ TEST(Semantics, ExceptionToARequestTheMapSaysIsValid) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileExceptionUnexpected), 1);
 }
 
+// The manual gives each refusal its code: 01 an unsupported function, 02 an address outside the map, 03 a
+// value outside its range (MK 000:475-477). A device answering another was only "an exception" (a warning);
+// the code the manual gives is now expected, the first in the specification's order. A code the manual only
+// implies (MK's 03 for a quantity above its limit) holds nothing against the device.
+TEST(Semantics, AnExceptionCodeOtherThanTheManualsIsTheDevicesError) {
+    Harness h("mmk-2030");
+    // Register 200 is not in the map; ENDER (7) takes 0 to 99 (000:500).
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 200, 1),
+               mb::make_exception(3, 3));
+    h.exchange(mb::make_write_single_register(7, 100), mb::make_exception(6, 2));
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 0, 16),
+               mb::make_exception(3, 2));
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 200, 1),
+               mb::make_exception(3, 2));
+    h.exchange(mb::make_write_single_register(7, 100), mb::make_exception(6, 3));
+    h.analyzer->finish();
+    std::vector<std::string> unexpected;
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::ProfileExceptionUnexpected) unexpected.push_back(f.message);
+    ASSERT_EQ(unexpected.size(), 2u);
+    EXPECT_EQ(unexpected[0].rfind("exception 3 where the manual of mmk-2030 answers exception 2 (", 0), 0u)
+        << unexpected[0];
+    EXPECT_EQ(unexpected[1].rfind("exception 2 where the manual of mmk-2030 answers exception 3 (", 0), 0u)
+        << unexpected[1];
+}
+
 TEST(Semantics, SelectorsPickTheMostSpecificProfile) {
     an::Semantics s;
     auto a = std::make_shared<const mb::Profile>();
