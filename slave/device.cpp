@@ -162,10 +162,14 @@ std::vector<std::uint8_t> Device::exception(std::uint8_t fc, std::uint8_t code) 
     return encode(modbus::make_exception(fc, code));
 }
 
-std::vector<std::uint8_t> Device::refuse_taken_back_write(std::uint8_t fc) {
-    // handle() counted the acknowledgement it made as a completion; that acknowledgement is never sent.
+void Device::take_back_write() noexcept {
+    // handle() counted the write as a completion; it was not one.
     --counters_.event_count;  // the exact inverse, wrap-round included
     follow_address();         // a new address taken back with the write
+}
+
+std::vector<std::uint8_t> Device::refuse_taken_back_write(std::uint8_t fc) {
+    take_back_write();  // the acknowledgement handle() made is never sent
     return exception(fc & 0x7F, exc_device_failure);
 }
 

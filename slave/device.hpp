@@ -52,12 +52,16 @@ class Device {
     // The reply to a write whose effect was taken back (it could not be saved): exception 04, counted as an
     // exception and not as a completed message (FC11 counts successful completions only, AP §6.9).
     std::vector<std::uint8_t> refuse_taken_back_write(std::uint8_t fc);
+    // After the image's undo() of a write handle() executed (a broadcast that could not be saved): not
+    // counted as a completion, and a new address taken back with it.
+    void take_back_write() noexcept;
     // As the device was made: initial register image, counters zero, not in listen-only mode.
     void reset() noexcept;
 
     RegisterImage& image() noexcept { return image_; }
     const RegisterImage& image() const noexcept { return image_; }
     const modbus::Profile& profile() const noexcept { return *profile_; }
+    const FaultSet& faults() const noexcept { return *faults_; }
     // The address the device answers at now: the one it was made with until a write to the register that
     // holds its address moves it (MK ENDER: the device obeys at once, MK-CFG-01; 0 disables communication,
     // MK-ADR-01), as a restored state file can.

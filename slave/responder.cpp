@@ -53,15 +53,31 @@ std::vector<std::uint8_t> Responder::answer(std::uint8_t unit, std::span<const s
         return {};
     std::vector<std::uint8_t> pdu;
     if (unit == 0) {  // broadcast: every unit on the line executes it
-        bool wrote = false;
+        std::vector<Device*> wrote;
         for (Device* d : units_) {
             // Address 0 configured: communication disabled (MK 000:220); off the line: deaf to it.
             if (d->unit() == 0 || d->off_line()) continue;
+            if (save_) d->image().begin_undo();
             Reply r = d->handle({request, true});
-            wrote |= r.wrote;
+            if (r.wrote)
+                wrote.push_back(d);
+            else if (save_)
+                d->image().keep();
             if (pdu.empty()) pdu = std::move(r.pdu);  // only with reply-to-broadcast
         }
-        if (wrote && save_) save_();
+        // No acknowledgement to take back, but the same promise: a write that could not be saved is not
+        // kept (a master reading a broadcast's registers back would see a value a restart loses).
+        if (!wrote.empty() && save_) {
+            const bool saved = save_();
+            for (Device* d : wrote) {
+                if (saved) {
+                    d->image().keep();
+                } else {
+                    d->image().undo();
+                    d->take_back_write();
+                }
+            }
+        }
     } else {
         Device* d = route(unit);
         if (!d || d->unit() == 0) return {};

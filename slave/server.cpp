@@ -33,6 +33,12 @@ using modbus::Framing;
 
 namespace {
 
+// Replies a client has not taken yet, above which its requests are no longer read: a client that pipelines
+// requests and never reads (a reply to a read of 125 registers is 21 times its request) grew the slave's
+// memory by gigabytes in seconds and slowed every other client. Its requests wait in the kernel's buffers,
+// and TCP holds the client back, until it reads.
+constexpr std::size_t max_unsent = 64 * 1024;
+
 modbus::Timestamp stamp(Clock::time_point t) {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch());
 }
@@ -48,6 +54,8 @@ struct Connection {
     bool partial = false;  // some bytes of a frame are buffered
     Clock::time_point last_activity{};
     std::vector<std::uint8_t> out;  // bytes waiting for the socket to accept them
+    std::size_t scheduled = 0;  // bytes of its replies waiting for their time (slow-reply, gap-inside-frame)
+    std::size_t unsent() const noexcept { return out.size() + scheduled; }
 };
 
 // A serial line's settings, or a stream's framing, that a device was told to take: applied once the
@@ -271,6 +279,8 @@ struct Server::Impl {
                 deliver(s);
                 continue;
             }
+            if (const auto c = connections.find(s.connection); s.connection != 0 && c != connections.end())
+                c->second.scheduled += s.bytes.size();
             auto it = scheduled.end();
             while (it != scheduled.begin() && (it - 1)->due > s.due)
                 --it;
@@ -396,6 +406,7 @@ struct Server::Impl {
             c.last_activity = now;
             const std::span<const std::uint8_t> bytes(buf, static_cast<std::size_t>(n));
             if (!consume(id, c, bytes, now)) return false;
+            if (c.unsent() >= max_unsent) return true;  // read again once the client takes its replies
             // A short read drained the socket: skip the read that would only say EAGAIN (a system call per
             // request saved; poll reports whatever arrives next).
             if (static_cast<std::size_t>(n) < sizeof buf) return true;
@@ -586,7 +597,10 @@ struct Server::Impl {
                 ids.push_back(0);
             }
             for (auto& [id, c] : connections) {
-                fds.push_back({c.fd.get(), static_cast<short>(POLLIN | (c.out.empty() ? 0 : POLLOUT)), 0});
+                fds.push_back({c.fd.get(),
+                               static_cast<short>((c.unsent() < max_unsent ? POLLIN : 0) |
+                                                  (c.out.empty() ? 0 : POLLOUT)),
+                               0});
                 ids.push_back(id);
             }
             const auto wait = std::chrono::duration_cast<std::chrono::microseconds>(wake - now).count();
@@ -639,6 +653,9 @@ struct Server::Impl {
             while (!scheduled.empty() && scheduled.front().due <= now) {
                 Scheduled s = std::move(scheduled.front());
                 scheduled.pop_front();
+                if (const auto c = connections.find(s.connection);
+                    s.connection != 0 && c != connections.end())
+                    c->second.scheduled -= std::min(c->second.scheduled, s.bytes.size());
                 deliver(s);
             }
             apply_line_change();

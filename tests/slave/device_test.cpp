@@ -318,6 +318,40 @@ TEST(ServerRouting, AnAddressWriteTakenBackLeavesTheDeviceWhereItWas) {
     EXPECT_EQ(device.image().reg(Table::HoldingRegisters, 7), 1);
 }
 
+// A broadcast has no acknowledgement to take back, but the same promise holds: a write that could not be
+// saved is not kept. It was: a master reading the register back (MK-BC-01: broadcasts are checked that
+// way) saw a value a restart would lose, and the same write sent to the unit was refused with exception 04
+// while the register read as if it had been taken.
+TEST(ServerRouting, ABroadcastWriteThatCannotBeSavedIsTakenBack) {
+    FaultSet faults;
+    Device first(profile("mmk-2030"), 1, &faults);
+    Device second(profile("mmk-2030"), 2, &faults);
+    bool saves = true;
+    Responder responder({&first, &second}, faults, mb::Framing::Rtu, false, [&] { return saves; });
+    const auto send = [&](std::uint8_t unit, const char* pdu) {
+        const auto request = mb::encode_rtu(unit, bytes(pdu));
+        const auto frame = mb::decode_adu(mb::Framing::Rtu, request);
+        return frame ? hex(responder.respond(*frame)) : std::string("undecodable");
+    };
+    // Register 23 (000:486-721): 10 kept when saved ...
+    EXPECT_EQ(send(0, "06 00 17 00 0A"), "");
+    EXPECT_EQ(first.image().reg(Table::HoldingRegisters, 23), 10);
+    EXPECT_EQ(second.image().reg(Table::HoldingRegisters, 23), 10);
+    // ... 11 taken back on every unit when not.
+    saves = false;
+    EXPECT_EQ(send(0, "06 00 17 00 0B"), "");
+    EXPECT_EQ(first.image().reg(Table::HoldingRegisters, 23), 10);
+    EXPECT_EQ(second.image().reg(Table::HoldingRegisters, 23), 10);
+    EXPECT_EQ(send(1, "06 00 17 00 0B"), hex(mb::encode_rtu(1, bytes("86 04"))));
+    EXPECT_EQ(first.image().reg(Table::HoldingRegisters, 23), 10);
+    // An address (ENDER, 000:500) taken back with its write: the devices answer where they did.
+    EXPECT_EQ(send(0, "06 00 07 00 05"), "");
+    EXPECT_EQ(first.unit(), 1);
+    EXPECT_EQ(second.unit(), 2);
+    EXPECT_EQ(first.image().reg(Table::HoldingRegisters, 7), 1);
+    EXPECT_EQ(send(1, "03 00 07 00 01"), hex(mb::encode_rtu(1, bytes("03 02 00 01"))));
+}
+
 // Over rtu-tcp a frame's end comes from its content, and FC8 sub-function 00 (Return Query Data, AP §6.8)
 // echoes any number of data bytes: a request longer than the usual two data bytes is answered as soon as
 // its CRC closes it, whatever its bytes (these, with their CRCs computed by pymodbus, were never answered:

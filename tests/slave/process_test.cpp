@@ -5,11 +5,13 @@
 //    client sending garbage is disconnected without disturbing them.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "tests/slave/slave_process.hpp"
@@ -156,6 +158,57 @@ TEST(SlaveProcess, AWriteTakenBackCountsAsAnExceptionNotAsACompletedMessage) {
     EXPECT_EQ(c.exchange(mbap(3, "06 00 00 00 63"), 9), "00 03 00 00 00 03 01 86 04");
     EXPECT_EQ(c.exchange(mbap(4, "0B"), 12), "00 04 00 00 00 06 01 0B 00 00 00 01");
     EXPECT_EQ(c.exchange(mbap(5, "08 00 0D 00 00"), 12), "00 05 00 00 00 06 01 08 00 0D 00 01");
+}
+
+// A TCP buffer size of this machine: net.ipv4.tcp_wmem or tcp_rmem, `field` 1 the initial size, 2 the most
+// it grows to.
+std::size_t tcp_buffer(const char* which, int field) {
+    std::ifstream in(std::string("/proc/sys/net/ipv4/") + which);
+    std::size_t sizes[3] = {};
+    in >> sizes[0] >> sizes[1] >> sizes[2];
+    return sizes[field];
+}
+
+// A client that pipelines requests and never reads the replies: the slave stops reading its requests once
+// 64 KiB of replies wait for it (TCP then holds the client back), so what it holds is bounded by that and by
+// the kernel's socket buffers. It read and answered every request: a reply to a read of 125 registers is 21
+// times its request, and such a client grew the slave by a gigabyte in 20 s and slowed the others. The bus
+// message count (FC8 0x0B, AP §6.8.1) tells how many requests the slave took in: all of them before, here no
+// more than the replies the buffers hold.
+TEST(SlaveProcess, AClientThatNeverReadsItsRepliesIsNoLongerReadFrom) {
+    constexpr std::size_t reply_size = 7 + 2 + 250;
+    // The slave's send buffer grows to its most; the client's receive buffer, never read, keeps its initial
+    // size.
+    const std::size_t buffered =
+        (tcp_buffer("tcp_wmem", 2) + tcp_buffer("tcp_rmem", 1) + 128 * 1024) / reply_size + 1000;
+    const std::size_t requests = buffered + 10000;
+    if (requests > 65000) GTEST_SKIP() << "this machine's TCP buffers hold more replies than FC8 counts";
+    // Replies held for their time (slow-reply) count as unsent too: they were read past.
+    for (const char* fault : {"", "slow-reply=2000"}) {
+        SCOPED_TRACE(fault);
+        std::vector<std::string> args{"--profile", "modbus", "--listen", "tcp://127.0.0.1:0"};
+        if (*fault) args.insert(args.end(), {"--fault", fault});
+        SlaveProcess slave(args);
+        ASSERT_NE(slave.port(), 0);
+        Client flood(slave.port());
+        ASSERT_TRUE(flood.connected());
+        std::string burst;
+        for (std::size_t i = 0; i < requests; ++i)
+            burst += (i ? " " : "") + mbap(static_cast<std::uint16_t>(i), "03 00 00 00 7D");
+        flood.send(
+            bytes(burst));  // 12 bytes each: the kernel's buffers take them whether the slave reads or not
+        std::this_thread::sleep_for(std::chrono::seconds(1));
+        Client other(slave.port());
+        ASSERT_TRUE(other.connected());
+        const auto count = bytes(other.exchange(mbap(1, "08 00 0B 00 00"), 12, std::chrono::seconds(5)));
+        ASSERT_EQ(count.size(), 12u);
+        const std::size_t taken = count[10] << 8 | count[11];
+        EXPECT_LT(taken, buffered) << "requests the slave read from a client that reads nothing, of "
+                                   << requests;
+        // What it holds back is answered once the client reads.
+        const auto replies = flood.read(reply_size * 100, std::chrono::seconds(10));
+        EXPECT_EQ(replies.size(), reply_size * 100);
+    }
 }
 
 TEST(SlaveProcess, HundredClientsAtOnceAreEachAnsweredWithTheirOwnData) {
