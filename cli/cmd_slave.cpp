@@ -131,6 +131,7 @@ int run_slave(const SlaveOptions& o) {
     for (std::size_t i = 0; i < devices.size(); ++i)
         processes.emplace_back(*devices[i], o.seed + i);
     slave::ServerOptions options;
+    modbus::transport::UniqueFd state_lock;  // held until the slave stops
     if (!o.state.empty()) {
         // Saved as a file beside it, renamed over it: a directory that cannot take it would make every
         // write fail (exception 04) from the first one on.
@@ -138,6 +139,12 @@ int run_slave(const SlaveOptions& o) {
             std::cerr << "mbscope slave: --state " << o.state << ": cannot be saved (" << *why << ")\n";
             return exit_failure;
         }
+        auto lock = slave::lock_state(o.state);
+        if (!lock) {
+            std::cerr << "mbscope slave: --state " << lock.error() << '\n';
+            return exit_failure;
+        }
+        state_lock = std::move(lock.value());
         auto loaded = slave::load_state(o.state, units);
         if (!loaded) {
             std::cerr << "mbscope slave: " << loaded.error() << '\n';

@@ -1,6 +1,8 @@
 #include "slave/state_file.hpp"
 
 #include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -73,13 +75,36 @@ modbus::Result<void, std::string> save_state(const std::string& path, const std:
     return {};
 }
 
+modbus::Result<modbus::transport::UniqueFd, std::string> lock_state(const std::string& path) {
+    const std::string lock = path + ".lock";
+    // Read-only is enough for flock, and 0666 (less the umask): a lock file left by one user must not stop
+    // another who may write the state file from taking it.
+    modbus::transport::UniqueFd fd(::open(lock.c_str(), O_RDONLY | O_CREAT | O_CLOEXEC, 0666));
+    if (fd.get() < 0) return errno_text(lock + ": open");
+    if (::flock(fd.get(), LOCK_EX | LOCK_NB) != 0) {
+        if (errno == EWOULDBLOCK)
+            return path + ": in use by another mbscope slave (it holds " + lock +
+                   "); two slaves saving one state file would each write back their own view of it and lose "
+                   "the writes the other acknowledged";
+        return errno_text(lock + ": flock");
+    }
+    return fd;
+}
+
 modbus::Result<OtherUnits, std::string> load_state(const std::string& path,
                                                    const std::vector<Device*>& devices) {
-    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    // Not blocking: a FIFO or a device would hold the start forever (open waits for a writer) before a
+    // word is said.
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (fd < 0) {
         if (errno == ENOENT) return OtherUnits{};  // first start: nothing saved yet
         // Not a first start: starting afresh would overwrite the saved image at the first write.
         return errno_text(path + ": open");
+    }
+    struct stat st {};
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        ::close(fd);
+        return path + ": not a regular file (a state file is one, written by mbscope slave)";
     }
     std::string text;
     char buffer[65536];
@@ -146,6 +171,25 @@ modbus::Result<OtherUnits, std::string> apply_state(std::string_view text, const
                 entries.push_back({d, *table, static_cast<std::uint16_t>(a), value.get<std::uint16_t>()});
             }
         }
+    }
+    // What the map makes impossible a file may still hold (edited by hand, or from a map since corrected): a
+    // fixed value that is not, or a writable point's value no write could have left (an address register
+    // at 300 where the manual allows 0..99, a code no enumeration lists). Served, it would make the slave
+    // answer what the device cannot; refused, the file names it. Read-only points hold what the process model
+    // made them. A slave planted with accept-out-of-range took such values itself.
+    for (const Entry& e : entries) {
+        const modbus::Profile& p = e.device->profile();
+        if (p.open_address_space || e.device->faults().enabled(Fault::AcceptOutOfRange)) continue;
+        const std::string where = name + ": unit " + std::to_string(e.device->configured_unit()) + " " +
+                                  std::string(modbus::to_string(e.table)) + "/" + std::to_string(e.address) +
+                                  ": " + std::to_string(e.value);
+        const auto* point = p.find(e.table, e.address);
+        if (!point) return where + ", an address the map of " + p.id + " does not have";
+        if (point->fixed_value && e.value != *point->fixed_value)
+            return where + ", where the map fixes " + std::to_string(*point->fixed_value);
+        if (point->access == modbus::Access::Read || point->reserved) continue;
+        if (const auto r = modbus::check_writes(p, e.table, e.address, {e.value}))
+            return where + ", which the map does not allow (" + r->reason + ")";
     }
     OtherUnits others = doc["units"];
     for (const Device* d : devices)

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "modbus/result.hpp"
+#include "modbus/transport/unique_fd.hpp"
 #include "slave/device.hpp"
 
 namespace mbscope::slave {
@@ -27,6 +28,11 @@ using OtherUnits = nlohmann::json;
 // system call that failed.
 modbus::Result<void, std::string> save_state(const std::string& path, const std::vector<Device*>& devices,
                                              const OtherUnits& others = {});
+// Takes FILE.lock (flock, exclusive, not waiting) for as long as the descriptor returned lives: two slaves
+// saving one state file would each write back their own view of it, and the one saving last would drop the
+// writes the other acknowledged. Errors say the file is in use, or why the lock could not be taken. The lock
+// file stays beside the state file (its content is nothing; holding it is what counts).
+modbus::Result<modbus::transport::UniqueFd, std::string> lock_state(const std::string& path);
 // Applies a saved image to the devices with the same configured unit id and profile and returns the units it
 // holds for no device. A missing file is not an error (first start); one that exists and cannot be read, or a
 // damaged one, is, naming the file and what is wrong.

@@ -144,6 +144,52 @@ TEST(SlaveProcess, AWriteThatCannotBeSavedIsRefusedAndTakenBack) {
         << refused;
 }
 
+// Starts `mbscope slave ARGS` and returns its exit status and what it printed, for a start that must fail.
+std::pair<int, std::string> refused_start(const std::string& args) {
+    FILE* p = ::popen((std::string(MBSCOPE_BINARY) + " slave " + args + " 2>&1").c_str(), "r");
+    if (!p) return {-1, ""};
+    std::string out;
+    char buf[512];
+    while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
+        out.append(buf, n);
+    return {WEXITSTATUS(::pclose(p)), out};
+}
+
+// Two slaves on one state file each wrote back their own view of it: the one that saved last dropped the
+// writes the other had acknowledged (unit 1's register, acknowledged by the first, gone once the second
+// saved unit 2's). The second now refuses to start while the first runs, and starts once it has stopped.
+// A FIFO given as the state file held the start forever, silent; it is refused.
+TEST(SlaveProcess, AStateFileServesOneSlaveAtATime) {
+    const auto [dir, state] = state_in_new_directory("shared");
+    {
+        SlaveProcess first(
+            {"--profile", "modbus", "--unit", "1", "--listen", "tcp://127.0.0.1:0", "--state", state});
+        ASSERT_NE(first.port(), 0);
+        Client c(first.port());
+        ASSERT_TRUE(c.connected());
+        EXPECT_EQ(c.exchange(mbap(1, "06 00 0A 00 6F"), 12), "00 01 00 00 00 06 01 06 00 0A 00 6F");
+        const auto [status, out] =
+            refused_start("--profile modbus --unit 2 --listen tcp://127.0.0.1:0 --state " + state);
+        EXPECT_EQ(status, 2) << out;
+        EXPECT_NE(out.find("mbscope slave: --state " + state + ": in use by another mbscope slave"),
+                  std::string::npos)
+            << out;
+    }
+    SlaveProcess again(
+        {"--profile", "modbus", "--unit", "1", "--listen", "tcp://127.0.0.1:0", "--state", state});
+    ASSERT_NE(again.port(), 0);
+    Client c(again.port());
+    ASSERT_TRUE(c.connected());
+    EXPECT_EQ(c.exchange(mbap(2, "03 00 0A 00 01"), 11), "00 02 00 00 00 05 01 03 02 00 6F");
+
+    const auto fifo = (dir / "fifo.json").string();
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const auto [status, out] = refused_start("--profile modbus --listen tcp://127.0.0.1:0 --state " + fifo);
+    EXPECT_EQ(status, 2) << out;
+    EXPECT_NE(out.find(fifo + ": not a regular file"), std::string::npos) << out;
+    fs::remove_all(dir);
+}
+
 // The write taken back was never acknowledged: the comm event counter (FC11, AP §6.9: successful
 // completions only) does not count it, and the bus exception count (FC8 sub-function 0x0D) does.
 TEST(SlaveProcess, AWriteTakenBackCountsAsAnExceptionNotAsACompletedMessage) {

@@ -201,7 +201,17 @@ INSTANTIATE_TEST_SUITE_P(
         Damage{
             "AddressNotANumber",
             R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"x5": 1}}}})",
-            "bad entry"}),
+            "bad entry"},
+        // What no write could have left: ENDER at 300 where the manual allows 0 to 99 (000:500), a register
+        // the map does not have. Loaded before, the slave then answered at an address no MK device takes.
+        Damage{
+            "AValueNoWriteCouldLeave",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"7": 300}}}})",
+            "unit 1 holding_registers/7: 300, which the map does not allow (value 300 above maximum 99)"},
+        Damage{
+            "AnAddressTheMapDoesNotHave",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": {"5000": 1}}}})",
+            "unit 1 holding_registers/5000: 1, an address the map of mmk-2030 does not have"}),
     [](const auto& info) { return std::string(info.param.name); });
 
 // A file is applied whole or not at all: the good entries before a bad one are not stored either.
@@ -220,11 +230,29 @@ TEST_F(StateFile, RefusedFileChangesNothing) {
 // A state file that exists but cannot be read is an error, not a first start: starting from the initial
 // image would overwrite the saved one at the first write.
 TEST_F(StateFile, UnreadableFileIsAnError) {
-    fs::create_directories(path_);  // a folder where the file should be: open succeeds, read fails
+    fs::create_directories(path_);  // a folder where the file should be
     Device device(profile("modbus"), 1);
     auto loaded = load_state(path_, {&device});
     ASSERT_FALSE(loaded.has_value());
-    EXPECT_EQ(loaded.error().rfind(path_ + ": read", 0), 0u) << loaded.error();
+    EXPECT_EQ(loaded.error(), path_ + ": not a regular file (a state file is one, written by mbscope slave)");
+}
+
+// A fixed value the file contradicts (CTH2265I's 4037 reads 0x55AA, 003:639) is refused; the read-only
+// values a process model moved are loaded as saved.
+TEST_F(StateFile, AFixedValueTheFileContradictsIsRefused) {
+    write_file(R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "cth2265i",)"
+               R"( "holding_registers": {"4037": 1234}}}})");
+    Device device(profile("cth2265i"), 1);
+    auto loaded = load_state(path_, {&device});
+    ASSERT_FALSE(loaded.has_value());
+    EXPECT_NE(loaded.error().find("unit 1 holding_registers/4037: 1234, where the map fixes 21930"),
+              std::string::npos)
+        << loaded.error();
+    write_file(R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "cth2265i",)"
+               R"( "holding_registers": {"4000": 1234, "4001": 2}}}})");
+    loaded = load_state(path_, {&device});
+    ASSERT_TRUE(loaded.has_value()) << loaded.error();
+    EXPECT_EQ(ask(device, "03 0F A0 00 02"), "03 04 04 D2 00 02");
 }
 
 // state_text is what save_state writes, and apply_state reads it back to the same image.
