@@ -535,8 +535,8 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                     break;
                 }
                 const std::uint16_t hi = high_first ? w : *other, lo = high_first ? *other : w;
-                // The registers in address order, as for every other value (raw[0] is the one at the value's
-                // address): CTH2265I's low word comes first (003:600), MK's first four digits do (000:1243).
+                // The registers in address order, as for 32-bit values: CTH2265I's low word comes first
+                // (003:600), MK's first four digits do (000:1243). Both halves list the pair so.
                 const std::vector<std::uint16_t> in_address_order =
                     *e.pair > address ? std::vector<std::uint16_t>{w, *other}
                                       : std::vector<std::uint16_t>{*other, w};
@@ -654,6 +654,19 @@ std::optional<WriteRejection> check_word(const Profile& profile, const Point& p,
             return WriteRejection{exception_for(profile, "bad_value", 3), address,
                                   "value " + std::to_string(v) + " not among the enumeration's values"};
     }
+    // Two 8-bit fields whose values the map lists apply them to each byte (CTH2265I's alarm types, 0 to 4 in
+    // each, 003:621): a byte outside them is a value out of range (003:574: exception 03).
+    if (e.type == EncodingType::Bytes2 && !e.values.empty())
+        for (const bool high : {true, false}) {
+            const int byte = high ? value >> 8 : value & 0xFF;
+            bool listed = false;
+            for (const auto& ev : e.values)
+                listed |= ev.value == byte;
+            if (!listed)
+                return WriteRejection{exception_for(profile, "bad_value", 3), address,
+                                      std::string(high ? "high" : "low") + " byte " + std::to_string(byte) +
+                                          " not among the values each byte takes"};
+        }
     // A boolean in a register is its least significant bit (Walchem, 002:424-429): 0 or 1, nothing else.
     if (e.type == EncodingType::Bool && value > 1)
         return WriteRejection{exception_for(profile, "bad_value", 3), address,

@@ -49,6 +49,24 @@ TEST(CthValues, TwoEightBitFieldsAreShownEachOnItsOwn) {
     EXPECT_DOUBLE_EQ(*one("cth2265i", 4021, 0x0304).number, 0x0304);
 }
 
+// Each byte of the alarm types takes 0 to 4 (003:621); a write with another in either byte is a value out of
+// range, exception 03 (003:574). It was acknowledged (0x0105, 0xFFFF), the two bytes' list never looked at.
+TEST(CthValues, EachByteOfTheAlarmTypesTakesOnlyTheListedValues) {
+    const auto& p = bundled("cth2265i");
+    const auto write = [&](std::uint16_t value) {
+        return mb::check_writes(p, mb::Table::HoldingRegisters, 4021, {value});
+    };
+    EXPECT_FALSE(write(0x0304).has_value());
+    EXPECT_FALSE(write(0x0000).has_value());
+    for (const std::uint16_t bad : {0x0105, 0x0501, 0xFFFF, 0x0400 | 0x05}) {
+        const auto r = write(bad);
+        ASSERT_TRUE(r.has_value()) << bad;
+        EXPECT_EQ(r->exception_code, 3) << bad;
+        EXPECT_EQ(r->address, 4021) << bad;
+    }
+    EXPECT_EQ(write(0x0105)->reason, "low byte 5 not among the values each byte takes");
+}
+
 // A value made of a Low and a High register (003:600-601: flow, Low at 4000) gives its registers in address
 // order, as every other value does: raw[0] is the register at the first address. It gave {High, Low}, so a
 // reader of the JSON took 4000's word for 4001's.
