@@ -38,15 +38,15 @@ std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response)
         }
         const auto* regs = std::get_if<ReadRegistersResponse>(&response.body);
         if (!regs || regs->values.size() != read->quantity)
-            return ReplyMisfit{Kind::DataSize, registers(read->quantity), "AP §6.3",
-                               2u * read->quantity, regs ? 2 * regs->values.size() : 0};
+            return ReplyMisfit{Kind::DataSize, registers(read->quantity), "AP §6.3", 2u * read->quantity,
+                               regs ? 2 * regs->values.size() : 0};
         return std::nullopt;
     }
     if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&request.body)) {
         const auto* regs = std::get_if<ReadRegistersResponse>(&response.body);
         if (!regs || regs->values.size() != rw->quantity_to_read)
-            return ReplyMisfit{Kind::DataSize, registers(rw->quantity_to_read),
-                               "AP §6.17", 2u * rw->quantity_to_read, regs ? 2 * regs->values.size() : 0};
+            return ReplyMisfit{Kind::DataSize, registers(rw->quantity_to_read), "AP §6.17",
+                               2u * rw->quantity_to_read, regs ? 2 * regs->values.size() : 0};
         return std::nullopt;
     }
     switch (fc) {

@@ -113,6 +113,17 @@ TEST(SlaveProcess, KilledInTheMiddleOfAStreamOfWritesLosesNoAcknowledgedOne) {
     fs::remove_all(dir);
 }
 
+// Starts `mbscope slave ARGS` and returns its exit status and what it printed, for a start that must fail.
+std::pair<int, std::string> refused_start(const std::string& args) {
+    FILE* p = ::popen((std::string(MBSCOPE_BINARY) + " slave " + args + " 2>&1").c_str(), "r");
+    if (!p) return {-1, ""};
+    std::string out;
+    char buf[512];
+    while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
+        out.append(buf, n);
+    return {WEXITSTATUS(::pclose(p)), out};
+}
+
 // A write the slave cannot save is not acknowledged (exception 04, slave device failure) and is taken back: a
 // refused request leaves the registers as they were (AP §7), so a master that retries later finds the old
 // value, not one that would vanish at the next restart. A --state whose directory is missing stops the
@@ -130,29 +141,11 @@ TEST(SlaveProcess, AWriteThatCannotBeSavedIsRefusedAndTakenBack) {
     EXPECT_EQ(c.exchange(mbap(4, "03 00 1D 00 02"), 13), "00 04 00 00 00 07 01 03 04 00 2A 00 00");
 
     const std::string missing = (dir / "gone" / "state.json").string();
-    FILE* p = ::popen((std::string(MBSCOPE_BINARY) +
-                       " slave --profile mmk-2030 --listen tcp://127.0.0.1:0 --state " + missing + " 2>&1")
-                          .c_str(),
-                      "r");
-    ASSERT_NE(p, nullptr);
-    std::string refused;
-    char buf[512];
-    while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
-        refused.append(buf, n);
-    EXPECT_EQ(WEXITSTATUS(::pclose(p)), 2) << refused;
+    const auto [status, refused] =
+        refused_start("--profile mmk-2030 --listen tcp://127.0.0.1:0 --state " + missing);
+    EXPECT_EQ(status, 2) << refused;
     EXPECT_NE(refused.find("mbscope slave: --state " + missing + ": cannot be saved"), std::string::npos)
         << refused;
-}
-
-// Starts `mbscope slave ARGS` and returns its exit status and what it printed, for a start that must fail.
-std::pair<int, std::string> refused_start(const std::string& args) {
-    FILE* p = ::popen((std::string(MBSCOPE_BINARY) + " slave " + args + " 2>&1").c_str(), "r");
-    if (!p) return {-1, ""};
-    std::string out;
-    char buf[512];
-    while (std::size_t n = std::fread(buf, 1, sizeof buf, p))
-        out.append(buf, n);
-    return {WEXITSTATUS(::pclose(p)), out};
 }
 
 // Two slaves on one state file each wrote back their own view of it: the one that saved last dropped the
