@@ -166,7 +166,9 @@ constexpr std::array findings{
     FindingInfo{ProfileWriteReadOnly, "profile.write_read_only", S::Error,
                 "write to a point the device's manual marks read-only", "device manual"},
     FindingInfo{ProfileExceptionUnexpected, "profile.exception_unexpected", S::Warning,
-                "the device answered a request its map says is valid with an exception", "device manual"},
+                "the device answered a request its map says is valid with an exception, or one its manual "
+                "refuses with another code than the manual gives",
+                "device manual"},
     FindingInfo{ProfileAddressMoved, "profile.address_moved", S::Note,
                 "a write to the device's address register was acknowledged: it answers at the new unit id "
                 "from then on",
