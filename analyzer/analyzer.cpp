@@ -711,11 +711,14 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     // By the function code byte: a request whose PDU cannot be decoded still asked for that function.
     if (const auto pdu = r.frame.pdu(); !pdu.empty()) ++stats.functions[pdu[0]];
     if (options_.semantics && r.pdu)
-        if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id()))
+        if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id())) {
+            for (auto& rule : options_.semantics->check_line(*profile, r.device.str(), r.frame))
+                report(rule.code, r, rule.message);
             for (auto& rule : options_.semantics->check_request(*profile, r.device.str(), *r.pdu)) {
                 r.reported_findings.push_back(rule.code);
                 report(rule.code, r, rule.message);
             }
+        }
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
         if (only_reads(r.frame.pdu())) {

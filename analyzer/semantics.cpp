@@ -208,6 +208,27 @@ std::vector<RuleBreak> Semantics::check_request(const Profile& profile, const st
     return out;
 }
 
+std::vector<RuleBreak> Semantics::check_line(const Profile& profile, const std::string& device,
+                                             const Frame& frame) const {
+    std::vector<RuleBreak> out;
+    if (frame.framing == Framing::Tcp || frame.unit_id() == 0 || profile.open_address_space ||
+        !line_checked_.insert(device).second)
+        return out;
+    for (auto& departure : line_departures(profile.line, frame.framing, nullptr))
+        out.push_back({FindingCode::ProfileLineDeparture, profile.id + ": " + std::move(departure)});
+    const int unit = frame.unit_id();
+    if (profile.line.disables(unit))
+        out.push_back({FindingCode::ProfileLineDeparture,
+                       profile.id + ": unit " + std::to_string(unit) +
+                           " is the address at which the manual's device does not communicate"});
+    else if (unit < profile.line.unit_min || unit > profile.line.unit_max)
+        out.push_back({FindingCode::ProfileLineDeparture, profile.id + ": unit " + std::to_string(unit) +
+                                                              " is outside the manual's addresses " +
+                                                              std::to_string(profile.line.unit_min) + ".." +
+                                                              std::to_string(profile.line.unit_max)});
+    return out;
+}
+
 std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const std::string& device,
                                                  const Pdu& q, const Pdu& a) const {
     std::vector<RuleBreak> out;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "modbus/finding_codes.hpp"
+#include "modbus/frame.hpp"
 #include "modbus/pdu.hpp"
 #include "modbus/profile.hpp"
 
@@ -42,6 +43,12 @@ class Semantics {
     // showed it holding (conditional_access).
     std::vector<RuleBreak> check_request(const modbus::Profile& profile, const std::string& device,
                                          const modbus::Pdu& request) const;
+    // What a device's frame shows of its serial line against its manual: a framing the manual does not list
+    // (the CTH2265I talks RTU only, 003:460), a unit id outside its addresses or one that disables it (MK
+    // 1..99 and 0 "communication disabled", 000:220). Once per device; nothing over Modbus/TCP (gateways
+    // give the devices behind them unit ids of their own) nor for a broadcast.
+    std::vector<RuleBreak> check_line(const modbus::Profile& profile, const std::string& device,
+                                      const modbus::Frame& frame) const;
     // The response judged against the map (an exception where the map says the request is valid). A write
     // to a conditionally read-only point refused while the condition's value is unknown is no departure:
     // the device may be in the state that forbids it.
@@ -88,6 +95,7 @@ class Semantics {
                                                           std::span<const std::uint16_t> values,
                                                           const std::string& how) const;
     std::vector<std::pair<DeviceSelector, std::shared_ptr<const modbus::Profile>>> maps_;
+    mutable std::set<std::string> line_checked_;  // devices check_line has looked at
     // `words` seen at `start` on `device`: in registers_, and in holding_ when they are holding registers.
     void keep(const std::string& device, std::uint16_t start, std::span<const std::uint16_t> words,
               bool holding_table);

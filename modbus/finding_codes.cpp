@@ -173,6 +173,10 @@ constexpr std::array findings{
                 "a write to the device's address register was acknowledged: it answers at the new unit id "
                 "from then on",
                 "device manual"},
+    FindingInfo{ProfileLineDeparture, "profile.line_departure", S::Warning,
+                "a device talks a serial framing its manual does not list, or answers at a unit id outside "
+                "its manual's addresses",
+                "device manual"},
     FindingInfo{ProfileLineSettingsChanged, "profile.line_settings_changed", S::Note,
                 "a write to the device's framing, speed or parity registers was acknowledged: it talks with "
                 "the new settings from then on",

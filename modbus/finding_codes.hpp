@@ -86,6 +86,7 @@ enum class FindingCode : std::uint16_t {
     ProfileExceptionUnexpected = 705,
     ProfileAddressMoved = 706,
     ProfileLineSettingsChanged = 707,
+    ProfileLineDeparture = 708,
 };
 
 struct FindingInfo {

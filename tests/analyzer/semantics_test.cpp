@@ -257,6 +257,56 @@ TEST(Semantics, AnExceptionCodeOtherThanTheManualsIsTheDevicesError) {
         << unexpected[1];
 }
 
+// What a device's frames show of its line against its manual: the CTH2265I talks RTU only (003:460), an MK
+// device answers at 1..99 (000:220). Traffic otherwise was decoded as if the manual allowed it. Said once per
+// device; a frame over Modbus/TCP (a gateway's unit ids) says nothing.
+TEST(Semantics, AFramingOrUnitTheManualDoesNotAllowIsSaidOncePerDevice) {
+    const auto decode = [](const std::string& id, const std::string& log) {
+        mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+        auto p = store.load(id);
+        EXPECT_TRUE(p.has_value());
+        auto sink = std::make_unique<Collect>();
+        an::AnalyzerOptions o;
+        o.semantics = std::make_shared<an::Semantics>();
+        o.semantics->add({}, std::make_shared<const mb::Profile>(std::move(p.value())));
+        an::Analyzer a(o, *sink);
+        EXPECT_TRUE(
+            an::read_input(a, mbscope::test::write_temp("line_" + id + ".txt", log), an::InputFormat::Text));
+        a.finish();
+        return sink;
+    };
+    const auto messages = [](const Collect& sink) {
+        std::vector<std::string> out;
+        for (const auto& f : sink.findings)
+            if (f.code == mb::FindingCode::ProfileLineDeparture) out.push_back(f.message);
+        return out;
+    };
+    // The MK manual's FC3 example in ASCII (000:4352-4369 frames E13-E16 style), twice, to unit 17: allowed.
+    const std::string ascii_read = ":11030060000389\r\n";
+    const auto mk = decode(
+        "mmk-2030",
+        "1.0 > " + mb::hex_bytes(std::vector<std::uint8_t>(ascii_read.begin(), ascii_read.end())) + "\n");
+    EXPECT_TRUE(messages(*mk).empty());
+    // The CTH2265I addressed in ASCII: said once, however many frames.
+    const auto cth =
+        decode("cth2265i",
+               "1.0 > " + mb::hex_bytes(std::vector<std::uint8_t>(ascii_read.begin(), ascii_read.end())) +
+                   "\n2.0 > " +
+                   mb::hex_bytes(std::vector<std::uint8_t>(ascii_read.begin(), ascii_read.end())) + "\n");
+    ASSERT_EQ(messages(*cth).size(), 1u);
+    EXPECT_EQ(messages(*cth)[0], "cth2265i: the manual lists no ascii transport (rtu)");
+    // An MK device at unit 150: outside 1..99.
+    const auto far = decode(
+        "mmk-2030",
+        "1.0 > " +
+            mb::hex_bytes(mb::encode_rtu(
+                150, mb::encode_pdu(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 0, 1)))) +
+            "\n");
+    ASSERT_EQ(messages(*far).size(), 1u);
+    EXPECT_NE(messages(*far)[0].find("unit 150 is outside the manual's addresses"), std::string::npos)
+        << messages(*far)[0];
+}
+
 TEST(Semantics, SelectorsPickTheMostSpecificProfile) {
     an::Semantics s;
     auto a = std::make_shared<const mb::Profile>();
