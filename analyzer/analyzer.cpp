@@ -400,9 +400,9 @@ void Analyzer::packet_in_source(const Packet& p) {
     ++summary_.packets;
     if (p.time_out_of_range && time_warned_source_ != source) {
         time_warned_source_ = source;
-        input_error(source + ": packet " + std::to_string(p.number) +
-                    ": timestamp beyond April 2262, not representable; such packets are decoded at the "
-                    "time of the packet before them");
+        input_note(source + ": packet " + std::to_string(p.number) +
+                   ": timestamp beyond April 2262, not representable; such packets are decoded at the "
+                   "time of the packet before them");
     }
     if (p.time > now_)
         now_ = p.time;
@@ -1341,9 +1341,9 @@ void Analyzer::clock_went_back(Timestamp to, const std::string& where) {
     const std::string& source = source_.str();
     if (clock_warned_source_ == source) return;
     clock_warned_source_ = source;
-    input_error(source + ": " + where + ": the capture's clock goes back " +
-                std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(back).count()) +
-                " ms; requests are timed out by the clock from here (later steps back are not listed)");
+    input_note(source + ": " + where + ": the capture's clock goes back " +
+               std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(back).count()) +
+               " ms; requests are timed out by the clock from here (later steps back are not listed)");
 }
 
 void Analyzer::expire(Timestamp now, bool at_end) {
@@ -2044,11 +2044,23 @@ bool Analyzer::read_capture(const std::string& path, const std::string& name) {
     return read_capture(*capture);
 }
 
-void Analyzer::input_error(const std::string& message) {
-    if (summary_.input_errors.size() < max_listed_input_errors)
-        summary_.input_errors.push_back(modbus::printable(message));
+namespace {
+
+void list_or_count(std::vector<std::string>& listed, std::uint64_t& unlisted, const std::string& message) {
+    if (listed.size() < Analyzer::max_listed_input_errors)
+        listed.push_back(modbus::printable(message));
     else
-        ++summary_.input_errors_unlisted;
+        ++unlisted;
+}
+
+}  // namespace
+
+void Analyzer::input_error(const std::string& message) {
+    list_or_count(summary_.input_errors, summary_.input_errors_unlisted, message);
+}
+
+void Analyzer::input_note(const std::string& message) {
+    list_or_count(summary_.input_notes, summary_.input_notes_unlisted, message);
 }
 
 void Analyzer::close_streams(Flow& f, Timestamp t) {

@@ -111,6 +111,8 @@ class Analyzer {
     // bytes and end up on terminals). The first max_listed_input_errors are kept; the rest are counted
     // (Summary::input_errors_unlisted): a file read in the wrong format has an error on every line.
     void input_error(const std::string& message);
+    // What the input is, read whole, that the results depend on (Summary::input_notes); listed as errors are.
+    void input_note(const std::string& message);
     static constexpr std::size_t max_listed_input_errors = 100;
     // How far a reader has got in its file, in bytes: passed on to the progress callback. Readers call it
     // every so many records (finding the offset of a stream is not free).

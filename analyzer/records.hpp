@@ -169,6 +169,10 @@ struct Summary {
     std::uint64_t errors = 0;                       // error-severity findings
     std::vector<std::string> input_errors;          // files that could not be read (fully)
     std::uint64_t input_errors_unlisted = 0;        // more of them, beyond Analyzer::max_listed_input_errors
+    // What was read whole but is not as a capture should be (its clock going back, a timestamp no clock
+    // holds): decoded, and said beside the results; an input error fails the run, a note does not.
+    std::vector<std::string> input_notes;
+    std::uint64_t input_notes_unlisted = 0;
     // IP datagrams whose fragments never all arrived (ip_reassembly.hpp), the fragments they had, and
     // fragments reaching past the largest datagram: captured packets that could not be decoded.
     std::uint64_t ip_datagrams_incomplete = 0, ip_fragments_incomplete = 0, ip_fragments_invalid = 0;

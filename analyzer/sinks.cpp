@@ -207,6 +207,9 @@ void TextSink::end(const Summary& s) {
         out_ << "  input error: " << e << '\n';
     if (s.input_errors_unlisted)
         out_ << "  input errors: " << s.input_errors_unlisted << " more, not listed\n";
+    for (const auto& e : s.input_notes)
+        out_ << "  input note: " << e << '\n';
+    if (s.input_notes_unlisted) out_ << "  input notes: " << s.input_notes_unlisted << " more, not listed\n";
     if (s.ip_datagrams_incomplete)
         out_ << "  not decoded: " << s.ip_datagrams_incomplete << " IP datagrams missing fragments ("
              << s.ip_fragments_incomplete << " fragments captured)\n";
@@ -433,6 +436,8 @@ json summary_to_json(const Summary& s) {
     j["devices"] = devices;
     if (!s.input_errors.empty()) j["input_errors"] = s.input_errors;
     if (s.input_errors_unlisted) j["input_errors_unlisted"] = s.input_errors_unlisted;
+    if (!s.input_notes.empty()) j["input_notes"] = s.input_notes;
+    if (s.input_notes_unlisted) j["input_notes_unlisted"] = s.input_notes_unlisted;
     if (s.ip_datagrams_incomplete || s.ip_fragments_invalid)
         j["ip_fragments_not_decoded"] = {{"datagrams_incomplete", s.ip_datagrams_incomplete},
                                          {"fragments_incomplete", s.ip_fragments_incomplete},

@@ -120,6 +120,20 @@ bool apply_analysis_options(const AnalysisCliOptions& o, const std::string& comm
     return load_semantics(o, command, options);
 }
 
+bool report_input_problems(const analyzer::Summary& s, const std::string& command) {
+    for (const auto& e : s.input_errors)
+        std::cerr << "mbscope " << command << ": " << e << '\n';
+    if (s.input_errors_unlisted)
+        std::cerr << "mbscope " << command << ": " << s.input_errors_unlisted
+                  << " more input errors, not listed\n";
+    for (const auto& n : s.input_notes)
+        std::cerr << "mbscope " << command << ": note: " << n << '\n';
+    if (s.input_notes_unlisted)
+        std::cerr << "mbscope " << command << ": " << s.input_notes_unlisted
+                  << " more input notes, not listed\n";
+    return !s.input_errors.empty() || s.input_errors_unlisted;
+}
+
 bool Outputs::open(const AnalysisCliOptions& o, const std::string& command) {
     // --csv - takes standard output for itself; --csv FILE goes beside the usual output.
     if (o.csv == "-" && (o.json || o.jsonl || o.summary)) {

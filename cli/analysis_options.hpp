@@ -39,6 +39,11 @@ void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o);
 bool apply_analysis_options(const AnalysisCliOptions& o, const std::string& command,
                             analyzer::AnalyzerOptions& options);
 
+// Writes the summary's input errors and notes to standard error, prefixed by "mbscope COMMAND: ". True
+// when there was an input error: part of the input could not be read or decoded, and the run fails (exit 2)
+// with everything else decoded still reported; notes alone do not fail it.
+bool report_input_problems(const analyzer::Summary& s, const std::string& command);
+
 // The sinks the output options ask for, teed into one.
 class Outputs {
   public:

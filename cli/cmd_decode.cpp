@@ -100,11 +100,7 @@ int run_decode(const DecodeOptions& o) {
     const bool all_read = analyzer::read_inputs(a, o.files, *format, logs, file_done);
     if (meter) meter->clear();
     a.finish();
-    for (const auto& e : a.summary().input_errors)
-        std::cerr << "mbscope decode: " << e << '\n';
-    if (a.summary().input_errors_unlisted)
-        std::cerr << "mbscope decode: " << a.summary().input_errors_unlisted
-                  << " more input errors, not listed\n";
+    const bool input_errors = report_input_problems(a.summary(), "decode");
     // Read apart, the parts of one line's log do not pair across a cut: the exchange at each cut is a timeout
     // and an unsolicited reply. Whether the inputs are parts or lines only the user knows: say how to join.
     if (!o.one_line) {
@@ -117,7 +113,8 @@ int run_decode(const DecodeOptions& o) {
                 << " lines; if they are parts of one line (a log in several files), --one-line reads them "
                    "as one stream\n";
     }
-    if (!all_read) return exit_failure;
+    // A link type not decoded, a serial record cut short: read to the end, yet not all decoded.
+    if (!all_read || input_errors) return exit_failure;
     // Bytes read and not one frame among them: nothing was decoded (the wrong file, format or framing),
     // which is not a clean result.
     if (a.summary().frames == 0 && (a.summary().unparsed_bytes > 0 || a.summary().packets_cut > 0)) {

@@ -47,11 +47,7 @@ int run_sniff(SniffCliOptions o) {
     analyzer::Analyzer a(options, outputs.sink());
     const bool ok = capture->run(a, stop_on_signals(BrokenPipe::Kills));
     a.finish();
-    for (const auto& e : a.summary().input_errors)
-        std::cerr << "mbscope sniff: " << e << '\n';
-    if (a.summary().input_errors_unlisted)
-        std::cerr << "mbscope sniff: " << a.summary().input_errors_unlisted
-                  << " more input errors, not listed\n";
+    const bool input_errors = report_input_problems(a.summary(), "sniff");
     if (!s.write.empty() && !s.serial.empty()) {
         // The framing the line was read in: the records do not say it, --user-dlt must.
         const auto read = a.serial_framings_read();
@@ -60,7 +56,7 @@ int run_sniff(SniffCliOptions o) {
                   << "with mbscope decode --user-dlt " << framing
                   << (capture->direction_header() ? "-dir" : "") << '\n';
     }
-    if (!ok) return exit_failure;
+    if (!ok || input_errors) return exit_failure;
     return a.summary().errors ? exit_findings : exit_ok;
 }
 
