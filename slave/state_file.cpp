@@ -151,14 +151,19 @@ modbus::Result<OtherUnits, std::string> apply_state(std::string_view text, const
         const auto it = doc["units"].find(std::to_string(d->configured_unit()));
         if (it == doc["units"].end()) continue;
         const std::string unit = name + ": unit " + std::to_string(d->configured_unit());
+        if (!it->is_object())
+            return unit + ": not an object of the unit's profile and tables (" +
+                   std::string(it->type_name()) + ")";
         if (const auto saved = text_of(*it, "profile"); saved != d->profile().id)
             return unit + " was saved with profile \"" + (saved.empty() ? "?" : modbus::printable(saved)) +
                    "\", now served as \"" + d->profile().id + "\"";
         for (const auto& [table_name, values] : it->items()) {
             if (table_name == "profile") continue;
             const auto table = modbus::parse_table(table_name);
-            if (!table || !values.is_object())
-                return unit + ": unknown table \"" + modbus::printable(table_name) + "\"";
+            if (!table) return unit + ": unknown table \"" + modbus::printable(table_name) + "\"";
+            if (!values.is_object())
+                return unit + " " + modbus::printable(table_name) + ": not an object of address → value (" +
+                       std::string(values.type_name()) + ")";
             // A coil or discrete input holds 0 or 1 (the slave saves bits so, also where they are views of
             // registers: it saves those as the registers).
             const unsigned most = modbus::is_bit_table(*table) ? 1 : 65535;

@@ -160,7 +160,12 @@ INSTANTIATE_TEST_SUITE_P(
         Damage{"ProfileNotAString", R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": 7}}})",
                "was saved with profile \"?\""},
         Damage{"UnitNotAnObject", R"({"format": "mbscope-slave-state/1", "units": {"1": "mmk-2030"}})",
-               "was saved with profile \"?\""},
+               "unit 1: not an object of the unit's profile and tables (string)"},
+        // A table the slave knows, holding something else than address → value: named for what it is.
+        Damage{
+            "TableNotAnObject",
+            R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "holding_registers": [1, 2]}}})",
+            "unit 1 holding_registers: not an object of address → value (array)"},
         Damage{"UnknownTable",
                R"({"format": "mbscope-slave-state/1", "units": {"1": {"profile": "mmk-2030", "nope": {}}}})",
                "unknown table \"nope\""},
