@@ -671,7 +671,7 @@ void complete_field(json& f, const ModularMaps& maps) {
 
 // The fields of one type map as points at their index; status codes and alarm bit names filled in.
 std::vector<MapField> parse_map_fields(Reader& r, const json& map, const std::string& map_id, int block,
-                                       const ModularMaps& maps) {
+                                       const ModularMaps& maps, const std::string& model_id) {
     std::vector<MapField> out;
     const json* fields = r.child(map, "fields");
     if (!fields || !fields->is_array()) return out;
@@ -680,6 +680,20 @@ std::vector<MapField> parse_map_fields(Reader& r, const json& map, const std::st
         const std::string fptr = "maps/" + map_id + "/fields/" + std::to_string(k);
         auto index = r.integer(f, "index", fptr, true, 0, block - 1);
         if (!index) continue;
+        // A field of some models only (Walchem's "†": "O campo só está disponível para controladores W900",
+        // 002:908): another model has no such point, its channel nor the alternative maps' reading of it.
+        // A model answers an address it lacks as any other it does not have.
+        if (auto only = f.find("only"); only != f.end()) {
+            if (!only->is_array() || only->empty() ||
+                !std::all_of(only->begin(), only->end(), [](const json& x) { return x.is_string(); })) {
+                r.error(fptr + "/only", "needs a non-empty list of model ids");
+                continue;
+            }
+            if (std::none_of(only->begin(), only->end(),
+                             [&](const json& x) { return lower(x.get<std::string>()) == model_id; }))
+                continue;
+            f.erase("only");
+        }
         f["address"] = *index;
         complete_field(f, maps);
         auto rp = parse_point(r, f, fptr, Table::HoldingRegisters);
@@ -935,7 +949,7 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
         // Each type map is parsed once (at index addresses) and then placed at every channel that uses it.
         auto parsed = templates.find(map_id);
         if (parsed == templates.end())
-            parsed = templates.emplace(map_id, parse_map_fields(r, map, map_id, block, maps)).first;
+            parsed = templates.emplace(map_id, parse_map_fields(r, map, map_id, block, maps, model_id)).first;
         placed.push_back({*id, r.string(ch, "kind", ptr, false).value_or(""), map_id,
                           static_cast<std::uint16_t>(*start), &parsed->second});
         for (const MapField& field : parsed->second) {

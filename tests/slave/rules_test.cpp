@@ -761,16 +761,20 @@ const std::vector<ManualCase> walchem_cases = {
          i.set_f32(HR, 586, 1.5f, order_at(i, 586));
          i.set_f32(HR, 588, 45.0f, order_at(i, 588));
      }},
-    // Only the first address is checked (a contradiction with AP §6, D9): a read from the last word of the
-    // system block running into the hole after it is answered; a write likewise keeps what is mapped.
+    // Only the first address is checked (a contradiction with AP §6, D9): a read from the last word of I/O
+    // board 2's temperature running into the W900's boards 3 and 4, which the W600 has not (002:908), is
+    // answered; a write from sensor 1-1's high-high set-point into the W900's 24-hour statistics likewise
+    // keeps what is mapped.
     {"WA_EXC_03_W600_FirstAddressOnly",
      "002:390",
      "walchem-w600",
      {{"03 00 00 00 01", "83 02"},
-      {"03 00 37 00 04", "03 08 00 00 00 00 00 00 00 00"},
+      {"03 00 34 00 01", "83 02"},
+      {"03 00 33 00 04", "03 08 00 00 00 00 00 00 00 00"},
       {"01 00 26 00 01", "81 02"},
-      {"10 00 AC 00 06 0C 00 00 40 E0 00 00 00 00 00 00 00 00", "10 00 AC 00 06"},
-      {"03 00 AC 00 02", "03 04 00 00 40 E0"}}},
+      {"10 02 54 00 06 0C 00 00 40 E0 00 00 00 00 00 00 00 00", "10 02 54 00 06"},
+      {"03 02 54 00 02", "03 04 00 00 40 E0"},
+      {"03 02 56 00 01", "83 02"}}},
     {"WA_EXC_04_W600_FineAdjustmentAbove90Percent",
      "002:391",
      "walchem-w600",
@@ -810,7 +814,7 @@ const std::vector<ManualCase> walchem_cases = {
     {"WA_MBAP_05_W600_UnitZeroProcessedNotAnswered",
      "002:211-215",
      "walchem-w600",
-     {{"06 00 AA 00 01", "", true}, {"03 00 AA 00 01", "03 02 00 01"}, {"03 00 AA 00 01", "", true}}},
+     {{"06 01 40 00 01", "", true}, {"03 01 40 00 01", "03 02 00 01"}, {"03 01 40 00 01", "", true}}},
     {"WA_ADR_01_W600_FiveDigitAddressesOnly", "002:174, 246", "walchem-w600", {{"03 27 0F 00 01", "83 02"}}},
 };
 
