@@ -84,6 +84,7 @@ struct Analyzer::Flow {
     std::uint32_t unparsed_length = 0;
     std::uint64_t unparsed_after_frame = 0;
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
+    std::uint64_t first_frame = 0;       // the index of the link's first frame (0: none yet)
     // "server unit N" and its statistics, made once per unit seen on the link rather than once per frame.
     struct Unit {
         std::uint8_t id;
@@ -282,6 +283,7 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
     if (!f.rtu_over_tcp) {
         auto& fed = f.fed[dir];
         const std::uint64_t at = f.deframer[dir].offset();
+        if (at == 0 && !f.reassembler[dir]->saw_syn()) f.deframer[dir].start_unaligned();
         if (f.last_fed_packet[dir] != packet_number_) {
             // The packet before left bytes unreported: kept where they start.
             if (f.last_fed_packet[dir] && f.deframer[dir].unreported() < at)
@@ -554,6 +556,10 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
                        ? std::to_string(u->length) + " bytes of the " + stream +
                              " stream came after later ones at the start of the capture (it began "
                              "mid-connection): they precede the first byte decoded and are not decoded"
+                   : u->reason == UnparsedReason::BeforeFirstHeader
+                       ? std::to_string(u->length) + " bytes at the start of the " + stream +
+                             " stream, whose connection opened before the capture began, come before its "
+                             "first header: the end of an ADU sent before the capture, not decoded"
                        : std::to_string(u->length) + " bytes at stream offset " + std::to_string(u->offset) +
                              " of the " + stream + " stream formed no frame (" +
                              std::string(to_string(u->reason)) + ")");
@@ -596,6 +602,7 @@ void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
 
 void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     ++summary_.frames;
+    if (!flow.first_frame) flow.first_frame = r.index;
     const bool damaged = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok;
     if (damaged && stats) ++stats->checksum_errors;
     sink_.frame(r);
@@ -909,6 +916,18 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             cut_requests_.erase(cut);
             return;
         }
+    // A network link's first frame a reply, on a connection whose opening the capture did not show (or over
+    // UDP): the capture began after its request was sent (or inside it, the request's bytes unparsed). An
+    // "unsolicited" error held the capture's start against the device.
+    if (it == pending_.end() && r.frame.framing == Framing::Tcp && r.index == flow.first_frame &&
+        (flow.carrier == Carrier::Udp || (flow.reassembler[0] && !flow.reassembler[0]->saw_syn()))) {
+        report(FindingCode::PairRequestNotCaptured, r,
+               "the reply to transaction id " + std::to_string(key.tid) +
+                   " is the first frame of this link in the capture: its request went before the capture "
+                   "began");
+        flow.keep_last_response(r);
+        return;
+    }
     // On a serial line, bytes that formed no frame since the last reply (a request cut short, noise over
     // its first bytes, an ASCII request whose LF came too late): a reply nobody waits for may answer a
     // request among them, and is neither a request answered twice nor a reply nobody asked for.

@@ -35,6 +35,8 @@ class TcpReassembler {
     // A SYN at `seq` opens a new connection on this stream's addresses and ports: the stream has seen
     // another connection (or the middle of one), and this is not that connection's SYN again.
     bool opens_new_connection(std::uint32_t seq) const noexcept { return next_ && syn_at_ != seq; }
+    // Whether this connection's SYN was seen: else the stream's first bytes may be the middle of an ADU.
+    bool saw_syn() const noexcept { return syn_at_.has_value(); }
     // The peer acknowledged this direction's bytes up to `ack`: bytes before it that the capture never
     // showed (a segment the tap lost, a record cut by the snap length) will not be sent again, so a hole
     // below it is given up. Waiting for it stalled the direction until the end of the capture (or a

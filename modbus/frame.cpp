@@ -42,6 +42,8 @@ std::string_view to_string(UnparsedReason r) noexcept {
             return "bad_header";
         case UnparsedReason::BeforeStreamStart:
             return "before_stream_start";
+        case UnparsedReason::BeforeFirstHeader:
+            return "before_first_header";
     }
     return "?";
 }

@@ -112,6 +112,7 @@ enum class UnparsedReason : std::uint8_t {
     TooLong = 9,             // longer than the framing's maximum
     BadHeader = 10,          // TCP: MBAP length field impossible, stream resynchronised
     BeforeStreamStart = 11,  // TCP: bytes before the first one captured of their stream, arriving after it
+    BeforeFirstHeader = 12,  // TCP: a stream begun before the capture, before its first header (an ADU's end)
 };
 std::string_view to_string(UnparsedReason r) noexcept;
 

@@ -1,5 +1,6 @@
 #include "modbus/tcp_deframer.hpp"
 
+#include <algorithm>
 #include <cstring>
 
 #include "modbus/adu.hpp"
@@ -125,18 +126,38 @@ bool TcpStreamDeframer::trusted_header(std::span<const std::uint8_t> rest) const
     return decodes(rest.subspan(7, total - 7));
 }
 
+DeframeStep TcpStreamDeframer::unaligned_step(std::span<const std::uint8_t> rest,
+                                              bool at_end) const noexcept {
+    if (rest.size() < 8 && !at_end) return {Kind::NeedMore, 8};  // the header with its function code
+    // A capture holds whole packets, and a client sends an ADU in one segment: the first bytes are nearly
+    // always a header. So a plausible one whose ADU is here whole is taken, whether its PDU decodes or not
+    // (a malformed first ADU is the device's, as tshark reads it); one whose ADU would reach past what is
+    // here is waited for only while the bytes so far can start a PDU of its length.
+    if (rest.size() >= 8 && plausible_header(rest)) {
+        const std::size_t total = 6 + length_field(rest);
+        if (rest.size() >= total) return {Kind::Complete, total};
+        if (!at_end && length_consistent(rest.subspan(7), total - 7)) return {Kind::NeedMore, total};
+    }
+    return tcp_step(rest, at_end, false);
+}
+
 void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
     while (head_ < buf_.size()) {
         const std::span<const std::uint8_t> rest(buf_.data() + head_, buf_.size() - head_);
         // A non-zero protocol id after an ADU that does not decode is, unless it makes a frame that
         // does, that ADU's own bytes, not a header.
-        const DeframeStep step = tcp_step(rest, at_end, in_sync_ && (!passive_ || trusted_header(rest)));
+        // (Once bytes were skipped, the first header is searched for as after a gap.)
+        const DeframeStep step =
+            unaligned_ && in_sync_ ? unaligned_step(rest, at_end)
+                                   : tcp_step(rest, at_end, in_sync_ && (!passive_ || trusted_header(rest)));
         if (step.kind == Kind::NeedMore) break;
+        // Every byte before the first frame of a stream begun before the capture: one run, one reason.
+        const UnparsedReason reason = unaligned_ ? UnparsedReason::BeforeFirstHeader : step.reason;
         if (step.kind == Kind::Skip) {
-            if (pending_.length != 0 && pending_.reason != step.reason) flush_unparsed(out);
+            if (pending_.length != 0 && pending_.reason != reason) flush_unparsed(out);
             if (pending_.length == 0) {
                 pending_.offset = base_;
-                pending_.reason = step.reason;
+                pending_.reason = reason;
                 pending_.time = first_;
             }
             pending_.length += static_cast<std::uint32_t>(step.length);
@@ -158,6 +179,7 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
                 std::memcpy(last_pdu_.data(), rest.data() + 7, last_pdu_size_);
             }
             in_sync_ = true;
+            unaligned_ = false;
         }
         head_ += step.length;
         base_ += step.length;
@@ -194,6 +216,7 @@ void TcpStreamDeframer::gap(std::uint64_t missing, DeframeEvents& out) {
     head_ = 0;
     base_ += missing;
     in_sync_ = false;
+    unaligned_ = false;
 }
 
 void TcpStreamDeframer::reset() noexcept {
@@ -201,6 +224,7 @@ void TcpStreamDeframer::reset() noexcept {
     head_ = 0;
     base_ = 0;
     in_sync_ = true;
+    unaligned_ = false;
     last_pdu_size_ = 0;
     last_ = Timestamp{0};
     first_ = Timestamp{0};

@@ -40,6 +40,13 @@ class TcpStreamDeframer {
     void reset() noexcept;
     // Reads the stream as a passive observer (the analyzer), see above.
     void observe_passively() noexcept { passive_ = true; }
+    // The stream's start was not seen (a capture begun mid-connection, no SYN): its first bytes may be the
+    // end of an ADU sent before the capture began. The first header is taken only when it is plausible
+    // (protocol id 0, a function code, a length in range) and its ADU is here whole or its bytes so far can
+    // start a PDU of that length; else the deframer resynchronises as after a gap. Taken as in sync, the tail
+    // "03 00 00 00 01" of a request and the next request's first byte read as a header of length 256,
+    // which swallowed the next 263 bytes of requests. Call before the first bytes are fed.
+    void start_unaligned() noexcept { unaligned_ = true; }
 
   private:
     void run(bool at_end, DeframeEvents& out);
@@ -50,6 +57,8 @@ class TcpStreamDeframer {
     std::uint64_t base_ = 0;
     bool in_sync_ = true;
     bool passive_ = false;
+    bool unaligned_ = false;  // start_unaligned(), until the first step
+    DeframeStep unaligned_step(std::span<const std::uint8_t> rest, bool at_end) const noexcept;
     // The PDU of the last frame, judged only when the next header's protocol id is not 0.
     std::array<std::uint8_t, max_frame_bytes> last_pdu_{};
     std::size_t last_pdu_size_ = 0;

@@ -57,6 +57,13 @@ struct Harness {
         p.original_length = std::max(original_length, static_cast<std::uint32_t>(bytes.size()));
         analyzer.packet("test", p);
     }
+    // The connection opened in the capture (SYN, SYN-ACK): its streams are in step from their first byte,
+    // where a capture begun mid-connection judges its first header before taking it (a malformed first ADU
+    // is indistinguishable from the tail of one sent before the capture began).
+    void open(mb::Timestamp t) {
+        raw(packet(true, seq[0] - 1, {}, false, 0x02, 502, 0), t);
+        raw(packet(false, seq[1] - 1, {}, false, 0x12, 502, seq[0]), t);
+    }
     // A copy of what was sent from sequence number `at` (a retransmission, a second tap's copy).
     void resend(bool to_server, const std::vector<std::uint8_t>& payload, std::uint32_t at, mb::Timestamp t) {
         raw(packet(to_server, at, payload, false, 0x18, 502, seq[to_server ? 1 : 0]), t);
@@ -445,22 +452,23 @@ TEST(Analyzer, BytesBeforeAMidStreamCapturesFirstAreReportedUnparsed) {
 // Before, they named the packet being read then, seconds later, even one of another connection.
 TEST(Analyzer, UnparsedBytesAreReportedAtThePacketThatCarriedThem) {
     Harness h;
+    h.open(0s);  // packets 1 and 2: the stream is in step from its first byte
     auto bad = read_request(1);
     bad[4] = 0;
     bad[5] = 0;                                  // MBAP length 0
-    h.send(true, bad, 1s);                       // packet 1
-    h.send(true, {0xDE, 0xAD, 0xBE, 0xEF}, 2s);  // packet 2: more garbage
-    h.send(true, read_request(2), 5s);           // packet 3
+    h.send(true, bad, 1s);                       // packet 3
+    h.send(true, {0xDE, 0xAD, 0xBE, 0xEF}, 2s);  // packet 4: more garbage
+    h.send(true, read_request(2), 5s);           // packet 5
     h.send(false, read_response(2), 5s + 10ms);
     h.analyzer.finish();
     ASSERT_EQ(h.sink.unparsed_records.size(), 1u);
     EXPECT_EQ(h.sink.unparsed_records[0].length, bad.size() + 4);
-    EXPECT_EQ(h.sink.unparsed_records[0].packet, 1u);
+    EXPECT_EQ(h.sink.unparsed_records[0].packet, 3u);
     EXPECT_EQ(h.sink.unparsed_records[0].time, mb::Timestamp(1s));
     ASSERT_EQ(h.sink.count(mb::FindingCode::TcpLengthInvalid), 1);
     for (const auto& f : h.sink.findings)
         if (f.code == mb::FindingCode::TcpLengthInvalid) {
-            EXPECT_EQ(f.packet, 1u);
+            EXPECT_EQ(f.packet, 3u);
             EXPECT_EQ(f.time, mb::Timestamp(1s));
         }
     EXPECT_EQ(h.sink.transactions.size(), 1u);
@@ -967,8 +975,11 @@ TEST(Analyzer, ARequestPipelinedBehindALostSegmentIsPairedWithItsReply) {
     EXPECT_EQ(third.latency, 10ms);
 }
 
+// (On a connection opened in the capture: on one begun before it, a first reply answers a request sent
+// before the capture began, AReplyBeforeAnyRequestOfAConnectionBegunBeforeTheCaptureIsNotUnsolicited.)
 TEST(Analyzer, UnsolicitedResponse) {
     Harness h;
+    h.open(0s);
     h.send(false, read_response(9), 1s);
     h.analyzer.finish();
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
@@ -1276,8 +1287,79 @@ TEST(Analyzer, Fc8CountersReturnACountAndOnlyEchoingSubFunctionsAreJudgedAsEchoe
     }
 }
 
+// A capture begun mid-connection whose first client segment is the last 5 bytes of a request ("03 00 00 00
+// 01", read of 1 register at 0): taken as in step, they and the next request's first byte read as a header
+// of length 256 (unit 3, function 0), which swallowed the next 263 bytes: 22 of 30 replies were
+// "unsolicited" errors against a healthy device, and a unit 3 appeared that nobody asked. The stream's
+// first header is judged (no SYN was seen): the 5 bytes are unparsed and every later request is paired.
+TEST(Analyzer, ACaptureBegunInsideAnAduLosesNoLaterRequest) {
+    Harness h;
+    const auto tail = read_request(2, 0, 1);
+    h.send(true, std::vector<std::uint8_t>(tail.end() - 5, tail.end()), 1s);
+    h.send(false, read_response(2, {2}), 1s + 1ms);
+    for (std::uint16_t tid = 3; tid < 33; ++tid) {
+        h.send(true, read_request(tid, 0, 1), tid * 1s);
+        h.send(false, read_response(tid, {tid}), tid * 1s + 1ms);
+    }
+    h.analyzer.finish();
+    ASSERT_FALSE(h.sink.unparsed_records.empty());
+    EXPECT_EQ(h.sink.unparsed_records[0].offset, 0u);
+    EXPECT_EQ(h.sink.unparsed_records[0].length, 5u);
+    EXPECT_EQ(h.sink.unparsed_records[0].reason, mb::UnparsedReason::BeforeFirstHeader);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::TcpLengthInvalid), 0);  // no device's header
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairRequestNotCaptured), 1);  // the reply to the request cut
+    EXPECT_EQ(h.analyzer.summary().errors, 0u);
+    const auto& devices = h.analyzer.summary().devices;
+    ASSERT_EQ(devices.size(), 1u);
+    EXPECT_EQ(devices.begin()->first, "10.0.0.2:502 unit 17");
+    EXPECT_EQ(devices.begin()->second.requests, 30u);
+    EXPECT_EQ(devices.begin()->second.responses, 30u);
+}
+
+// A capture begun between a request and its reply, the connection's opening not in it: the first frame is a
+// reply nobody in the capture asked for, whose request went before the capture began; an "unsolicited"
+// error held that against the device. With the opening captured, such a reply is unsolicited.
+TEST(Analyzer, AReplyBeforeAnyRequestOfAConnectionBegunBeforeTheCaptureIsNotUnsolicited) {
+    for (const bool opened : {false, true}) {
+        SCOPED_TRACE(opened);
+        Harness h;
+        if (opened) h.open(0s);
+        h.send(false, read_response(1), 1s);
+        h.send(true, read_request(2), 2s);
+        h.send(false, read_response(2), 2s + 1ms);
+        h.send(false, read_response(3), 3s);  // nobody asked: unsolicited either way
+        h.analyzer.finish();
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairRequestNotCaptured), opened ? 0 : 1);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), opened ? 2 : 1);
+    }
+}
+
+// A stream whose opening was captured is read from its first byte, in step: a first header with protocol
+// id 1 is still a frame (flagged). Without the opening it may be the tail of an earlier ADU, and is not.
+TEST(Analyzer, AStreamWhoseOpeningWasCapturedTakesItsFirstHeader) {
+    for (const bool opened : {false, true}) {
+        SCOPED_TRACE(opened);
+        Harness h;
+        if (opened) h.open(0s);
+        auto first = read_request(1);
+        first[3] = 1;  // protocol id 1
+        h.send(true, first, 1s);
+        h.send(true, read_request(2), 2s);
+        h.send(false, read_response(2), 2s + 1ms);
+        h.analyzer.finish();
+        EXPECT_EQ(h.sink.frames.size(), opened ? 3u : 2u);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::TcpProtocolIdNonzero), opened ? 1 : 0);
+        ASSERT_EQ(h.sink.unparsed_records.size(), opened ? 0u : 1u);
+        if (!opened) {
+            EXPECT_EQ(h.sink.unparsed_records[0].length, first.size());
+        }
+    }
+}
+
 TEST(Analyzer, ProtocolIdAndGarbageBetweenAdus) {
     Harness h;
+    h.open(0s);
     auto bad = read_request(1);
     bad[3] = 1;  // protocol id 1
     h.send(true, bad, 1s);
