@@ -154,6 +154,9 @@ ExchangeOracle::Expected ExchangeOracle::expect(const Request& r) const {
                        "AP §6.8.1");
     }
     Expected answer = expect_pdu(r, *u->profile);
+    // The generic profile knows no device's functions either: one it does not implement is refused (AP §7,
+    // 01). libmodbus's server, which has no FC8, was "exception for valid" on every diagnostics request.
+    if (u->profile->open_address_space && answer.normal) answer.exceptions.insert(0x01);
     if (framing_ == Framing::Rtu) {
         const auto predicted = modbus::predict_pdu_length(r.pdu, modbus::Direction::Request);
         answer.silence_allowed =
@@ -190,6 +193,12 @@ ExchangeOracle::Expected ExchangeOracle::expect_pdu(const Request& r, const modb
         if (auto rej = modbus::check_writes(p, t, start, values))
             return refuse(rej->exception_code, "reply.rejected_write", "profile ranges and access");
         e.normal = true;
+        // The generic profile knows no device's map: an address it lacks (02) and a value out of its range
+        // (03) are the device's to refuse (AP §7). `check` probes the address space; a fuzzer does not.
+        if (p.open_address_space) {
+            e.exceptions.insert(modbus::exception_for(p, "bad_address", 0x02));
+            e.exceptions.insert(modbus::exception_for(p, "bad_value", 0x03));
+        }
         // A limit held in another register (MK-RNG-02), and a lone half of a 32-bit value (judged with the
         // other half the device holds), depend on the image: 03 may also be right.
         const std::uint32_t end = start + static_cast<std::uint32_t>(values.size());
@@ -215,6 +224,9 @@ ExchangeOracle::Expected ExchangeOracle::expect_pdu(const Request& r, const modb
             if (auto code = modbus::check_read(p, table_of_fc(fc), rr.starting_address, rr.quantity))
                 return refuse(*code, "reply.address", "AP §6 (exception 02)");
             e.normal = true;
+            // The generic profile knows no device's map: an address the device lacks is refused (AP §7, 02).
+            // Against libmodbus's server (10,000 registers) every read past them was "exception for valid".
+            if (p.open_address_space) e.exceptions.insert(modbus::exception_for(p, "bad_address", 0x02));
             return e;
         }
         case 5: {

@@ -333,6 +333,32 @@ TEST(ExchangeOracle, SilenceIsDemandedForABadCrcAndARepliedOneIsAViolation) {
     EXPECT_EQ(v[0].source, "SL §2.5.1.2");
 }
 
+// The generic profile knows no device's map or functions: a device that refuses an address it lacks (02),
+// a value out of its range (03) or a function it does not implement (01) answers as AP §7 says. Against
+// libmodbus's server (10,000 registers, no FC8) every such refusal was "exception for valid". A mapped
+// profile still demands the normal reply, and the generic one still refuses another code for a read.
+TEST(ExchangeOracle, TheGenericProfileAllowsTheRefusalsOfADeviceItDoesNotKnow) {
+    const auto& generic = mbscope::slave::test::profile("modbus");
+    cf::ExchangeOracle oracle(Framing::Rtu, {{1, &generic}}, false);
+    const auto rules = [](const std::vector<cf::OracleViolation>& v) {
+        std::string out;
+        for (const auto& x : v)
+            out += x.rule + " ";
+        return out;
+    };
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(3, {54188, 125}), {0x83, 0x02})), "");
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(1, {60000, 16}), {0x81, 0x02})), "");
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(6, {20000, 7}), {0x86, 0x02})), "");
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(6, {20, 0xBEEF}), {0x86, 0x03})), "");
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(8, {0, 0x1234}), {0x88, 0x01})), "");
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(3, {0, 1}), {0x83, 0x04})), "reply.exception_for_valid ");
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(3, {0, 1}), {0x83, 0x03})), "reply.exception_for_valid ");
+
+    const auto& mapped = mbscope::slave::test::profile("mmk-2030");
+    cf::ExchangeOracle strict(Framing::Rtu, {{1, &mapped}}, false);
+    EXPECT_EQ(rules(judge_rtu(strict, 1, pdu(3, {0, 1}), {0x83, 0x02})), "reply.exception_for_valid ");
+}
+
 // A reply to 21 coils answers them in three bytes, the last one's three high bits padded with zeros (AP
 // §6.1; the MK manual's example, 000:343, answers B2 0E 1B).
 TEST(ExchangeOracle, PaddingBitsSetInACoilReplyAreAViolation) {
@@ -402,6 +428,10 @@ TEST(ExchangeOracle, AnRtuRequestWithAValidShorterFrameInsideMayBeAnsweredAsEith
     EXPECT_EQ(v[0].rule, "reply.malformed_request");
 }
 
+// What the generic profile expects of a read: a device it does not know may lack the function or address.
+const std::string generic_read =
+    "a normal response or exception 01 (Illegal Function) or exception 02 (Illegal Data Address)";
+
 TEST(ExchangeOracle, ListenOnlyModeSilencesEverythingUntilAValidRestart) {
     const auto& p = mbscope::slave::test::profile("modbus");
     cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
@@ -422,7 +452,7 @@ TEST(ExchangeOracle, ListenOnlyModeSilencesEverythingUntilAValidRestart) {
     EXPECT_TRUE(send(pdu(8, {1, 0x4500}), {}).empty());  // a restart with data the mode does not act on
     EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "no reply");
     EXPECT_TRUE(send(pdu(8, {1, 0}), {}).empty());  // the restart, unanswered
-    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "a normal response");
+    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), generic_read);
 }
 
 // Force listen-only mode with data other than 00 00 may be refused with exception 03 (AP §6.8's state
@@ -434,7 +464,7 @@ TEST(ExchangeOracle, ListenOnlyWithOtherDataMayBeRefusedOrObeyed) {
         return judge_rtu(oracle, 1, request, reply);
     };
     EXPECT_TRUE(send(pdu(8, {4, 1}), {0x88, 0x03}).empty());
-    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), "a normal response");
+    EXPECT_EQ(oracle.expectation(mb::encode_rtu(1, pdu(3, {0, 1}))), generic_read);
     const auto wrong = send(pdu(8, {4, 1}), {0x88, 0x02});
     ASSERT_EQ(wrong.size(), 1u);
     EXPECT_EQ(wrong[0].rule, "silence.listen_only");
@@ -461,12 +491,12 @@ TEST(ExchangeOracle, ABroadcastListenOnlyDiagnosticsLeavesTheModeUnknownUntilThe
     EXPECT_TRUE(send(1, pdu(3, {0, 1}), {}).empty());
     // An addressed restart brings it back either way; unanswered, since it was in the mode.
     EXPECT_TRUE(send(1, pdu(8, {1, 0}), {}).empty());
-    EXPECT_EQ(oracle.expectation(read), "a normal response");
+    EXPECT_EQ(oracle.expectation(read), generic_read);
 
     // A device that ignored a broadcast 04 answers, and from then on is judged again.
     EXPECT_TRUE(send(0, pdu(8, {4, 0}), {}).empty());
     EXPECT_TRUE(send(1, pdu(3, {0, 1}), {0x03, 0x02, 0x00, 0x00}).empty());
-    EXPECT_EQ(oracle.expectation(read), "a normal response");
+    EXPECT_EQ(oracle.expectation(read), generic_read);
     EXPECT_EQ(send(1, pdu(3, {0, 1}), {}).at(0).rule, "reply.missing");
 
     // In the mode by an addressed 04, a broadcast restart may or may not have left it.
@@ -476,7 +506,7 @@ TEST(ExchangeOracle, ABroadcastListenOnlyDiagnosticsLeavesTheModeUnknownUntilThe
     EXPECT_EQ(oracle.expectation(read), "");
     EXPECT_TRUE(send(1, pdu(5, {5, 0x5B05}), {}).empty());  // still in it: silence is not reported
     EXPECT_TRUE(send(1, pdu(8, {1, 0}), {0x08, 0x00, 0x01, 0x00, 0x00}).empty());  // was out: the echo
-    EXPECT_EQ(oracle.expectation(read), "a normal response");
+    EXPECT_EQ(oracle.expectation(read), generic_read);
 }
 
 TEST(ExchangeOracle, AnAcknowledgedWriteMustReadBack) {
