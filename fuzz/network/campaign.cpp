@@ -128,12 +128,17 @@ class Campaign {
     std::optional<Probe> round_trip();
     void pace();
     void classify(const Probe& p, const ReplayedStep& r);
-    // `before`: steps from before the trace the finding needs (the write a lost write was made by).
+    // `before`: steps from before the trace the finding needs (the write a lost write was made by);
+    // `kept`: steps the minimisation may not drop (every write that set a point the read reads).
     void record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable,
-                const std::vector<Step>& before = {});
-    std::vector<Step> minimise(const std::string& rule, std::vector<Step> window, bool& reproduced,
+                const std::vector<Step>& before = {}, const std::vector<Step>& kept = {});
+    std::vector<Step> minimise(const std::string& rule, std::vector<Step> window,
+                               const std::vector<Step>& kept, bool& reproduced,
                                std::optional<bool>& on_new_connection);
-    // The acknowledged writes that set the points a read reads, those no longer in the trace, in order.
+    struct WrittenBy;
+    // The acknowledged writes that last set the points a read reads, in the order they were sent.
+    std::vector<const WrittenBy*> writers_of(std::span<const std::uint8_t> read_pdu) const;
+    // Those of them no longer in the trace.
     std::vector<Step> writes_before_trace(std::span<const std::uint8_t> read_pdu) const;
     conformance::OracleViolation slow_reply(std::chrono::nanoseconds first,
                                             std::chrono::nanoseconds second) const;
@@ -643,7 +648,7 @@ void Campaign::classify(const Probe& p, const ReplayedStep& r) {
     s_.response_classes = classes_.size();
 }
 
-std::vector<Step> Campaign::writes_before_trace(std::span<const std::uint8_t> pdu) const {
+std::vector<const Campaign::WrittenBy*> Campaign::writers_of(std::span<const std::uint8_t> pdu) const {
     if (pdu.size() < 5 || pdu[0] < 1 || pdu[0] > 4) return {};
     // The table the read reaches, as the oracle resolves it (a map whose input registers are its holding
     // registers: a write shows on FC4 too).
@@ -656,8 +661,12 @@ std::vector<Step> Campaign::writes_before_trace(std::span<const std::uint8_t> pd
         if (std::find(found.begin(), found.end(), it->second.get()) == found.end())
             found.push_back(it->second.get());
     std::sort(found.begin(), found.end(), [](auto* a, auto* b) { return a->request < b->request; });
+    return found;
+}
+
+std::vector<Step> Campaign::writes_before_trace(std::span<const std::uint8_t> pdu) const {
     std::vector<Step> out;
-    for (const WrittenBy* w : found) {
+    for (const WrittenBy* w : writers_of(pdu)) {
         const auto bytes = w->step.joined();
         const bool traced =
             std::any_of(trace_.begin(), trace_.end(), [&](const Step& s) { return s.joined() == bytes; });
@@ -666,7 +675,8 @@ std::vector<Step> Campaign::writes_before_trace(std::span<const std::uint8_t> pd
     return out;
 }
 
-std::vector<Step> Campaign::minimise(const std::string& rule, std::vector<Step> window, bool& reproduced,
+std::vector<Step> Campaign::minimise(const std::string& rule, std::vector<Step> window,
+                                     const std::vector<Step>& kept, bool& reproduced,
                                      std::optional<bool>& on_new_connection) {
     reproduced = false;
     on_new_connection.reset();
@@ -698,11 +708,31 @@ std::vector<Step> Campaign::minimise(const std::string& rule, std::vector<Step> 
         conformance::ExchangeOracle fresh(framing_, {{options_.unit, &profile_}}, ip_network_);
         return breaks(replay(client_, fresh, steps, replay_), rule);
     };
-    std::vector<Step> found;
+    // Steps are tried by their place in the window. A kept one is in every candidate: the device still
+    // holds what the campaign wrote, so a candidate without the write that set a point the read reads may
+    // break the rule here and not on a device that never saw that write (word-swap's lost write shows the
+    // partner register's value: the write to the partner was dropped, and the reproducer broke nothing on
+    // a fresh slave).
+    const auto is_kept = [&](const Step& s) {
+        const auto bytes = s.joined();
+        return std::any_of(kept.begin(), kept.end(), [&](const Step& k) { return k.joined() == bytes; });
+    };
+    std::vector<bool> pinned(window.size());
+    for (std::size_t i = 0; i < window.size(); ++i)
+        pinned[i] = is_kept(window[i]);
+    const auto steps_of = [&](const std::vector<std::size_t>& places) {
+        std::vector<Step> out;
+        for (std::size_t i : places)
+            out.push_back(window[i]);
+        return out;
+    };
+    std::vector<std::size_t> found;
     for (std::size_t n = 1; n <= window.size();
          n = n * 2 > window.size() && n < window.size() ? window.size() : n * 2) {
-        std::vector<Step> suffix(window.end() - static_cast<std::ptrdiff_t>(n), window.end());
-        if (reproduces(suffix)) {
+        std::vector<std::size_t> suffix;
+        for (std::size_t i = 0; i < window.size(); ++i)
+            if (i >= window.size() - n || pinned[i]) suffix.push_back(i);
+        if (reproduces(steps_of(suffix))) {
             found = std::move(suffix);
             break;
         }
@@ -711,9 +741,13 @@ std::vector<Step> Campaign::minimise(const std::string& rule, std::vector<Step> 
     if (found.empty()) return window;
     reproduced = true;
     for (std::size_t i = 0; found.size() > 1 && i + 1 < found.size() && budget > 0;) {
+        if (pinned[found[i]]) {
+            ++i;
+            continue;
+        }
         auto shorter = found;
         shorter.erase(shorter.begin() + static_cast<std::ptrdiff_t>(i));
-        if (reproduces(shorter))
+        if (reproduces(steps_of(shorter)))
             found = std::move(shorter);
         else
             ++i;
@@ -722,15 +756,16 @@ std::vector<Step> Campaign::minimise(const std::string& rule, std::vector<Step> 
     // budget. (pymodbus drops a connection whose first request comes split a moment after it opened, and not
     // one that carried requests before: a reproducer minimised on the campaign's connection did not
     // reproduce with replay, every time.)
+    std::vector<Step> steps = steps_of(found);
     if (!serial_line_ && client_.reconnect()) {
         conformance::ExchangeOracle fresh(framing_, {{options_.unit, &profile_}}, ip_network_);
-        on_new_connection = breaks(replay(client_, fresh, found, replay_), rule);
+        on_new_connection = breaks(replay(client_, fresh, steps, replay_), rule);
     }
-    return found;
+    return steps;
 }
 
 void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable,
-                      const std::vector<Step>& before) {
+                      const std::vector<Step>& before, const std::vector<Step>& kept) {
     const std::string key = v.rule + "|" + std::to_string(fc);
     if (auto it = finding_index_.find(key); it != finding_index_.end()) {
         ++s_.findings[it->second].count;
@@ -760,7 +795,7 @@ void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bo
     r.original_steps = window.size();
     if (v.rule == "timing.slow_reply") r.slow_ms = static_cast<std::uint32_t>(slow_.count());
     if (replayable && options_.minimise_budget > 0)
-        r.steps = minimise(v.rule, std::move(window), r.minimised, r.replays_on_new_connection);
+        r.steps = minimise(v.rule, std::move(window), kept, r.minimised, r.replays_on_new_connection);
     else
         r.steps = std::move(window);
     if (!options_.artifacts.empty()) {
@@ -886,9 +921,16 @@ CampaignSummary Campaign::run() {
                     continue;
                 }
             }
-            // A lost write's reproducer holds the write, however long ago the trace was cleared.
-            record(v, fc, !s_.target_lost,
-                   v.rule == "state.lost_write" ? writes_before_trace(p.pdu) : std::vector<Step>{});
+            // A lost write's reproducer holds the writes that set the points the read reads, however long
+            // ago the trace was cleared, and keeps them through its minimisation.
+            if (v.rule == "state.lost_write") {
+                std::vector<Step> writers;
+                for (const WrittenBy* w : writers_of(p.pdu))
+                    writers.push_back(w->step);
+                record(v, fc, !s_.target_lost, writes_before_trace(p.pdu), writers);
+            } else {
+                record(v, fc, !s_.target_lost);
+            }
         }
         if (step.reconnect_after) {
             (void)client_.reconnect();
