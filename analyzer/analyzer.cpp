@@ -573,7 +573,15 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
         r.link = flow.link;
         r.direction = to_server ? Direction::Request : Direction::Response;
         r.carrier = flow.carrier;
-        decode_and_judge(flow, r, r.frame.unit_id());
+        // Over Modbus/TCP the transaction id pairs a reply with its request: one naming another unit is the
+        // asked unit's reply (counted there, its pair.unit_mismatch says which unit it named). Named after
+        // the unit in its header, it made a device nobody asked, which the error was filed under.
+        std::uint8_t unit = r.frame.unit_id();
+        if (!to_server && r.frame.framing == Framing::Tcp)
+            if (const auto it = pending_.find(PendingKey{flow.id, r.frame.transaction_id()});
+                it != pending_.end())
+                unit = it->second.request.frame.unit_id();
+        decode_and_judge(flow, r, unit);
     }
     events.clear();
 }

@@ -1248,6 +1248,13 @@ TEST(Analyzer, ResponseSizeFunctionAndUnitMismatches) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairResponseSizeMismatch), 1);
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairFunctionMismatch), 1);
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnitMismatch), 1);
+    // Paired by its transaction id, the reply naming unit 18 is unit 17's, and so is its finding: no device
+    // "unit 18" that nobody asked, holding the error with 0 requests and 0 responses.
+    const auto& devices = h.analyzer.summary().devices;
+    ASSERT_EQ(devices.size(), 1u);
+    const auto& asked = devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(asked.responses, 3u);
+    EXPECT_EQ(asked.findings.at("pair.unit_mismatch"), 1u);
 }
 
 TEST(Analyzer, EchoMismatch) {
