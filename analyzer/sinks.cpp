@@ -235,19 +235,19 @@ void TextSink::end(const Summary& s) {
 
 // ---------------------------------------------------------------- JSON
 
-json frame_to_json(const FrameRecord& f) {
-    json j{{"type", "frame"},
-           {"ts", seconds(f.time)},
-           {"source", f.source},
-           {"link", f.link},
-           {"frame", f.index},
-           {"packet", f.packet},
-           {"direction", direction_json(f.direction)},
-           {"transport", std::string(to_string(f.carrier))},
-           {"framing", std::string(to_string(f.frame.framing))},
-           {"unit_id", f.frame.unit_id()},
-           {"raw", hex_bytes(f.frame.adu())},
-           {"checksum_ok", f.frame.checksum_ok}};
+nlohmann::ordered_json frame_to_json(const FrameRecord& f) {
+    nlohmann::ordered_json j{{"type", "frame"},
+                             {"ts", seconds(f.time)},
+                             {"source", f.source},
+                             {"link", f.link},
+                             {"frame", f.index},
+                             {"packet", f.packet},
+                             {"direction", direction_json(f.direction)},
+                             {"transport", std::string(to_string(f.carrier))},
+                             {"framing", std::string(to_string(f.frame.framing))},
+                             {"unit_id", f.frame.unit_id()},
+                             {"raw", hex_bytes(f.frame.adu())},
+                             {"checksum_ok", f.frame.checksum_ok}};
     if (f.frame.framing == Framing::Tcp) {
         j["transaction_id"] = f.frame.transaction_id();
         j["protocol_id"] = f.frame.protocol_id();
@@ -257,7 +257,7 @@ json frame_to_json(const FrameRecord& f) {
         j["function"] = f.pdu->function_code();
         if (auto n = function_name(f.pdu->function_code())) j["function_name"] = std::string(*n);
         j["exception"] = f.pdu->is_exception();
-        json fields = json::object();
+        nlohmann::ordered_json fields = nlohmann::ordered_json::object();
         for (const auto& field : describe_pdu(*f.pdu))
             if (field.name != "function_code") fields[field.name] = field.value;
         j["fields"] = fields;
@@ -293,7 +293,7 @@ void JsonSink::line_written() {
     if (writer_.size() >= (1u << 16)) pass_on();
 }
 
-void JsonSink::emit(json j) {
+void JsonSink::emit(nlohmann::ordered_json j) {
     // Strings from a capture (a log line quoted in an input error, FC43 identification objects) need not be
     // UTF-8: invalid bytes become U+FFFD instead of an exception that would end the run.
     if (lines_) {

@@ -46,13 +46,13 @@ class JsonSink : public Sink {
     void flush() override;
 
   private:
-    void emit(nlohmann::json j);
+    void emit(nlohmann::ordered_json j);
     void line_written();
     void pass_on();  // the lines in the buffer, to `out`
     std::ostream& out_;
     bool lines_;
     modbus::JsonWriter writer_;
-    nlohmann::json document_ = nlohmann::json::array();
+    nlohmann::ordered_json document_ = nlohmann::ordered_json::array();
 };
 
 // One pass, several outputs (--csv FILE beside the text or JSON on standard output).
@@ -72,8 +72,10 @@ class TeeSink : public Sink {
 };
 
 nlohmann::json summary_to_json(const Summary& s);
-// Each record as an nlohmann document (--json, and the reference the JSON lines are tested against).
-nlohmann::json frame_to_json(const FrameRecord& f);
+// Each record as an nlohmann document (--json, and the reference the JSON lines are tested against). A
+// frame's keys keep the order they are set in, so that its `fields` keep the specification's (starting
+// address before quantity), as the JSON lines do: a sorted object put quantity first.
+nlohmann::ordered_json frame_to_json(const FrameRecord& f);
 nlohmann::json transaction_to_json(const TransactionRecord& t);
 nlohmann::json finding_to_json(const FindingRecord& f);
 nlohmann::json unparsed_to_json(const UnparsedRecord& u);

@@ -1257,6 +1257,19 @@ TEST(Analyzer, ResponseSizeFunctionAndUnitMismatches) {
     EXPECT_EQ(asked.findings.at("pair.unit_mismatch"), 1u);
 }
 
+// --json's frame records keep a PDU's fields in the specification's order, as the JSON lines do (analyzer
+// README): a sorted object put "quantity" before "starting_address".
+TEST(Analyzer, JsonFieldsKeepTheSpecificationsOrder) {
+    Harness h;
+    h.send(true, read_request(1, 96, 3), 1s);
+    h.analyzer.finish();
+    ASSERT_FALSE(h.sink.frames.empty());
+    const std::string text = an::frame_to_json(h.sink.frames[0]).dump();
+    const auto start = text.find("\"starting_address\"");
+    ASSERT_NE(start, std::string::npos) << text;
+    EXPECT_LT(start, text.find("\"quantity\"")) << text;
+}
+
 TEST(Analyzer, EchoMismatch) {
     Harness h;
     h.send(true, mb::encode_tcp(1, 17, mb::encode_pdu(mb::make_write_single_register(84, 926))), 1s);
