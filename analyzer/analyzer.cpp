@@ -936,6 +936,21 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         flow.keep_last_response(r);
         return;
     }
+    // The server acknowledged client bytes the capture does not hold (a tap's drop, given up as a gap only at
+    // the client's next segment): the request this reply answers may be among them. An "unsolicited" error
+    // held the tap's loss against the device, where a request cut by the snapshot length was a warning.
+    if (it == pending_.end() && r.frame.framing == Framing::Tcp && flow.reassembler[0])
+        if (const auto unseen = flow.reassembler[0]->acknowledged_unseen()) {
+            report(FindingCode::PairRequestNotCaptured, r,
+                   "no request waits for transaction id " + std::to_string(key.tid) +
+                       ", but the server had "
+                       "acknowledged " +
+                       std::to_string(unseen) +
+                       " bytes of the client's stream that the capture does not hold: its request may be "
+                       "among them");
+            flow.keep_last_response(r);
+            return;
+        }
     // On a serial line, bytes that formed no frame since the last reply (a request cut short, noise over
     // its first bytes, an ASCII request whose LF came too late): a reply nobody waits for may answer a
     // request among them, and is neither a request answered twice nor a reply nobody asked for.

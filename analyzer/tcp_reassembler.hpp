@@ -49,6 +49,10 @@ class TcpReassembler {
     // it are here already: the hole's bytes would have to come after their own successors, and until
     // then a request pipelined behind a lost one waited, its reply taken for unsolicited.
     void acknowledged(std::uint32_t ack, modbus::Timestamp t);
+    // Bytes the peer acknowledged that the capture has not shown (yet): a hole acknowledged() still waits on.
+    std::uint32_t acknowledged_unseen() const noexcept {
+        return acknowledged_ && next_ ? *acknowledged_ - *next_ : 0;
+    }
     // The `missing` bytes after sequence number `end` (a segment's last captured byte's next) are not in its
     // record: the capture cut it to the snapshot length. When the stream had reached `end`, they are a hole
     // that a whole copy may still fill (a retransmission, a second tap's copy merged in); it is given up, a
