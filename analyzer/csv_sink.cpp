@@ -117,7 +117,9 @@ std::string status_of(const TransactionRecord& t) {
     if (!t.response->frame.checksum_ok) return "bad_checksum";
     // After its timeout: the request has a row of its own already, "timeout".
     if (t.late_past) return t.response->pdu->is_exception() ? "late_exception" : "late";
-    return t.response->pdu->is_exception() ? "exception" : "ok";
+    if (t.response->pdu->is_exception()) return "exception";
+    // A normal reply to a request that does not decode was "ok": the row passed for a clean exchange.
+    return t.request.pdu ? "ok" : "malformed_request";
 }
 
 }  // namespace

@@ -173,6 +173,28 @@ TEST(CsvSink, RawValuesStatusesAndLatency) {
     EXPECT_EQ(rows[3].at("latency_ms"), "");
 }
 
+// A normal reply to a request that does not decode (an FC3 request with a byte too many): its row said "ok",
+// as if the exchange were clean; it is "malformed_request", with the request's finding.
+TEST(CsvSink, ANormalReplyToARequestThatDoesNotDecodeIsNotOk) {
+    mbscope::test::Conversation c;
+    const std::uint16_t registers[] = {7};
+    c.send(true, adu(1, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 96, 1)), 1s);
+    c.send(
+        false,
+        adu(1, response(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, registers))),
+        1s + 1ms);
+    c.send(true, mb::encode_tcp(2, 1, std::vector<std::uint8_t>{0x03, 0x00, 0x60, 0x00, 0x01, 0xFF}), 2s);
+    c.send(
+        false,
+        adu(2, response(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, registers))),
+        2s + 1ms);
+    const auto rows = rows_of(csv_of(c));
+    ASSERT_EQ(rows.size(), 2u);
+    EXPECT_EQ(rows[0].at("status"), "ok");
+    EXPECT_EQ(rows[1].at("status"), "malformed_request");
+    EXPECT_NE(rows[1].at("findings").find("pdu.malformed"), std::string::npos) << rows[1].at("findings");
+}
+
 // A reply after its request's timeout: the request's row says "timeout", and the reply has a row of its own
 // with its values and latency.
 TEST(CsvSink, ALateReplyHasARowOfItsOwn) {
