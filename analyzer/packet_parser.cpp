@@ -1,5 +1,7 @@
 #include "analyzer/packet_parser.hpp"
 
+#include <arpa/inet.h>
+
 #include <cstdio>
 #include <cstring>
 
@@ -246,12 +248,10 @@ std::string Endpoint::to_string() const {
                       port);
         return buf;
     }
-    std::string s = "[";
-    for (int i = 0; i < 16; i += 2) {
-        std::snprintf(buf, sizeof buf, "%s%x", i ? ":" : "", (address[i] << 8) | address[i + 1]);
-        s += buf;
-    }
-    return s + "]:" + std::to_string(port);
+    // RFC 5952's text (zeros compressed, as tshark and every tool print it): `--map` takes it as printed.
+    char text[INET6_ADDRSTRLEN];
+    if (!::inet_ntop(AF_INET6, address.data(), text, sizeof text)) return "[?]:" + std::to_string(port);
+    return "[" + std::string(text) + "]:" + std::to_string(port);
 }
 
 ParseStatus parse_datagram(const IpDatagram& datagram, L4Packet& out) noexcept {

@@ -1,5 +1,7 @@
 #include "analyzer/semantics.hpp"
 
+#include <arpa/inet.h>
+
 #include <algorithm>
 #include <charconv>
 #include <functional>
@@ -20,6 +22,34 @@ std::optional<DeviceSelector> parse_selector(const std::string& text) {
         if (ec != std::errc() || p != v.data() + v.size() || n < 0 || n > 255) return std::nullopt;
         return n;
     };
+    // An IPv6 address as devices are named ("[2001:db8::2]:502" has the host "[2001:db8::2]"), whichever
+    // of its spellings is given.
+    const auto ipv6 = [](const std::string& address) -> std::optional<std::string> {
+        std::uint8_t bytes[16];
+        char canonical[INET6_ADDRSTRLEN];
+        if (::inet_pton(AF_INET6, address.c_str(), bytes) != 1 ||
+            !::inet_ntop(AF_INET6, bytes, canonical, sizeof canonical))
+            return std::nullopt;
+        return "[" + std::string(canonical) + "]";
+    };
+    if (!text.empty() && text.front() == '[') {  // [IPv6] or [IPv6]:UNIT
+        const auto close = text.find(']');
+        if (close == std::string::npos) return std::nullopt;
+        s.host = ipv6(text.substr(1, close - 1));
+        if (!s.host) return std::nullopt;
+        const std::string_view rest = std::string_view(text).substr(close + 1);
+        if (rest.empty()) return s;
+        if (rest.front() != ':') return std::nullopt;
+        auto u = number(rest.substr(1));
+        if (!u) return std::nullopt;
+        s.unit = *u;
+        return s;
+    }
+    if (std::count(text.begin(), text.end(), ':') >= 2) {  // a bare IPv6 address: no unit can follow
+        s.host = ipv6(text);
+        if (!s.host) return std::nullopt;
+        return s;
+    }
     if (text.find('.') == std::string::npos) {  // a unit id alone
         auto u = number(text);
         if (!u) return std::nullopt;

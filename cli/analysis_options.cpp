@@ -49,7 +49,9 @@ void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
                    "float32 in this order (abcd = big-endian, cdab = registers swapped, badc, dcba)")
         ->check(CLI::IsMember({"abcd", "badc", "cdab", "dcba"}));
     cmd.add_option("--profile", o.profile, "Device profile for every device (see mbscope profile list)");
-    cmd.add_option("--map", o.maps, "Profile per device: UNIT=ID, IP=ID or IP:UNIT=ID (repeatable)");
+    cmd.add_option(
+        "--map", o.maps,
+        "Profile per device: UNIT=ID, IP=ID or IP:UNIT=ID; IPv6 as IP=ID or [IP]:UNIT=ID (repeatable)");
     cmd.add_option("--profile-dir", o.profile_dirs, "Extra directory of profile files (repeatable)");
     cmd.add_option("--config", o.config, "Modular devices: CHANNEL=MAP (repeatable)");
 }
@@ -91,8 +93,8 @@ bool load_semantics(const AnalysisCliOptions& o, const std::string& command,
         const auto eq = m.find('=');
         auto selector = eq == std::string::npos ? std::nullopt : analyzer::parse_selector(m.substr(0, eq));
         if (!selector) {
-            std::cerr << "mbscope " << command << ": --map takes UNIT=ID, IP=ID or IP:UNIT=ID, not '" << m
-                      << "'\n";
+            std::cerr << "mbscope " << command
+                      << ": --map takes UNIT=ID, IP=ID or IP:UNIT=ID ([IPv6]:UNIT=ID), not '" << m << "'\n";
             return false;
         }
         if (!add(*selector, m.substr(eq + 1))) return false;

@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "analyzer/analyzer.hpp"
+#include "analyzer/packet_parser.hpp"
 #include "analyzer/serial_input.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
@@ -320,6 +321,29 @@ TEST(Semantics, SelectorsPickTheMostSpecificProfile) {
     EXPECT_EQ(s.profile_for("10.0.0.3:502", 17), c.get());
     EXPECT_FALSE(an::parse_selector("x:y").has_value());
     EXPECT_FALSE(an::parse_selector("300").has_value());
+}
+
+// IPv6 devices are named "[2001:db8::2]:502 unit N" (RFC 5952, as tshark prints them): --map takes the
+// address bare, in brackets, with a unit after the brackets, and in any of its spellings. Before, any text
+// without a "." was a unit id, and "--map 2001:db8::2=ID" was refused.
+TEST(Semantics, IPv6SelectorsNameTheDeviceAsItIsPrinted) {
+    an::Semantics s;
+    auto host = std::make_shared<const mb::Profile>();
+    auto unit = std::make_shared<const mb::Profile>();
+    s.add(*an::parse_selector("2001:db8:0:0:0:0:0:2"), host);
+    s.add(*an::parse_selector("[2001:DB8::2]:17"), unit);
+    EXPECT_EQ(s.profile_for("[2001:db8::2]:502", 1), host.get());
+    EXPECT_EQ(s.profile_for("[2001:db8::2]:502", 17), unit.get());
+    EXPECT_EQ(s.profile_for("[2001:db8::3]:502", 17), nullptr);
+    EXPECT_TRUE(an::parse_selector("[2001:db8::2]").has_value());
+    EXPECT_FALSE(an::parse_selector("[2001:db8::2]:300").has_value());
+    EXPECT_FALSE(an::parse_selector("[2001:db8::2").has_value());
+    EXPECT_FALSE(an::parse_selector("2001:db8::zz").has_value());
+    an::Endpoint e;
+    e.v6 = true;
+    e.address = {0x20, 0x01, 0x0d, 0xb8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2};
+    e.port = 502;
+    EXPECT_EQ(e.to_string(), "[2001:db8::2]:502");
 }
 
 // MK-CFG-01 (000:218-226, 500): ENDER (register 7) holds the device's address and a device obeys a new
