@@ -84,7 +84,11 @@ struct Analyzer::Flow {
     std::uint32_t unparsed_length = 0;
     std::uint64_t unparsed_after_frame = 0;
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
-    std::uint64_t first_frame = 0;       // the index of the link's first frame (0: none yet)
+    // Whether a request on the link was captured: until then, on a connection whose opening the capture did
+    // not show, a reply answers a request sent before the capture began.
+    bool request_seen = false;
+    // The client stream's position (+1) at a hole whose acknowledged bytes excused a reply already.
+    std::uint64_t excused_hole = 0;
     // "server unit N" and its statistics, made once per unit seen on the link rather than once per frame.
     struct Unit {
         std::uint8_t id;
@@ -610,7 +614,6 @@ void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
 
 void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     ++summary_.frames;
-    if (!flow.first_frame) flow.first_frame = r.index;
     const bool damaged = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok;
     if (damaged && stats) ++stats->checksum_errors;
     sink_.frame(r);
@@ -723,6 +726,7 @@ std::uint16_t late_id(const Frame& f) {
 
 void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     ++stats.requests;
+    flow.request_seen = true;
     // By the function code byte: a request whose PDU cannot be decoded still asked for that function.
     if (const auto pdu = r.frame.pdu(); !pdu.empty()) ++stats.functions[pdu[0]];
     if (options_.semantics && r.pdu)
@@ -924,33 +928,6 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             cut_requests_.erase(cut);
             return;
         }
-    // A network link's first frame a reply, on a connection whose opening the capture did not show (or over
-    // UDP): the capture began after its request was sent (or inside it, the request's bytes unparsed). An
-    // "unsolicited" error held the capture's start against the device.
-    if (it == pending_.end() && r.frame.framing == Framing::Tcp && r.index == flow.first_frame &&
-        (flow.carrier == Carrier::Udp || (flow.reassembler[0] && !flow.reassembler[0]->saw_syn()))) {
-        report(FindingCode::PairRequestNotCaptured, r,
-               "the reply to transaction id " + std::to_string(key.tid) +
-                   " is the first frame of this link in the capture: its request went before the capture "
-                   "began");
-        flow.keep_last_response(r);
-        return;
-    }
-    // The server acknowledged client bytes the capture does not hold (a tap's drop, given up as a gap only at
-    // the client's next segment): the request this reply answers may be among them. An "unsolicited" error
-    // held the tap's loss against the device, where a request cut by the snapshot length was a warning.
-    if (it == pending_.end() && r.frame.framing == Framing::Tcp && flow.reassembler[0])
-        if (const auto unseen = flow.reassembler[0]->acknowledged_unseen()) {
-            report(FindingCode::PairRequestNotCaptured, r,
-                   "no request waits for transaction id " + std::to_string(key.tid) +
-                       ", but the server had "
-                       "acknowledged " +
-                       std::to_string(unseen) +
-                       " bytes of the client's stream that the capture does not hold: its request may be "
-                       "among them");
-            flow.keep_last_response(r);
-            return;
-        }
     // On a serial line, bytes that formed no frame since the last reply (a request cut short, noise over
     // its first bytes, an ASCII request whose LF came too late): a reply nobody waits for may answer a
     // request among them, and is neither a request answered twice nor a reply nobody asked for.
@@ -979,6 +956,42 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         return;
     }
     if (it == pending_.end()) {
+        // A connection whose opening the capture did not show (and UDP, and RTU over TCP alike), before the
+        // capture shows any request on it: a reply answers a request sent before the capture began (those
+        // in flight then, the bytes of one it began inside). An "unsolicited" error held the capture's start
+        // against the device. (Once a request is captured, a reply with another id is still the
+        // transaction-id mismatch it may be: a device that always answers with a wrong id must show.)
+        const bool network = flow.carrier == Carrier::Udp || flow.carrier == Carrier::Tcp;
+        const bool opening_unseen =
+            flow.carrier == Carrier::Udp ||
+            (flow.carrier == Carrier::Tcp && flow.reassembler[0] && !flow.reassembler[0]->saw_syn());
+        const std::string which = r.frame.framing == Framing::Tcp
+                                      ? "the reply to transaction id " + std::to_string(key.tid)
+                                      : "a reply from unit " + std::to_string(r.frame.unit_id());
+        if (network && opening_unseen && !flow.request_seen) {
+            report(FindingCode::PairRequestNotCaptured, r,
+                   which +
+                       " comes before any request of this link in the capture, which joined it after it "
+                       "opened: its request went before the capture began");
+            flow.keep_last_response(r);
+            return;
+        }
+        // The server acknowledged client bytes the capture does not hold (a tap's drop, given up as a gap
+        // only at the client's next segment): the request this reply answers may be among them, once per
+        // hole. An "unsolicited" error held the tap's loss against the device, where a request cut by the
+        // snapshot length was a warning.
+        if (flow.carrier == Carrier::Tcp && flow.reassembler[0])
+            if (const auto unseen = flow.reassembler[0]->acknowledged_unseen();
+                unseen && flow.excused_hole != flow.reassembler[0]->delivered() + 1) {
+                flow.excused_hole = flow.reassembler[0]->delivered() + 1;
+                report(FindingCode::PairRequestNotCaptured, r,
+                       "no request waits for " + which + ", but the server had acknowledged " +
+                           std::to_string(unseen) +
+                           " bytes of the client's stream that the capture does not hold: its request may "
+                           "be among them");
+                flow.keep_last_response(r);
+                return;
+            }
         // One request outstanding on this link and the reply carries another id: a transaction-id mismatch,
         // not an unsolicited reply. Unless that request came after bytes of the request stream were lost: a
         // request among them (pipelined before it) is the one the reply answers, and the outstanding

@@ -49,6 +49,8 @@ class TcpReassembler {
     // it are here already: the hole's bytes would have to come after their own successors, and until
     // then a request pipelined behind a lost one waited, its reply taken for unsolicited.
     void acknowledged(std::uint32_t ack, modbus::Timestamp t);
+    // The stream offset of the next byte to deliver.
+    std::uint64_t delivered() const noexcept { return base_; }
     // Bytes the peer acknowledged that the capture has not shown (yet): a hole acknowledged() still waits on.
     std::uint32_t acknowledged_unseen() const noexcept {
         return acknowledged_ && next_ ? *acknowledged_ - *next_ : 0;

@@ -135,7 +135,19 @@ DeframeStep TcpStreamDeframer::unaligned_step(std::span<const std::uint8_t> rest
     // here is waited for only while the bytes so far can start a PDU of its length.
     if (rest.size() >= 8 && plausible_header(rest)) {
         const std::size_t total = 6 + length_field(rest);
-        if (rest.size() >= total) return {Kind::Complete, total};
+        if (rest.size() >= total) {
+            // Unless its PDU does not decode cleanly and a whole frame that does starts inside it: the
+            // tail "11 03 00 00 00 0A" of a read reads as a header of length 10 over the next request.
+            if (plausible_pdu(rest.subspan(7, total - 7))) return {Kind::Complete, total};
+            for (std::size_t j = 1; j < total && j + 8 <= rest.size(); ++j) {
+                const auto at = rest.subspan(j);
+                if (!plausible_header(at)) continue;
+                const std::size_t whole = 6 + length_field(at);
+                if (whole <= at.size() && plausible_pdu(at.subspan(7, whole - 7)))
+                    return {Kind::Skip, j, true, UnparsedReason::BadHeader};
+            }
+            return {Kind::Complete, total};
+        }
         if (!at_end && length_consistent(rest.subspan(7), total - 7)) return {Kind::NeedMore, total};
     }
     return tcp_step(rest, at_end, false);

@@ -42,8 +42,9 @@ class TcpStreamDeframer {
     void observe_passively() noexcept { passive_ = true; }
     // The stream's start was not seen (a capture begun mid-connection, no SYN): its first bytes may be the
     // end of an ADU sent before the capture began. The first header is taken only when it is plausible
-    // (protocol id 0, a function code, a length in range) and its ADU is here whole or its bytes so far can
-    // start a PDU of that length; else the deframer resynchronises as after a gap. Taken as in sync, the tail
+    // (protocol id 0, a function code, a length in range) and its ADU is here whole (and, when its PDU does
+    // not decode cleanly, no whole frame that does starts inside it) or its bytes so far can start a PDU of
+    // that length; else the deframer resynchronises as after a gap. Taken as in sync, the tail
     // "03 00 00 00 01" of a request and the next request's first byte read as a header of length 256,
     // which swallowed the next 263 bytes of requests. Call before the first bytes are fed.
     void start_unaligned() noexcept { unaligned_ = true; }

@@ -1377,6 +1377,61 @@ TEST(Analyzer, AReplyToARequestTheTapLostIsNotUnsolicited) {
     EXPECT_EQ(h.analyzer.summary().errors, 0u);
 }
 
+// Begun before the capture with two requests in flight: each reply before the capture's first request of
+// the link answers a request sent before it began, and is not unsolicited. After a request was captured, a
+// reply nobody asked for is (and a reply with another id is a transaction-id mismatch, as before).
+TEST(Analyzer, RepliesToRequestsInFlightWhenTheCaptureBeganAreNotTheDevicesFault) {
+    Harness h;
+    h.send(false, read_response(1, {1}), 1s);
+    h.send(false, read_response(2, {2}), 1s + 1ms);
+    h.send(true, read_request(3), 2s);
+    h.send(false, read_response(3, {3}), 2s + 1ms);
+    h.send(false, read_response(4, {4}), 3s);  // nobody asked
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairRequestNotCaptured), 2);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    ASSERT_EQ(h.sink.transactions.size(), 1u);
+    ASSERT_TRUE(h.sink.transactions[0].response.has_value());
+    EXPECT_EQ(h.sink.transactions[0].response->frame.transaction_id(), 3);
+}
+
+// One request the tap lost excuses one reply, not every stray one while the hole waits: the same reply
+// again is a duplicate, and a reply to a transaction nobody sent is unsolicited.
+TEST(Analyzer, ALostRequestExcusesOneReply) {
+    Harness h;
+    h.open(0s);
+    h.send(true, read_request(1), 1s);
+    h.send(false, read_response(1), 1s + 1ms);
+    h.seq[0] += static_cast<std::uint32_t>(read_request(2).size());  // request 2: sent, not captured
+    h.send(false, read_response(2), 2s + 1ms);
+    h.send(false, read_response(2), 2s + 2ms);
+    h.send(false, read_response(9), 2s + 3ms);
+    h.analyzer.finish();
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairRequestNotCaptured), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairDuplicateResponse), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+}
+
+// Begun with the last 6 bytes of a read at address 0 ("11 03 00 00 00 0A"): a plausible header of length
+// 10 over the next request's bytes, whose PDU does not decode, while a whole request that does starts inside
+// it. The 6 bytes are before the first header, and every request is paired.
+TEST(Analyzer, ATailThatReadsAsAWholeHeaderYieldsToTheRequestInsideIt) {
+    Harness h;
+    const auto tail = read_request(1, 0, 10);
+    h.send(true, std::vector<std::uint8_t>(tail.end() - 6, tail.end()), 1s);
+    for (std::uint16_t tid = 2; tid < 6; ++tid) {
+        h.send(true, read_request(tid, 0, 10), tid * 1s);
+        h.send(false, read_response(tid, std::vector<std::uint16_t>(10, tid)), tid * 1s + 1ms);
+    }
+    h.analyzer.finish();
+    ASSERT_EQ(h.sink.unparsed_records.size(), 1u);
+    EXPECT_EQ(h.sink.unparsed_records[0].length, 6u);
+    EXPECT_EQ(h.sink.unparsed_records[0].reason, mb::UnparsedReason::BeforeFirstHeader);
+    EXPECT_EQ(h.analyzer.summary().errors, 0u);
+    EXPECT_EQ(h.analyzer.summary().transactions, 4u);
+    EXPECT_EQ(h.analyzer.summary().devices.size(), 1u);
+}
+
 // A stream whose opening was captured is read from its first byte, in step: a first header with protocol
 // id 1 is still a frame (flagged). Without the opening it may be the tail of an earlier ADU, and is not.
 TEST(Analyzer, AStreamWhoseOpeningWasCapturedTakesItsFirstHeader) {
