@@ -236,31 +236,31 @@ void TextSink::end(const Summary& s) {
 // ---------------------------------------------------------------- JSON
 
 nlohmann::ordered_json frame_to_json(const FrameRecord& f) {
-    nlohmann::ordered_json j{{"type", "frame"},
-                             {"ts", seconds(f.time)},
-                             {"source", f.source},
-                             {"link", f.link},
-                             {"frame", f.index},
-                             {"packet", f.packet},
-                             {"direction", direction_json(f.direction)},
-                             {"transport", std::string(to_string(f.carrier))},
-                             {"framing", std::string(to_string(f.frame.framing))},
-                             {"unit_id", f.frame.unit_id()},
-                             {"raw", hex_bytes(f.frame.adu())},
-                             {"checksum_ok", f.frame.checksum_ok}};
+    json j{{"type", "frame"},
+           {"ts", seconds(f.time)},
+           {"source", f.source},
+           {"link", f.link},
+           {"frame", f.index},
+           {"packet", f.packet},
+           {"direction", direction_json(f.direction)},
+           {"transport", std::string(to_string(f.carrier))},
+           {"framing", std::string(to_string(f.frame.framing))},
+           {"unit_id", f.frame.unit_id()},
+           {"raw", hex_bytes(f.frame.adu())},
+           {"checksum_ok", f.frame.checksum_ok}};
     if (f.frame.framing == Framing::Tcp) {
         j["transaction_id"] = f.frame.transaction_id();
         j["protocol_id"] = f.frame.protocol_id();
     }
+    nlohmann::ordered_json fields = nlohmann::ordered_json::object();
     if (f.pdu) {
         j["function_raw"] = f.pdu->function_raw;
         j["function"] = f.pdu->function_code();
         if (auto n = function_name(f.pdu->function_code())) j["function_name"] = std::string(*n);
         j["exception"] = f.pdu->is_exception();
-        nlohmann::ordered_json fields = nlohmann::ordered_json::object();
         for (const auto& field : describe_pdu(*f.pdu))
             if (field.name != "function_code") fields[field.name] = field.value;
-        j["fields"] = fields;
+        j["fields"] = nullptr;  // its place among the record's keys, sorted as every record's are
     } else {
         j["error"] = f.error;
         if (!f.frame.pdu().empty()) {  // the function byte is known even when the rest is not
@@ -269,7 +269,9 @@ nlohmann::ordered_json frame_to_json(const FrameRecord& f) {
             j["exception"] = (f.frame.pdu()[0] & 0x80) != 0;
         }
     }
-    return j;
+    nlohmann::ordered_json out = j;
+    if (f.pdu) out["fields"] = std::move(fields);
+    return out;
 }
 
 JsonSink::~JsonSink() {

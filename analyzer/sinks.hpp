@@ -73,8 +73,8 @@ class TeeSink : public Sink {
 
 nlohmann::json summary_to_json(const Summary& s);
 // Each record as an nlohmann document (--json, and the reference the JSON lines are tested against). A
-// frame's keys keep the order they are set in, so that its `fields` keep the specification's (starting
-// address before quantity), as the JSON lines do: a sorted object put quantity first.
+// frame's `fields` keep the specification's order (starting address before quantity), as the JSON lines
+// do: a sorted object put quantity first. Its other keys are sorted, as every record's are.
 nlohmann::ordered_json frame_to_json(const FrameRecord& f);
 nlohmann::json transaction_to_json(const TransactionRecord& t);
 nlohmann::json finding_to_json(const FindingRecord& f);
