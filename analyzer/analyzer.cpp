@@ -961,14 +961,13 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         // in flight then, the bytes of one it began inside). An "unsolicited" error held the capture's start
         // against the device. (Once a request is captured, a reply with another id is still the
         // transaction-id mismatch it may be: a device that always answers with a wrong id must show.)
-        const bool network = flow.carrier == Carrier::Udp || flow.carrier == Carrier::Tcp;
         const bool opening_unseen =
             flow.carrier == Carrier::Udp ||
             (flow.carrier == Carrier::Tcp && flow.reassembler[0] && !flow.reassembler[0]->saw_syn());
         const std::string which = r.frame.framing == Framing::Tcp
                                       ? "the reply to transaction id " + std::to_string(key.tid)
                                       : "a reply from unit " + std::to_string(r.frame.unit_id());
-        if (network && opening_unseen && !flow.request_seen) {
+        if (opening_unseen && !flow.request_seen) {
             report(FindingCode::PairRequestNotCaptured, r,
                    which +
                        " comes before any request of this link in the capture, which joined it after it "

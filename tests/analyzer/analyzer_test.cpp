@@ -64,6 +64,10 @@ struct Harness {
         raw(packet(true, seq[0] - 1, {}, false, 0x02, 502, 0), t);
         raw(packet(false, seq[1] - 1, {}, false, 0x12, 502, seq[0]), t);
     }
+    // `payload` sent, and not captured (the tap lost it): the sender's next bytes come after it.
+    void lose(bool to_server, const std::vector<std::uint8_t>& payload) {
+        seq[to_server ? 0 : 1] += static_cast<std::uint32_t>(payload.size());
+    }
     // A copy of what was sent from sequence number `at` (a retransmission, a second tap's copy).
     void resend(bool to_server, const std::vector<std::uint8_t>& payload, std::uint32_t at, mb::Timestamp t) {
         raw(packet(to_server, at, payload, false, 0x18, 502, seq[to_server ? 1 : 0]), t);
@@ -380,7 +384,7 @@ TEST(Analyzer, MissingSegmentIsAGapOfKnownSize) {
     Harness h;
     auto a = read_request(1), b = read_request(2), c = read_request(3);
     h.send(true, a, 1s);
-    h.seq[0] += static_cast<std::uint32_t>(b.size());  // b never captured
+    h.lose(true, b);  // b never captured
     h.send(true, c, 1s + 1ms);
     h.analyzer.finish();
     ASSERT_EQ(h.sink.count(mb::FindingCode::StreamGap), 1);
@@ -401,11 +405,11 @@ TEST(Analyzer, ALostSegmentCostsOneTransactionNotTheRestOfTheCapture) {
     for (std::uint16_t i = 1; i <= 10; ++i) {
         const auto t = std::chrono::seconds(i);
         if (i == 2)
-            h.seq[0] += static_cast<std::uint32_t>(read_request(i).size());
+            h.lose(true, read_request(i));
         else
             h.send(true, read_request(i), t);
         if (i == 5)
-            h.seq[1] += static_cast<std::uint32_t>(read_response(i).size());
+            h.lose(false, read_response(i));
         else
             h.send(false, read_response(i), t + 2ms);
     }
@@ -948,7 +952,7 @@ TEST(Analyzer, ARetransmittedSynIsNotANewConnection) {
 TEST(Analyzer, ARequestPipelinedBehindALostSegmentIsPairedWithItsReply) {
     Harness h;
     h.send(true, read_request(1), 1s);
-    h.seq[0] += static_cast<std::uint32_t>(read_request(2).size());  // request 2: not captured
+    h.lose(true, read_request(2));  // request 2: not captured
     h.send(true, read_request(3), 1s + 2ms);
     h.send(false, read_response(1), 1s + 10ms);
     h.send(false, read_response(2), 1s + 11ms);
@@ -1367,7 +1371,7 @@ TEST(Analyzer, AReplyToARequestTheTapLostIsNotUnsolicited) {
     h.open(0s);
     h.send(true, read_request(1), 1s);
     h.send(false, read_response(1), 1s + 1ms);
-    h.seq[0] += static_cast<std::uint32_t>(read_request(2).size());  // request 2: sent, not captured
+    h.lose(true, read_request(2));  // request 2: sent, not captured
     h.send(false, read_response(2), 2s + 1ms);
     h.send(true, read_request(3), 2s + 10ms);
     h.send(false, read_response(3), 2s + 11ms);
@@ -1404,7 +1408,7 @@ TEST(Analyzer, ALostRequestExcusesOneReply) {
     h.open(0s);
     h.send(true, read_request(1), 1s);
     h.send(false, read_response(1), 1s + 1ms);
-    h.seq[0] += static_cast<std::uint32_t>(read_request(2).size());  // request 2: sent, not captured
+    h.lose(true, read_request(2));  // request 2: sent, not captured
     h.send(false, read_response(2), 2s + 1ms);
     h.send(false, read_response(2), 2s + 2ms);
     h.send(false, read_response(9), 2s + 3ms);
