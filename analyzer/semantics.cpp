@@ -68,23 +68,32 @@ std::optional<DeviceSelector> parse_selector(const std::string& text) {
 
 void Semantics::add(DeviceSelector selector, std::shared_ptr<const Profile> profile) {
     maps_.emplace_back(std::move(selector), std::move(profile));
+    uses_.push_back(SelectorUse::Unmatched);
+}
+
+std::vector<Semantics::SelectorUse> Semantics::selector_uses() const {
+    return uses_;
 }
 
 const Profile* Semantics::profile_for(const std::string& server, std::uint8_t unit) const {
     const std::string host = server.substr(0, server.rfind(':'));
     if (const auto it = moved_.find({host, unit}); it != moved_.end()) return it->second;
-    const Profile* best = nullptr;
+    std::size_t best = maps_.size();
     int best_score = -1;
-    for (const auto& [sel, profile] : maps_) {
+    for (std::size_t i = 0; i < maps_.size(); ++i) {
+        const DeviceSelector& sel = maps_[i].first;
         if (sel.host && *sel.host != host) continue;
         if (sel.unit && *sel.unit != unit) continue;
+        if (uses_[i] == SelectorUse::Unmatched) uses_[i] = SelectorUse::Shadowed;
         const int score = (sel.host ? 1 : 0) + (sel.unit ? 2 : 0);
         if (score > best_score) {
-            best = profile.get();
+            best = i;
             best_score = score;
         }
     }
-    return best;
+    if (best == maps_.size()) return nullptr;
+    uses_[best] = SelectorUse::Used;
+    return maps_[best].second.get();
 }
 
 namespace {

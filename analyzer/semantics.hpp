@@ -37,6 +37,14 @@ class Semantics {
     bool empty() const noexcept { return maps_.empty(); }
     // The most specific match: host and unit, then unit, then host, then the default.
     const modbus::Profile* profile_for(const std::string& server, std::uint8_t unit) const;
+    // What became of each selector, in the order added, for a user to hear of a --map that described nothing
+    // (a mistyped address, a unit the capture never shows).
+    enum class SelectorUse : std::uint8_t {
+        Unmatched,  // no device the traffic showed matched it
+        Shadowed,   // every device it matched took a more specific selector's profile
+        Used,
+    };
+    std::vector<SelectorUse> selector_uses() const;
 
     // The manual's rules on a request to `device`: supported function, quantity limit, addresses, written
     // values, and writes to a point the manual makes read-only while another holds values earlier traffic
@@ -95,6 +103,7 @@ class Semantics {
                                                           std::span<const std::uint16_t> values,
                                                           const std::string& how) const;
     std::vector<std::pair<DeviceSelector, std::shared_ptr<const modbus::Profile>>> maps_;
+    mutable std::vector<SelectorUse> uses_;       // beside maps_, filled by profile_for
     mutable std::set<std::string> line_checked_;  // devices check_line has looked at
     // `words` seen at `start` on `device`: in registers_, and in holding_ when they are holding registers.
     void keep(const std::string& device, std::uint16_t start, std::span<const std::uint16_t> words,

@@ -136,6 +136,35 @@ bool report_input_problems(const analyzer::Summary& s, const std::string& comman
     return !s.input_errors.empty() || s.input_errors_unlisted;
 }
 
+void report_unused_maps(const AnalysisCliOptions& o, const analyzer::AnalyzerOptions& options,
+                        const std::string& command) {
+    if (!options.semantics || o.maps.empty()) return;
+    const auto uses = options.semantics->selector_uses();
+    // Selectors were added --profile first, then each --map in order (load_semantics).
+    const std::size_t first_map = o.profile.empty() ? 0 : 1;
+    for (std::size_t i = 0; i < o.maps.size() && first_map + i < uses.size(); ++i) {
+        using Use = analyzer::Semantics::SelectorUse;
+        const Use use = uses[first_map + i];
+        if (use == Use::Used) continue;
+        const std::string& m = o.maps[i];
+        const std::string selector = m.substr(0, m.find('='));
+        std::cerr << "mbscope " << command << ": note: --map " << m << " described no device: ";
+        if (use == Use::Shadowed) {
+            std::cerr << "every device it matched took a more specific --map\n";
+            continue;
+        }
+        const auto parsed = analyzer::parse_selector(selector);
+        // Profiles are looked up by requests: replies alone (their requests not captured) name no profile.
+        std::cerr << "no request in the input went to"
+                  << (parsed && parsed->host ? " " + *parsed->host : std::string())
+                  << (parsed && parsed->unit ? " unit " + std::to_string(*parsed->unit) : std::string());
+        // "2001:db8::2:1" is an address, not host 2001:db8::2 and unit 1: the likeliest slip with IPv6.
+        if (selector.find(':') != selector.rfind(':') && !selector.starts_with('['))
+            std::cerr << " (an IPv6 address; a unit behind one is written [IP]:UNIT)";
+        std::cerr << '\n';
+    }
+}
+
 bool Outputs::open(const AnalysisCliOptions& o, const std::string& command) {
     // --csv - takes standard output for itself; --csv FILE goes beside the usual output.
     if (o.csv == "-" && (o.json || o.jsonl || o.summary)) {

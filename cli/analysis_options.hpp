@@ -44,6 +44,12 @@ bool apply_analysis_options(const AnalysisCliOptions& o, const std::string& comm
 // with everything else decoded still reported; notes alone do not fail it.
 bool report_input_problems(const analyzer::Summary& s, const std::string& command);
 
+// Notes on standard error for each --map that described no device: its selector matched nothing the input
+// showed (a mistyped address, a unit never on the line), or every device it matched took a more specific one.
+// After the run; the exit code is not changed.
+void report_unused_maps(const AnalysisCliOptions& o, const analyzer::AnalyzerOptions& options,
+                        const std::string& command);
+
 // The sinks the output options ask for, teed into one.
 class Outputs {
   public:

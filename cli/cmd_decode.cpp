@@ -101,6 +101,7 @@ int run_decode(const DecodeOptions& o) {
     if (meter) meter->clear();
     a.finish();
     const bool input_errors = report_input_problems(a.summary(), "decode");
+    report_unused_maps(o.common, options, "decode");
     // Read apart, the parts of one line's log do not pair across a cut: the exchange at each cut is a timeout
     // and an unsolicited reply. Whether the inputs are parts or lines only the user knows: say how to join.
     if (!o.one_line) {

@@ -48,6 +48,7 @@ int run_sniff(SniffCliOptions o) {
     const bool ok = capture->run(a, stop_on_signals(BrokenPipe::Kills));
     a.finish();
     const bool input_errors = report_input_problems(a.summary(), "sniff");
+    report_unused_maps(o.common, options, "sniff");
     if (!s.write.empty() && !s.serial.empty()) {
         // The framing the line was read in: the records do not say it, --user-dlt must.
         const auto read = a.serial_framings_read();

@@ -323,6 +323,25 @@ TEST(Semantics, SelectorsPickTheMostSpecificProfile) {
     EXPECT_FALSE(an::parse_selector("300").has_value());
 }
 
+// A --map whose selector no device matched, or whose devices all took a more specific one, described
+// nothing: the user hears of it (a mistyped address gave no sign). Selector uses follow the order of adding.
+TEST(Semantics, EachSelectorSaysWhetherItDescribedADevice) {
+    an::Semantics s;
+    auto p = std::make_shared<const mb::Profile>();
+    s.add(*an::parse_selector("17"), p);
+    s.add(*an::parse_selector("10.0.0.3:17"), p);
+    s.add(*an::parse_selector("10.0.0.9"), p);
+    s.add(*an::parse_selector("10.0.0.3"), p);
+    using Use = an::Semantics::SelectorUse;
+    EXPECT_EQ(s.selector_uses(),
+              (std::vector<Use>{Use::Unmatched, Use::Unmatched, Use::Unmatched, Use::Unmatched}));
+    EXPECT_EQ(s.profile_for("10.0.0.3:502", 17), p.get());  // 10.0.0.3:17 over 17 and 10.0.0.3
+    EXPECT_EQ(s.selector_uses(), (std::vector<Use>{Use::Shadowed, Use::Used, Use::Unmatched, Use::Shadowed}));
+    EXPECT_EQ(s.profile_for("10.0.0.4:502", 17), p.get());  // 17 alone
+    EXPECT_EQ(s.profile_for("10.0.0.4:502", 1), nullptr);
+    EXPECT_EQ(s.selector_uses(), (std::vector<Use>{Use::Used, Use::Used, Use::Unmatched, Use::Shadowed}));
+}
+
 // IPv6 devices are named "[2001:db8::2]:502 unit N" (RFC 5952, as tshark prints them): --map takes the
 // address bare, in brackets, with a unit after the brackets, and in any of its spellings. Before, any text
 // without a "." was a unit id, and "--map 2001:db8::2=ID" was refused.

@@ -34,3 +34,34 @@ TEST(RepeatableOptions, TakeOneValueEachAndLeaveTheFilesAlone) {
     EXPECT_EQ(two.exit_code, 2) << two.out;
     EXPECT_NE(two.out.find("5021"), std::string::npos) << two.out;
 }
+
+// Each --map that described no device is a note after the run, the exit code unchanged: a mistyped address
+// (and an IPv6 address read as one where a unit was meant) mapped nothing without a word. zeek-modbusSmall
+// shows one device, 118.189.96.132:502 unit 1.
+TEST(RepeatableOptions, AMapThatDescribedNoDeviceIsNoted) {
+    const std::string capture = std::string(MBSCOPE_SOURCE_DIR) + "/captures/zeek-modbusSmall.pcap";
+    const auto r =
+        run_mbscope("decode " + capture +
+                    " --summary --map 118.189.96.132:1=modbus --map 1=modbus --map 10.0.0.99=modbus"
+                    " --map 2001:db8::2:1=modbus --map 7=modbus");
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_EQ(r.out.find("--map 118.189.96.132:1=modbus described"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("note: --map 1=modbus described no device: every device it matched took a more "
+                         "specific --map"),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(
+        r.out.find("--map 10.0.0.99=modbus described no device: no request in the input went to 10.0.0.99\n"),
+        std::string::npos)
+        << r.out;
+    EXPECT_NE(
+        r.out.find("no request in the input went to [2001:db8::2:1] (an IPv6 address; a unit behind one is "
+                   "written [IP]:UNIT)"),
+        std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("--map 7=modbus described no device: no request in the input went to unit 7\n"),
+              std::string::npos)
+        << r.out;
+    const auto used = run_mbscope("decode " + capture + " --summary --map 1=modbus");
+    EXPECT_EQ(used.out.find("described no device"), std::string::npos) << used.out;
+}
