@@ -304,6 +304,23 @@ bool ExchangeOracle::tracked(const modbus::Profile& p, Table t, std::uint16_t ad
     return point && !point->reserved && point->access == modbus::Access::ReadWrite && !point->fixed_value;
 }
 
+namespace {
+// The functions that write points: what they leave the oracle expects to read back.
+bool writes_points(std::uint8_t function_code) {
+    switch (function_code) {
+        case 5:
+        case 6:
+        case 15:
+        case 16:
+        case 22:
+        case 23:
+            return true;
+        default:
+            return false;
+    }
+}
+}  // namespace
+
 void ExchangeOracle::forget_written(const Request& r) {
     // Writes the oracle does not model (mask write, FC23, broadcasts): the addresses they touch are unknown.
     if (!r.decoded) return;
@@ -442,6 +459,18 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         listen_only_unknown_.erase(u->id);
         if (silent) return out;  // a restart that left the mode, unanswered as AP §6.8.1 says
     }
+    // A write the reply does not settle (no reply where one was due, a reply that is neither its
+    // acknowledgement nor its refusal, an acknowledgement unlike the request) may have been done or not:
+    // what the unit was written is unknown until read again. A refusal (not done, AP §7) and a clean
+    // acknowledgement settle it; so does silence where the rules demand it (the request was not taken).
+    struct WriteOutcome {
+        ExchangeOracle& oracle;
+        const Request& request;
+        bool settled;
+        ~WriteOutcome() {
+            if (!settled) oracle.forget_written(request);
+        }
+    } write{*this, *r, !u || !r->decoded || !writes_points(r->pdu[0])};
     const Expected e = expect(*r);
     if (!e.judged) return out;
     // The reply in words, only for a violation: most exchanges keep every rule, and describing one decodes
@@ -453,6 +482,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         e.silence && e.rule == "silence.listen_only" && u && !listen_only_.count(u->id);
 
     if (silent) {
+        if (e.silence && !state_changed.value_or(false)) write.settled = true;
         if (!e.silence && !e.silence_allowed) fail("reply.missing", "AP §4.1, SL §2.1", "a reply");
         if (is_listen_only_request) listen_only_.insert(u->id);
         // A restart that leaves listen-only mode is not answered (AP §6.8.1). Nothing else leaves it: not a
@@ -514,6 +544,8 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         }
         if (state_changed.value_or(false))
             fail("state.changed_on_exception", "AP §7", "no change of the device's registers");
+        else
+            write.settled = true;
         return out;
     }
     if (!e.normal) {
@@ -521,6 +553,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         return out;
     }
     check_normal_shape(*r, *pdu, out);
+    write.settled = out.empty();  // an echo unlike the request: which values were stored is not known
     // Values written with an acknowledgement read back as written.
     if (u && r->decoded) {
         const modbus::Pdu& req = *r->decoded;

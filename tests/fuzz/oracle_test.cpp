@@ -527,6 +527,50 @@ TEST(ExchangeOracle, AnAcknowledgedWriteMustReadBack) {
     EXPECT_NE(v[0].expected.find("4660"), std::string::npos);
 }
 
+// A write the reply does not settle may have been done or not: a later read owes the earlier value nothing.
+// With slave --fault no-echo, FC15 set coil 38, FC5 cleared it with a reply that was no echo (FF FF), and the
+// read of 0 was "state.lost_write: expected 1, the value written" though 0 was the last value written.
+TEST(ExchangeOracle, AWriteTheReplyDoesNotSettleLeavesThePointUnknown) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    const auto read_coil = [](std::uint8_t value) { return std::vector<std::uint8_t>{0x01, 0x01, value}; };
+    const auto read_register = [](std::uint16_t value) {
+        return std::vector<std::uint8_t>{0x03, 0x02, static_cast<std::uint8_t>(value >> 8),
+                                         static_cast<std::uint8_t>(value)};
+    };
+    const std::vector<std::uint8_t> set_38{0x0F, 0x00, 0x26, 0x00, 0x01, 0x01, 0x01};
+    const std::vector<std::uint8_t> set_38_ack{0x0F, 0x00, 0x26, 0x00, 0x01};
+    {
+        // A malformed acknowledgement (FC5's value is 0000 or FF00): the read of either value is no finding.
+        cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+        EXPECT_TRUE(judge_rtu(oracle, 1, set_38, set_38_ack).empty());
+        EXPECT_EQ(judge_rtu(oracle, 1, pdu(5, {38, 0}), pdu(5, {38, 0xFFFF})).at(0).rule, "reply.malformed");
+        EXPECT_TRUE(judge_rtu(oracle, 1, pdu(1, {38, 1}), read_coil(0)).empty());
+    }
+    {
+        // An echo unlike the request (another value): which one was stored is not known.
+        cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+        EXPECT_TRUE(judge_rtu(oracle, 1, pdu(6, {7, 100}), pdu(6, {7, 100})).empty());
+        EXPECT_EQ(judge_rtu(oracle, 1, pdu(6, {7, 200}), pdu(6, {7, 0xFF37})).at(0).rule, "reply.echo");
+        EXPECT_TRUE(judge_rtu(oracle, 1, pdu(3, {7, 1}), read_register(200)).empty());
+    }
+    {
+        // No reply: the write may have been done before the reply was lost.
+        cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+        EXPECT_TRUE(judge_rtu(oracle, 1, pdu(6, {7, 100}), pdu(6, {7, 100})).empty());
+        EXPECT_EQ(judge_rtu(oracle, 1, pdu(6, {7, 200}), {}).at(0).rule, "reply.missing");
+        EXPECT_TRUE(judge_rtu(oracle, 1, pdu(3, {7, 1}), read_register(200)).empty());
+    }
+    {
+        // A refusal settles it: the value acknowledged before must still read back.
+        cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+        EXPECT_TRUE(judge_rtu(oracle, 1, pdu(6, {7, 100}), pdu(6, {7, 100})).empty());
+        judge_rtu(oracle, 1, pdu(6, {7, 200}), {0x86, 0x04});
+        const auto v = judge_rtu(oracle, 1, pdu(3, {7, 1}), read_register(200));
+        ASSERT_EQ(v.size(), 1u);
+        EXPECT_EQ(v[0].rule, "state.lost_write");
+    }
+}
+
 // An acknowledged write that ran past 65535 breaks reply.address; what it held past the end is no
 // register's, so it is not remembered as written at 0, 1, ... (a later read there owes it nothing).
 TEST(ExchangeOracle, AWritePastTheLastAddressIsNotRememberedAtZero) {
