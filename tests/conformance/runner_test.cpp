@@ -472,6 +472,24 @@ TEST(PlantedFaults, ARepliesQuantityIsJudgedAgainstTheRequest) {
         EXPECT_EQ(x.outcome, Outcome::Pass) << x.rule.id << ": " << x.observed;
 }
 
+// The generic profile probes its tables: a read answered with a damaged reply of the read's function (a
+// byte count unlike its data, a reply cut short) was taken for no answer, every table unknown and every read
+// rule skipped: a device damaging every read passed certification with exit code 0. The reply shows the
+// table is there, and the rules on it fail.
+TEST(PlantedFaults, AGenericDevicesDamagedReadsFailTheReadRules) {
+    for (const char* fault : {"wrong-byte-count", "short-response"}) {
+        RunningServer server({fault}, 7, "modbus");
+        auto options = options_for();
+        options.run.rule_globs = {"fc.supported.3", "quantity.fc3.one", "address.fc3.first"};
+        const auto run = certify(server, "tcp", "modbus", options);
+        ASSERT_EQ(run.report.results.size(), 3u) << fault;
+        for (const auto& x : run.report.results)
+            EXPECT_EQ(x.outcome, Outcome::Fail)
+                << fault << ' ' << x.rule.id << ": " << x.observed << x.reason;
+        EXPECT_EQ(verdict(run.report), 1) << fault;
+    }
+}
+
 // ---- late replies over RTU and ASCII, which carry no transaction id
 
 // A device slower than the runner's timeout over RTU: every reply comes 400 ms after its request, the runner
