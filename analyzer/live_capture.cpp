@@ -332,9 +332,26 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             continue;
         }
         for (nfds_t k = 0; k < n; ++k) {
-            if (!(fds[k].revents & POLLIN)) continue;
-            const ssize_t got = ::read(fds[k].fd, buf, sizeof buf);
-            if (got <= 0) continue;
+            const bool hung_up = fds[k].revents & (POLLHUP | POLLERR | POLLNVAL);
+            ssize_t got = 0;
+            if (fds[k].revents & POLLIN) {
+                got = ::read(fds[k].fd, buf, sizeof buf);
+                if (got < 0 && (errno == EAGAIN || errno == EINTR)) continue;
+            } else if (!hung_up) {
+                continue;
+            }
+            if (got <= 0 && (hung_up || got < 0)) {
+                // The port went away (a USB adapter unplugged, a pseudo-terminal's other end closed): poll
+                // says so at once, forever, and the capture would spin in silence. What was read is kept.
+                const std::string& device = which[k] == 0 ? options_.serial : options_.serial2;
+                a.input_error(device + ": the port " +
+                              (got < 0 ? "failed (" + std::string(std::strerror(errno)) + ")"
+                                       : std::string("hung up")) +
+                              "; the capture ends here");
+                finished();
+                return false;
+            }
+            if (got == 0) continue;
             const Timestamp t = wall_clock();
             const std::span<const std::uint8_t> bytes(buf, static_cast<std::size_t>(got));
             ++captured_;

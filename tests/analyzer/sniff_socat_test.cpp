@@ -158,3 +158,38 @@ TEST(SniffSocat, AnAsciiLineIsReadAndWrittenAsAscii) {
     EXPECT_EQ(s.live.frames, told.frames);
     EXPECT_EQ(s.live.transactions, told.transactions);
 }
+
+// A port that goes away (a USB adapter unplugged; here the pseudo-terminal's other end closed) ended nothing:
+// poll reported the hang-up at once, again and again, and sniff spun at full CPU in silence until its
+// --duration ran out, then exited 0 as if the line had been quiet. It ends the capture with the port named,
+// what it read still decoded, and exit 2.
+TEST(SniffSocat, APortThatGoesAwayEndsTheCaptureWithAnError) {
+    if (!have("socat")) GTEST_SKIP() << "needs socat";
+    const std::string dir = ::testing::TempDir() + "sniff_port_gone";
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    Child pair({"socat", "pty,raw,echo=0,link=" + dir + "/a", "pty,raw,echo=0,link=" + dir + "/b"},
+               "/dev/null", dir + "/socat.err");
+    ASSERT_TRUE(
+        wait_for([&] { return std::filesystem::exists(dir + "/a") && std::filesystem::exists(dir + "/b"); }));
+    const std::string written = dir + "/line.pcapng";
+    Child sniff(
+        {MBSCOPE_BINARY, "sniff", "--serial", dir + "/a", "--duration", "30s", "--write", written, "--jsonl"},
+        dir + "/sniff.jsonl", dir + "/sniff.err");
+    ASSERT_TRUE(wait_for([&] { return std::filesystem::exists(written); })) << slurp(dir + "/sniff.err");
+    const int far_end = ::open((dir + "/b").c_str(), O_RDWR | O_NOCTTY);
+    ASSERT_GE(far_end, 0);
+    const auto request = bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45});
+    EXPECT_EQ(::write(far_end, request.data(), request.size()), static_cast<ssize_t>(request.size()));
+    EXPECT_TRUE(wait_for([&] { return packet_blocks(written) == 1; }));
+    ::close(far_end);
+    pair.stop();  // the port's other end is gone
+    EXPECT_EQ(sniff.wait_exit(), 2);
+    const std::string err = slurp(dir + "/sniff.err");
+    EXPECT_NE(err.find("mbscope sniff: " + dir + "/a: the port hung up; the capture ends here"),
+              std::string::npos)
+        << err;
+    const Records live = records(slurp(dir + "/sniff.jsonl"));
+    ASSERT_EQ(live.frames.size(), 1u);
+    EXPECT_EQ(live.frames[0]["function"], 3);
+}

@@ -71,6 +71,14 @@ class Child {
         ::waitpid(pid_, &status, 0);
         spawned_ = false;
     }
+    // Waits for the child to end by itself: its exit code, or -1 when it was killed by a signal.
+    int wait_exit() {
+        if (!spawned_) return -1;
+        int status = 0;
+        ::waitpid(pid_, &status, 0);
+        spawned_ = false;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    }
 
   private:
     pid_t pid_ = 0;
