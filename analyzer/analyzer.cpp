@@ -1619,6 +1619,10 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
 void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> bytes, Timestamp received,
                       Direction hint) {
     set_source(source);
+    // A timed chunk is one record of the capture (a read of the port, a log's record, a text line), as each
+    // becomes a record of sniff --write's file: counted as the packets a decode of that file counts. An
+    // untimed dump comes in buffers of no meaning to anyone.
+    if (received.count() != 0) ++summary_.packets;
     const auto part = serial_parts_.find(source);
     if (part == serial_parts_.end())
         return serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint);

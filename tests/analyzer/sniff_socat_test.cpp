@@ -16,9 +16,11 @@ using namespace mbscope::test;
 
 namespace {
 
-// The frames and transactions of a --jsonl output, without what names the input (source, link, device).
+// The frames and transactions of a --jsonl output, without what names the input (source, link, device), and
+// the summary's packet count.
 struct Records {
     std::vector<nlohmann::json> frames, transactions;
+    std::int64_t packets = -1;
 };
 Records records(const std::string& jsonl) {
     Records r;
@@ -39,6 +41,8 @@ Records records(const std::string& jsonl) {
                                       {"function", j["function"]},
                                       {"exception_code", j.value("exception_code", 0)},
                                       {"timeout", j.value("timeout", false)}});
+        } else if (j["type"] == "summary") {
+            r.packets = j.value("packets", -1);
         }
     }
     return r;
@@ -121,6 +125,9 @@ TEST(SniffSocat, WrittenSessionDecodesToTheSameTransactions) {
     ASSERT_EQ(s.live.transactions.size(), 3u);
     EXPECT_EQ(s.live.frames, s.again.frames);
     EXPECT_EQ(s.live.transactions, s.again.transactions);
+    // Each read of a port is a packet, as each is a record of the file (live it was "0 packets").
+    EXPECT_EQ(s.live.packets, 6);
+    EXPECT_EQ(s.again.packets, 6);
     for (std::size_t i = 0; i < s.live.frames.size(); ++i) {
         EXPECT_EQ(s.live.frames[i]["direction"], i % 2 ? "response" : "request") << i;
     }
