@@ -232,11 +232,15 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
     // Time passes for the analyzer at least every read_timeout_ms, busy or quiet: requests time out, frames
     // a silence ended come out, and what was decoded is written out, while the capture runs.
     auto last_pass = std::chrono::steady_clock::now();
-    const auto pass_time = [&](bool quiet) {
+    // The capture file is flushed at the same pace: a process killed, or stopped by a reader of its output
+    // that went away, leaves what it captured in the file (pcap_dump buffers, and a network --write file
+    // held no packet after ten transactions were printed). The write's error, or empty.
+    const auto pass_time = [&](bool quiet) -> std::string {
         const auto t = std::chrono::steady_clock::now();
-        if (!quiet && t - last_pass < std::chrono::milliseconds(read_timeout_ms)) return;
+        if (!quiet && t - last_pass < std::chrono::milliseconds(read_timeout_ms)) return {};
         last_pass = t;
         a.idle(quiet_until());
+        return m.flush(options_.write);
     };
     const auto finished = [&] {
         a.idle(quiet_until());  // what timed out while the capture ran is a timeout, not cut off by its end
@@ -267,7 +271,8 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
                 pollfd wait{pcap_get_selectable_fd(m.pcap), POLLIN, 0};
                 const int ready = ::poll(&wait, 1, draining ? drain_timeout_ms : read_timeout_ms);
                 if (ready == 0 && draining) break;
-                if (ready == 0) pass_time(true);
+                if (ready == 0)
+                    if (const auto written = pass_time(true); !written.empty()) return write_failed(written);
                 continue;
             }
             if (status < 0) {
@@ -285,7 +290,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             const std::string written = m.dump(p.time, p.data, h->len, 0);
             a.packet(name_, p);
             if (!written.empty()) return write_failed(written);
-            pass_time(false);
+            if (const auto flushed = pass_time(false); !flushed.empty()) return write_failed(flushed);
         }
         return finished();
     }
@@ -327,7 +332,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         }
         if (ready <= 0) {
             if (draining) break;
-            pass_time(true);
+            if (const auto written = pass_time(true); !written.empty()) return write_failed(written);
             follow_line();
             continue;
         }
@@ -362,7 +367,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
                      two ? (which[k] == 0 ? Direction::Request : Direction::Response) : Direction::Unknown);
             if (!written.empty()) return write_failed(written);
         }
-        pass_time(false);
+        if (const auto written = pass_time(false); !written.empty()) return write_failed(written);
         follow_line();
     }
     return finished();

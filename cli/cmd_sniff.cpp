@@ -45,7 +45,7 @@ int run_sniff(SniffCliOptions o) {
         return exit_failure;
     }
     analyzer::Analyzer a(options, outputs.sink());
-    const bool ok = capture->run(a, stop_on_signals(BrokenPipe::Kills));
+    const bool ok = capture->run(a, stop_on_signals(BrokenPipe::Stops));
     a.finish();
     const bool input_errors = report_input_problems(a.summary(), "sniff");
     report_unused_maps(o.common, options, "sniff");

@@ -19,6 +19,7 @@ std::atomic<bool>& stop_on_signals(BrokenPipe broken_pipe) {
     std::signal(SIGINT, on_stop_signal);
     std::signal(SIGTERM, on_stop_signal);
     if (broken_pipe == BrokenPipe::Ignored) std::signal(SIGPIPE, SIG_IGN);
+    if (broken_pipe == BrokenPipe::Stops) std::signal(SIGPIPE, on_stop_signal);
     return stop_requested;
 }
 

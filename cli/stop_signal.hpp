@@ -8,6 +8,7 @@ namespace mbscope::cli {
 
 enum class BrokenPipe {
     Kills,    // output to a pipe: a reader that went away ends the run, as for any filter
+    Stops,    // a reader that went away stops the run as SIGTERM does: what it keeps (a capture file) is kept
     Ignored,  // a peer closed its socket: a send fails with EPIPE and the run carries on or reports it
 };
 

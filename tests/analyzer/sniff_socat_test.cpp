@@ -200,3 +200,34 @@ TEST(SniffSocat, APortThatGoesAwayEndsTheCaptureWithAnError) {
     ASSERT_EQ(live.frames.size(), 1u);
     EXPECT_EQ(live.frames[0]["function"], 3);
 }
+
+// A reader of sniff's output that went away (`sniff ... | head -1`) stops the capture as SIGTERM does: sniff
+// died of SIGPIPE before (exit status 141, none of the documented ones), and a network capture file it was
+// writing was left without its packets. It ends with a documented exit code and the file whole.
+TEST(SniffSocat, AReaderThatWentAwayStopsTheCaptureAndKeepsTheFile) {
+    if (!have("socat") || !have("bash")) GTEST_SKIP() << "needs socat and bash";
+    const std::string dir = ::testing::TempDir() + "sniff_reader_gone";
+    SocatTaps taps(dir);
+    ASSERT_TRUE(taps.ready());
+    const std::string written = dir + "/bus.pcapng";
+    const std::string status = dir + "/status";
+    Child pipeline({"bash", "-c",
+                    std::string(MBSCOPE_BINARY) + " sniff --serial " + taps.master_tap() +
+                        " --duration 30s --jsonl --write " + written + " 2>" + dir +
+                        "/sniff.err | head -c 1 >/dev/null; echo ${PIPESTATUS[0]} > " + status},
+                   "/dev/null", dir + "/bash.err");
+    ASSERT_TRUE(wait_for([&] { return std::filesystem::exists(written); })) << slurp(dir + "/sniff.err");
+    const auto request = bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45});
+    // Each request is a frame record on the pipe once a silence ends it: the first fills head, the next
+    // writes into a pipe nobody reads.
+    for (int i = 0; i < 3 && !std::filesystem::exists(status); ++i) {
+        EXPECT_EQ(::write(taps.master_end, request.data(), request.size()),
+                  static_cast<ssize_t>(request.size()));
+        std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    }
+    ASSERT_TRUE(wait_for([&] { return !slurp(status).empty(); })) << slurp(dir + "/sniff.err");
+    pipeline.wait_exit();
+    // Exit 1: the run's verdict (a request followed by another with no reply between is pair.no_response).
+    EXPECT_EQ(slurp(status), "1\n") << slurp(dir + "/sniff.err");
+    EXPECT_GE(packet_blocks(written), 2u);
+}

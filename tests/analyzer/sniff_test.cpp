@@ -162,6 +162,15 @@ void loopback_exchange(const std::string& name, std::uint32_t expected_magic) {
     ::close(client);
     ::close(accepted);
     ::close(server);
+    // While the capture still runs, the file already holds the exchange: it is flushed as time passes, not
+    // only at the end (a sniff killed, or stopped by `| head`, left a network capture file without packets).
+    bool in_file = false;
+    for (int i = 0; i < 100 && !in_file; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const auto so_far = decode_file(o.write, options);
+        in_file = so_far->transactions.size() == 1 && so_far->transactions[0].response.has_value();
+    }
+    EXPECT_TRUE(in_file) << o.write;
     stop = true;
     sniffer.join();
     a.finish();
