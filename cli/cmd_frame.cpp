@@ -193,7 +193,7 @@ int emit(const std::vector<DecodedFrame>& frames, bool json) {
             std::cout << render_text(d) << (frames.size() > 1 ? "\n" : "");
         if (!d.error.empty())
             rc = exit_failure;
-        else if (!d.clean() && rc == exit_ok)
+        else if (d.broken() && rc == exit_ok)
             rc = exit_findings;
     }
     if (json)
@@ -292,15 +292,17 @@ int run_frame(const FrameOptions& o) {
 void register_frame(CLI::App& app, int& exit_code) {
     auto o = std::make_shared<FrameOptions>();
     auto* cmd = app.add_subcommand("frame", "Decode one Modbus ADU field by field, or encode one");
-    cmd->footer(std::string("Examples:\n"
-                            "  mbscope frame --rtu 11 03 00 60 00 03 07 45\n"
-                            "  mbscope frame --ascii ':11100060000204000A01026C'\n"
-                            "  mbscope frame --tcp 00 01 00 00 00 06 11 03 00 6B 00 03 --json\n"
-                            "  mbscope frame --encode --rtu --unit 17 read-holding 96 3\n"
-                            "  mbscope frame --file captures/manual-examples.txt\n\n") +
-                encode_help +
-                "\n\nExit codes: 0 decoded and clean, 1 decoded but a rule is broken (checksum, limits),"
-                " 2 could not decode.");
+    cmd->footer(
+        std::string("Examples:\n"
+                    "  mbscope frame --rtu 11 03 00 60 00 03 07 45\n"
+                    "  mbscope frame --ascii ':11100060000204000A01026C'\n"
+                    "  mbscope frame --tcp 00 01 00 00 00 06 11 03 00 6B 00 03 --json\n"
+                    "  mbscope frame --encode --rtu --unit 17 read-holding 96 3\n"
+                    "  mbscope frame --file captures/manual-examples.txt\n\n") +
+        encode_help +
+        "\n\nExit codes: 0 decoded, no error (notes and warnings are shown: a function code that is"
+        " not public, lowercase ASCII hex), 1 decoded but a rule is broken at error severity (checksum,"
+        " limits), 2 could not decode.");
     cmd->add_flag("--rtu", o->rtu, "Modbus RTU: unit, PDU, CRC (low byte first)");
     cmd->add_flag("--ascii", o->ascii, "Modbus ASCII: ':' hex LRC CR LF (give the text or its bytes in hex)");
     cmd->add_flag("--tcp", o->tcp, "Modbus/TCP: MBAP header and PDU");

@@ -13,6 +13,13 @@ bool DecodedFrame::clean() const {
     return frame && pdu && frame->checksum_ok && frame->findings.empty() && pdu->violations.empty();
 }
 
+bool DecodedFrame::broken() const {
+    const auto error = [](FindingCode code) { return info(code).severity == Severity::Error; };
+    return (frame &&
+            (!frame->checksum_ok || std::any_of(frame->findings.begin(), frame->findings.end(), error))) ||
+           (pdu && std::any_of(pdu->violations.begin(), pdu->violations.end(), error));
+}
+
 namespace {
 
 bool is_blank(char c) {

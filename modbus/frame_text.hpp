@@ -30,6 +30,10 @@ struct DecodedFrame {
     std::string source;              // optional label (file line, manual reference)
 
     bool clean() const;  // decoded, checksum ok, no rule broken
+    // Decoded, and a rule broken at error severity (a checksum, a limit): what `mbscope frame` exits 1 for,
+    // as decode does. Notes and warnings (a function code that is not public, lowercase ASCII hex) are said,
+    // not failed.
+    bool broken() const;
 };
 
 // "11 03 00 60", "1103 0060", "0x11,0x03", "11-03": hex digits two to a byte, with 0x prefixes, blanks,

@@ -31,6 +31,21 @@ TEST(FrameCommand, BadCrcExitsOneAndSaysWhat) {
     EXPECT_NE(r.out.find("computed 0x4507"), std::string::npos) << r.out;
 }
 
+// Exit 1 is for a rule broken at error severity, as in decode: a note (a function code that is not public)
+// or a warning (lowercase ASCII hex) is shown and exits 0. frame exited 1 on them, decode 0 on the same
+// bytes.
+TEST(FrameCommand, NotesAndWarningsAreShownAndExitZero) {
+    const auto user_function = run_mbscope("frame --rtu 11 41 01 02 D5 5D");
+    EXPECT_EQ(user_function.exit_code, 0) << user_function.out;
+    EXPECT_NE(user_function.out.find("pdu.unknown_function (note)"), std::string::npos) << user_function.out;
+    const auto lowercase = run_mbscope("frame --ascii ':11100060000204000a01026c'");
+    EXPECT_EQ(lowercase.exit_code, 0) << lowercase.out;
+    EXPECT_NE(lowercase.out.find("ascii.lowercase_hex (warning)"), std::string::npos) << lowercase.out;
+    // A warning beside an error still exits 1.
+    const auto both = run_mbscope("frame --ascii ':11100060000204000a01026d'");
+    EXPECT_EQ(both.exit_code, 1) << both.out;
+}
+
 TEST(FrameCommand, UndecodableExitsTwo) {
     EXPECT_EQ(run_mbscope("frame --rtu 11 03").exit_code, 2);
     EXPECT_EQ(run_mbscope("frame --rtu 11 0G").exit_code, 2);
