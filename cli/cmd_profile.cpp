@@ -1,6 +1,8 @@
 // mbscope profile: list, show, validate, look up and decode with device profiles.
 #include <algorithm>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -90,6 +92,9 @@ std::optional<Profile> load(const ProfileOptions& o) {
 }
 
 int run_list(const ProfileOptions& o) {
+    // A --profile-dir that is not a directory stops the listing as it stops every other command: listed
+    // anyway, the count said "from 2 directories" of the one read.
+    if (!extra_profile_dirs_exist(o.dirs, "profile")) return exit_failure;
     ProfileStore store(profile_directories(o.dirs));
     if (o.json) {
         auto a = nlohmann::json::array();
@@ -202,7 +207,8 @@ struct ToValidate {
 // What validating one file (or listing one directory) found: a line of the text output, an entry of the JSON.
 struct Validated {
     std::string file;
-    std::string status;  // "ok", "errors", "not_a_profile", "skipped", "not_listed", "no_json_files"
+    // "ok", "errors", "not_a_profile", "skipped", "no_json_files"; "unreadable", "not_listed" (exit 2)
+    std::string status;
     std::vector<std::string> notes;  // the text output's lines, each after "FILE: "
     std::vector<std::string> errors;
     nlohmann::json profiles = nlohmann::json::array();
@@ -242,8 +248,17 @@ int run_validate(const ProfileOptions& o) {
     const auto files = files_to_validate(o.files, results);
     std::size_t documents = 0;  // profile documents among the files, valid or not
     for (const auto& [f, found] : files) {
-        auto loaded = storage::load_profile_file(f, parse_config(o).value_or(ProfileConfig{}));
         Validated v{f, "ok", {}, {}, nlohmann::json::array()};
+        // A file that is not there or cannot be read is input the run could not read (exit 2, as frame and
+        // decode), not a profile found invalid (1); the others are still validated.
+        if (std::ifstream probe(f, std::ios::binary); !probe) {
+            v.status = "unreadable";
+            v.notes.push_back(std::string("cannot read: ") + std::strerror(errno));
+            v.errors.push_back(v.notes.back());
+            results.push_back(std::move(v));
+            continue;
+        }
+        auto loaded = storage::load_profile_file(f, parse_config(o).value_or(ProfileConfig{}));
         if (!loaded.is_profile && loaded.errors.empty()) {
             // Named, it was meant as a profile; found beside profiles (a JSON schema, a note), it is passed
             // over as the profile search passes over it.
@@ -275,7 +290,10 @@ int run_validate(const ProfileOptions& o) {
     const bool any_failed = std::any_of(results.begin(), results.end(), [](const Validated& v) {
         return v.status != "ok" && v.status != "skipped";
     });
-    const int rc = any_failed || documents == 0 ? exit_findings : exit_ok;
+    const bool unread = std::any_of(results.begin(), results.end(), [](const Validated& v) {
+        return v.status == "unreadable" || v.status == "not_listed";
+    });
+    const int rc = unread ? exit_failure : any_failed || documents == 0 ? exit_findings : exit_ok;
     if (o.json) {
         auto list = nlohmann::json::array();
         for (const auto& v : results) {
@@ -447,7 +465,8 @@ void register_profile(CLI::App& app, int& exit_code) {
         "installed profiles; the first directory that defines an id wins. A --profile-dir that is not a\n"
         "directory is an error; a file that cannot be read is warned about when a profile is loaded.\n"
         "Ids and aliases are matched case-insensitively.\n"
-        "Exit codes: 0 ok, 1 something is missing or invalid, 2 could not run.");
+        "Exit codes: 0 ok, 1 something is missing or invalid, 2 could not run (a --profile-dir that is not a"
+        " directory, a file to validate that cannot be read).");
     auto common = [&](CLI::App* sub) {
         sub->add_flag("--json", o->json, "Machine-readable output");
         sub->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");

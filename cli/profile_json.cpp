@@ -63,17 +63,21 @@ std::vector<std::string> profile_directories(const std::vector<std::string>& ext
     return dirs;
 }
 
-std::optional<storage::ProfileStore> open_profile_store(const std::vector<std::string>& extra,
-                                                        const char* command) {
-    namespace fs = std::filesystem;
+bool extra_profile_dirs_exist(const std::vector<std::string>& extra, const char* command) {
     for (const auto& dir : extra) {
         std::error_code ec;
-        if (!fs::is_directory(dir, ec)) {
+        if (!std::filesystem::is_directory(dir, ec)) {
             std::cerr << "mbscope " << command << ": --profile-dir " << modbus::quote_excerpt(dir)
                       << ": not a directory\n";
-            return std::nullopt;
+            return false;
         }
     }
+    return true;
+}
+
+std::optional<storage::ProfileStore> open_profile_store(const std::vector<std::string>& extra,
+                                                        const char* command) {
+    if (!extra_profile_dirs_exist(extra, command)) return std::nullopt;
     storage::ProfileStore store(profile_directories(extra));
     const auto& errors = store.errors();
     for (std::size_t i = 0; i < errors.size();) {

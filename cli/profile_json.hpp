@@ -19,6 +19,9 @@ nlohmann::json profile_to_json(const modbus::Profile& p);
 // ../share/mbscope/profiles), else the source tree's profiles/ (running from a build directory).
 std::vector<std::string> profile_directories(const std::vector<std::string>& extra);
 
+// False, after a message naming `command`, when one of `extra` (--profile-dir) is not a directory.
+bool extra_profile_dirs_exist(const std::vector<std::string>& extra, const char* command);
+
 // The profile store over profile_directories(extra), for a command that loads profiles by id. A --profile-dir
 // that is not a directory is an error (nullopt after a message naming `command`): a mistyped one would
 // otherwise fall back to the bundled profiles without a word. Files in the store that could not be read are

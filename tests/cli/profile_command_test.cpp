@@ -164,6 +164,25 @@ TEST(ProfileCommand, ValidateADirectoryChecksEveryProfileUnderIt) {
 
 // `validate --json`, which its help lists, printed the text lines: a CI job parsing them failed. Each file
 // is an entry with its status and what it holds or why it is refused; `valid` is the exit code's verdict.
+// A file to validate that is not there is input the run could not read: exit 2, as frame and decode, the
+// others still validated (it was "1 error(s)", exit 1, as a profile found invalid). An empty file is read and
+// is no valid profile: exit 1.
+TEST(ProfileCommand, ValidateAFileThatCannotBeReadExitsTwo) {
+    auto r = run_mbscope("profile validate /nonexistent/x.json " + std::string(MBSCOPE_SOURCE_DIR) +
+                         "/profiles/cth2265i.json");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("/nonexistent/x.json: cannot read: No such file or directory"), std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("cth2265i ok"), std::string::npos) << r.out;
+    r = run_mbscope("profile validate --json /nonexistent/x.json 2>/dev/null");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    const auto j = nlohmann::json::parse(r.out, nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << r.out;
+    EXPECT_EQ(j["files"][0]["status"], "unreadable");
+    EXPECT_EQ(j["valid"], false);
+    EXPECT_EQ(run_mbscope("profile validate /dev/null").exit_code, 1);
+}
+
 TEST(ProfileCommand, ValidateJsonIsJson) {
     const auto r = run_mbscope("profile validate --json " + fixtures + "/broken/broken.json " + fixtures +
                                "/profiles/test-device.json");
@@ -229,6 +248,13 @@ TEST(ProfileCommand, AMissingProfileDirStopsAndABrokenFileIsWarnedAbout) {
     EXPECT_NE(r.out.find("mbscope profile: --profile-dir '/nonexistent/profiles': not a directory"),
               std::string::npos)
         << r.out;
+    // list too: it listed the bundled profiles "from 2 directories" and exited 1.
+    r = run_mbscope("profile --profile-dir /nonexistent/profiles list");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("mbscope profile: --profile-dir '/nonexistent/profiles': not a directory"),
+              std::string::npos)
+        << r.out;
+    EXPECT_EQ(r.out.find("profiles from"), std::string::npos) << r.out;
     r = run_mbscope("decode --profile-dir /nonexistent/profiles --profile mmk-2030 " +
                     std::string(MBSCOPE_SOURCE_DIR) + "/captures/pymodbus-socat-rtu.log");
     EXPECT_EQ(r.exit_code, 2) << r.out;
