@@ -133,6 +133,9 @@ bool jpnevulator_bytes(std::string_view line, std::vector<std::uint8_t>& out) {
         line.remove_prefix(9);  // --byte-count
     if (const auto tab = line.find('\t'); tab != std::string_view::npos)
         line = line.substr(0, tab);  // --ascii
+    else if (const auto gap = line.find("  "); gap != std::string_view::npos && gap > 0)
+        line = line.substr(0, gap);  // --ascii after the tab became spaces (a log pasted, or re-indented):
+                                     // the bytes stand one space apart, the column starts after more
     std::vector<std::uint8_t> got;
     for (std::size_t p = 0; p < line.size();) {
         if (line[p] == ' ') {

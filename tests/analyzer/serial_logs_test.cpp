@@ -166,6 +166,25 @@ TEST(JpnevulatorLog, ByteCountBinaryControlAndAliasLinesAreRead) {
     EXPECT_EQ(untimed.chunks[0].received.count(), 0);
 }
 
+// --ascii's column after its tab became spaces (a log pasted from a page or re-indented, as the analyzer
+// README's own example): the bytes stand one space apart and the column begins after more. It was "not a
+// jpnevulator timestamp or data line", exit 2.
+TEST(JpnevulatorLog, AnAsciiColumnAfterSpacesIsLeftAside) {
+    const auto p = jpnevulator(
+        "2026-11-30 06:22:57.009496: master\n"
+        "11 03 00 6B 00 03 76 87                         ...k..v.\n"
+        "2026-11-30 06:22:57.028670: slave\n"
+        "11 03 06 02 2B 00 00 00 64 C8 BA                ....+...d..\n");
+    ASSERT_TRUE(p.ok) << (p.errors.empty() ? "" : p.errors[0]);
+    ASSERT_EQ(p.chunks.size(), 2u);
+    EXPECT_EQ(p.chunks[0].bytes, fc3_request);
+    EXPECT_EQ(p.chunks[1].bytes, fc3_response);
+    // A column of hex-looking characters is still the column, not bytes.
+    const auto hexlike = jpnevulator("2026-11-30 06:22:57.009496: M\n11 03  11 03\n");
+    ASSERT_EQ(hexlike.chunks.size(), 1u);
+    EXPECT_EQ(hexlike.chunks[0].bytes, bytes({0x11, 0x03}));
+}
+
 TEST(JpnevulatorLog, BadLinesAreNamedAndTheRestRead) {
     const auto p = jpnevulator(
         "2026-11-30 06:22:57.009496: master\n"
