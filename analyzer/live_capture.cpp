@@ -243,7 +243,11 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         return m.flush(options_.write);
     };
     const auto finished = [&] {
-        a.idle(quiet_until());  // what timed out while the capture ran is a timeout, not cut off by its end
+        const Timestamp end = quiet_until();
+        a.idle(end);  // what timed out while the capture ran is a timeout, not cut off by its end
+        // pcapng says when the capture ended, so that its decode times out what this run did.
+        if (m.pcapng.is_open())
+            if (const auto e = m.pcapng.end_statistics(end); !e.empty()) return write_failed(e);
         const std::string written = m.flush(options_.write);
         return written.empty() || write_failed(written);
     };

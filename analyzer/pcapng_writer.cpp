@@ -12,6 +12,8 @@ namespace {
 constexpr std::uint32_t section_header_block = 0x0A0D0D0A;
 constexpr std::uint32_t interface_description_block = 1;
 constexpr std::uint32_t enhanced_packet_block = 6;
+constexpr std::uint32_t interface_statistics_block = 5;
+constexpr std::uint16_t isb_endtime = 3;
 constexpr std::uint32_t byte_order_magic = 0x1A2B3C4D;
 constexpr std::uint16_t shb_userappl = 4, if_name = 2, if_tsresol = 9;
 constexpr std::uint8_t nanoseconds = 9;  // if_tsresol: a power of ten, 10^-9 s
@@ -124,6 +126,26 @@ std::string PcapngWriter::write_packet(std::uint32_t interface_id, modbus::Times
     b.u32(std::max(original_length, captured));  // a packet is never shorter than what was kept of it
     b.padded(data);
     return write(b.finish());
+}
+
+std::string PcapngWriter::end_statistics(modbus::Timestamp end) {
+    if (auto e = unusable(); !e.empty()) return e;
+    const auto ns = static_cast<std::uint64_t>(std::max<std::int64_t>(end.count(), 0));
+    std::uint8_t value[8];
+    for (int i = 0; i < 4; ++i) {  // high 32 bits, then low, each in the section's byte order
+        value[i] = static_cast<std::uint8_t>(ns >> (32 + 8 * i));
+        value[4 + i] = static_cast<std::uint8_t>(ns >> (8 * i));
+    }
+    for (std::uint32_t i = 0; i < interfaces(); ++i) {
+        Block b(interface_statistics_block);
+        b.u32(i);
+        b.u32(static_cast<std::uint32_t>(ns >> 32));
+        b.u32(static_cast<std::uint32_t>(ns));
+        b.option(isb_endtime, value);
+        b.end_of_options();
+        if (auto e = write(b.finish()); !e.empty()) return e;
+    }
+    return {};
 }
 
 std::string PcapngWriter::flush() {

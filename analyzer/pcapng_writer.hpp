@@ -1,9 +1,10 @@
 #pragma once
 // A pcapng writer for mbscope sniff --write FILE.pcapng: libpcap 1.10 reads pcapng but writes classic pcap
 // only. One section: a Section Header Block naming mbscope (shb_userappl), an Interface Description Block
-// for each interface, stamped in nanoseconds (if_tsresol 9), and an Enhanced Packet Block for each
-// packet. Every block is little-endian (the section's byte-order magic says so to readers on any host),
-// padded to 32 bits, its options ended by opt_endofopt.
+// for each interface, stamped in nanoseconds (if_tsresol 9), an Enhanced Packet Block for each packet, and
+// at the end an Interface Statistics Block for each interface saying when the capture ended. Every block is
+// little-endian (the section's byte-order magic says so to readers on any host), padded to 32 bits, its
+// options ended by opt_endofopt.
 //
 // Errors are strings naming the file, empty on success. A failed write leaves the file unusable: every
 // later call returns the same error rather than writing blocks after a torn one.
@@ -36,6 +37,10 @@ class PcapngWriter {
     // packet's length on the wire (never less than what was captured).
     std::string write_packet(std::uint32_t interface_id, modbus::Timestamp time,
                              std::span<const std::uint8_t> data, std::uint32_t original_length);
+    // Ends the capture: an Interface Statistics Block per interface whose isb_endtime is `end`, when the
+    // capture stopped, which no packet says (a request unanswered until then timed out, or did not, by it).
+    // Written once, last.
+    std::string end_statistics(modbus::Timestamp end);
     // Hands what is buffered to the file system, so the file is whole up to here if the process dies.
     std::string flush();
     // Flushes and closes; the writer can then open another file.

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "analyzer/analyzer.hpp"
+#include "analyzer/pcapng_end.hpp"
 #include "analyzer/progress.hpp"
 #include "analyzer/serial_input.hpp"
 #include "cli/analysis_options.hpp"
@@ -99,6 +100,21 @@ int run_decode(const DecodeOptions& o) {
         };
     const bool all_read = analyzer::read_inputs(a, o.files, *format, logs, file_done);
     if (meter) meter->clear();
+    // pcapng files that say when their capture ended (dumpcap, sniff --write): time ran to then, so what
+    // timed out before it is a timeout, as the live run said, not "unanswered when the capture ended". With
+    // several files, only when each says so, to the earliest end: every tap saw the line until then.
+    std::optional<modbus::Timestamp> ended;
+    for (const auto& f : o.files) {
+        std::error_code ec;
+        const auto end =
+            std::filesystem::is_regular_file(f, ec) ? analyzer::pcapng_capture_end(f) : std::nullopt;
+        if (!end) {
+            ended.reset();
+            break;
+        }
+        ended = ended ? std::min(*ended, *end) : *end;
+    }
+    if (ended) a.idle(*ended);
     a.finish();
     const bool input_errors = report_input_problems(a.summary(), "decode");
     report_unused_maps(o.common, options, "decode");

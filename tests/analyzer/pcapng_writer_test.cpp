@@ -7,8 +7,10 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 
 #include "analyzer/capture_source.hpp"
+#include "analyzer/pcapng_end.hpp"
 #include "analyzer/pcapng_writer.hpp"
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
@@ -95,6 +97,67 @@ TEST(PcapngWriter, TsharkReadsTimesLengthsAndInterfaces) {
     if (!mbscope::test::have("capinfos")) return;
     const std::string info = mbscope::test::run("capinfos -t '" + path + "'");
     EXPECT_NE(info.find("pcapng"), std::string::npos) << info;
+}
+
+// The capture's end, which no packet says, is an Interface Statistics Block per interface (isb_endtime):
+// read back in the interfaces' resolution, passed over by libpcap and tshark. A file without one, not
+// pcapng, or whose last block's length makes no sense has no end to tell.
+TEST(PcapngWriter, TheCapturesEndIsWrittenAndReadBack) {
+    const std::string path = ::testing::TempDir() + "writer_end.pcapng";
+    {
+        an::PcapngWriter w;
+        ASSERT_EQ(w.open(path), "");
+        ASSERT_EQ(w.add_interface(link_user0, 65535, "/dev/ttyUSB0"), "");
+        ASSERT_EQ(w.add_interface(link_user0, 65535, "/dev/ttyUSB1"), "");
+        for (const auto& r : packets)
+            ASSERT_EQ(w.write_packet(r.interface, r.time, r.data, r.original_length), "");
+        ASSERT_EQ(w.end_statistics(mb::Timestamp(1'700'000'005'250'000'001)), "");
+        ASSERT_EQ(w.close(), "");
+    }
+    EXPECT_EQ(an::pcapng_capture_end(path), mb::Timestamp(1'700'000'005'250'000'001));
+    std::string error;
+    auto source = an::CaptureSource::open_file(path, error);
+    ASSERT_TRUE(source) << error;
+    std::size_t read = 0;
+    while (source->next())
+        ++read;
+    EXPECT_EQ(read, packets.size());
+    EXPECT_EQ(source->error(), "");
+    if (mbscope::test::have("tshark")) {
+        const std::string out = mbscope::test::run("tshark -r '" + path + "' 2>&1 >/dev/null; echo exit $?");
+        EXPECT_NE(out.find("exit 0"), std::string::npos) << out;
+    }
+
+    EXPECT_FALSE(an::pcapng_capture_end(write_file("writer_no_end.pcapng", packets)));
+    EXPECT_FALSE(an::pcapng_capture_end(std::string(MBSCOPE_SOURCE_DIR) + "/captures/zeek-modbusSmall.pcap"));
+    EXPECT_FALSE(an::pcapng_capture_end(::testing::TempDir() + "no-such-file.pcapng"));
+    // The last block's trailing length pointing before the file's interfaces: nothing guessed.
+    std::string bytes = mbscope::test::slurp(path);
+    bytes[bytes.size() - 4] = '\xFF';
+    bytes[bytes.size() - 3] = '\xFF';
+    const std::string damaged = ::testing::TempDir() + "writer_end_damaged.pcapng";
+    std::ofstream(damaged, std::ios::binary) << bytes;
+    EXPECT_FALSE(an::pcapng_capture_end(damaged));
+}
+
+// A microsecond interface (if_tsresol absent: 10^-6) in a big-endian section, as other writers make: the
+// end is converted from the interface's ticks.
+TEST(PcapngWriter, AnEndInMicrosecondsOfABigEndianSectionIsRead) {
+    std::string f;
+    const auto be32 = [&f](std::uint32_t v) {
+        for (int i = 3; i >= 0; --i)
+            f.push_back(static_cast<char>(v >> (8 * i)));
+    };
+    be32(0x0A0D0D0A), be32(28), be32(0x1A2B3C4D), be32(0x00010000), be32(0xFFFFFFFF), be32(0xFFFFFFFF),
+        be32(28);
+    be32(1), be32(20), be32(link_user0 << 16), be32(0), be32(20);  // no options: microseconds
+    const std::uint64_t ticks = 1'700'000'003'000'000ull;          // microseconds
+    be32(5), be32(40), be32(0), be32(0), be32(0);                  // statistics of interface 0
+    be32(3 << 16 | 8), be32(static_cast<std::uint32_t>(ticks >> 32)), be32(static_cast<std::uint32_t>(ticks));
+    be32(0), be32(40);
+    const std::string path = ::testing::TempDir() + "writer_end_be.pcapng";
+    std::ofstream(path, std::ios::binary) << f;
+    EXPECT_EQ(an::pcapng_capture_end(path), mb::Timestamp(1'700'000'003'000'000'000));
 }
 
 TEST(PcapngWriter, ErrorsNameTheFileAndNeverCrash) {

@@ -231,3 +231,38 @@ TEST(SniffSocat, AReaderThatWentAwayStopsTheCaptureAndKeepsTheFile) {
     EXPECT_EQ(slurp(status), "1\n") << slurp(dir + "/sniff.err");
     EXPECT_GE(packet_blocks(written), 2u);
 }
+
+// A request whose timeout ran out before sniff stopped was a timeout live (pair.no_response, exit 1) but
+// "unanswered when the capture ended" (a note, exit 0) in a decode of the file sniff wrote: no packet says
+// when the capture ended. The pcapng file says it now (Interface Statistics Blocks), and both agree.
+TEST(SniffSocat, ARequestThatTimedOutLiveTimesOutInTheWrittenFile) {
+    if (!have("socat")) GTEST_SKIP() << "needs socat";
+    const std::string dir = ::testing::TempDir() + "sniff_end";
+    SocatTaps taps(dir);
+    ASSERT_TRUE(taps.ready());
+    const std::string written = dir + "/bus.pcapng";
+    Child sniff({MBSCOPE_BINARY, "sniff", "--serial", taps.master_tap(), "--timeout", "0.3", "--write",
+                 written, "--jsonl"},
+                dir + "/sniff.jsonl", dir + "/sniff.err");
+    ASSERT_TRUE(wait_for([&] { return std::filesystem::exists(written); })) << slurp(dir + "/sniff.err");
+    const auto request = bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45});
+    EXPECT_EQ(::write(taps.master_end, request.data(), request.size()), static_cast<ssize_t>(request.size()));
+    // Stopped once the live run has said the timeout (its record is on the way as it happens).
+    EXPECT_TRUE(
+        wait_for([&] { return slurp(dir + "/sniff.jsonl").find("pair.no_response") != std::string::npos; }));
+    sniff.stop();
+    const auto timeouts = [](const std::string& jsonl) {
+        std::istringstream in(jsonl);
+        for (std::string line; std::getline(in, line);) {
+            const auto j = nlohmann::json::parse(line, nullptr, false);
+            if (!j.is_discarded() && j["type"] == "summary")
+                for (const auto& [name, device] : j["devices"].items())
+                    return device.value("timeouts", -1);
+        }
+        return -1;
+    };
+    EXPECT_EQ(timeouts(slurp(dir + "/sniff.jsonl")), 1) << slurp(dir + "/sniff.jsonl");
+    const std::string again =
+        run(std::string(MBSCOPE_BINARY) + " decode --timeout 0.3 --user-dlt rtu --jsonl '" + written + "'");
+    EXPECT_EQ(timeouts(again), 1) << again;
+}

@@ -1,0 +1,18 @@
+#pragma once
+// When a pcapng capture ended, which no packet says: a request still unanswered then had its whole timeout,
+// or had not, by that time, not by the last packet's. dumpcap and `mbscope sniff --write` end their files
+// with an Interface Statistics Block per interface whose isb_endtime says it (libpcap reads past them).
+
+#include <optional>
+#include <string>
+
+#include "modbus/frame.hpp"
+
+namespace mbscope::analyzer {
+
+// The latest isb_endtime (or, without one, the block's own timestamp) of the Interface Statistics Blocks
+// that end the pcapng file at `path`, in each interface's if_tsresol; nullopt when the file is not pcapng,
+// cannot be read, does not end with such blocks, or its blocks do not make sense (nothing is guessed).
+std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path);
+
+}  // namespace mbscope::analyzer
