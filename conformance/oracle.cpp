@@ -321,6 +321,46 @@ bool writes_points(std::uint8_t function_code) {
 }
 }  // namespace
 
+void ExchangeOracle::forget_points_written(const Request& r) {
+    // The points a write names (FC5, 6, 15, 16): what they hold is unknown. Mask writes and FC23 are not
+    // modelled point by point: everything written on the unit is.
+    const Unit* u = route(r.unit);
+    if (!u || !r.decoded) return;
+    const modbus::Profile& p = *u->profile;
+    const auto forget = [&](Table t, std::uint16_t start, std::uint32_t quantity) {
+        for (std::uint32_t i = 0; i < quantity && start + i <= 0xFFFF; ++i) {
+            const auto address = static_cast<std::uint16_t>(start + i);
+            written_.erase(ShadowKey{u->id, static_cast<int>(p.resolve(t)), address});
+            // Walchem: a coil write sets the register at its address (002:244, 493).
+            if (t == Table::Coils && p.coils_view_registers)
+                written_.erase(
+                    ShadowKey{u->id, static_cast<int>(p.resolve(Table::HoldingRegisters)), address});
+        }
+    };
+    const modbus::Pdu& q = *r.decoded;
+    switch (q.function_code()) {
+        case 5:
+            forget(Table::Coils, std::get<modbus::WriteSingle>(q.body).address, 1);
+            return;
+        case 6:
+            forget(Table::HoldingRegisters, std::get<modbus::WriteSingle>(q.body).address, 1);
+            return;
+        case 15: {
+            const auto& w = std::get<modbus::WriteMultipleCoilsRequest>(q.body);
+            forget(Table::Coils, w.starting_address, w.quantity);
+            return;
+        }
+        case 16: {
+            const auto& w = std::get<modbus::WriteMultipleRegistersRequest>(q.body);
+            forget(Table::HoldingRegisters, w.starting_address, w.quantity);
+            return;
+        }
+        default:
+            forget_written(r);
+            return;
+    }
+}
+
 void ExchangeOracle::forget_written(const Request& r) {
     // Writes the oracle does not model (mask write, FC23, broadcasts): the addresses they touch are unknown.
     if (!r.decoded) return;
@@ -468,7 +508,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         const Request& request;
         bool settled;
         ~WriteOutcome() {
-            if (!settled) oracle.forget_written(request);
+            if (!settled) oracle.forget_points_written(request);
         }
     } write{*this, *r, !u || !r->decoded || !writes_points(r->pdu[0])};
     const Expected e = expect(*r);
@@ -552,8 +592,11 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         fail(e.rule, e.source, codes_text(e.exceptions.bits));
         return out;
     }
+    const std::size_t before_shape = out.size();
     check_normal_shape(*r, *pdu, out);
-    write.settled = out.empty();  // an echo unlike the request: which values were stored is not known
+    // An acknowledgement like the request settles it (a repeat or bytes after it do not unsettle the
+    // write); one unlike it (another value, another quantity) leaves which values were stored unknown.
+    if (out.size() == before_shape) write.settled = true;
     // Values written with an acknowledgement read back as written.
     if (u && r->decoded) {
         const modbus::Pdu& req = *r->decoded;

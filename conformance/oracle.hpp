@@ -112,6 +112,7 @@ class ExchangeOracle {
                             std::vector<OracleViolation>& out) const;
     void learn(const Request& r, const modbus::Pdu& reply);
     void forget_written(const Request& r);
+    void forget_points_written(const Request& r);  // a write whose outcome is unknown
 
     using ShadowKey = std::tuple<std::uint8_t, int, std::uint16_t>;  // unit, resolved table, address
     bool tracked(const modbus::Profile& p, modbus::Table t, std::uint16_t address) const;

@@ -561,6 +561,30 @@ TEST(ExchangeOracle, AWriteTheReplyDoesNotSettleLeavesThePointUnknown) {
         EXPECT_TRUE(judge_rtu(oracle, 1, pdu(3, {7, 1}), read_register(200)).empty());
     }
     {
+        // What the unsettled write named is unknown, nothing else: a lost write elsewhere is still found.
+        cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+        EXPECT_TRUE(judge_rtu(oracle, 1, pdu(6, {7, 100}), pdu(6, {7, 100})).empty());
+        EXPECT_EQ(judge_rtu(oracle, 1, pdu(6, {8, 5}), pdu(6, {8, 6})).at(0).rule, "reply.echo");
+        const auto v = judge_rtu(oracle, 1, pdu(3, {7, 1}), read_register(0));
+        ASSERT_EQ(v.size(), 1u);
+        EXPECT_EQ(v[0].rule, "state.lost_write");
+    }
+    {
+        // An acknowledgement like the request, sent twice, still settles the write (reply.duplicate is the
+        // fault), and a read with a reply of the wrong shape forgets nothing.
+        cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
+        mbscope::modbus::transport::Exchange twice;
+        twice.sent = mb::encode_rtu(1, pdu(6, {7, 100}));
+        twice.received = twice.sent;
+        twice.received.insert(twice.received.end(), twice.sent.begin(), twice.sent.end());
+        twice.response = *mb::decode_rtu(twice.sent);
+        EXPECT_EQ(oracle.judge(twice).at(0).rule, "reply.duplicate");
+        EXPECT_FALSE(judge_rtu(oracle, 1, pdu(3, {9, 1}), {0x03, 0x04, 0, 0, 0, 0}).empty());
+        const auto v = judge_rtu(oracle, 1, pdu(3, {7, 1}), read_register(0));
+        ASSERT_EQ(v.size(), 1u);
+        EXPECT_EQ(v[0].rule, "state.lost_write");
+    }
+    {
         // A refusal settles it: the value acknowledged before must still read back.
         cf::ExchangeOracle oracle(Framing::Rtu, {{1, &p}}, false);
         EXPECT_TRUE(judge_rtu(oracle, 1, pdu(6, {7, 100}), pdu(6, {7, 100})).empty());
