@@ -128,15 +128,27 @@ std::optional<Timestamp> jpnevulator_header(std::string_view line, std::string_v
 }
 
 // "[%08lX\t]XX XX ...[padding\tASCII]": hexadecimal ("%02X") or binary (--base 2, eight digits) bytes.
+// A log pasted from a page or re-indented has spaces where jpnevulator wrote tabs: the offset is then eight
+// hex digits followed by two spaces or more, and the --ascii column is told by what it is, the rendering
+// of the line's bytes (a printable byte as itself, any other as '.'), not by where it stands.
 bool jpnevulator_bytes(std::string_view line, std::vector<std::uint8_t>& out) {
-    if (line.size() > 9 && line[8] == '\t' && std::all_of(line.begin(), line.begin() + 8, is_hex))
-        line.remove_prefix(9);  // --byte-count
+    const auto blank = [](char c) { return c == ' ' || c == '\t'; };
+    while (!line.empty() && blank(line.front()))
+        line.remove_prefix(1);
+    if (line.size() > 9 && std::all_of(line.begin(), line.begin() + 8, is_hex) &&
+        (line[8] == '\t' || (line[8] == ' ' && line[9] == ' '))) {
+        line.remove_prefix(8);  // --byte-count
+        while (!line.empty() && blank(line.front()))
+            line.remove_prefix(1);
+    }
     if (const auto tab = line.find('\t'); tab != std::string_view::npos)
         line = line.substr(0, tab);  // --ascii
-    else if (const auto gap = line.find("  "); gap != std::string_view::npos && gap > 0)
-        line = line.substr(0, gap);  // --ascii after the tab became spaces (a log pasted, or re-indented):
-                                     // the bytes stand one space apart, the column starts after more
+    while (!line.empty() && line.back() == ' ')
+        line.remove_suffix(1);
+    // The byte tokens from the start, each with where it begins; `rest` where the first other one begins.
     std::vector<std::uint8_t> got;
+    std::vector<std::size_t> starts;
+    std::size_t rest = line.size();
     for (std::size_t p = 0; p < line.size();) {
         if (line[p] == ' ') {
             ++p;
@@ -153,12 +165,34 @@ bool jpnevulator_bytes(std::string_view line, std::vector<std::uint8_t>& out) {
                 b = static_cast<std::uint8_t>(b * 2 + (c - '0'));
             got.push_back(b);
         } else {
-            return false;
+            rest = p;
+            break;
         }
+        starts.push_back(p);
         p = e;
     }
-    if (got.empty()) return false;
-    out.insert(out.end(), got.begin(), got.end());
+    // What follows the first k bytes is their --ascii column (which may itself look like bytes: "41 42 AB").
+    const auto column_after = [&](std::size_t k) {
+        const auto column = line.substr(starts[k]);
+        if (column.size() != k) return false;
+        for (std::size_t i = 0; i < k; ++i)
+            if (std::isprint(got[i]) ? column[i] != static_cast<char>(got[i]) : column[i] != '.')
+                return false;
+        return true;
+    };
+    std::size_t kept = got.size();
+    for (std::size_t k = 1; k < got.size(); ++k)
+        if (starts[k] > 0 && line[starts[k] - 1] == ' ' && column_after(k)) {
+            kept = k;
+            break;
+        }
+    if (kept == got.size() && rest < line.size()) {
+        // A token that is no byte: only the --ascii column of all the bytes before it may stand there.
+        starts.push_back(rest);
+        if (got.empty() || !column_after(got.size())) return false;
+    }
+    if (kept == 0) return false;
+    out.insert(out.end(), got.begin(), got.begin() + static_cast<std::ptrdiff_t>(kept));
     return true;
 }
 

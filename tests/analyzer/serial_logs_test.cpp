@@ -167,8 +167,9 @@ TEST(JpnevulatorLog, ByteCountBinaryControlAndAliasLinesAreRead) {
 }
 
 // --ascii's column after its tab became spaces (a log pasted from a page or re-indented, as the analyzer
-// README's own example): the bytes stand one space apart and the column begins after more. It was "not a
-// jpnevulator timestamp or data line", exit 2.
+// README's own example): it was "not a jpnevulator timestamp or data line", exit 2. The column is the
+// rendering of the line's bytes, whatever stands before it: padding, one space after sixteen bytes, an
+// offset followed by spaces (read as a binary byte before), an indentation.
 TEST(JpnevulatorLog, AnAsciiColumnAfterSpacesIsLeftAside) {
     const auto p = jpnevulator(
         "2026-11-30 06:22:57.009496: master\n"
@@ -179,10 +180,20 @@ TEST(JpnevulatorLog, AnAsciiColumnAfterSpacesIsLeftAside) {
     ASSERT_EQ(p.chunks.size(), 2u);
     EXPECT_EQ(p.chunks[0].bytes, fc3_request);
     EXPECT_EQ(p.chunks[1].bytes, fc3_response);
-    // A column of hex-looking characters is still the column, not bytes.
-    const auto hexlike = jpnevulator("2026-11-30 06:22:57.009496: M\n11 03  11 03\n");
-    ASSERT_EQ(hexlike.chunks.size(), 1u);
-    EXPECT_EQ(hexlike.chunks[0].bytes, bytes({0x11, 0x03}));
+    const auto full = jpnevulator(
+        "2026-11-30 06:22:57.009496: M\n"
+        "11 03 0C 41 42 43 44 45 46 47 48 49 4A 4B 4C 4D ...ABCDEFGHIJKLM\n"
+        "00000010        4E 4F                           NO\n"
+        "    41 42  AB\n"
+        "11 03  11 03\n");
+    ASSERT_TRUE(full.ok) << (full.errors.empty() ? "" : full.errors[0]);
+    ASSERT_EQ(full.chunks.size(), 1u);
+    EXPECT_EQ(full.chunks[0].bytes,
+              bytes({0x11, 0x03, 0x0C, 0x41, 0x42, 0x43, 0x44, 0x45, 0x46, 0x47, 0x48, 0x49,
+                     0x4A, 0x4B, 0x4C, 0x4D, 0x4E, 0x4F, 0x41, 0x42, 0x11, 0x03, 0x11, 0x03}));
+    // Something after the bytes that is not their column is no data line.
+    const auto bad = jpnevulator("2026-11-30 06:22:57.009496: M\n11 03  xyz\n");
+    EXPECT_FALSE(bad.ok);
 }
 
 TEST(JpnevulatorLog, BadLinesAreNamedAndTheRestRead) {
