@@ -77,7 +77,7 @@ std::vector<Semantics::SelectorUse> Semantics::selector_uses() const {
 
 const Profile* Semantics::profile_for(const std::string& server, std::uint8_t unit) const {
     const std::string host = server.substr(0, server.rfind(':'));
-    if (const auto it = moved_.find({host, unit}); it != moved_.end()) return it->second;
+    const auto moved = moved_.find({host, unit});
     std::size_t best = maps_.size();
     int best_score = -1;
     for (std::size_t i = 0; i < maps_.size(); ++i) {
@@ -90,6 +90,12 @@ const Profile* Semantics::profile_for(const std::string& server, std::uint8_t un
             best = i;
             best_score = score;
         }
+    }
+    // A device that moved here keeps its profile (follow_address); a selector naming its new place
+    // described it all the same, its note would say no request went there.
+    if (moved != moved_.end()) {
+        if (best != maps_.size()) uses_[best] = SelectorUse::Used;
+        return moved->second;
     }
     if (best == maps_.size()) return nullptr;
     uses_[best] = SelectorUse::Used;

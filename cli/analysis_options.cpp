@@ -1,5 +1,6 @@
 #include "cli/analysis_options.hpp"
 
+#include <algorithm>
 #include <iostream>
 
 #include "analyzer/csv_sink.hpp"
@@ -149,11 +150,20 @@ void report_unused_maps(const AnalysisCliOptions& o, const analyzer::AnalyzerOpt
         const std::string& m = o.maps[i];
         const std::string selector = m.substr(0, m.find('='));
         std::cerr << "mbscope " << command << ": note: --map " << m << " described no device: ";
+        const auto parsed = analyzer::parse_selector(selector);
         if (use == Use::Shadowed) {
-            std::cerr << "every device it matched took a more specific --map\n";
+            // The same selector given before wins the tie; else a more specific one took its devices.
+            const bool repeated =
+                parsed && std::any_of(o.maps.begin(), o.maps.begin() + static_cast<std::ptrdiff_t>(i),
+                                      [&](const std::string& earlier) {
+                                          const auto e =
+                                              analyzer::parse_selector(earlier.substr(0, earlier.find('=')));
+                                          return e && e->host == parsed->host && e->unit == parsed->unit;
+                                      });
+            std::cerr << (repeated ? "an earlier --map for the same devices took them\n"
+                                   : "every device it matched took a more specific --map\n");
             continue;
         }
-        const auto parsed = analyzer::parse_selector(selector);
         // Profiles are looked up by requests: replies alone (their requests not captured) name no profile.
         std::cerr << "no request in the input went to"
                   << (parsed && parsed->host ? " " + *parsed->host : std::string())

@@ -340,6 +340,19 @@ TEST(Semantics, EachSelectorSaysWhetherItDescribedADevice) {
     EXPECT_EQ(s.profile_for("10.0.0.4:502", 17), p.get());  // 17 alone
     EXPECT_EQ(s.profile_for("10.0.0.4:502", 1), nullptr);
     EXPECT_EQ(s.selector_uses(), (std::vector<Use>{Use::Used, Use::Used, Use::Unmatched, Use::Shadowed}));
+
+    // A device that moved to a unit a selector names keeps its profile there, and that selector described it.
+    mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) + "/profiles"});
+    auto mmk = store.load("mmk-2030");
+    ASSERT_TRUE(mmk);
+    an::Semantics moves;
+    auto profile = std::make_shared<const mb::Profile>(std::move(mmk.value()));
+    moves.add(*an::parse_selector("1"), profile);
+    moves.add(*an::parse_selector("5"), profile);
+    const auto write = mb::make_write_single_register(7, 5);
+    EXPECT_TRUE(moves.follow_address("serial line", "serial line unit 1", *profile, write, write));
+    EXPECT_EQ(moves.profile_for("serial line", 5), profile.get());
+    EXPECT_EQ(moves.selector_uses(), (std::vector<Use>{Use::Unmatched, Use::Used}));
 }
 
 // IPv6 devices are named "[2001:db8::2]:502 unit N" (RFC 5952, as tshark prints them): --map takes the

@@ -64,4 +64,11 @@ TEST(RepeatableOptions, AMapThatDescribedNoDeviceIsNoted) {
         << r.out;
     const auto used = run_mbscope("decode " + capture + " --summary --map 1=modbus");
     EXPECT_EQ(used.out.find("described no device"), std::string::npos) << used.out;
+    // The same selector twice: the first given wins, and the second is not said to be less specific.
+    const auto twice = run_mbscope("decode " + capture + " --summary --map 1=modbus --map 1=cth2265i");
+    EXPECT_NE(
+        twice.out.find("--map 1=cth2265i described no device: an earlier --map for the same devices took "
+                       "them"),
+        std::string::npos)
+        << twice.out;
 }
