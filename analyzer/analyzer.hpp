@@ -93,6 +93,8 @@ class Analyzer {
     // said now rather than at the next byte or packet, or at the end as "unanswered when the capture ended".
     // What was decoded so far is then written out (Sink::flush).
     void idle(modbus::Timestamp now);
+    // The latest time the input has shown (a packet's, or one idle() was told).
+    modbus::Timestamp latest_time() const noexcept { return now_; }
     // What was decoded so far, written out now (Sink::flush): an input that streams has gone quiet.
     void flush_output() { sink_.flush(); }
     // The character a serial source's line is read in now (speed, parity, data and stop bits): the line

@@ -1,5 +1,6 @@
 #include "analyzer/pcapng_end.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -14,7 +15,7 @@ constexpr std::uint32_t section_header_block = 0x0A0D0D0A;
 constexpr std::uint32_t interface_description_block = 1;
 constexpr std::uint32_t interface_statistics_block = 5;
 constexpr std::uint32_t byte_order_magic = 0x1A2B3C4D;
-constexpr std::uint16_t if_tsresol = 9, isb_endtime = 3;
+constexpr std::uint16_t if_tsresol = 9, if_tsoffset = 14, isb_endtime = 3;
 constexpr std::uint32_t largest_block_read = 1 << 20;  // interface and statistics blocks are small
 constexpr int blocks_walked = 4096;                    // interfaces at the start, statistics at the end
 
@@ -85,15 +86,20 @@ std::optional<modbus::Timestamp> in_nanoseconds(std::uint64_t ticks, std::uint8_
 
 }  // namespace
 
-std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path) {
+std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path, modbus::Timestamp last_packet) {
     Reader file(path);
     std::vector<std::uint8_t> b;
     if (!file.read(0, 12, b)) return std::nullopt;
     Section s;
     s.big_endian = s.u32(b, 8) != byte_order_magic;
     if (s.u32(b, 0) != section_header_block || s.u32(b, 8) != byte_order_magic) return std::nullopt;
-    // The interfaces' resolutions, from the blocks before the first packet (where writers put them).
-    std::vector<std::uint8_t> resolution;
+    // The interfaces' resolutions and offsets, from the blocks before the first packet (where writers put
+    // them).
+    struct Interface {
+        std::uint8_t resolution = 6;  // microseconds unless told
+        std::int64_t offset_s = 0;    // if_tsoffset: seconds added to every time of the interface
+    };
+    std::vector<Interface> interfaces;
     std::uint64_t at = 0;
     for (int n = 0; n < blocks_walked && file.read(at, 8, b); ++n) {
         const std::uint32_t type = s.u32(b, 0), length = s.u32(b, 4);
@@ -102,15 +108,30 @@ std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path) {
         if (type != section_header_block && type != interface_description_block) break;
         if (type == interface_description_block) {
             if (length > largest_block_read || !file.read(at, length, b) || length < 20) return std::nullopt;
-            std::uint8_t r = 6;  // microseconds unless told
+            Interface i;
             each_option(s, b, 16, [&](std::uint16_t code, std::size_t value, std::uint16_t size) {
-                if (code == if_tsresol && size == 1) r = b[value];
+                if (code == if_tsresol && size == 1) i.resolution = b[value];
+                if (code == if_tsoffset && size == 8)
+                    i.offset_s = static_cast<std::int64_t>(
+                        s.big_endian ? std::uint64_t{s.u32(b, value)} << 32 | s.u32(b, value + 4)
+                                     : std::uint64_t{s.u32(b, value + 4)} << 32 | s.u32(b, value));
             });
-            resolution.push_back(r);
+            interfaces.push_back(i);
         }
         at += length;
     }
-    if (resolution.empty()) return std::nullopt;
+    if (interfaces.empty()) return std::nullopt;
+    // An end is taken only where it can be one: not before the last packet, and within a day of it. Outside,
+    // the file says something else than its end (a resolution or offset misread, a section concatenated
+    // after the first with interfaces of its own) and the capture ends as before, at its last packet.
+    const auto plausible = [&](std::optional<modbus::Timestamp> t) {
+        return t && *t >= last_packet && *t - last_packet <= std::chrono::hours(24);
+    };
+    const auto at_offset = [](std::optional<modbus::Timestamp> t, std::int64_t offset_s) {
+        if (!t || offset_s > 10'000'000'000 || offset_s < -10'000'000'000)
+            return std::optional<modbus::Timestamp>{};
+        return std::optional<modbus::Timestamp>(*t + std::chrono::seconds(offset_s));
+    };
     // The statistics blocks at the end, walked back by their trailing lengths.
     std::optional<modbus::Timestamp> end;
     std::uint64_t to = file.size();
@@ -120,13 +141,18 @@ std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path) {
         if (!file.read(to - length, length, b) || s.u32(b, 4) != length) break;
         if (s.u32(b, 0) != interface_statistics_block) break;
         const std::uint32_t interface = s.u32(b, 8);
-        if (interface >= resolution.size()) return std::nullopt;
+        if (interface >= interfaces.size()) return std::nullopt;
         std::uint64_t ticks = std::uint64_t{s.u32(b, 12)} << 32 | s.u32(b, 16);
         each_option(s, b, 20, [&](std::uint16_t code, std::size_t value, std::uint16_t size) {
             if (code == isb_endtime && size == 8)
                 ticks = std::uint64_t{s.u32(b, value)} << 32 | s.u32(b, value + 4);
         });
-        if (const auto t = in_nanoseconds(ticks, resolution[interface]); t && (!end || *t > *end)) end = t;
+        const Interface& i = interfaces[interface];
+        auto t = at_offset(in_nanoseconds(ticks, i.resolution), i.offset_s);
+        // dumpcap (Wireshark 4.0) writes its statistics' times in microseconds, whatever if_tsresol its
+        // interfaces say: read so when the interface's own resolution gives no end the capture can have.
+        if (!plausible(t) && i.resolution != 6) t = at_offset(in_nanoseconds(ticks, 6), i.offset_s);
+        if (plausible(t) && (!end || *t > *end)) end = t;
         to -= length;
     }
     return end;

@@ -11,8 +11,10 @@
 namespace mbscope::analyzer {
 
 // The latest isb_endtime (or, without one, the block's own timestamp) of the Interface Statistics Blocks
-// that end the pcapng file at `path`, in each interface's if_tsresol; nullopt when the file is not pcapng,
-// cannot be read, does not end with such blocks, or its blocks do not make sense (nothing is guessed).
-std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path);
+// that end the pcapng file at `path`, in each interface's if_tsresol and if_tsoffset, taken only where it
+// can end a capture whose last packet was at `last_packet`: not before it, and within a day of it. nullopt
+// when the file is not pcapng, cannot be read, does not end with such blocks, or they give no such end
+// (nothing is guessed: the capture then ends at its last packet, as a file without them does).
+std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path, modbus::Timestamp last_packet);
 
 }  // namespace mbscope::analyzer

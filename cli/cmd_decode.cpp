@@ -100,14 +100,17 @@ int run_decode(const DecodeOptions& o) {
         };
     const bool all_read = analyzer::read_inputs(a, o.files, *format, logs, file_done);
     if (meter) meter->clear();
-    // pcapng files that say when their capture ended (dumpcap, sniff --write): time ran to then, so what
+    // pcapng files that say when their capture ended (sniff --write, dumpcap): time ran to then, so what
     // timed out before it is a timeout, as the live run said, not "unanswered when the capture ended". With
-    // several files, only when each says so, to the earliest end: every tap saw the line until then.
+    // several files, only when each says so, to the earliest end: every tap saw the line until then. Not
+    // when part of the input was not read: a reply in what was lost would be taken for none.
     std::optional<modbus::Timestamp> ended;
     for (const auto& f : o.files) {
         std::error_code ec;
-        const auto end =
-            std::filesystem::is_regular_file(f, ec) ? analyzer::pcapng_capture_end(f) : std::nullopt;
+        const bool whole = all_read && a.summary().input_errors.empty() && !a.summary().input_errors_unlisted;
+        const auto end = whole && std::filesystem::is_regular_file(f, ec)
+                             ? analyzer::pcapng_capture_end(f, a.latest_time())
+                             : std::nullopt;
         if (!end) {
             ended.reset();
             break;

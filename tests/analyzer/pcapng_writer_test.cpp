@@ -114,7 +114,7 @@ TEST(PcapngWriter, TheCapturesEndIsWrittenAndReadBack) {
         ASSERT_EQ(w.end_statistics(mb::Timestamp(1'700'000'005'250'000'001)), "");
         ASSERT_EQ(w.close(), "");
     }
-    EXPECT_EQ(an::pcapng_capture_end(path), mb::Timestamp(1'700'000'005'250'000'001));
+    EXPECT_EQ(an::pcapng_capture_end(path, packets.back().time), mb::Timestamp(1'700'000'005'250'000'001));
     std::string error;
     auto source = an::CaptureSource::open_file(path, error);
     ASSERT_TRUE(source) << error;
@@ -128,16 +128,17 @@ TEST(PcapngWriter, TheCapturesEndIsWrittenAndReadBack) {
         EXPECT_NE(out.find("exit 0"), std::string::npos) << out;
     }
 
-    EXPECT_FALSE(an::pcapng_capture_end(write_file("writer_no_end.pcapng", packets)));
-    EXPECT_FALSE(an::pcapng_capture_end(std::string(MBSCOPE_SOURCE_DIR) + "/captures/zeek-modbusSmall.pcap"));
-    EXPECT_FALSE(an::pcapng_capture_end(::testing::TempDir() + "no-such-file.pcapng"));
+    EXPECT_FALSE(an::pcapng_capture_end(write_file("writer_no_end.pcapng", packets), packets.back().time));
+    EXPECT_FALSE(an::pcapng_capture_end(std::string(MBSCOPE_SOURCE_DIR) + "/captures/zeek-modbusSmall.pcap",
+                                        mb::Timestamp(0)));
+    EXPECT_FALSE(an::pcapng_capture_end(::testing::TempDir() + "no-such-file.pcapng", mb::Timestamp(0)));
     // The last block's trailing length pointing before the file's interfaces: nothing guessed.
     std::string bytes = mbscope::test::slurp(path);
     bytes[bytes.size() - 4] = '\xFF';
     bytes[bytes.size() - 3] = '\xFF';
     const std::string damaged = ::testing::TempDir() + "writer_end_damaged.pcapng";
     std::ofstream(damaged, std::ios::binary) << bytes;
-    EXPECT_FALSE(an::pcapng_capture_end(damaged));
+    EXPECT_FALSE(an::pcapng_capture_end(damaged, packets.back().time));
 }
 
 // A microsecond interface (if_tsresol absent: 10^-6) in a big-endian section, as other writers make: the
@@ -157,7 +158,43 @@ TEST(PcapngWriter, AnEndInMicrosecondsOfABigEndianSectionIsRead) {
     be32(0), be32(40);
     const std::string path = ::testing::TempDir() + "writer_end_be.pcapng";
     std::ofstream(path, std::ios::binary) << f;
-    EXPECT_EQ(an::pcapng_capture_end(path), mb::Timestamp(1'700'000'003'000'000'000));
+    EXPECT_EQ(an::pcapng_capture_end(path, mb::Timestamp(1'700'000'002'000'000'000)),
+              mb::Timestamp(1'700'000'003'000'000'000));
+}
+
+// dumpcap (Wireshark 4.0) stamps its packets in nanoseconds (if_tsresol 9) and writes its statistics'
+// times in microseconds: read in the interface's resolution the end falls in 1970, before every packet, and
+// is read in microseconds instead, 3 s after the last packet of this capture of lo. An end that no reading
+// puts at or after the last packet, or that lies more than a day after it, is none.
+TEST(PcapngWriter, DumpcapsEndInMicrosecondsIsRead) {
+    const std::string dumpcap = std::string(MBSCOPE_SOURCE_DIR) + "/captures/dumpcap-lo-and-any.pcapng";
+    const mb::Timestamp last(1'796'479'478'169'385'721);  // capinfos: the last packet
+    EXPECT_EQ(an::pcapng_capture_end(dumpcap, last), mb::Timestamp(1'796'479'481'465'790'000));
+    EXPECT_FALSE(an::pcapng_capture_end(dumpcap, last + std::chrono::seconds(4)));
+    EXPECT_FALSE(an::pcapng_capture_end(dumpcap, last - std::chrono::hours(25)));
+}
+
+// if_tsoffset (seconds added to an interface's times, as libpcap and tshark add them to its packets')
+// applies to its end too.
+TEST(PcapngWriter, AnInterfacesOffsetAppliesToItsEnd) {
+    std::string f;
+    const auto le32 = [&f](std::uint32_t v) {
+        for (int i = 0; i < 4; ++i)
+            f.push_back(static_cast<char>(v >> (8 * i)));
+    };
+    le32(0x0A0D0D0A), le32(28), le32(0x1A2B3C4D), le32(0x00000001), le32(0xFFFFFFFF), le32(0xFFFFFFFF),
+        le32(28);
+    const std::uint64_t offset = 1'700'000'000;
+    le32(1), le32(36), le32(link_user0), le32(0);  // microseconds, if_tsoffset
+    le32(14 | 8 << 16), le32(static_cast<std::uint32_t>(offset)),
+        le32(static_cast<std::uint32_t>(offset >> 32));
+    le32(0), le32(36);
+    le32(5), le32(40), le32(0), le32(0), le32(0);  // statistics of interface 0: ended 3 s after the offset
+    le32(3 | 8 << 16), le32(0), le32(3'000'000), le32(0), le32(40);
+    const std::string path = ::testing::TempDir() + "writer_end_offset.pcapng";
+    std::ofstream(path, std::ios::binary) << f;
+    EXPECT_EQ(an::pcapng_capture_end(path, mb::Timestamp(1'700'000'001'000'000'000)),
+              mb::Timestamp(1'700'000'003'000'000'000));
 }
 
 TEST(PcapngWriter, ErrorsNameTheFileAndNeverCrash) {
