@@ -7,15 +7,13 @@
 #include <limits>
 #include <vector>
 
+#include "analyzer/pcapng_format.hpp"
+
 namespace mbscope::analyzer {
 
 namespace {
 
-constexpr std::uint32_t section_header_block = 0x0A0D0D0A;
-constexpr std::uint32_t interface_description_block = 1;
-constexpr std::uint32_t interface_statistics_block = 5;
-constexpr std::uint32_t byte_order_magic = 0x1A2B3C4D;
-constexpr std::uint16_t if_tsresol = 9, if_tsoffset = 14, isb_endtime = 3;
+using namespace pcapng;
 constexpr std::uint32_t largest_block_read = 1 << 20;  // interface and statistics blocks are small
 constexpr int blocks_walked = 4096;                    // interfaces at the start, statistics at the end
 

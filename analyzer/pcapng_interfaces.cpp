@@ -2,20 +2,17 @@
 
 #include <pcap/dlt.h>
 
+#include "analyzer/pcapng_format.hpp"
+
 #include <algorithm>
 #include <utility>
 
 namespace mbscope::analyzer {
 
 namespace {
-constexpr std::uint32_t section_header_block = 0x0A0D0D0A;  // the same read either way round
-constexpr std::uint32_t interface_description_block = 1;
-constexpr std::uint32_t obsolete_packet_block = 2;  // its interface in 16 bits
-constexpr std::uint32_t simple_packet_block = 3;    // on interface 0
-constexpr std::uint32_t enhanced_packet_block = 6;
+using namespace pcapng;
 constexpr std::uint8_t local_use_bit = 0x80;  // of a block type's most significant byte
-constexpr std::uint32_t byte_order_magic = 0x1A2B3C4D;
-constexpr std::uint32_t minimum_block = 12;  // type, total length, total length again
+constexpr std::uint32_t minimum_block = 12;   // type, total length, total length again
 constexpr std::uint32_t minimum_interface_block = 20;
 constexpr std::uint16_t linktype_raw = 101;  // pcapng's (and classic pcap's) raw IP
 }  // namespace

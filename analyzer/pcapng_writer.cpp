@@ -5,17 +5,13 @@
 #include <cstring>
 #include <limits>
 
+#include "analyzer/pcapng_format.hpp"
+
 namespace mbscope::analyzer {
 
 namespace {
 
-constexpr std::uint32_t section_header_block = 0x0A0D0D0A;
-constexpr std::uint32_t interface_description_block = 1;
-constexpr std::uint32_t enhanced_packet_block = 6;
-constexpr std::uint32_t interface_statistics_block = 5;
-constexpr std::uint16_t isb_endtime = 3;
-constexpr std::uint32_t byte_order_magic = 0x1A2B3C4D;
-constexpr std::uint16_t shb_userappl = 4, if_name = 2, if_tsresol = 9;
+using namespace pcapng;
 constexpr std::uint8_t nanoseconds = 9;  // if_tsresol: a power of ten, 10^-9 s
 // An Enhanced Packet Block's fixed part and trailing length, around the padded packet bytes.
 constexpr std::size_t epb_overhead = 32;
