@@ -510,7 +510,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         ~WriteOutcome() {
             if (!settled) oracle.forget_points_written(request);
         }
-    } write{*this, *r, !u || !r->decoded || !writes_points(r->pdu[0])};
+    } write_outcome{*this, *r, !u || !r->decoded || !writes_points(r->pdu[0])};
     const Expected e = expect(*r);
     if (!e.judged) return out;
     // The reply in words, only for a violation: most exchanges keep every rule, and describing one decodes
@@ -522,7 +522,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         e.silence && e.rule == "silence.listen_only" && u && !listen_only_.count(u->id);
 
     if (silent) {
-        if (e.silence && !state_changed.value_or(false)) write.settled = true;
+        if (e.silence && !state_changed.value_or(false)) write_outcome.settled = true;
         if (!e.silence && !e.silence_allowed) fail("reply.missing", "AP §4.1, SL §2.1", "a reply");
         if (is_listen_only_request) listen_only_.insert(u->id);
         // A restart that leaves listen-only mode is not answered (AP §6.8.1). Nothing else leaves it: not a
@@ -585,7 +585,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         if (state_changed.value_or(false))
             fail("state.changed_on_exception", "AP §7", "no change of the device's registers");
         else
-            write.settled = true;
+            write_outcome.settled = true;
         return out;
     }
     if (!e.normal) {
@@ -596,7 +596,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
     check_normal_shape(*r, *pdu, out);
     // An acknowledgement like the request settles it (a repeat or bytes after it do not unsettle the
     // write); one unlike it (another value, another quantity) leaves which values were stored unknown.
-    if (out.size() == before_shape) write.settled = true;
+    if (out.size() == before_shape) write_outcome.settled = true;
     // Values written with an acknowledgement read back as written.
     if (u && r->decoded) {
         const modbus::Pdu& req = *r->decoded;

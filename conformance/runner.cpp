@@ -102,14 +102,6 @@ void facts_from_profile(const modbus::Profile& p, TableFacts& f) {
     }
 }
 
-// The generic profile names no addresses: find how far the table reaches from 0 by bisection. Only a reply
-// tells: a normal one that the address is readable, an exception that it is not. A request lost on the way
-// (no reply, or one whose checksum is damaged or that is someone else's) is asked again; one that stays
-// unanswered makes the table's extent unknown and says so, rather than deleting the table (its rules skipped
-// as "no address in the map") or moving its end (a readable address failed as "past the end"). A reply that
-// arrived whole and is the device's own, of the read's function and no exception, answered: the address is
-// readable, and what is wrong inside the reply (a byte count unlike the quantity) is for the rules to fail.
-// Taken as unknown, every read rule was skipped and a device damaging every read passed.
 // The reply is the device's own and arrived whole (its checksum holds, its envelope is the request's), of
 // function `fc` and not an exception, whether or not its body decodes.
 bool answered_normally(const modbus::transport::Exchange& ex, std::uint8_t fc) {
@@ -118,6 +110,14 @@ bool answered_normally(const modbus::transport::Exchange& ex, std::uint8_t fc) {
     return !pdu.empty() && pdu[0] == fc;
 }
 
+// The generic profile names no addresses: find how far the table reaches from 0 by bisection. Only a reply
+// tells: a normal one that the address is readable, an exception that it is not. A request lost on the way
+// (no reply, or one whose checksum is damaged or that is someone else's) is asked again; one that stays
+// unanswered makes the table's extent unknown and says so, rather than deleting the table (its rules skipped
+// as "no address in the map") or moving its end (a readable address failed as "past the end"). A reply that
+// arrived whole and is the device's own, of the read's function and no exception, answered: the address is
+// readable, and what is wrong inside the reply (a byte count unlike the quantity) is for the rules to fail.
+// Taken as unknown, every read rule was skipped and a device damaging every read passed.
 void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f, const std::atomic<bool>* stop) {
     enum class Read : std::uint8_t { Yes, No, Unknown };
     const auto readable = [&](std::uint16_t a) {
