@@ -105,9 +105,9 @@ int run_decode(const DecodeOptions& o) {
     // several files, only when each says so, to the earliest end: every tap saw the line until then. Not
     // when part of the input was not read: a reply in what was lost would be taken for none.
     std::optional<modbus::Timestamp> ended;
+    const bool whole = all_read && a.summary().input_errors.empty() && !a.summary().input_errors_unlisted;
     for (const auto& f : o.files) {
         std::error_code ec;
-        const bool whole = all_read && a.summary().input_errors.empty() && !a.summary().input_errors_unlisted;
         const auto end = whole && std::filesystem::is_regular_file(f, ec)
                              ? analyzer::pcapng_capture_end(f, a.latest_time())
                              : std::nullopt;
