@@ -32,7 +32,8 @@ bool crc_ok(std::span<const std::uint8_t> frame) noexcept {
 // CRC checks; inside a longer reply a request's length may check too ("01 01 04 62 F2 02 58 45" is the
 // start of a read-coils reply and a whole FC1 request): a reply's own length, when its bytes say it and
 // their CRC checks, is preferred, and waited for while the line is not silent.
-Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silence, bool datagram) {
+Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silence, bool datagram,
+                std::optional<std::size_t> echo_length = std::nullopt) {
     switch (framing) {
         case Framing::Tcp: {
             if (datagram) return {0, bytes.size()};
@@ -52,6 +53,13 @@ Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silen
         case Framing::Rtu: {
             std::size_t head = 0;
             while (head < bytes.size()) {
+                // Diagnostics answers with the request's length (AP §6.8: sub-function 00 echoes any data,
+                // the others a word for the request's word), which its own bytes do not tell: taken first
+                // when its checksum holds there (a shorter prefix whose CRC happens to hold, or the two data
+                // bytes most sub-functions carry, cut a correct echo of 00's three data bytes "C1 83 57").
+                if (echo_length && bytes.size() - head >= *echo_length && bytes.size() - head >= 2 &&
+                    bytes[head + 1] == 0x08 && crc_ok(bytes.subspan(head, *echo_length)))
+                    return {head, head + *echo_length};
                 const auto step = rtu_step(bytes.subspan(head), silence, false);
                 if (step.kind == DeframeStep::Kind::Complete) {
                     const auto want = rtu_reply_length(bytes.subspan(head));
@@ -74,6 +82,12 @@ Span find_frame(Framing framing, std::span<const std::uint8_t> bytes, bool silen
         }
     }
     return {};
+}
+
+// An RTU Diagnostics request: its reply is as long as it is (find_frame).
+std::optional<std::size_t> diagnostics_reply_length(Framing framing, std::span<const std::uint8_t> sent) {
+    if (framing == Framing::Rtu && sent.size() >= 4 && sent[1] == 0x08) return sent.size();
+    return std::nullopt;
 }
 
 std::optional<Frame> decode(Framing framing, std::span<const std::uint8_t> bytes) {
@@ -232,7 +246,9 @@ bool same_frame(const Frame& a, const Frame& b) {
 // Frames are compared decoded: an ASCII frame's adu() is its binary form, not its characters.
 bool repeats_reply(const Frame& reply, std::span<const std::uint8_t> later) {
     // The bytes are all there is: the line is silent after them.
-    const Span s = find_frame(reply.framing, later, true, false);
+    const Span s =
+        find_frame(reply.framing, later, true, false,
+                   reply.framing == Framing::Rtu ? std::optional(reply.wire_length) : std::nullopt);
     if (s.end == 0 || s.begin != 0) return false;
     const auto again = decode(reply.framing, later.first(s.end));
     return again && same_frame(*again, reply);
@@ -244,7 +260,8 @@ bool repeats_response(const Exchange& ex) {
     // Frame by frame, as the scanner found them, up to the response: the copy must follow it.
     auto own = ex.own_received();
     while (!own.empty()) {
-        const Span s = find_frame(ex.response->framing, own, true, false);
+        const Span s = find_frame(ex.response->framing, own, true, false,
+                                  diagnostics_reply_length(ex.response->framing, ex.sent));
         if (s.end == 0) return false;
         const auto f = decode(ex.response->framing, own.subspan(s.begin, s.end - s.begin));
         own = own.subspan(s.end);
@@ -255,10 +272,11 @@ bool repeats_response(const Exchange& ex) {
 
 std::size_t ReplyScanner::scan(Exchange& ex, bool silence) {
     std::size_t found_now = 0;
+    const auto echo_length = diagnostics_reply_length(framing_, ex.sent);
     for (;;) {
         const std::span<const std::uint8_t> rest(ex.received.data() + scan_from_,
                                                  ex.received.size() - scan_from_);
-        const Span s = find_frame(framing_, rest, silence, datagram_);
+        const Span s = find_frame(framing_, rest, silence, datagram_, echo_length);
         if (s.end == 0) break;
         auto frame = decode(framing_, rest.subspan(s.begin, s.end - s.begin));
         scan_from_ += s.end;

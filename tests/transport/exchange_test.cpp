@@ -111,6 +111,27 @@ TEST(ReplyScanner, RtuTakesAReplysOwnLengthOverARequestShapedPrefix) {
     EXPECT_EQ(cut.response->wire_length, 8u);
 }
 
+// Diagnostics 00 echoes its request, data of any length: "01 08 00 00 C1 83 57" and its CRC. Its own bytes
+// do not say its length, and its first four with "C1 83" are a frame whose CRC holds: the reply was cut
+// there (or at the two data bytes most sub-functions carry) and a correct slave's echo failed as
+// reply.checksum in the network fuzzer. The request's length is the frame, and a copy of it a copy.
+TEST(ReplyScanner, RtuDiagnosticsReplyIsAsLongAsItsRequest) {
+    const std::vector<std::uint8_t> echo{0x01, 0x08, 0x00, 0x00, 0xC1, 0x83, 0x57, 0x7B, 0xBA};
+    for (const bool silence : {false, true}) {
+        Exchange ex;
+        ex.sent = echo;
+        append(ex, echo);
+        ReplyScanner scanner(Framing::Rtu, false, 1);
+        EXPECT_EQ(scanner.scan(ex, silence), 1u);
+        ASSERT_TRUE(ex.response.has_value());
+        EXPECT_EQ(ex.response->wire_length, echo.size());
+        EXPECT_TRUE(ex.response->checksum_ok);
+        EXPECT_FALSE(transport::repeats_response(ex));
+        append(ex, echo);
+        EXPECT_TRUE(transport::repeats_response(ex));
+    }
+}
+
 TEST(ReplyScanner, AsciiEndsAtCrLf) {
     Exchange ex;
     const auto text = encode_ascii(0x11, reply_pdu);
