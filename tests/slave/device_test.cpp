@@ -378,6 +378,27 @@ TEST(ServerRouting, RtuOverTcpEchoesReturnQueryDataOfAnyLength) {
     EXPECT_EQ(client.exchange("01 03 00 05 00 01 94 0B", 7), "01 03 02 00 00 B8 44");
 }
 
+// A request whose header gives a length no frame has (FC16, quantity 123, byte count 255: 264 bytes), sent
+// whole with its CRC right, is refused as over a serial port (exception 03, AP §6.12), not skipped byte by
+// byte until a frame whose CRC holds inside its data (here a read of register 5) is answered instead.
+TEST(ServerRouting, RtuOverTcpRefusesAFrameOfAnImpossibleLengthSentWhole) {
+    FaultSet faults;
+    Device device(profile("modbus"), 1, &faults);
+    ServedLine line({&device}, faults);
+    ASSERT_TRUE(line.opened());
+    Client client(line.port());
+    ASSERT_TRUE(client.connected());
+    std::vector<std::uint8_t> pdu{0x10, 0x00, 0x00, 0x00, 0x7B, 0xFF};
+    std::vector<std::uint8_t> data(246, 0);
+    const auto hidden = mb::encode_rtu(1, bytes("03 00 05 00 01"));
+    std::copy(hidden.begin(), hidden.end(), data.begin() + 68);
+    pdu.insert(pdu.end(), data.begin(), data.end());
+    const auto request = mb::encode_rtu(1, pdu);
+    ASSERT_EQ(request.size(), 255u);
+    EXPECT_EQ(client.exchange(hex(request), 5, silence), hex(mb::encode_rtu(1, bytes("90 03"))));
+    EXPECT_EQ(client.exchange("01 03 00 05 00 01 94 0B", 7), "01 03 02 00 00 B8 44");
+}
+
 // A profile whose address register is read-only (CTH2265I 3999, 003:599) is never moved.
 TEST(Device, AReadOnlyAddressRegisterMovesNothing) {
     Device device(profile("cth2265i"), 3);
