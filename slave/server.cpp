@@ -501,7 +501,7 @@ struct Server::Impl {
             // whole: on the line the silence after it ends it, its CRC holds and the device refuses it
             // (exception 03, as over a serial port). Skipped byte by byte, a frame whose CRC held by chance
             // inside its data was answered instead. All the bytes held, as crc_valid_prefix takes them.
-            if (rest.size() >= 4 && rest.size() <= modbus::max_rtu_adu_length && modbus::crc16(rest) == 0) {
+            if (crc_valid_prefix(rest) == rest.size()) {
                 if (auto f = modbus::decode_rtu(rest); f) on_frame(id, *f);
                 head = c.rtu.size();
                 break;

@@ -242,6 +242,15 @@ class ServedLine {
     std::thread thread_;
 };
 
+// The generic profile as unit 1 over rtu-tcp, and a client connected to it.
+struct GenericRtuTcpLine {
+    FaultSet faults;
+    Device device{profile("modbus"), 1, &faults};
+    ServedLine line{{&device}, faults};
+    Client client{line.port()};
+    bool ready() const { return line.opened() && client.connected(); }
+};
+
 // MK-ADR-01 (000:220): ENDER 0 disables communication — a unit configured at 0 on an MK profile answers
 // nothing and executes no broadcast, while the unit beside it on the same line does.
 TEST(ServerRouting, MK_ADR_01_UnitZeroConfiguredNeverCommunicates) {
@@ -357,12 +366,9 @@ TEST(ServerRouting, ABroadcastWriteThatCannotBeSavedIsTakenBack) {
 // its CRC closes it, whatever its bytes (these, with their CRCs computed by pymodbus, were never answered:
 // their first byte was dropped as garbage at the five-byte PDU's length), and the connection goes on.
 TEST(ServerRouting, RtuOverTcpEchoesReturnQueryDataOfAnyLength) {
-    FaultSet faults;
-    Device device(profile("modbus"), 1, &faults);
-    ServedLine line({&device}, faults);
-    ASSERT_TRUE(line.opened());
-    Client client(line.port());
-    ASSERT_TRUE(client.connected());
+    GenericRtuTcpLine served;
+    ASSERT_TRUE(served.ready());
+    Client& client = served.client;
     for (const char* request :
          {"01 08 00 00 83 80 7D 50 28 50 12 59 62 56 0E",
           "01 08 00 00 6B 4A 84 CB D9 45 76 58 A2 6A 4A 6B 85 6E",
@@ -382,12 +388,9 @@ TEST(ServerRouting, RtuOverTcpEchoesReturnQueryDataOfAnyLength) {
 // whole with its CRC right, is refused as over a serial port (exception 03, AP §6.12), not skipped byte by
 // byte until a frame whose CRC holds inside its data (here a read of register 5) is answered instead.
 TEST(ServerRouting, RtuOverTcpRefusesAFrameOfAnImpossibleLengthSentWhole) {
-    FaultSet faults;
-    Device device(profile("modbus"), 1, &faults);
-    ServedLine line({&device}, faults);
-    ASSERT_TRUE(line.opened());
-    Client client(line.port());
-    ASSERT_TRUE(client.connected());
+    GenericRtuTcpLine served;
+    ASSERT_TRUE(served.ready());
+    Client& client = served.client;
     std::vector<std::uint8_t> pdu{0x10, 0x00, 0x00, 0x00, 0x7B, 0xFF};
     std::vector<std::uint8_t> data(246, 0);
     const auto hidden = mb::encode_rtu(1, bytes("03 00 05 00 01"));
