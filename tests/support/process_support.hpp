@@ -85,10 +85,11 @@ class Child {
     bool spawned_ = false;
 };
 
-// Polls until `ready` holds, for at most five seconds.
+// Polls until `ready` holds, for at most thirty seconds: under ASan+UBSan, with the suite running two tests
+// at a time, a slave took more than five to print its pseudo-terminal. Only a failure waits that long.
 template <typename F>
 bool wait_for(F ready) {
-    for (int i = 0; i < 500; ++i) {
+    for (int i = 0; i < 3000; ++i) {
         if (ready()) return true;
         std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
