@@ -480,16 +480,25 @@ struct Server::Impl {
             const bool ended_damaged = step.kind == modbus::DeframeStep::Kind::Complete && !step.checksum_ok;
             const bool diagnostics = rest.size() >= 2 && rest[1] == 8 &&
                                      (step.kind != modbus::DeframeStep::Kind::Complete || ended_damaged);
-            const bool unsized = diagnostics || (step.kind == modbus::DeframeStep::Kind::Skip &&
-                                                 step.reason == modbus::UnparsedReason::UnknownFunction);
+            const std::size_t too_long = impossible_request_length(rest);
+            const bool unsized = diagnostics || too_long > 0 ||
+                                 (step.kind == modbus::DeframeStep::Kind::Skip &&
+                                  step.reason == modbus::UnparsedReason::UnknownFunction);
             if (unsized) {
                 if (const std::size_t n = crc_valid_prefix(rest); n > 0) {
                     if (auto f = modbus::decode_rtu(rest.first(n)); f) on_frame(id, *f);
                     head += n;
                     continue;
                 }
+                // Longer than any frame and whole by its CRC: dropped as one, as a serial port drops it.
+                if (too_long > 0 && rest.size() >= too_long && modbus::crc16(rest.first(too_long)) == 0) {
+                    ++stats.bad_frames;
+                    head += too_long;
+                    continue;
+                }
                 // Its CRC may still come.
-                if (!at_end && !ended_damaged && rest.size() < modbus::max_rtu_adu_length) break;
+                if (!at_end && !ended_damaged && rest.size() < std::max(too_long, modbus::max_rtu_adu_length))
+                    break;
             }
             if (step.kind == modbus::DeframeStep::Kind::NeedMore) break;
             if (step.kind == modbus::DeframeStep::Kind::Complete) {
@@ -497,10 +506,10 @@ struct Server::Impl {
                 head += step.length;
                 continue;
             }
-            // A frame whose header gives a length no frame has (FC16, quantity 123, byte count 255), sent
-            // whole: on the line the silence after it ends it, its CRC holds and the device refuses it
-            // (exception 03, as over a serial port). Skipped byte by byte, a frame whose CRC held by chance
-            // inside its data was answered instead. All the bytes held, as crc_valid_prefix takes them.
+            // Bytes the content cannot end as one frame but whose CRC holds over all of them (a frame longer
+            // than its header says), sent whole: on the line the silence after them ends them and the device
+            // refuses the frame (exception 03, as over a serial port). Skipped byte by byte, a frame whose
+            // CRC held by chance inside its data would be answered instead.
             if (crc_valid_prefix(rest) == rest.size()) {
                 if (auto f = modbus::decode_rtu(rest); f) on_frame(id, *f);
                 head = c.rtu.size();
@@ -510,6 +519,17 @@ struct Server::Impl {
             head += step.length ? step.length : 1;
         }
         c.rtu.erase(c.rtu.begin(), c.rtu.begin() + static_cast<long>(head));
+    }
+
+    // The length a request's header gives when no RTU frame is that long (FC16, quantity 123, byte count 255:
+    // 264 bytes), else 0. Its content cannot end such a frame, so the silence after it does, as for an
+    // unsized one: skipped as garbage while its bytes still came in over several segments, a frame whose CRC
+    // held inside its data was found and answered before the rest arrived.
+    static std::size_t impossible_request_length(std::span<const std::uint8_t> bytes) {
+        if (bytes.empty()) return 0;
+        const auto p = modbus::predict_pdu_length(bytes.subspan(1), modbus::Direction::Request);
+        const std::size_t adu = 1 + p.length + 2;
+        return p.kind == modbus::LengthPrediction::Kind::Known && adu > modbus::max_rtu_adu_length ? adu : 0;
     }
 
     // The length of a prefix of `bytes` (4 to 256 bytes) that ends in its own valid CRC, 0 if none: all the
