@@ -769,11 +769,10 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
         Pending old = std::move(it->second);
         pending_.erase(it);
         --flow.pending;
-        // Its reply may still come, from a slow unit, while the master waits on another: late then. (To
-        // the same unit again, a reply answers the new request.)
-        if (old.request.frame.unit_id() != r.frame.unit_id())
-            remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
-                               describe_request(old.request), r.index);
+        // Its reply may still come, from a slow unit, while the master waits on another: late then. To the
+        // same unit again, a reply answers the new request, unless only the old one's fits it (on_response).
+        remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
+                           describe_request(old.request), r.index);
         give_up(old, true,
                 {FindingCode::PairNoResponse,
                  "request to " + old.request.device.str() + " got no response before the next request"});
@@ -886,7 +885,19 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             const auto t = timed_out_.find({flow.id, late_id(r.frame)});
             return t != timed_out_.end() && could_answer(t->second.pending.request, r);
         }();
-    if ((it == pending_.end() || other_unit_waits || late_behind_reuse) && !timed_out_.empty()) {
+    // On a serial line the master asked the same unit again (other registers) before the reply to the first
+    // came: a reply whose size or echo fits only the first request is that one's, late, and the new request
+    // keeps waiting for its own. Before, it was paired with the new one (a size mismatch) and the new one's
+    // reply that followed was unsolicited: two errors against a device that was only slow.
+    const bool late_for_same_unit =
+        it != pending_.end() && r.frame.framing != Framing::Tcp && r.frame.checksum_ok && !other_unit_waits &&
+        !timed_out_.empty() && [&] {
+            const auto t = timed_out_.find({flow.id, late_id(r.frame)});
+            return t != timed_out_.end() && could_answer(t->second.pending.request, r) &&
+                   !could_answer(it->second.request, r);
+        }();
+    if ((it == pending_.end() || other_unit_waits || late_behind_reuse || late_for_same_unit) &&
+        !timed_out_.empty()) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
         // again (a poll's late reply on a serial line often carries the same bytes as the one before).
         if (auto late = late_for({flow.id, late_id(r.frame)})) {
@@ -1527,14 +1538,19 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
         // A master's retry after its own timeout (000:274) carries the unit and the function too: the very
         // bytes of the request waiting, decoding cleanly as a request and only with violations as a response
         // (an FC3 request read as a reply has byte count 0 and three bytes too many), are the retry, not a
-        // malformed reply. Only those bytes: a malformed reply can decode as some other request (a short FC3
-        // reply "11 03 04 00 00 01" reads as a request for register 1024), and is the device's fault to
-        // report. An echo (FC5, FC6, FC8) is both, and stays the reply.
+        // malformed reply. So is a request for other registers of that unit and function (a master polling
+        // blocks that moved on before the reply came): its bytes do not claim to answer the one waiting (a
+        // byte count the read does not need, another address and quantity than the write's). A malformed
+        // reply that does claim to (a short FC3 reply "11 03 04 00 00 01" to a read of 2 registers, which
+        // reads as a request for register 1024) is the device's fault to report. An echo (FC5, FC6, FC8) is
+        // both, and stays the reply.
         const FrameRecord& q = it->second.request;
         if (rsp_ok && frame.unit_id() == q.frame.unit_id() && q.pdu &&
             response->function_code() == q.pdu->function_code()) {
-            const bool retry = req_clean && !response->violations.empty() && frame.length == q.frame.length &&
-                               std::memcmp(frame.bytes.data(), q.frame.bytes.data(), frame.length) == 0;
+            const bool same_bytes = frame.length == q.frame.length &&
+                                    std::memcmp(frame.bytes.data(), q.frame.bytes.data(), frame.length) == 0;
+            const bool retry = req_clean && !response->violations.empty() &&
+                               (same_bytes || !reply_claims_to_answer(*q.pdu, pdu));
             return retry ? Direction::Request : Direction::Response;
         }
         return req_clean ? Direction::Request : (rsp_ok ? Direction::Response : Direction::Request);

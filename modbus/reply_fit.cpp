@@ -15,6 +15,15 @@ bool echoing_sub_function(std::uint16_t sub) {
     return sub == 0x00 || sub == 0x01 || sub == 0x03 || sub == 0x0A || sub == 0x14;
 }
 
+// What the reply to a multiple write echoes: its starting address and quantity (AP §6.11, §6.12).
+std::optional<WriteMultipleResponse> multiple_write_echo(const Pdu& request) {
+    if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&request.body))
+        return WriteMultipleResponse{c->starting_address, c->quantity};
+    if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&request.body))
+        return WriteMultipleResponse{w->starting_address, w->quantity};
+    return std::nullopt;
+}
+
 }  // namespace
 
 std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response) {
@@ -67,17 +76,9 @@ std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response)
         case 15:
         case 16: {
             const auto* a = std::get_if<WriteMultipleResponse>(&response.body);
-            std::uint16_t start = 0, quantity = 0;
-            if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&request.body)) {
-                start = c->starting_address;
-                quantity = c->quantity;
-            } else if (const auto* w = std::get_if<WriteMultipleRegistersRequest>(&request.body)) {
-                start = w->starting_address;
-                quantity = w->quantity;
-            } else {
-                return std::nullopt;
-            }
-            if (!a || a->starting_address != start || a->quantity != quantity)
+            const auto echo_due = multiple_write_echo(request);
+            if (!echo_due) return std::nullopt;
+            if (!a || *a != *echo_due)
                 return ReplyMisfit{Kind::Echo, "an echo of the request's starting address and quantity",
                                    "AP §6.11-6.12"};
             return std::nullopt;
@@ -85,6 +86,22 @@ std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response)
         default:
             return std::nullopt;
     }
+}
+
+bool reply_claims_to_answer(const Pdu& request, std::span<const std::uint8_t> reply_pdu) noexcept {
+    const auto word = [&](std::size_t at) {
+        return static_cast<std::uint16_t>(reply_pdu[at] << 8 | reply_pdu[at + 1]);
+    };
+    const auto byte_count_is = [&](std::size_t bytes) {
+        return reply_pdu.size() >= 2 && reply_pdu[1] == bytes;
+    };
+    if (const auto* read = std::get_if<ReadRequest>(&request.body))
+        return byte_count_is(request.function_code() <= 2 ? (read->quantity + 7u) / 8u : 2u * read->quantity);
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&request.body))
+        return byte_count_is(2u * rw->quantity_to_read);
+    const auto echo_due = multiple_write_echo(request);
+    if (!echo_due) return true;
+    return reply_pdu.size() >= 5 && word(1) == echo_due->starting_address && word(3) == echo_due->quantity;
 }
 
 }  // namespace mbscope::modbus

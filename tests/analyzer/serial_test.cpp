@@ -797,6 +797,58 @@ TEST(SerialInput, AMastersRetryBeforeOurTimeoutIsARequestNotAMalformedReply) {
     EXPECT_TRUE(echo->sink.findings.empty());
 }
 
+// A master polling several blocks of one unit moves on to the next block before the reply to the first came:
+// the new request (FC4 0+1 after 10+2, ASCII as RTU; FC16 to register 10 after one to 0) decodes as a reply
+// only with violations (byte count 0, or an FC16 reply too long) and does not claim to answer the one
+// waiting (a byte count the read does not need, another address than the write's). It was taken for a
+// malformed reply: made-up values, three errors against the device, the real reply "unsolicited".
+TEST(SerialInput, AMasterMovingOnToOtherRegistersOfTheSameUnitSendsARequest) {
+    for (const char* log : {"1.000 01 04 00 0A 00 02 51 C9\n1.300 01 04 00 00 00 01 31 CA\n"
+                            "1.320 01 04 02 00 05 79 33\n",
+                            "1.000 01 10 00 00 00 02 04 00 01 00 02 23 AE\n"
+                            "1.300 01 10 00 0A 00 01 02 00 07 E7 38\n1.320 01 10 00 0A 00 01 21 CB\n"}) {
+        SCOPED_TRACE(log);
+        auto r = decode(write_temp("blocks.txt", log));
+        ASSERT_EQ(r->sink.frames.size(), 3u);
+        EXPECT_EQ(r->sink.frames[1].direction, mb::Direction::Request);
+        ASSERT_EQ(r->sink.transactions.size(), 2u);
+        ASSERT_TRUE(r->sink.transactions[1].response.has_value());
+        EXPECT_EQ(r->sink.transactions[1].response->index, 3u);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
+        EXPECT_EQ(r->sink.findings.size(), 1u);
+        EXPECT_EQ(r->summary.devices.begin()->second.requests, 2u);
+    }
+    auto ascii =
+        decode(write_temp("blocks.ascii", ":0104000A0002EF\r\n:010400000001FA\r\n:0104020005F4\r\n"));
+    ASSERT_EQ(ascii->sink.frames.size(), 3u);
+    EXPECT_EQ(ascii->sink.frames[1].direction, mb::Direction::Request);
+    EXPECT_EQ(ascii->sink.count(mb::FindingCode::PairNoResponse), 1);
+    EXPECT_EQ(ascii->sink.findings.size(), 1u);
+}
+
+// The reply to the first block comes after the master asked for the second, with direction markers or
+// without: its size fits only the first request, so it is that one's, late, and the second keeps waiting
+// for its own reply. It was paired with the second (a size mismatch) and the second's reply was
+// "unsolicited": two errors against a device that was only slow.
+TEST(SerialInput, ALateReplyAfterTheMasterAskedTheSameUnitAgainIsTheFirstRequests) {
+    for (const char* log : {"1.000 > 01 03 00 00 00 01 84 0A\n1.300 > 01 03 00 0A 00 02 E4 09\n"
+                            "1.350 < 01 03 02 00 05 78 47\n1.400 < 01 03 04 00 01 00 02 2A 32\n",
+                            "1.000 01 03 00 00 00 01 84 0A\n1.300 01 03 00 0A 00 02 E4 09\n"
+                            "1.350 01 03 02 00 05 78 47\n1.400 01 03 04 00 01 00 02 2A 32\n"}) {
+        SCOPED_TRACE(log);
+        auto r = decode(write_temp("late-block.txt", log));
+        ASSERT_EQ(r->sink.frames.size(), 4u);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 1);
+        EXPECT_EQ(r->sink.findings.size(), 2u);
+        for (const auto& t : r->sink.transactions) {
+            if (!t.response) continue;
+            EXPECT_EQ(t.response->index, t.request.index == 1 ? 3u : 4u) << t.request.index;
+        }
+        EXPECT_EQ(r->summary.devices.begin()->second.responses, 1u);
+    }
+}
+
 // A reply nobody waits for, after bytes that formed no frame (a request cut short on the line): its request
 // may be among them. It was "the response of frame 1 again: one request answered twice", an error, when the
 // device polled twice gave the same answer, as an idle device does.
