@@ -19,12 +19,4 @@ std::vector<Register32> registers32(std::uint16_t starting_address, std::span<co
     return out;
 }
 
-std::string float_text(float f) {
-    if (std::isnan(f)) return "nan";
-    if (std::isinf(f)) return f < 0 ? "-inf" : "inf";
-    char buf[32];
-    auto [end, ec] = std::to_chars(buf, buf + sizeof buf, f);
-    return ec == std::errc() ? std::string(buf, end) : std::string("?");
-}
-
 }  // namespace mbscope::analyzer

@@ -18,7 +18,6 @@ namespace mbscope::analyzer {
 std::vector<Register32> registers32(std::uint16_t starting_address, std::span<const std::uint16_t> values,
                                     modbus::WordOrder order);
 
-// Shortest text that reads back as the same float ("1.5", "nan", "-inf").
-std::string float_text(float f);
+using modbus::float_text;
 
 }  // namespace mbscope::analyzer

@@ -323,6 +323,14 @@ const Point* Profile::find(Table t, std::uint16_t address) const noexcept {
     return nullptr;
 }
 
+std::string float_text(float f) {
+    if (std::isnan(f)) return "nan";
+    if (std::isinf(f)) return f < 0 ? "-inf" : "inf";
+    char buf[32];
+    auto [end, ec] = std::to_chars(buf, buf + sizeof buf, f);
+    return ec == std::errc() ? std::string(buf, end) : std::string("?");
+}
+
 namespace {
 
 std::string format_number(double v, int decimals) {
@@ -428,10 +436,13 @@ double value_32(const Encoding& e, std::uint16_t first, std::uint16_t second) {
     return u;
 }
 
-// A value no encoding put into words is shown as its number. A partial one has no number: its text says
-// what the word is, and a reader of the JSON must not take one half of a float, or a value not yet
-// scaled, for the value.
+// A value no encoding put into words is shown as its number, a float as the shortest text that reads back
+// as it (three decimals made 0.000123 "0.000", a measurement not told from zero, and 1.2345679 "1.235"). A
+// partial one has no number: its text says what the word is, and a reader of the JSON must not take one
+// half of a float, or a value not yet scaled, for the value.
 NamedValue with_text(NamedValue v) {
+    if (v.text.empty() && v.number && v.point && v.point->encoding.type == EncodingType::F32)
+        v.text = float_text(static_cast<float>(*v.number));
     if (v.text.empty() && v.number)
         v.text = format_number(*v.number, std::floor(*v.number) == *v.number ? 0 : 3);
     if (v.partial) v.number.reset();
@@ -577,11 +588,22 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 break;
             }
             case EncodingType::Bits: {
+                // Bits the manual names by their names; one it does not name (Walchem packs its fields in
+                // the low byte, 002:440-443) by its number: said "none", a field with bit 8 set read as
+                // "no alarm".
                 v.number = w;
                 std::string names;
+                std::uint16_t named = 0;
                 for (const auto& b : e.bits)
-                    if ((w >> b.bit) & 1u)
-                        names += (names.empty() ? "" : ", ") + (b.name_en.empty() ? b.name : b.name_en);
+                    if (b.bit < 16) {
+                        named |= static_cast<std::uint16_t>(1u << b.bit);
+                        if ((w >> b.bit) & 1u)
+                            names += (names.empty() ? "" : ", ") + (b.name_en.empty() ? b.name : b.name_en);
+                    }
+                for (int bit = 0; bit < 16; ++bit)
+                    if ((w & ~named) >> bit & 1u)
+                        names += (names.empty() ? "" : ", ") +
+                                 ("bit " + std::to_string(bit) + " (not in the map)");
                 v.text = names.empty() ? "none" : names;
                 break;
             }
@@ -724,8 +746,10 @@ std::optional<WriteRejection> check_writes(
             if (!std::isfinite(v))  // a float's NaN or infinity
                 return WriteRejection{exception_for(profile, "bad_value", 3), address,
                                       "value is not a finite number"};
-            const std::string shown =
-                e.type == EncodingType::F32 ? format_limit(v) : std::to_string(static_cast<std::int64_t>(v));
+            // A float in full: six digits made 90.0000076 "90", "above maximum 90".
+            const std::string shown = e.type == EncodingType::F32
+                                          ? float_text(static_cast<float>(v))
+                                          : std::to_string(static_cast<std::int64_t>(v));
             if (auto r = check_range(profile, *p, address, v, shown)) return r;
             if (whole) ++i;
             continue;

@@ -310,6 +310,9 @@ LineState held_line_settings(const Profile& profile, const std::function<std::ui
 // Sets in `state` the setting a mirrored point's code means (mirrored_meaning's "ascii", "9600", "even").
 void take_meaning(LineState& state, LineSetting setting, const std::string& means);
 
+// Shortest text that reads back as the same float ("1.5", "0.000123", "1e-10", "nan", "-inf").
+std::string float_text(float f);
+
 // Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.
 // `context` supplies registers outside the block (decimal-point registers), may be empty. Words past address
 // 65535 get no value (they are not wrapped round to address 0).

@@ -616,7 +616,7 @@ TEST(Semantics, AReadOfAnAlternativeMapIsNamedByItsObjects) {
     ASSERT_NE(v[0].point, nullptr);
     EXPECT_NE(v[0].point->name.find("Sensor 1 (sensor-1-1): Valor primário"), std::string::npos)
         << v[0].point->name;
-    EXPECT_EQ(v[0].text, "7.500");
+    EXPECT_EQ(v[0].text, "7.5");
     const auto second = std::find_if(v.begin(), v.end(), [](const auto& x) { return x.address == 9218; });
     ASSERT_NE(second, v.end());
     ASSERT_NE(second->point, nullptr);

@@ -120,3 +120,32 @@ TEST(MkValues, ATotalTakesTheDecimalPointOfItsTotalization) {
         EXPECT_EQ(v[0].number, std::nullopt);
     }
 }
+
+// Walchem's float32 values (002:455-462, low word first) in full: three decimals made 0.000123, 1e-10 and
+// the smallest normal float "0.000", a measurement not told from zero, and 1.2345679 "1.235".
+TEST(WalchemValues, AFloatIsShownInFull) {
+    const auto& p = bundled("walchem-w600");
+    const auto text = [&](std::uint16_t low, std::uint16_t high) {
+        const auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 576, {low, high});
+        return v.empty() ? std::string() : v[0].text;
+    };
+    EXPECT_EQ(text(0xF990, 0x3900), "0.000123");
+    EXPECT_EQ(text(0xE6FF, 0x2EDB), "1e-10");
+    EXPECT_EQ(text(0x0000, 0x0080), "1.1754944e-38");
+    EXPECT_EQ(text(0x0652, 0x3F9E), "1.2345679");
+    EXPECT_EQ(text(0x0000, 0x3FC0), "1.5");
+    EXPECT_EQ(text(0x0000, 0x7FC0), "nan");
+    // A write just above the range says by how much: "value 90 above maximum 90" contradicted itself.
+    const auto refused = mb::check_writes(p, mb::Table::HoldingRegisters, 588, {0x0001, 0x42B4});
+    ASSERT_TRUE(refused.has_value());
+    EXPECT_EQ(refused->reason, "value 90.00001 above maximum 90");
+}
+
+// An alarm bit field with a bit the manual does not name set (the fields are 8 bits, 002:440-443) is not
+// "none": that read as "no alarm" with a bit set.
+TEST(WalchemValues, ABitTheMapDoesNotNameIsShownByItsNumber) {
+    EXPECT_EQ(one("walchem-w600", 611, 0x0000).text, "none");
+    EXPECT_EQ(one("walchem-w600", 611, 0x0100).text, "bit 8 (not in the map)");
+    EXPECT_EQ(one("walchem-w600", 611, 0x0101).text, "low, bit 8 (not in the map)");
+    EXPECT_EQ(one("walchem-w600", 71, 0x8000).text, "bit 15 (not in the map)");
+}
