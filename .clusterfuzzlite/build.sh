@@ -5,7 +5,14 @@
 # ($OUT/profiles, where the targets look first after $MBSCOPE_PROFILE_PATH).
 # Also run by the project's own test command with local values (scripts/run.sh), so it cannot rot.
 # Build type None: the contract's flags alone decide optimisation and debug information (fuzz/README.md).
-SRC_DIR=${SRC_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
+# The source tree: the one this script sits in (.clusterfuzzlite/build.sh, as the test command runs it), else
+# the working directory, where the image's Dockerfile copies the tree and from where OSS-Fuzz runs the script
+# copied to $SRC/build.sh (its parent is no source tree).
+here=$(cd "$(dirname "$0")/.." && pwd)
+if [ -z "${SRC_DIR:-}" ]; then
+  if [ -f "$here/CMakeLists.txt" ] && [ -f "$here/.clusterfuzzlite/build.sh" ]; then SRC_DIR=$here; else SRC_DIR=$PWD; fi
+fi
+[ -f "$SRC_DIR/CMakeLists.txt" ] || { echo "build.sh: no source tree at $SRC_DIR (set SRC_DIR)" >&2; exit 1; }
 BUILD=${WORK:-/tmp}/mbscope-fuzz-build
 
 cmake -S "$SRC_DIR" -B "$BUILD" \

@@ -1,14 +1,21 @@
 #!/usr/bin/env bash
 # Fuzz smoke: every target for a bounded time from its seed corpus (a copy: the checked-in corpus is not
 # touched), with its dictionary, failing on any crash, leak, timeout or oracle violation. Two targets run at a
-# time. Usage: fuzz/smoke.sh DIR [SECONDS_PER_TARGET], DIR holding fuzz_<name> and fuzz_<name>.dict: the $OUT
-# of .clusterfuzzlite/build.sh, or build/fuzz/fuzz of the `fuzz` preset. With $OUT, the files the build
-# contract promises are checked first: every target of fuzz/CMakeLists.txt, its dictionary, its seed corpus
-# archive, and the profiles.
+# time. Usage: fuzz/smoke.sh [--out] DIR [SECONDS_PER_TARGET], DIR holding fuzz_<name> and fuzz_<name>.dict:
+# build/fuzz/fuzz of the `fuzz` preset, or with --out the $OUT of .clusterfuzzlite/build.sh, whose promised
+# files are checked first: every target of fuzz/CMakeLists.txt, its dictionary, its seed corpus archive, its
+# options where fuzz/ has them, and the profiles. DIR is taken from the working directory.
 set -uo pipefail
-cd "$(dirname "$0")/.."
-dir=${1:?usage: fuzz/smoke.sh DIR [SECONDS]}
+usage="usage: fuzz/smoke.sh [--out] DIR [SECONDS]"
+contract=0
+case "${1:-}" in
+  -h|--help) echo "$usage"; exit 0 ;;
+  --out) contract=1; shift ;;
+esac
+[ $# -ge 1 ] || { echo "$usage" >&2; exit 2; }
+dir=$(cd "$1" 2>/dev/null && pwd) || { echo "fuzz/smoke.sh: no directory $1" >&2; exit 2; }
 seconds=${2:-15}
+cd "$(dirname "$0")/.."
 # A fixed seed: the smoke explores the same inputs on every run (as far as the time allows), so a red CI
 # run is a reproducible one. New ground is the continuous fuzzing's job (ClusterFuzzLite, -fork locally).
 seed=${MBSCOPE_FUZZ_SEED:-1}
@@ -57,11 +64,20 @@ for t in $targets; do
   for f in "fuzz_$t" "fuzz_$t.dict"; do
     [ -e "$dir/$f" ] || { echo "missing: $dir/$f" >&2; missing=1; }
   done
-  if [ -d "$dir/profiles" ] && [ -d "corpus/$t" ] && [ ! -s "$dir/fuzz_${t}_seed_corpus.zip" ]; then
+  [ $contract -eq 1 ] || continue
+  if [ -d "corpus/$t" ] && [ ! -s "$dir/fuzz_${t}_seed_corpus.zip" ]; then
     echo "missing: $dir/fuzz_${t}_seed_corpus.zip" >&2
     missing=1
   fi
+  if [ -f "fuzz/$t.options" ] && [ ! -f "$dir/fuzz_$t.options" ]; then
+    echo "missing: $dir/fuzz_$t.options" >&2
+    missing=1
+  fi
 done
+if [ $contract -eq 1 ] && [ ! -f "$dir/profiles/modbus.json" ]; then
+  echo "missing: $dir/profiles (the bundled device profiles)" >&2
+  missing=1
+fi
 [ $missing -eq 0 ] || exit 2
 failed=0
 set -- $targets

@@ -37,12 +37,15 @@ slave_demo() {
 
 # The fuzz targets built through the ClusterFuzzLite contract (.clusterfuzzlite/build.sh) with clang and
 # local values, then each run briefly from its seed corpus: fails on a crash, leak, timeout or oracle violation.
+# build.sh is run as the image runs it (.clusterfuzzlite/Dockerfile): copied to $SRC/build.sh, from the tree.
 fuzz_smoke() {
   local flags="-O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined,fuzzer-no-link -fno-sanitize-recover=all"
-  rm -rf build/fuzz-out
+  rm -rf build/fuzz-out build/fuzz-src
+  mkdir -p build/fuzz-src
+  cp .clusterfuzzlite/build.sh build/fuzz-src/build.sh
   CC=clang CXX=clang++ CFLAGS="$flags" CXXFLAGS="$flags" LIB_FUZZING_ENGINE=-fsanitize=fuzzer \
-    OUT="$PWD/build/fuzz-out" WORK="$PWD/build" bash .clusterfuzzlite/build.sh
-  bash fuzz/smoke.sh build/fuzz-out "${MBSCOPE_FUZZ_SECONDS:-8}"
+    SRC="$PWD/build/fuzz-src" OUT="$PWD/build/fuzz-out" WORK="$PWD/build" bash -eu build/fuzz-src/build.sh
+  bash fuzz/smoke.sh --out build/fuzz-out "${MBSCOPE_FUZZ_SECONDS:-8}"
 }
 
 case "${1:-demo}" in
