@@ -150,7 +150,8 @@ void register_check(CLI::App& app, int& exit_code) {
         app.add_subcommand("check", "Certify a slave against the Modbus specification and its manual");
     cmd->footer(
         "Targets: tcp://HOST:PORT  udp://HOST:PORT  rtu-tcp://HOST:PORT  ascii-tcp://HOST:PORT\n"
-        "         rtu:DEVICE?baud=9600&parity=E&stop=1   ascii:DEVICE?...\n"
+        "         'rtu:DEVICE?baud=9600&parity=E&stop=1'   'ascii:DEVICE?...'   (quoted: ? and & are the "
+        "shell's)\n"
         "Every value the run writes is read first and written back once the rules that write are done\n"
         "(again at the end, also on Ctrl-C); the report lists each point and whether it was restored.\n"
         "Rules the manual only implies, and what this host cannot judge surely (pauses it times, frames\n"

@@ -180,7 +180,8 @@ void register_fuzz(CLI::App& app, int& exit_code) {
         "fuzz", "Fuzz a slave over any transport, judged by the Modbus rules and its manual");
     cmd->footer(
         "Targets: tcp://HOST:PORT  udp://HOST:PORT  rtu-tcp://HOST:PORT  ascii-tcp://HOST:PORT\n"
-        "         rtu:DEVICE?baud=9600&parity=E&stop=1   ascii:DEVICE?...\n"
+        "         'rtu:DEVICE?baud=9600&parity=E&stop=1'   'ascii:DEVICE?...'   (quoted: ? and & are the "
+        "shell's)\n"
         "Requests are made from the grammar and the profile's map (boundaries, quantities, byte counts, "
         "MBAP\n"
         "fields, checksums, split frames; FC 23, 20, 21, 43 and 8 drawn more often) and mutated where they\n"

@@ -239,8 +239,8 @@ void register_slave(CLI::App& app, int& exit_code) {
     cmd->footer(
         "Endpoints:\n"
         "  tcp://HOST:PORT  udp://HOST:PORT  rtu-tcp://HOST:PORT  ascii-tcp://HOST:PORT\n"
-        "  rtu:DEVICE?baud=9600&parity=E&stop=1   ascii:DEVICE?...   (--pty: rtu:pty creates a "
-        "pseudo-terminal)\n"
+        "  'rtu:DEVICE?baud=9600&parity=E&stop=1'   'ascii:DEVICE?...'   (quoted: ? and & are the shell's;\n"
+        "  --pty: rtu:pty creates a pseudo-terminal)\n"
         "The address clients connect to is printed on stdout (the real port when PORT is 0, the pty's "
         "path);\nfor a serial one, standard error also gives the --target that check, fuzz and replay "
         "take.\n\n"
