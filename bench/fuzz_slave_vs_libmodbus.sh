@@ -10,7 +10,12 @@
 # .clusterfuzzlite/build.sh. Needs clang and libmodbus-dev.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-dir=${1:?usage: bench/fuzz_slave_vs_libmodbus.sh FUZZ_DIR [SECONDS] [ROUNDS]}
+usage="usage: bench/fuzz_slave_vs_libmodbus.sh FUZZ_DIR [SECONDS] [ROUNDS]"
+case "${1:-}" in -h|--help) echo "$usage"; exit 0 ;; "") echo "$usage" >&2; exit 2 ;; esac
+dir=$(cd "$1" 2>/dev/null && pwd) || { echo "bench/fuzz_slave_vs_libmodbus.sh: no directory $1" >&2; exit 2; }
+for f in fuzz_slave fuzz_slave.dict fuzz_slave_request fuzz_slave_request.dict; do
+  [ -e "$dir/$f" ] || { echo "bench/fuzz_slave_vs_libmodbus.sh: $dir has no $f" >&2; exit 2; }
+done
 seconds=${2:-8}
 rounds=${3:-2}
 work=$(mktemp -d -p /dev/shm 2>/dev/null || mktemp -d)
@@ -22,24 +27,30 @@ flags="-O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined,fuzzer -fno-s
 clang $flags $(pkg-config --cflags libmodbus) bench/libmodbus_fuzz_server.c $(pkg-config --libs libmodbus) \
   -lpthread -o "$work/libmodbus_fuzz_server"
 
-run() {  # run NAME BINARY CORPUS DICT [MAX_LEN]: prints "exec/s requests"
+# run NAME BINARY CORPUS DICT [MAX_LEN]: writes "exec/s requests" to $work/NAME.result; a target that fails
+# stops the script (in the shell itself, not in a process substitution, whose exit went unseen: the script
+# printed 0 exec/s and exited 0).
+run() {
   rm -rf "$work/corpus" && mkdir -p "$work/corpus" && cp -r "$3/." "$work/corpus/"
   MBSCOPE_FUZZ_STATS=1 "$2" "$work/corpus" -dict="$4" -max_total_time="$seconds" -seed=1 -max_len="${5:-65536}" \
-    -print_final_stats=1 >"$work/$1.log" 2>&1 || { echo "$1 failed:"; tail -5 "$work/$1.log"; exit 1; }
+    -print_final_stats=1 >"$work/$1.log" 2>&1 || { echo "$1 failed:" >&2; tail -5 "$work/$1.log" >&2; exit 1; }
   local rate requests
   rate=$(sed -n 's/^stat::average_exec_per_sec: *\([0-9]*\)/\1/p' "$work/$1.log" | tail -1)
   requests=$(sed -n 's/^fuzz_slave: requests handled: \([0-9]*\)/\1/p' "$work/$1.log" | tail -1)
-  echo "${rate:-0} ${requests:-}"
+  [ -n "$rate" ] || { echo "$1: no exec/s in its log" >&2; exit 1; }
+  echo "$rate ${requests:-}" >"$work/$1.result"
 }
 
 echo "fuzz_slave and fuzz_slave_request against a libmodbus receive-and-reply harness, $seconds s each, $(nproc) cores"
 # fuzz_slave_request's bound on its input, as the smoke and ClusterFuzzLite read it.
 one_max_len=$(sed -n 's/^max_len *= *\([0-9]*\)/\1/p' fuzz/slave_request.options)
 for ((r = 1; r <= rounds; ++r)); do
-  read -r ours requests < <(run slave "$dir/fuzz_slave" corpus/slave "$dir/fuzz_slave.dict")
-  read -r one _ < <(run slave_request "$dir/fuzz_slave_request" corpus/slave_request "$dir/fuzz_slave_request.dict" \
-    "$one_max_len")
-  read -r theirs _ < <(run libmodbus "$work/libmodbus_fuzz_server" corpus/libmodbus_diff fuzz/modbus_tcp.dict)
+  run slave "$dir/fuzz_slave" corpus/slave "$dir/fuzz_slave.dict"
+  run slave_request "$dir/fuzz_slave_request" corpus/slave_request "$dir/fuzz_slave_request.dict" "$one_max_len"
+  run libmodbus "$work/libmodbus_fuzz_server" corpus/libmodbus_diff fuzz/modbus_tcp.dict
+  read -r ours requests <"$work/slave.result"
+  read -r one _ <"$work/slave_request.result"
+  read -r theirs _ <"$work/libmodbus.result"
   runs=$(grep -o 'Done [0-9]* runs' "$work/slave.log" | grep -o '[0-9]*' | head -1)
   awk -v o="$ours" -v one="$one" -v t="$theirs" -v q="$requests" -v n="$runs" -v r="$r" 'BEGIN {
     per = (n > 0) ? q / n : 0
