@@ -380,9 +380,14 @@ int run_lookup(const ProfileOptions& o) {
               << "  encoding  " << to_string(pt->encoding.type) << '\n';
     if (auto r = range_of(*pt); !r.empty()) std::cout << "  range     " << r << '\n';
     for (const auto& v : pt->encoding.values)
-        std::cout << "    " << v.value << " = " << v.text << '\n';
+        std::cout << "    " << v.value << " = " << v.text
+                  << (v.forbidden ? " (not allowed: refused when written)" : "") << '\n';
     if (!pt->unit.empty()) std::cout << "  unit      " << pt->unit << '\n';
     std::cout << "  source    " << pt->source << '\n';
+    // A row the manual does not print, made up from its neighbours: said before anything is taken from it.
+    if (pt->reconstructed)
+        std::cout << "  reconstructed, not printed in the manual"
+                  << (pt->reconstructed_why.empty() ? "" : ": " + pt->reconstructed_why) << '\n';
     for (const auto& n : pt->notes)
         std::cout << "  note      " << n << '\n';
     return exit_ok;

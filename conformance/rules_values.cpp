@@ -130,6 +130,30 @@ void check_values(Context& c) {
                       r, write(*p, static_cast<std::uint16_t>(unlisted), "a value the enumeration lacks"), 6,
                       bad_value);
               });
+        // Values the manual lists and marks as not allowed ("não permitido", 000:1097).
+        std::vector<const modbus::EnumValue*> forbidden;
+        std::string which;
+        for (const auto& v : p->encoding.values)
+            if (v.forbidden && v.value >= 0 && v.value <= 65535) {
+                forbidden.push_back(&v);
+                which += (which.empty() ? "" : ", ") + std::to_string(v.value);
+            }
+        if (forbidden.empty()) continue;
+        c.run({"value.hr" + std::to_string(p->address) + ".forbidden", "values and access",
+               p->source.empty() ? c.profile.source : p->source,
+               "Register " + point_label(*p) + " refuses " + which +
+                   ", which the manual lists as not allowed, with " + exception_text(bad_value) + ".",
+               value_authority, true},
+              [&](RuleResult& r) {
+                  if (!remember(r, *p)) return;
+                  r.expected = exception_text(bad_value) + " to each";
+                  r.outcome = Outcome::Pass;
+                  for (const modbus::EnumValue* v : forbidden) {
+                      const auto e = write(*p, static_cast<std::uint16_t>(v->value), "a value not allowed");
+                      r.observed += (r.observed.empty() ? "" : "; ") + describe(e);
+                      if (!is_exception(e, 6, bad_value)) r.outcome = Outcome::Fail;
+                  }
+              });
     }
     const auto read_only_code = modbus::exception_for(c.profile, "write_read_only", 0x02);
     for (const modbus::Point* p : spread(read_only, 8)) {

@@ -669,12 +669,15 @@ std::optional<WriteRejection> check_word(const Profile& profile, const Point& p,
     const bool is_signed = e.type == EncodingType::S16 || e.is_signed;
     const std::int64_t v = is_signed ? static_cast<std::int16_t>(value) : value;
     if (e.type == EncodingType::Enum && !e.values.empty()) {
-        bool listed = false;
-        for (const auto& ev : e.values)
-            listed |= ev.value == v;
-        if (!listed)
+        const auto it = std::find_if(e.values.begin(), e.values.end(),
+                                     [&](const EnumValue& ev) { return ev.value == v; });
+        if (it == e.values.end())
             return WriteRejection{exception_for(profile, "bad_value", 3), address,
                                   "value " + std::to_string(v) + " not among the enumeration's values"};
+        if (it->forbidden)
+            return WriteRejection{
+                exception_for(profile, "bad_value", 3), address,
+                "value " + std::to_string(v) + " is one the manual does not allow (\"" + it->text + "\")"};
     }
     // Two 8-bit fields whose values the map lists apply them to each byte (CTH2265I's alarm types, 0 to 4 in
     // each, 003:621): a byte outside them is a value out of range (003:574: exception 03).

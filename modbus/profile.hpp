@@ -67,6 +67,9 @@ struct EnumValue {
     // On a point that mirrors a line setting, the setting this code stands for: "rtu" or "ascii", a baud
     // rate ("9600"), "none", "even" or "odd".
     std::string means;
+    // Listed by the manual as a value the register does not take ("não permitido", DCY-2050 Light's input
+    // types 2 and 4, 000:1097): shown with its text when read, refused when written.
+    bool forbidden = false;
 };
 
 struct BitName {
@@ -137,7 +140,8 @@ struct Point {
     std::optional<std::uint16_t> fixed_value;
     bool reserved = false;
     bool reconstructed = false;
-    std::string source;  // "000:493"
+    std::string reconstructed_why;  // the profile's reason and the lines it was reconstructed from
+    std::string source;             // "000:493"
     std::vector<std::string> notes;
     std::string ref;  // the manual's printed reference when it differs from the address
     std::optional<LineSetting> mirrors;

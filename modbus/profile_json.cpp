@@ -29,6 +29,7 @@ json point_to_json(const Point& p) {
         json x{{"value", v.value}, {"text", v.text}};
         if (!v.text_en.empty()) x["text_en"] = v.text_en;
         if (!v.means.empty()) x["means"] = v.means;
+        if (v.forbidden) x["forbidden"] = true;
         e["values"].push_back(x);
     }
     for (const auto& b : p.encoding.bits)
@@ -42,7 +43,9 @@ json point_to_json(const Point& p) {
     if (!p.unit.empty()) j["unit"] = p.unit;
     if (p.fixed_value) j["fixed_value"] = *p.fixed_value;
     if (p.reserved) j["reserved"] = true;
-    if (p.reconstructed) j["reconstructed"] = true;
+    if (p.reconstructed)
+        j["reconstructed"] =
+            p.reconstructed_why.empty() ? nlohmann::json(true) : nlohmann::json(p.reconstructed_why);
     if (!p.notes.empty()) j["notes"] = p.notes;
     if (!p.ref.empty()) j["ref"] = p.ref;
     if (p.mirrors) j["mirrors"] = std::string(to_string(*p.mirrors));

@@ -189,6 +189,7 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
                 ev.text = r.string(item, "text", p, false).value_or("");
                 ev.text_en = r.string(item, "text_en", p, false).value_or("");
                 ev.means = r.string(item, "means", p, false).value_or("");
+                if (auto f = r.child(item, "forbidden"); f && f->is_boolean()) ev.forbidden = f->get<bool>();
                 e.values.push_back(std::move(ev));
             }
     }
@@ -338,7 +339,15 @@ std::optional<RawPoint> parse_point(Reader& r, const json& j, const std::string&
     if (auto f = r.integer(j, "fixed_value", ptr, false, 0, 65535))
         p.fixed_value = static_cast<std::uint16_t>(*f);
     if (auto res = r.child(j, "reserved"); res && res->is_boolean()) p.reserved = res->get<bool>();
-    p.reconstructed = r.child(j, "reconstructed") != nullptr;
+    if (const auto* rec = r.child(j, "reconstructed")) {
+        p.reconstructed = true;
+        if (rec->is_object()) {
+            p.reconstructed_why = r.string(*rec, "reason", ptr + "/reconstructed", false).value_or("");
+            if (auto from = r.string(*rec, "from", ptr + "/reconstructed", false))
+                p.reconstructed_why += (p.reconstructed_why.empty() ? "from " : " (from ") + *from +
+                                       (p.reconstructed_why.empty() ? "" : ")");
+        }
+    }
     p.source = r.source_of(j);
     if (p.source.empty()) r.error(ptr, "missing \"source\" (the manual line it comes from)");
     p.notes = notes_of(j);

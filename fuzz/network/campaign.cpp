@@ -582,7 +582,7 @@ std::optional<Probe> Campaign::round_trip() {
     if (words == 1 && rng_() % 2) {
         std::vector<std::int64_t> allowed;
         for (const auto& v : point.encoding.values)
-            allowed.push_back(v.value);
+            if (!v.forbidden) allowed.push_back(v.value);
         if (point.min && point.max && *point.max > *point.min)
             allowed.insert(allowed.end(), {*point.min, *point.max});
         std::erase(allowed, static_cast<std::int64_t>(values[0]));
