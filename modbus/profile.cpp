@@ -378,12 +378,28 @@ struct Decimals {
 Decimals decimals_of(const Profile& profile, const Encoding& e, std::uint16_t start,
                      const std::vector<std::uint16_t>& words,
                      const std::map<std::uint16_t, std::uint16_t>& context) {
-    if (!e.decimals_from) return {e.decimals, {}};
-    const auto d = word_at(e.decimals_from->address, start, words, context);
+    const PointRef* decimals_from = e.decimals_from ? &*e.decimals_from : nullptr;
+    if (const auto& choice = e.decimals_selected) {
+        // The register that gives the decimals is the one the selector's value names; with the selector not
+        // known, so is the decimal point not.
+        const auto selected = word_at(choice->selector.address, start, words, context);
+        if (!selected)
+            return {std::nullopt, " (unscaled: decimal point unknown, register " +
+                                      std::to_string(choice->selector.address) +
+                                      " that selects it not seen)"};
+        for (const auto& [value, ref] : choice->by_value)
+            if (value == *selected) decimals_from = &ref;
+        if (!decimals_from)
+            return {std::nullopt, " (unscaled: register " + std::to_string(choice->selector.address) +
+                                      " holds " + std::to_string(*selected) +
+                                      ", which selects no decimal point register)"};
+    }
+    if (!decimals_from) return {e.decimals, {}};
+    const auto d = word_at(decimals_from->address, start, words, context);
     if (!d) return {std::nullopt, " (unscaled: decimal point unknown)"};
     // What that register may hold: 0 to 9, and within its own enumeration and range (MK's PT.DEC of a
     // totalization, 0 to 7: 000:1358). Another value is no number of places, and is said to be.
-    const Point* from = profile.find(e.decimals_from->table, e.decimals_from->address);
+    const Point* from = profile.find(decimals_from->table, decimals_from->address);
     bool valid = *d <= 9;
     if (from && !from->encoding.values.empty())
         valid &= std::any_of(from->encoding.values.begin(), from->encoding.values.end(),
@@ -391,7 +407,7 @@ Decimals decimals_of(const Profile& profile, const Encoding& e, std::uint16_t st
     if (from && from->max) valid &= *d <= *from->max;
     if (!valid)
         return {std::nullopt, " (unscaled: its decimal point register " +
-                                  std::to_string(e.decimals_from->address) + " holds " + std::to_string(*d) +
+                                  std::to_string(decimals_from->address) + " holds " + std::to_string(*d) +
                                   ", no number of places)"};
     return {*d, {}};
 }

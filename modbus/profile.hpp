@@ -60,6 +60,14 @@ struct PointRef {
     std::uint16_t address = 0;
 };
 
+// Scaled: the register that gives the decimals, chosen by the value another register holds. TY-2090's
+// retransmission limits take the engineering unit, and so the PT.DEC register, of the input register 27 or 28
+// associates with the output (000:627): selector 27, 0 → register 17, 1 → register 18.
+struct DecimalsChoice {
+    PointRef selector;
+    std::vector<std::pair<std::int64_t, PointRef>> by_value;
+};
+
 struct EnumValue {
     std::int64_t value = 0;
     std::string text;
@@ -88,10 +96,11 @@ struct Encoding {
     EncodingType type = EncodingType::U16;
     int decimals = 0;
     bool is_signed = false;
-    std::optional<PointRef> decimals_from;  // Scaled
-    std::vector<EnumValue> values;          // Enum, Status
-    std::string allowed;                    // AsciiChar
-    std::optional<std::uint16_t> pair;      // Digits4*, U32Low/High: address of the other half
+    std::optional<PointRef> decimals_from;            // Scaled
+    std::optional<DecimalsChoice> decimals_selected;  // Scaled, instead of decimals_from
+    std::vector<EnumValue> values;                    // Enum, Status
+    std::string allowed;                              // AsciiChar
+    std::optional<std::uint16_t> pair;                // Digits4*, U32Low/High: address of the other half
     WordOrder word_order = WordOrder::Abcd;
     int words = 1;              // 2 for 32-bit values held in this and the next register
     std::vector<BitName> bits;  // Bits

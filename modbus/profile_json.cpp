@@ -21,6 +21,14 @@ json point_to_json(const Point& p) {
         e["words"] = 2;
         e["word_order"] = std::string(to_string(p.encoding.word_order));
     }
+    if (const auto& choice = p.encoding.decimals_selected) {
+        auto& d = e["decimals_selected_by"];
+        d = {{"table", std::string(to_string(choice->selector.table))},
+             {"address", choice->selector.address}};
+        for (const auto& [value, ref] : choice->by_value)
+            d["choices"].push_back(
+                {{"value", value}, {"table", std::string(to_string(ref.table))}, {"address", ref.address}});
+    }
     if (p.encoding.decimals_from)
         e["decimals_from"] = {{"table", std::string(to_string(p.encoding.decimals_from->table))},
                               {"address", p.encoding.decimals_from->address}};

@@ -99,7 +99,14 @@ std::optional<Table> table_named(const std::string& name) {
 }
 
 std::optional<PointRef> point_ref(Reader& r, const json& j, const std::string& ptr, Table default_table) {
-    if (j.is_number_integer()) return PointRef{default_table, static_cast<std::uint16_t>(j.get<int>())};
+    if (j.is_number_integer()) {
+        const auto a = j.get<std::int64_t>();
+        if (a < 0 || a > 65535) {
+            r.error(ptr, "must be an address from 0 to 65535");
+            return std::nullopt;
+        }
+        return PointRef{default_table, static_cast<std::uint16_t>(a)};
+    }
     if (!j.is_object()) {
         r.error(ptr, "must be {\"table\", \"address\"} or an address");
         return std::nullopt;
@@ -175,8 +182,28 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
     if (auto s = r.child(j, "signed"); s && s->is_boolean()) e.is_signed = s->get<bool>();
     if (auto d = r.child(j, "decimals_from"))
         e.decimals_from = point_ref(r, *d, ptr + "/decimals_from", table);
-    if (e.type == EncodingType::Scaled && !e.decimals_from)
-        r.error(ptr, "\"scaled\" needs \"decimals_from\"");
+    if (auto d = r.child(j, "decimals_selected_by")) {
+        const std::string p = ptr + "/decimals_selected_by";
+        DecimalsChoice choice;
+        const auto selector = point_ref(r, *d, p, table);
+        const json* choices = d->is_object() ? r.child(*d, "choices") : nullptr;
+        if (!choices || !choices->is_array() || choices->empty())
+            r.error(p, "needs \"choices\": [{\"value\", \"address\"}, ...]");
+        else
+            for (std::size_t i = 0; i < choices->size(); ++i) {
+                const std::string cp = p + "/choices/" + std::to_string(i);
+                const auto value = r.integer((*choices)[i], "value", cp, true);
+                const auto ref = point_ref(r, (*choices)[i], cp, table);
+                if (value && ref) choice.by_value.emplace_back(*value, *ref);
+            }
+        if (selector && !choice.by_value.empty()) {
+            choice.selector = *selector;
+            e.decimals_selected = std::move(choice);
+        }
+        if (e.decimals_from) r.error(p, "give \"decimals_from\" or \"decimals_selected_by\", not both");
+    }
+    if (e.type == EncodingType::Scaled && !e.decimals_from && !e.decimals_selected)
+        r.error(ptr, "\"scaled\" needs \"decimals_from\" or \"decimals_selected_by\"");
     if (auto v = r.child(j, "values")) {
         if (!v->is_array())
             r.error(ptr + "/values", "must be an array");
@@ -1169,10 +1196,16 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
     // references to other points must exist in this model
     for (Table t : all_tables)
         for (const auto& pt : p.points[idx(t)]) {
-            for (const auto* ref :
-                 {pt.encoding.decimals_from ? &*pt.encoding.decimals_from : nullptr,
-                  pt.min_from ? &*pt.min_from : nullptr, pt.max_from ? &*pt.max_from : nullptr,
-                  pt.read_only_when ? &pt.read_only_when->when : nullptr})
+            std::vector<const PointRef*> refs{
+                pt.encoding.decimals_from ? &*pt.encoding.decimals_from : nullptr,
+                pt.min_from ? &*pt.min_from : nullptr, pt.max_from ? &*pt.max_from : nullptr,
+                pt.read_only_when ? &pt.read_only_when->when : nullptr};
+            if (const auto& choice = pt.encoding.decimals_selected) {
+                refs.push_back(&choice->selector);
+                for (const auto& [value, ref] : choice->by_value)
+                    refs.push_back(&ref);
+            }
+            for (const auto* ref : refs)
                 if (ref && !p.find(ref->table, ref->address) && !p.open_address_space)
                     r.error(mptr, p.id + ": " + std::string(to_string(t)) + " " + std::to_string(pt.address) +
                                       " refers to " + std::string(to_string(ref->table)) + " " +

@@ -492,6 +492,52 @@ TEST(ProfileLoader, ShorthandEncodingsAreWholeOrRefused) {
     EXPECT_EQ(v[0].text, "4.000244");
 }
 
+// A decimal point chosen by another register (TY-2090, 000:627): a selector without choices, one beside
+// "decimals_from", a choice naming a register the model lacks and an address out of range are errors with
+// their pointers; a well-formed one loads and scales by the choice the selector's value names.
+TEST(ProfileLoader, DecimalsSelectedByAnotherRegisterAreChecked) {
+    const char* text = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y", "line": {"transports": ["rtu"]},
+      "functions": {"supported": [3]},
+      "tables": {"holding_registers": [
+        {"address": 1, "name": "a", "access": "r", "source": "000:1", "encoding": {"type": "scaled",
+         "decimals_selected_by": {"address": 9, "choices": [{"value": 0, "address": 7}, {"value": 1, "address": 8}]}}},
+        {"address": 2, "name": "b", "access": "r", "source": "000:2", "encoding": {"type": "scaled",
+         "decimals_selected_by": {"address": 9}}},
+        {"address": 3, "name": "c", "access": "r", "source": "000:3", "encoding": {"type": "scaled",
+         "decimals_from": 7, "decimals_selected_by": {"address": 9, "choices": [{"value": 0, "address": 7}]}}},
+        {"address": 4, "name": "d", "access": "r", "source": "000:4", "encoding": {"type": "scaled",
+         "decimals_selected_by": {"address": 9, "choices": [{"value": 0, "address": 70000}]}}},
+        {"address": 5, "name": "e", "access": "r", "source": "000:5", "encoding": {"type": "scaled",
+         "decimals_selected_by": {"address": 9, "choices": [{"value": 0, "address": 6}]}}},
+        {"address": 7, "name": "p1", "access": "rw", "source": "000:7"},
+        {"address": 8, "name": "p2", "access": "rw", "source": "000:8"},
+        {"address": 9, "name": "sel", "access": "rw", "source": "000:9"}
+      ]},
+      "models": [{"id": "m"}]
+    })";
+    const auto l = load(text);
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/tables/holding_registers/1/encoding/decimals_selected_by",
+         "needs \"choices\": [{\"value\", \"address\"}, ...]"},
+        {"/tables/holding_registers/1/encoding",
+         "\"scaled\" needs \"decimals_from\" or \"decimals_selected_by\""},
+        {"/tables/holding_registers/2/encoding/decimals_selected_by",
+         "give \"decimals_from\" or \"decimals_selected_by\", not both"},
+        {"/tables/holding_registers/3/encoding/decimals_selected_by/choices/0/address",
+         "must be between 0 and 65535"},
+        {"/tables/holding_registers/3/encoding",
+         "\"scaled\" needs \"decimals_from\" or \"decimals_selected_by\""},
+        {"/models/0", "m: holding_registers 5 refers to holding_registers 6, which this model does not have"},
+    };
+    EXPECT_EQ(pointers_and_messages(l), expected);
+    ASSERT_EQ(l.profiles.size(), 1u);
+    auto v =
+        mb::decode_registers(l.profiles[0], mb::Table::HoldingRegisters, 1, {1234}, {{7, 1}, {8, 2}, {9, 1}});
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].text, "12.34");
+}
+
 // Fields of the wrong type where the loader used to take a default with nlohmann's value(), which throws on
 // a type mismatch: each is an error with its pointer, and the rest still loads (found by the profile fuzz
 // target, fuzz/regressions/profile/implied-not-a-boolean).

@@ -149,3 +149,45 @@ TEST(WalchemValues, ABitTheMapDoesNotNameIsShownByItsNumber) {
     EXPECT_EQ(one("walchem-w600", 611, 0x0101).text, "low, bit 8 (not in the map)");
     EXPECT_EQ(one("walchem-w600", 71, 0x8000).text, "bit 15 (not in the map)");
 }
+
+// TY-2090's retransmission limits take the decimals of the input register 27 (97, 99) or 28 (98, 100)
+// associates with the output (footnote vii, 000:627): with channel 1 at one decimal, channel 2 at three and
+// output 1 on channel 2, a raw 1234 in 97 is 1.234, not 123.4 (channel 1's, a hundredfold wrong). Until the
+// selector is seen the value is unscaled, and said to be.
+TEST(MkValues, TyRetransmissionLimitsTakeTheDecimalsOfTheInputTheirOutputFollows) {
+    const auto& p = bundled("ty-2090");
+    const std::map<std::uint16_t, std::uint16_t> seen{{17, 1}, {18, 3}, {27, 1}, {28, 0}};
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 97, {1234, 1234, 1234, 1234}, seen);
+    ASSERT_EQ(v.size(), 4u);
+    EXPECT_EQ(v[0].text, "1.234");
+    EXPECT_EQ(v[1].text, "123.4");
+    EXPECT_EQ(v[2].text, "1.234");
+    EXPECT_EQ(v[3].text, "123.4");
+    EXPECT_FALSE(v[0].partial);
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 97, {1234}, {{17, 1}, {18, 3}});
+    EXPECT_TRUE(v[0].partial);
+    EXPECT_EQ(v[0].text, "1234 (unscaled: decimal point unknown, register 27 that selects it not seen)");
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 98, {1234}, {{17, 1}, {18, 3}, {28, 5}});
+    EXPECT_EQ(v[0].text, "1234 (unscaled: register 28 holds 5, which selects no decimal point register)");
+    // The -F model alike; the MMK-2030's 97 stays on channel 1 (000:626).
+    v = mb::decode_registers(bundled("ty-2090-f"), mb::Table::HoldingRegisters, 97, {1234}, seen);
+    EXPECT_EQ(v[0].text, "1.234");
+    v = mb::decode_registers(bundled("mmk-2030"), mb::Table::HoldingRegisters, 97, {1234}, seen);
+    EXPECT_EQ(v[0].text, "123.4");
+}
+
+// DCY-2050 Light's register 9 lists input types 2 and 4 as "não permitido" (000:1097): read, they are named;
+// written, refused as a value out of range. They were acknowledged, being listed.
+TEST(MkValues, AValueTheManualListsAsNotAllowedIsRefused) {
+    const auto& p = bundled("dcy-2050-light");
+    for (const std::uint16_t v : {2, 4}) {
+        const auto refused = mb::check_writes(p, mb::Table::HoldingRegisters, 9, {v});
+        ASSERT_TRUE(refused.has_value()) << v;
+        EXPECT_EQ(refused->exception_code, 3);
+        EXPECT_EQ(refused->reason,
+                  "value " + std::to_string(v) + " is one the manual does not allow (\"não permitido\")");
+        EXPECT_EQ(one("dcy-2050-light", 9, v).text, "não permitido (not allowed)");
+    }
+    EXPECT_FALSE(mb::check_writes(p, mb::Table::HoldingRegisters, 9, {3}).has_value());
+    EXPECT_TRUE(mb::check_writes(p, mb::Table::HoldingRegisters, 9, {6}).has_value());
+}
