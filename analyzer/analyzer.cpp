@@ -156,6 +156,22 @@ struct Analyzer::SerialLink {
                                             [](std::uint64_t o, const auto& part) { return o < part.first; });
         return after == parts.begin() ? current : std::prev(after)->second;
     }
+
+    // The packet (a log's record, a capture's packet) each stretch of the stream came in, by the stream
+    // offset of its first byte. A frame or unparsed run is the packet's in which it began: a timed deframer
+    // closes a frame only when the next chunk shows the silence after it, and a log's records were all
+    // "packet 0". Stretches wholly before `settled` are dropped.
+    std::deque<std::pair<std::uint64_t, std::uint64_t>> packets;
+    void note_packet(std::uint64_t offset, std::uint64_t packet) {
+        while (packets.size() > 1 && packets[1].first <= settled)
+            packets.pop_front();
+        packets.emplace_back(offset, packet);
+    }
+    std::uint64_t packet_at(std::uint64_t offset, std::uint64_t current) const noexcept {
+        const auto after = std::upper_bound(packets.begin(), packets.end(), offset,
+                                            [](std::uint64_t o, const auto& p) { return o < p.first; });
+        return after == packets.begin() ? current : std::prev(after)->second;
+    }
 };
 
 std::size_t Analyzer::FlowKeyHash::operator()(const FlowKey& k) const noexcept {
@@ -889,13 +905,13 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     // came: a reply whose size or echo fits only the first request is that one's, late, and the new request
     // keeps waiting for its own. Before, it was paired with the new one (a size mismatch) and the new one's
     // reply that followed was unsolicited: two errors against a device that was only slow.
-    const bool late_for_same_unit =
-        it != pending_.end() && r.frame.framing != Framing::Tcp && r.frame.checksum_ok && !other_unit_waits &&
-        !timed_out_.empty() && [&] {
-            const auto t = timed_out_.find({flow.id, late_id(r.frame)});
-            return t != timed_out_.end() && could_answer(t->second.pending.request, r) &&
-                   !could_answer(it->second.request, r);
-        }();
+    const bool late_for_same_unit = it != pending_.end() && r.frame.framing != Framing::Tcp &&
+                                    r.frame.checksum_ok && !other_unit_waits && !timed_out_.empty() && [&] {
+                                        const auto t = timed_out_.find({flow.id, late_id(r.frame)});
+                                        return t != timed_out_.end() &&
+                                               could_answer(t->second.pending.request, r) &&
+                                               !could_answer(it->second.request, r);
+                                    }();
     if ((it == pending_.end() || other_unit_waits || late_behind_reuse || late_for_same_unit) &&
         !timed_out_.empty()) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
@@ -1570,8 +1586,9 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             summary_.unparsed_bytes += u->length;
             const Timestamp when = u->time.count() ? u->time : t;
             const SharedText& source = link.source_at(u->offset, source_);
-            sink_.unparsed(
-                UnparsedRecord{source, flow.link, link.hint, when, packet, u->offset, u->length, u->reason});
+            const std::uint64_t began_in = link.packet_at(u->offset, packet);
+            sink_.unparsed(UnparsedRecord{source, flow.link, link.hint, when, began_in, u->offset, u->length,
+                                          u->reason});
             // Bytes that may hold a request: the master's side of the line, or, where the capture does not
             // tell sides, at least a unit and a function (RTU; ASCII: ':' and their four digits). A glitch
             // byte at a turnaround holds none, and must not excuse the reply after it.
@@ -1590,7 +1607,7 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             about.time = when;
             about.source = source;
             about.link = flow.link;
-            about.packet = packet;
+            about.packet = began_in;
             report(FindingCode::StreamUnparsedBytes, about,
                    std::to_string(u->length) + " bytes at offset " + std::to_string(u->offset) +
                        " formed no frame (" + std::string(to_string(u->reason)) + ")");
@@ -1601,7 +1618,7 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         link.settled = std::max(link.settled, frame.offset + frame.wire_length);
         FrameRecord r(frame);
         r.index = ++next_frame_;
-        r.packet = packet;
+        r.packet = link.packet_at(frame.offset, packet);
         r.time = frame.end.count() ? frame.end : t;
         if (r.time > now_) now_ = r.time;
         r.source = link.source_at(frame.offset, source_);
@@ -1638,14 +1655,14 @@ void Analyzer::serial(const std::string& source, std::span<const std::uint8_t> b
     // A timed chunk is one record of the capture (a read of the port, a log's record, a text line), as each
     // becomes a record of sniff --write's file: counted as the packets a decode of that file counts. An
     // untimed dump comes in buffers of no meaning to anyone.
-    if (received.count() != 0) ++summary_.packets;
+    const std::uint64_t packet = received.count() != 0 ? ++summary_.packets : 0;
     const auto part = serial_parts_.find(source);
     if (part == serial_parts_.end())
-        return serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint);
+        return serial_bytes(serial_link(source), options_.serial_framing, bytes, received, hint, packet);
     SerialLink& link = serial_link(part->second);
     if (link.parts.empty()) link.parts.emplace_back(0, link.source);
     if (link.parts.back().second != source_) link.parts.emplace_back(link.fed, source_);
-    serial_bytes(link, options_.serial_framing, bytes, received, hint);
+    serial_bytes(link, options_.serial_framing, bytes, received, hint, packet);
 }
 
 void Analyzer::serial_part_of(const std::string& source, const std::string& line) {
@@ -1682,6 +1699,7 @@ void Analyzer::end_serial(const std::string& source) {
 void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,
                             std::span<const std::uint8_t> bytes, Timestamp received, Direction hint,
                             std::uint64_t packet) {
+    if (packet != 0 && !bytes.empty()) link.note_packet(link.fed, packet);
     if (!link.framing && !link.probe) {  // the line's first bytes
         link.framing = framing;
         if (framing)
@@ -1736,7 +1754,8 @@ void Analyzer::deframe(SerialLink& link, std::span<const std::uint8_t> bytes, Ti
             char at[48];
             std::snprintf(at, sizeof at, "the chunk stamped %.6f s",
                           std::chrono::duration<double>(received).count());
-            clock_went_back(received, packet ? "packet " + std::to_string(packet) : std::string(at));
+            clock_went_back(received,
+                            packet ? "packet " + std::to_string(packet) + ", " + at : std::string(at));
         }
     }
     if (received.count()) link.last_received = received;

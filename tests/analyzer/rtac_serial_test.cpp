@@ -121,7 +121,8 @@ TEST(RtacSerial, MasterPollPairsWithTheRolesDirections) {
     ASSERT_TRUE(t.response.has_value());
     EXPECT_EQ(t.request.direction, mb::Direction::Request);
     EXPECT_EQ(t.response->direction, mb::Direction::Response);
-    EXPECT_EQ(t.request.packet, 2u);  // completed by the TX end record
+    EXPECT_EQ(t.request.packet, 1u);  // the record with its bytes (the TX end record, 2, completes it)
+    EXPECT_EQ(t.response->packet, 3u);
     ASSERT_TRUE(t.latency.has_value());
     EXPECT_EQ(*t.latency, 20ms);  // each frame stamped by the record that carried its last byte
     EXPECT_TRUE(r->sink.findings.empty());

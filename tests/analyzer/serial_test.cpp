@@ -418,10 +418,11 @@ TEST(SerialInput, ALogsClockGoingBackIsNamedAndItsFramesKeepTheirTimes) {
     auto r = decode(path, an::InputFormat::Text);
     EXPECT_TRUE(r->summary.input_errors.empty());
     ASSERT_EQ(r->summary.input_notes.size(), 1u);
-    EXPECT_EQ(r->summary.input_notes[0], path +
-                                             ": the chunk stamped 5.000000 s: the capture's clock goes back "
-                                             "96000 ms; requests are timed out by the clock from here (later "
-                                             "steps back are not listed)");
+    EXPECT_EQ(r->summary.input_notes[0],
+              path +
+                  ": packet 4, the chunk stamped 5.000000 s: the capture's clock goes back "
+                  "96000 ms; requests are timed out by the clock from here (later "
+                  "steps back are not listed)");
     ASSERT_EQ(r->sink.frames.size(), 6u);
     EXPECT_EQ(r->sink.frames[4].time, mb::Timestamp(5'500'000'000));  // as the log says
     ASSERT_EQ(r->sink.transactions.size(), 3u);

@@ -79,10 +79,10 @@ TEST(DecodeExitCode, AClockGoingBackIsANoteNotAnError) {
     EXPECT_EQ(text.exit_code, 0) << text.out;
     EXPECT_EQ(text.out.find("input error"), std::string::npos) << text.out;
     EXPECT_NE(text.out.find("  input note: " + path +
-                            ": the chunk stamped 5.000000 s: the capture's clock goes back"),
+                            ": packet 3, the chunk stamped 5.000000 s: the capture's clock goes back"),
               std::string::npos)
         << text.out;
-    EXPECT_NE(text.out.find("mbscope decode: note: " + path + ": the chunk stamped 5.000000 s"),
+    EXPECT_NE(text.out.find("mbscope decode: note: " + path + ": packet 3, the chunk stamped 5.000000 s"),
               std::string::npos)
         << text.out;
     const auto json = run_mbscope("decode --json " + path);
