@@ -189,7 +189,11 @@ std::optional<std::vector<std::uint8_t>> wire_from_tokens(Framing framing,
                 text.push_back(static_cast<std::uint8_t>(joined[i]));
             }
         }
-        if (text.size() < 2 || text[text.size() - 2] != '\r' || text.back() != '\n') {
+        // The end a frame typed as text lacks is added: CR LF, or LF after a CR already there (the shell's
+        // $(cat frame.txt) strips the LF only; CR LF added after it made a frame nobody gave, "\r\r\n").
+        if (!text.empty() && text.back() == '\r') {
+            text.push_back('\n');
+        } else if (text.size() < 2 || text[text.size() - 2] != '\r' || text.back() != '\n') {
             text.push_back('\r');
             text.push_back('\n');
         }

@@ -75,6 +75,11 @@ TEST(FrameText, AsciiFrameGivenAsText) {
     w = wire_from_tokens(Framing::Ascii, std::vector<std::string>{":1103"}, error);
     ASSERT_TRUE(w.has_value()) << error;
     EXPECT_EQ(std::string(w->begin(), w->end()), ":1103\r\n");  // CR LF added when missing
+    // A CR already there (the shell's $(cat frame.txt) keeps it, dropping the LF) gets its LF only: CR LF
+    // after it made ":1103\r\r\n", a frame nobody gave, with "not a hex digit" at the first CR.
+    w = wire_from_tokens(Framing::Ascii, std::vector<std::string>{":11030060000389\r"}, error);
+    ASSERT_TRUE(w.has_value()) << error;
+    EXPECT_EQ(std::string(w->begin(), w->end()), ":11030060000389\r\n");
 }
 
 TEST(FrameText, TheManualsExamplesFileReadsLineByLine) {
