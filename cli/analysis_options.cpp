@@ -47,7 +47,9 @@ void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
                    "One CSV row per transaction (RFC 4180) to FILE, or to standard output with -");
     cmd.add_option("--word-order", o.word_order,
                    "Devices without a profile: read FC3/FC4 replies two registers at a time as u32 and "
-                   "float32 in this order (abcd = big-endian, cdab = registers swapped, badc, dcba)")
+                   "float32 in this order (abcd = big-endian, cdab = registers swapped, badc, dcba). A "
+                   "profile whose manual makes the order a device setting (Walchem's inverse format) reads "
+                   "its 32-bit values so; one whose manual fixes it keeps its own, and says so")
         ->check(CLI::IsMember({"abcd", "badc", "cdab", "dcba"}));
     cmd.add_option("--profile", o.profile, "Device profile for every device (see mbscope profile list)");
     cmd.add_option(
@@ -86,6 +88,13 @@ bool load_semantics(const AnalysisCliOptions& o, const std::string& command,
                 std::cerr << "mbscope " << command << ": " << modbus::to_string(e) << '\n';
             return false;
         }
+        // The device may be set to send its 32-bit values in another order (Walchem, 002:470-477): given,
+        // it is read so. Dropped without a word, a controller set to the inverse format read 1.5 as 0.
+        if (!o.word_order.empty())
+            if (const auto order = modbus::parse_word_order(o.word_order))
+                if (auto why = modbus::set_word_order(p.value(), *order))
+                    std::cerr << "mbscope " << command << ": note: --word-order " << o.word_order
+                              << " is not applied to " << id << ": " << *why << '\n';
         semantics->add(selector, std::make_shared<const modbus::Profile>(std::move(p.value())));
         return true;
     };

@@ -34,6 +34,7 @@ struct ProfileOptions {
     std::string address;
     std::vector<std::string> words;
     std::vector<std::string> files;
+    std::string word_order;
 };
 
 void print_errors(const std::vector<ProfileError>& errors) {
@@ -416,6 +417,11 @@ int run_decode(const ProfileOptions& o) {
     }
     auto p = load(o);
     if (!p) return exit_failure;
+    if (!o.word_order.empty())
+        if (auto why = modbus::set_word_order(*p, *modbus::parse_word_order(o.word_order))) {
+            std::cerr << "mbscope profile: --word-order " << o.word_order << ": " << *why << '\n';
+            return exit_failure;
+        }
     auto values = decode_registers(*p, *table, *start, words);
     // As in lookup: a start that reads as a reference of the table, where no word of the block is a point at
     // the protocol address and some is at the reference's, is read as the reference, and said so.
@@ -503,6 +509,11 @@ void register_profile(CLI::App& app, int& exit_code) {
     decode->add_option("table", o->table)->required();
     decode->add_option("start", o->address)->required();
     decode->add_option("words", o->words, "Register values in hex, e.g. 022B 0000 0064")->required();
+    decode
+        ->add_option("--word-order", o->word_order,
+                     "The order the device is set to send 32-bit values in, where its manual makes it a "
+                     "setting (Walchem's inverse format: abcd)")
+        ->check(CLI::IsMember({"abcd", "badc", "cdab", "dcba"}));
     common(decode);
     decode->callback([o, &exit_code] { exit_code = run_decode(*o); });
 }

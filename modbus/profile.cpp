@@ -323,6 +323,28 @@ const Point* Profile::find(Table t, std::uint16_t address) const noexcept {
     return nullptr;
 }
 
+std::optional<std::string> set_word_order(Profile& profile, WordOrder order) {
+    std::vector<Point*> wide;
+    bool halves = false;  // 32-bit values listed as a low and a high register (CTH2265I): their order is fixed
+    for (auto& table : profile.points)
+        for (auto& p : table) {
+            if (p.encoding.words == 2) wide.push_back(&p);
+            halves |= p.encoding.type == EncodingType::U32Low || p.encoding.type == EncodingType::U32High;
+        }
+    if (wide.empty() && !halves) return std::nullopt;
+    const auto& orders = profile.word_orders;
+    if (std::find(orders.begin(), orders.end(), order) == orders.end()) {
+        std::string why = profile.id + "'s manual gives ";
+        if (orders.empty()) return why + "its 32-bit values one order, which its map holds";
+        for (std::size_t i = 0; i < orders.size(); ++i)
+            why += (i ? i + 1 == orders.size() ? " or " : ", " : "") + std::string(to_string(orders[i]));
+        return why + " (the device's setting), not " + std::string(to_string(order));
+    }
+    for (Point* p : wide)
+        if (p->encoding.word_order == orders.front()) p->encoding.word_order = order;
+    return std::nullopt;
+}
+
 std::string float_text(float f) {
     if (std::isnan(f)) return "nan";
     if (std::isinf(f)) return f < 0 ? "-inf" : "inf";

@@ -280,6 +280,9 @@ struct Profile {
     bool coils_view_registers = false;
     Simulation simulation;  // the process the reference slave runs behind the map (empty: values stay)
     std::vector<ProfileNote> notes;
+    // The orders a device can be set to send its 32-bit values in, the default first (Walchem's "inverse"
+    // data format, a menu setting, 002:470-477); empty where the manual gives one order.
+    std::vector<WordOrder> word_orders;
     bool modular = false;                              // channels whose maps a configuration chooses
     std::map<std::string, std::string> configuration;  // modular devices: channel → map
 
@@ -322,6 +325,10 @@ struct NamedValue {
 LineState held_line_settings(const Profile& profile, const std::function<std::uint16_t(std::uint16_t)>& read);
 // Sets in `state` the setting a mirrored point's code means (mirrored_meaning's "ascii", "9600", "even").
 void take_meaning(LineState& state, LineSetting setting, const std::string& means);
+
+// Reads the profile's 32-bit values in `order` (every one in its default order) when its manual lets the
+// device be set to it: nothing when done or when the profile holds no 32-bit value, else why not.
+std::optional<std::string> set_word_order(Profile& profile, WordOrder order);
 
 // Shortest text that reads back as the same float ("1.5", "0.000123", "1e-10", "nan", "-inf").
 std::string float_text(float f);

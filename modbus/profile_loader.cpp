@@ -1301,6 +1301,26 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
                                     r.string(x, "kind", ptr, false).value_or("")});
         }
     common.simulation = parse_simulation(r, doc);
+    // The 32-bit order the device sends by default and the others it can be set to (Walchem, 002:470-477).
+    if (const auto* words = r.child(doc, "words"); words && words->is_object()) {
+        const auto order_at = [&](const json& j, const std::string& ptr) {
+            if (!j.is_string()) return r.error(ptr, "must be abcd, badc, cdab or dcba");
+            if (auto o = parse_word_order(j.get<std::string>()))
+                common.word_orders.push_back(*o);
+            else
+                r.error(ptr, "must be abcd, badc, cdab or dcba");
+        };
+        if (const auto* d = r.child(*words, "word_order")) order_at(*d, "/words/word_order");
+        if (const auto* alt = r.child(*words, "word_order_alternatives")) {
+            if (common.word_orders.empty())
+                r.error("/words/word_order_alternatives", "alternatives need the default \"word_order\"");
+            else if (!alt->is_array())
+                r.error("/words/word_order_alternatives", "must be an array");
+            else
+                for (std::size_t i = 0; i < alt->size(); ++i)
+                    order_at((*alt)[i], "/words/word_order_alternatives/" + std::to_string(i));
+        }
+    }
     Tables base;
     parse_tables(r, doc, base);
 

@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdio>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -122,6 +123,33 @@ TEST(ProfileCommand, DecodeShowsALoneHalfAsARawWord) {
     // From 42 the float is whole: 0x42C80000 = 100 °C.
     r = run_mbscope("profile decode walchem-w600 holding 42 0000 42C8");
     EXPECT_NE(r.out.find("system controller processor temperature      100 °C"), std::string::npos) << r.out;
+}
+
+// Walchem's controllers can be set to send 32-bit values most significant word first (the "inverse" format,
+// 002:470-477), and the profile lists that order: --word-order reads them so, in profile decode and in
+// decode. It was dropped without a word with a profile given, and 1.5 read as 0. A profile whose manual
+// fixes the order keeps it and says so.
+TEST(ProfileCommand, AWordOrderTheManualMakesASettingIsApplied) {
+    auto r = run_mbscope("profile decode walchem-w600 holding 576 3FC0 0000 --word-order abcd");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("sensor-1-1 primary value                     1.5\n"), std::string::npos) << r.out;
+    r = run_mbscope("profile decode walchem-w600 holding 576 3FC0 0000 --word-order dcba");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("walchem-w600's manual gives cdab or abcd (the device's setting), not dcba"),
+              std::string::npos)
+        << r.out;
+    r = run_mbscope("profile decode cth2265i holding 4012 0001 0000 --word-order abcd");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    const std::string log = ::testing::TempDir() + "walchem-inverse.txt";
+    std::ofstream(log) << "1.000 01 03 02 40 00 02 C4 67\n1.020 01 03 04 3F C0 00 00 F6 1B\n";
+    r = run_mbscope("decode --profile walchem-w600 --word-order abcd " + log);
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("576  sensor-1-1 primary value = 1.5"), std::string::npos) << r.out;
+    r = run_mbscope("decode --profile cth2265i --word-order abcd " + log);
+    EXPECT_NE(r.out.find("note: --word-order abcd is not applied to cth2265i: cth2265i's manual gives its "
+                         "32-bit values one order"),
+              std::string::npos)
+        << r.out;
 }
 
 TEST(ProfileCommand, ValidateReportsEveryErrorWithPointer) {

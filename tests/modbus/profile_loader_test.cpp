@@ -538,6 +538,31 @@ TEST(ProfileLoader, DecimalsSelectedByAnotherRegisterAreChecked) {
     EXPECT_EQ(v[0].text, "12.34");
 }
 
+// The orders a device can be set to send 32-bit values in (Walchem, 002:470-477): the default first, then
+// the alternatives; an order that is none of the four, or alternatives without a default, are errors.
+TEST(ProfileLoader, TheWordOrdersADeviceCanBeSetToAreLoaded) {
+    const std::string head = R"({"format": "mbscope-profile/1", "family": "x", "vendor": "y",
+      "line": {"transports": ["tcp"]}, "functions": {"supported": [3]},
+      "tables": {"holding_registers": [{"address": 0, "name": "f", "access": "r", "source": "000:1",
+        "encoding": {"type": "f32", "word_order": "cdab"}}]}, "models": [{"id": "m"}], "words": )";
+    auto l = load((head + R"({"word_order": "cdab", "word_order_alternatives": ["abcd"]}})").c_str());
+    ASSERT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
+    ASSERT_EQ(l.profiles.size(), 1u);
+    EXPECT_EQ(l.profiles[0].word_orders,
+              (std::vector<mb::WordOrder>{mb::WordOrder::Cdab, mb::WordOrder::Abcd}));
+    auto p = l.profiles[0];
+    EXPECT_FALSE(mb::set_word_order(p, mb::WordOrder::Abcd).has_value());
+    EXPECT_EQ(p.find(mb::Table::HoldingRegisters, 0)->encoding.word_order, mb::WordOrder::Abcd);
+    EXPECT_EQ(mb::set_word_order(p, mb::WordOrder::Dcba),
+              "m's manual gives cdab or abcd (the device's setting), not dcba");
+    l = load((head + R"({"word_order": "cdba", "word_order_alternatives": [3]}})").c_str());
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/words/word_order", "must be abcd, badc, cdab or dcba"},
+        {"/words/word_order_alternatives", "alternatives need the default \"word_order\""},
+    };
+    EXPECT_EQ(pointers_and_messages(l), expected);
+}
+
 // Fields of the wrong type where the loader used to take a default with nlohmann's value(), which throws on
 // a type mismatch: each is an error with its pointer, and the rest still loads (found by the profile fuzz
 // target, fuzz/regressions/profile/implied-not-a-boolean).
