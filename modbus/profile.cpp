@@ -325,7 +325,8 @@ const Point* Profile::find(Table t, std::uint16_t address) const noexcept {
 
 std::optional<std::string> set_word_order(Profile& profile, WordOrder order) {
     std::vector<Point*> wide;
-    bool halves = false;  // 32-bit values listed as a low and a high register (CTH2265I): their order is fixed
+    bool halves =
+        false;  // 32-bit values listed as a low and a high register (CTH2265I): their order is fixed
     for (auto& table : profile.points)
         for (auto& p : table) {
             if (p.encoding.words == 2) wide.push_back(&p);
@@ -400,6 +401,24 @@ struct Decimals {
 Decimals decimals_of(const Profile& profile, const Encoding& e, std::uint16_t start,
                      const std::vector<std::uint16_t>& words,
                      const std::map<std::uint16_t, std::uint16_t>& context) {
+    if (!e.decimals_unknown.empty()) return {std::nullopt, " (unscaled: " + e.decimals_unknown + ")"};
+    if (const auto& field = e.decimals_from_byte) {
+        // One byte of the register is this value's decimal point, the other another value's, and the manual
+        // does not say which: known when both hold the same. (Shown as a plain number, 100000 was taken for
+        // a set-point of 100000 where the device meant 1000.00.)
+        const auto d = word_at(field->address, start, words, context);
+        const std::string reg = "register " + std::to_string(field->address);
+        if (!d) return {std::nullopt, " (unscaled: decimal point unknown, " + reg + " not seen)"};
+        const int high = *d >> 8, low = *d & 0xFF;
+        if (high != low)
+            return {std::nullopt, " (unscaled: " + reg + " holds the decimal points " + std::to_string(high) +
+                                      " and " + std::to_string(low) +
+                                      ", one a byte, and the manual does not say which is this value's)"};
+        if (high > 9)
+            return {std::nullopt, " (unscaled: " + reg + " holds " + std::to_string(high) +
+                                      " in each byte, no number of places)"};
+        return {high, {}};
+    }
     const PointRef* decimals_from = e.decimals_from ? &*e.decimals_from : nullptr;
     if (const auto& choice = e.decimals_selected) {
         // The register that gives the decimals is the one the selector's value names; with the selector not

@@ -98,9 +98,15 @@ struct Encoding {
     bool is_signed = false;
     std::optional<PointRef> decimals_from;            // Scaled
     std::optional<DecimalsChoice> decimals_selected;  // Scaled, instead of decimals_from
-    std::vector<EnumValue> values;                    // Enum, Status
-    std::string allowed;                              // AsciiChar
-    std::optional<std::uint16_t> pair;                // Digits4*, U32Low/High: address of the other half
+    // U32Low/High: the decimal point is one 8-bit field of this register, which one the manual does not say
+    // (CTH2265I 4010, 4020, 4026: 003:578-581, 620, 626); known only when both bytes hold the same.
+    std::optional<PointRef> decimals_from_byte;
+    // A value whose decimal point the manual puts in no register it names (CTH2265I 4006-4007): why, shown
+    // with the unscaled value.
+    std::string decimals_unknown;
+    std::vector<EnumValue> values;      // Enum, Status
+    std::string allowed;                // AsciiChar
+    std::optional<std::uint16_t> pair;  // Digits4*, U32Low/High: address of the other half
     WordOrder word_order = WordOrder::Abcd;
     int words = 1;              // 2 for 32-bit values held in this and the next register
     std::vector<BitName> bits;  // Bits

@@ -21,6 +21,10 @@ json point_to_json(const Point& p) {
         e["words"] = 2;
         e["word_order"] = std::string(to_string(p.encoding.word_order));
     }
+    if (const auto& field = p.encoding.decimals_from_byte)
+        e["decimals_from_byte"] = {{"table", std::string(to_string(field->table))},
+                                   {"address", field->address}};
+    if (!p.encoding.decimals_unknown.empty()) e["decimals_unknown"] = p.encoding.decimals_unknown;
     if (const auto& choice = p.encoding.decimals_selected) {
         auto& d = e["decimals_selected_by"];
         d = {{"table", std::string(to_string(choice->selector.table))},

@@ -182,6 +182,9 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
     if (auto s = r.child(j, "signed"); s && s->is_boolean()) e.is_signed = s->get<bool>();
     if (auto d = r.child(j, "decimals_from"))
         e.decimals_from = point_ref(r, *d, ptr + "/decimals_from", table);
+    if (auto d = r.child(j, "decimals_from_byte"))
+        e.decimals_from_byte = point_ref(r, *d, ptr + "/decimals_from_byte", table);
+    e.decimals_unknown = r.string(j, "decimals_unknown", ptr, false).value_or("");
     if (auto d = r.child(j, "decimals_selected_by")) {
         const std::string p = ptr + "/decimals_selected_by";
         DecimalsChoice choice;
@@ -1200,6 +1203,7 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
                 pt.encoding.decimals_from ? &*pt.encoding.decimals_from : nullptr,
                 pt.min_from ? &*pt.min_from : nullptr, pt.max_from ? &*pt.max_from : nullptr,
                 pt.read_only_when ? &pt.read_only_when->when : nullptr};
+            if (pt.encoding.decimals_from_byte) refs.push_back(&*pt.encoding.decimals_from_byte);
             if (const auto& choice = pt.encoding.decimals_selected) {
                 refs.push_back(&choice->selector);
                 for (const auto& [value, ref] : choice->by_value)

@@ -191,3 +191,31 @@ TEST(MkValues, AValueTheManualListsAsNotAllowedIsRefused) {
     EXPECT_FALSE(mb::check_writes(p, mb::Table::HoldingRegisters, 9, {3}).has_value());
     EXPECT_TRUE(mb::check_writes(p, mb::Table::HoldingRegisters, 9, {6}).has_value());
 }
+
+// The CTH2265I sends values of a variable decimal point as integers, the point in a register apart
+// (003:578-581): one 8-bit field of 4010, 4020 or 4026, which one the manual does not say. A set-point of
+// 100000 with point 2 is 1000.00; it was shown as 100000, plainly. Scaled when both bytes hold the same
+// point, else unscaled and said to be; the total at 4006-4007, whose point no register is named for, alike.
+TEST(CthValues, AVariableDecimalPointIsTakenFromItsRegisterOrSaidUnknown) {
+    const auto& p = bundled("cth2265i");
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4012, {0x86A0, 0x0001}, {{4020, 0x0202}});
+    ASSERT_EQ(v.size(), 2u);
+    EXPECT_EQ(v[0].text, "1000.00");
+    EXPECT_DOUBLE_EQ(*v[0].number, 1000.0);
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4012, {0x86A0, 0x0001}, {{4020, 0x0203}});
+    EXPECT_TRUE(v[0].partial);
+    EXPECT_EQ(v[0].number, std::nullopt);
+    EXPECT_EQ(v[0].text,
+              "100000 (unscaled: register 4020 holds the decimal points 2 and 3, one a byte, and the "
+              "manual does not say which is this value's)");
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4022, {0x86A0, 0x0001});
+    EXPECT_EQ(v[0].text, "100000 (unscaled: decimal point unknown, register 4026 not seen)");
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4006, {0x001A, 0x0F1B}, {{4010, 0x0303}});
+    EXPECT_TRUE(v[0].partial);
+    EXPECT_NE(v[0].text.find("(unscaled: the manual names no register for its decimal point"),
+              std::string::npos)
+        << v[0].text;
+    // The fixed two decimals of 4000-4005 stay as they were.
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4000, {0x1234, 0x0001});
+    EXPECT_EQ(v[0].text, "701.96");  // 0x00011234
+}
