@@ -1555,11 +1555,12 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
         // bytes of the request waiting, decoding cleanly as a request and only with violations as a response
         // (an FC3 request read as a reply has byte count 0 and three bytes too many), are the retry, not a
         // malformed reply. So is a request for other registers of that unit and function (a master polling
-        // blocks that moved on before the reply came): its bytes do not claim to answer the one waiting (a
-        // byte count the read does not need, another address and quantity than the write's). A malformed
-        // reply that does claim to (a short FC3 reply "11 03 04 00 00 01" to a read of 2 registers, which
-        // reads as a request for register 1024) is the device's fault to report. An echo (FC5, FC6, FC8) is
-        // both, and stays the reply.
+        // blocks that moved on before the reply came): its bytes are not shaped as a reply to the one waiting
+        // (a byte count the read does not need, which counts none of the bytes after it; a multiple write
+        // longer than its reply, to another address). A malformed reply so shaped (a short FC3 reply
+        // "11 03 04 00 00 01" to a read of 2 registers, which reads as a request for register 1024; an odd
+        // byte count of its own bytes, "11 03 03 00 00 05") is the device's fault to report. An echo (FC5,
+        // FC6, FC8) is both, and stays the reply.
         const FrameRecord& q = it->second.request;
         if (rsp_ok && frame.unit_id() == q.frame.unit_id() && q.pdu &&
             response->function_code() == q.pdu->function_code()) {

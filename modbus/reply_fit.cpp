@@ -93,7 +93,7 @@ bool reply_claims_to_answer(const Pdu& request, std::span<const std::uint8_t> re
         return static_cast<std::uint16_t>(reply_pdu[at] << 8 | reply_pdu[at + 1]);
     };
     const auto byte_count_is = [&](std::size_t bytes) {
-        return reply_pdu.size() >= 2 && reply_pdu[1] == bytes;
+        return reply_pdu.size() >= 2 && (reply_pdu[1] == bytes || reply_pdu[1] == reply_pdu.size() - 2);
     };
     if (const auto* read = std::get_if<ReadRequest>(&request.body))
         return byte_count_is(request.function_code() <= 2 ? (read->quantity + 7u) / 8u : 2u * read->quantity);
@@ -101,7 +101,8 @@ bool reply_claims_to_answer(const Pdu& request, std::span<const std::uint8_t> re
         return byte_count_is(2u * rw->quantity_to_read);
     const auto echo_due = multiple_write_echo(request);
     if (!echo_due) return true;
-    return reply_pdu.size() >= 5 && word(1) == echo_due->starting_address && word(3) == echo_due->quantity;
+    return reply_pdu.size() == 5 ||
+           (reply_pdu.size() > 5 && word(1) == echo_due->starting_address && word(3) == echo_due->quantity);
 }
 
 }  // namespace mbscope::modbus

@@ -30,11 +30,12 @@ struct ReplyMisfit {
 // specification says the reply is an echo (sub-functions 00, 01, 03, 0A, 14); the others return a value.
 std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response);
 
-// Whether the bytes of a reply PDU of the request's function, damaged or not, still say they answer
-// `request`: a read's byte count is the one the request needs (AP §6.1-6.4, §6.17), a multiple write's
-// address and quantity are the request's (§6.11, §6.12). Other functions' replies always do. Where a frame
-// cannot say which way it went, one that decodes cleanly as a request and as a reply only with violations is
-// the device's malformed reply when it does, the master's next request (to other registers) when it does not.
+// Whether the bytes of a reply PDU of the request's function, damaged or not, are shaped as its reply: a
+// read's byte count is the one the request needs or counts the bytes that follow it (a reply that miscounts
+// its data still counts its own bytes), a multiple write's reply is five bytes or names the request's address
+// and quantity (AP §6.1-6.4, §6.11, §6.12, §6.17). Other functions' replies always are. Where a frame cannot
+// say which way it went, one that decodes cleanly as a request and as a reply only with violations is the
+// device's malformed reply when it is so shaped, the master's next request (to other registers) when not.
 bool reply_claims_to_answer(const Pdu& request, std::span<const std::uint8_t> reply_pdu) noexcept;
 
 }  // namespace mbscope::modbus

@@ -789,6 +789,14 @@ TEST(SerialInput, AMastersRetryBeforeOurTimeoutIsARequestNotAMalformedReply) {
     EXPECT_EQ(short_reply->sink.frames[1].direction, mb::Direction::Response);
     EXPECT_EQ(short_reply->sink.count(mb::FindingCode::PairNoResponse), 0);
     EXPECT_EQ(short_reply->sink.count(mb::FindingCode::PduByteCountMismatch), 1);
+    // So is one whose byte count, odd, counts its own three bytes (it reads as a request for register 768):
+    // a device's fault, not the master's request and two timeouts.
+    auto odd_reply =
+        decode(write_temp("odd.txt", "1.000 11 03 00 00 00 01 86 9A\n1.020 11 03 03 00 00 05 87 1D\n"));
+    ASSERT_EQ(odd_reply->sink.frames.size(), 2u);
+    EXPECT_EQ(odd_reply->sink.frames[1].direction, mb::Direction::Response);
+    EXPECT_EQ(odd_reply->sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(odd_reply->sink.count(mb::FindingCode::PduByteCountMismatch), 1);
     // An echo (FC6, 000:396, 405) is both a request and its reply: it stays the reply.
     auto echo =
         decode(write_temp("echo.txt", "1.000 11 06 00 54 03 9E 4B D2\n1.020 11 06 00 54 03 9E 4B D2\n"));

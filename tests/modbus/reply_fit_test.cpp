@@ -100,8 +100,9 @@ TEST(ReplyFit, AnExceptionOrAnotherFunctionIsNotJudgedHere) {
     EXPECT_FALSE(reply_misfit(fc3, response_pdu({0x04, 0x02, 0x00, 0x01})).has_value());
 }
 
-// A reply's bytes claim to answer a request by the byte count a read needs, or by a multiple write's address
-// and quantity, whatever else is wrong with them; other functions' replies always do.
+// A reply's bytes are shaped as the request's reply by a read's byte count (the one it needs, or the count of
+// the bytes after it), by a multiple write's five bytes or its address and quantity, whatever else is wrong
+// with them; other functions' replies always are.
 TEST(ReplyClaims, ByTheByteCountAReadNeedsOrTheWritesAddressAndQuantity) {
     const auto claims = [](const char* request_pdu, const char* reply_pdu) {
         const auto q = decode_request(mbscope::test::hex(request_pdu)).value();
@@ -109,6 +110,7 @@ TEST(ReplyClaims, ByTheByteCountAReadNeedsOrTheWritesAddressAndQuantity) {
     };
     EXPECT_TRUE(claims("03 00 6B 00 02", "03 04 00 00 01"));   // short, but a reply to this read
     EXPECT_FALSE(claims("03 00 0A 00 02", "03 00 00 00 01"));  // a read of register 0 instead
+    EXPECT_TRUE(claims("03 00 00 00 01", "03 03 00 00 05"));   // an odd count, but of its own bytes
     EXPECT_TRUE(claims("01 00 13 00 15", "01 03 B2 0E 1B"));
     EXPECT_FALSE(claims("01 00 13 00 15", "01 00 13 00 15"));
     EXPECT_TRUE(claims("17 00 03 00 06 00 0E 00 03 06 00 FF 00 FF 00 FF", "17 0C 00 FE"));
@@ -116,6 +118,7 @@ TEST(ReplyClaims, ByTheByteCountAReadNeedsOrTheWritesAddressAndQuantity) {
     EXPECT_TRUE(claims("10 00 00 00 02 04 00 01 00 02", "10 00 00 00 02 04"));
     EXPECT_FALSE(claims("10 00 00 00 02 04 00 01 00 02", "10 00 0A 00 01 02 00 07"));
     EXPECT_FALSE(claims("0F 00 13 00 0A 02 CD 01", "0F 00"));
+    EXPECT_TRUE(claims("10 00 00 00 02 04 00 01 00 02", "10 00 0A 00 01"));  // a wrong echo, but an echo
     EXPECT_TRUE(claims("06 00 01 00 03", "06"));
 }
 
