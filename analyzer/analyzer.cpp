@@ -1714,7 +1714,7 @@ void Analyzer::serial_bytes(SerialLink& link, std::optional<Framing> framing,
         link.chunks.clear();  // those that told the framing
         link.next_chunk = 0;
         link.fed += bytes.size();
-        deframe(link, bytes, received, hint, packet);
+        deframe(link, bytes, received, hint, packet, link.fed - bytes.size());
         return;
     }
     link.chunks.push_back({{bytes.begin(), bytes.end()}, link.fed, received, hint, packet, false});
@@ -1741,7 +1741,7 @@ void Analyzer::flush_deframers(SerialLink& link, Timestamp t, std::uint64_t pack
 }
 
 void Analyzer::deframe(SerialLink& link, std::span<const std::uint8_t> bytes, Timestamp received,
-                       Direction hint, std::uint64_t packet) {
+                       Direction hint, std::uint64_t packet, std::uint64_t offset) {
     // A log's clock set back, or logs of two sessions joined: the timed deframer took the later bytes for
     // ones right after the earlier (timestamps are coarse, never earlier than the last), so every frame after
     // the step was restamped at the end of the first session, with no word. What the line held ends at the
@@ -1750,6 +1750,9 @@ void Analyzer::deframe(SerialLink& link, std::span<const std::uint8_t> bytes, Ti
     if (received.count() && link.last_received.count() && clock_stepped_back(link.last_received, received)) {
         flush_deframers(link, link.last_received, packet);
         if (link.restart_at) return;  // those bytes come again, after the change (pump)
+        // The new deframer counts its offsets from these bytes: the stream's offsets of what it reports
+        // start here (they started again at 0, and the records named the wrong offsets and packets).
+        if (link.timed && !link.untimed && !link.ascii) link.base = offset;
         link.timed.reset();
         if (received < now_) {
             char at[48];
@@ -1791,7 +1794,8 @@ void Analyzer::pump(SerialLink& link) {
         if (c.close)
             flush_deframers(link, c.received, c.packet);
         else
-            deframe(link, std::span<const std::uint8_t>(c.bytes).subspan(skip), c.received, c.hint, c.packet);
+            deframe(link, std::span<const std::uint8_t>(c.bytes).subspan(skip), c.received, c.hint, c.packet,
+                    c.offset + skip);
         if (link.restart_at) restart(link);
     }
     // A chunk goes once its bytes are all in reported records, or far enough behind that no deframer holds
@@ -1977,7 +1981,7 @@ void Analyzer::user_dlt_packet(const Packet& p) {
             hint = Direction::Response;
         bytes = bytes.subspan(1);
     }
-    serial_bytes(serial_link(source_), *options_.user_dlt, bytes, p.time, hint);
+    serial_bytes(serial_link(source_), *options_.user_dlt, bytes, p.time, hint, p.number);
 }
 
 void Analyzer::exported_pdu(const Packet& p) {

@@ -225,7 +225,7 @@ class Analyzer {
     // later, was a timeout and then a late reply.
     void end_silent_frames(modbus::Timestamp now, const std::string* except, bool only_when_due);
     void deframe(SerialLink& link, std::span<const std::uint8_t> bytes, modbus::Timestamp received,
-                 modbus::Direction hint, std::uint64_t packet);
+                 modbus::Direction hint, std::uint64_t packet, std::uint64_t offset);
     // `input_ended`: at the end of the input, where a frame is cut rather than ended by a silence.
     void flush_deframers(SerialLink& link, modbus::Timestamp t, std::uint64_t packet,
                          bool input_ended = false);

@@ -84,6 +84,9 @@ TEST(UserLinkType, RtuChunksAreFramedWithTheirCaptureTimes) {
     EXPECT_EQ(d->sink.frames[0].direction, mb::Direction::Request);
     EXPECT_EQ(d->sink.frames[0].carrier, an::Carrier::Serial);
     EXPECT_EQ(d->sink.frames[1].direction, mb::Direction::Response);
+    // Each names the packet its first byte came in (they said 0, unlike the same bytes from a text log).
+    EXPECT_EQ(d->sink.frames[0].packet, 1u);
+    EXPECT_EQ(d->sink.frames[1].packet, 3u);
     ASSERT_EQ(d->sink.transactions.size(), 1u);
     ASSERT_TRUE(d->sink.transactions[0].latency);
     EXPECT_EQ(*d->sink.transactions[0].latency, 50ms);

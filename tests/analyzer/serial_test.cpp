@@ -425,6 +425,12 @@ TEST(SerialInput, ALogsClockGoingBackIsNamedAndItsFramesKeepTheirTimes) {
                   "steps back are not listed)");
     ASSERT_EQ(r->sink.frames.size(), 6u);
     EXPECT_EQ(r->sink.frames[4].time, mb::Timestamp(5'500'000'000));  // as the log says
+    // Each frame names its record and its offset in the stream, after the step as before it: the deframer
+    // started again there counted its offsets from 0, and the records after the step named earlier ones.
+    for (std::size_t i = 0; i < r->sink.frames.size(); ++i) {
+        EXPECT_EQ(r->sink.frames[i].packet, i + 1) << i;
+        EXPECT_EQ(r->sink.frames[i].frame.offset, i % 2 ? 8 + (i / 2) * 19 : (i / 2) * 19) << i;
+    }
     ASSERT_EQ(r->sink.transactions.size(), 3u);
     ASSERT_TRUE(r->sink.transactions[2].latency.has_value());
     EXPECT_EQ(*r->sink.transactions[2].latency, std::chrono::milliseconds(20));
