@@ -490,10 +490,13 @@ struct Server::Impl {
                     head += n;
                     continue;
                 }
-                // Longer than any frame and whole by its CRC: dropped as one, as a serial port drops it.
-                if (too_long > 0 && rest.size() >= too_long && modbus::crc16(rest.first(too_long)) == 0) {
+                // A frame of an impossible length that is not one valid frame as held: all the bytes its
+                // header gives (longer than any frame), or those the silence ended (damaged or cut short),
+                // are dropped as one, as a serial port drops them. Skipped byte by byte, a frame inside its
+                // data was found and executed (an FC6 behind a damaged CRC).
+                if (too_long > 0 && (rest.size() >= too_long || at_end)) {
                     ++stats.bad_frames;
-                    head += too_long;
+                    head += std::min(too_long, rest.size());
                     continue;
                 }
                 // Its CRC may still come.

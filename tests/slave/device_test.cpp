@@ -398,20 +398,27 @@ std::vector<std::uint8_t> fc16_of_impossible_length(std::size_t data_bytes) {
 // Such a request over rtu-tcp, whole or split over two segments (as a TCP stack may deliver it), is taken as
 // a serial port takes it, not skipped byte by byte until the frame whose CRC holds inside its data is
 // answered instead: 255 bytes are one frame, refused (exception 03, AP §6.12); all 264 bytes its header
-// gives are longer than any RTU frame and dropped unanswered.
+// gives are longer than any RTU frame and dropped unanswered; with its CRC damaged, either is dropped
+// unanswered (the frame inside its data was found and answered after the silence).
 TEST(ServerRouting, RtuOverTcpTakesAFrameOfAnImpossibleLengthAsASerialPortDoes) {
     GenericRtuTcpLine served;
     ASSERT_TRUE(served.ready());
     Client& client = served.client;
     const struct {
         std::size_t data_bytes;
+        bool damaged;
         std::string reply;
-    } cases[] = {{246, hex(mb::encode_rtu(1, bytes("90 03")))}, {255, ""}};
+    } cases[] = {{246, false, hex(mb::encode_rtu(1, bytes("90 03")))},
+                 {255, false, ""},
+                 {246, true, ""},
+                 {255, true, ""}};
     for (const auto& c : cases) {
-        const auto request = fc16_of_impossible_length(c.data_bytes);
+        auto request = fc16_of_impossible_length(c.data_bytes);
         ASSERT_EQ(request.size(), 9 + c.data_bytes);
+        if (c.damaged) request.back() ^= 0x01;
         for (const std::size_t cut : {std::size_t{0}, std::size_t{40}, std::size_t{90}}) {
-            SCOPED_TRACE(std::to_string(request.size()) + " bytes, first segment " + std::to_string(cut));
+            SCOPED_TRACE(std::to_string(request.size()) + (c.damaged ? " damaged" : "") +
+                         " bytes, first segment " + std::to_string(cut));
             const std::span<const std::uint8_t> whole(request);
             if (cut > 0) {
                 client.send(whole.first(cut));
