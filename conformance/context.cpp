@@ -150,7 +150,8 @@ std::optional<std::uint16_t> valid_alternative(const modbus::Point* p, std::uint
     if ((e.type == modbus::EncodingType::Enum || e.type == modbus::EncodingType::Status) &&
         !e.values.empty()) {
         for (const auto& v : e.values)
-            if (v.value != static_cast<std::int64_t>(current) && v.value >= 0 && v.value <= 65535)
+            if (!v.forbidden && v.value != static_cast<std::int64_t>(current) && v.value >= 0 &&
+                v.value <= 65535)
                 return static_cast<std::uint16_t>(v.value);
         return std::nullopt;
     }

@@ -161,8 +161,13 @@ void RegisterImage::initialise() {
                 continue;
             }
             std::int64_t v = 0;
-            if ((e.type == EncodingType::Enum || e.type == EncodingType::Status) && !e.values.empty())
-                v = e.values.front().value;
+            // The first value listed that the register takes: one the manual does not allow, listed first,
+            // made a device that refused to be written back to its own starting value.
+            if (e.type == EncodingType::Enum || e.type == EncodingType::Status)
+                if (const auto first = std::find_if(e.values.begin(), e.values.end(),
+                                                    [](const auto& ev) { return !ev.forbidden; });
+                    first != e.values.end())
+                    v = first->value;
             // A character point starts as a character it allows (MK TAG characters: 000:493 (i)), not NUL.
             if (e.type == EncodingType::AsciiChar && !e.allowed.empty())
                 v = static_cast<unsigned char>(e.allowed.find('A') != std::string::npos ? 'A'

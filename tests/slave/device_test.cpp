@@ -3,6 +3,7 @@
 // (a unit configured at the address that disables communication, a device moved by a write to its address).
 #include <gtest/gtest.h>
 
+#include "modbus/profile_loader.hpp"
 #include "slave/responder.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
@@ -435,6 +436,28 @@ TEST(Device, AReadOnlyAddressRegisterMovesNothing) {
     Device device(profile("cth2265i"), 3);
     EXPECT_EQ(ask(device, "06 0F 9F 00 07").substr(0, 2), "86");
     EXPECT_EQ(device.unit(), 3);
+}
+
+// A device starts at the first value its enumeration lists that the register takes: one the manual does not
+// allow, listed first ("forbidden"), made a device that refused to be written back to its own starting value
+// (exception 03), so that a certification could not restore it.
+TEST(Device, AnEnumerationStartsAtAValueItAllows) {
+    const char* text = R"({
+      "format": "mbscope-profile/1", "family": "test", "vendor": "test",
+      "line": {"transports": ["tcp"]}, "functions": {"supported": [3, 6]},
+      "tables": {"holding_registers": [
+        {"address": 3, "name": "type", "access": "rw", "source": "test", "encoding": {"type": "enum", "values": [
+          {"value": 0, "text": "não permitido", "forbidden": true}, {"value": 1, "text": "a"}, {"value": 2, "text": "b"}]}}]},
+      "models": [{"id": "test"}]
+    })";
+    auto loaded = mb::parse_profiles(text, "test.json", nullptr, {});
+    ASSERT_TRUE(loaded.errors.empty()) << mb::to_string(loaded.errors.front());
+    ASSERT_EQ(loaded.profiles.size(), 1u);
+    Device device(loaded.profiles[0], 1);
+    EXPECT_EQ(device.image().reg(Table::HoldingRegisters, 3), 1);
+    EXPECT_EQ(ask(device, "06 00 03 00 00"), "86 03");
+    EXPECT_EQ(ask(device, "06 00 03 00 02"), "06 00 03 00 02");
+    EXPECT_EQ(ask(device, "06 00 03 00 01"), "06 00 03 00 01");
 }
 
 }  // namespace
