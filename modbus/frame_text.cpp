@@ -179,12 +179,12 @@ std::optional<std::vector<std::uint8_t>> wire_from_tokens(Framing framing,
             joined += t;
         std::vector<std::uint8_t> text;
         text.reserve(joined.size() + 2);
-        const std::string_view crlf = "\\r\\n";  // written out, as a shell passes it
+        // CR and LF written out as a shell passes them ('...\r\n', or '\r' alone), each taken as itself.
         for (std::size_t i = 0; i < joined.size(); ++i) {
-            if (std::string_view(joined).substr(i, crlf.size()) == crlf) {
-                text.push_back('\r');
-                text.push_back('\n');
-                i += crlf.size() - 1;
+            const bool escape = joined[i] == '\\' && i + 1 < joined.size();
+            if (escape && (joined[i + 1] == 'r' || joined[i + 1] == 'n')) {
+                text.push_back(joined[i + 1] == 'r' ? '\r' : '\n');
+                ++i;
             } else {
                 text.push_back(static_cast<std::uint8_t>(joined[i]));
             }

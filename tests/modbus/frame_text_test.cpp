@@ -80,6 +80,10 @@ TEST(FrameText, AsciiFrameGivenAsText) {
     w = wire_from_tokens(Framing::Ascii, std::vector<std::string>{":11030060000389\r"}, error);
     ASSERT_TRUE(w.has_value()) << error;
     EXPECT_EQ(std::string(w->begin(), w->end()), ":11030060000389\r\n");
+    // So does a CR written out alone, as the shell passes ':11030060000389\r' in single quotes.
+    w = wire_from_tokens(Framing::Ascii, std::vector<std::string>{":11030060000389\\r"}, error);
+    ASSERT_TRUE(w.has_value()) << error;
+    EXPECT_EQ(std::string(w->begin(), w->end()), ":11030060000389\r\n");
 }
 
 TEST(FrameText, TheManualsExamplesFileReadsLineByLine) {
