@@ -325,8 +325,8 @@ const Point* Profile::find(Table t, std::uint16_t address) const noexcept {
 
 std::optional<std::string> set_word_order(Profile& profile, WordOrder order) {
     std::vector<Point*> wide;
-    bool halves =
-        false;  // 32-bit values listed as a low and a high register (CTH2265I): their order is fixed
+    // 32-bit values listed as a low and a high register (CTH2265I): their order is fixed.
+    bool halves = false;
     for (auto& table : profile.points)
         for (auto& p : table) {
             if (p.encoding.words == 2) wide.push_back(&p);
