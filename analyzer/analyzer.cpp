@@ -896,22 +896,19 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     // entry is dropped when its id is sent again, so one that is here timed out after they were sent): a
     // reply that fits it is its late one, the oldest's, as a server answers in turn. Before, the reply went
     // to a waiting request, and every reply after it shifted by one.
+    const auto late_one_fits = [&] {
+        const auto t = timed_out_.find({flow.id, late_id(r.frame)});
+        return t != timed_out_.end() && could_answer(t->second.pending.request, r);
+    };
     const bool late_behind_reuse =
-        it != pending_.end() && r.frame.framing == Framing::Tcp && !timed_out_.empty() && [&] {
-            const auto t = timed_out_.find({flow.id, late_id(r.frame)});
-            return t != timed_out_.end() && could_answer(t->second.pending.request, r);
-        }();
+        it != pending_.end() && r.frame.framing == Framing::Tcp && !timed_out_.empty() && late_one_fits();
     // On a serial line the master asked the same unit again (other registers) before the reply to the first
     // came: a reply whose size or echo fits only the first request is that one's, late, and the new request
     // keeps waiting for its own. Before, it was paired with the new one (a size mismatch) and the new one's
     // reply that followed was unsolicited: two errors against a device that was only slow.
     const bool late_for_same_unit = it != pending_.end() && r.frame.framing != Framing::Tcp &&
-                                    r.frame.checksum_ok && !other_unit_waits && !timed_out_.empty() && [&] {
-                                        const auto t = timed_out_.find({flow.id, late_id(r.frame)});
-                                        return t != timed_out_.end() &&
-                                               could_answer(t->second.pending.request, r) &&
-                                               !could_answer(it->second.request, r);
-                                    }();
+                                    r.frame.checksum_ok && !other_unit_waits && !timed_out_.empty() &&
+                                    late_one_fits() && !could_answer(it->second.request, r);
     if ((it == pending_.end() || other_unit_waits || late_behind_reuse || late_for_same_unit) &&
         !timed_out_.empty()) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply

@@ -15,6 +15,15 @@ bool echoing_sub_function(std::uint16_t sub) {
     return sub == 0x00 || sub == 0x01 || sub == 0x03 || sub == 0x0A || sub == 0x14;
 }
 
+// The data bytes a read's reply carries (AP §6.1-6.4, §6.17): a bit per coil or input, two per register.
+std::optional<std::size_t> read_data_bytes(const Pdu& request) {
+    if (const auto* read = std::get_if<ReadRequest>(&request.body))
+        return request.function_code() <= 2 ? (read->quantity + 7u) / 8u : 2u * read->quantity;
+    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&request.body))
+        return 2u * rw->quantity_to_read;
+    return std::nullopt;
+}
+
 // What the reply to a multiple write echoes: its starting address and quantity (AP §6.11, §6.12).
 std::optional<WriteMultipleResponse> multiple_write_echo(const Pdu& request) {
     if (const auto* c = std::get_if<WriteMultipleCoilsRequest>(&request.body))
@@ -35,7 +44,7 @@ std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response)
     };
     if (const auto* read = std::get_if<ReadRequest>(&request.body)) {
         if (fc <= 2) {
-            const std::size_t bytes = (read->quantity + 7u) / 8u;
+            const std::size_t bytes = *read_data_bytes(request);
             const auto* bits = std::get_if<ReadBitsResponse>(&response.body);
             if (!bits || bits->values.size() != bytes)
                 return ReplyMisfit{Kind::DataSize, std::to_string(bytes) + " data bytes", "AP §6.1", bytes,
@@ -92,13 +101,8 @@ bool reply_claims_to_answer(const Pdu& request, std::span<const std::uint8_t> re
     const auto word = [&](std::size_t at) {
         return static_cast<std::uint16_t>(reply_pdu[at] << 8 | reply_pdu[at + 1]);
     };
-    const auto byte_count_is = [&](std::size_t bytes) {
-        return reply_pdu.size() >= 2 && (reply_pdu[1] == bytes || reply_pdu[1] == reply_pdu.size() - 2);
-    };
-    if (const auto* read = std::get_if<ReadRequest>(&request.body))
-        return byte_count_is(request.function_code() <= 2 ? (read->quantity + 7u) / 8u : 2u * read->quantity);
-    if (const auto* rw = std::get_if<ReadWriteMultipleRequest>(&request.body))
-        return byte_count_is(2u * rw->quantity_to_read);
+    if (const auto bytes = read_data_bytes(request))
+        return reply_pdu.size() >= 2 && (reply_pdu[1] == *bytes || reply_pdu[1] == reply_pdu.size() - 2);
     const auto echo_due = multiple_write_echo(request);
     if (!echo_due) return true;
     return reply_pdu.size() == 5 ||
