@@ -613,8 +613,9 @@ void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
     // some unit's (serial_bytes) and whose unit byte names no unit seen on the link: the tail of a reply cut
     // by a silence, five bytes of noise, were "unit 0 answering a broadcast".
     // (The units are looked through only for such a frame: this runs for every frame.)
+    // A damaged request to another unit the link has not seen is no device's either until a reply shows
+    // the unit is there (on_frame, on_response).
     const bool named_by_damage = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok &&
-                                 (r.direction == Direction::Response || unit == 0) &&
                                  std::none_of(flow.units.begin(), flow.units.end(),
                                               [unit](const Flow::Unit& u) { return u.id == unit; });
     DeviceStats* stats = nullptr;
@@ -662,7 +663,9 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
         flow.damaged_request_time = r.time;
         return;
     }
-    on_request(flow, r, *stats);
+    // A damaged request to a unit the link has not seen (decode_and_judge) waits as any other, its device
+    // left open until the wait ends (complete).
+    on_request(flow, r, stats);
 }
 
 namespace {
@@ -680,8 +683,10 @@ std::uint16_t pairing_id(const Frame& f) {
     return f.framing == Framing::Tcp ? f.transaction_id() : 0;
 }
 std::string describe_request(const Pdu& p) {
-    std::string s = "FC" + std::to_string(p.function_code());
-    if (auto n = function_name(p.function_code())) s += " " + std::string(*n);
+    // The function byte whole: in a request bit 7 is no exception flag, and 0x83 is no FC3 (the summary's
+    // function counts take the byte whole too).
+    std::string s = "FC" + std::to_string(p.function_raw);
+    if (auto n = function_name(p.function_raw)) s += " " + std::string(*n);
     // What it asked of which addresses, as the transaction lines say it: a message names the request alone.
     const auto range = [](std::uint16_t start, std::uint16_t quantity) {
         return " " + std::to_string(start) + "+" + std::to_string(quantity);
@@ -740,12 +745,46 @@ std::uint16_t late_id(const Frame& f) {
 }
 }  // namespace
 
-void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
+namespace {
+void count_request(const FrameRecord& r, DeviceStats& stats) {
     ++stats.requests;
-    flow.request_seen = true;
     // By the function code byte: a request whose PDU cannot be decoded still asked for that function.
     if (const auto pdu = r.frame.pdu(); !pdu.empty()) ++stats.functions[pdu[0]];
-    if (options_.semantics && r.pdu)
+}
+}  // namespace
+
+// A damaged request to a unit its link had not shown when it came (line noise of a few bytes makes such
+// frames, and made "unit 60" a device with a request): whose it is, once its wait ends. The unit's, if the
+// link has shown the unit by then (it answered, or the master asked it again: the capture damaged what the
+// device got whole, or the line damaged a request to it), counted as its request then; else no device's,
+// counted on the line. Decided once; false for no device.
+bool Analyzer::settle_unit(Pending& p) {
+    if (!p.unseen_unit_link) return !p.no_device;
+    const Flow& flow = *p.unseen_unit_link;
+    p.unseen_unit_link = nullptr;
+    const auto unit =
+        std::find_if(flow.units.begin(), flow.units.end(),
+                     [id = p.request.frame.unit_id()](const Flow::Unit& u) { return u.id == id; });
+    if (unit == flow.units.end()) {
+        p.no_device = true;
+        ++summary_.damaged_to_unseen_units;
+        return false;
+    }
+    p.request.device = unit->device;
+    p.stats = unit->stats;
+    count_request(p.request, *p.stats);
+    ++p.stats->checksum_errors;
+    std::vector<FindingCode> own;  // reported when it came, with no device to count them for
+    add_frame_findings(p.request, own);
+    for (const auto code : own)
+        ++p.stats->findings[std::string(to_string(code))];
+    return true;
+}
+
+void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
+    flow.request_seen = true;
+    if (stats) count_request(r, *stats);
+    if (options_.semantics && r.pdu && stats)
         if (const Profile* profile = options_.semantics->profile_for(flow.server, r.frame.unit_id())) {
             for (auto& rule : options_.semantics->check_line(*profile, r.device.str(), r.frame))
                 report(rule.code, r, rule.message);
@@ -845,8 +884,10 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     }
     const std::uint64_t serial = ++next_serial_;
     ++expiry_entries_;
-    // An untimed capture (raw dump) has no clock: its requests expire only when the master moves on.
-    if (!r.time.count()) {
+    // An untimed capture (raw dump) has no clock: its requests expire only when the master moves on. So does
+    // a damaged request to a unit not seen yet: the master's next request may show the unit it was for
+    // (settle_unit), and a damaged request is discarded, its silence no timeout whatever its length.
+    if (!r.time.count() || !stats) {
         expiries_[untimed].push_back({Timestamp::max(), key, serial});
     } else if (r.frame.framing == Framing::Tcp) {
         expiries_[tcp_timeout].push_back({r.time + options_.timeout, key, serial});
@@ -855,7 +896,8 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats& stats) {
     }
     // made from the record (any earlier one with the key was completed above): a default-made record would
     // zero a frame's whole buffer first, a third of this function's time
-    pending_.try_emplace(key, std::move(r), serial, &stats);
+    const auto made = pending_.try_emplace(key, std::move(r), serial, stats).first;
+    if (!stats) made->second.unseen_unit_link = &flow;
     ++flow.pending;
 }
 
@@ -886,6 +928,20 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
     auto it = pending_.find(key);
+    if (it != pending_.end() && it->second.unseen_unit_link && r.frame.checksum_ok &&
+        r.frame.unit_id() != it->second.request.frame.unit_id()) {
+        // What waits is a damaged request to a unit the link had not shown, and another unit answers: the
+        // master asked that one (in bytes the capture lost), not the unit the damage names. Settled now, and
+        // no request waits.
+        Pending waiting = std::move(it->second);
+        pending_.erase(it);
+        --flow.pending;
+        give_up(waiting, false,
+                {FindingCode::PairNoResponse,
+                 no_response_message(waiting.request,
+                                     "before unit " + std::to_string(r.frame.unit_id()) + " replied")});
+        it = pending_.end();
+    }
     // On a serial line the request waiting may be to another unit, the master having moved on from this
     // one's: a reply that unit's late one names (with a checksum that holds, so its unit byte can be
     // trusted) is that one's, not the waiting request's with a unit mismatch.
@@ -1156,6 +1212,8 @@ void Analyzer::reply_cut(Flow& f, const CutAdu& cut, Timestamp t) {
 
 void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late,
                         Unanswered* unanswered) {
+    // Line noise that made a request to a unit never seen: its checksum finding was all there is to say.
+    if (!settle_unit(pending)) return;
     if (unanswered && pending.other_unit_reply) {
         unanswered->only_other_unit = true;
         unanswered->message += " (only unit " + std::to_string(pending.other_unit) + " replied, frame " +
@@ -1480,8 +1538,9 @@ void Analyzer::expire(Timestamp now, bool at_end) {
     }
 }
 
-void Analyzer::remember_timed_out(const PendingKey& key, const Pending& pending, Timestamp timeout,
+void Analyzer::remember_timed_out(const PendingKey& key, Pending& pending, Timestamp timeout,
                                   std::string what, std::uint64_t moved_on_at) {
+    if (!settle_unit(pending)) return;  // no device's: a reply from a unit that shows up later is not its
     const std::uint64_t serial = ++next_serial_;
     timed_out_.insert_or_assign(
         key, TimedOut{Pending(FrameRecord(pending.request), pending.serial, pending.stats), timeout,

@@ -143,6 +143,10 @@ class Analyzer {
         // it: see on_response), and that unit; 0 when none.
         std::uint64_t other_unit_reply = 0;
         std::uint8_t other_unit = 0;
+        // A damaged request to a unit its link had not shown (no stats yet): its link, until settle_unit
+        // decides whose it is; no_device when that found none.
+        Flow* unseen_unit_link = nullptr;
+        bool no_device = false;
     };
     struct PendingKey {
         std::uint64_t flow;
@@ -247,7 +251,8 @@ class Analyzer {
     void exported_pdu(const Packet& packet);
     void rtac_packet(const Packet& packet);
     modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
-    void on_request(Flow& flow, FrameRecord& record, DeviceStats& stats);
+    void on_request(Flow& flow, FrameRecord& record, DeviceStats* stats);
+    bool settle_unit(Pending& pending);
     void on_response(Flow& flow, FrameRecord& record);
     // Why a request is given up without a response: the finding about it, which its transaction carries.
     struct Unanswered {
@@ -271,7 +276,7 @@ class Analyzer {
                const TimedOut* late, Unanswered* unanswered, TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
     // Keyed by late_id: the transaction id, or on a serial line the unit.
-    void remember_timed_out(const PendingKey& key, const Pending& pending, modbus::Timestamp timeout,
+    void remember_timed_out(const PendingKey& key, Pending& pending, modbus::Timestamp timeout,
                             std::string what, std::uint64_t moved_on_at = 0);
     // The timed-out request a response answers late, when there is one; it is forgotten then.
     std::optional<TimedOut> late_for(const PendingKey& key);

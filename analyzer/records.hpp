@@ -164,6 +164,9 @@ struct Summary {
     // Requests to unit 0 on serial lines (and RTU over TCP) whose CRC or LRC fails: every slave discards
     // them, so none is a broadcast transaction; their checksum findings name them.
     std::uint64_t damaged_broadcasts = 0;
+    // Requests whose CRC or LRC fails to a unit that no frame of their line had shown before and that no
+    // reply from that unit answered: line noise, most often, and no device's.
+    std::uint64_t damaged_to_unseen_units = 0;
     std::map<std::string, DeviceStats, NaturalOrder> devices;
     std::map<std::string, std::uint64_t> findings;  // code name → count
     std::uint64_t errors = 0;                       // error-severity findings

@@ -150,6 +150,9 @@ void TextSink::end(const Summary& s) {
          << " transactions, " << s.unparsed_bytes << " unparsed bytes";
     if (s.damaged_broadcasts)
         out_ << ", " << s.damaged_broadcasts << " damaged frames to unit 0 (bad CRC/LRC: no broadcast)";
+    if (s.damaged_to_unseen_units)
+        out_ << ", " << s.damaged_to_unseen_units
+             << " damaged frames to units not seen on their line (bad CRC/LRC, no reply: no device's)";
     out_ << '\n';
     for (const auto& [device, d] : s.devices) {
         out_ << "  " << device << ": " << d.requests << " requests, " << d.responses << " responses, "
@@ -401,6 +404,7 @@ json summary_to_json(const Summary& s) {
            {"transactions", s.transactions},
            {"unparsed_bytes", s.unparsed_bytes},
            {"damaged_broadcasts", s.damaged_broadcasts},
+           {"damaged_to_unseen_units", s.damaged_to_unseen_units},
            {"errors", s.errors},
            {"findings", s.findings}};
     json devices = json::object();

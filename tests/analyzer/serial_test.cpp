@@ -322,6 +322,59 @@ TEST(SerialInput, ADamagedRequestLeftUnansweredIsNoTimeout) {
               2);
 }
 
+// Line noise of a few bytes is a frame to some unit whose CRC fails: "3C 03 A1 22 7F" made unit 60 a device
+// with a discarded request, "FF 83 11 22" unit 255 (its function named FC3 on its line, FC131 in the
+// summary). A damaged request to a unit no frame of its line has shown is no device's, unless the unit shows
+// itself before its wait ends: by its reply (the capture damaged what it got whole), or by the master
+// asking it again (the test above).
+TEST(SerialInput, LineNoiseMakesNoDevice) {
+    const auto path = write_temp("noise_units.txt",
+                                 "1.000 11 03 00 60 00 03 07 45\n"
+                                 "1.020 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "1.300 3C 03 A1 22 7F\n"  // noise: unit 60, never seen
+                                 "1.500 11 03 00 60 00 03 07 45\n"
+                                 "1.520 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "1.800 FF 83 11 22\n"                // noise: unit 255
+                                 "2.000 05 03 00 00 00 01 85 8F\n"    // unit 5, first seen, its CRC damaged,
+                                 "2.020 05 03 02 00 07 08 46\n"       // and it answers
+                                 "2.500 11 83 00 60 00 01 87 5B\n");  // function byte 0x83, CRC damaged
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_TRUE(r->ok);
+    EXPECT_EQ(r->summary.damaged_to_unseen_units, 2u);
+    EXPECT_EQ(an::summary_to_json(r->summary)["damaged_to_unseen_units"], 2);
+    ASSERT_EQ(r->summary.devices.size(), 2u);
+    const auto& unit5 = r->summary.devices.at("serial " + path + " unit 5");
+    EXPECT_EQ(unit5.requests, 1u);
+    EXPECT_EQ(unit5.responses, 1u);
+    EXPECT_EQ(unit5.checksum_errors, 1u);
+    EXPECT_EQ(unit5.functions.at(3), 1u);
+    EXPECT_EQ(unit5.findings.at("rtu.crc_mismatch"), 1u);
+    const auto& unit17 = r->summary.devices.at("serial " + path + " unit 17");
+    EXPECT_EQ(unit17.requests, 3u);
+    EXPECT_EQ(unit17.responses, 2u);
+    EXPECT_EQ(unit17.damaged_unanswered, 1u);
+    EXPECT_EQ(unit17.functions.at(0x83), 1u);
+    ASSERT_EQ(r->sink.transactions.size(), 4u);
+    EXPECT_EQ(r->sink.transactions[2].request.device.str(), "serial " + path + " unit 5");
+    EXPECT_TRUE(r->sink.transactions[2].response.has_value());
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairDamagedRequestUnanswered), 1);
+    for (const auto& f : r->sink.findings)
+        if (f.code == mb::FindingCode::PairDamagedRequestUnanswered) {
+            EXPECT_EQ(f.message.rfind("FC131 to serial " + path + " unit 17", 0), 0u) << f.message;
+        }
+    // Another unit's reply while such a request waits answers a request the capture does not hold: no unit
+    // mismatch held against it for noise naming unit 18.
+    const auto other = write_temp("noise_then_other.txt",
+                                  "1.000 12 03 00 60 00 03 06 94\n"
+                                  "1.500 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    r = decode(other, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnitMismatch), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+    EXPECT_EQ(r->summary.damaged_to_unseen_units, 1u);
+    EXPECT_EQ(r->summary.devices.count("serial " + other + " unit 18"), 0u);
+}
+
 // Broadcast requests are writes (SL §2.1; the MK manual runs FC5, 6, 15 and 16 in broadcast, 000:313): a
 // read sent to unit 0 passed without a word, though nothing it reads can ever come back; so did FC8's
 // sub-functions that return a counter. A broadcast write and FC8's listen-only (which changes a device's
@@ -480,7 +533,7 @@ TEST(SerialInput, AReplyAfterTheTimeoutIsLate) {
             EXPECT_EQ(f.frames, (std::vector<std::uint64_t>{4, 5}));
         }
     // Unit 18 asked and timed out; unit 17's reply after it is nobody's.
-    const auto other = write_temp("late-other.txt", "1.000 12 03 00 60 00 03 06 94\n2.500 " + reply + "\n");
+    const auto other = write_temp("late-other.txt", "1.000 12 03 00 60 00 03 07 76\n2.500 " + reply + "\n");
     r = decode(other, an::InputFormat::Text);
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 0);
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
