@@ -116,6 +116,19 @@ bool cut_rather_than_damaged(std::span<const std::uint8_t> buf, Candidates c) no
     return !(request && request->violations.empty()) && !(response && response->violations.empty());
 }
 
+// A run between silences whose CRC holds as a whole, though its content says a frame ends sooner, where a CRC
+// holds too: that frame and bytes after it (a driver's 0x00 as it releases the line keeps the CRC of any
+// frame before it valid, as CRC-16/MODBUS's residue is 0), not one frame of the whole run with trailing bytes
+// held against the device. Most runs are one frame of the predicted length: no second CRC for them.
+bool valid_frame_inside(std::span<const std::uint8_t> run) noexcept {
+    const Candidates c = candidates(run);
+    for (std::size_t i = 0; i < c.count; ++i)
+        if (c.length(i) == run.size()) return false;
+    for (std::size_t i = 0; i < c.count; ++i)
+        if (c.length(i) < run.size() && rtu_crc_ok(run.first(c.length(i)))) return true;
+    return false;
+}
+
 }  // namespace
 
 DeframeStep rtu_step(std::span<const std::uint8_t> buf, bool at_end, bool input_ended) noexcept {
@@ -255,14 +268,15 @@ void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {
     const bool at_end = end != SegmentEnd::Open;
     const std::size_t n = seg_.size();
     std::size_t consumed = 0;
-    if (at_end && n >= 4 && n <= max_rtu_adu_length && rtu_crc_ok(seg_)) {
+    if (at_end && n >= 4 && n <= max_rtu_adu_length && rtu_crc_ok(seg_) && !valid_frame_inside(seg_)) {
         emit_frame(0, n, out);
         consumed = n;
     } else if (at_end && n > 0) {
-        // Split by content. Keep the result only if it finds at least one frame; otherwise the
-        // silence-delimited run is one frame with a bad CRC (or too short to be one). The pieces go straight
-        // into `out` and are taken back when no frame verified (they are then unparsed runs only, cheap to
-        // drop): no list of its own to build and copy from.
+        // Split by content. Keep the result only if it finds at least one frame whose CRC holds; otherwise
+        // the silence-delimited run is one frame with a bad CRC (or too short to be one): a damaged reply
+        // split by content was a byte of garbage and a made-up frame of another unit, which took the fault.
+        // The pieces go straight into `out` and are taken back when no frame verified (they are then unparsed
+        // runs and damaged frames only, cheap to drop): no list of its own to build and copy from.
         const std::size_t mark = out.size();
         std::size_t pos = 0;
         bool any_frame = false;
@@ -279,7 +293,7 @@ void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {
             if (step.kind == Kind::Complete) {
                 flush_run();
                 emit_frame(pos, step.length, out);
-                any_frame = true;
+                any_frame |= step.checksum_ok;
                 pos += step.length;
             } else {
                 const std::size_t len = std::max<std::size_t>(step.length, 1);

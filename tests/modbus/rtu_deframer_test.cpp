@@ -226,6 +226,43 @@ TEST(RtuTimedDeframer, GapAboveT35SplitsAFrameIntoTwoBadOnes) {
     }
 }
 
+// A damaged reply alone between silences (a second device at address 2 answering too, one bit of its byte
+// count flipped) is one frame whose CRC fails. Split by content it was a byte of garbage and "03 02 00 99
+// 00 07 58 DE", a frame of unit 3 with a bad CRC, that took the fault; the split is kept only for a frame
+// whose CRC holds. The tail of a reply cut by a silence made a unit-0 FC7 frame the same way.
+TEST(RtuTimedDeframer, ADamagedFrameAloneIsOneFrameNotAPieceOfAnother) {
+    for (const auto& run : {hex("02 03 02 00 99 00 07 58 DE"), hex("02 00 07 29 31")}) {
+        auto events = run_timed({{hex("02 03 00 20 00 02 C5 F2"), 0ms}, {run, 10ms}});
+        ASSERT_EQ(events.size(), 2u);
+        const auto& f = std::get<mb::Frame>(events[1]);
+        EXPECT_FALSE(f.checksum_ok);
+        EXPECT_EQ(f.wire_length, run.size());
+        EXPECT_EQ(f.unit_id(), 2);
+    }
+}
+
+// A line driver's 0x00 as it lets the line go, right after a frame: CRC-16/MODBUS over a frame and its CRC is
+// 0, and stays 0 over a 0x00 after them, so the ten bytes "hold" as a frame too, whose PDU has a byte too
+// many (pdu.byte_count_mismatch against the device). The frame its content predicts holds: that frame, and
+// one stray byte. (The untimed deframer framed it so already.)
+TEST(RtuTimedDeframer, AStrayZeroAfterAFrameIsNotPartOfIt) {
+    for (const auto& frame : {hex("02 03 04 00 02 00 07 29 31"), hex("03 03 00 30 00 02 C5 E6")}) {
+        auto bytes = frame;
+        bytes.push_back(0x00);
+        auto events = run_timed({{bytes, 0ms}});
+        expect_every_byte_accounted(events, bytes.size());
+        ASSERT_EQ(events.size(), 2u);
+        const auto& f = std::get<mb::Frame>(events[0]);
+        EXPECT_TRUE(f.checksum_ok);
+        EXPECT_EQ(f.wire_length, frame.size());
+        EXPECT_EQ(std::get<mb::Unparsed>(events[1]).length, 1u);
+    }
+    // A frame whose whole run is the length its content says stays whole (one CRC, no search).
+    auto events = run_timed({{hex("11 03 06 02 2B 00 00 00 64 C8 BA"), 0ms}});
+    ASSERT_EQ(events.size(), 1u);
+    EXPECT_TRUE(std::get<mb::Frame>(events[0]).checksum_ok);
+}
+
 // The input ends five bytes into an eleven-byte reply (a log cut off, a capture stopped): the bytes are a
 // truncated run, not a frame with a bad CRC whose byte count disagrees. A silence after the same bytes ends
 // a frame however short (the device stopped sending): that one is a frame, and its CRC fails.
