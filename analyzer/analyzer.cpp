@@ -78,6 +78,10 @@ struct Analyzer::Flow {
     // damaged.
     std::uint64_t damaged_request = 0;
     Timestamp damaged_request_time{0};
+    // The last broadcast on a serial link (frame index, 0: none, or a unicast request since), and when: a
+    // slave's reply right after it answers what no slave may answer (SL §2.1).
+    std::uint64_t last_broadcast = 0;
+    Timestamp last_broadcast_time{0};
     // The last run of serial bytes that formed no frame, and how many frames the capture had when it came: a
     // reply nobody waits for after it may answer a request among those bytes.
     std::uint64_t unparsed_offset = 0;
@@ -615,9 +619,13 @@ void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
     // (The units are looked through only for such a frame: this runs for every frame.)
     // A damaged request to another unit the link has not seen is no device's either until a reply shows
     // the unit is there (on_frame, on_response).
-    const bool named_by_damage = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok &&
-                                 std::none_of(flow.units.begin(), flow.units.end(),
-                                              [unit](const Flow::Unit& u) { return u.id == unit; });
+    // A serial reply carrying unit 0 is no device's whatever its checksum: no slave has that address
+    // (on_response says whose reply slot it took).
+    const bool named_by_damage =
+        r.frame.framing != Framing::Tcp &&
+        (!r.frame.checksum_ok || (unit == 0 && r.direction == Direction::Response)) &&
+        std::none_of(flow.units.begin(), flow.units.end(),
+                     [unit](const Flow::Unit& u) { return u.id == unit; });
     DeviceStats* stats = nullptr;
     if (!named_by_damage) r.device = device_of(flow, unit, stats);
     auto pdu = decode_pdu(r.frame.pdu(), r.direction);
@@ -793,7 +801,29 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
                 report(rule.code, r, rule.message);
             }
         }
+    // A reply with this id (on a serial line, from this unit) now answers this request. (Before the request
+    // waiting is given up below: a reply that fits only that one is its late one.)
+    if (!timed_out_.empty()) timed_out_.erase({flow.id, late_id(r.frame)});
+    if (r.frame.framing != Framing::Tcp)
+        if (auto it = pending_.find({flow.id, 0}); it != pending_.end()) {
+            // The master moved on (a broadcast too: a master sends nothing while it waits for a reply): the
+            // previous request was never answered.
+            Pending old = std::move(it->second);
+            pending_.erase(it);
+            --flow.pending;
+            // Its reply may still come, from a slow unit, while the master waits on another: late then. To
+            // the same unit again, a reply answers the new request, unless only the old one's fits it
+            // (on_response).
+            remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
+                               describe_request(old.request), r.index);
+            give_up(old, true,
+                    {FindingCode::PairNoResponse,
+                     "request to " + old.request.device.str() + " got no response before the next request"});
+        }
+    if (r.frame.framing != Framing::Tcp) flow.last_broadcast = 0;
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
+        flow.last_broadcast = r.index;
+        flow.last_broadcast_time = r.time;
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
         if (only_reads(r.frame.pdu())) {
             r.reported_findings.push_back(FindingCode::PairBroadcastRead);
@@ -816,22 +846,6 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
         return;
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
-    // A reply with this id (on a serial line, from this unit) now answers this request.
-    if (!timed_out_.empty()) timed_out_.erase({flow.id, late_id(r.frame)});
-    if (auto it = r.frame.framing == Framing::Tcp ? pending_.end() : pending_.find(key);
-        it != pending_.end()) {
-        // The master moved on: the previous request was never answered.
-        Pending old = std::move(it->second);
-        pending_.erase(it);
-        --flow.pending;
-        // Its reply may still come, from a slow unit, while the master waits on another: late then. To the
-        // same unit again, a reply answers the new request, unless only the old one's fits it (on_response).
-        remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
-                           describe_request(old.request), r.index);
-        give_up(old, true,
-                {FindingCode::PairNoResponse,
-                 "request to " + old.request.device.str() + " got no response before the next request"});
-    }
     if (auto it = pending_.find(key); it != pending_.end()) {
         report(FindingCode::PairTransactionIdDuplicate, r,
                "transaction id " + std::to_string(key.tid) + " reused while frame " +
@@ -922,8 +936,30 @@ bool could_answer(const FrameRecord& request, const FrameRecord& response) {
 void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     // (A damaged frame's unit byte may be the damage: its checksum finding says what it is.)
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0 && r.frame.checksum_ok) {
+        // Unit 0 is no slave's address (SL §2.2): the frame is no device's (decode_and_judge). In the reply
+        // slot of a request to a unit, it is that unit's reply slot a frame with a wrong address took: held
+        // against the unit asked, and the request keeps waiting, as for a reply from another unit. Else it
+        // answers a broadcast, which no slave may.
+        if (const auto waiting = pending_.find({flow.id, 0}); waiting != pending_.end()) {
+            Pending& asked = waiting->second;
+            asked.other_unit_reply = r.index;
+            asked.other_unit = 0;
+            FrameRecord about(r);
+            about.device = asked.request.device;
+            report(
+                FindingCode::PairUnitMismatch, about,
+                "request to unit " + std::to_string(asked.request.frame.unit_id()) + " (frame " +
+                    std::to_string(asked.request.index) +
+                    ") waits, and the response in its place carries unit 0, the broadcast address, which no "
+                    "slave answers with: no answer from unit " +
+                    std::to_string(asked.request.frame.unit_id()) + " (a master discards it), nor its values",
+                {asked.request.index, r.index});
+            return;
+        }
         report(FindingCode::PairBroadcastResponse, r,
-               "a response carries unit 0: no slave may answer a broadcast");
+               flow.last_broadcast ? "a response carries unit 0: no slave may answer a broadcast (frame " +
+                                         std::to_string(flow.last_broadcast) + ")"
+                                   : "a response carries unit 0: no slave may answer a broadcast");
         return;
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
@@ -969,7 +1005,11 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         !timed_out_.empty()) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
         // again (a poll's late reply on a serial line often carries the same bytes as the one before).
-        if (auto late = late_for({flow.id, late_id(r.frame)})) {
+        // Unless a broadcast came after it, and the reply does not fit it: that answers the broadcast
+        // (below), an FC16 echo was no late reply to an FC3.
+        const bool answers_broadcast = it == pending_.end() && flow.last_broadcast &&
+                                       r.frame.framing != Framing::Tcp && !late_one_fits();
+        if (auto late = answers_broadcast ? std::nullopt : late_for({flow.id, late_id(r.frame)})) {
             flow.keep_last_response(r);
             complete(late->pending, &r, false, &*late);
             return;
@@ -1094,6 +1134,18 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             // Damaged bytes on a serial line that no request waits for, naming no unit seen there: their
             // checksum finding is all that can be said (no unit sent them that the bytes can show).
             if (r.frame.framing != Framing::Tcp && !r.frame.checksum_ok && r.device.empty()) return;
+            // Right after a broadcast (within the serial timeout), a unit answered it: what no slave may do
+            // (SL §2.1), said as such rather than as a reply nobody asked for.
+            if (r.frame.framing != Framing::Tcp && r.frame.checksum_ok && flow.last_broadcast &&
+                (!r.time.count() || (r.time >= flow.last_broadcast_time &&
+                                     r.time - flow.last_broadcast_time <= options_.serial_timeout))) {
+                report(FindingCode::PairBroadcastResponse, r,
+                       "unit " + std::to_string(r.frame.unit_id()) + " answered the broadcast of frame " +
+                           std::to_string(flow.last_broadcast) + ": no slave may answer a broadcast",
+                       {flow.last_broadcast, r.index});
+                flow.keep_last_response(r);
+                return;
+            }
             // A serial line has no transaction ids: name the unit whose reply nobody asked for.
             report(
                 FindingCode::PairUnsolicitedResponse, r,

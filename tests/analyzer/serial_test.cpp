@@ -375,6 +375,54 @@ TEST(SerialInput, LineNoiseMakesNoDevice) {
     EXPECT_EQ(r->summary.devices.count("serial " + other + " unit 18"), 0u);
 }
 
+// Around broadcasts on a serial line: a master sends nothing while it waits, so a broadcast after an
+// unanswered request moves on from it as any request does (unit 2's reply after it was a clean answer in
+// 210 ms); a reply carrying unit 0 in the slot of unit 2's reply is no broadcast response and no device
+// "unit 0", but a frame with a wrong address where unit 2's reply should be; slaves that answer a broadcast
+// with their own address answered the broadcast, not "nothing", and an FC16 echo is no late reply to an FC3.
+TEST(SerialInput, RepliesAroundBroadcastsAreNamedForWhatTheyAre) {
+    const auto path = write_temp("broadcasts.txt",
+                                 "1.000 > 02 03 00 20 00 02 C5 F2\n"
+                                 "1.200 > 00 06 00 05 00 09 58 1C\n"
+                                 "1.210 < 02 03 04 00 02 00 07 29 31\n"
+                                 "2.000 > 02 03 00 20 00 02 C5 F2\n"
+                                 "2.020 < 00 03 04 00 02 00 07 0A F1\n"
+                                 "3.500 > 03 03 00 30 00 02 C5 E6\n"
+                                 "3.520 < 03 03 04 00 03 00 07 68 31\n"
+                                 "4.000 > 00 10 00 01 00 01 02 00 05 6A 12\n"
+                                 "4.010 < 01 10 00 01 00 01 50 09\n"
+                                 "4.020 < 02 10 00 01 00 01 50 3A\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_TRUE(r->ok);
+    const std::string unit = "serial " + path + " unit ";
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 1);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairUnitMismatch), 1);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairBroadcastResponse), 2);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairFunctionMismatch), 0);
+    for (const auto& f : r->sink.findings) {
+        if (f.code == mb::FindingCode::PairLateResponse) {
+            EXPECT_EQ(f.frames, (std::vector<std::uint64_t>{1, 3}));
+            EXPECT_NE(f.message.find("moved on to frame 2"), std::string::npos) << f.message;
+        }
+        if (f.code == mb::FindingCode::PairUnitMismatch) {
+            EXPECT_EQ(f.device.str(), unit + "2");
+            EXPECT_NE(f.message.find("carries unit 0"), std::string::npos) << f.message;
+        }
+        if (f.code == mb::FindingCode::PairBroadcastResponse) {
+            EXPECT_TRUE(f.device.str() == unit + "1" || f.device.str() == unit + "2") << f.device.str();
+            EXPECT_NE(f.message.find("answered the broadcast of frame 8"), std::string::npos) << f.message;
+        }
+    }
+    const auto& unit2 = r->summary.devices.at(unit + "2");
+    EXPECT_EQ(unit2.responses, 0u);
+    EXPECT_EQ(unit2.timeouts, 2u);
+    EXPECT_EQ(unit2.late_responses, 1u);
+    EXPECT_EQ(unit2.answered_by_other_unit, 1u);
+    // The broadcasts are unit 0's requests; nothing is held against a "unit 0" for the reply carrying it.
+    EXPECT_TRUE(r->summary.devices.at(unit + "0").findings.empty());
+}
+
 // Broadcast requests are writes (SL §2.1; the MK manual runs FC5, 6, 15 and 16 in broadcast, 000:313): a
 // read sent to unit 0 passed without a word, though nothing it reads can ever come back; so did FC8's
 // sub-functions that return a counter. A broadcast write and FC8's listen-only (which changes a device's
