@@ -73,6 +73,13 @@ std::string TableFacts::no_address_reason() const {
     return unknown.empty() ? "the map has no address in " + std::string(modbus::to_string(table)) : unknown;
 }
 
+bool TableFacts::lacks_address(RuleResult& r) const {
+    if (first_valid()) return false;
+    r.outcome = damaged.empty() ? Outcome::Skip : Outcome::Error;
+    r.reason = damaged.empty() ? no_address_reason() : "not judged: " + damaged;
+    return true;
+}
+
 bool Context::selected(const std::string& rule_id) const {
     if (options.rule_globs.empty()) return true;
     for (const auto& g : options.rule_globs)

@@ -25,6 +25,11 @@ struct TableFacts {
     // where it ends (`end_unknown`: runs hold what was found readable). Why, for the rules it skips.
     std::string unknown;
     std::string end_unknown;
+    // Probing got replies to address 0 and every one was damaged (a bad checksum, another unit's, no frame):
+    // the device answers and damages its replies, so the map is unknown without being empty. Rules needing
+    // the map are not judged (in error, failing the verdict) rather than skipped, and fc.supported.N asks
+    // again and fails on the damaged reply: skipped, they certified a device damaging every read.
+    std::string damaged;
     std::vector<std::pair<std::uint16_t, std::uint16_t>>
         runs;  // [first, last] of consecutive valid addresses
     std::optional<std::uint16_t> first_valid() const;
@@ -36,6 +41,10 @@ struct TableFacts {
     bool valid(std::uint16_t address) const;
     // Why a rule that needs an address of this table has none: the map has none, or probing could not tell.
     std::string no_address_reason() const;
+    // For a rule that needs an address of this table and has none: skipped with no_address_reason(), or, when
+    // the device damaged every reply while the table was probed, in error (not judged) saying so. False when
+    // the table has an address (the rule goes on).
+    bool lacks_address(RuleResult& r) const;
 };
 
 struct RunOptions {

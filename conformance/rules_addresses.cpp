@@ -26,12 +26,7 @@ void check_addresses(Context& c) {
         // answers while it was probed, judged by the specification alone.
         const Authority map_authority =
             c.profile.open_address_space ? Authority::Specification : Authority::Manual;
-        const auto need_map = [&](RuleResult& r) {
-            if (f.first_valid()) return true;
-            r.outcome = Outcome::Skip;
-            r.reason = f.no_address_reason();
-            return false;
-        };
+        const auto need_map = [&](RuleResult& r) { return !f.lacks_address(r); };
         // A map, and room after its last address (a map reaching 65535 has no "past the end").
         const auto need_end = [&](RuleResult& r) {
             if (!need_map(r)) return false;

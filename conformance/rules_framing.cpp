@@ -1,4 +1,5 @@
 // Framing on serial lines and serial framing over TCP (SL §2.5): a bad CRC or LRC is never answered, nor a
+// request for another unit (SL §2.1), and the device answers the next valid request after either; nor a
 // truncated frame, nor one holding a silence above t1.5; the reply starts after t3.5 and holds no such
 // silence either; requests back to back are each answered; ASCII replies are in upper-case hex, and a
 // request in lower case is ignored or read as in upper case.
@@ -19,17 +20,57 @@ void check_framing(Context& c) {
     const std::uint8_t fc = probe.fc;
     const auto good = c.session.client().frame(c.session.options().unit, probe.pdu);
     const std::string check = ascii ? "LRC" : "CRC";
-    c.run_with_probe({"framing.bad_checksum", "framing", ascii ? "SL §2.5.2.2" : "SL §2.5.1.2",
-                      "A request with a bad " + check + " gets no reply.", Authority::Specification, false},
-                     [&](RuleResult& r) {
-                         auto bad = good;
-                         if (ascii)
-                             bad[bad.size() - 3] =
-                                 bad[bad.size() - 3] == '0' ? '1' : '0';  // the LRC's low hex digit
-                         else
-                             bad.back() ^= 0xFF;
-                         expect_silence(r, c.session.raw(bad, "bad " + check));
-                     });
+    // Silence alone passed a device that discarded the frame and never answered again (pymodbus's ASCII
+    // framer): the rules after it failed in its place. SL §2.5.1.2 and §2.5.2.2 have the slave discard the
+    // frame and go on listening, so a valid request follows the silence, as in framing.truncated_discarded.
+    c.run_with_probe(
+        {"framing.bad_checksum", "framing", ascii ? "SL §2.5.2.2" : "SL §2.5.1.2",
+         "A request with a bad " + check + " gets no reply, and the valid request after it is answered.",
+         Authority::Specification, false},
+        [&](RuleResult& r) {
+            auto bad = good;
+            if (ascii)
+                bad[bad.size() - 3] = bad[bad.size() - 3] == '0' ? '1' : '0';  // the LRC's low hex digit
+            else
+                bad.back() ^= 0xFF;
+            const auto ex = c.session.raw(bad, "bad " + check);
+            expect_silence(r, ex);
+            if (r.outcome != Outcome::Pass) return;
+            const auto next = c.session.raw(good, "a valid request after the silence");
+            r.expected = "no reply, then a normal response to the valid request after it";
+            r.observed = "no reply to the bad " + check + "; the next request: " + describe(next);
+            r.outcome = is_normal(next, fc) ? Outcome::Pass : Outcome::Fail;
+        });
+    // SL §2.1: on a multi-drop line only the addressed slave replies; a slave answering every unit id (a
+    // server that serves any unit as its own, as pymodbus's single context does) answers for its neighbours
+    // too. The same read of the device's own point, for the next unit (1-247, SL §2.2), so that nothing is
+    // written whoever takes it; then the device's own unit, which must still be answered (silence from a
+    // device that stopped listening proves nothing). Over a stream the target may be a gateway, which passes
+    // the request on to another slave of its line: a warning there. On a line, the device must be alone on
+    // it, as for every rule.
+    const std::uint8_t own_unit = c.session.options().unit;
+    const auto other_unit = static_cast<std::uint8_t>(own_unit % 247 + 1);
+    c.run_with_probe(
+        {"framing.other_unit", "framing",
+         c.true_serial() ? "SL §2.1, §2.2" : "SL §2.1, §2.2 (a line; over a stream: a gateway's line)",
+         "A request for another unit (" + std::to_string(other_unit) +
+             ") gets no reply, and the request for the device's own unit after it is answered.",
+         c.true_serial() ? Authority::Specification : Authority::Implied, false},
+        [&](RuleResult& r) {
+            const auto ex = c.session.request(
+                probe.pdu, "the same read for unit " + std::to_string(other_unit), other_unit);
+            expect_silence(r, ex);
+            r.expected = "no reply for unit " + std::to_string(other_unit) +
+                         ", then a normal response for unit " + std::to_string(own_unit);
+            if (r.outcome != Outcome::Pass) {
+                r.observed = "for unit " + std::to_string(other_unit) + ": " + describe(ex);
+                return;
+            }
+            const auto next = c.session.raw(good, "the read for the device's own unit");
+            r.observed = "no reply for unit " + std::to_string(other_unit) + "; for unit " +
+                         std::to_string(own_unit) + ": " + describe(next);
+            r.outcome = is_normal(next, fc) ? Outcome::Pass : Outcome::Fail;
+        });
     // Silence alone passed a device that kept the half frame and never answered again: the rules after it
     // failed in its place, and the points written could not be restored. On a line the silence ends the half
     // frame (SL §2.5.1.1), in ASCII the next ':' does (SL §2.5.2.1); RTU over a stream has neither, and a
@@ -62,6 +103,17 @@ void check_framing(Context& c) {
                          // Over TCP the half frame may still sit in the slave's buffer: let its
                          // resynchronisation run.
                          c.session.client().drain(std::chrono::milliseconds(150));
+                         // A device that keeps the half frame (pymodbus's RTU framer), which
+                         // framing.truncated_discarded fails, would complete it with the first request of
+                         // the rule after this one and fail that rule in its place (conformance/README.md:
+                         // it fails there, not in the rules after it). Valid requests, not judged, until one
+                         // is answered (three at most) give the rules after a resynchronised line.
+                         for (int i = 0; i < 3; ++i) {
+                             if (c.stop && c.stop->load()) break;
+                             const auto ex = c.session.raw(good, "resynchronise the line (not judged)");
+                             if (is_normal(ex, fc)) break;
+                             c.session.client().drain(std::chrono::milliseconds(150));
+                         }
                      });
     // RTU over a stream (rtu-tcp) has no silence to end a frame: two frames in one write are delimited only
     // by content, which the specification never asks of a device (on a line the silence does it, SL
@@ -74,7 +126,9 @@ void check_framing(Context& c) {
                          if (c.true_serial()) {
                              // On a line the second request may follow the first reply without delay.
                              const auto a = c.session.raw(good, "first request");
-                             const auto b = c.session.raw(good, "second request right after the reply");
+                             const auto b = c.session.raw(good, a.own_received().empty()
+                                                                    ? "second request, the first unanswered"
+                                                                    : "second request right after the reply");
                              r.expected = "two normal replies";
                              r.observed = describe(a) + "; " + describe(b);
                              r.outcome = is_normal(a, fc) && is_normal(b, fc) ? Outcome::Pass : Outcome::Fail;

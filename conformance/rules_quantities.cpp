@@ -57,11 +57,7 @@ void check_quantities(Context& c) {
         c.run({id + ".one", "quantities", spec_section(fc), "Reading one item answers with exactly one item.",
                Authority::Specification, false},
               [&](RuleResult& r) {
-                  if (!f.first_valid()) {
-                      r.outcome = Outcome::Skip;
-                      r.reason = "no valid address in the map";
-                      return;
-                  }
+                  if (f.lacks_address(r)) return;
                   expect_normal(r,
                                 c.session.request(
                                     modbus::encode_pdu(modbus::make_read_request(fcode, *f.first_valid(), 1)),
@@ -75,10 +71,12 @@ void check_quantities(Context& c) {
                   const bool first_only = c.profile.functions.address_check == modbus::AddressCheck::First;
                   auto start = first_only ? f.first_valid() : f.run_of(static_cast<std::uint32_t>(max));
                   if (start && *start + max > 65536) start.reset();
+                  if (!start && f.lacks_address(r)) return;
                   if (!start) {
                       r.outcome = Outcome::Skip;
-                      r.reason =
-                          "the map has no run of " + std::to_string(max) + " consecutive valid addresses";
+                      r.reason = "the map has no run of " + std::to_string(max) +
+                                 " consecutive valid addresses" +
+                                 (f.end_unknown.empty() ? std::string() : " known (" + f.end_unknown + ")");
                       return;
                   }
                   const auto ex = c.session.request(modbus::encode_pdu(modbus::make_read_request(
@@ -91,11 +89,7 @@ void check_quantities(Context& c) {
                    exception_text(bad_quantity) + ".",
                manual ? authority_for(c.profile, "bad_quantity") : Authority::Specification, false},
               [&](RuleResult& r) {
-                  if (!f.first_valid()) {
-                      r.outcome = Outcome::Skip;
-                      r.reason = "no valid address in the map";
-                      return;
-                  }
+                  if (f.lacks_address(r)) return;
                   const auto ex =
                       c.session.request(modbus::encode_pdu(modbus::make_read_request(
                                             fcode, *f.first_valid(), static_cast<std::uint16_t>(max + 1))),

@@ -117,26 +117,40 @@ bool answered_normally(const modbus::transport::Exchange& ex, std::uint8_t fc) {
 // as "no address in the map") or moving its end (a readable address failed as "past the end"). A reply that
 // arrived whole and is the device's own, of the read's function and no exception, answered: the address is
 // readable, and what is wrong inside the reply (a byte count unlike the quantity) is for the rules to fail.
-// Taken as unknown, every read rule was skipped and a device damaging every read passed.
+// Taken as unknown, every read rule was skipped and a device damaging every read passed. A reply that came
+// damaged is not silence either: the device answers and damages its replies (SL §2.5.1.2: a master discards
+// a frame whose CRC fails; SL §2.2: a reply carries the slave's own address), which the rules must fail, not
+// skip (TableFacts::damaged).
 void facts_by_probing(Session& s, std::uint8_t fc, TableFacts& f, const std::atomic<bool>* stop) {
     enum class Read : std::uint8_t { Yes, No, Unknown };
+    std::string damage;  // the last reply that came and answered nothing, in words
     const auto readable = [&](std::uint16_t a) {
+        damage.clear();
         for (int attempt = 0; attempt < 3; ++attempt) {
             const auto ex = s.request(
                 modbus::encode_pdu(modbus::make_read_request(static_cast<modbus::FunctionCode>(fc), a, 1)),
                 "probe the address space");
             if (answered_normally(ex, fc)) return Read::Yes;
             if (const auto pdu = response_pdu(ex); pdu && pdu->is_exception()) return Read::No;
+            // Bytes that came for this request (not a late reply to an earlier one set aside).
+            if (!ex.own_received().empty()) damage = describe(ex);
             if (stop && stop->load()) break;
         }
         return Read::Unknown;
     };
     const auto unanswered = [&](std::uint32_t a) {
         return "address " + std::to_string(a) + " got no usable reply to three reads while the " +
-               std::string(modbus::to_string(f.table)) + " were probed";
+               std::string(modbus::to_string(f.table)) + " were probed" +
+               (damage.empty() ? std::string() : " (every reply that came was damaged: " + damage + ")");
     };
     if (const Read at_0 = readable(0); at_0 != Read::Yes) {
-        if (at_0 == Read::Unknown) f.unknown = unanswered(0) + ": whether the table has points is unknown";
+        if (at_0 == Read::Unknown) {
+            f.unknown = unanswered(0) + ": whether the table has points is unknown";
+            if (!damage.empty())
+                f.damaged = "the device damaged every reply to the reads of address 0 that probed the " +
+                            std::string(modbus::to_string(f.table)) + " (" + damage +
+                            "): the map is unknown, not empty";
+        }
         return;
     }
     const Read at_end = readable(0xFFFF);
@@ -270,12 +284,14 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     }
     // A stop during the last family, or before the first (while the address space was probed).
     if (stop && stop->load()) report.stopped = true;
-    // Rules whose requests every slave must ignore (a bad CRC, half a request, a broadcast) pass on silence,
-    // which a target that answers nothing (a wrong unit id) gives as well: with no request owed a reply in
-    // the run, one read that any device of the profile answers tells the two apart (it was taken for a target
-    // answering nothing, exit 2, for `--rules framing.bad_checksum` against a correct device).
-    if (!report.stopped && session.requests() > 0 && session.requests_owed_reply() == 0 &&
-        session.response_times().empty() && !session.late_replies())
+    // Rules whose requests every slave must ignore (half a request, a broadcast) pass on silence, which a
+    // target that answers nothing (a wrong unit id) gives as well: with no request owed a reply in the run,
+    // one read that any device of the profile answers tells the two apart (it was taken for a target
+    // answering nothing, exit 2, for `--rules framing.truncated` against a correct device), and shows whether
+    // the device still answers after them. Made whenever no request was owed a reply, as
+    // conformance/README.md says, not only when nothing came back: a device that answered a bad checksum
+    // and then no more was left unasked.
+    if (!report.stopped && session.requests() > 0 && session.requests_owed_reply() == 0)
         if (const auto probe = c.probe_read()) {
             (void)session.request(probe->pdu,
                                   "is the target answering? a read any device of the profile answers");
@@ -295,8 +311,10 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
         for (const auto& r : report.results)
             for (const auto& e : r.evidence)
                 heard += e.received.size();
+        // The count is every request sent, the address space's probing (three reads of each table's address
+        // 0) included; the rules stop after the first three owed a reply (Context::silent_after).
         report.unanswered =
-            "the target answered none of the run's " + std::to_string(report.requests) + " requests " +
+            "the target answered none of the " + std::to_string(report.requests) + " requests sent " +
             (heard == 0 ? std::string("(wrong unit id, transport or line settings?)")
                         : "with a reply: the " + std::to_string(heard) +
                               " bytes it sent form none for this framing and unit (another protocol, or "
@@ -316,8 +334,13 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
         answered.outcome = Outcome::Error;
         answered.expected = "replies to requests any device of the profile answers";
         answered.observed = "no reply";
-        answered.reason =
-            report.unanswered + (c.rules_not_run ? "; the rules after those below were not run" : "");
+        // "Below" only when a rule ran: a target silent from the probing on had none run at all.
+        const bool ran = !report.results.empty();
+        answered.reason = report.unanswered + (!c.rules_not_run ? std::string()
+                                               : ran            ? "; the rules after those below were not run"
+                                                     : "; no rule was run, the run stopping once " +
+                                                           std::to_string(Context::silent_after) +
+                                                           " requests owed a reply got none");
         report.results.insert(report.results.begin(), std::move(answered));
     }
     report.wall = std::chrono::steady_clock::now() - started;

@@ -316,8 +316,11 @@ TEST(Peer, PymodbusServerAsADcy2050TakesAWriteItsManualForbidsInAutomaticMode) {
 
 // RTU over a stream has no silence between frames: two requests in one write are told apart only by content,
 // which the specification never asks of a device, and nothing ends half a request. pymodbus's RTU framer
-// answers neither of two requests in one write, and keeps half a request until more bytes complete it (the
-// request after it goes unanswered): warnings, not failures of the specification.
+// keeps half a request until more bytes complete it (the request after it goes unanswered), and answers a
+// request for any unit as its own (a single context), which through a gateway could be another slave's to
+// answer: warnings, not failures of the specification. It answers two requests in one write: it failed
+// framing.back_to_back only because framing.truncated's half frame, kept, spoiled that rule's first request,
+// which framing.truncated now resynchronises away.
 TEST(Peer, PymodbusRtuOverTcpPipeliningIsAWarning) {
     if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
     PymodbusPeer server("rtu-tcp");
@@ -330,7 +333,7 @@ TEST(Peer, PymodbusRtuOverTcpPipeliningIsAWarning) {
         EXPECT_EQ(x.rule.authority, Authority::Implied) << x.rule.id << ": " << x.observed;
         warned.insert(x.rule.id);
     }
-    EXPECT_EQ(warned, (std::set<std::string>{"framing.back_to_back", "framing.truncated_discarded",
+    EXPECT_EQ(warned, (std::set<std::string>{"framing.other_unit", "framing.truncated_discarded",
                                              "robustness.pipeline_after_exception"}));
     EXPECT_EQ(report.failures_of(Authority::Specification), 0u);
 }
