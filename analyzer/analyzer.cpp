@@ -87,6 +87,20 @@ struct Analyzer::Flow {
     std::uint64_t unparsed_offset = 0;
     std::uint32_t unparsed_length = 0;
     std::uint64_t unparsed_after_frame = 0;
+    // The last run of RTU bytes that formed no frame, not from the master's side, while no frame has come
+    // after it (tail_length 0: none), and its first two bytes: at the end of the capture, a reply it cut
+    // begins with the unit and function code its request asked for.
+    std::uint64_t tail_offset = 0;
+    std::uint32_t tail_length = 0;
+    std::array<std::uint8_t, 2> tail_head{};
+    // Whether the tail is the start of a reply to `request`: after it, with its unit and function (or the
+    // exception to it).
+    bool tail_begins_reply_to(const FrameRecord& request) const {
+        const auto pdu = request.frame.pdu();
+        return tail_length >= 2 && !pdu.empty() &&
+               tail_offset >= request.frame.offset + request.frame.wire_length &&
+               tail_head[0] == request.frame.unit_id() && (tail_head[1] & 0x7F) == pdu[0];
+    }
     std::optional<Framing> udp_framing;  // what the link's datagrams were shown to carry
     // Whether a request on the link was captured: until then, on a connection whose opening the capture did
     // not show, a reply answers a request sent before the capture began.
@@ -1567,10 +1581,26 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         auto taken = take_pending(e.key, e.serial);
         if (!taken) continue;  // answered meanwhile
         Pending p = std::move(*taken);
+        const Flow* flow = nullptr;
         for (auto& [k, f] : flows_)
-            if (f->id == e.key.flow) --f->pending;
+            if (f->id == e.key.flow) {
+                --f->pending;
+                flow = f.get();
+            }
         const bool ended = at_end && e.deadline > now_;
         std::string what = describe_request(p.request);
+        if (ended && flow && p.request.frame.framing == Framing::Rtu &&
+            flow->tail_begins_reply_to(p.request)) {
+            // The capture ends inside its reply: answered, its values unknown (as a Modbus/TCP reply cut by
+            // the snapshot length is), not "no response".
+            give_up(p, false,
+                    {FindingCode::PairResponseNotCaptured,
+                     what + " to " + p.request.device.str() + " was answered, but the capture ends " +
+                         std::to_string(flow->tail_length) + " bytes into the reply (unit " +
+                         std::to_string(flow->tail_head[0]) + ", function code " +
+                         std::to_string(flow->tail_head[1]) + "): its values are unknown"});
+            continue;
+        }
         if (ended) {
             give_up(p, false,
                     {FindingCode::PairNoResponseAtEnd, what + " unanswered when the capture ended"});
@@ -1712,6 +1742,11 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
                 flow.unparsed_length = u->length;
                 flow.unparsed_after_frame = next_frame_;
             }
+            if (link.framing == Framing::Rtu && link.hint != Direction::Request) {
+                flow.tail_offset = u->offset;
+                flow.tail_length = u->length;
+                flow.tail_head = u->head;
+            }
             FrameRecord about;
             about.time = when;
             about.source = source;
@@ -1725,6 +1760,7 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         Frame& frame = std::get<Frame>(e);
         frame.offset += link.base;
         link.settled = std::max(link.settled, frame.offset + frame.wire_length);
+        flow.tail_length = 0;
         FrameRecord r(frame);
         r.index = ++next_frame_;
         r.packet = link.packet_at(frame.offset, packet);

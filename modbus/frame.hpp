@@ -121,6 +121,9 @@ struct Unparsed {
     std::uint32_t length = 0;
     UnparsedReason reason = UnparsedReason::Garbage;
     Timestamp time{0};
+    // RTU: its first two bytes when it has them (a unit and a function code, if it is the start of a frame):
+    // a reply the end of a capture cut is still known to have begun.
+    std::array<std::uint8_t, 2> head{};
 };
 
 using DeframeEvent = std::variant<Frame, Unparsed>;

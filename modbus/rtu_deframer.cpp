@@ -189,6 +189,7 @@ void RtuDeframer::run(bool at_end, DeframeEvents& out) {
             if (pending_.length == 0) {
                 pending_.offset = base_;
                 pending_.reason = step.reason;
+                if (rest.size() >= 2) pending_.head = {rest[0], rest[1]};
             }
             pending_.length += static_cast<std::uint32_t>(step.length);
         } else {
@@ -260,8 +261,9 @@ void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, Deframe
 
 void RtuTimedDeframer::emit_unparsed(std::size_t begin, std::size_t length, UnparsedReason reason,
                                      DeframeEvents& out) {
-    out.emplace_back(
-        Unparsed{seg_offset_ + begin, static_cast<std::uint32_t>(length), reason, times_[begin]});
+    Unparsed& u = std::get<Unparsed>(out.emplace_back(
+        Unparsed{seg_offset_ + begin, static_cast<std::uint32_t>(length), reason, times_[begin]}));
+    if (begin + 1 < seg_.size()) u.head = {seg_[begin], seg_[begin + 1]};
 }
 
 void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {

@@ -423,6 +423,34 @@ TEST(SerialInput, RepliesAroundBroadcastsAreNamedForWhatTheyAre) {
     EXPECT_TRUE(r->summary.devices.at(unit + "0").findings.empty());
 }
 
+// The capture ends five bytes into unit 2's reply ("02 03 04 00 02": its unit, FC3, its byte count): the
+// request was answered and the capture holds only part of the reply, as a Modbus/TCP reply cut by the
+// snapshot length is said to be; not "no response". Bytes that begin no reply to it (another unit, another
+// function) leave it unanswered at the end.
+TEST(SerialInput, AReplyTheEndOfTheCaptureCutsIsAnsweredNotCapturedWhole) {
+    for (const std::string& tail : {std::string("02 03 04 00 02"), std::string("05 03 04 00 02")}) {
+        const auto path = write_temp("cut_at_end.txt",
+                                     "1.000 03 03 00 30 00 02 C5 E6\n"
+                                     "1.020 03 03 04 00 03 00 07 68 31\n"
+                                     "1.500 02 03 00 20 00 02 C5 F2\n"
+                                     "1.520 " +
+                                         tail + "\n");
+        auto r = decode(path, an::InputFormat::Text);
+        const bool begins_reply = tail.starts_with("02 03");
+        const auto& unit2 = r->summary.devices.at("serial " + path + " unit 2");
+        EXPECT_EQ(unit2.replies_not_captured, begins_reply ? 1u : 0u) << tail;
+        EXPECT_EQ(unit2.unanswered_at_end, begins_reply ? 0u : 1u) << tail;
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseNotCaptured), begins_reply ? 1 : 0);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), begins_reply ? 0 : 1);
+        for (const auto& f : r->sink.findings)
+            if (f.code == mb::FindingCode::PairResponseNotCaptured) {
+                EXPECT_NE(f.message.find("the capture ends 5 bytes into the reply"), std::string::npos)
+                    << f.message;
+            }
+        EXPECT_EQ(r->summary.unparsed_bytes, 5u);  // still reported as bytes that formed no frame
+    }
+}
+
 // Broadcast requests are writes (SL §2.1; the MK manual runs FC5, 6, 15 and 16 in broadcast, 000:313): a
 // read sent to unit 0 passed without a word, though nothing it reads can ever come back; so did FC8's
 // sub-functions that return a counter. A broadcast write and FC8's listen-only (which changes a device's
