@@ -37,6 +37,16 @@ struct ProfileOptions {
     std::string word_order;
 };
 
+// At most `bytes` bytes of `s`, cut before a UTF-8 sequence that would not fit whole: cut by bytes, a
+// name or vendor ending in "ç" or "ã" printed half a character.
+std::string cut_utf8(const std::string& s, std::size_t bytes) {
+    if (s.size() <= bytes) return s;
+    std::size_t n = bytes;
+    while (n > 0 && (static_cast<unsigned char>(s[n]) & 0xC0) == 0x80)  // s[n] continues a sequence
+        --n;
+    return s.substr(0, n);
+}
+
 void print_errors(const std::vector<ProfileError>& errors) {
     for (const auto& e : errors)
         std::cerr << "mbscope profile: " << to_string(e) << '\n';
@@ -122,7 +132,7 @@ int run_list(const ProfileOptions& o) {
                 t += (t.empty() ? "" : ",") + x;
             for (const auto& x : e.aliases)
                 aliases += (aliases.empty() ? "" : ", ") + x;
-            std::printf("%-22s %-14s %-11s %6zu %6zu  %s\n", e.id.c_str(), e.vendor.substr(0, 14).c_str(),
+            std::printf("%-22s %-14s %-11s %6zu %6zu  %s\n", e.id.c_str(), cut_utf8(e.vendor, 14).c_str(),
                         t.c_str(), e.coils, e.holding_registers, aliases.c_str());
         }
         std::printf("%zu profiles from %zu directories\n", store.entries().size(),
@@ -177,7 +187,7 @@ int run_show(const ProfileOptions& o) {
         std::printf("  %5s %-3s %-10s %-44s %s\n", "addr", "acc", "encoding", "name", "range / values");
         for (const auto& pt : p->table(table)) {
             std::string name = pt.name_en.empty() ? pt.name : pt.name_en;
-            if (name.size() > 44) name = name.substr(0, 43) + "…";
+            if (name.size() > 44) name = cut_utf8(name, 43) + "…";
             std::string enc(to_string(pt.encoding.type));
             if (pt.encoding.decimals) enc += "/" + std::to_string(pt.encoding.decimals);
             if (pt.encoding.words == 2) enc += " " + std::string(to_string(pt.encoding.word_order));

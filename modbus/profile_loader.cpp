@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "modbus/frame_text.hpp"  // printable(), first_unprintable()
@@ -25,6 +27,29 @@ std::string lower(std::string s) {
     return s;
 }
 
+// A JSON pointer's reference token for an object key (RFC 6901: '~' as ~0, '/' as ~1).
+std::string pointer_token(const std::string& key) {
+    std::string out;
+    for (char c : key) {
+        if (c == '~')
+            out += "~0";
+        else if (c == '/')
+            out += "~1";
+        else
+            out += c;
+    }
+    return out;
+}
+
+// A JSON integer as a 64-bit signed one; nullopt for any other value, and for an unsigned one past
+// INT64_MAX, which get<std::int64_t>() would wrap to a negative number.
+std::optional<std::int64_t> as_int64(const json& j) {
+    if (!j.is_number_integer()) return std::nullopt;
+    if (j.is_number_unsigned() && j.get<std::uint64_t>() > static_cast<std::uint64_t>(INT64_MAX))
+        return std::nullopt;
+    return j.get<std::int64_t>();
+}
+
 // Reads fields with type checks; every problem is recorded with its JSON pointer, reading goes on.
 class Reader {
   public:
@@ -33,6 +58,18 @@ class Reader {
     // Messages quote the document's text (an unknown name): escaped, as the pointer, for the terminal.
     void error(const std::string& pointer, const std::string& message) {
         errors_.push_back({file_, printable(pointer), printable(message)});
+    }
+    // A fault found in a resolved model: the models it holds for, then the message. Every model of a file
+    // resolves the same base tables, so one fault of the document is one error naming the models it
+    // affects ("a, b: ..."), not one per model.
+    void model_error(const std::string& pointer, const std::string& model, const std::string& message) {
+        auto [it, fresh] = by_model_.try_emplace({pointer, message}, errors_.size(), std::string());
+        it->second.second += (fresh ? "" : ", ") + model;
+        const std::string text = it->second.second + ": " + message;
+        if (fresh)
+            errors_.push_back({file_, printable(pointer), printable(text)});
+        else
+            errors_[it->second.first].message = printable(text);
     }
 
     const json* child(const json& j, const std::string& key) {
@@ -65,8 +102,8 @@ class Reader {
             error(ptr + "/" + key, "must be an integer");
             return std::nullopt;
         }
-        const auto v = c->get<std::int64_t>();
-        if (v < lo || v > hi) {
+        const auto v = as_int64(*c).value_or(INT64_MIN);  // past INT64_MAX: out of any range
+        if (!as_int64(*c) || v < lo || v > hi) {
             error(ptr + "/" + key, "must be between " + std::to_string(lo) + " and " + std::to_string(hi));
             return std::nullopt;
         }
@@ -88,6 +125,8 @@ class Reader {
   private:
     std::string file_;
     std::vector<ProfileError>& errors_;
+    // (pointer, message) → index of its error and the models named so far
+    std::map<std::pair<std::string, std::string>, std::pair<std::size_t, std::string>> by_model_;
 };
 
 std::optional<Table> table_named(const std::string& name) {
@@ -268,6 +307,28 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
             e.bytes[i].name = r.string(*field, "name", p, false).value_or("");
             if (auto a = r.child(*field, "ascii"); a && a->is_boolean()) e.bytes[i].ascii = a->get<bool>();
         }
+    // A value the register cannot carry (70000 or -3 on a u16) is a text no reply can show and a write
+    // that would go out cut to 16 bits. Bytes2's values are each byte's; a bit is 0 or 1.
+    if (const json* v = r.child(j, "values"); v && v->is_array() && !e.values.empty()) {
+        std::optional<RawLimits> limits = raw_limits(e);
+        std::string holder =
+            "its " + std::string(to_string(e.type)) + " register" + (e.words == 2 ? "s" : "");
+        if (is_bit_table(table)) {
+            limits = RawLimits{0, 1};
+            holder = "a bit";
+        } else if (e.type == EncodingType::Bytes2) {
+            limits = RawLimits{0, 255};
+            holder = "a byte";
+        }
+        for (std::size_t i = 0; limits && i < v->size(); ++i) {
+            const json* value = r.child((*v)[i], "value");
+            const auto x = value ? as_int64(*value) : std::nullopt;
+            if (x && (*x < limits->min || *x > limits->max))
+                r.error(ptr + "/values/" + std::to_string(i) + "/value",
+                        std::to_string(*x) + " is not a value " + holder + " can carry (" +
+                            std::to_string(limits->min) + " to " + std::to_string(limits->max) + ")");
+        }
+    }
     return e;
 }
 
@@ -334,6 +395,7 @@ void apply_range(Reader& r, const json& j, const std::string& ptr, Point& p) {
 struct RawPoint {
     Point point;
     std::vector<std::string> models;  // restricted to these model ids (lower case); empty = all
+    std::string ptr;                  // where the document describes it, for the errors found on a model
 };
 
 std::optional<RawPoint> parse_point(Reader& r, const json& j, const std::string& ptr, Table table) {
@@ -342,6 +404,7 @@ std::optional<RawPoint> parse_point(Reader& r, const json& j, const std::string&
         return std::nullopt;
     }
     RawPoint rp;
+    rp.ptr = ptr;
     Point& p = rp.point;
     p.table = table;
     auto address = r.integer(j, "address", ptr, true, 0, 65535);
@@ -415,7 +478,9 @@ int idx(Table t) {
     return static_cast<int>(t);
 }
 
-void parse_tables(Reader& r, const json& j, Tables& tables) {
+// `modular`: the coils and holding registers are filled from the maps file (resolve_model), so a table
+// may serve their map without the document listing them.
+void parse_tables(Reader& r, const json& j, Tables& tables, bool modular) {
     const json* t = r.child(j, "tables");
     if (!t) return;
     if (!t->is_object()) {
@@ -460,6 +525,36 @@ void parse_tables(Reader& r, const json& j, Tables& tables) {
             if (seen[i] == seen[i - 1])
                 r.error(ptr, "address " + std::to_string(seen[i]) + " is described more than once");
     }
+    // A table serves the map of another of its kind, which lists its points: FC2 answers from the coils'
+    // map, FC4 from the holding registers'. A register table serving bits, a table serving itself or one that
+    // serves a third table's map resolve to nothing the device has (Profile::resolve follows one step).
+    for (Table t : all_tables) {
+        TableSpec& spec = tables[idx(t)];
+        if (!spec.same_as) continue;
+        const Table target = *spec.same_as;
+        const std::string ptr = "/tables/" + std::string(to_string(t)) + "/same_as";
+        const std::string name(to_string(target));
+        std::string why;
+        if (target == t)
+            why = "a table cannot serve its own map";
+        else if (is_bit_table(t) != is_bit_table(target))
+            why = "\"" + name + "\" is not a " + (is_bit_table(t) ? "bit" : "register") +
+                  " table: coils and discrete_inputs serve each other's map, holding_registers and "
+                  "input_registers each other's";
+        else if (tables[idx(target)].same_as)
+            why = "\"" + name + "\" serves another table's map itself: name the table that lists the points";
+        else if (!tables[idx(target)].present &&
+                 !(modular && (target == Table::Coils || target == Table::HoldingRegisters)))
+            why = "\"" + name + "\" is not among this profile's tables";
+        if (why.empty()) continue;
+        r.error(ptr, why);
+    }
+    for (Table t : all_tables) {  // after all are judged: a cycle is reported on each of its tables
+        TableSpec& spec = tables[idx(t)];
+        if (spec.same_as && (*spec.same_as == t || is_bit_table(t) != is_bit_table(*spec.same_as) ||
+                             tables[idx(*spec.same_as)].same_as))
+            spec.same_as.reset();
+    }
 }
 
 LineRules parse_line(Reader& r, const json& j) {
@@ -500,18 +595,28 @@ LineRules parse_line(Reader& r, const json& j) {
         l.unit_max = static_cast<int>(r.integer(*u, "max", "/line/unit_id", false, 0, 255).value_or(247));
         if (l.unit_min > l.unit_max) r.error("/line/unit_id", "min is above max");
         if (auto d = r.child(*u, "disabled"); d && d->is_array())
-            for (const auto& x : *d)
-                if (x.is_number_integer()) l.unit_disabled.push_back(x.get<int>());
+            for (std::size_t i = 0; i < d->size(); ++i) {
+                // Read as int, 4294967296 was unit 0; a unit id is one byte.
+                const auto unit = as_int64((*d)[i]);
+                if (unit && *unit >= 0 && *unit <= 255)
+                    l.unit_disabled.push_back(static_cast<int>(*unit));
+                else
+                    r.error("/line/unit_id/disabled/" + std::to_string(i), "must be a unit id from 0 to 255");
+            }
+        else if (d)
+            r.error("/line/unit_id/disabled", "must be a list of unit ids");
         if (auto a = r.child(*u, "any_nonzero_answered"); a && a->is_boolean())
             l.any_unit_answered = a->get<bool>();
     }
     l.tcp_port = static_cast<int>(r.integer(*line, "tcp_port", "/line", false, 1, 65535).value_or(502));
-    if (auto m = r.integer(*line, "min_poll_interval_ms", "/line", false, 0))
+    // Held as int: a larger time would wrap (2^32 + 5 ms was 5 ms), so it is refused.
+    constexpr std::int64_t most_ms = std::numeric_limits<int>::max();
+    if (auto m = r.integer(*line, "min_poll_interval_ms", "/line", false, 0, most_ms))
         l.min_poll_interval_ms = static_cast<int>(*m);
-    if (auto m = r.integer(*line, "response_timeout_ms", "/line", false, 0))
+    if (auto m = r.integer(*line, "response_timeout_ms", "/line", false, 0, most_ms))
         l.response_timeout_ms = static_cast<int>(*m);
-    l.ascii_inter_char_timeout_ms =
-        static_cast<int>(r.integer(*line, "ascii_inter_char_timeout_ms", "/line", false, 0).value_or(1000));
+    l.ascii_inter_char_timeout_ms = static_cast<int>(
+        r.integer(*line, "ascii_inter_char_timeout_ms", "/line", false, 0, most_ms).value_or(1000));
     if (auto d = r.child(*line, "data_bits"); d && !d->is_object()) {
         r.error("/line/data_bits", "must be an object: {\"rtu\": 8, \"ascii\": 7}");
     } else if (d) {
@@ -555,29 +660,30 @@ FunctionRules parse_functions(Reader& r, const json& j) {
         r.error("", "missing required field \"functions\"");
         return f;
     }
-    auto codes = [&](const char* key, auto& out, int hi) {
+    auto codes = [&](const char* key, auto& out, std::int64_t lo, std::int64_t hi) {
         if (auto c = r.child(*fn, key)) {
             if (!c->is_array()) {
                 r.error(std::string("/functions/") + key, "must be a list of numbers");
                 return;
             }
-            for (const auto& x : *c) {
-                if (!x.is_number_integer() || x.get<int>() < 0 || x.get<int>() > hi)
-                    r.error(std::string("/functions/") + key,
-                            "holds a value that is not a number from 0 to " + std::to_string(hi));
-                else if (std::find(out.begin(), out.end(), x.get<int>()) != out.end())
-                    r.error(std::string("/functions/") + key,
-                            std::to_string(x.get<int>()) + " is listed twice");
+            // Read as int first, 4294967299 was function 3: the range is checked on the whole number.
+            for (std::size_t i = 0; i < c->size(); ++i) {
+                const auto x = as_int64((*c)[i]);
+                if (!x || *x < lo || *x > hi)
+                    r.error(std::string("/functions/") + key + "/" + std::to_string(i),
+                            "must be a number from " + std::to_string(lo) + " to " + std::to_string(hi));
+                else if (std::find(out.begin(), out.end(), *x) != out.end())
+                    r.error(std::string("/functions/") + key, std::to_string(*x) + " is listed twice");
                 else
-                    out.push_back(
-                        static_cast<typename std::decay_t<decltype(out)>::value_type>(x.get<int>()));
+                    out.push_back(static_cast<typename std::decay_t<decltype(out)>::value_type>(*x));
             }
         }
     };
-    codes("supported", f.supported, 127);
+    // Function codes are 1 to 127 (AP §4.1: 0 is not valid, 128-255 are the exception responses).
+    codes("supported", f.supported, 1, 127);
     if (f.supported.empty()) r.error("/functions", "\"supported\" must list the function codes");
-    codes("broadcast", f.broadcast, 127);
-    codes("diagnostics", f.diagnostics, 65535);
+    codes("broadcast", f.broadcast, 1, 127);
+    codes("diagnostics", f.diagnostics, 0, 65535);
     if (auto m = r.child(*fn, "max_quantity"); m && m->is_object())
         for (auto it = m->begin(); it != m->end(); ++it) {
             const std::string where = "/functions/max_quantity/" + it.key();
@@ -616,14 +722,22 @@ FunctionRules parse_functions(Reader& r, const json& j) {
     }
     if (auto e = r.child(*fn, "exceptions"); e && e->is_object())
         for (auto it = e->begin(); it != e->end(); ++it) {
-            if (it->is_number_integer())
-                f.exceptions[it.key()] = it->get<int>();
-            else if (it->is_null())
+            // An exception code is the one byte of an exception response (AP §7): 1 to 255. Read as int,
+            // 4294967299 was code 3, and 0 or 300 went out as a byte the manual never gave.
+            const std::string where = "/functions/exceptions/" + pointer_token(it.key());
+            const bool wrapped = it->is_object() && it->contains("code");
+            const json& code = wrapped ? (*it)["code"] : *it;
+            const std::string code_at = wrapped ? where + "/code" : where;
+            if (code.is_null()) {
                 f.exceptions[it.key()] = std::nullopt;
-            else if (it->is_object() && it->contains("code") && (*it)["code"].is_number_integer())
-                f.exceptions[it.key()] = (*it)["code"].get<int>();
-            else if (it->is_object() && it->contains("code") && (*it)["code"].is_null())
-                f.exceptions[it.key()] = std::nullopt;
+            } else if (const auto c = as_int64(code); c && *c >= 1 && *c <= 255) {
+                f.exceptions[it.key()] = static_cast<int>(*c);
+            } else if (code.is_number_integer()) {
+                r.error(code_at, "must be an exception code from 1 to 255");
+            } else {
+                r.error(code_at, wrapped ? "must be an exception code or null (the manual is silent)"
+                                         : "must be an exception code, null or {\"code\", ...}");
+            }
             if (const json* implied = r.child(*it, "implied"); implied) {
                 if (!implied->is_boolean())
                     r.error("/functions/exceptions/" + it.key() + "/implied", "must be true or false");
@@ -634,22 +748,55 @@ FunctionRules parse_functions(Reader& r, const json& j) {
     return f;
 }
 
+// Addresses as written in "exclude" and an override's "addresses": each an address or an inclusive
+// [first, last]. Read as int, 4294967299 was address 3: anything but addresses 0 to 65535 is an error.
+void check_range(Reader& r, const json& x, const std::string& p) {
+    const auto address = [](const json& j) {
+        const auto a = as_int64(j);
+        return a && *a >= 0 && *a <= 65535 ? a : std::nullopt;
+    };
+    if (x.is_array() && x.size() == 2) {
+        const auto first = address(x[0]), last = address(x[1]);
+        if (!first) r.error(p + "/0", "must be an address from 0 to 65535");
+        if (!last) r.error(p + "/1", "must be an address from 0 to 65535");
+        if (first && last && *first > *last) r.error(p, "first is above last");
+    } else if (!address(x)) {
+        r.error(p, x.is_array() ? "a range is [first, last]" : "must be an address from 0 to 65535");
+    }
+}
+
+void check_ranges(Reader& r, const json& ranges, const std::string& ptr) {
+    if (!ranges.is_array()) {
+        r.error(ptr, "must be a list of addresses and [first, last] ranges");
+        return;
+    }
+    for (std::size_t i = 0; i < ranges.size(); ++i)
+        check_range(r, ranges[i], ptr + "/" + std::to_string(i));
+}
+
 bool in_ranges(const json& ranges, std::uint16_t address) {
     if (!ranges.is_array()) return false;
     for (const auto& r : ranges) {
-        if (r.is_number_integer() && r.get<int>() == address) return true;
-        if (r.is_array() && r.size() == 2 && r[0].is_number_integer() && r[1].is_number_integer() &&
-            address >= r[0].get<int>() && address <= r[1].get<int>())
+        if (as_int64(r) == std::int64_t{address}) return true;
+        if (r.is_array() && r.size() == 2 && as_int64(r[0]) && as_int64(r[1]) && address >= *as_int64(r[0]) &&
+            address <= *as_int64(r[1]))
             return true;
     }
     return false;
 }
 
-void apply_override(Reader& r, const json& o, const std::string& ptr, std::vector<Point>& points,
-                    Table table) {
+// `encoded_by`: address → the override that gave the point its encoding, for the errors found after.
+void apply_override(Reader& r, const json& o, const std::string& ptr, std::vector<Point>& points, Table table,
+                    std::map<std::uint16_t, std::string>& encoded_by) {
     json ranges = json::array();
-    if (o.contains("addresses")) ranges = o["addresses"];
-    if (o.contains("address")) ranges.push_back(o["address"]);
+    if (o.contains("addresses")) {
+        check_ranges(r, o["addresses"], ptr + "/addresses");
+        if (o["addresses"].is_array()) ranges = o["addresses"];
+    }
+    if (o.contains("address")) {
+        check_range(r, o["address"], ptr + "/address");
+        ranges.push_back(o["address"]);
+    }
     if (ranges.empty()) r.error(ptr, "an override needs \"address\" or \"addresses\"");
     int matched = 0;
     for (auto& p : points) {
@@ -660,7 +807,13 @@ void apply_override(Reader& r, const json& o, const std::string& ptr, std::vecto
             apply_range(r, o, ptr, p);
             if (o.contains("range_text")) p.range_source = r.source_of(o);
         }
-        if (o.contains("encoding")) p.encoding = parse_encoding(r, o["encoding"], ptr + "/encoding", table);
+        if (o.contains("encoding")) {
+            p.encoding = parse_encoding(r, o["encoding"], ptr + "/encoding", table);
+            encoded_by[p.address] = ptr + "/encoding";
+            // As parse_point refuses it: the second register would wrap round to register 0.
+            if (p.encoding.words == 2 && p.address == 0xFFFF)
+                r.error(ptr + "/encoding", "a two-register value at 65535 has no second register");
+        }
         if (auto a = r.string(o, "access", ptr, false)) {
             if (auto access = parse_access(*a))
                 p.access = *access;
@@ -943,6 +1096,7 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
     }
     const json* defaults = r.child(modular, "default_config");
     std::vector<std::string> known_channels;
+    std::map<std::int64_t, std::string> owner;  // address → the channel whose map placed a point there
     for (std::size_t i = 0; i < channels->size(); ++i) {
         const json& ch = (*channels)[i];
         const std::string ptr = "/modular/channels/" + std::to_string(i);
@@ -989,6 +1143,25 @@ void expand_modular(Reader& r, const json& modular, const ModularMaps& maps, con
         auto parsed = templates.find(map_id);
         if (parsed == templates.end())
             parsed = templates.emplace(map_id, parse_map_fields(r, map, map_id, block, maps, model_id)).first;
+        // Channels of different cards may share addresses (Walchem's sensor and analog output 1-1 both
+        // start at 1152): a configuration that gives both a map would put two points on one register.
+        std::string collision;
+        for (const MapField& field : parsed->second)
+            for (int w = 0; w < field.point.point.encoding.words && collision.empty(); ++w) {
+                const std::int64_t a = *start + field.point.point.address + w;
+                if (const auto it = owner.find(a); it != owner.end())
+                    collision = "channel \"" + *id + "\" (map \"" + map_id + "\") and channel \"" +
+                                it->second + "\" both hold register " + std::to_string(a) +
+                                ": the configuration gives a map to only one of them (slot-N=CARD sets the "
+                                "slot's other channels to none)";
+            }
+        if (!collision.empty()) {
+            r.error(ptr, collision);
+            continue;
+        }
+        for (const MapField& field : parsed->second)
+            for (int w = 0; w < field.point.point.encoding.words; ++w)
+                owner.emplace(*start + field.point.point.address + w, *id);
         placed.push_back({*id, r.string(ch, "kind", ptr, false).value_or(""), map_id,
                           static_cast<std::uint16_t>(*start), &parsed->second});
         for (const MapField& field : parsed->second) {
@@ -1117,14 +1290,17 @@ Simulation parse_simulation(Reader& r, const json& doc) {
 
 // A model keeps the signals whose points it has (a model without a register has no process there) in the
 // configuration they name, and drops those that follow a dropped signal.
+bool configured_for(const SimulationSignal& s, const Profile& p) {
+    return std::all_of(s.configuration.begin(), s.configuration.end(), [&](const auto& c) {
+        const auto it = p.configuration.find(c.first);
+        return it != p.configuration.end() && it->second == c.second;
+    });
+}
+
 void keep_simulation_of(Profile& p) {
     std::vector<SimulationSignal> kept;
     for (const auto& s : p.simulation.signals) {
-        const bool configured =
-            std::all_of(s.configuration.begin(), s.configuration.end(), [&](const auto& c) {
-                const auto it = p.configuration.find(c.first);
-                return it != p.configuration.end() && it->second == c.second;
-            });
+        const bool configured = configured_for(s, p);
         const bool here = (s.hidden || p.find(s.point.table, s.point.address)) &&
                           (!s.setpoint || p.find(s.setpoint->table, s.setpoint->address)) &&
                           (!s.hysteresis || p.find(s.hysteresis->table, s.hysteresis->address));
@@ -1133,6 +1309,179 @@ void keep_simulation_of(Profile& p) {
         if (configured && here && source_kept) kept.push_back(s);
     }
     p.simulation.signals = std::move(kept);
+}
+
+// Per table: address → the JSON pointer of what placed it there (a point's row, an override's encoding).
+using Where = std::array<std::map<std::uint16_t, std::string>, 5>;
+
+std::string where_of(const Where& w, Table t, std::uint16_t address) {
+    const auto& m = w[idx(t)];
+    const auto it = m.find(address);
+    return it == m.end() ? std::string() : it->second;
+}
+
+// A point exactly at `address` (not the second register of a wider one).
+const Point* point_at(const Profile& p, Table t, std::uint16_t address) {
+    const auto& pts = p.points[idx(t)];
+    const auto it = std::lower_bound(pts.begin(), pts.end(), address,
+                                     [](const Point& x, std::uint16_t a) { return x.address < a; });
+    return it != pts.end() && it->address == address ? &*it : nullptr;
+}
+
+// Two points on one register: a two-register value's second register listed as a point of its own. Lookups
+// (Profile::find) name the register by whichever comes first, decoding splits the value, and the slave's
+// writes of one clobber the other. Checked on the model, after overrides, which may widen a u16 to a u32.
+void check_overlaps(Reader& r, const Profile& p, const Where& described, const Where& encoded) {
+    for (Table t : all_tables)
+        for (const auto& w : p.points[idx(t)]) {
+            if (w.encoding.words != 2 || w.address == 0xFFFF) continue;
+            const auto second = static_cast<std::uint16_t>(w.address + 1);
+            const Point* other = point_at(p, t, second);
+            if (!other) continue;
+            const std::string table(to_string(t)), type(to_string(w.encoding.type));
+            const std::string by_override = where_of(encoded, t, w.address);
+            const std::string other_at = where_of(described, t, second);
+            if (!by_override.empty())
+                r.model_error(by_override, p.id,
+                              "register " + std::to_string(second) + " is the second register of " + table +
+                                  " " + std::to_string(w.address) + ", which this override makes a " + type +
+                                  ", and another point (" + other_at + ")");
+            else
+                r.model_error(other_at.empty() ? "" : other_at + "/address", p.id,
+                              "register " + std::to_string(second) + " is the second register of " + table +
+                                  " " + std::to_string(w.address) + " (a " + type + ", " +
+                                  where_of(described, t, w.address) +
+                                  "): it cannot be another point as well");
+        }
+}
+
+// The halves of a value split over two points name each other in "pair": a u32_low its u32_high, a
+// digits4_high its digits4_low. The slave writes the other half at that address and decoding joins the
+// two, so it must be the other half, in this table and this model.
+void check_pairs(Reader& r, const Profile& p, const Where& described, const Where& encoded) {
+    using T = EncodingType;
+    for (Table t : all_tables)
+        for (const auto& pt : p.points[idx(t)]) {
+            const T type = pt.encoding.type;
+            const std::optional<T> other_half = type == T::U32Low        ? T::U32High
+                                                : type == T::U32High     ? T::U32Low
+                                                : type == T::Digits4Low  ? T::Digits4High
+                                                : type == T::Digits4High ? T::Digits4Low
+                                                                         : std::optional<T>();
+            if (!other_half || !pt.encoding.pair) continue;
+            std::string at = where_of(encoded, t, pt.address);
+            if (at.empty()) at = where_of(described, t, pt.address) + "/encoding";
+            at += "/pair";
+            const std::string table(to_string(t)), half(to_string(*other_half));
+            const std::uint16_t pair = *pt.encoding.pair;
+            const Point* other = point_at(p, t, pair);
+            const std::string what =
+                "a " + std::string(to_string(type)) + "'s pair is the address of its " + half + " half";
+            if (pair == pt.address)
+                r.model_error(at, p.id, "names the point itself: " + what);
+            else if (!other)
+                r.model_error(at, p.id,
+                              table + " " + std::to_string(pair) + " is no point of the model: " + what);
+            else if (other->encoding.type != *other_half)
+                r.model_error(at, p.id,
+                              table + " " + std::to_string(pair) + " is a " +
+                                  std::string(to_string(other->encoding.type)) + ", not the " + half +
+                                  " half: " + what);
+            else if (other->encoding.pair != pt.address)
+                r.model_error(at, p.id,
+                              table + " " + std::to_string(pair) + " pairs with " +
+                                  (other->encoding.pair ? std::to_string(*other->encoding.pair) : "nothing") +
+                                  ", not with " + std::to_string(pt.address));
+        }
+}
+
+std::string number_text(double v) {
+    if (std::isfinite(v) && std::floor(v) == v && std::abs(v) < 1e18)
+        return std::to_string(static_cast<std::int64_t>(v));
+    return json(v).dump();
+}
+
+// The values a signal writes must be ones its point holds: the slave writes them cut to the register's 16
+// or 32 bits (70000 on a u16 reads 4464), and a value outside the point's range is one the device would
+// never show. A total wraps at its max, so its last value is the one below.
+void check_signal_values(Reader& r, const json& doc, const Profile& common, const Profile& p) {
+    const json* signals = r.child(doc, "simulation");
+    signals = signals ? r.child(*signals, "signals") : nullptr;
+    if (!signals || !signals->is_array()) return;
+    using Model = SimulationSignal::Model;
+    for (std::size_t i = 0; i < common.simulation.signals.size() && i < signals->size(); ++i) {
+        const SimulationSignal& s = common.simulation.signals[i];
+        const std::string ptr = "/simulation/signals/" + std::to_string(i);
+        if (s.hidden || s.model == Model::Alarm) continue;  // an alarm writes 0 or 1
+        if (std::none_of(p.simulation.signals.begin(), p.simulation.signals.end(),
+                         [&](const SimulationSignal& k) { return k.id == s.id; }))
+            continue;
+        const Point* pt = p.find(s.point.table, s.point.address);
+        if (!pt) continue;
+        const std::string table(to_string(s.point.table));
+        const std::string point = table + " " + std::to_string(pt->address);
+        if (pt->address != s.point.address) {
+            r.model_error(ptr + "/point", p.id,
+                          "register " + std::to_string(s.point.address) + " is the second register of " +
+                              point + ": a signal names the value's first register");
+            continue;
+        }
+        const Encoding& e = pt->encoding;
+        using T = EncodingType;
+        double lo = 0, hi = 0;
+        std::string holder;
+        bool whole = true;  // the point's range is the signal's value's (a half's range is one register's)
+        if (is_bit_table(s.point.table)) {
+            hi = 1, holder = point + ", a bit,";
+        } else if (e.type == T::F32) {
+            hi = std::numeric_limits<float>::max(), lo = -hi, holder = point + "'s f32";
+        } else if (e.pair && (e.type == T::U32Low || e.type == T::U32High)) {
+            hi = UINT32_MAX, holder = "the u32 " + point + " and " + std::to_string(*e.pair) + " make",
+            whole = false;
+        } else if (e.pair && (e.type == T::Digits4Low || e.type == T::Digits4High)) {
+            hi = 99'999'999, holder = "the 8 digits " + point + " and " + std::to_string(*e.pair) + " make",
+            whole = false;
+        } else if (const auto limits = raw_limits(e)) {
+            lo = static_cast<double>(limits->min), hi = static_cast<double>(limits->max);
+            holder = point + "'s " + std::string(to_string(e.type)) + " register" + (e.words == 2 ? "s" : "");
+        } else {
+            continue;
+        }
+        struct Written {
+            const char* key;
+            double value;
+            std::string what;  // how the value comes to be written, when it is not the key's own
+        };
+        std::vector<Written> written;
+        const json& x = (*signals)[i];
+        if (s.model == Model::Walk)
+            written = {{"start", s.start, ""}, {"min", s.min, ""}, {"max", s.max, ""}};
+        else if (s.model == Model::Constant)
+            written = {{"value", s.start, ""}};
+        else if (s.model == Model::Integrate) {
+            if (r.child(x, "start")) written.push_back({"start", s.start, ""});
+            // Shown in whole counts below max (a float: up to max itself, nearly).
+            const double last = e.type == T::F32 ? s.max : std::ceil(s.max) - 1;
+            written.push_back(
+                {"max", last,
+                 last == s.max ? ""
+                               : " (the last count before the total wraps at " + number_text(s.max) + ")"});
+        }
+        for (const auto& w : written) {
+            if (!r.child(x, w.key)) continue;  // reported as missing
+            const std::string value = number_text(w.value) + w.what;
+            if (w.value < lo || w.value > hi)
+                r.model_error(ptr + "/" + w.key, p.id,
+                              value + " is more than " + holder + " can hold (" + number_text(lo) + " to " +
+                                  number_text(hi) + ")");
+            else if (whole && ((pt->min && w.value < static_cast<double>(*pt->min)) ||
+                               (pt->max && w.value > static_cast<double>(*pt->max))))
+                r.model_error(ptr + "/" + w.key, p.id,
+                              value + " is outside " + point + "'s range (" +
+                                  (pt->min ? number_text(static_cast<double>(*pt->min)) : "") + " to " +
+                                  (pt->max ? number_text(static_cast<double>(*pt->max)) : "") + ")");
+        }
+    }
 }
 
 Profile resolve_model(Reader& r, const json& doc, const json& model, const std::string& mptr,
@@ -1151,6 +1500,16 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
             expand_modular(r, *modular, *maps, p.id, config, tables, p);
         tables[idx(Table::Coils)].present = tables[idx(Table::HoldingRegisters)].present = true;
     }
+    if (const json* ex = r.child(model, "exclude"); ex && !ex->is_object()) {
+        r.error(mptr + "/exclude", "must be an object: {\"<table>\": [addresses and [first, last] ranges]}");
+    } else if (ex) {
+        for (auto it = ex->begin(); it != ex->end(); ++it)
+            if (!table_named(it.key()))
+                r.error(mptr + "/exclude/" + pointer_token(it.key()), "unknown table");
+            else
+                check_ranges(r, *it, mptr + "/exclude/" + it.key());
+    }
+    Where described, encoded;
     for (Table t : all_tables) {
         const TableSpec& spec = tables[idx(t)];
         p.has_table[idx(t)] = spec.present;
@@ -1164,6 +1523,7 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
                 continue;
             if (exclude && in_ranges(*exclude, rp.point.address)) continue;
             p.points[idx(t)].push_back(rp.point);
+            described[idx(t)].emplace(rp.point.address, rp.ptr);
         }
         std::sort(p.points[idx(t)].begin(), p.points[idx(t)].end(),
                   [](const Point& a, const Point& b) { return a.address < b.address; });
@@ -1177,9 +1537,12 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
                 r.error(ptr + "/table", "unknown table");
                 continue;
             }
-            apply_override(r, o, ptr, p.points[idx(*t)], *t);
+            apply_override(r, o, ptr, p.points[idx(*t)], *t, encoded[idx(*t)]);
         }
     keep_simulation_of(p);
+    check_overlaps(r, p, described, encoded);
+    check_pairs(r, p, described, encoded);
+    check_signal_values(r, doc, common, p);
     // A range is in raw units: a limit the point's registers cannot hold would be written cut to 16 bits
     // (70000 on one register is 4464) by whoever trusts the profile, and judged against a value no reply
     // can carry. Checked here, after the overrides, which may give a point its range.
@@ -1216,20 +1579,6 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
                                       std::to_string(ref->address) + ", which this model does not have");
         }
     return p;
-}
-
-// A JSON pointer's reference token for an object key (RFC 6901: '~' as ~0, '/' as ~1).
-std::string pointer_token(const std::string& key) {
-    std::string out;
-    for (char c : key) {
-        if (c == '~')
-            out += "~0";
-        else if (c == '/')
-            out += "~1";
-        else
-            out += c;
-    }
-    return out;
 }
 
 // Every string of a profile document, keys included, ends up on a terminal or in a report (names, units,
@@ -1326,7 +1675,7 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
         }
     }
     Tables base;
-    parse_tables(r, doc, base);
+    parse_tables(r, doc, base, r.child(doc, "modular") != nullptr);
 
     std::optional<ModularMaps> maps;
     if (r.child(doc, "modular")) {
@@ -1366,6 +1715,32 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
     for (std::size_t i = 0; i < models->size(); ++i)
         out.profiles.push_back(resolve_model(r, doc, (*models)[i], "/models/" + std::to_string(i), base,
                                              common, maps ? &*maps : nullptr, config));
+    // A model without a signal's point drops the signal (it has no process there), but a point that no
+    // model has, in the configuration the signal names and with the signal it follows, is a slip: the
+    // signal would never run.
+    for (std::size_t i = 0; i < common.simulation.signals.size(); ++i) {
+        const SimulationSignal& s = common.simulation.signals[i];
+        const std::string ptr = "/simulation/signals/" + std::to_string(i);
+        const std::pair<const char*, std::optional<PointRef>> refs[] = {
+            {"point", s.hidden ? std::nullopt : std::optional<PointRef>(s.point)},
+            {"setpoint", s.setpoint},
+            {"hysteresis", s.hysteresis}};
+        for (const auto& [key, ref] : refs) {
+            if (!ref) continue;
+            bool configured = false, found = false;
+            for (const auto& p : out.profiles)
+                if (configured_for(s, p) &&
+                    (s.of.empty() || std::any_of(p.simulation.signals.begin(), p.simulation.signals.end(),
+                                                 [&](const SimulationSignal& k) { return k.id == s.of; }))) {
+                    configured = true;
+                    found = found || p.find(ref->table, ref->address) || p.open_address_space;
+                }
+            if (configured && !found)
+                r.error(ptr + "/" + key, std::string(to_string(ref->table)) + " " +
+                                             std::to_string(ref->address) +
+                                             " is no point of any model: the signal would never run");
+        }
+    }
     return out;
 }
 

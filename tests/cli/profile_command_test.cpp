@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -319,4 +320,40 @@ TEST(ProfileCommand, AConfigurationForADeviceWithoutChannelsIsRefused) {
     r = run_mbscope("decode --summary --map 1=walchem-w600 --map 2=mmk-2030 --config sensor-1-1=sensor" +
                     capture);
     EXPECT_NE(r.exit_code, 2) << r.out;
+}
+
+// list and show cut long vendors and names to their columns by bytes, which split a character ("ç" is two
+// bytes): the cut falls before it, and what is printed is still UTF-8.
+TEST(ProfileCommand, LongNamesAreCutBetweenCharacters) {
+    const auto utf8 = [](const std::string& s) {
+        for (std::size_t i = 0; i < s.size();) {
+            const auto c = static_cast<unsigned char>(s[i]);
+            const std::size_t n = c < 0x80             ? 1
+                                  : (c & 0xE0) == 0xC0 ? 2
+                                  : (c & 0xF0) == 0xE0 ? 3
+                                  : (c & 0xF8) == 0xF0 ? 4
+                                                       : 0;
+            if (n == 0 || i + n > s.size()) return false;
+            for (std::size_t k = 1; k < n; ++k)
+                if ((static_cast<unsigned char>(s[i + k]) & 0xC0) != 0x80) return false;
+            i += n;
+        }
+        return true;
+    };
+    const std::string profiles = ::testing::TempDir() + "utf8-profiles";
+    std::filesystem::create_directories(profiles);
+    // The vendor's 14th and 15th bytes are "õ"; the name's 43rd and 44th are "ç".
+    std::ofstream(profiles + "/utf8.json")
+        << R"({"format": "mbscope-profile/1", "family": "u", "vendor": "Instrumentaçõe",
+      "line": {"transports": ["tcp"]}, "functions": {"supported": [3]},
+      "tables": {"holding_registers": [{"address": 1, "access": "r", "source": "1",
+        "name": "Temperatura do canal de entrada um na posiçãoX de leitura"}]},
+      "models": [{"id": "utf8-device"}]})";
+    auto r = run_mbscope("profile --profile-dir " + profiles + " list");
+    EXPECT_NE(r.out.find("utf8-device            Instrumentaç "), std::string::npos) << r.out;
+    EXPECT_TRUE(utf8(r.out)) << r.out;
+    r = run_mbscope("profile --profile-dir " + profiles + " show utf8-device");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("Temperatura do canal de entrada um na posi…"), std::string::npos) << r.out;
+    EXPECT_TRUE(utf8(r.out)) << r.out;
 }

@@ -66,6 +66,17 @@ std::vector<std::pair<std::string, std::string>> pointers_and_messages(const mb:
     return out;
 }
 
+// A small document for the rules below: these tables, then the rest of its members (its models).
+std::string doc(const std::string& tables, const std::string& rest = R"("models": [{"id": "m"}])") {
+    return R"({"format": "mbscope-profile/1", "family": "t", "vendor": "T", "line": {"transports": ["tcp"]},
+               "functions": {"supported": [1, 2, 3, 4]}, "tables": )" +
+           tables + ", " + rest + "}";
+}
+
+mb::LoadedProfiles load(const std::string& text) {
+    return mb::parse_profiles(text, "test.json", {}, {});
+}
+
 }  // namespace
 
 TEST(ProfileLoader, ModelsResolveWithExclusionsAndOverrides) {
@@ -245,7 +256,7 @@ TEST(ProfileLoader, ReportsEveryErrorWithItsPointer) {
         return std::find(pointers.begin(), pointers.end(), p) != pointers.end();
     };
     EXPECT_TRUE(has("/line/transports"));
-    EXPECT_TRUE(has("/functions/supported"));
+    EXPECT_TRUE(has("/functions/supported/1"));
     EXPECT_TRUE(has("/tables/holding_registers/0/access"));
     EXPECT_TRUE(has("/tables/holding_registers/1/address"));
     EXPECT_TRUE(has("/tables/holding_registers/2/encoding/type"));
@@ -696,4 +707,249 @@ TEST(ProfileLoader, ModularDeviceExpandsItsConfiguration) {
         EXPECT_EQ(b.errors[0].pointer, "/maps_file") << text;
         EXPECT_NE(b.errors[0].message.find(message), std::string::npos) << b.errors[0].message;
     }
+}
+
+// A two-register value's second register listed as a point of its own: Profile::find named register 11 by
+// whichever point came first and the slave's writes of one clobbered the other. Checked on each model after
+// its overrides, which can widen a u16 to a u32; the models a fault holds for are named once.
+TEST(ProfileLoader, TwoPointsOnOneRegisterAreErrors) {
+    const auto u32_10 = R"({"address": 10, "name": "a", "access": "r", "encoding": "u32", "source": "1"})";
+    const auto u16_11 = R"({"address": 11, "name": "b", "access": "r", "source": "2"})";
+    const auto u16_12 = R"({"address": 12, "name": "b", "access": "r", "source": "2"})";
+    auto l = load(doc(std::string(R"({"holding_registers": [)") + u32_10 + ", " + u16_11 + "]}",
+                      R"("models": [{"id": "m"}, {"id": "n"}])"));
+    const std::vector<std::pair<std::string, std::string>> overlap{
+        {"/tables/holding_registers/1/address",
+         "m, n: register 11 is the second register of holding_registers 10 (a u32, "
+         "/tables/holding_registers/0): "
+         "it cannot be another point as well"}};
+    EXPECT_EQ(pointers_and_messages(l), overlap);
+    // In a bit table as in a register table.
+    l = load(
+        doc(R"({"coils": [{"address": 0, "name": "a", "access": "r", "encoding": {"type": "u16", "words": 2},
+                                "source": "1"}, {"address": 1, "name": "b", "access": "r", "source": "2"}]})"));
+    ASSERT_EQ(l.errors.size(), 1u);
+    EXPECT_EQ(l.errors[0].pointer, "/tables/coils/1/address");
+    // An override that widens the point at 10 onto the point at 11.
+    l = load(
+        doc(R"({"holding_registers": [{"address": 10, "name": "a", "access": "r", "source": "1"}, )" +
+                std::string(u16_11) + "]}",
+            R"("models": [{"id": "m"}, {"id": "w", "overrides": [{"table": "holding_registers", "address": 10,
+                                                                       "encoding": "u32"}]}])"));
+    const std::vector<std::pair<std::string, std::string>> widened{
+        {"/models/1/overrides/0/encoding",
+         "w: register 11 is the second register of holding_registers 10, which this override makes a u32, "
+         "and "
+         "another point (/tables/holding_registers/1)"}};
+    EXPECT_EQ(pointers_and_messages(l), widened);
+    // The neighbour: a u32 at 10 and a u16 at 12 share nothing.
+    l = load(doc(std::string(R"({"holding_registers": [)") + u32_10 + ", " + u16_12 + "]}"));
+    EXPECT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
+}
+
+// parse_point refuses a two-register value at 65535 (its second register would wrap round to 0); a model's
+// override that makes one there is refused the same way.
+TEST(ProfileLoader, AnOverrideCannotPutATwoRegisterValueAt65535) {
+    const auto tables =
+        R"({"holding_registers": [{"address": 65534, "name": "a", "access": "r", "source": "1"},
+                                                   {"address": 65535, "name": "b", "access": "r", "source": "2"}]})";
+    auto l = load(doc(tables, R"("models": [{"id": "m", "overrides": [{"table": "holding_registers",
+                                              "address": 65535, "encoding": "f32"}]}])"));
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/models/0/overrides/0/encoding", "a two-register value at 65535 has no second register"}};
+    EXPECT_EQ(pointers_and_messages(l), expected);
+    l = load(doc(R"({"holding_registers": [{"address": 65534, "name": "a", "access": "r", "source": "1"}]})",
+                 R"("models": [{"id": "m", "overrides": [{"table": "holding_registers", "address": 65534,
+                                                           "encoding": "f32"}]}])"));
+    EXPECT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
+    EXPECT_EQ(l.profiles[0].find(mb::Table::HoldingRegisters, 65535)->address, 65534);
+}
+
+// A signal's values are written to its point: past what the point's encoding holds they were cut to 16 bits
+// (70000 read 4464), outside the point's range they were values the device never shows; a total's last
+// count is the one below the max it wraps at. A point no model has is an error; the neighbour loads.
+TEST(ProfileLoader, SimulationSignalsMustFitTheirPoints) {
+    const auto tables = R"({"holding_registers": [
+        {"address": 5, "name": "pv", "access": "r", "range": {"min": 0, "max": 1000}, "source": "1"},
+        {"address": 6, "name": "t", "access": "r", "encoding": "u32", "source": "2"},
+        {"address": 8, "name": "lo", "access": "r", "encoding": {"type": "digits4_low", "pair": 9}, "source": "3"},
+        {"address": 9, "name": "hi", "access": "r", "encoding": {"type": "digits4_high", "pair": 8}, "source": "4"}]})";
+    const auto with = [&](const std::string& signals) {
+        return load(doc(tables, R"("models": [{"id": "m"}], "simulation": {"signals": [)" + signals + "]}"));
+    };
+    auto l =
+        with(R"({"id": "pv", "model": "walk", "point": 5, "start": 500, "min": 0, "max": 1000, "step": 5},
+                     {"id": "t", "model": "integrate", "of": "pv", "point": 6, "per_second": 1, "max": 4294967296},
+                     {"id": "d", "model": "integrate", "of": "pv", "point": 8, "per_second": 1, "max": 100000000})");
+    EXPECT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
+    l = with(R"({"id": "pv", "model": "walk", "point": 5, "start": 500, "min": -3, "max": 70000, "step": 5},
+                {"id": "c", "model": "constant", "point": 5, "value": 1001},
+                {"id": "t", "model": "integrate", "of": "pv", "point": 6, "per_second": 1, "max": 4294967297},
+                {"id": "d", "model": "integrate", "of": "pv", "point": 9, "per_second": 1, "max": 100000001},
+                {"id": "x", "model": "walk", "point": 99, "start": 0, "min": 0, "max": 1, "step": 1},
+                {"id": "y", "model": "walk", "point": 7, "start": 0, "min": 0, "max": 1, "step": 1})");
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/simulation/signals/0/min",
+         "m: -3 is more than holding_registers 5's u16 register can hold (0 to 65535)"},
+        {"/simulation/signals/0/max",
+         "m: 70000 is more than holding_registers 5's u16 register can hold (0 to 65535)"},
+        {"/simulation/signals/1/value", "m: 1001 is outside holding_registers 5's range (0 to 1000)"},
+        {"/simulation/signals/2/max",
+         "m: 4294967296 (the last count before the total wraps at 4294967297) is more than holding_registers "
+         "6's u32 registers can hold (0 to 4294967295)"},
+        {"/simulation/signals/3/max",
+         "m: 100000000 (the last count before the total wraps at 100000001) is more than the 8 digits "
+         "holding_registers 9 and 8 make can hold (0 to 99999999)"},
+        {"/simulation/signals/5/point",
+         "m: register 7 is the second register of holding_registers 6: a signal names the value's first "
+         "register"},
+        {"/simulation/signals/4/point",
+         "holding_registers 99 is no point of any model: the signal would never run"},
+    };
+    EXPECT_EQ(pointers_and_messages(l), expected);
+}
+
+// An enumeration value the register cannot carry (70000 or -3 on a u16) is a text no reply shows and a
+// write that would go out cut to 16 bits; a signed register carries -3, a byte of bytes2 0 to 255.
+TEST(ProfileLoader, EnumValuesMustFitTheRegister) {
+    auto l = load(doc(R"({"holding_registers": [
+        {"address": 1, "name": "a", "access": "rw", "source": "1", "encoding": {"type": "enum",
+         "values": [{"value": 0, "text": "x"}, {"value": 70000, "text": "y"}, {"value": -3, "text": "z"}]}},
+        {"address": 2, "name": "b", "access": "rw", "source": "2", "encoding": {"type": "bytes2",
+         "values": [{"value": 256, "text": "y"}]}}]})"));
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/tables/holding_registers/0/encoding/values/1/value",
+         "70000 is not a value its enum register can carry (0 to 65535)"},
+        {"/tables/holding_registers/0/encoding/values/2/value",
+         "-3 is not a value its enum register can carry (0 to 65535)"},
+        {"/tables/holding_registers/1/encoding/values/0/value",
+         "256 is not a value a byte can carry (0 to 255)"},
+    };
+    EXPECT_EQ(pointers_and_messages(l), expected);
+    l = load(doc(R"({"holding_registers": [{"address": 1, "name": "a", "access": "rw", "source": "1",
+        "encoding": {"type": "enum", "signed": true, "values": [{"value": -3, "text": "z"}, {"value": 32767, "text": "y"}]}}]})"));
+    EXPECT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
+}
+
+// Integers that were read as int and wrapped (4294967299 was function 3, unit 3, address 3, 3 ms), and
+// exception codes no exception response can carry: each refused at its pointer.
+TEST(ProfileLoader, IntegersThatWouldWrapAreErrors) {
+    const std::string text = R"({"format": "mbscope-profile/1", "family": "t", "vendor": "T",
+      "line": {"transports": ["tcp"], "unit_id": {"min": 1, "max": 247, "disabled": [0, 4294967296]},
+               "response_timeout_ms": 4294967299, "min_poll_interval_ms": 100, "ascii_inter_char_timeout_ms": -1},
+      "functions": {"supported": [3, 4294967299, 0, 128], "broadcast": [-1], "diagnostics": [65536],
+                    "exceptions": {"bad_address": 2, "bad_value": 0, "bad_quantity": 256, "write_read_only": -3,
+                                   "unsupported_function": 4294967297, "a/b": {"code": 300}, "x": "3", "y": null}},
+      "tables": {"holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "1"},
+                                       {"address": 5, "name": "b", "access": "r", "source": "2"}]},
+      "models": [{"id": "m", "exclude": {"holding_registers": [70000, 4294967301, [9, 6], [10, 70000]], "registers": [1]},
+                  "overrides": [{"table": "holding_registers", "addresses": [[1, 18446744073709551615]], "unit": "s"},
+                                {"table": "holding_registers", "address": -4294967295, "unit": "s"}]}]})";
+    const auto l = load(text);
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/line/unit_id/disabled/1", "must be a unit id from 0 to 255"},
+        {"/line/response_timeout_ms", "must be between 0 and 2147483647"},
+        {"/line/ascii_inter_char_timeout_ms", "must be between 0 and 2147483647"},
+        {"/functions/supported/1", "must be a number from 1 to 127"},
+        {"/functions/supported/2", "must be a number from 1 to 127"},
+        {"/functions/supported/3", "must be a number from 1 to 127"},
+        {"/functions/broadcast/0", "must be a number from 1 to 127"},
+        {"/functions/diagnostics/0", "must be a number from 0 to 65535"},
+        {"/functions/exceptions/a~1b/code", "must be an exception code from 1 to 255"},
+        {"/functions/exceptions/bad_quantity", "must be an exception code from 1 to 255"},
+        {"/functions/exceptions/bad_value", "must be an exception code from 1 to 255"},
+        {"/functions/exceptions/unsupported_function", "must be an exception code from 1 to 255"},
+        {"/functions/exceptions/write_read_only", "must be an exception code from 1 to 255"},
+        {"/functions/exceptions/x", "must be an exception code, null or {\"code\", ...}"},
+        {"/models/0/exclude/holding_registers/0", "must be an address from 0 to 65535"},
+        {"/models/0/exclude/holding_registers/1", "must be an address from 0 to 65535"},
+        {"/models/0/exclude/holding_registers/2", "first is above last"},
+        {"/models/0/exclude/holding_registers/3/1", "must be an address from 0 to 65535"},
+        {"/models/0/exclude/registers", "unknown table"},
+        {"/models/0/overrides/0/addresses/0/1", "must be an address from 0 to 65535"},
+        {"/models/0/overrides/0", "override matches no point of the table"},
+        {"/models/0/overrides/1/address", "must be an address from 0 to 65535"},
+        {"/models/0/overrides/1", "override matches no point of the table"},
+    };
+    EXPECT_EQ(pointers_and_messages(l), expected);
+    ASSERT_EQ(l.profiles.size(), 1u);
+    const auto& p = l.profiles[0];
+    EXPECT_EQ(p.functions.supported, std::vector<std::uint8_t>{3});
+    EXPECT_EQ(p.line.unit_disabled, std::vector<int>{0});
+    EXPECT_EQ(p.functions.exceptions.at("bad_address"), 2);
+    EXPECT_EQ(p.functions.exceptions.at("y"), std::nullopt);
+    EXPECT_EQ(p.line.min_poll_interval_ms, 100);
+    EXPECT_NE(p.find(mb::Table::HoldingRegisters, 5), nullptr);  // kept: 4294967301 is no longer read as 5
+}
+
+// same_as names the table whose points this one serves: one of its kind (FC2 answers from the coils' map,
+// FC4 from the holding registers'), not itself, and one that lists points rather than serving a third.
+TEST(ProfileLoader, SameAsNamesAnotherTableOfItsKindWithPoints) {
+    const auto hr =
+        std::string(R"("holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "1"}])");
+    const auto co = std::string(R"("coils": [{"address": 1, "name": "c", "access": "r", "source": "1"}])");
+    const std::pair<std::string, std::pair<std::string, std::string>> cases[] = {
+        {"{" + hr + R"(, "input_registers": {"same_as": "input_registers"}})",
+         {"/tables/input_registers/same_as", "a table cannot serve its own map"}},
+        {"{" + hr + ", " + co + R"(, "discrete_inputs": {"same_as": "holding_registers"}})",
+         {"/tables/discrete_inputs/same_as",
+          "\"holding_registers\" is not a bit table: coils and discrete_inputs serve each other's map, "
+          "holding_registers and input_registers each other's"}},
+        {"{" + hr + ", " + co + R"(, "input_registers": {"same_as": "coils"}})",
+         {"/tables/input_registers/same_as",
+          "\"coils\" is not a register table: coils and discrete_inputs serve each other's map, "
+          "holding_registers and input_registers each other's"}},
+        {"{" + co + R"(, "input_registers": {"same_as": "holding_registers"}})",
+         {"/tables/input_registers/same_as", "\"holding_registers\" is not among this profile's tables"}},
+    };
+    for (const auto& [tables, error] : cases)
+        EXPECT_EQ(pointers_and_messages(load(doc(tables))), (std::vector{error})) << tables;
+    const auto cycle = load(doc(
+        R"({"holding_registers": {"same_as": "input_registers"}, "input_registers": {"same_as": "holding_registers"}})"));
+    const std::vector<std::pair<std::string, std::string>> both{
+        {"/tables/input_registers/same_as",
+         "\"holding_registers\" serves another table's map itself: name the table that lists the points"},
+        {"/tables/holding_registers/same_as",
+         "\"input_registers\" serves another table's map itself: name the table that lists the points"}};
+    EXPECT_EQ(pointers_and_messages(cycle), both);
+    const auto good = load(doc("{" + hr + ", " + co +
+                               R"(, "input_registers": {"same_as": "holding_registers"},
+                                   "discrete_inputs": {"same_as": "coils"}})"));
+    EXPECT_TRUE(good.errors.empty()) << mb::to_string(good.errors[0]);
+    EXPECT_EQ(good.profiles[0].find(mb::Table::DiscreteInputs, 1),
+              good.profiles[0].find(mb::Table::Coils, 1));
+}
+
+// The halves of a value split over two points name each other: a u32_low its u32_high, a digits4_high its
+// digits4_low, in the same table and model. Itself, a point of another type, no point, or a half that
+// pairs with a third point are errors at the pair; the neighbour loads.
+TEST(ProfileLoader, APairNamesItsOtherHalf) {
+    const auto half = [](int address, const char* type, int pair) {
+        return R"({"address": )" + std::to_string(address) + R"(, "name": "h", "access": "r", "source": "1",
+                   "encoding": {"type": ")" +
+               type + R"(", "pair": )" + std::to_string(pair) + "}}";
+    };
+    auto l = load(doc(R"({"holding_registers": [)" + half(1, "u32_low", 2) + ", " + half(2, "u32_high", 1) +
+                      ", " + half(3, "digits4_high", 4) + ", " + half(4, "digits4_low", 3) + "]}"));
+    EXPECT_TRUE(l.errors.empty()) << mb::to_string(l.errors[0]);
+    l = load(doc(R"({"holding_registers": [)" + half(1, "u32_low", 1) + ", " + half(2, "u32_high", 3) + ", " +
+                 half(3, "digits4_low", 4) + ", " + half(4, "u32_low", 2) + ", " + half(5, "u32_high", 9) +
+                 "]}"));
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/tables/holding_registers/0/encoding/pair",
+         "m: names the point itself: a u32_low's pair is the address of its u32_high half"},
+        {"/tables/holding_registers/1/encoding/pair",
+         "m: holding_registers 3 is a digits4_low, not the u32_low half: a u32_high's pair is the address of "
+         "its "
+         "u32_low half"},
+        {"/tables/holding_registers/2/encoding/pair",
+         "m: holding_registers 4 is a u32_low, not the digits4_high half: a digits4_low's pair is the "
+         "address of "
+         "its digits4_high half"},
+        {"/tables/holding_registers/3/encoding/pair", "m: holding_registers 2 pairs with 3, not with 4"},
+        {"/tables/holding_registers/4/encoding/pair",
+         "m: holding_registers 9 is no point of the model: a u32_high's pair is the address of its u32_low "
+         "half"},
+    };
+    EXPECT_EQ(pointers_and_messages(l), expected);
 }
