@@ -78,6 +78,10 @@ struct Analyzer::Flow {
     // damaged.
     std::uint64_t damaged_request = 0;
     Timestamp damaged_request_time{0};
+    // A damaged request to a unit the link had not shown, whose timeout ran out before the link showed
+    // whose it is: given up when the next frame tells (release_unseen), as one to a known unit is at its
+    // timeout; a reply from its unit after it is then late, as it would be.
+    std::optional<Pending> unseen_expired;
     // The last broadcast on a serial link (frame index, 0: none, or a unicast request since), and when: a
     // slave's reply right after it answers what no slave may answer (SL §2.1).
     std::uint64_t last_broadcast = 0;
@@ -803,6 +807,20 @@ bool Analyzer::settle_unit(Pending& p) {
     return true;
 }
 
+// The damaged request of unseen_expired, given up now as it would have been at its timeout had its unit been
+// known: settled (its unit's if the link has shown the unit since, else no device's), and remembered, so that
+// its unit's reply after it is late.
+void Analyzer::release_unseen(Flow& flow) {
+    if (!flow.unseen_expired) return;
+    Pending p = std::move(*flow.unseen_expired);
+    flow.unseen_expired.reset();
+    std::string what = describe_request(p.request);
+    remember_timed_out({flow.id, late_id(p.request.frame)}, p, options_.serial_timeout, what);
+    give_up(p, true,
+            {FindingCode::PairNoResponse,
+             no_response_message(p.request, "within " + milliseconds_text(options_.serial_timeout))});
+}
+
 void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     flow.request_seen = true;
     if (stats) count_request(r, *stats);
@@ -818,6 +836,7 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     // A reply with this id (on a serial line, from this unit) now answers this request. (Before the request
     // waiting is given up below: a reply that fits only that one is its late one.)
     if (!timed_out_.empty()) timed_out_.erase({flow.id, late_id(r.frame)});
+    if (r.frame.framing != Framing::Tcp) release_unseen(flow);
     if (r.frame.framing != Framing::Tcp)
         if (auto it = pending_.find({flow.id, 0}); it != pending_.end()) {
             // The master moved on (a broadcast too: a master sends nothing while it waits for a reply): the
@@ -912,10 +931,8 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     }
     const std::uint64_t serial = ++next_serial_;
     ++expiry_entries_;
-    // An untimed capture (raw dump) has no clock: its requests expire only when the master moves on. So does
-    // a damaged request to a unit not seen yet: the master's next request may show the unit it was for
-    // (settle_unit), and a damaged request is discarded, its silence no timeout whatever its length.
-    if (!r.time.count() || !stats) {
+    // An untimed capture (raw dump) has no clock: its requests expire only when the master moves on.
+    if (!r.time.count()) {
         expiries_[untimed].push_back({Timestamp::max(), key, serial});
     } else if (r.frame.framing == Framing::Tcp) {
         expiries_[tcp_timeout].push_back({r.time + options_.timeout, key, serial});
@@ -948,6 +965,15 @@ bool could_answer(const FrameRecord& request, const FrameRecord& response) {
 }  // namespace
 
 void Analyzer::on_response(Flow& flow, FrameRecord& r) {
+    if (flow.unseen_expired && r.frame.checksum_ok) {
+        // A reply shows whose the damaged request was, if it is its unit's (a late one then), and that the
+        // master asked another unit in bytes the capture lost, if it is another's.
+        if (r.frame.unit_id() != flow.unseen_expired->request.frame.unit_id()) {
+            flow.damaged_request = flow.unseen_expired->request.index;
+            flow.damaged_request_time = flow.unseen_expired->request.time;
+        }
+        release_unseen(flow);
+    }
     // (A damaged frame's unit byte may be the damage: its checksum finding says what it is.)
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0 && r.frame.checksum_ok) {
         // Unit 0 is no slave's address (SL §2.2): the frame is no device's (decode_and_judge). In the reply
@@ -986,6 +1012,8 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         Pending waiting = std::move(it->second);
         pending_.erase(it);
         --flow.pending;
+        flow.damaged_request = waiting.request.index;  // a reply right after it: said so, and no duplicate
+        flow.damaged_request_time = waiting.request.time;
         give_up(waiting, false,
                 {FindingCode::PairNoResponse,
                  no_response_message(waiting.request,
@@ -1077,8 +1105,9 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         return;
     }
     // (Not after a damaged request since: that is the one it answers, the same question again.)
+    // (Nor after a broadcast since: slaves answering the same broadcast twice answered a broadcast twice.)
     if (it == pending_.end() && r.frame.checksum_ok && r.frame.length == flow.last_response_length &&
-        flow.damaged_request < flow.last_response_index &&
+        flow.damaged_request < flow.last_response_index && flow.last_broadcast < flow.last_response_index &&
         std::memcmp(r.frame.bytes.data(), flow.last_response.data(), r.frame.length) == 0) {
         // No request waits for it. (Over Modbus/TCP a request that does was found above by its transaction
         // id; on a serial line with a request waiting, the same bytes may be that request's own reply to the
@@ -1581,13 +1610,19 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         auto taken = take_pending(e.key, e.serial);
         if (!taken) continue;  // answered meanwhile
         Pending p = std::move(*taken);
-        const Flow* flow = nullptr;
+        Flow* flow = nullptr;
         for (auto& [k, f] : flows_)
             if (f->id == e.key.flow) {
                 --f->pending;
                 flow = f.get();
             }
         const bool ended = at_end && e.deadline > now_;
+        if (!ended && flow && p.unseen_unit_link) {
+            // Whose it was is not known yet: the next frame on its link tells (release_unseen).
+            release_unseen(*flow);
+            flow->unseen_expired.emplace(std::move(p));
+            continue;
+        }
         std::string what = describe_request(p.request);
         if (ended && flow && p.request.frame.framing == Framing::Rtu &&
             flow->tail_begins_reply_to(p.request)) {
@@ -2437,6 +2472,8 @@ void Analyzer::finish() {
         if (link->flow->carrier == Carrier::Serial && !link->read_as.empty())
             summary_.serial_lines[link->flow->link.str()] = {link->read_as, link->framing_told};
     expire(now_, true);
+    for (auto& [key, f] : flows_)
+        release_unseen(*f);  // whose they were, as far as the capture shows
     summary_.modbus_like_ports = modbus_like_.tally();
     sink_.end(summary_);
 }

@@ -253,6 +253,7 @@ class Analyzer {
     modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
     void on_request(Flow& flow, FrameRecord& record, DeviceStats* stats);
     bool settle_unit(Pending& pending);
+    void release_unseen(Flow& flow);
     void on_response(Flow& flow, FrameRecord& record);
     // Why a request is given up without a response: the finding about it, which its transaction carries.
     struct Unanswered {

@@ -152,7 +152,7 @@ void TextSink::end(const Summary& s) {
         out_ << ", " << s.damaged_broadcasts << " damaged frames to unit 0 (bad CRC/LRC: no broadcast)";
     if (s.damaged_to_unseen_units)
         out_ << ", " << s.damaged_to_unseen_units
-             << " damaged frames to units not seen on their line (bad CRC/LRC, no reply: no device's)";
+             << " damaged frames to units not seen on their line (bad CRC/LRC: no device's)";
     out_ << '\n';
     for (const auto& [device, d] : s.devices) {
         out_ << "  " << device << ": " << d.requests << " requests, " << d.responses << " responses, "

@@ -364,15 +364,37 @@ TEST(SerialInput, LineNoiseMakesNoDevice) {
             EXPECT_EQ(f.message.rfind("FC131 to serial " + path + " unit 17", 0), 0u) << f.message;
         }
     // Another unit's reply while such a request waits answers a request the capture does not hold: no unit
-    // mismatch held against it for noise naming unit 18.
-    const auto other = write_temp("noise_then_other.txt",
-                                  "1.000 12 03 00 60 00 03 06 94\n"
-                                  "1.500 11 03 06 02 2B 00 00 00 64 C8 BA\n");
-    r = decode(other, an::InputFormat::Text);
-    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnitMismatch), 0);
-    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
-    EXPECT_EQ(r->summary.damaged_to_unseen_units, 1u);
-    EXPECT_EQ(r->summary.devices.count("serial " + other + " unit 18"), 0u);
+    // mismatch held against it for noise naming unit 18, and its unsolicited finding names the damaged
+    // frame before it. Nor is the same reply as before "one request answered twice" there.
+    for (const char* reply : {"11 03 06 02 2B 00 00 00 64 C8 BA", "11 03 06 02 2B 00 00 00 65 09 7A"}) {
+        const auto other = write_temp("noise_then_other.txt", "0.500 11 03 00 60 00 03 07 45\n"
+                                                              "0.520 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                                              "1.000 12 03 00 60 00 03 06 94\n"
+                                                              "1.020 " +
+                                                                  std::string(reply) + "\n");
+        r = decode(other, an::InputFormat::Text);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnitMismatch), 0);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 0);
+        ASSERT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 1);
+        for (const auto& f : r->sink.findings)
+            if (f.code == mb::FindingCode::PairUnsolicitedResponse) {
+                EXPECT_NE(f.message.find("after frame 3, a request whose checksum failed"), std::string::npos)
+                    << f.message;
+            }
+        EXPECT_EQ(r->summary.damaged_to_unseen_units, 1u);
+        EXPECT_EQ(r->summary.devices.count("serial " + other + " unit 18"), 0u);
+    }
+    // Its unit's reply past the timeout is late, as it is to a unit seen before: not a clean answer in 4 s.
+    const auto late = write_temp("unseen_late.txt", "1.000 05 03 00 00 00 01 85 8F\n"
+                                                    "5.000 05 03 02 00 07 08 46\n");
+    r = decode(late, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 1);
+    const auto& late5 = r->summary.devices.at("serial " + late + " unit 5");
+    EXPECT_EQ(late5.requests, 1u);
+    EXPECT_EQ(late5.responses, 0u);
+    EXPECT_EQ(late5.late_responses, 1u);
+    EXPECT_EQ(late5.damaged_unanswered, 1u);
+    EXPECT_EQ(r->summary.damaged_to_unseen_units, 0u);
 }
 
 // Around broadcasts on a serial line: a master sends nothing while it waits, so a broadcast after an
@@ -421,6 +443,15 @@ TEST(SerialInput, RepliesAroundBroadcastsAreNamedForWhatTheyAre) {
     EXPECT_EQ(unit2.answered_by_other_unit, 1u);
     // The broadcasts are unit 0's requests; nothing is held against a "unit 0" for the reply carrying it.
     EXPECT_TRUE(r->summary.devices.at(unit + "0").findings.empty());
+    // The same broadcast twice, answered twice the same: each answer answers a broadcast, not "one request
+    // answered twice".
+    const auto twice = write_temp("broadcast_twice.txt", "1.000 > 00 10 00 01 00 01 02 00 05 6A 12\n"
+                                                         "1.010 < 01 10 00 01 00 01 50 09\n"
+                                                         "2.000 > 00 10 00 01 00 01 02 00 05 6A 12\n"
+                                                         "2.010 < 01 10 00 01 00 01 50 09\n");
+    r = decode(twice, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairBroadcastResponse), 2);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 0);
 }
 
 // The capture ends five bytes into unit 2's reply ("02 03 04 00 02": its unit, FC3, its byte count): the
