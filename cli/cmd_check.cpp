@@ -30,6 +30,7 @@ struct CheckCliOptions {
     int timeout_ms = 1000;
     int interval_ms = -1;  // -1: the profile's minimum polling interval
     int idle_ms = 1000;
+    std::optional<int> other_unit;
     std::uint64_t seed = 1;
     bool verbose = false;
     bool json = false;
@@ -93,6 +94,7 @@ int run_check_command(const CheckCliOptions& o) {
     options.run.rule_globs = o.rules;
     options.run.seed = o.seed;
     options.run.idle = std::chrono::milliseconds(o.idle_ms);
+    if (o.other_unit) options.run.other_unit = static_cast<std::uint8_t>(*o.other_unit);
     std::size_t done = 0;
     if (isatty(STDERR_FILENO)) {
         options.run.progress = [&done](const conformance::RuleResult& r) {
@@ -180,6 +182,11 @@ void register_check(CLI::App& app, int& exit_code) {
     cmd->add_option("--interval", o->interval_ms,
                     "Milliseconds between requests (default: the profile's minimum polling interval)")
         ->check(CLI::Range(0, 600000));
+    cmd->add_option("--other-unit", o->other_unit,
+                    "Unit framing.other_unit asks on a serial line, expecting no reply: one no device on the "
+                    "line answers (default: the device's unit + 1, for a device alone on its line; 0: the "
+                    "rule is not run)")
+        ->check(CLI::Range(0, 247));
     cmd->add_option("--idle", o->idle_ms,
                     "Milliseconds silence.idle listens with no request out (default 1000; the MK manual's "
                     "own test idles 10000, the Walchem manual's 15000)")

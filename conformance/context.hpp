@@ -54,6 +54,9 @@ struct RunOptions {
     // How long silence.idle listens with no request out. The manuals' own test idles 10 s (MK-MS-01,
     // 000:246-248) and 15 s (WA-GEN-02, 002:164); a run defaults to a shorter listen.
     std::chrono::milliseconds idle{1000};
+    // The unit framing.other_unit addresses: one no device on the line answers (0: the rule is not run).
+    // Unset: the device's own unit + 1 (1-247), right for a device alone on its line, as on a bench.
+    std::optional<std::uint8_t> other_unit;
     std::function<void(const RuleResult&)> progress;  // after each rule (a terminal shows where the run is)
     // Said, when given, before the restore at a polling interval, where it can take minutes (Walchem: a
     // minute for every 12 points): for a person at a terminal.

@@ -49,7 +49,7 @@ void check_framing(Context& c) {
     // the request on to another slave of its line: a warning there. On a line, the device must be alone on
     // it, as for every rule.
     const std::uint8_t own_unit = c.session.options().unit;
-    const auto other_unit = static_cast<std::uint8_t>(own_unit % 247 + 1);
+    const auto other_unit = c.options.other_unit.value_or(static_cast<std::uint8_t>(own_unit % 247 + 1));
     c.run_with_probe(
         {"framing.other_unit", "framing",
          c.true_serial() ? "SL §2.1, §2.2" : "SL §2.1, §2.2 (a line; over a stream: a gateway's line)",
@@ -57,13 +57,24 @@ void check_framing(Context& c) {
              ") gets no reply, and the request for the device's own unit after it is answered.",
          c.true_serial() ? Authority::Specification : Authority::Implied, false},
         [&](RuleResult& r) {
+            if (other_unit == 0 || other_unit == own_unit) {
+                r.outcome = Outcome::Skip;
+                r.reason = other_unit == 0 ? "--other-unit 0: no unit was named that no device answers"
+                                           : "--other-unit names the device's own unit";
+                return;
+            }
             const auto ex = c.session.request(
                 probe.pdu, "the same read for unit " + std::to_string(other_unit), other_unit);
             expect_silence(r, ex);
             r.expected = "no reply for unit " + std::to_string(other_unit) +
                          ", then a normal response for unit " + std::to_string(own_unit);
             if (r.outcome != Outcome::Pass) {
-                r.observed = "for unit " + std::to_string(other_unit) + ": " + describe(ex);
+                // On a line with other devices one of them may be that unit: --other-unit names a free
+                // one.
+                r.observed = "for unit " + std::to_string(other_unit) + ": " + describe(ex) +
+                             (c.options.other_unit ? ""
+                                                   : " (or another device on the line has that unit: "
+                                                     "--other-unit names one no device answers)");
                 return;
             }
             const auto next = c.session.raw(good, "the read for the device's own unit");

@@ -617,6 +617,34 @@ TEST(Runner, ARunOfRequestsThatAskForSilenceIsJudged) {
         }
 }
 
+// framing.other_unit asks unit + 1 by default, right for a device alone on its line; on a line with other
+// devices that unit may be a neighbour's, so --other-unit names one none of them has, and 0 (or the
+// device's own unit) does not run the rule.
+TEST(Runner, TheOtherUnitAskedIsTheUsersToName) {
+    const std::vector<std::pair<std::optional<std::uint8_t>, int>> cases = {
+        {std::nullopt, 2}, {std::uint8_t{9}, 9}, {std::uint8_t{0}, -1}, {std::uint8_t{1}, -1}};
+    for (const auto& [named, asked] : cases) {
+        SCOPED_TRACE(named ? int{*named} : -2);
+        RunningServer server({}, 1, "mmk-2030");
+        auto options = options_for(std::chrono::milliseconds(100));
+        options.run.rule_globs = {"framing.other_unit"};
+        options.run.other_unit = named;
+        const auto run = certify(server, "rtu-tcp", "mmk-2030", options);
+        ASSERT_EQ(run.report.results.size(), 1u);
+        const RuleResult& r = run.report.results.front();
+        if (asked < 0) {
+            EXPECT_EQ(r.outcome, Outcome::Skip);
+            EXPECT_TRUE(r.evidence.empty());
+            continue;
+        }
+        EXPECT_EQ(r.outcome, Outcome::Pass) << r.observed;
+        ASSERT_FALSE(r.evidence.empty());
+        ASSERT_FALSE(r.evidence.front().sent.empty());
+        EXPECT_EQ(r.evidence.front().sent.front(), asked);  // RTU: the unit is the frame's first byte
+        EXPECT_TRUE(r.evidence.front().received.empty());
+    }
+}
+
 // A target silent from the generic profile's probing on (three reads of each table's address 0, twelve
 // requests) had its run stopped before any rule: the text said "the rules after those below were not run"
 // with nothing below, and "none of the run's 12 requests" where the README speaks of the first three.
