@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -696,7 +698,7 @@ FunctionRules parse_functions(Reader& r, const json& j) {
             const std::string digits = write_part ? key.substr(0, key.size() - 1) : key;
             const bool numeric = !digits.empty() && digits.size() <= 3 &&
                                  digits.find_first_not_of("0123456789") == std::string::npos;
-            const int fc = numeric ? std::stoi(digits) : 0;
+            const int fc = numeric ? std::atoi(digits.c_str()) : 0;  // three digits at most: no overflow
             const int specification = numeric && fc <= 127 && (!write_part || fc == 23)
                                           ? FunctionRules{}.max_for(static_cast<std::uint8_t>(fc), write_part)
                                           : 0;
@@ -842,6 +844,15 @@ struct MapField {
 
 // A maps file's field as a point's JSON: its printed value as the range text, the alarm bit names and the
 // status codes it refers to filled in.
+// A maps file's status code key as the register value it stands for.
+std::optional<std::uint16_t> status_code(const std::string& key) {
+    unsigned value = 0;
+    const auto [end, ec] = std::from_chars(key.data(), key.data() + key.size(), value);
+    if (ec != std::errc{} || end != key.data() + key.size() || key.empty() || value > 0xFFFF)
+        return std::nullopt;
+    return static_cast<std::uint16_t>(value);
+}
+
 void complete_field(json& f, const ModularMaps& maps) {
     if (f.contains("value_text") && !f.contains("range_text")) f["range_text"] = f["value_text"];
     if (auto e = f.find("encoding");
@@ -854,7 +865,7 @@ void complete_field(json& f, const ModularMaps& maps) {
         json values = json::array();
         for (auto it = maps.status_codes.begin(); it != maps.status_codes.end(); ++it) {
             json v = it->is_object() ? *it : json{{"text", *it}};
-            v["value"] = std::stoi(it.key());
+            v["value"] = status_code(it.key()).value_or(0);  // every key was checked when the file was read
             values.push_back(v);
         }
         (*e)["values"] = values;
@@ -1699,6 +1710,18 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
                         check_text(maps_reader, m, "");
                         maps = ModularMaps{take("maps"), take("status_codes"), take("alarm_bits"),
                                            take("alternative_maps")};
+                        // A status code's key is the register's value (complete_field reads it as one): a
+                        // key that is no number from 0 to 65535 would stand for no value, or throw.
+                        if (maps->status_codes.is_object())
+                            for (auto it = maps->status_codes.begin(); it != maps->status_codes.end();) {
+                                if (status_code(it.key())) {
+                                    ++it;
+                                    continue;
+                                }
+                                maps_reader.error("/status_codes/" + pointer_token(it.key()),
+                                                  "a status code is a register value from 0 to 65535");
+                                it = maps->status_codes.erase(it);
+                            }
                     }
                 } catch (const json::exception& e) {
                     r.error("/maps_file", *name + " is not valid JSON: " + e.what());

@@ -707,6 +707,16 @@ TEST(ProfileLoader, ModularDeviceExpandsItsConfiguration) {
         EXPECT_EQ(b.errors[0].pointer, "/maps_file") << text;
         EXPECT_NE(b.errors[0].message.find(message), std::string::npos) << b.errors[0].message;
     }
+    // A status code that is no register value threw std::invalid_argument out of the loader (std::stoi):
+    // an error naming the maps file and the key, the codes that are values still read.
+    std::string odd = maps;
+    const std::string last_code = R"("1": {"text": "Alarme"})";
+    odd.replace(odd.find(last_code), last_code.size(), last_code + R"(, "x1": {"text": "?"})");
+    auto coded = load(device, [&](const std::string&) -> std::optional<std::string> { return odd; });
+    ASSERT_EQ(coded.errors.size(), 1u);
+    EXPECT_EQ(coded.errors[0].file, "maps.json");
+    EXPECT_EQ(coded.errors[0].pointer, "/status_codes/x1");
+    EXPECT_NE(coded.errors[0].message.find("from 0 to 65535"), std::string::npos) << coded.errors[0].message;
 }
 
 // A two-register value's second register listed as a point of its own: Profile::find named register 11 by
