@@ -29,18 +29,10 @@ std::string lower(std::string s) {
     return s;
 }
 
-// A JSON pointer's reference token for an object key (RFC 6901: '~' as ~0, '/' as ~1).
+// A JSON pointer's reference token for an object key (RFC 6901: '~' as ~0, '/' as ~1), as nlohmann's
+// json_pointer writes it.
 std::string pointer_token(const std::string& key) {
-    std::string out;
-    for (char c : key) {
-        if (c == '~')
-            out += "~0";
-        else if (c == '/')
-            out += "~1";
-        else
-            out += c;
-    }
-    return out;
+    return (json::json_pointer() / key).to_string().substr(1);
 }
 
 // A JSON integer as a 64-bit signed one; nullopt for any other value, and for an unsigned one past

@@ -367,11 +367,12 @@ TEST(SerialInput, LineNoiseMakesNoDevice) {
     // mismatch held against it for noise naming unit 18, and its unsolicited finding names the damaged
     // frame before it. Nor is the same reply as before "one request answered twice" there.
     for (const char* reply : {"11 03 06 02 2B 00 00 00 64 C8 BA", "11 03 06 02 2B 00 00 00 65 09 7A"}) {
-        const auto other = write_temp("noise_then_other.txt", "0.500 11 03 00 60 00 03 07 45\n"
-                                                              "0.520 11 03 06 02 2B 00 00 00 64 C8 BA\n"
-                                                              "1.000 12 03 00 60 00 03 06 94\n"
-                                                              "1.020 " +
-                                                                  std::string(reply) + "\n");
+        const auto other = write_temp("noise_then_other.txt",
+                                      "0.500 11 03 00 60 00 03 07 45\n"
+                                      "0.520 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                      "1.000 12 03 00 60 00 03 06 94\n"
+                                      "1.020 " +
+                                          std::string(reply) + "\n");
         r = decode(other, an::InputFormat::Text);
         EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnitMismatch), 0);
         EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 0);
@@ -385,8 +386,9 @@ TEST(SerialInput, LineNoiseMakesNoDevice) {
         EXPECT_EQ(r->summary.devices.count("serial " + other + " unit 18"), 0u);
     }
     // Its unit's reply past the timeout is late, as it is to a unit seen before: not a clean answer in 4 s.
-    const auto late = write_temp("unseen_late.txt", "1.000 05 03 00 00 00 01 85 8F\n"
-                                                    "5.000 05 03 02 00 07 08 46\n");
+    const auto late = write_temp("unseen_late.txt",
+                                 "1.000 05 03 00 00 00 01 85 8F\n"
+                                 "5.000 05 03 02 00 07 08 46\n");
     r = decode(late, an::InputFormat::Text);
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 1);
     const auto& late5 = r->summary.devices.at("serial " + late + " unit 5");
@@ -445,10 +447,11 @@ TEST(SerialInput, RepliesAroundBroadcastsAreNamedForWhatTheyAre) {
     EXPECT_TRUE(r->summary.devices.at(unit + "0").findings.empty());
     // The same broadcast twice, answered twice the same: each answer answers a broadcast, not "one request
     // answered twice".
-    const auto twice = write_temp("broadcast_twice.txt", "1.000 > 00 10 00 01 00 01 02 00 05 6A 12\n"
-                                                         "1.010 < 01 10 00 01 00 01 50 09\n"
-                                                         "2.000 > 00 10 00 01 00 01 02 00 05 6A 12\n"
-                                                         "2.010 < 01 10 00 01 00 01 50 09\n");
+    const auto twice = write_temp("broadcast_twice.txt",
+                                  "1.000 > 00 10 00 01 00 01 02 00 05 6A 12\n"
+                                  "1.010 < 01 10 00 01 00 01 50 09\n"
+                                  "2.000 > 00 10 00 01 00 01 02 00 05 6A 12\n"
+                                  "2.010 < 01 10 00 01 00 01 50 09\n");
     r = decode(twice, an::InputFormat::Text);
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairBroadcastResponse), 2);
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 0);
