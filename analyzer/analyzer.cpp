@@ -635,8 +635,8 @@ void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
     // some unit's (serial_bytes) and whose unit byte names no unit seen on the link: the tail of a reply cut
     // by a silence, five bytes of noise, were "unit 0 answering a broadcast".
     // (The units are looked through only for such a frame: this runs for every frame.)
-    // A damaged request to another unit the link has not seen is no device's either until a reply shows
-    // the unit is there (on_frame, on_response).
+    // A damaged request to another unit the link has not seen is no device's either until the link shows
+    // the unit is there (settle_unit).
     // A serial reply carrying unit 0 is no device's whatever its checksum: no slave has that address
     // (on_response says whose reply slot it took).
     const bool named_by_damage =
