@@ -118,6 +118,18 @@ struct Analyzer::Flow {
         DeviceStats* stats;
     };
     std::vector<Unit> units;
+    // The unit if the link has shown it, else null (device_of makes it).
+    const Unit* unit(std::uint8_t id) const {
+        for (const auto& u : units)
+            if (u.id == id) return &u;
+        return nullptr;
+    }
+    // A request whose checksum failed, that no device answers: a reply nobody waits for right after it says
+    // so, and is not "the last response again".
+    void mark_damaged_request(const FrameRecord& r) {
+        damaged_request = r.index;
+        damaged_request_time = r.time;
+    }
 };
 
 // A link whose frames come whole or from a serial deframer, never from TCP reassembly: serial lines, and
@@ -217,11 +229,10 @@ Analyzer::FlowKey Analyzer::flow_key(Transport transport, const Endpoint& client
 }
 
 const SharedText& Analyzer::device_of(Flow& flow, std::uint8_t unit, DeviceStats*& stats) {
-    for (const auto& u : flow.units)
-        if (u.id == unit) {
-            stats = u.stats;
-            return u.device;
-        }
+    if (const Flow::Unit* known = flow.unit(unit)) {
+        stats = known->stats;
+        return known->device;
+    }
     std::string device = flow.server + " unit " + std::to_string(unit);
     stats = &summary_.devices[device];
     flow.units.push_back({unit, std::move(device), stats});
@@ -641,9 +652,7 @@ void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
     // (on_response says whose reply slot it took).
     const bool named_by_damage =
         r.frame.framing != Framing::Tcp &&
-        (!r.frame.checksum_ok || (unit == 0 && r.direction == Direction::Response)) &&
-        std::none_of(flow.units.begin(), flow.units.end(),
-                     [unit](const Flow::Unit& u) { return u.id == unit; });
+        (!r.frame.checksum_ok || (unit == 0 && r.direction == Direction::Response)) && !flow.unit(unit);
     DeviceStats* stats = nullptr;
     if (!named_by_damage) r.device = device_of(flow, unit, stats);
     auto pdu = decode_pdu(r.frame.pdu(), r.direction);
@@ -685,8 +694,7 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
         // damaged request to another unit still waits: a capture can damage what the device got whole,
         // and its reply is then paired with it.)
         ++summary_.damaged_broadcasts;
-        flow.damaged_request = r.index;
-        flow.damaged_request_time = r.time;
+        flow.mark_damaged_request(r);
         return;
     }
     // A damaged request to a unit the link has not seen (decode_and_judge) waits as any other, its device
@@ -788,10 +796,8 @@ bool Analyzer::settle_unit(Pending& p) {
     if (!p.unseen_unit_link) return !p.no_device;
     const Flow& flow = *p.unseen_unit_link;
     p.unseen_unit_link = nullptr;
-    const auto unit =
-        std::find_if(flow.units.begin(), flow.units.end(),
-                     [id = p.request.frame.unit_id()](const Flow::Unit& u) { return u.id == id; });
-    if (unit == flow.units.end()) {
+    const Flow::Unit* unit = flow.unit(p.request.frame.unit_id());
+    if (!unit) {
         p.no_device = true;
         ++summary_.damaged_to_unseen_units;
         return false;
@@ -969,8 +975,7 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         // A reply shows whose the damaged request was, if it is its unit's (a late one then), and that the
         // master asked another unit in bytes the capture lost, if it is another's.
         if (r.frame.unit_id() != flow.unseen_expired->request.frame.unit_id()) {
-            flow.damaged_request = flow.unseen_expired->request.index;
-            flow.damaged_request_time = flow.unseen_expired->request.time;
+            flow.mark_damaged_request(flow.unseen_expired->request);
         }
         release_unseen(flow);
     }
@@ -1012,8 +1017,7 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         Pending waiting = std::move(it->second);
         pending_.erase(it);
         --flow.pending;
-        flow.damaged_request = waiting.request.index;  // a reply right after it: said so, and no duplicate
-        flow.damaged_request_time = waiting.request.time;
+        flow.mark_damaged_request(waiting.request);  // a reply right after it: said so, and no duplicate
         give_up(waiting, false,
                 {FindingCode::PairNoResponse,
                  no_response_message(waiting.request,
