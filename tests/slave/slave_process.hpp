@@ -35,10 +35,11 @@ class SlaveProcess {
         spawned_ = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) == 0;
         posix_spawn_file_actions_destroy(&actions);
         ::close(out[1]);
-        // The first line: "tcp://127.0.0.1:PORT", or the pseudo-terminal's path.
+        // The first line: "tcp://127.0.0.1:PORT", or the pseudo-terminal's path. A sanitizer build on a
+        // loaded machine takes seconds to load the profiles before it prints it.
         char ch;
         pollfd p{out[0], POLLIN, 0};
-        while (spawned_ && ::poll(&p, 1, 10'000) > 0 && ::read(out[0], &ch, 1) == 1 && ch != '\n')
+        while (spawned_ && ::poll(&p, 1, 30'000) > 0 && ::read(out[0], &ch, 1) == 1 && ch != '\n')
             address_ += ch;
         if (with_stderr)
             output_fd_ = out[0];
