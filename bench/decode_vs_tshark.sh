@@ -11,6 +11,7 @@
 #
 #   bench/decode_vs_tshark.sh [BUILD_DIR] [PACKETS] [ROUNDS]   (default build/release, 400000, 3)
 set -euo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^set /{/^set /d;s/^# \{0,1\}//;p}' "$0"; exit 0 ;; esac
 build=${1:-build/release}
 packets=${2:-400000}
 rounds=${3:-3}

@@ -7,6 +7,7 @@
 #   bench/loopback_capture.sh [BUILD_DIR] [OUT.pcap] [PACKETS] [CLIENTS]   (default build/release,
 #                                                                            loopback.pcap, 400000, 4)
 set -euo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^set /{/^set /d;s/^# \{0,1\}//;p}' "$0"; exit 0 ;; esac
 build=${1:-build/release}
 out=${2:-loopback.pcap}
 packets=${3:-400000}

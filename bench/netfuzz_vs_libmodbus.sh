@@ -10,6 +10,7 @@
 #
 #   bench/netfuzz_vs_libmodbus.sh [BUILD_DIR] [SECONDS]     (default build/release, 5 s per measurement)
 set -euo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^set /{/^set /d;s/^# \{0,1\}//;p}' "$0"; exit 0 ;; esac
 build=${1:-build/release}
 seconds=${2:-5}
 mbscope="$build/cli/mbscope"

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages mbscope needs, only those missing. Idempotent and quiet when all is there.
 set -euo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^set /{/^set /d;s/^# \{0,1\}//;p}' "$0"; exit 0 ;; esac
 
 packages=(
   g++ cmake make pkg-config            # toolchain

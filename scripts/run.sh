@@ -4,6 +4,12 @@
 #   bash scripts/run.sh test   install what is missing, build release and asan, run the whole test suite
 #                              under ASan+UBSan, then the fuzz smoke
 set -euo pipefail
+usage="usage: bash scripts/run.sh demo|test   (demo when none is given)"
+case "${1:-demo}" in
+  demo|test) ;;
+  -h|--help) sed -n '2,/^set /{/^set /d;s/^# \{0,1\}//;p}' "$0"; echo "$usage"; exit 0 ;;
+  *) echo "$usage" >&2; exit 2 ;;
+esac
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
 
@@ -71,9 +77,5 @@ case "${1:-demo}" in
     build asan
     ctest --preset asan -j "$((jobs * 2))"
     fuzz_smoke
-    ;;
-  *)
-    echo "usage: bash scripts/run.sh demo|test" >&2
-    exit 2
     ;;
 esac
