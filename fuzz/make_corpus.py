@@ -278,9 +278,24 @@ def tunnelled_of(pcap):
     return bytes(out)
 
 
+def max_len(target):
+    """The target's max_len from fuzz/<target>.options, or None: libFuzzer reads no more of a seed than that,
+    so a longer seed is only its first max_len bytes, and is written as such."""
+    try:
+        with open(os.path.join(ROOT, "fuzz", target + ".options")) as f:
+            for line in f:
+                key, _, value = line.partition("=")
+                if key.strip() == "max_len":
+                    return int(value)
+    except FileNotFoundError:
+        pass
+    return None
+
+
 def write(target, payload, out_dir):
     directory = os.path.join(out_dir, target)
     os.makedirs(directory, exist_ok=True)
+    payload = payload[:max_len(target)]
     with open(os.path.join(directory, hashlib.sha1(payload).hexdigest()), "wb") as f:
         f.write(payload)
 
@@ -526,7 +541,7 @@ def merge(fuzz_dir, out_dir, targets):
             continue
         merged = tempfile.mkdtemp()
         inputs = [seeds] + ([final] if os.path.isdir(final) else [])
-        subprocess.run([binary, "-merge=1", "-max_len=65536", merged] + inputs, check=True,
+        subprocess.run([binary, "-merge=1", "-max_len=%d" % (max_len(target) or 65536), merged] + inputs, check=True,
                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                        env=ENV)
         shutil.rmtree(final, ignore_errors=True)

@@ -64,6 +64,16 @@ for t in $targets; do
   for f in "fuzz_$t" "fuzz_$t.dict"; do
     [ -e "$dir/$f" ] || { echo "missing: $dir/$f" >&2; missing=1; }
   done
+  # A seed longer than the target's max_len is only its first max_len bytes to libFuzzer: the corpus would
+  # claim inputs the fuzzer never runs (fuzz/make_corpus.py writes seeds cut to it).
+  bound=$(sed -n 's/^max_len *= *\([0-9]*\)/\1/p' "fuzz/$t.options" 2>/dev/null)
+  if [ -n "$bound" ] && [ -d "corpus/$t" ]; then
+    long=$(find "corpus/$t" -type f -size +"${bound}"c)
+    for f in $long; do
+      echo "corpus: $f holds $(wc -c <"$f") bytes, over max_len $bound of fuzz/$t.options" >&2
+      missing=1
+    done
+  fi
   [ $contract -eq 1 ] || continue
   if [ -d "corpus/$t" ] && [ ! -s "$dir/fuzz_${t}_seed_corpus.zip" ]; then
     echo "missing: $dir/fuzz_${t}_seed_corpus.zip" >&2
