@@ -91,9 +91,9 @@ struct Analyzer::Flow {
     std::uint64_t unparsed_offset = 0;
     std::uint32_t unparsed_length = 0;
     std::uint64_t unparsed_after_frame = 0;
-    // The last run of RTU bytes that formed no frame, not from the master's side, while no frame has come
-    // after it (tail_length 0: none), and its first two bytes: at the end of the capture, a reply it cut
-    // begins with the unit and function code its request asked for.
+    // The last run of RTU bytes (or ASCII frame the capture's end cut) that formed no frame, not from the
+    // master's side, while no frame has come after it (tail_length 0: none), and the unit and function code
+    // it begins with: at the end of the capture, a reply it cut begins with those its request asked for.
     std::uint64_t tail_offset = 0;
     std::uint32_t tail_length = 0;
     std::array<std::uint8_t, 2> tail_head{};
@@ -1628,15 +1628,16 @@ void Analyzer::expire(Timestamp now, bool at_end) {
             continue;
         }
         std::string what = describe_request(p.request);
-        if (ended && flow && p.request.frame.framing == Framing::Rtu &&
+        if (ended && flow && p.request.frame.framing != Framing::Tcp &&
             flow->tail_begins_reply_to(p.request)) {
             // The capture ends inside its reply: answered, its values unknown (as a Modbus/TCP reply cut by
             // the snapshot length is), not "no response".
+            const bool ascii = p.request.frame.framing == Framing::Ascii;
             give_up(p, false,
                     {FindingCode::PairResponseNotCaptured,
                      what + " to " + p.request.device.str() + " was answered, but the capture ends " +
-                         std::to_string(flow->tail_length) + " bytes into the reply (unit " +
-                         std::to_string(flow->tail_head[0]) + ", function code " +
+                         std::to_string(flow->tail_length) + (ascii ? " characters" : " bytes") +
+                         " into the reply (unit " + std::to_string(flow->tail_head[0]) + ", function code " +
                          std::to_string(flow->tail_head[1]) + "): its values are unknown"});
             continue;
         }
@@ -1781,7 +1782,11 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
                 flow.unparsed_length = u->length;
                 flow.unparsed_after_frame = next_frame_;
             }
-            if (link.framing == Framing::Rtu && link.hint != Direction::Request) {
+            // An ASCII frame is cut only where the capture ends inside it (a pause or a new ':' cuts it
+            // on the line, and the master moves on).
+            if (link.hint != Direction::Request &&
+                (link.framing == Framing::Rtu ||
+                 (link.framing == Framing::Ascii && u->reason == UnparsedReason::Truncated))) {
                 flow.tail_offset = u->offset;
                 flow.tail_length = u->length;
                 flow.tail_head = u->head;

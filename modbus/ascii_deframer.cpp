@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "modbus/adu.hpp"
+#include "modbus/hex.hpp"
 
 namespace mbscope::modbus {
 
@@ -38,11 +39,25 @@ void AsciiDeframer::append(std::span<const std::uint8_t> run) {
     offset_ += run.size();
 }
 
+Unparsed AsciiDeframer::frame_unparsed(UnparsedReason reason) const {
+    Unparsed u{frame_offset_, static_cast<std::uint32_t>(frame_length_), reason, frame_start_};
+    // The unit and function code its first four digits spell, if they are digits: a reply that noise
+    // damaged, or that the end of a capture cut, is still known to have begun.
+    if (frame_length_ >= 5) {
+        int digits[4];
+        for (std::size_t k = 0; k < 4; ++k)
+            digits[k] = hex_digit(frame_[1 + k]);
+        if (std::all_of(std::begin(digits), std::end(digits), [](int d) { return d >= 0; }))
+            u.head = {static_cast<std::uint8_t>(digits[0] << 4 | digits[1]),
+                      static_cast<std::uint8_t>(digits[2] << 4 | digits[3])};
+    }
+    return u;
+}
+
 void AsciiDeframer::abandon(UnparsedReason reason, DeframeEvents& out) {
     if (frame_length_ == 0) return;
     flush_noise(out);
-    out.emplace_back(
-        Unparsed{frame_offset_, static_cast<std::uint32_t>(frame_length_), reason, frame_start_});
+    out.emplace_back(frame_unparsed(reason));
     frame_length_ = 0;
 }
 
@@ -61,7 +76,7 @@ void AsciiDeframer::complete(DeframeEvents& out) {
         if (r.error().code == ErrorCode::OddHexLength) reason = UnparsedReason::OddLength;
         if (r.error().code == ErrorCode::Truncated) reason = UnparsedReason::TooShort;
         if (r.error().code == ErrorCode::TooLong) reason = UnparsedReason::TooLong;
-        out.back() = Unparsed{frame_offset_, static_cast<std::uint32_t>(frame_length_), reason, frame_start_};
+        out.back() = frame_unparsed(reason);
     }
     frame_length_ = 0;
 }

@@ -30,6 +30,8 @@ class AsciiDeframer {
 
   private:
     void abandon(UnparsedReason reason, DeframeEvents& out);
+    Unparsed frame_unparsed(
+        UnparsedReason reason) const;  // the frame held so far, as characters that formed none
     void complete(DeframeEvents& out);
     void add_noise(std::size_t count, DeframeEvents& out);  // the next `count` characters are noise
     void start_frame();                                     // the next character, a ':', starts a frame

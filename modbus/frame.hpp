@@ -121,8 +121,9 @@ struct Unparsed {
     std::uint32_t length = 0;
     UnparsedReason reason = UnparsedReason::Garbage;
     Timestamp time{0};
-    // RTU: its first two bytes when it has them (a unit and a function code, if it is the start of a frame):
-    // a reply the end of a capture cut is still known to have begun.
+    // RTU: its first two bytes when it has them (a unit and a function code, if it is the start of a frame);
+    // ASCII: the two bytes its first four hex digits after ':' spell. A reply the end of a capture cut is
+    // still known to have begun. Zero when there are none (unit 0 never replies).
     std::array<std::uint8_t, 2> head{};
 };
 

@@ -460,29 +460,42 @@ TEST(SerialInput, RepliesAroundBroadcastsAreNamedForWhatTheyAre) {
 // The capture ends five bytes into unit 2's reply ("02 03 04 00 02": its unit, FC3, its byte count): the
 // request was answered and the capture holds only part of the reply, as a Modbus/TCP reply cut by the
 // snapshot length is said to be; not "no response". Bytes that begin no reply to it (another unit, another
-// function) leave it unanswered at the end.
+// function) leave it unanswered at the end. The same on an ASCII line, eleven characters into unit 17's reply
+// (":110306022B", the FC3 example reply of MK-ASC-02, 000:304-309, cut after its byte count and first byte).
 TEST(SerialInput, AReplyTheEndOfTheCaptureCutsIsAnsweredNotCapturedWhole) {
-    for (const std::string& tail : {std::string("02 03 04 00 02"), std::string("05 03 04 00 02")}) {
-        const auto path = write_temp("cut_at_end.txt",
-                                     "1.000 03 03 00 30 00 02 C5 E6\n"
-                                     "1.020 03 03 04 00 03 00 07 68 31\n"
-                                     "1.500 02 03 00 20 00 02 C5 F2\n"
-                                     "1.520 " +
-                                         tail + "\n");
-        auto r = decode(path, an::InputFormat::Text);
-        const bool begins_reply = tail.starts_with("02 03");
-        const auto& unit2 = r->summary.devices.at("serial " + path + " unit 2");
-        EXPECT_EQ(unit2.replies_not_captured, begins_reply ? 1u : 0u) << tail;
-        EXPECT_EQ(unit2.unanswered_at_end, begins_reply ? 0u : 1u) << tail;
-        EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseNotCaptured), begins_reply ? 1 : 0);
-        EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), begins_reply ? 0 : 1);
-        for (const auto& f : r->sink.findings)
-            if (f.code == mb::FindingCode::PairResponseNotCaptured) {
-                EXPECT_NE(f.message.find("the capture ends 5 bytes into the reply"), std::string::npos)
-                    << f.message;
-            }
-        EXPECT_EQ(r->summary.unparsed_bytes, 5u);  // still reported as bytes that formed no frame
-    }
+    struct Line {
+        an::InputFormat format;
+        std::string before;        // the capture up to the request's reply
+        std::string reply, other;  // the reply cut, and a cut frame of another unit
+        std::string unit;
+        std::string cut;  // how far into the reply the capture ends
+        std::uint64_t length;
+    };
+    const Line lines[] = {
+        {an::InputFormat::Text,
+         "1.000 03 03 00 30 00 02 C5 E6\n1.020 03 03 04 00 03 00 07 68 31\n1.500 02 03 00 20 00 02 C5 "
+         "F2\n1.520 ",
+         "02 03 04 00 02\n", "05 03 04 00 02\n", "unit 2", "5 bytes into the reply (unit 2, function code 3)",
+         5},
+        {an::InputFormat::AsciiRaw, ":11030060000389\r\n", ":110306022B", ":050306022B", "unit 17",
+         "11 characters into the reply (unit 17, function code 3)", 11},
+    };
+    for (const auto& line : lines)
+        for (const bool begins_reply : {true, false}) {
+            const auto path =
+                write_temp("cut_at_end.txt", line.before + (begins_reply ? line.reply : line.other));
+            auto r = decode(path, line.format);
+            const auto& unit = r->summary.devices.at("serial " + path + " " + line.unit);
+            EXPECT_EQ(unit.replies_not_captured, begins_reply ? 1u : 0u) << line.unit;
+            EXPECT_EQ(unit.unanswered_at_end, begins_reply ? 0u : 1u) << line.unit;
+            EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseNotCaptured), begins_reply ? 1 : 0);
+            EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), begins_reply ? 0 : 1);
+            for (const auto& f : r->sink.findings)
+                if (f.code == mb::FindingCode::PairResponseNotCaptured) {
+                    EXPECT_NE(f.message.find("the capture ends " + line.cut), std::string::npos) << f.message;
+                }
+            EXPECT_EQ(r->summary.unparsed_bytes, line.length);  // still reported as formed no frame
+        }
 }
 
 // Broadcast requests are writes (SL §2.1; the MK manual runs FC5, 6, 15 and 16 in broadcast, 000:313): a
