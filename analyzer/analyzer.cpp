@@ -86,6 +86,7 @@ struct Analyzer::Flow {
     // slave's reply right after it answers what no slave may answer (SL §2.1).
     std::uint64_t last_broadcast = 0;
     Timestamp last_broadcast_time{0};
+    std::vector<std::uint8_t> last_broadcast_pdu;  // what a slave's echo of it would carry (classify)
     // The last run of serial bytes that formed no frame, and how many frames the capture had when it came: a
     // reply nobody waits for after it may answer a request among those bytes.
     std::uint64_t unparsed_offset = 0;
@@ -863,6 +864,8 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         flow.last_broadcast = r.index;
         flow.last_broadcast_time = r.time;
+        const auto pdu = r.frame.pdu();
+        flow.last_broadcast_pdu.assign(pdu.begin(), pdu.end());
         ++summary_.transactions;  // a broadcast: executed by every slave, answered by none
         if (only_reads(r.frame.pdu())) {
             r.reported_findings.push_back(FindingCode::PairBroadcastRead);
@@ -1750,6 +1753,15 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
         }
         return req_clean ? Direction::Request : (rsp_ok ? Direction::Response : Direction::Request);
     }
+    // A unit's echo of the broadcast just sent (FC5, FC6 and FC8 replies repeat their request): a slave
+    // answering it, not the master asking that unit the very same, as a master sends nothing during its
+    // turnaround delay after a broadcast (SL §2.1). Read as a request, it made a timeout for a unit that
+    // had done nothing wrong but answer.
+    if (flow.last_broadcast && frame.unit_id() != 0 && frame.checksum_ok &&
+        std::ranges::equal(pdu, flow.last_broadcast_pdu) &&
+        (!frame.end.count() || (frame.end >= flow.last_broadcast_time &&
+                                frame.end - flow.last_broadcast_time <= options_.serial_timeout)))
+        return Direction::Response;
     if (req_clean) return Direction::Request;
     if (rsp_ok && response->violations.empty()) return Direction::Response;
     return Direction::Request;

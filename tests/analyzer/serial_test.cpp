@@ -457,6 +457,38 @@ TEST(SerialInput, RepliesAroundBroadcastsAreNamedForWhatTheyAre) {
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairDuplicateResponse), 0);
 }
 
+// Without direction markers, unit 2 echoing an FC6 broadcast ("02 06 00 05 00 09", the broadcast's own PDU
+// under its address) read as the master asking unit 2 the same: a request that drew "no response", a
+// timeout for a unit whose only fault was to answer. An echo of the broadcast just sent is the slave's
+// answer to it (a master sends nothing during its turnaround delay after a broadcast, SL §2.1). The same
+// with an FC5 broadcast on an ASCII line.
+TEST(SerialInput, AUnitsEchoOfABroadcastIsItsAnswerWithoutDirectionMarkers) {
+    const std::pair<std::string, an::InputFormat> lines[] = {
+        {"1.000 02 03 00 20 00 02 C5 F2\n"
+         "1.020 02 03 04 00 02 00 07 29 31\n"
+         "1.200 00 06 00 05 00 09 58 1C\n"
+         "1.230 02 06 00 05 00 09 59 FE\n"
+         "2.000 02 03 00 20 00 02 C5 F2\n"
+         "2.020 02 03 04 00 02 00 07 29 31\n",
+         an::InputFormat::Text},
+        {":00050054FF00A8\r\n:02050054FF00A6\r\n:02030060000398\r\n", an::InputFormat::AsciiRaw},
+    };
+    for (const auto& [text, format] : lines) {
+        const auto path = write_temp("broadcast_echo.txt", text);
+        auto r = decode(path, format);
+        ASSERT_TRUE(r->ok);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairBroadcastResponse), 1) << text;
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 0) << text;
+        for (const auto& f : r->sink.findings)
+            if (f.code == mb::FindingCode::PairBroadcastResponse) {
+                EXPECT_EQ(f.device.str(), "serial " + path + " unit 2");
+            }
+        const auto& unit2 = r->summary.devices.at("serial " + path + " unit 2");
+        EXPECT_EQ(unit2.timeouts, 0u) << text;
+        EXPECT_EQ(unit2.requests, format == an::InputFormat::Text ? 2u : 1u) << text;
+    }
+}
+
 // The capture ends five bytes into unit 2's reply ("02 03 04 00 02": its unit, FC3, its byte count): the
 // request was answered and the capture holds only part of the reply, as a Modbus/TCP reply cut by the
 // snapshot length is said to be; not "no response". Bytes that begin no reply to it (another unit, another
