@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -209,10 +210,10 @@ int run_show(const ProfileOptions& o) {
     return exit_ok;
 }
 
-// A file to validate, and whether it was found in a directory rather than named.
+// A file to validate, and the directory it was found in (empty: named).
 struct ToValidate {
     std::string path;
-    bool found = false;
+    std::string directory;
 };
 
 // What validating one file (or listing one directory) found: a line of the text output, an entry of the JSON.
@@ -233,7 +234,7 @@ std::vector<ToValidate> files_to_validate(const std::vector<std::string>& named,
     for (const auto& f : named) {
         std::error_code ec;
         if (!std::filesystem::is_directory(f, ec)) {
-            files.push_back({f, false});
+            files.push_back({f, {}});
             continue;
         }
         std::vector<std::string> found;
@@ -249,7 +250,7 @@ std::vector<ToValidate> files_to_validate(const std::vector<std::string>& named,
                 {f, "no_json_files", {"no .json file in this directory"}, {}, nlohmann::json::array()});
         std::sort(found.begin(), found.end());
         for (auto& path : found)
-            files.push_back({std::move(path), true});
+            files.push_back({std::move(path), f});
     }
     return files;
 }
@@ -258,7 +259,12 @@ int run_validate(const ProfileOptions& o) {
     std::vector<Validated> results;
     const auto files = files_to_validate(o.files, results);
     std::size_t documents = 0;  // profile documents among the files, valid or not
-    for (const auto& [f, found] : files) {
+    // A device id and the directory it was found in, and the file that defined it first there: the profile
+    // search refuses the same id twice in one directory (ProfileStore), and so must a check of that
+    // directory.
+    std::map<std::pair<std::string, std::string>, std::string> defined;
+    for (const auto& [f, directory] : files) {
+        const bool found = !directory.empty();
         Validated v{f, "ok", {}, {}, nlohmann::json::array()};
         // A file that is not there or cannot be read is input the run could not read (exit 2, as frame and
         // decode), not a profile found invalid (1); the others are still validated.
@@ -285,6 +291,25 @@ int run_validate(const ProfileOptions& o) {
             v.status = "errors";
             v.notes.push_back(std::to_string(loaded.errors.size()) + " error(s)");
             for (const auto& e : loaded.errors)
+                v.errors.push_back(to_string(e));
+            results.push_back(std::move(v));
+            continue;
+        }
+        std::vector<ProfileError> twice;
+        for (const auto& p : loaded.profiles) {
+            if (!found) continue;
+            const auto [first, fresh] = defined.try_emplace({directory, p.id}, f);
+            if (!fresh)
+                twice.push_back({f, "",
+                                 "device id \"" + p.id + "\" is defined twice in " + directory +
+                                     " (first in " + first->second +
+                                     "): the profile search keeps the first"});
+        }
+        if (!twice.empty()) {
+            if (!o.json) print_errors(twice);
+            v.status = "errors";
+            v.notes.push_back(std::to_string(twice.size()) + " error(s)");
+            for (const auto& e : twice)
                 v.errors.push_back(to_string(e));
             results.push_back(std::move(v));
             continue;

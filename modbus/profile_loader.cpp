@@ -1730,6 +1730,21 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
     for (std::size_t i = 0; i < models->size(); ++i)
         out.profiles.push_back(resolve_model(r, doc, (*models)[i], "/models/" + std::to_string(i), base,
                                              common, maps ? &*maps : nullptr, config));
+    // A device is found by its id, in lower case: an empty one names no device, and one that another model
+    // of the file also takes ("TWO" and "two") names two; the profile store passed over both without a word.
+    for (std::size_t i = 0; i < out.profiles.size(); ++i) {
+        const std::string ptr = "/models/" + std::to_string(i) + "/id";
+        const json& model = (*models)[i];
+        if (model.is_object() && model.contains("id") && model["id"].is_string() &&
+            out.profiles[i].id.empty())
+            r.error(ptr, "a device id cannot be empty");
+        for (std::size_t j = 0; j < i; ++j)
+            if (!out.profiles[i].id.empty() && out.profiles[j].id == out.profiles[i].id) {
+                r.error(ptr, "device id \"" + out.profiles[i].id + "\" is also /models/" + std::to_string(j) +
+                                 "'s (ids are compared in lower case)");
+                break;
+            }
+    }
     // A model without a signal's point drops the signal (it has no process there), but a point that no
     // model has, in the configuration the signal names and with the signal it follows, is a slip: the
     // signal would never run.

@@ -1,5 +1,6 @@
 // `mbscope profile` end to end on a profile directory written for the test.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -189,6 +190,55 @@ TEST(ProfileCommand, ValidateADirectoryChecksEveryProfileUnderIt) {
     const auto frames = run_mbscope("frame --file " + fixtures);
     EXPECT_EQ(frames.exit_code, 2) << frames.out;
     EXPECT_NE(frames.out.find(fixtures + ": is a directory, not a file"), std::string::npos) << frames.out;
+}
+
+// The profile search finds a device by its id in lower case, and keeps the first file of a directory that
+// defines it: a directory whose second file took an id again ("Dup" after "dup"), a file with two models of
+// one id, and an empty id were each "ok" to validate while the search passed over them without a word.
+TEST(ProfileCommand, ValidateRefusesADeviceIdTheProfileSearchCouldNotFind) {
+    namespace fs = std::filesystem;
+    const fs::path d = fs::temp_directory_path() / ("mbscope-validate-ids-" + std::to_string(::getpid()));
+    fs::create_directories(d);
+    std::ifstream in(fixtures + "/profiles/test-device.json");
+    auto base = nlohmann::json::parse(in);
+    const auto write = [&](const std::string& name, const nlohmann::json& models) {
+        auto doc = base;
+        doc["models"] = models;
+        std::ofstream(d / name) << doc.dump(1);
+    };
+    write("a.json", {{{"id", "dup"}, {"name", "first"}}});
+    write("b.json", {{{"id", "Dup"}, {"name", "second"}}});
+    write("c.json", {{{"id", "two"}, {"name", "x"}}, {{"id", "TWO"}, {"name", "y"}}});
+    write("e.json", {{{"id", ""}, {"name", "nameless"}}});
+
+    const auto r = run_mbscope("profile validate " + d.string());
+    EXPECT_EQ(r.exit_code, 1) << r.out;
+    EXPECT_NE(r.out.find("a.json: dup ok"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find((d / "b.json").string() + ": device id \"dup\" is defined twice in " + d.string() +
+                         " (first in " + (d / "a.json").string() + "): the profile search keeps the first"),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("c.json: /models/1/id: device id \"two\" is also /models/0's (ids are compared in "
+                         "lower case)"),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("e.json: /models/0/id: a device id cannot be empty"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("b.json: dup ok"), std::string::npos) << r.out;
+
+    const auto j =
+        nlohmann::json::parse(run_mbscope("profile validate --json " + d.string()).out, nullptr, false);
+    ASSERT_FALSE(j.is_discarded());
+    ASSERT_EQ(j["files"].size(), 4u);
+    EXPECT_EQ(j["files"][0]["status"], "ok");
+    for (std::size_t i = 1; i < 4; ++i)
+        EXPECT_EQ(j["files"][i]["status"], "errors") << j["files"][i].dump();
+    EXPECT_EQ(j["valid"], false);
+
+    // Named one by one, the files are not one directory's: each is validated on its own.
+    const auto named =
+        run_mbscope("profile validate " + (d / "a.json").string() + " " + (d / "b.json").string());
+    EXPECT_EQ(named.exit_code, 0) << named.out;
+    fs::remove_all(d);
 }
 
 // `validate --json`, which its help lists, printed the text lines: a CI job parsing them failed. Each file
