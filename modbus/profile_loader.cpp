@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 
 #include "modbus/frame_text.hpp"  // printable(), first_unprintable()
@@ -32,6 +33,7 @@ std::string lower(std::string s) {
 // A JSON pointer's reference token for an object key (RFC 6901: '~' as ~0, '/' as ~1), as nlohmann's
 // json_pointer writes it.
 std::string pointer_token(const std::string& key) {
+    if (key.find_first_of("~/") == std::string::npos) return key;  // nothing to escape: most keys
     return (json::json_pointer() / key).to_string().substr(1);
 }
 
@@ -507,6 +509,7 @@ void parse_tables(Reader& r, const json& j, Tables& tables, bool modular) {
             r.error(ptr, "must be a list of points or {\"same_as\": table}");
             continue;
         }
+        spec.points.reserve(it->size());
         for (std::size_t i = 0; i < it->size(); ++i)
             if (auto p = parse_point(r, (*it)[i], ptr + "/" + std::to_string(i), *table))
                 spec.points.push_back(std::move(*p));
@@ -827,6 +830,9 @@ struct ModularMaps {
     json status_codes;
     json alarm_bits;
     json alternative;  // alternative map id → map (Walchem 5.3.9)
+    // The status codes as an encoding's "values", which every status field gets (complete_field): built
+    // once, they are a hundred codes and the alternative maps hold a status point per object.
+    json status_values;
 };
 
 struct MapField {
@@ -834,8 +840,6 @@ struct MapField {
     bool coil = false;
 };
 
-// A maps file's field as a point's JSON: its printed value as the range text, the alarm bit names and the
-// status codes it refers to filled in.
 // A maps file's status code key as the register value it stands for.
 std::optional<std::uint16_t> status_code(const std::string& key) {
     unsigned value = 0;
@@ -845,6 +849,19 @@ std::optional<std::uint16_t> status_code(const std::string& key) {
     return static_cast<std::uint16_t>(value);
 }
 
+// The status codes (checked: every key is a register value) as an encoding's "values" list.
+json status_values(const json& status_codes) {
+    json values = json::array();
+    for (auto it = status_codes.begin(); it != status_codes.end(); ++it) {
+        json v = it->is_object() ? *it : json{{"text", *it}};
+        v["value"] = status_code(it.key()).value_or(0);  // every key was checked when the file was read
+        values.push_back(std::move(v));
+    }
+    return values;
+}
+
+// A maps file's field as a point's JSON: its printed value as the range text, the alarm bit names and the
+// status codes it refers to filled in.
 void complete_field(json& f, const ModularMaps& maps) {
     if (f.contains("value_text") && !f.contains("range_text")) f["range_text"] = f["value_text"];
     if (auto e = f.find("encoding");
@@ -853,15 +870,8 @@ void complete_field(json& f, const ModularMaps& maps) {
         if (maps.alarm_bits.contains(ref)) (*e)["bits"] = maps.alarm_bits[ref];
     }
     if (auto e = f.find("encoding"); e != f.end() && e->is_object() && (*e)["type"] == "status" &&
-                                     maps.status_codes.is_object() && !e->contains("values")) {
-        json values = json::array();
-        for (auto it = maps.status_codes.begin(); it != maps.status_codes.end(); ++it) {
-            json v = it->is_object() ? *it : json{{"text", *it}};
-            v["value"] = status_code(it.key()).value_or(0);  // every key was checked when the file was read
-            values.push_back(v);
-        }
-        (*e)["values"] = values;
-    }
+                                     maps.status_codes.is_object() && !e->contains("values"))
+        (*e)["values"] = maps.status_values;
 }
 
 // The fields of one type map as points at their index; status codes and alarm bit names filled in.
@@ -904,7 +914,11 @@ std::vector<MapField> parse_map_fields(Reader& r, const json& map, const std::st
 void place_field(RawPoint rp, bool coil, Tables& tables, Profile& profile) {
     if (coil) {
         profile.coils_view_registers = true;
+        // Copied without the register's encoding, which a coil does not keep (a status field's lists about a
+        // hundred codes).
+        Encoding encoding = std::move(rp.point.encoding);
         RawPoint view = rp;
+        rp.point.encoding = std::move(encoding);
         view.point.table = Table::Coils;
         view.point.encoding = Encoding{};
         view.point.encoding.type = EncodingType::Bool;
@@ -1487,8 +1501,10 @@ void check_signal_values(Reader& r, const json& doc, const Profile& common, cons
     }
 }
 
-Profile resolve_model(Reader& r, const json& doc, const json& model, const std::string& mptr,
-                      const Tables& base, const Profile& common, const ModularMaps* maps,
+// `base`: the document's tables, shared by its models; the last model resolved (`last`) takes their points,
+// the others copy them.
+Profile resolve_model(Reader& r, const json& doc, const json& model, const std::string& mptr, Tables& base,
+                      bool last, const Profile& common, const ModularMaps* maps,
                       const ProfileConfig& config) {
     Profile p = common;
     p.id = lower(r.string(model, "id", mptr, true).value_or(""));
@@ -1496,13 +1512,17 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
     if (auto a = r.child(model, "aliases"); a && a->is_array())
         for (const auto& x : *a)
             if (x.is_string()) p.aliases.push_back(lower(x.get<std::string>()));
-    Tables tables = base;
+    // A modular model adds its channels' points to the base tables: to a copy of them unless it is the last.
+    Tables expanded;
     if (maps) {
+        expanded = last ? std::move(base) : base;
         p.modular = true;
         if (auto modular = r.child(doc, "modular"))
-            expand_modular(r, *modular, *maps, p.id, config, tables, p);
-        tables[idx(Table::Coils)].present = tables[idx(Table::HoldingRegisters)].present = true;
+            expand_modular(r, *modular, *maps, p.id, config, expanded, p);
+        expanded[idx(Table::Coils)].present = expanded[idx(Table::HoldingRegisters)].present = true;
     }
+    Tables& tables = maps ? expanded : base;
+    const bool own = maps || last;  // the tables' points are this model's to take
     if (const json* ex = r.child(model, "exclude"); ex && !ex->is_object()) {
         r.error(mptr + "/exclude", "must be an object: {\"<table>\": [addresses and [first, last] ranges]}");
     } else if (ex) {
@@ -1514,19 +1534,23 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
     }
     Where described, encoded;
     for (Table t : all_tables) {
-        const TableSpec& spec = tables[idx(t)];
+        TableSpec& spec = tables[idx(t)];
         p.has_table[idx(t)] = spec.present;
         p.same_as[idx(t)] = spec.same_as;
         const json* exclude = nullptr;
         if (auto ex = r.child(model, "exclude");
             ex && ex->is_object() && ex->contains(std::string(to_string(t))))
             exclude = &(*ex)[std::string(to_string(t))];
-        for (const auto& rp : spec.points) {
+        p.points[idx(t)].reserve(spec.points.size());
+        for (RawPoint& rp : spec.points) {
             if (!rp.models.empty() && std::find(rp.models.begin(), rp.models.end(), p.id) == rp.models.end())
                 continue;
             if (exclude && in_ranges(*exclude, rp.point.address)) continue;
-            p.points[idx(t)].push_back(rp.point);
             described[idx(t)].emplace(rp.point.address, rp.ptr);
+            if (own)
+                p.points[idx(t)].push_back(std::move(rp.point));
+            else
+                p.points[idx(t)].push_back(rp.point);
         }
         std::sort(p.points[idx(t)].begin(), p.points[idx(t)].end(),
                   [](const Point& a, const Point& b) { return a.address < b.address; });
@@ -1590,7 +1614,9 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
 // (the schema); a document nested deeper than max_depth is refused there rather than walked (a hostile one
 // nests hundreds of thousands deep, and the walk recurses).
 constexpr int max_depth = 32;
-void check_text(Reader& r, const json& j, const std::string& ptr, int depth = 0) {
+// `ptr`: the pointer of `j`, grown and cut back as the walk goes down and up (one string for the whole
+// walk, not one per value: every key of a profile is visited).
+void check_text(Reader& r, const json& j, std::string& ptr, int depth = 0) {
     if (depth > max_depth && (j.is_object() || j.is_array())) {
         r.error(ptr, "nested deeper than " + std::to_string(max_depth) + " levels");
         return;
@@ -1598,24 +1624,97 @@ void check_text(Reader& r, const json& j, const std::string& ptr, int depth = 0)
     const auto complain = [&r](const std::string& where, const std::string& escaped) {
         r.error(where, "holds a control character (" + escaped + "): profile text is printed as it is");
     };
+    const std::size_t parent = ptr.size();
     if (j.is_string()) {
         if (const auto c = first_unprintable(j.get_ref<const std::string&>())) complain(ptr, *c);
     } else if (j.is_object()) {
         for (auto it = j.begin(); it != j.end(); ++it) {
-            const std::string child = ptr + "/" + pointer_token(it.key());
-            if (const auto c = first_unprintable(it.key())) complain(child, *c);
-            check_text(r, it.value(), child, depth + 1);
+            ptr += '/';
+            ptr += pointer_token(it.key());
+            if (const auto c = first_unprintable(it.key())) complain(ptr, *c);
+            check_text(r, it.value(), ptr, depth + 1);
+            ptr.resize(parent);
         }
     } else if (j.is_array()) {
-        for (std::size_t i = 0; i < j.size(); ++i)
-            check_text(r, j[i], ptr + "/" + std::to_string(i), depth + 1);
+        for (std::size_t i = 0; i < j.size(); ++i) {
+            ptr += '/';
+            ptr += std::to_string(i);
+            check_text(r, j[i], ptr, depth + 1);
+            ptr.resize(parent);
+        }
     }
+}
+
+// What reading a maps file gave: its maps, or why the document including it cannot have them (`failure`,
+// reported at the document's "/maps_file"), and the errors in the file itself, which name it.
+struct IncludedMaps {
+    std::optional<ModularMaps> maps;
+    std::string failure;
+    std::vector<ProfileError> errors;
+};
+
+IncludedMaps read_maps(const std::string& name, const std::string& text) {
+    IncludedMaps out;
+    try {
+        json m = json::parse(text);
+        // Moved out, not copied: the Walchem type maps are half a megabyte of JSON.
+        const auto take = [&m](const char* key) {
+            auto it = m.find(key);
+            return it == m.end() ? json::object() : std::move(*it);
+        };
+        if (!m.is_object()) {
+            out.failure = name + " is not a JSON object";
+            return out;
+        }
+        Reader maps_reader(name, out.errors);  // errors name the maps file
+        std::string root;
+        check_text(maps_reader, m, root);
+        ModularMaps& maps = out.maps.emplace(ModularMaps{
+            take("maps"), take("status_codes"), take("alarm_bits"), take("alternative_maps"), {}});
+        // A status code's key is the register's value (complete_field reads it as one): a key that is no
+        // number from 0 to 65535 would stand for no value, or throw.
+        if (maps.status_codes.is_object())
+            for (auto it = maps.status_codes.begin(); it != maps.status_codes.end();) {
+                if (status_code(it.key())) {
+                    ++it;
+                    continue;
+                }
+                maps_reader.error("/status_codes/" + pointer_token(it.key()),
+                                  "a status code is a register value from 0 to 65535");
+                it = maps.status_codes.erase(it);
+            }
+        if (maps.status_codes.is_object()) maps.status_values = status_values(maps.status_codes);
+    } catch (const json::exception& e) {
+        out.failure = name + " is not valid JSON: " + e.what();
+    }
+    return out;
 }
 
 }  // namespace
 
+struct IncludeCache::Entries {
+    // The maps file `name` with this exact text, read once; later readers get the same entry (a node of a
+    // std::map stays where it is while others are added).
+    const IncludedMaps& read(const std::string& name, std::string text) {
+        const std::lock_guard lock(mutex);
+        auto& texts = by_name[name];
+        auto it = texts.find(text);
+        if (it == texts.end()) {
+            IncludedMaps maps = read_maps(name, text);
+            it = texts.emplace(std::move(text), std::move(maps)).first;
+        }
+        return it->second;
+    }
+
+    std::mutex mutex;
+    std::map<std::string, std::map<std::string, IncludedMaps>> by_name;  // name → text → what it gave
+};
+
+IncludeCache::IncludeCache() : entries_(std::make_unique<Entries>()) {}
+IncludeCache::~IncludeCache() = default;
+
 LoadedProfiles parse_profiles(std::string_view text, const std::string& file, const IncludeFn& include,
-                              const ProfileConfig& config) {
+                              const ProfileConfig& config, IncludeCache* cache) {
     LoadedProfiles out;
     Reader r(file, out.errors);
     json doc;
@@ -1637,7 +1736,8 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
                                    std::string(profile_format) + ")");
         return out;
     }
-    check_text(r, doc, "");
+    std::string root;
+    check_text(r, doc, root);
     Profile common;
     common.file = file;
     common.family = r.string(doc, "family", "", true).value_or("");
@@ -1680,7 +1780,8 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
     Tables base;
     parse_tables(r, doc, base, r.child(doc, "modular") != nullptr);
 
-    std::optional<ModularMaps> maps;
+    const ModularMaps* maps = nullptr;
+    IncludedMaps uncached;  // read for this document alone, without a cache
     if (r.child(doc, "modular")) {
         auto name = r.string(doc, "maps_file", "", true);
         if (name) {
@@ -1688,36 +1789,11 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
             if (!maps_text) {
                 r.error("/maps_file", "cannot read \"" + *name + "\"");
             } else {
-                try {
-                    json m = json::parse(*maps_text);
-                    // Moved out, not copied: the Walchem type maps are half a megabyte of JSON.
-                    const auto take = [&m](const char* key) {
-                        auto it = m.find(key);
-                        return it == m.end() ? json::object() : std::move(*it);
-                    };
-                    if (!m.is_object()) {
-                        r.error("/maps_file", *name + " is not a JSON object");
-                    } else {
-                        Reader maps_reader(*name, out.errors);  // errors name the maps file
-                        check_text(maps_reader, m, "");
-                        maps = ModularMaps{take("maps"), take("status_codes"), take("alarm_bits"),
-                                           take("alternative_maps")};
-                        // A status code's key is the register's value (complete_field reads it as one): a
-                        // key that is no number from 0 to 65535 would stand for no value, or throw.
-                        if (maps->status_codes.is_object())
-                            for (auto it = maps->status_codes.begin(); it != maps->status_codes.end();) {
-                                if (status_code(it.key())) {
-                                    ++it;
-                                    continue;
-                                }
-                                maps_reader.error("/status_codes/" + pointer_token(it.key()),
-                                                  "a status code is a register value from 0 to 65535");
-                                it = maps->status_codes.erase(it);
-                            }
-                    }
-                } catch (const json::exception& e) {
-                    r.error("/maps_file", *name + " is not valid JSON: " + e.what());
-                }
+                const IncludedMaps& read = cache ? cache->entries().read(*name, std::move(*maps_text))
+                                                 : (uncached = read_maps(*name, *maps_text));
+                out.errors.insert(out.errors.end(), read.errors.begin(), read.errors.end());
+                if (!read.failure.empty()) r.error("/maps_file", read.failure);
+                if (read.maps) maps = &*read.maps;
             }
         }
     }
@@ -1729,7 +1805,7 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
     }
     for (std::size_t i = 0; i < models->size(); ++i)
         out.profiles.push_back(resolve_model(r, doc, (*models)[i], "/models/" + std::to_string(i), base,
-                                             common, maps ? &*maps : nullptr, config));
+                                             i + 1 == models->size(), common, maps, config));
     // A device is found by its id, in lower case: an empty one names no device, and one that another model
     // of the file also takes ("TWO" and "two") names two; the profile store passed over both without a word.
     for (std::size_t i = 0; i < out.profiles.size(); ++i) {

@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -35,7 +36,27 @@ using ProfileConfig = std::map<std::string, std::string>;
 
 inline constexpr std::string_view profile_format = "mbscope-profile/1";
 
+// The maps files documents include, each read and checked once for all of them: the three Walchem
+// controllers include the same type-maps.json, half a megabyte of JSON, and a store loads each controller
+// twice (listing it, then resolving the one a command names). An entry is the file's name and exact text,
+// so a changed file or one of another directory is read anew. Safe to share between threads.
+class IncludeCache {
+  public:
+    IncludeCache();
+    ~IncludeCache();
+    IncludeCache(const IncludeCache&) = delete;
+    IncludeCache& operator=(const IncludeCache&) = delete;
+
+    struct Entries;  // the loader's: the maps files read so far
+    Entries& entries() noexcept { return *entries_; }
+
+  private:
+    std::unique_ptr<Entries> entries_;
+};
+
+// `cache`: where the maps files the document includes are looked up and kept; none, they are read for this
+// document alone.
 LoadedProfiles parse_profiles(std::string_view text, const std::string& file, const IncludeFn& include = {},
-                              const ProfileConfig& config = {});
+                              const ProfileConfig& config = {}, IncludeCache* cache = nullptr);
 
 }  // namespace mbscope::modbus

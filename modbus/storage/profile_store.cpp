@@ -30,7 +30,7 @@ IncludeFn sibling_reader(const fs::path& file) {
 
 }  // namespace
 
-LoadedProfiles load_profile_file(const std::string& path, const ProfileConfig& config) {
+LoadedProfiles load_profile_file(const std::string& path, const ProfileConfig& config, IncludeCache* cache) {
     std::string error;
     auto text = read_text_file(path, error);
     if (!text) {
@@ -38,7 +38,7 @@ LoadedProfiles load_profile_file(const std::string& path, const ProfileConfig& c
         out.errors.push_back({path, "", error});
         return out;
     }
-    return parse_profiles(*text, path, sibling_reader(path), config);
+    return parse_profiles(*text, path, sibling_reader(path), config, cache);
 }
 
 std::vector<std::string> split_path_list(const std::string& list) {
@@ -63,7 +63,7 @@ ProfileStore::ProfileStore(std::vector<std::string> directories) : directories_(
         std::sort(files.begin(), files.end());
         std::vector<std::string> ids_here;
         for (const auto& file : files) {
-            auto loaded = load_profile_file(file.string());
+            auto loaded = load_profile_file(file.string(), {}, includes_.get());
             errors_.insert(errors_.end(), loaded.errors.begin(), loaded.errors.end());
             for (const auto& p : loaded.profiles) {
                 if (p.id.empty()) continue;
@@ -107,7 +107,7 @@ Result<Profile, std::vector<ProfileError>> ProfileStore::load(std::string_view i
         return std::vector<ProfileError>{
             {"", "", "no profile \"" + std::string(id_or_alias) + "\" (known: " + known + ")"}};
     }
-    auto loaded = load_profile_file(e->file, config);
+    auto loaded = load_profile_file(e->file, config, includes_.get());
     if (!loaded.errors.empty()) return loaded.errors;
     for (auto& p : loaded.profiles)
         if (p.id == e->id) return std::move(p);

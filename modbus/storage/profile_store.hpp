@@ -4,6 +4,7 @@
 // the codec parses text (modbus/profile_loader.hpp). Directories are searched in order: a device id found in
 // an earlier directory shadows the same id in a later one, so a user's file replaces a bundled one.
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -43,10 +44,14 @@ class ProfileStore {
     std::vector<std::string> directories_;
     std::vector<ProfileEntry> entries_;
     std::vector<ProfileError> errors_;
+    // The maps files read while listing, for load() too (shared: a copy of the store may share it).
+    std::shared_ptr<IncludeCache> includes_ = std::make_shared<IncludeCache>();
 };
 
 // Loads a single file (for `mbscope profile validate`): every profile it defines, every error it has.
-LoadedProfiles load_profile_file(const std::string& path, const ProfileConfig& config = {});
+// `cache`: maps files already read for other files (a directory's controllers share theirs).
+LoadedProfiles load_profile_file(const std::string& path, const ProfileConfig& config = {},
+                                 IncludeCache* cache = nullptr);
 
 // Directories from a colon-separated list such as $MBSCOPE_PROFILE_PATH.
 std::vector<std::string> split_path_list(const std::string& list);
