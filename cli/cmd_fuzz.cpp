@@ -194,7 +194,7 @@ void register_fuzz(CLI::App& app, int& exit_code) {
         "Output: progress on a terminal (stderr), findings on stderr, a JSON summary on stdout.\n"
         "Exit codes: 0 nothing found, 1 at least one finding (or a point not restored), 2 the target could\n"
         "not be reached or never answered the health check (over Modbus/TCP, with a frame), no request\n"
-        "was sent, or the run was interrupted (SIGINT, SIGTERM) before it found anything.\n"
+        "was sent, or the run was interrupted (SIGINT, SIGTERM, SIGHUP) before it found anything.\n"
         "Example: mbscope fuzz --target tcp://127.0.0.1:5020 --profile mmk-2030 --duration 60s --artifacts "
         "out");
     cmd->add_option("--target", o->target, "The slave to fuzz (URI)")->required();

@@ -256,7 +256,7 @@ void register_slave(CLI::App& app, int& exit_code) {
         "  A fault tied to one framing (bad-crc, bad-lrc, wrong-tid, the protocol id ones, "
         "gap-inside-frame)\n"
         "  is refused on an endpoint whose frames have nothing for it to change.\n"
-        "\nExit codes: 0 stopped by SIGINT/SIGTERM, 2 could not start (bad option, profile, endpoint, "
+        "\nExit codes: 0 stopped by SIGINT/SIGTERM/SIGHUP, 2 could not start (bad option, profile, endpoint, "
         "fault or state file).");
     cmd->add_option("--profile", o->profile,
                     "Device profile id or alias for the units (default: modbus, the generic one)");

@@ -85,7 +85,7 @@ void register_sniff(CLI::App& app, int& exit_code) {
     cmd->add_option("--count", o->count, "Stop after this many packets (serial: reads)")
         ->check(CLI::Range(std::uint64_t{1}, std::numeric_limits<std::uint64_t>::max()));
     cmd->footer(
-        "Stops at --duration, --count, SIGINT or SIGTERM, then prints the summary.\n"
+        "Stops at --duration, --count, SIGINT, SIGTERM or SIGHUP, then prints the summary.\n"
         "Exit codes: 0 no error-severity finding, 1 faults found, 2 the capture could not be opened "
         "or failed, or its --write file could not be written.");
     cmd->callback([o, &exit_code] { exit_code = run_sniff(*o); });

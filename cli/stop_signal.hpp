@@ -1,6 +1,7 @@
 #pragma once
-// SIGINT and SIGTERM ask a long run (slave, check, fuzz, sniff) to stop rather than kill it: the run sees the
-// flag, finishes its step (restores what it wrote, writes its report, closes its capture file) and returns.
+// SIGINT, SIGTERM and SIGHUP ask a long run (slave, check, fuzz, replay, sniff) to stop rather than kill it:
+// the run sees the flag, finishes its step (restores what it wrote, writes its report, closes its capture
+// file) and returns. SIGHUP is left ignored when it is already (nohup).
 
 #include <atomic>
 
@@ -14,7 +15,7 @@ enum class BrokenPipe {
 
 // Installs the handlers and returns the flag they set.
 std::atomic<bool>& stop_on_signals(BrokenPipe broken_pipe);
-// Set by a second SIGINT or SIGTERM, one that comes while the run is stopping: what is left of the stop
+// Set by a second stop signal, one that comes while the run is stopping: what is left of the stop
 // that only informs (the fuzzer's read-back of points written without a reply) is cut short. Restoring what
 // was written is not.
 const std::atomic<bool>& second_stop_signal();

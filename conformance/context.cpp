@@ -102,7 +102,17 @@ void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& 
         return;
     }
     const auto start = std::chrono::steady_clock::now();
+    const auto unsent_before = session.unsent_requests();
     body(r);
+    // A request that could not be sent (the connection lost and refused until its timeout: a device
+    // rebooting) got no answer the device is to blame for: the rule is not judged, neither failed nor passed
+    // (one that expects silence heard it from nobody).
+    if (const auto unsent = session.unsent_requests() - unsent_before;
+        unsent > 0 && r.outcome != Outcome::Skip) {
+        r.outcome = Outcome::Error;
+        r.reason = "could not connect: " + std::to_string(unsent) + (unsent == 1 ? " request" : " requests") +
+                   " not sent (" + session.connect_error() + ")";
+    }
     // Ctrl-C cuts a wait short (a silence listened for, a reply waited for): a pass is then not proven.
     // What failed before the stop did fail.
     if (stop && stop->load() && r.outcome == Outcome::Pass) {

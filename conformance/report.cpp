@@ -175,12 +175,21 @@ void write_text(std::ostream& out, const Report& report, bool verbose) {
 
 nlohmann::json to_json(const std::vector<Touched>& ledger) {
     nlohmann::json out = nlohmann::json::array();
+    const auto value = [](const std::optional<std::uint16_t>& v) {
+        return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+    };
     for (const auto& t : ledger)
         out.push_back({{"table", std::string(modbus::to_string(t.table))},
                        {"address", t.address},
                        {"original", t.original},
                        {"restored", t.restored},
-                       {"problem", t.problem}});
+                       {"problem", t.problem},
+                       {"written", value(t.written)},
+                       {"write_acknowledged", t.acknowledged},
+                       {"device_changed", t.device_changed},
+                       {"left", value(t.left)},
+                       {"left_from", t.left_from},
+                       {"restore_refused", t.restore_refused}});
     return out;
 }
 

@@ -231,6 +231,9 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     Report report = report_heading(profile, options);
 
     Session session(client, options.session, &profile);
+    // Every rule writes through the session: the restore knows what the run changed, and leaves the rest
+    // (a refused write, one of the value a point held, a device's own change) alone.
+    session.watch_writes();
     Context c{session, profile, options.run, {}, {}, stop};
     for (Table t : {Table::Coils, Table::DiscreteInputs, Table::InputRegisters, Table::HoldingRegisters}) {
         if (stop && stop->load()) break;
@@ -304,7 +307,9 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     report.response_times = session.response_times();
     report.requests = session.requests();
     report.late_replies = session.late_replies();
-    if (report.requests > 0 && report.response_times.empty() && !report.late_replies && !report.stopped) {
+    // A target whose every reply came after the timeout is judged no better: each rule saw no reply (the
+    // command said "could not run" with exit 2 while its reports failed 122 rules).
+    if (report.requests > 0 && report.response_times.empty() && !report.stopped) {
         // Bytes that came back all the same are no silence: a peer that speaks something else, or breaks
         // off its replies, is not a wrong unit id.
         std::size_t heard = 0;
@@ -313,12 +318,18 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
                 heard += e.received.size();
         // The count is every request sent, the address space's probing (three reads of each table's address
         // 0) included; the rules stop after the first three owed a reply (Context::silent_after).
-        report.unanswered =
-            "the target answered none of the " + std::to_string(report.requests) + " requests sent " +
-            (heard == 0 ? std::string("(wrong unit id, transport or line settings?)")
-                        : "with a reply: the " + std::to_string(heard) +
-                              " bytes it sent form none for this framing and unit (another protocol, or "
-                              "replies cut off?)");
+        if (report.late_replies)
+            report.unanswered = "the target answered none of the " + std::to_string(report.requests) +
+                                " requests sent within the " + std::to_string(report.timeout_ms) +
+                                " ms timeout, only after it (" + std::to_string(report.late_replies) +
+                                " late replies): raise --timeout";
+        else
+            report.unanswered =
+                "the target answered none of the " + std::to_string(report.requests) + " requests sent " +
+                (heard == 0 ? std::string("(wrong unit id, transport or line settings?)")
+                            : "with a reply: the " + std::to_string(heard) +
+                                  " bytes it sent form none for this framing and unit (another protocol, or "
+                                  "replies cut off?)");
         // What the rules saw is silence, not the device's behaviour: nothing was judged. Rules that pass on
         // silence pass vacuously, and failures for want of a reply are no failures of the device.
         for (auto& r : report.results) {
@@ -333,7 +344,7 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
             Authority::Specification, false};
         answered.outcome = Outcome::Error;
         answered.expected = "replies to requests any device of the profile answers";
-        answered.observed = "no reply";
+        answered.observed = report.late_replies ? "only late replies" : "no reply";
         // "Below" only when a rule ran: a target silent from the probing on had none run at all.
         const bool ran = !report.results.empty();
         answered.reason = report.unanswered + (!c.rules_not_run ? std::string()

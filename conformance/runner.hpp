@@ -39,10 +39,10 @@ struct Report {
     std::uint64_t requests = 0;
     std::uint64_t late_replies = 0;  // came after their request was given up (raise --timeout)
     bool stopped = false;            // interrupted before the end
-    // Why no rule could be judged, "" when the target answered: it answered none of the run's requests, not
-    // even late (a wrong unit id, transport or line settings). The run stops after its first requests, and
-    // every rule it ran is in error rather than failed. (Replies that all came late are judged: a device
-    // slower than its manual allows fails; the text says to raise --timeout.)
+    // Why no rule could be judged, "" when the target answered: it answered none of the run's requests in
+    // time, not even late (a wrong unit id, transport or line settings: the run stops after its first
+    // requests), or only after the timeout (raise --timeout). Every rule it ran is in error rather than
+    // failed.
     std::string unanswered;
     std::vector<RuleResult> results;
     std::vector<Touched> restored;

@@ -1,6 +1,7 @@
 #include "conformance/session.hpp"
 
 #include <algorithm>
+#include <functional>
 #include <memory>
 #include <thread>
 #include <utility>
@@ -22,6 +23,14 @@ bool is_exception(const tp::Exchange& ex) {
     return !pdu.empty() && (pdu[0] & 0x80) != 0;
 }
 
+// "exception 04 (Server Device Failure)" when the device answered the exchange's request with an exception,
+// "" otherwise.
+std::string refusal(const tp::Exchange& ex) {
+    const auto pdu = response_pdu(ex);
+    if (!pdu || !pdu->is_exception()) return {};
+    return exception_text(std::get<modbus::ExceptionResponse>(pdu->body).exception_code);
+}
+
 // The read's answer as the rules accept it (response_pdu: framed, its checksum right, the request's
 // transaction, protocol and unit identifiers) and of the read's function. The values remembered for
 // restoring and the read-backs that call a point restored come from here: a reply to another transaction or
@@ -40,7 +49,148 @@ std::optional<modbus::Pdu> read_answer(const tp::Exchange& ex, modbus::FunctionC
     return pdu;
 }
 
+// The points a write request sets and the value each gets (nullopt: one that cannot be known), read from
+// the request's bytes as the device would (a deliberately inconsistent byte count included: a device that
+// executes it writes what the bytes carry). `current`: a register's value before the write (FC22 masks it).
+struct WrittenPoint {
+    Table table;
+    std::uint16_t address;
+    std::optional<std::uint16_t> value;
+};
+std::vector<WrittenPoint> points_written(
+    std::span<const std::uint8_t> pdu,
+    const std::function<std::optional<std::uint16_t>(std::uint16_t)>& current) {
+    std::vector<WrittenPoint> out;
+    if (pdu.size() < 5) return out;
+    const auto word = [&](std::size_t at) {
+        return static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]);
+    };
+    const std::uint16_t address = word(1);
+    const auto at = [&](std::uint32_t i) { return static_cast<std::uint16_t>(address + i); };
+    switch (pdu[0]) {
+        case 5: {
+            const std::uint16_t v = word(3);
+            out.push_back({Table::Coils, address,
+                           v == 0xFF00 ? std::optional<std::uint16_t>(1)
+                           : v == 0    ? std::optional<std::uint16_t>(0)
+                                       : std::nullopt});
+            break;
+        }
+        case 6:
+            out.push_back({Table::HoldingRegisters, address, word(3)});
+            break;
+        case 15:
+            if (pdu.size() < 6) break;
+            for (std::uint32_t i = 0; i < word(3) && 6 + i / 8 < pdu.size(); ++i)
+                out.push_back(
+                    {Table::Coils, at(i), static_cast<std::uint16_t>((pdu[6 + i / 8] >> (i % 8)) & 1)});
+            break;
+        case 16:
+            if (pdu.size() < 6) break;
+            for (std::uint32_t i = 0; i < word(3) && 6 + 2 * i + 1 < pdu.size(); ++i)
+                out.push_back({Table::HoldingRegisters, at(i), word(6 + 2 * i)});
+            break;
+        case 22: {
+            if (pdu.size() < 7) break;
+            const auto before = current(address);
+            std::optional<std::uint16_t> v;
+            if (before) v = static_cast<std::uint16_t>((*before & word(3)) | (word(5) & ~word(3) & 0xFFFF));
+            out.push_back({Table::HoldingRegisters, address, v});
+            break;
+        }
+        case 23: {
+            if (pdu.size() < 10) break;
+            const std::uint16_t start = word(5);
+            for (std::uint32_t i = 0; i < word(7) && 10 + 2 * i + 1 < pdu.size(); ++i)
+                out.push_back(
+                    {Table::HoldingRegisters, static_cast<std::uint16_t>(start + i), word(10 + 2 * i)});
+            break;
+        }
+        default:
+            break;
+    }
+    return out;
+}
+
 }  // namespace
+
+void Session::note_point(Table table, std::uint16_t address, std::optional<std::uint16_t> value, bool acked) {
+    const auto it = touched_.find({table, address});
+    if (it == touched_.end()) return;  // not kept: nothing a rule means to restore
+    Touched& t = it->second;
+    t.written = value;
+    t.acknowledged = acked;
+    if (!value || *value != t.original) t.changed = true;
+    if (!value)
+        t.unknown_value = true;
+    else if (std::find(t.run_values.begin(), t.run_values.end(), *value) == t.run_values.end())
+        t.run_values.push_back(*value);
+    if (acked && (!value || *value != t.original)) t.acknowledged_change = true;
+}
+
+void Session::note_write(std::span<const std::uint8_t> pdu, const tp::Exchange& ex) {
+    if (!watch_writes_ || restoring_ || pdu.empty()) return;
+    const std::uint8_t fc = pdu[0];
+    if (fc != 5 && fc != 6 && fc != 15 && fc != 16 && fc != 22 && fc != 23) return;
+    const auto reply = response_pdu(ex);
+    // Exceptions 01, 02, 03 and 06 say the write was not executed (AP §7: a function, address or value
+    // refused, or the device busy, "the request was not processed"): nothing changed. Not 04 (a failure
+    // "while attempting to perform" it, which may have written part or all of it; the reference slave's
+    // exception-for-valid answers 04 after writing), 05 (accepted, to be done) or a gateway's 0A/0B (what
+    // the device behind it did is unknown): as for no reply, it may have been executed.
+    if (reply && reply->is_exception() && reply->function_code() == fc) {
+        const auto code = std::get<modbus::ExceptionResponse>(reply->body).exception_code;
+        if (code == 1 || code == 2 || code == 3 || code == 6) return;
+    }
+    const bool acked = reply && !reply->is_exception() && reply->function_code() == fc;
+    const auto current = [&](std::uint16_t address) -> std::optional<std::uint16_t> {
+        const auto it = touched_.find({Table::HoldingRegisters, address});
+        if (it == touched_.end()) return std::nullopt;
+        return it->second.changed ? it->second.written : std::optional<std::uint16_t>(it->second.original);
+    };
+    for (const auto& w : points_written(pdu, current)) {
+        note_point(w.table, w.address, w.value, acked);
+        // Where coils are views of the holding registers at their addresses (Walchem), a coil write leaves
+        // 0 or 1 in the register (002:244, 493).
+        if (w.table == Table::Coils && profile_ && profile_->coils_view_registers)
+            note_point(Table::HoldingRegisters, w.address, w.value, acked);
+    }
+}
+
+bool Session::connected(std::chrono::milliseconds wait) {
+    if (!connection_lost_) return true;
+    const auto until = std::chrono::steady_clock::now() + wait;
+    for (;;) {
+        if (const auto r = client_.reconnect(); r) {
+            connection_lost_ = false;
+            connect_error_.clear();
+            return true;
+        } else {
+            connect_error_ = r.error();
+        }
+        const auto now = std::chrono::steady_clock::now();
+        if (now >= until) return false;
+        // A refused connection is answered at once: a short pause between tries, not a busy loop.
+        std::this_thread::sleep_for(
+            std::min<std::chrono::steady_clock::duration>(until - now, std::chrono::milliseconds(20)));
+    }
+}
+
+tp::Exchange Session::not_sent(std::span<const std::uint8_t> bytes, const std::string& note,
+                               std::chrono::nanoseconds waited) {
+    tp::Exchange ex;
+    ex.sent.assign(bytes.begin(), bytes.end());
+    ex.closed = true;
+    ex.elapsed = waited;
+    ++unsent_;
+    // No request went out: nothing timed out and no reply is owed, but for the restore it is one more
+    // request the device did not take (device_gone).
+    ++unanswered_in_a_row_;
+    last_reply_.reset();
+    evidence_.push_back(
+        {note + " (not sent: could not connect: " + connect_error_ + ")", ex.sent, {}, waited, false});
+    return ex;
+}
 
 void Session::pace() {
     if (options_.interval.count() > 0 && last_ != std::chrono::steady_clock::time_point{}) {
@@ -72,7 +222,9 @@ void Session::log(const tp::Exchange& ex, const std::string& note, bool one_requ
         last_reply_request_ = ex.sent;
     }
     late_replies_ += ex.stale_replies.size() - copies;
-    evidence_.push_back({note, ex.sent, ex.received, ex.elapsed, ex.timed_out});
+    // A connection the peer closed ended the wait, no timeout did: "timed out" after 0.003 ms misled.
+    evidence_.push_back({ex.closed ? note + " (the connection closed)" : note, ex.sent, ex.received,
+                         ex.elapsed, ex.timed_out && !ex.closed});
     if (!ex.timed_out) {
         times_.push_back(ex.elapsed);
         if (ex.response && ex.response->checksum_ok && envelope_fault(ex).empty())
@@ -149,23 +301,37 @@ tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::stri
                               std::optional<std::chrono::milliseconds> timeout) {
     pace();
     const std::uint8_t to = unit.value_or(options_.unit);
+    const auto wait = timeout.value_or(options_.timeout);
+    const auto start = std::chrono::steady_clock::now();
+    if (!connected(wait))
+        return not_sent(client_.frame(to, pdu), note, std::chrono::steady_clock::now() - start);
     if (to != 0 || client_.framing() == modbus::Framing::Tcp) ++owed_reply_;
     settle_late(to, pdu);
-    auto ex = client_.transact(to, pdu, timeout.value_or(options_.timeout), owed().list());
+    auto ex = client_.transact(to, pdu, wait, owed().list());
+    if (ex.closed && ex.elapsed.count() == 0) {
+        // The write itself failed (the peer went away since the last exchange): nothing was sent. Once
+        // connected again, the request goes out; else it is reported not sent, never as timed out.
+        connection_lost_ = true;
+        if (!connected(wait)) return not_sent(ex.sent, note, std::chrono::steady_clock::now() - start);
+        ex = client_.transact(to, pdu, wait, owed().list());
+    }
     if (ex.closed) {
-        // The device closed the connection (allowed after some malformed requests): the next rule gets a
-        // fresh one.
-        (void)client_.reconnect();
+        // The device closed the connection (allowed after some malformed requests): the next request gets a
+        // fresh one, trying until its timeout if the device refuses it for now.
+        connection_lost_ = !client_.reconnect();
     }
     log(ex, note, true);
     account(ex, to, pdu);
+    note_write(pdu, ex);
     return ex;
 }
 
 modbus::Result<void, std::string> Session::send_part(std::span<const std::uint8_t> bytes) {
     pace();  // the request starts here: no pacing between its parts
+    if (!connected(options_.timeout)) return "not sent: could not connect: " + connect_error_;
     settle_late(0, {});
     part_sent_ = true;
+    part_.assign(bytes.begin(), bytes.end());
     return client_.write(bytes);
 }
 
@@ -184,8 +350,12 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
         decoded && client_.framing() != modbus::Framing::Tcp && frames == 1 ? &*decoded : nullptr;
     const std::uint8_t unit = request ? request->unit_id() : 0;
     const auto pdu = request ? request->pdu() : std::span<const std::uint8_t>{};
+    const auto wait = timeout.value_or(options_.timeout);
     if (!rest) {
         pace();
+        const auto start = std::chrono::steady_clock::now();
+        if (!connected(std::chrono::ceil<std::chrono::milliseconds>(wait)))
+            return not_sent(bytes, note, std::chrono::steady_clock::now() - start);
         settle_late(unit, pdu);
     }
     const bool whole = decoded && decoded->wire_length == bytes.size();
@@ -193,12 +363,27 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
     if (whole && frames > 0 && decoded->checksum_ok &&
         (decoded->unit_id() != 0 || client_.framing() == modbus::Framing::Tcp))
         ++owed_reply_;
-    auto ex = client_.raw(bytes, timeout.value_or(options_.timeout), frames, {},
-                          rest ? std::span<const tp::OwedRequest>{} : owed().list());
-    if (ex.closed) (void)client_.reconnect();
+    auto ex = client_.raw(bytes, wait, frames, {}, rest ? std::span<const tp::OwedRequest>{} : owed().list());
+    if (!rest && ex.closed && ex.elapsed.count() == 0) {
+        // The write itself failed: nothing was sent (see request()).
+        const auto start = std::chrono::steady_clock::now();
+        connection_lost_ = true;
+        if (!connected(std::chrono::ceil<std::chrono::milliseconds>(wait)))
+            return not_sent(bytes, note, std::chrono::steady_clock::now() - start);
+        ex = client_.raw(bytes, wait, frames, {}, owed().list());
+    }
+    if (ex.closed) connection_lost_ = !client_.reconnect();
     const bool one_request = whole && frames == 1;
     log(ex, note, one_request);
     account(ex, unit, pdu);
+    // What a write sent here did (a rule's deliberately inconsistent frame that a device may execute), the
+    // rest of a split request read together with its first part.
+    if (rest) {
+        part_.insert(part_.end(), bytes.begin(), bytes.end());
+        if (auto f = modbus::decode_adu(client_.framing(), part_)) note_write(f.value().pdu(), ex);
+    } else if (whole && frames == 1) {
+        note_write(decoded->pdu(), ex);
+    }
     return ex;
 }
 
@@ -250,7 +435,11 @@ bool Session::remember(Table table, std::uint16_t start, std::uint16_t count, st
             }
             for (std::uint16_t i = 0; i < n; ++i) {
                 const auto address = static_cast<std::uint16_t>(at + i);
-                touched_.try_emplace({table, address}, Touched{table, address, values[i], false, {}});
+                Touched t;
+                t.table = table;
+                t.address = address;
+                t.original = values[i];
+                touched_.try_emplace({table, address}, std::move(t));
             }
         }
         done += n;
@@ -301,6 +490,19 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
             now = read(table, start, count, "verify the restored values again, " + span);
         return now;
     };
+    // What the block's write left as far as known, before it is read back: the originals when the device
+    // acknowledged it; the exception it answered with, for the one-by-one path's report.
+    const auto written_back = [&](const tp::Exchange& ex, std::size_t from, std::size_t n) {
+        const auto pdu = response_pdu(ex);
+        for (std::size_t k = 0; k < n; ++k) {
+            Touched& t = *run[from + k];
+            if (pdu && !pdu->is_exception()) {
+                t.left = t.original;
+                t.left_from = "restore";
+            }
+            t.restore_refused = refusal(ex);
+        }
+    };
     const auto write_back = [&] {
         for (std::size_t i = 0; i < run.size();) {
             std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(limit), run.size() - i);
@@ -323,10 +525,14 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
                 const auto written =
                     request(modbus::encode_pdu(modbus::make_write_multiple_coils(start, {bits.get(), n})),
                             "restore the original values, " + span);
+                written_back(written, i, n);
                 if (const auto now = read_back([&](auto... a) { return read_bits(a...); },
                                                !written.own_received().empty(), start, n, span))
-                    for (std::size_t k = 0; k < n; ++k)
-                        run[i + k]->restored = ((*now)[k] ? 1 : 0) == run[i + k]->original;
+                    for (std::size_t k = 0; k < n; ++k) {
+                        run[i + k]->left = (*now)[k] ? 1 : 0;
+                        run[i + k]->left_from = "read";
+                        run[i + k]->restored = *run[i + k]->left == run[i + k]->original;
+                    }
             } else {
                 std::vector<std::uint16_t> words;
                 for (std::size_t k = 0; k < n; ++k)
@@ -334,10 +540,14 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
                 const auto written =
                     request(modbus::encode_pdu(modbus::make_write_multiple_registers(start, words)),
                             "restore the original values, " + span);
+                written_back(written, i, n);
                 if (const auto now = read_back([&](auto... a) { return read_registers(a...); },
                                                !written.own_received().empty(), start, n, span))
-                    for (std::size_t k = 0; k < n; ++k)
+                    for (std::size_t k = 0; k < n; ++k) {
+                        run[i + k]->left = (*now)[k];
+                        run[i + k]->left_from = "read";
                         run[i + k]->restored = (*now)[k] == run[i + k]->original;
+                    }
             }
             i += n;
         }
@@ -346,7 +556,7 @@ void Session::restore_blocks(Ledger::iterator first, Ledger::iterator last) {
     for (auto it = first; it != last; ++it) {
         Touched& t = it->second;
         const modbus::Point* own = profile_ ? profile_->find(table, t.address) : nullptr;
-        if (t.restored || (own && own->access == modbus::Access::Read)) {
+        if (t.restored || t.device_changed || (own && own->access == modbus::Access::Read)) {
             write_back();
             continue;
         }
@@ -384,7 +594,13 @@ std::vector<std::uint8_t> Session::restore_pdu(const Touched& t) const {
 
 std::string Session::restore_announcement() const {
     if (options_.interval.count() <= 0 || touched_.empty()) return {};
-    const std::size_t n = touched_.size();
+    // What the run did not change is not written back (watch_writes()).
+    const std::size_t n =
+        watch_writes_
+            ? static_cast<std::size_t>(std::count_if(touched_.begin(), touched_.end(),
+                                                     [](const auto& kept) { return kept.second.changed; }))
+            : touched_.size();
+    if (n == 0) return {};
     return "restoring the " + std::to_string(n) + (n == 1 ? " point" : " points") +
            " written, a request every " + std::to_string(options_.interval.count()) +
            " ms (the polling interval)";
@@ -395,14 +611,120 @@ std::vector<Touched> Session::restore_and_forget() {
     auto ledger = restore();
     // What went back is forgotten; what did not stays, to be tried again by the next call (a device that
     // did not answer then may answer later), from the state before any try.
-    std::erase_if(touched_, [](const auto& kept) { return kept.second.restored; });
+    // So is what the run did not change (watch_writes()): a later write keeps the value then.
+    std::erase_if(touched_, [&](const auto& kept) {
+        return kept.second.restored || (watch_writes_ && !kept.second.changed);
+    });
     for (auto& [point, t] : touched_)
         t.problem.clear();
     return ledger;
 }
 
+void Session::classify_for_restore(Ledger& ledger) {
+    for (auto it = ledger.begin(); it != ledger.end();) {
+        const Table table = it->first.first;
+        const auto read_fc = static_cast<std::uint8_t>(modbus::read_function(table));
+        std::size_t limit = modbus::is_bit_table(table) ? 2000 : 125;  // AP §6.1-6.4 without a profile
+        if (profile_) limit = static_cast<std::size_t>(std::max(1, profile_->functions.max_for(read_fc)));
+        // Consecutive points, as many as one read may ask: read together, else one by one.
+        std::vector<Touched*> run;
+        auto end = it;
+        for (; end != ledger.end() && end->first.first == table && run.size() < limit; ++end) {
+            const modbus::Point* own = profile_ ? profile_->find(table, end->first.second) : nullptr;
+            if (own && own->access == modbus::Access::Read) break;  // the read-only path reads it itself
+            if (!run.empty() && end->first.second != run.back()->address + 1) break;
+            run.push_back(&end->second);
+        }
+        if (run.empty()) {  // a read-only point: left to restore()'s own path
+            ++it;
+            continue;
+        }
+        it = end;
+        if (device_gone()) continue;  // the restore says why they are not back
+        std::optional<std::vector<std::uint16_t>> values;
+        const auto start = run.front()->address;
+        const auto n = static_cast<std::uint16_t>(run.size());
+        const std::string what = "read what the run left, before restoring";
+        if (modbus::is_bit_table(table)) {
+            if (const auto bits = read_bits(table, start, n, what)) {
+                values.emplace();
+                for (bool b : *bits)
+                    values->push_back(b ? 1 : 0);
+            }
+        } else {
+            values = read_registers(table, start, n, what);
+        }
+        for (std::size_t k = 0; k < run.size(); ++k) {
+            Touched& t = *run[k];
+            std::optional<std::uint16_t> now;
+            if (values)
+                now = (*values)[k];
+            else if (n > 1 && !device_gone())
+                now = read_point(table, t.address, what);
+            if (!now) continue;  // unknown: written back, as a point whose value cannot be read was always
+            t.left = now;
+            t.left_from = "read";
+            if (*now == t.original) {
+                t.restored = true;  // back already (a rule set it back, or the device did)
+                continue;
+            }
+            // A value the run wrote is there (or one it wrote is unknown), or the device acknowledged a
+            // write of another value than the original and holds something else still (it took the run's
+            // value its own way): the run changed it, and it goes back.
+            const bool holds_run_value =
+                t.unknown_value ||
+                std::find(t.run_values.begin(), t.run_values.end(), *now) != t.run_values.end();
+            if (holds_run_value || t.acknowledged_change) continue;
+            // Neither the original nor a value the run wrote, and no write of another value acknowledged:
+            // the device moved it itself. Writing the original would undo the device's own change and call it
+            // restored.
+            t.device_changed = true;
+            t.problem = "not written back: it reads " + std::to_string(*now) +
+                        ", neither its original nor a value the run wrote (last " +
+                        (t.written ? std::to_string(*t.written) : std::string("unknown")) +
+                        ", and no write of another value acknowledged): the device changed it itself";
+        }
+    }
+}
+
 std::vector<Touched> Session::restore() {
+    // The restore's own writes are not the run's (note_write), whatever happens.
+    restoring_ = true;
+    struct Done {
+        bool& restoring;
+        ~Done() { restoring = false; }
+    } done{restoring_};
     unanswered_in_a_row_ = 0;  // the rules before may have asked for silence on purpose
+    for (auto& [point, t] : touched_) {
+        t.restored = t.device_changed = false;
+        t.left.reset();
+        t.left_from.clear();
+        t.problem.clear();
+        t.restore_refused.clear();
+    }
+    // watch_writes(): only the points the run changed are restored and reported; the others (their write
+    // refused, or of the value they held) wait aside, untouched: a device's own change to one (a latch set by
+    // its process) was written back and called restored. The other half of a 32-bit value the run changed
+    // goes back with it, whole (restore_pdu).
+    Ledger aside;
+    if (watch_writes_) {
+        const auto partner_changed = [&](const Touched& t) {
+            if (t.table != Table::HoldingRegisters || !profile_) return false;
+            const modbus::Point* p = profile_->find(t.table, t.address);
+            if (!p || p->encoding.words != 2) return false;
+            const auto other =
+                static_cast<std::uint16_t>(p->address == t.address ? t.address + 1 : p->address);
+            const auto o = touched_.find({t.table, other});
+            return o != touched_.end() && o->second.changed;
+        };
+        for (auto it = touched_.begin(); it != touched_.end();) {
+            if (it->second.changed || partner_changed(it->second))
+                ++it;
+            else
+                aside.insert(touched_.extract(it++));
+        }
+        classify_for_restore(touched_);
+    }
     std::vector<Touched> out;
     std::vector<bool> refused;  // out[i]'s write was answered with an exception
     bool pair_written = false;  // the previous register was restored together with this one
@@ -416,14 +738,16 @@ std::vector<Touched> Session::restore() {
         restore_blocks(table_begin, table_end);
         for (auto it = std::exchange(table_begin, table_end); it != table_end; ++it) {
             auto& t = it->second;
-            if (t.restored) {  // by a block
+            if (t.restored || t.device_changed) {  // by a block, back already, or the device's own value
                 out.push_back(t);
                 refused.push_back(false);
                 pair_written = false;
                 continue;
             }
             if (device_gone()) {
-                t.problem = "not restored: no reply to " + std::to_string(gone_after) + " requests in a row";
+                t.problem = connection_lost_ ? "not restored: could not connect (" + connect_error_ + ")"
+                                             : "not restored: no reply to " + std::to_string(gone_after) +
+                                                   " requests in a row";
                 out.push_back(t);
                 refused.push_back(false);
                 continue;
@@ -453,8 +777,19 @@ std::vector<Touched> Session::restore() {
             const auto pdu = restore_pdu(t);
             pair_written = !skip_write && restore_pair_first(t);  // restore_pdu wrote the pair
             modbus::transport::Exchange ex;
-            if (!skip_write) ex = request(pdu, "restore the original value");
+            if (!skip_write) {
+                ex = request(pdu, "restore the original value");
+                t.restore_refused = refusal(ex);
+                if (const auto r = response_pdu(ex); r && !r->is_exception()) {
+                    t.left = t.original;
+                    t.left_from = "restore";
+                }
+            }
             const auto now = read_point(t.table, t.address, "verify the restored value");
+            if (now) {
+                t.left = now;
+                t.left_from = "read";
+            }
             t.restored = now && *now == t.original;
             if (!t.restored)
                 t.problem =
@@ -478,15 +813,49 @@ std::vector<Touched> Session::restore() {
             if (t.restored || !refused[i]) continue;
             auto& kept = touched_.at({t.table, t.address});
             const auto pdu = restore_pdu(t);
-            refused[i] = is_exception(request(pdu, "restore the original value again"));
+            const auto ex = request(pdu, "restore the original value again");
+            refused[i] = is_exception(ex);
+            t.restore_refused = refusal(ex);
             const auto now = read_point(t.table, t.address, "verify the restored value");
+            if (now) {
+                t.left = now;
+                t.left_from = "read";
+            }
             if (now && *now == t.original) {
                 t.restored = kept.restored = progress = true;
                 t.problem.clear();
+                t.restore_refused.clear();
             }
         }
         if (!progress) break;
     }
+    // What was not brought back says what it was left holding as far as known (read back, else the last
+    // value written to it) and whether the device refused the restore's write: "no reply" alone hid that
+    // the run's 20019 stayed, and "reads 0" that the device had answered exception 04.
+    for (auto& t : out) {
+        if (t.restored) continue;
+        if (!t.left && t.written) {
+            t.left = t.written;
+            t.left_from = "run";
+        }
+        if (t.device_changed) continue;  // its problem says what it holds
+        if (t.left)
+            t.problem +=
+                "; left holding " + std::to_string(*t.left) +
+                (t.left_from == "read"      ? " (read back)"
+                 : t.left_from == "restore" ? " as far as known (the restore's write acknowledged, not "
+                                              "read back)"
+                 : t.acknowledged           ? " as far as known (the last value the run wrote, acknowledged)"
+                                  : " as far as known (the last value the run wrote, unacknowledged)");
+        else
+            t.problem += "; what it holds is unknown";
+        if (!t.restore_refused.empty())
+            t.problem += "; the device refused the restore's write: " + t.restore_refused;
+    }
+    // Listed: what the run changed (watch_writes()); the unchanged half of a 32-bit value written back with
+    // its other half only when it did not come back.
+    if (watch_writes_) std::erase_if(out, [](const Touched& t) { return !t.changed && t.restored; });
+    touched_.merge(aside);
     take_evidence();
     return out;
 }

@@ -38,10 +38,40 @@ struct Touched {
     modbus::Table table = modbus::Table::HoldingRegisters;
     std::uint16_t address = 0;
     std::uint16_t original = 0;
-    // Written back and read back equal; or a point the map makes read-only, which the device refused to take
-    // back (its value may move on its own), with what it reads now in `problem`.
+    // Written back and read back equal, or found holding the original again; or a point the map makes
+    // read-only, which the device refused to take back (its value may move on its own), with what it reads
+    // now in `problem`.
     bool restored = false;
-    std::string problem;  // why not; for a read-only point counted restored, what it reads now
+    // Why not, with the value left and the exception the device answered the restore's write with; for a
+    // read-only point counted restored, what it reads now.
+    std::string problem;
+    // What the run did to the point, in a session that sees every write (Session::watch_writes): the value
+    // of its last write the device did not refuse (nullopt: none, or one whose value cannot be known, FC5
+    // with a value other than FF00 or 0000), and whether that write was acknowledged (a normal reply; else
+    // it went unanswered or came back damaged, and may or may not have been executed).
+    std::optional<std::uint16_t> written{};
+    bool acknowledged = false;
+    // Every value the run's writes there carried (not refused), whether one was of a value unknown, and
+    // whether a write of a value other than the original was acknowledged: a device holding any of them, or
+    // anything but its original after such an acknowledged write, holds what the run did.
+    std::vector<std::uint16_t> run_values{};
+    bool unknown_value = false;
+    bool acknowledged_change = false;
+    // A write the device did not refuse carried a value other than the original (or one unknown): only such
+    // points are restored and reported. A write refused with an exception wrote nothing (AP §7), and one of
+    // the value the point held changed nothing.
+    bool changed = false;
+    // At the restore the point held neither its original nor what the run last wrote, and the run's write
+    // was not acknowledged: the device changed it itself (a process, a latch), and it is not overwritten.
+    bool device_changed = false;
+    // After the restore, what the point holds as far as known (nullopt: nothing is), and how it is known:
+    // "read" (read back), "restore" (the restore's write of the original, acknowledged, not read back) or
+    // "run" (the last value the run wrote).
+    std::optional<std::uint16_t> left{};
+    std::string left_from{};
+    // The exception the device answered the restore's last write with ("exception 04 (Server Device
+    // Failure)"), "" when none.
+    std::string restore_refused{};
 };
 
 class Session {
@@ -71,6 +101,12 @@ class Session {
     std::optional<std::vector<bool>> read_bits(modbus::Table table, std::uint16_t start,
                                                std::uint16_t quantity, const std::string& note);
 
+    // The session sees every write made to the device (the conformance runner's rules all go through it):
+    // restore() then reads the points first and writes back only those the run changed, leaving alone a
+    // point whose write was refused, or carried the value it held, or that the device changed itself. Off
+    // (the network fuzzer and replay write through their own client), every remembered point is written
+    // back.
+    void watch_writes() noexcept { watch_writes_ = true; }
     // Keep the original values of [start, start+count) before writing them. False: they could not be read,
     // and the rule must not write.
     bool remember(modbus::Table table, std::uint16_t start, std::uint16_t count, std::uint16_t chunk = 1);
@@ -104,6 +140,11 @@ class Session {
         reply_times_.clear();
     }
     std::uint64_t requests() const noexcept { return requests_; }
+    // Requests that could not be sent: the connection was lost and could not be made again within the
+    // request's timeout (a device rebooting refuses connections for a while). A rule with one is not
+    // judged; why the last connection failed.
+    std::uint64_t unsent_requests() const noexcept { return unsent_; }
+    const std::string& connect_error() const noexcept { return connect_error_; }
     // Of those, the ones a slave owes a reply: whole requests with a good checksum to a unit (not a
     // broadcast on a serial framing). A target that answered none of these is silent; one sent only requests
     // every slave must ignore (a bad CRC, a broadcast, half a request) got the silence it asked for.
@@ -150,6 +191,20 @@ class Session {
     void log_late(std::vector<std::uint8_t> bytes);
     // After an exchange: a request that got nothing back joins the owed ones (OwedRequests).
     void account(const modbus::transport::Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu);
+    // watch_writes(): after an exchange of the request `pdu`, what a write did to the points kept (its value
+    // and whether it was acknowledged; a refused one did nothing).
+    void note_write(std::span<const std::uint8_t> pdu, const modbus::transport::Exchange& ex);
+    void note_point(modbus::Table table, std::uint16_t address, std::optional<std::uint16_t> value,
+                    bool acked);
+    // watch_writes(): before restoring, reads the points the run changed and decides each one: back already
+    // (restored), the device's own change (left alone), or to be written back.
+    void classify_for_restore(Ledger& ledger);
+    // Connects again after the connection was lost, trying until `wait` passes (a refused connection is
+    // answered at once, and a device that reboots refuses them for a while); false when it could not.
+    bool connected(std::chrono::milliseconds wait);
+    // The exchange of a request that could not be sent (connected() failed), logged as such.
+    modbus::transport::Exchange not_sent(std::span<const std::uint8_t> bytes, const std::string& note,
+                                         std::chrono::nanoseconds waited);
 
     modbus::transport::Client& client_;
     SessionOptions options_;
@@ -168,7 +223,13 @@ class Session {
     // arriving later is the request answered twice.
     std::optional<modbus::Frame> last_reply_;
     std::vector<std::uint8_t> last_reply_request_;
-    bool part_sent_ = false;                 // send_part() began a request that raw() completes
+    bool part_sent_ = false;          // send_part() began a request that raw() completes
+    std::vector<std::uint8_t> part_;  // its bytes (what raw() completes is one request with them)
+    bool watch_writes_ = false;       // watch_writes()
+    bool restoring_ = false;          // restore()'s own writes are not the run's
+    bool connection_lost_ = false;    // the last attempt to connect again failed
+    std::string connect_error_;
+    std::uint64_t unsent_ = 0;
     std::uint32_t unanswered_in_a_row_ = 0;  // requests that got not a byte back, since the last that did
     // RTU and ASCII: the last requests given up without a reply, each with when it was.
     modbus::transport::OwedRequests owed_;

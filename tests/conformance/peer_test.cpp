@@ -310,7 +310,9 @@ TEST(Peer, PymodbusServerAsADcy2050TakesAWriteItsManualForbidsInAutomaticMode) {
     EXPECT_EQ(r.outcome, Outcome::Fail) << r.observed;
     EXPECT_EQ(r.rule.authority, Authority::Manual);
     EXPECT_NE(r.observed.find("normal response"), std::string::npos) << r.observed;
-    ASSERT_EQ(report.restored.size(), 2u);
+    // The coil set and set back; the register was written with the value it held, which changes nothing
+    // and is not the run's to put back (conformance/README.md, Restore).
+    ASSERT_EQ(report.restored.size(), 1u);
     EXPECT_TRUE(report.all_restored());
 }
 
