@@ -112,6 +112,9 @@ struct Analyzer::Flow {
     bool request_seen = false;
     // The client stream's position (+1) at a hole whose acknowledged bytes excused a reply already.
     std::uint64_t excused_hole = 0;
+    // The client reset the connection and requests of it still wait (Pending::client_reset): its next SYN
+    // gives them up before the new connection's ids start over.
+    bool client_reset = false;
     // "server unit N" and its statistics, made once per unit seen on the link rather than once per frame.
     struct Unit {
         std::uint8_t id;
@@ -334,19 +337,23 @@ void shift_offsets(DeframeEvents& events, std::uint64_t by) {
 void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> bytes, Timestamp t) {
     DeframeEvents& events = stream_events_;  // reused: one allocation for the run, not one a packet
     events.clear();
+    // The packet that carried them: bytes that waited behind a hole are released by a later packet (the
+    // acknowledgement that gave the hole up, the segment that filled it), and were credited to it.
+    const std::uint64_t carried = f.reassembler[dir]->delivering_packet();
+    const std::uint64_t packet = carried ? carried : packet_number_;
     if (!f.rtu_over_tcp) {
         auto& fed = f.fed[dir];
         const std::uint64_t at = f.deframer[dir].offset();
         if (at == 0 && !f.reassembler[dir]->saw_syn()) f.deframer[dir].start_unaligned();
-        if (f.last_fed_packet[dir] != packet_number_) {
+        if (f.last_fed_packet[dir] != packet) {
             // The packet before left bytes unreported: kept where they start.
             if (f.last_fed_packet[dir] && f.deframer[dir].unreported() < at)
                 fed.emplace_back(f.last_fed_from[dir], f.last_fed_packet[dir]);
             f.last_fed_from[dir] = at;
-            f.last_fed_packet[dir] = packet_number_;
+            f.last_fed_packet[dir] = packet;
         }
         f.deframer[dir].feed(bytes, t, events);
-        deframed(f, dir == 0, events, t);
+        deframed(f, dir == 0, events, t, packet);
         if (fed.empty()) return;
         // Kept: the entry holding the first unreported byte (a run of unparsed bytes still gathering needs
         // only its first byte's packet), and those from the one holding the first buffered byte on.
@@ -374,7 +381,7 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
     f.rtu_last[dir] = t;
     f.rtu_deframer[dir].feed(bytes, events);
     shift_offsets(events, f.rtu_lost[dir]);
-    deframed(f, dir == 0, events, t);
+    deframed(f, dir == 0, events, t, packet);
 }
 
 // What a finding about a flow's stream, rather than one of its frames, is attached to.
@@ -407,8 +414,28 @@ void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) 
                     : "") +
                "; decoding resumes at the next " + (f.rtu_over_tcp ? "RTU frame" : "plausible MBAP header"));
     deframed(f, dir == 0, events, t);
+    if (dir == 1) {
+        if (cut) reply_cut(f, *cut, t);
+        // The requests still waiting may have been answered in the hole (a tap's drop the client's
+        // acknowledgement covered): the mirror of a request among lost bytes (first_request_after_gap).
+        // Unless the hole is the tail of the reply cut, too short to hold anything of another; and not a
+        // request sent after the client acknowledged the hole's bytes, which were sent before it.
+        if (f.pending && (!cut || missing > cut->length - cut->captured)) {
+            const auto acknowledged =
+                f.reassembler[1] ? f.reassembler[1]->gap_acknowledged_at() : std::nullopt;
+            const auto mark = [&](Pending& p) {
+                if (!acknowledged || p.request.time <= *acknowledged) p.reply_gap += missing;
+            };
+            for (auto& [k, p] : pending_)
+                if (k.flow == f.id) mark(p);
+            for (auto& [k, older] : reused_)
+                if (k.flow == f.id)
+                    for (Pending& p : older)
+                        mark(p);
+        }
+        return;
+    }
     if (!cut) return;
-    if (dir == 1) return reply_cut(f, *cut, t);
     if (cut_requests_.size() >= max_cut_requests) cut_requests_.clear();
     cut_requests_.insert_or_assign({f.id, cut->tid}, *cut);
 }
@@ -525,11 +552,13 @@ void Analyzer::packet_in_source(const Packet& p) {
             end_connection(
                 flow, p.time,
                 to_server ? "the client opened the connection again" : "the connection was opened again");
+        else if (l4.syn && flow.client_reset)  // the new connection's ids start over
+            give_up_waiting(flow, p.time, "the client reset the connection");
         // The acknowledgement first: it says what the sender had received before it sent this segment's
         // bytes (a request behind a lost segment is released before the reply to it is paired).
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
         if (!l4.payload.empty()) flow.reassembler[to_server ? 1 : 0]->peer_spoke();
-        stream.segment(l4.seq, l4.syn, l4.payload, p.time);
+        stream.segment(l4.seq, l4.syn, l4.payload, p.time, p.number);
         // Bytes the IP header counts past the record's end are cut only when the record says so (its
         // original length): an IP length that lies about a whole record is not a snapshot length's doing.
         const std::uint32_t record_cut = !whole && p.original_length > p.data.size()
@@ -550,8 +579,10 @@ void Analyzer::packet_in_source(const Packet& p) {
         // A reset connection sends nothing more: half an ADU in either direction will never complete. Not a
         // reset far outside the stream, which its receiver ignores: it ended a live connection's decoding.
         if (l4.rst && stream.reset_in_window(l4.seq)) {
-            end_connection(flow, p.time,
-                           to_server ? "the client reset the connection" : "the server reset the connection");
+            if (to_server)
+                client_reset(flow, p.time);
+            else
+                end_connection(flow, p.time, "the server reset the connection");
         } else if (l4.rst) {
             report(FindingCode::StreamResetOutsideWindow, about_stream(flow, p.time),
                    std::string("a TCP reset from the ") + (to_server ? "client" : "server") +
@@ -581,7 +612,9 @@ void Analyzer::packet_in_source(const Packet& p) {
     deframed(flow, to_server, events, p.time);
 }
 
-void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Timestamp t) {
+void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Timestamp t,
+                        std::uint64_t carried) {
+    const std::uint64_t current = carried ? carried : packet_number_;
     for (auto& e : events) {
         if (auto* u = std::get_if<Unparsed>(&e)) {
             summary_.unparsed_bytes += u->length;
@@ -590,7 +623,7 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
             // stream's start, which were never fed to the deframer).
             const bool fed = u->reason != UnparsedReason::BeforeStreamStart && !flow.rtu_over_tcp;
             const std::uint64_t packet =
-                fed ? flow.packet_at(to_server ? 0 : 1, u->offset, packet_number_) : packet_number_;
+                fed ? flow.packet_at(to_server ? 0 : 1, u->offset, current) : current;
             const Timestamp when = fed && u->time.count() != 0 ? u->time : t;
             UnparsedRecord rec{source_,   flow.link, to_server ? Direction::Request : Direction::Response,
                                when,      packet,    u->offset,
@@ -614,6 +647,11 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
                        ? std::to_string(u->length) + " bytes at the start of the " + stream +
                              " stream, whose connection opened before the capture began, come before its "
                              "first header: the end of an ADU sent before the capture, not decoded"
+                   : u->reason == UnparsedReason::AfterGap
+                       ? std::to_string(u->length) + " bytes at stream offset " + std::to_string(u->offset) +
+                             " of the " + stream +
+                             " stream follow bytes the capture lacks and come before the next header: the "
+                             "end of an ADU the gap cut, not decoded"
                        : std::to_string(u->length) + " bytes at stream offset " + std::to_string(u->offset) +
                              " of the " + stream + " stream formed no frame (" +
                              std::string(to_string(u->reason)) + ")");
@@ -621,8 +659,15 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
         }
         FrameRecord r(std::get<Frame>(e));
         r.index = ++next_frame_;
-        r.packet = packet_number_;
+        r.packet = current;
         r.time = t;
+        // A TCP stream's bytes come with the time and packet that carried them, and a frame is whole at the
+        // later of its first and last bytes': its first bytes may have come after its last, which waited
+        // for them ahead of a hole.
+        if (flow.carrier == Carrier::Tcp && !flow.rtu_over_tcp && r.frame.start > t) {
+            r.time = r.frame.start;
+            r.packet = flow.packet_at(to_server ? 0 : 1, r.frame.offset, current);
+        }
         r.source = source_;
         r.link = flow.link;
         r.direction = to_server ? Direction::Request : Direction::Response;
@@ -1486,6 +1531,9 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         } else if (unanswered && unanswered->code == FindingCode::PairResponseNotCaptured) {
             ++stats.replies_not_captured;  // answered: neither a timeout nor waiting at the end
             if (made) made->reply_not_captured = true;
+        } else if (unanswered && unanswered->code == FindingCode::PairClientAborted) {
+            ++stats.client_aborted;  // the client's doing: no timeout of the device's
+            if (made) made->client_aborted = true;
         } else {
             ++(timed_out ? stats.timeouts : stats.unanswered_at_end);
         }
@@ -1610,10 +1658,16 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         // fill, until the client speaks again. Cut before this request's deadline it answered in time: given
         // up now, it completes the request as answered, not captured whole (a poll slower than the timeout
         // made a device's cut reply a timeout).
+        // So does a reply the client acknowledged that the capture lacks (a tap's drop): when no later byte
+        // of the server's has shown the hole yet, it waits, and the request was a timeout. Acknowledged
+        // before this request's deadline, it is given up now: a gap, and the requests waiting may have been
+        // answered in it (stream_gap).
         if (!at_end && find_pending(e.key, e.serial))
             for (auto& [k, f] : flows_)
-                if (f->id == e.key.flow && f->reassembler[1] && f->reassembler[1]->cut_before(e.deadline))
-                    f->reassembler[1]->peer_spoke();
+                if (f->id == e.key.flow && f->reassembler[1]) {
+                    if (f->reassembler[1]->cut_before(e.deadline)) f->reassembler[1]->peer_spoke();
+                    f->reassembler[1]->give_up_acknowledged_before(e.deadline);
+                }
         auto taken = take_pending(e.key, e.serial);
         if (!taken) continue;  // answered meanwhile
         Pending p = std::move(*taken);
@@ -1642,6 +1696,10 @@ void Analyzer::expire(Timestamp now, bool at_end) {
                          std::to_string(flow->tail_length) + (ascii ? " characters" : " bytes") +
                          " into the reply (unit " + std::to_string(flow->tail_head[0]) + ", function code " +
                          std::to_string(flow->tail_head[1]) + "): its values are unknown"});
+            continue;
+        }
+        if (auto why = not_the_servers(p)) {
+            give_up(p, false, std::move(*why));
             continue;
         }
         if (ended) {
@@ -2377,6 +2435,7 @@ void Analyzer::close_streams(Flow& f, Timestamp t) {
 }
 
 void Analyzer::give_up_waiting(Flow& f, Timestamp t, const std::string& how) {
+    f.client_reset = false;
     if (!f.pending) return;
     std::vector<Pending> waiting;
     for (auto it = pending_.begin(); it != pending_.end();) {
@@ -2399,8 +2458,47 @@ void Analyzer::give_up_waiting(Flow& f, Timestamp t, const std::string& how) {
     f.pending = 0;
     std::sort(waiting.begin(), waiting.end(),
               [](const Pending& a, const Pending& b) { return a.serial < b.serial; });
-    for (Pending& p : waiting)
-        give_up(p, true, {FindingCode::PairNoResponse, no_response_message(p.request, "before " + how, t)});
+    for (Pending& p : waiting) {
+        if (auto why = not_the_servers(p))
+            give_up(p, false, std::move(*why));
+        else
+            give_up(p, true,
+                    {FindingCode::PairNoResponse, no_response_message(p.request, "before " + how, t)});
+    }
+}
+
+std::optional<Analyzer::Unanswered> Analyzer::not_the_servers(const Pending& p) const {
+    if (p.reply_gap)
+        return Unanswered{FindingCode::PairResponseNotCaptured,
+                          describe_request(p.request) + " to " + p.request.device.str() +
+                              " got no reply the capture holds, but " + std::to_string(p.reply_gap) +
+                              " bytes of the response stream that the capture lacks went by while it waited: "
+                              "its reply may be among them"};
+    if (p.client_reset)
+        return Unanswered{
+            FindingCode::PairClientAborted,
+            describe_request(p.request) + " to " + p.request.device.str() +
+                ": the client reset the connection before a whole reply came, and none came after: "
+                "the client gave up on it, no timeout of the device's"};
+    return std::nullopt;
+}
+
+void Analyzer::client_reset(Flow& f, Timestamp t) {
+    // The streams end as at any reset (what they left unfinished reported, the next connection started
+    // afresh), but a reply the server sent before the reset reached it still comes, after the reset in the
+    // capture, and answers its request (tshark pairs it): the requests wait for it, to their timeout, a new
+    // SYN or the server's own reset. Given up at once, the request was the server's timeout and its reply,
+    // a millisecond later, unsolicited.
+    if (!f.pending) return end_connection(f, t, "the client reset the connection");
+    for (auto& [k, p] : pending_)
+        if (k.flow == f.id) p.client_reset = true;
+    for (auto& [k, older] : reused_)
+        if (k.flow == f.id)
+            for (Pending& p : older)
+                p.client_reset = true;
+    close_streams(f, t);
+    restart_streams(f);
+    f.client_reset = true;
 }
 
 void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
@@ -2412,6 +2510,10 @@ void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
     // waiting, they clashed with the next connection's transaction ids (which start over), as duplicates
     // whose timeouts went unreported, or timed out seconds after the reset that ended them.
     give_up_waiting(f, t, how);
+    restart_streams(f);
+}
+
+void Analyzer::restart_streams(Flow& f) {
     f.first_request_after_gap = 0;
     std::erase_if(cut_requests_, [&f](const auto& entry) { return entry.first.flow == f.id; });
     std::erase_if(timed_out_,

@@ -147,6 +147,12 @@ class Analyzer {
         // decides whose it is; no_device when that found none.
         Flow* unseen_unit_link = nullptr;
         bool no_device = false;
+        // Bytes of the response stream the capture lacks that went by while it waited (a gap): its reply may
+        // be among them, so no reply is no timeout held against the device (pair.response_not_captured).
+        std::uint64_t reply_gap = 0;
+        // The client reset the connection while it waited: a reply already on its way still answers it,
+        // none is the client's abort, not the server's timeout (pair.client_aborted).
+        bool client_reset = false;
     };
     struct PendingKey {
         std::uint64_t flow;
@@ -198,11 +204,19 @@ class Analyzer {
     // A connection reset, or replaced by a new one on the same addresses and ports: its streams closed,
     // its requests still waiting given up (`how` it ended, after "before"), then started afresh.
     void end_connection(Flow& flow, modbus::Timestamp t, const std::string& how);
+    // The streams started afresh for the next connection (after close_streams): nothing buffered, transaction
+    // ids free again.
+    void restart_streams(Flow& flow);
     // The flow's requests still waiting will not be answered (`how`, after "before"): each a timeout.
     void give_up_waiting(Flow& flow, modbus::Timestamp t, const std::string& how);
     void retransmission_conflict(Flow& flow, int dir, std::uint64_t at, std::size_t differing,
                                  modbus::Timestamp t);
-    void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t);
+    // `packet`: the packet that carried the bytes (0: the one being read).
+    void deframed(Flow& flow, bool to_server, modbus::DeframeEvents& events, modbus::Timestamp t,
+                  std::uint64_t packet = 0);
+    // The client reset the connection: its streams end as at end_connection, but its requests still wait
+    // (Pending::client_reset) for a reply the server sent before the reset reached it.
+    void client_reset(Flow& flow, modbus::Timestamp t);
     // Records pass by reference down the pipeline (a frame record is over 500 bytes): the request is moved
     // once into the pending table, and both frames once into their transaction.
     // A frame of `flow` from or to `unit`: named by its device, decoded, judged (on_frame).
@@ -271,6 +285,9 @@ class Analyzer {
     void give_up(Pending& pending, bool timed_out, Unanswered unanswered) {
         complete(pending, nullptr, timed_out, nullptr, &unanswered);
     }
+    // Why a request that got no reply got none, when the capture or the client is the reason rather than the
+    // server: a reply may be in a gap of the response stream, or the client reset the connection.
+    std::optional<Unanswered> not_the_servers(const Pending& pending) const;
     // Counts and finds what a request and its response (or its absence) show; with `made`, fills the
     // transaction record and gives it to the sink before the findings.
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,

@@ -110,6 +110,7 @@ std::string status_of(const TransactionRecord& t) {
     if (!t.response)
         return t.reply_not_captured ? "reply_not_captured"
                : t.discarded        ? "discarded"
+               : t.client_aborted   ? "client_aborted"
                : t.timed_out        ? "timeout"
                                     : "unanswered";
     if (!t.response->pdu) return "malformed";

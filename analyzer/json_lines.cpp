@@ -66,6 +66,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
     out.begin_object();
     if (t.answered_by_other_unit) out.member("answered_by_other_unit", true);
     if (!r && t.broadcast) out.member("broadcast", true);
+    if (t.client_aborted) out.member("client_aborted", true);
     if (t.discarded) out.member("discarded", true);  // the keys in order, as the JSON output has them
     if (const auto code = r ? exception_code_of(*r) : std::nullopt) out.member("exception_code", *code);
     if (!t.findings.empty()) {

@@ -75,6 +75,8 @@ struct TransactionRecord {
     bool reply_not_captured = false;
     // The request's CRC or LRC failed and no reply came: discarded, as the rules want.
     bool discarded = false;
+    // The client reset the connection while the request waited, and no reply came (pair.client_aborted).
+    bool client_aborted = false;
     // Unanswered (timed out, or at the end) on a serial line while another unit replied (pair.unit_mismatch),
     // which a master discards.
     bool answered_by_other_unit = false;
@@ -139,6 +141,9 @@ struct DeviceStats {
     // Requests whose CRC or LRC failed and that drew no reply (pair.damaged_request_unanswered): the device
     // was right to discard them, so they are not timeouts.
     std::uint64_t damaged_unanswered = 0;
+    // Requests the client reset its connection on before a reply came, none coming after
+    // (pair.client_aborted): the client gave up on them, so they are not timeouts.
+    std::uint64_t client_aborted = 0;
     // Of the timeouts and the requests unanswered at the end, those on a serial line during which another
     // unit replied (pair.unit_mismatch): a master discards that reply, so it is neither this device's
     // response nor its exception, and its values are not this device's.

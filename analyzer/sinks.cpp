@@ -100,6 +100,7 @@ void TextSink::transaction(const TransactionRecord& t) {
              << (t.broadcast                ? "broadcast, no response expected"
                  : t.reply_not_captured     ? "answered, the reply not captured whole"
                  : t.discarded              ? "no response: the request's checksum failed, discarded"
+                 : t.client_aborted         ? "no response: the client reset the connection first"
                  : t.answered_by_other_unit ? "no response from the unit asked, only another unit replied"
                  : t.timed_out              ? "no response"
                                             : "no response before the capture ended");
@@ -166,6 +167,8 @@ void TextSink::end(const Summary& s) {
         if (d.damaged_unanswered)
             out_ << ", " << d.damaged_unanswered
                  << " damaged requests discarded (no reply, as the rules want)";
+        if (d.client_aborted)
+            out_ << ", " << d.client_aborted << " given up by the client (it reset the connection)";
         if (d.checksum_errors) out_ << ", " << d.checksum_errors << " frames with a bad CRC/LRC";
         if (d.latency.count())
             out_ << "; latency min " << milliseconds_text(d.latency.min()) << " / median "
@@ -354,6 +357,7 @@ json transaction_to_json(const TransactionRecord& t) {
         j["timeout"] = t.timed_out;
         if (t.reply_not_captured) j["reply_not_captured"] = true;
         if (t.discarded) j["discarded"] = true;
+        if (t.client_aborted) j["client_aborted"] = true;
         if (t.answered_by_other_unit) j["answered_by_other_unit"] = true;
     }
     if (!t.findings.empty()) {
@@ -417,6 +421,7 @@ json summary_to_json(const Summary& s) {
         if (d.late_responses) dev["late_responses"] = d.late_responses;
         if (d.replies_not_captured) dev["replies_not_captured"] = d.replies_not_captured;
         if (d.damaged_unanswered) dev["damaged_unanswered"] = d.damaged_unanswered;
+        if (d.client_aborted) dev["client_aborted"] = d.client_aborted;
         if (d.answered_by_other_unit) dev["answered_by_other_unit"] = d.answered_by_other_unit;
         if (d.checksum_errors) dev["checksum_errors"] = d.checksum_errors;
         if (!d.findings.empty()) dev["findings"] = d.findings;

@@ -17,7 +17,7 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     fin_at_.reset();
     syn_at_.reset();
     acknowledged_.reset();
-    delivered_at_ = modbus::Timestamp{0};
+    delivering_packet_ = 0;
     pending_.clear();
     arena_.clear();
     base_ = 0;
@@ -25,6 +25,7 @@ void TcpReassembler::reset(std::size_t max_buffered) noexcept {
     retransmitted_ = 0;
     recent_from_ = 0;
     cut_.reset();
+    gap_acknowledged_at_.reset();
 }
 
 bool TcpReassembler::reset_in_window(std::uint32_t seq) const noexcept {
@@ -35,7 +36,7 @@ bool TcpReassembler::reset_in_window(std::uint32_t seq) const noexcept {
 }
 
 void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload,
-                             modbus::Timestamp t) {
+                             modbus::Timestamp t, std::uint64_t packet) {
     if (syn) {
         if (next_ && syn_at_ == seq) return;  // the SYN again (and its data): the stream has moved past it
         syn_at_ = seq;
@@ -43,19 +44,19 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
         // Data on a SYN (TCP Fast Open) are the stream's first bytes; they were dropped without a word. A
         // server that does not take them has them sent again after the handshake: a retransmission then.
         if (!payload.empty()) {
-            deliver(payload, t);
+            deliver(payload, t, packet);
             drain(t);
         }
         return;
     }
     if (!next_) next_ = seq;  // capture started mid-connection
     if (payload.empty()) return;
-    if (!cut_) return take_segment(seq, payload, t);
+    if (!cut_) return take_segment(seq, payload, t, packet);
     // A record was cut at the next byte: this segment fills the hole from its start (a whole copy), lies
     // before it (nothing to do with it), or lies beyond it, and then the hole's bytes are not coming.
     const auto rel = static_cast<std::int32_t>(seq - *next_);
     if (rel > 0) give_up_cut();
-    take_segment(seq, payload, t);
+    take_segment(seq, payload, t, packet);
     if (!cut_) return;
     const auto filled = static_cast<std::uint32_t>(*next_ - cut_->end);
     if (filled >= cut_->missing)
@@ -65,7 +66,7 @@ void TcpReassembler::segment(std::uint32_t seq, bool syn, std::span<const std::u
 }
 
 void TcpReassembler::take_segment(std::uint32_t seq, std::span<const std::uint8_t> payload,
-                                  modbus::Timestamp t) {
+                                  modbus::Timestamp t, std::uint64_t packet) {
     // A keep-alive probe (RFC 9293 §3.8.4): one garbage octet at the sequence number before the next, sent
     // to make the peer acknowledge. Its byte is not the stream's (BSD and Windows send 0x00): taken for a
     // retransmission, every probe was a retransmission conflict.
@@ -93,19 +94,20 @@ void TcpReassembler::take_segment(std::uint32_t seq, std::span<const std::uint8_
     } else if (rel > 0) {
         // Ahead of a hole: wait. A retransmission of a piece still waiting is kept as a piece of its own
         // (the heap cannot find the first by position); when drained its bytes count as retransmitted.
-        pending_.push_back({base_ + static_cast<std::uint64_t>(rel), arena_.size(), payload.size(), t});
+        pending_.push_back(
+            {base_ + static_cast<std::uint64_t>(rel), arena_.size(), payload.size(), t, packet});
         arena_.insert(arena_.end(), payload.begin(), payload.end());
         std::push_heap(pending_.begin(), pending_.end(), later);
         buffered_ += payload.size();
         if (buffered_ > max_buffered_) skip_to_first_buffered(t);  // the hole will not fill: give it up
         return;
     }
-    deliver(payload, t);
+    deliver(payload, t, packet);
     drain(t);
 }
 
-void TcpReassembler::deliver(std::span<const std::uint8_t> bytes, modbus::Timestamp t) {
-    delivered_at_ = t;
+void TcpReassembler::deliver(std::span<const std::uint8_t> bytes, modbus::Timestamp t, std::uint64_t packet) {
+    delivering_packet_ = packet;
     data_(bytes, t);
     // Kept for comparison: the last recent_size bytes, each at its offset modulo the size.
     const auto kept = bytes.last(std::min(bytes.size(), recent_size));
@@ -156,7 +158,7 @@ void TcpReassembler::drain(modbus::Timestamp t) {
         // The arena does not move during the call: only segment() and drain() add or compact.
         const std::span<const std::uint8_t> rest(arena_.data() + piece.begin + skip,
                                                  piece.size - static_cast<std::size_t>(skip));
-        deliver(rest, std::max(piece.time, delivered_at_));
+        deliver(rest, piece.time, piece.packet);
     }
     if (pending_.empty())
         arena_.clear();
@@ -218,7 +220,9 @@ void TcpReassembler::acknowledged(std::uint32_t ack, modbus::Timestamp t) {
     // hole's bytes were sent, so the hole's were not captured (a tap's drop), not merely stamped late.
     // Given up at once, hole by hole, as far as bytes after it are here (what lies beyond may still come).
     while (rel > 0 && !pending_.empty() && static_cast<std::uint64_t>(rel) >= pending_.front().at - base_) {
+        gap_acknowledged_at_ = acknowledged_ ? std::min(acknowledged_at_, t) : t;
         skip_to_first_buffered(t);
+        gap_acknowledged_at_.reset();
         rel = static_cast<std::int32_t>(ack - *next_);
     }
     if (rel <= 0) return;
@@ -236,6 +240,7 @@ void TcpReassembler::give_up_acknowledged(modbus::Timestamp t) {
     const std::uint32_t ack = *acknowledged_;
     acknowledged_.reset();
     if (cut_) give_up_cut();  // named for what it is, before the holes after it
+    gap_acknowledged_at_ = acknowledged_at_;
     for (auto rel = static_cast<std::int32_t>(ack - *next_); rel > 0;
          rel = static_cast<std::int32_t>(ack - *next_)) {
         std::uint64_t missing = static_cast<std::uint64_t>(rel);
@@ -243,6 +248,7 @@ void TcpReassembler::give_up_acknowledged(modbus::Timestamp t) {
         if (missing == 0) break;  // drain() leaves no piece at base_; kept from looping all the same
         skip(missing, t);
     }
+    gap_acknowledged_at_.reset();
 }
 
 void TcpReassembler::flush(modbus::Timestamp t) {

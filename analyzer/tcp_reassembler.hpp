@@ -31,7 +31,14 @@ class TcpReassembler {
     TcpReassembler(DataFn data, GapFn gap, std::size_t max_buffered = default_max_buffered)
         : data_(std::move(data)), gap_(std::move(gap)), max_buffered_(max_buffered) {}
 
-    void segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload, modbus::Timestamp t);
+    // `packet`: the capture's number of the packet that carried the segment (0: none), handed back with its
+    // bytes when they are delivered (delivering_packet()), also when they waited behind a hole.
+    void segment(std::uint32_t seq, bool syn, std::span<const std::uint8_t> payload, modbus::Timestamp t,
+                 std::uint64_t packet = 0);
+    // While the data callback runs: the packet whose segment carried the bytes delivered (segment()'s
+    // `packet`). Bytes that waited behind a hole are released by a later packet (the peer's acknowledgement,
+    // the segment that fills the hole), and were reported at that packet's number.
+    std::uint64_t delivering_packet() const noexcept { return delivering_packet_; }
     // A SYN at `seq` opens a new connection on this stream's addresses and ports: the stream has seen
     // another connection (or the middle of one), and this is not that connection's SYN again.
     bool opens_new_connection(std::uint32_t seq) const noexcept { return next_ && syn_at_ != seq; }
@@ -49,6 +56,16 @@ class TcpReassembler {
     // it are here already: the hole's bytes would have to come after their own successors, and until
     // then a request pipelined behind a lost one waited, its reply taken for unsolicited.
     void acknowledged(std::uint32_t ack, modbus::Timestamp t);
+    // When the peer first acknowledged the bytes a hole acknowledged_unseen() counts lacks: they were sent
+    // before it. nullopt when no acknowledged hole waits.
+    std::optional<modbus::Timestamp> acknowledged_since() const noexcept {
+        return acknowledged_ ? std::optional(acknowledged_at_) : std::nullopt;
+    }
+    // Gives up the acknowledged hole now, when the peer acknowledged it at or before `t`: the pairing decides
+    // at a request's deadline that its reply, sent before then, is not coming.
+    void give_up_acknowledged_before(modbus::Timestamp t) {
+        if (acknowledged_ && acknowledged_at_ <= t) give_up_acknowledged(t);
+    }
     // The stream offset of the next byte to deliver.
     std::uint64_t delivered() const noexcept { return base_; }
     // Bytes the peer acknowledged that the capture has not shown (yet): a hole acknowledged() still waits on.
@@ -72,6 +89,9 @@ class TcpReassembler {
     bool cut_before(modbus::Timestamp t) const noexcept { return cut_ && cut_->time <= t; }
     // While the gap callback runs: whether the gap is a record's bytes past the snapshot length.
     bool gap_is_cut() const noexcept { return cut_gap_; }
+    // While the gap callback runs: when the peer first acknowledged the hole's bytes, when it is given up
+    // for that (they were sent before then); nullopt for a hole given up otherwise.
+    std::optional<modbus::Timestamp> gap_acknowledged_at() const noexcept { return gap_acknowledged_at_; }
     static constexpr modbus::Timestamp reordering_wait{1'000'000'000};
     // A FIN at sequence number `seq` (after its segment's payload): it takes one number of its own, which
     // the peer's acknowledgement covers without any byte having been lost.
@@ -93,18 +113,21 @@ class TcpReassembler {
     void reset(std::size_t max_buffered) noexcept;
 
   private:
-    void take_segment(std::uint32_t seq, std::span<const std::uint8_t> payload, modbus::Timestamp t);
+    void take_segment(std::uint32_t seq, std::span<const std::uint8_t> payload, modbus::Timestamp t,
+                      std::uint64_t packet);
     void give_up_cut();  // a gap at the cut segment's time
     // Bytes that arrived ahead of a hole: arena_[begin, begin + size), to go at stream position `at`, and
-    // when they arrived (delivered with that time, or the last delivery's if later: a request that waited
-    // behind a lost segment keeps its own time, and a stream's times never go back).
+    // when and in which packet they arrived (delivered with both: a request that waited behind a lost
+    // segment keeps its own time, and a reply captured before the one ahead of it in the stream its own
+    // latency; a frame that spans bytes of two times is the deframer's user's to date).
     struct Piece {
         std::uint64_t at;
         std::size_t begin;
         std::size_t size;
         modbus::Timestamp time;
+        std::uint64_t packet;
     };
-    void deliver(std::span<const std::uint8_t> bytes, modbus::Timestamp t);
+    void deliver(std::span<const std::uint8_t> bytes, modbus::Timestamp t, std::uint64_t packet);
     // Compares bytes retransmitted at stream offset `at` (all before base_) with the ones delivered there,
     // as far back as recent_ reaches.
     void compare_retransmission(std::uint64_t at, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
@@ -123,7 +146,7 @@ class TcpReassembler {
     // The furthest acknowledgement past bytes not captured, and when the first one came: the hole waits.
     std::optional<std::uint32_t> acknowledged_;
     modbus::Timestamp acknowledged_at_{0};
-    modbus::Timestamp delivered_at_{0};  // the time the last bytes were delivered with
+    std::uint64_t delivering_packet_ = 0;  // delivering_packet()
     // Pieces waiting for a hole to fill: a heap with the lowest `at` in front. Their bytes share one arena
     // (a segment ahead of a hole used to cost a map node and a vector of its own, and under a fuzzer most
     // segments are). The arena is emptied whenever nothing waits and compacted when mostly dead, so it
@@ -150,6 +173,7 @@ class TcpReassembler {
     };
     std::optional<CutHole> cut_;
     bool cut_gap_ = false;
+    std::optional<modbus::Timestamp> gap_acknowledged_at_;
 };
 
 }  // namespace mbscope::analyzer

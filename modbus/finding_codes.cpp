@@ -128,13 +128,18 @@ constexpr std::array findings{
                 "SL §2.1; 000:313"},
     FindingInfo{PairResponseNotCaptured, "pair.response_not_captured", S::Warning,
                 "the request was answered (the reply's MBAP header names it), but the capture holds only "
-                "the reply's first bytes (a record cut to the snapshot length, a tap's drop): its values are "
+                "the reply's first bytes (a record cut to the snapshot length, a tap's drop), or none, bytes "
+                "of the response stream the capture lacks having gone by while it waited: its values are "
                 "unknown, and the device is not blamed with a timeout",
                 "capture"},
     FindingInfo{PairDamagedRequestUnanswered, "pair.damaged_request_unanswered", S::Note,
                 "no reply to a request whose CRC or LRC failed: a slave discards such a frame, so the "
                 "silence is what the rules want (its checksum finding says what went wrong)",
                 "SL §2.5.1.2, §2.5.2.2"},
+    FindingInfo{PairClientAborted, "pair.client_aborted", S::Note,
+                "the client reset the connection while the request waited, and no reply came after: the "
+                "client gave up on it, not a timeout of the device",
+                "TCP §4.3.1.3; RFC 9293 §3.10.7.3"},
     FindingInfo{PairRequestNotCaptured, "pair.request_not_captured", S::Warning,
                 "a reply to a request the capture holds only in part (its MBAP header names the transaction "
                 "id and function; on a serial line, bytes before it formed no frame): not unsolicited",

@@ -77,6 +77,7 @@ enum class FindingCode : std::uint16_t {
     PairResponseNotCaptured = 618,
     PairRequestNotCaptured = 619,
     PairDamagedRequestUnanswered = 620,
+    PairClientAborted = 621,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

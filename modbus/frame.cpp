@@ -44,6 +44,8 @@ std::string_view to_string(UnparsedReason r) noexcept {
             return "before_stream_start";
         case UnparsedReason::BeforeFirstHeader:
             return "before_first_header";
+        case UnparsedReason::AfterGap:
+            return "after_gap";
     }
     return "?";
 }

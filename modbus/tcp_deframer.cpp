@@ -164,7 +164,10 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
                                    : tcp_step(rest, at_end, in_sync_ && (!passive_ || trusted_header(rest)));
         if (step.kind == Kind::NeedMore) break;
         // Every byte before the first frame of a stream begun before the capture: one run, one reason.
-        const UnparsedReason reason = unaligned_ ? UnparsedReason::BeforeFirstHeader : step.reason;
+        // So is every byte after a gap before the next frame: the tail of the ADU the hole cut.
+        const UnparsedReason reason = !unaligned_  ? step.reason
+                                      : after_gap_ ? UnparsedReason::AfterGap
+                                                   : UnparsedReason::BeforeFirstHeader;
         if (step.kind == Kind::Skip) {
             if (pending_.length != 0 && pending_.reason != reason) flush_unparsed(out);
             if (pending_.length == 0) {
@@ -192,6 +195,7 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
             }
             in_sync_ = true;
             unaligned_ = false;
+            after_gap_ = false;
         }
         head_ += step.length;
         base_ += step.length;
@@ -227,8 +231,14 @@ void TcpStreamDeframer::gap(std::uint64_t missing, DeframeEvents& out) {
     buf_.clear();
     head_ = 0;
     base_ += missing;
-    in_sync_ = false;
-    unaligned_ = false;
+    // As at a mid-stream start: a segment after a hole most often starts with a header (a client sends an
+    // ADU a segment), taken when plausible; else the bytes up to the next header are the cut ADU's end.
+    // Searched for as out of step, they were a "bad header" (tcp.length_invalid, an error held against the
+    // device) for the tap's loss.
+    in_sync_ = true;
+    unaligned_ = true;
+    after_gap_ = true;
+    last_pdu_size_ = 0;
 }
 
 void TcpStreamDeframer::reset() noexcept {
@@ -237,6 +247,7 @@ void TcpStreamDeframer::reset() noexcept {
     base_ = 0;
     in_sync_ = true;
     unaligned_ = false;
+    after_gap_ = false;
     last_pdu_size_ = 0;
     last_ = Timestamp{0};
     first_ = Timestamp{0};

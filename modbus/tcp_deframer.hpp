@@ -26,7 +26,10 @@ class TcpStreamDeframer {
   public:
     void feed(std::span<const std::uint8_t> bytes, Timestamp received, DeframeEvents& out);
     void feed(std::span<const std::uint8_t> bytes, DeframeEvents& out) { feed(bytes, Timestamp{0}, out); }
-    // `missing` bytes of the stream were never captured: the frame in progress is lost, resynchronise.
+    // `missing` bytes of the stream were never captured: the frame in progress is lost. The bytes after the
+    // hole are read as a mid-stream start's are (start_unaligned): they may be the end of an ADU whose
+    // header was before or in the hole, and what comes before the next header is unparsed (AfterGap), not
+    // a bad header. Once a frame is found the stream is in step again, and a bad length is a bad length.
     void gap(std::uint64_t missing, DeframeEvents& out);
     void finish(DeframeEvents& out);
     std::uint64_t offset() const noexcept { return base_ + (buf_.size() - head_); }
@@ -58,7 +61,8 @@ class TcpStreamDeframer {
     std::uint64_t base_ = 0;
     bool in_sync_ = true;
     bool passive_ = false;
-    bool unaligned_ = false;  // start_unaligned(), until the first step
+    bool unaligned_ = false;  // start_unaligned() or gap(), until the first frame
+    bool after_gap_ = false;  // unaligned_ since a gap, not the stream's start
     DeframeStep unaligned_step(std::span<const std::uint8_t> rest, bool at_end) const noexcept;
     // The PDU of the last frame, judged only when the next header's protocol id is not 0.
     std::array<std::uint8_t, max_frame_bytes> last_pdu_{};

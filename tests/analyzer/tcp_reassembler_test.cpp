@@ -193,6 +193,24 @@ TEST(TcpReassembler, AnAcknowledgementAheadOfItsBytesWaitsAndLaterBytesKeepTheir
     EXPECT_EQ(times, (std::vector<mb::Timestamp>{mb::Timestamp{1000}, mb::Timestamp{2000}}));
 }
 
+// Bytes that waited ahead of a hole are handed over with the packet that carried them and its time, also
+// when they come after bytes of a later packet (captured in the reverse of their stream order): the analyzer
+// credited them to the packet that released them, and a reply's latency to that packet's time.
+TEST(TcpReassembler, BytesThatWaitedKeepTheirPacketAndTime) {
+    const auto s = stream_of(30);
+    std::vector<std::pair<std::uint64_t, mb::Timestamp>> seen;
+    const TcpReassembler* self = nullptr;
+    TcpReassembler r([&seen, &self](std::span<const std::uint8_t>,
+                                    mb::Timestamp t) { seen.emplace_back(self->delivering_packet(), t); },
+                     [](std::uint64_t, mb::Timestamp) {});
+    self = &r;
+    r.segment(0, true, {}, mb::Timestamp{0}, 1);
+    r.segment(11, false, std::span(s).subspan(10, 10), mb::Timestamp{2000}, 2);  // ahead of 0..10
+    r.segment(1, false, std::span(s).first(10), mb::Timestamp{3000}, 3);
+    using Seen = std::vector<std::pair<std::uint64_t, mb::Timestamp>>;
+    EXPECT_EQ(seen, (Seen{{3, mb::Timestamp{3000}}, {2, mb::Timestamp{2000}}}));
+}
+
 TEST(TcpReassembler, AnAcknowledgementPastAHoleGivesItUp) {
     Harness h;
     const auto s = stream_of(100);

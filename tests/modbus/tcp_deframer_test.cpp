@@ -158,6 +158,31 @@ TEST(TcpStreamDeframer, GapLosesTheFrameInProgressAndResyncs) {
     EXPECT_EQ(last.offset, adus[0].size() + 5 + 10);
 }
 
+// The bytes after a gap up to the next header are the end of the ADU the gap cut: AfterGap, not a bad
+// header (which the analyzer reports as tcp.length_invalid, an error). Once in step, a bad length is one.
+TEST(TcpStreamDeframer, BytesAfterAGapBeforeTheNextHeaderAreTheCutAdusEnd) {
+    const auto adus = sample_adus();
+    mb::TcpStreamDeframer d;
+    mb::DeframeEvents out;
+    d.feed(std::span(adus[1]).first(5), out);
+    d.gap(3, out);
+    d.feed(std::span(adus[1]).subspan(8), out);  // the tail of the ADU the gap cut
+    d.feed(adus[2], out);
+    auto bad = adus[0];
+    bad[4] = 0;
+    bad[5] = 0;  // MBAP length 0, in step
+    d.feed(bad, out);
+    d.feed(adus[0], out);
+    d.finish(out);
+    ASSERT_EQ(out.size(), 5u);
+    EXPECT_EQ(std::get<mb::Unparsed>(out[0]).reason, mb::UnparsedReason::Truncated);
+    EXPECT_EQ(std::get<mb::Unparsed>(out[1]).reason, mb::UnparsedReason::AfterGap);
+    EXPECT_EQ(std::get<mb::Unparsed>(out[1]).length, adus[1].size() - 8);
+    EXPECT_TRUE(std::holds_alternative<mb::Frame>(out[2]));
+    EXPECT_EQ(std::get<mb::Unparsed>(out[3]).reason, mb::UnparsedReason::BadHeader);
+    EXPECT_TRUE(std::holds_alternative<mb::Frame>(out[4]));
+}
+
 TEST(TcpStreamDeframer, TruncatedAtEnd) {
     const auto adu = hex("00 01 00 00 00 06 11 03 00");
     auto events = run(adu, {adu.size()});
