@@ -552,8 +552,8 @@ void Analyzer::packet_in_source(const Packet& p) {
             end_connection(
                 flow, p.time,
                 to_server ? "the client opened the connection again" : "the connection was opened again");
-        else if (l4.syn && flow.client_reset)  // the new connection's ids start over
-            give_up_waiting(flow, p.time, "the client reset the connection");
+        else if (l4.syn && flow.client_reset)  // a new connection: ids and the server's stream start over
+            end_connection(flow, p.time, "the client reset the connection");
         // The acknowledgement first: it says what the sender had received before it sent this segment's
         // bytes (a request behind a lost segment is released before the reply to it is paired).
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
@@ -960,13 +960,14 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     if (flow.pending >= options_.max_pending_per_flow) {
         report(FindingCode::PairPendingOverflow, r,
                std::to_string(flow.pending) + " requests unanswered on this link; the oldest is given up");
-        // The link's oldest request still pending: the one with the smallest serial, in whichever queue.
+        // The link's oldest request still pending: the first due in each queue (deadline order, which is the
+        // order requests came but for one released from behind a hole), the smallest serial of those.
         std::optional<Expiry> oldest;
         for (const auto& queue : expiries_)
             for (const Expiry& e : queue) {
                 if (e.key.flow != flow.id || !find_pending(e.key, e.serial)) continue;
                 if (!oldest || e.serial < oldest->serial) oldest = e;
-                break;  // each queue is in the order requests came
+                break;
             }
         if (auto taken = oldest ? take_pending(oldest->key, oldest->serial) : std::nullopt) {
             Pending given_up = std::move(*taken);
@@ -988,10 +989,20 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     // An untimed capture (raw dump) has no clock: its requests expire only when the master moves on.
     if (!r.time.count()) {
         expiries_[untimed].push_back({Timestamp::max(), key, serial});
-    } else if (r.frame.framing == Framing::Tcp) {
-        expiries_[tcp_timeout].push_back({r.time + options_.timeout, key, serial});
     } else {
-        expiries_[serial_timeout].push_back({r.time + options_.serial_timeout, key, serial});
+        // In deadline order: a request released from behind a hole in its stream comes with the time its
+        // packet was captured, earlier than requests queued meanwhile, and expire() reads only the front
+        // (behind them, it outlived its timeout: a reply 3.3 s after it with a 3 s timeout was in time).
+        auto& queue = expiries_[r.frame.framing == Framing::Tcp ? tcp_timeout : serial_timeout];
+        const Expiry e{
+            r.time + (r.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout), key,
+            serial};
+        if (queue.empty() || queue.back().deadline <= e.deadline)
+            queue.push_back(e);
+        else
+            queue.insert(std::upper_bound(queue.begin(), queue.end(), e.deadline,
+                                          [](Timestamp d, const Expiry& x) { return d < x.deadline; }),
+                         e);
     }
     // made from the record (any earlier one with the key was completed above): a default-made record would
     // zero a frame's whole buffer first, a third of this function's time
@@ -2419,8 +2430,9 @@ void Analyzer::input_note(const std::string& message) {
     list_or_count(summary_.input_notes, summary_.input_notes_unlisted, message);
 }
 
-void Analyzer::close_streams(Flow& f, Timestamp t) {
+void Analyzer::close_streams(Flow& f, Timestamp t, int only) {
     for (int dir = 0; dir < 2; ++dir) {
+        if (only >= 0 && dir != only) continue;
         f.reassembler[dir]->flush(t);
         DeframeEvents events;
         if (f.rtu_over_tcp) {
@@ -2489,6 +2501,9 @@ void Analyzer::client_reset(Flow& f, Timestamp t) {
     // capture, and answers its request (tshark pairs it): the requests wait for it, to their timeout, a new
     // SYN or the server's own reset. Given up at once, the request was the server's timeout and its reply,
     // a millisecond later, unsolicited.
+    // Only the client's stream ends: the server's goes on at its own sequence numbers, and a reply it
+    // sent in several segments, some after the reset in the capture, is still one reply (restarting it
+    // cut the reply in two, "truncated" and "before the first header").
     if (!f.pending) return end_connection(f, t, "the client reset the connection");
     for (auto& [k, p] : pending_)
         if (k.flow == f.id) p.client_reset = true;
@@ -2496,8 +2511,8 @@ void Analyzer::client_reset(Flow& f, Timestamp t) {
         if (k.flow == f.id)
             for (Pending& p : older)
                 p.client_reset = true;
-    close_streams(f, t);
-    restart_streams(f);
+    close_streams(f, t, 0);
+    restart_streams(f, 0);
     f.client_reset = true;
 }
 
@@ -2513,12 +2528,14 @@ void Analyzer::end_connection(Flow& f, Timestamp t, const std::string& how) {
     restart_streams(f);
 }
 
-void Analyzer::restart_streams(Flow& f) {
+void Analyzer::restart_streams(Flow& f, int only) {
     f.first_request_after_gap = 0;
     std::erase_if(cut_requests_, [&f](const auto& entry) { return entry.first.flow == f.id; });
-    std::erase_if(timed_out_,
-                  [&f](const auto& entry) { return entry.first.flow == f.id; });  // ids start over
+    if (only < 0)
+        std::erase_if(timed_out_,
+                      [&f](const auto& entry) { return entry.first.flow == f.id; });  // ids start over
     for (int dir = 0; dir < 2; ++dir) {
+        if (only >= 0 && dir != only) continue;
         f.reassembler[dir]->reset(TcpReassembler::default_max_buffered);
         f.deframer[dir].reset();
         f.fed[dir].clear();

@@ -199,14 +199,15 @@ class Analyzer {
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     FrameRecord about_stream(const Flow& flow, modbus::Timestamp t) const;
     void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);
-    // Both directions' buffered bytes delivered and deframed to the end (at the end of the capture).
-    void close_streams(Flow& flow, modbus::Timestamp t);
+    // Both directions' buffered bytes (or direction `only`'s) delivered and deframed to the end (at the end
+    // of the capture).
+    void close_streams(Flow& flow, modbus::Timestamp t, int only = -1);
     // A connection reset, or replaced by a new one on the same addresses and ports: its streams closed,
     // its requests still waiting given up (`how` it ended, after "before"), then started afresh.
     void end_connection(Flow& flow, modbus::Timestamp t, const std::string& how);
     // The streams started afresh for the next connection (after close_streams): nothing buffered, transaction
-    // ids free again.
-    void restart_streams(Flow& flow);
+    // ids free again. With `only`, that direction's stream alone (the client's, at its reset), the ids kept.
+    void restart_streams(Flow& flow, int only = -1);
     // The flow's requests still waiting will not be answered (`how`, after "before"): each a timeout.
     void give_up_waiting(Flow& flow, modbus::Timestamp t, const std::string& how);
     void retransmission_conflict(Flow& flow, int dir, std::uint64_t at, std::size_t differing,

@@ -1922,24 +1922,59 @@ TEST(Analyzer, ABadLengthAfterAGapAndAFrameIsStillALengthError) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::TcpLengthInvalid), 1);
 }
 
-// The client resets the connection while its request waits, and the server's reply, on its way already,
-// comes a millisecond later: it answers the request (tshark pairs them). Before, the request was the
-// server's timeout ("before the client reset the connection") and its reply unsolicited.
-TEST(Analyzer, AReplyCapturedAfterTheClientsResetStillAnswersItsRequest) {
+// Request 2 is captured at 1.0 s ahead of a hole that request 1's retransmission fills at 1.6 s: request 2
+// comes out with request 1, stamped 1.0 s as its packet, after requests queued meanwhile with later
+// deadlines. Its deadline (4.0 s) was queued behind theirs and passed unseen: its reply at 4.3 s read as
+// in time, 3,300 ms with a 3 s timeout and no timeout counted.
+TEST(Analyzer, ARequestReleasedFromBehindAHoleTimesOutAtItsOwnDeadline) {
     Harness h;
     h.open(0s);
-    h.send(true, read_request(1), 1s);
-    h.raw(packet(true, h.seq[0], {}, false, 0x14, 502, h.seq[1]), 1s + 1ms);  // RST, ACK
-    h.send(false, read_response(1), 1s + 2ms);
-    h.raw(packet(true, h.seq[0], {}, false, 0x04, 502, 0), 1s + 3ms);  // RST to the reply
+    const auto r1 = read_request(1), r2 = read_request(2);
+    const std::uint32_t at = h.seq[0];
+    h.resend(true, r2, at + static_cast<std::uint32_t>(r1.size()), 1s);  // ahead of the hole
+    h.resend(true, r1, at, 1s + 600ms);                                  // fills it
+    h.seq[0] += static_cast<std::uint32_t>(r1.size() + r2.size());
+    h.send(false, read_response(1), 1s + 610ms);
+    h.send(false, read_response(2), 4s + 300ms);
     h.analyzer.finish();
-    ASSERT_EQ(h.sink.transactions.size(), 1u);
-    EXPECT_TRUE(h.sink.transactions[0].response.has_value());
-    EXPECT_EQ(h.sink.transactions[0].latency, 2ms);
-    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
-    EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
-    EXPECT_EQ(h.analyzer.summary().errors, 0u);
-    EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").timeouts, 0u);
+    const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+    EXPECT_EQ(device.timeouts, 1u);
+    EXPECT_EQ(device.late_responses, 1u);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+    EXPECT_EQ(h.sink.count(mb::FindingCode::PairLateResponse), 1);
+}
+
+// The client resets the connection while its request waits, and the server's reply, on its way already,
+// comes a millisecond later: it answers the request (tshark pairs them). Before, the request was the
+// server's timeout ("before the client reset the connection") and its reply unsolicited. The server's
+// stream goes on at the reset: a reply whose first segment came before it and the rest after is one reply
+// (restarting the server's stream too cut it into "truncated" bytes and bytes "before the first header").
+TEST(Analyzer, AReplyCapturedAfterTheClientsResetStillAnswersItsRequest) {
+    for (const bool split : {false, true}) {
+        Harness h;
+        h.open(0s);
+        h.send(true, read_request(1), 1s);
+        const auto reply = read_response(1);
+        const std::size_t before = split ? 5 : 0;
+        if (split)
+            h.send(false, std::vector<std::uint8_t>(reply.begin(), reply.begin() + before), 1s + 500us);
+        h.raw(packet(true, h.seq[0], {}, false, 0x14, 502, h.seq[1]), 1s + 1ms);  // RST, ACK
+        h.send(false,
+               std::vector<std::uint8_t>(reply.begin() + static_cast<std::ptrdiff_t>(before), reply.end()),
+               1s + 2ms);
+        h.raw(packet(true, h.seq[0], {}, false, 0x04, 502, 0), 1s + 3ms);  // RST to the reply
+        h.analyzer.finish();
+        ASSERT_EQ(h.sink.transactions.size(), 1u) << split;
+        EXPECT_TRUE(h.sink.transactions[0].response.has_value()) << split;
+        EXPECT_EQ(h.sink.transactions[0].latency, 2ms) << split;
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0) << split;
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairUnsolicitedResponse), 0) << split;
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairClientAborted), 0) << split;
+        EXPECT_EQ(h.sink.count(mb::FindingCode::StreamUnparsedBytes), 0) << split;
+        EXPECT_EQ(h.analyzer.summary().errors, 0u) << split;
+        EXPECT_EQ(h.analyzer.summary().unparsed_bytes, 0u) << split;
+        EXPECT_EQ(h.analyzer.summary().devices.at("10.0.0.2:502 unit 17").timeouts, 0u) << split;
+    }
 }
 
 // No reply after the client's reset: the client gave up on the request (pair.client_aborted, a note), no
