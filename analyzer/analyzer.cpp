@@ -1368,6 +1368,35 @@ void Analyzer::reply_cut(Flow& f, const CutAdu& cut, Timestamp t) {
     complete(*taken, nullptr, false, nullptr, &why);
 }
 
+bool Analyzer::damaged_reply(Flow& f, const Unparsed& u, Timestamp t, bool sides_unknown) {
+    // The end of the capture cutting a frame is the capture's doing (expire: pair.response_not_captured);
+    // characters outside ':' ... CR LF are no frame at all.
+    if (u.reason == UnparsedReason::Truncated || u.reason == UnparsedReason::NoStart || u.head[0] == 0)
+        return false;
+    expire(t, false);  // a request whose timeout ran out before the characters came is not answered by them
+    const PendingKey key{f.id, 0};
+    const auto it = pending_.find(key);
+    if (it == pending_.end()) return false;
+    const FrameRecord& request = it->second.request;
+    const auto pdu = request.frame.pdu();
+    if (pdu.empty() || u.head[0] != request.frame.unit_id() || (u.head[1] & 0x7F) != pdu[0] ||
+        u.offset < request.frame.offset + request.frame.wire_length)
+        return false;
+    // Where the capture does not tell sides, the master's retry of the request, damaged, begins the same and
+    // is as long as the request: not claimed as the device's reply (the good reply after it then answers).
+    if (sides_unknown && u.length == request.frame.wire_length) return false;
+    auto taken = take_pending(key, it->second.serial);
+    --f.pending;
+    Unanswered why{FindingCode::PairResponseDamaged,
+                   describe_request(taken->request) + " to " + taken->request.device.str() +
+                       " was answered, but the reply formed no frame (" + std::string(to_string(u.reason)) +
+                       ", " + std::to_string(u.length) + " characters at offset " + std::to_string(u.offset) +
+                       " beginning with unit " + std::to_string(u.head[0]) + ", function code " +
+                       std::to_string(u.head[1]) + "): a master discards it, and its values are unknown"};
+    complete(*taken, nullptr, false, nullptr, &why);
+    return true;
+}
+
 void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late,
                         Unanswered* unanswered) {
     // Line noise that made a request to a unit never seen: its checksum finding was all there is to say.
@@ -1542,6 +1571,10 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         } else if (unanswered && unanswered->code == FindingCode::PairResponseNotCaptured) {
             ++stats.replies_not_captured;  // answered: neither a timeout nor waiting at the end
             if (made) made->reply_not_captured = true;
+        } else if (unanswered && unanswered->code == FindingCode::PairResponseDamaged) {
+            ++stats.damaged_replies;  // answered, with nothing a master keeps: neither a response nor a
+                                      // timeout
+            if (made) made->reply_damaged = true;
         } else if (unanswered && unanswered->code == FindingCode::PairClientAborted) {
             ++stats.client_aborted;  // the client's doing: no timeout of the device's
             if (made) made->client_aborted = true;
@@ -1849,14 +1882,17 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             const std::uint64_t began_in = link.packet_at(u->offset, packet);
             sink_.unparsed(UnparsedRecord{source, flow.link, link.hint, when, began_in, u->offset, u->length,
                                           u->reason});
+            const bool answered = link.framing == Framing::Ascii && link.hint != Direction::Request &&
+                                  damaged_reply(flow, *u, when, link.hint == Direction::Unknown);
             // Bytes that may hold a request: the master's side of the line, or, where the capture does not
             // tell sides, at least a unit and a function (RTU; ASCII: ':' and their four digits). A glitch
             // byte at a turnaround holds none, and must not excuse the reply after it.
             // The longest such run since the last reply is named (an ASCII request's characters, not the LF
             // that came late after them).
             const bool may_hold_request =
-                link.hint == Direction::Request ||
-                (link.hint == Direction::Unknown && u->length >= (link.framing == Framing::Ascii ? 5u : 3u));
+                !answered && (link.hint == Direction::Request ||
+                              (link.hint == Direction::Unknown &&
+                               u->length >= (link.framing == Framing::Ascii ? 5u : 3u)));
             if (may_hold_request && (flow.unparsed_after_frame < flow.last_response_index ||
                                      flow.unparsed_length == 0 || u->length > flow.unparsed_length)) {
                 flow.unparsed_offset = u->offset;
@@ -1897,8 +1933,10 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
         // bytes show the silence after it, so a request and its response read in one chunk come out when the
         // next chunk arrives, which may be more than the timeout later. Before the frame is classified: a
         // master's retry after a timeout was taken for the timed-out request's response (a malformed one,
-        // "unsolicited" by the time it was paired).
-        expire(r.time, false);
+        // "unsolicited" by the time it was paired). Up to its first character: a master's response timeout
+        // runs until a reply begins, and a long reply on a slow line (71 characters at 300 baud, 2.4 s) that
+        // began in time was "no response" and then late.
+        expire(frame.start.count() && frame.start <= r.time ? frame.start : r.time, false);
         r.direction = link.hint != Direction::Unknown ? link.hint : classify(flow, frame);
         // A unit on the line: one that answered with a frame whose checksum holds (noise read as a frame
         // names units nobody has).
@@ -2041,7 +2079,9 @@ void Analyzer::deframe(SerialLink& link, std::span<const std::uint8_t> bytes, Ti
     }
     DeframeEvents events;
     if (link.framing == Framing::Ascii) {
-        if (!link.ascii) link.ascii = std::make_unique<AsciiDeframer>();
+        if (!link.ascii)
+            link.ascii = std::make_unique<AsciiDeframer>(AsciiDeframer::Options{
+                .inter_char_timeout = std::chrono::seconds(1), .character_time = link.line.character_time()});
         link.ascii->feed(bytes, received, events);
     } else if (received.count()) {
         if (!link.timed) link.timed = std::make_unique<RtuTimedDeframer>(link.line);

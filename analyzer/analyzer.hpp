@@ -281,6 +281,12 @@ class Analyzer {
     // `unanswered`: there is no response, and this is why.
     void complete(Pending& pending, FrameRecord* response, bool timed_out, const TimedOut* late = nullptr,
                   Unanswered* unanswered = nullptr);
+    // An ASCII run of characters that formed no frame (a bad character, an odd number of digits, a pause or a
+    // new ':' inside it) but begins with the unit and function code of the request waiting on its line is
+    // that request's reply, damaged on the way (pair.response_damaged): answered, not a timeout held against
+    // the device, as a reply whose LRC fails for the same noise on another character is.
+    // `sides_unknown`: the capture does not tell which side sent the characters.
+    bool damaged_reply(Flow& f, const modbus::Unparsed& u, modbus::Timestamp t, bool sides_unknown);
     // The request will not be answered: counted as a timeout (`timed_out`) or as unanswered at the end, and
     // reported with its transaction.
     void give_up(Pending& pending, bool timed_out, Unanswered unanswered) {

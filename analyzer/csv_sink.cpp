@@ -109,6 +109,7 @@ std::string status_of(const TransactionRecord& t) {
     if (t.broadcast) return "broadcast";
     if (!t.response)
         return t.reply_not_captured ? "reply_not_captured"
+               : t.reply_damaged    ? "reply_damaged"
                : t.discarded        ? "discarded"
                : t.client_aborted   ? "client_aborted"
                : t.timed_out        ? "timeout"

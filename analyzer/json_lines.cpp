@@ -98,6 +98,7 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
         out.end_array();
     }
     if (t.reply_not_captured) out.member("reply_not_captured", true);
+    if (t.reply_damaged) out.member("reply_damaged", true);
     out.member("request_frame", q.index);
     if (r) out.member("response_frame", r->index);
     text_member(out, "source", q.source);

@@ -73,6 +73,7 @@ struct TransactionRecord {
     bool broadcast = false;  // serial unit 0: executed by every slave, answered by none
     // Answered, but the capture holds only the reply's first bytes (pair.response_not_captured).
     bool reply_not_captured = false;
+    bool reply_damaged = false;  // answered with a reply that formed no frame (pair.response_damaged)
     // The request's CRC or LRC failed and no reply came: discarded, as the rules want.
     bool discarded = false;
     // The client reset the connection while the request waited, and no reply came (pair.client_aborted).
@@ -138,6 +139,9 @@ struct DeviceStats {
     // Requests answered with a reply the capture holds only in part (pair.response_not_captured): neither
     // responses (nothing of their values is known) nor timeouts.
     std::uint64_t replies_not_captured = 0;
+    // Requests answered with a serial reply that began with their unit and function code but formed no frame
+    // (pair.response_damaged): neither responses (a master discards them) nor timeouts.
+    std::uint64_t damaged_replies = 0;
     // Requests whose CRC or LRC failed and that drew no reply (pair.damaged_request_unanswered): the device
     // was right to discard them, so they are not timeouts.
     std::uint64_t damaged_unanswered = 0;

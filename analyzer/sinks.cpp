@@ -99,6 +99,7 @@ void TextSink::transaction(const TransactionRecord& t) {
         out_ << "  -> "
              << (t.broadcast                ? "broadcast, no response expected"
                  : t.reply_not_captured     ? "answered, the reply not captured whole"
+                 : t.reply_damaged          ? "answered, the reply damaged: it formed no frame"
                  : t.discarded              ? "no response: the request's checksum failed, discarded"
                  : t.client_aborted         ? "no response: the client reset the connection first"
                  : t.answered_by_other_unit ? "no response from the unit asked, only another unit replied"
@@ -164,6 +165,8 @@ void TextSink::end(const Summary& s) {
             out_ << ", " << d.answered_by_other_unit << " of these unanswered while another unit replied";
         if (d.replies_not_captured)
             out_ << ", " << d.replies_not_captured << " answered with replies not captured whole";
+        if (d.damaged_replies)
+            out_ << ", " << d.damaged_replies << " answered with damaged replies that formed no frame";
         if (d.damaged_unanswered)
             out_ << ", " << d.damaged_unanswered
                  << " damaged requests discarded (no reply, as the rules want)";
@@ -356,6 +359,7 @@ json transaction_to_json(const TransactionRecord& t) {
     } else {
         j["timeout"] = t.timed_out;
         if (t.reply_not_captured) j["reply_not_captured"] = true;
+        if (t.reply_damaged) j["reply_damaged"] = true;
         if (t.discarded) j["discarded"] = true;
         if (t.client_aborted) j["client_aborted"] = true;
         if (t.answered_by_other_unit) j["answered_by_other_unit"] = true;
@@ -420,6 +424,7 @@ json summary_to_json(const Summary& s) {
                  {"unanswered_at_end", d.unanswered_at_end}};
         if (d.late_responses) dev["late_responses"] = d.late_responses;
         if (d.replies_not_captured) dev["replies_not_captured"] = d.replies_not_captured;
+        if (d.damaged_replies) dev["damaged_replies"] = d.damaged_replies;
         if (d.damaged_unanswered) dev["damaged_unanswered"] = d.damaged_unanswered;
         if (d.client_aborted) dev["client_aborted"] = d.client_aborted;
         if (d.answered_by_other_unit) dev["answered_by_other_unit"] = d.answered_by_other_unit;

@@ -14,22 +14,22 @@ void AsciiDeframer::flush_noise(DeframeEvents& out) {
     noise_ = Unparsed{};
 }
 
-void AsciiDeframer::add_noise(std::size_t count, DeframeEvents& out) {
+void AsciiDeframer::add_noise(std::size_t count, Timestamp at, DeframeEvents& out) {
     if (noise_.length != 0 && noise_.offset + noise_.length != offset_) flush_noise(out);
     if (noise_.length == 0) {
         noise_.offset = offset_;
         noise_.reason = UnparsedReason::NoStart;
-        noise_.time = last_;
+        noise_.time = at;
     }
     noise_.length += static_cast<std::uint32_t>(count);
     offset_ += count;
 }
 
-void AsciiDeframer::start_frame() {
+void AsciiDeframer::start_frame(Timestamp at) {
     frame_[0] = ':';
     frame_length_ = 1;
     frame_offset_ = offset_++;
-    frame_start_ = last_;
+    frame_start_ = at;
 }
 
 void AsciiDeframer::append(std::span<const std::uint8_t> run) {
@@ -61,7 +61,7 @@ void AsciiDeframer::abandon(UnparsedReason reason, DeframeEvents& out) {
     frame_length_ = 0;
 }
 
-void AsciiDeframer::complete(DeframeEvents& out) {
+void AsciiDeframer::complete(Timestamp end, DeframeEvents& out) {
     flush_noise(out);
     // Decoded in place (a frame made and copied in was two passes over its 336 bytes), replaced when the
     // characters do not decode.
@@ -69,7 +69,7 @@ void AsciiDeframer::complete(DeframeEvents& out) {
     frame.offset = frame_offset_;
     frame.wire_length = static_cast<std::uint32_t>(frame_length_);
     frame.start = frame_start_;
-    frame.end = last_;
+    frame.end = end;
     auto r = detail::ascii_hex_to_frame({frame_.data() + 1, frame_length_ - 3}, frame);
     if (!r) {
         UnparsedReason reason = UnparsedReason::BadCharacter;
@@ -84,7 +84,16 @@ void AsciiDeframer::complete(DeframeEvents& out) {
 void AsciiDeframer::feed(std::span<const std::uint8_t> chars, Timestamp received, DeframeEvents& out) {
     if (chars.empty()) return;
     const bool timed = received.count() != 0;
-    if (timed && has_last_ && frame_length_ != 0 && received - last_ > options_.inter_char_timeout)
+    const std::uint8_t* const p = chars.data();
+    const std::size_t n = chars.size();
+    // When character i arrived: `received` is the last one's time, and each came one character time after
+    // the one before it (untimed: zero, as every time here).
+    const auto at = [&](std::size_t i) {
+        return timed ? received - options_.character_time * static_cast<std::int64_t>(n - 1 - i) : received;
+    };
+    // The pause is from the last character before this chunk to its first (SL §2.5.2.1's inter-character
+    // timeout, 1 s on the MK instruments, 000:304), not to its last.
+    if (timed && has_last_ && frame_length_ != 0 && at(0) - last_ > options_.inter_char_timeout)
         abandon(UnparsedReason::Timeout, out);
     if (timed) {
         last_ = received;
@@ -92,20 +101,18 @@ void AsciiDeframer::feed(std::span<const std::uint8_t> chars, Timestamp received
     }
     // Runs of characters are taken whole: noise up to the next ':', a frame's body up to the next ':' or CR
     // (found by memchr), so the work per character is a copy, not a branch per character.
-    const std::uint8_t* const p = chars.data();
-    const std::size_t n = chars.size();
     std::size_t i = 0;
     while (i < n) {
         if (p[i] == ':') {
             abandon(UnparsedReason::MissingEnd, out);  // a frame in progress never saw its CR LF
-            start_frame();
+            start_frame(at(i));
             ++i;
             continue;
         }
         if (frame_length_ == 0) {  // noise, up to the next ':'
             const auto* colon = static_cast<const std::uint8_t*>(std::memchr(p + i, ':', n - i));
             const std::size_t stop = colon ? static_cast<std::size_t>(colon - p) : n;
-            add_noise(stop - i, out);
+            add_noise(stop - i, at(i), out);
             i = stop;
             continue;
         }
@@ -113,10 +120,10 @@ void AsciiDeframer::feed(std::span<const std::uint8_t> chars, Timestamp received
             if (p[i] == '\n') {
                 frame_[frame_length_++] = '\n';  // room: a frame holding its CR is not too long yet
                 ++offset_;
-                complete(out);
+                complete(at(i), out);
             } else {
                 abandon(UnparsedReason::MissingEnd, out);
-                add_noise(1, out);
+                add_noise(1, at(i), out);
             }
             ++i;
             continue;

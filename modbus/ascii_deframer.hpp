@@ -18,6 +18,10 @@ class AsciiDeframer {
   public:
     struct Options {
         std::chrono::nanoseconds inter_char_timeout = std::chrono::seconds(1);
+        // One character's time on the line (SerialLine::character_time): a chunk's time is its last
+        // character's, and the first came this much earlier per character after it; at 300 baud a chunk of
+        // 32 characters took a second to arrive without any pause in it. Zero: characters arrive at once.
+        std::chrono::nanoseconds character_time{0};
     };
     AsciiDeframer() noexcept = default;
     explicit AsciiDeframer(Options options) noexcept : options_(options) {}
@@ -32,10 +36,11 @@ class AsciiDeframer {
     void abandon(UnparsedReason reason, DeframeEvents& out);
     Unparsed frame_unparsed(
         UnparsedReason reason) const;  // the frame held so far, as characters that formed none
-    void complete(DeframeEvents& out);
-    void add_noise(std::size_t count, DeframeEvents& out);  // the next `count` characters are noise
-    void start_frame();                                     // the next character, a ':', starts a frame
-    void append(std::span<const std::uint8_t> run);         // the next characters belong to the frame
+    void complete(Timestamp end, DeframeEvents& out);  // the LF, arriving at `end`, ends the frame
+    // the next `count` characters are noise, the first of them arriving `at`
+    void add_noise(std::size_t count, Timestamp at, DeframeEvents& out);
+    void start_frame(Timestamp at);                  // the next character, a ':', starts a frame
+    void append(std::span<const std::uint8_t> run);  // the next characters belong to the frame
     void flush_noise(DeframeEvents& out);
 
     Options options_{};

@@ -140,6 +140,11 @@ constexpr std::array findings{
                 "the client reset the connection while the request waited, and no reply came after: the "
                 "client gave up on it, not a timeout of the device",
                 "TCP §4.3.1.3; RFC 9293 §3.10.7.3"},
+    FindingInfo{PairResponseDamaged, "pair.response_damaged", S::Error,
+                "the reply began with the unit and function code asked for but formed no frame (a character "
+                "that is no hex digit, an odd number of digits, a pause or a new ':' inside it): a master "
+                "discards it, and its values are unknown; the device answered, so it is no timeout",
+                "SL §2.5.2.1; 000:304-309"},
     FindingInfo{PairRequestNotCaptured, "pair.request_not_captured", S::Warning,
                 "a reply to a request the capture holds only in part (its MBAP header names the transaction "
                 "id and function; on a serial line, bytes before it formed no frame): not unsolicited",

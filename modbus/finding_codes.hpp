@@ -78,6 +78,7 @@ enum class FindingCode : std::uint16_t {
     PairRequestNotCaptured = 619,
     PairDamagedRequestUnanswered = 620,
     PairClientAborted = 621,
+    PairResponseDamaged = 622,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,

@@ -489,6 +489,91 @@ TEST(SerialInput, AUnitsEchoOfABroadcastIsItsAnswerWithoutDirectionMarkers) {
     }
 }
 
+// A slow ASCII line (300 baud 7E1, which the MK instruments offer, 000:224) logged in chunks of 32
+// characters, each stamped when its last character arrived: a chunk takes 1.07 s to arrive, so the 1 s
+// between one chunk's stamp and the next is no pause (SL §2.5.2.1's inter-character timeout is between
+// characters), and a 71-character reply that began 133 ms after its request and took 2.4 s to send was
+// answered in time (a master's response timeout runs until a reply begins). Unit 1's reply was abandoned
+// as "timeout" and the request was "no response".
+TEST(SerialInput, ASlowAsciiLinesChunksAreTimedFromTheirFirstCharacter) {
+    const auto path = write_temp("slow_ascii.txt",
+                                 "1.566667 > 3A 30 31 30 33 30 30 30 30 30 30 30 46 45 44 0D 0A\n"
+                                 "2.733333 < 3A 30 31 30 33 31 45 30 30 36 34 30 30 36 35 30 30 36 36 30 30 "
+                                 "36 37 30 30 36 38 30 30 36 39 30\n"
+                                 "3.800000 < 30 36 41 30 30 36 42 30 30 36 43 30 30 36 44 30 30 36 45 30 30 "
+                                 "36 46 30 30 37 30 30 30 37 31 30\n"
+                                 "4.033333 < 30 37 32 39 39 0D 0A\n");
+    auto r = std::make_unique<::Run>();  // (Run alone is the test's own method)
+    an::AnalyzerOptions options;
+    options.serial_line = mb::SerialLine{300, 7, mb::Parity::Even, 1};
+    an::Analyzer a(options, r->sink);
+    ASSERT_TRUE(an::read_inputs(a, {path}, an::InputFormat::Auto, {}));
+    a.finish();
+    const auto summary = a.summary();
+    EXPECT_EQ(summary.unparsed_bytes, 0u);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 0);
+    const auto& unit1 = summary.devices.at("serial " + path + " unit 1");
+    EXPECT_EQ(unit1.responses, 1u);
+    EXPECT_EQ(unit1.timeouts, 0u);
+    ASSERT_EQ(r->sink.transactions.size(), 1u);
+    ASSERT_TRUE(r->sink.transactions[0].response);
+    // The reply's first character arrived 31 character times before its first chunk's stamp (2.733 s).
+    EXPECT_NEAR(std::chrono::duration<double>(r->sink.transactions[0].response->frame.start).count(), 1.7,
+                0.001);
+}
+
+// Noise on an ASCII line damaged unit 2's reply so that it formed no frame (the character '0' arriving with
+// bit 7 set, 0xB0): the request read "no response", a timeout held against a unit that answered, while the
+// same noise on another character, failing only the LRC, made a damaged response. Characters that form no
+// frame but begin with the waiting request's unit and function code are its reply, damaged on the way
+// (pair.response_damaged): answered, values unknown, no timeout. Noise that begins no such frame leaves the
+// request to time out as before.
+TEST(SerialInput, AnAsciiReplyDamagedIntoNoFrameIsAnsweredNotATimeout) {
+    for (const bool begins_reply : {true, false}) {
+        const std::string damaged = begins_reply ? ":0203\xB0"
+                                                   "6000700080009DD\r\n"
+                                                 : ":\xB0"
+                                                   "2030600070008009DD\r\n";
+        const auto path =
+            write_temp("ascii_damaged_reply.txt",
+                       ":02030060000398\r\n" + damaged + ":02030060000398\r\n:020306000700080009DD\r\n");
+        auto r = decode(path, an::InputFormat::AsciiRaw);
+        const auto& unit2 = r->summary.devices.at("serial " + path + " unit 2");
+        EXPECT_EQ(r->summary.unparsed_bytes,
+                  damaged.size());  // still reported as characters that formed no frame
+        EXPECT_EQ(unit2.responses, 1u);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseDamaged), begins_reply ? 1 : 0);
+        EXPECT_EQ(unit2.damaged_replies, begins_reply ? 1u : 0u);
+        EXPECT_EQ(unit2.timeouts, begins_reply ? 0u : 1u);
+        if (!begins_reply) continue;
+        for (const auto& f : r->sink.findings)
+            if (f.code == mb::FindingCode::PairResponseDamaged) {
+                EXPECT_EQ(f.device.str(), "serial " + path + " unit 2");
+                EXPECT_NE(
+                    f.message.find("the reply formed no frame (bad_character, 23 characters at offset 17 "
+                                   "beginning with unit 2, function code 3)"),
+                    std::string::npos)
+                    << f.message;
+            }
+        ASSERT_EQ(r->sink.transactions.size(), 2u);
+        EXPECT_TRUE(r->sink.transactions[0].reply_damaged);
+        EXPECT_FALSE(r->sink.transactions[0].timed_out);
+    }
+}
+
+// Where the capture does not tell sides, the master's retry damaged by the same noise begins with the same
+// unit and function and is as long as the request: it is not taken for the device's reply (which would hold a
+// damaged reply and then an unsolicited one against a unit that answered the retry well).
+TEST(SerialInput, ADamagedRetryWithoutDirectionMarkersIsNoDamagedReply) {
+    const auto path = write_temp("ascii_damaged_retry.txt", std::string(":02030060000398\r\n:0203006") +
+                                                                '\0' + "000398\r\n:020306000700080009DD\r\n");
+    auto r = decode(path, an::InputFormat::AsciiRaw);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseDamaged), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    EXPECT_EQ(r->summary.devices.at("serial " + path + " unit 2").responses, 1u);
+}
+
 // The capture ends five bytes into unit 2's reply ("02 03 04 00 02": its unit, FC3, its byte count): the
 // request was answered and the capture holds only part of the reply, as a Modbus/TCP reply cut by the
 // snapshot length is said to be; not "no response". Bytes that begin no reply to it (another unit, another
