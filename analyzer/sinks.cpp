@@ -14,8 +14,11 @@ namespace mbscope::analyzer {
 using namespace mbscope::modbus;
 using json = nlohmann::json;
 
+// Whole seconds and their fraction converted apart: nanoseconds since 1970 (1.7e18) are past a double's
+// 53 bits, and converting them whole made .012999 print as .0129988.
 double seconds(Timestamp t) {
-    return std::chrono::duration<double>(t).count();
+    const auto whole = std::chrono::floor<std::chrono::seconds>(t);
+    return static_cast<double>(whole.count()) + std::chrono::duration<double>(t - whole).count();
 }
 
 namespace {

@@ -273,3 +273,18 @@ TEST(JsonLines, NumbersReadBackToTheSameValue) {
     w.end_array();
     EXPECT_EQ(w.text(), "[18446744073709551615,-9223372036854775808,255,true,null,\"\",\"00 AB FF\",{},[]]");
 }
+
+// A time is written to the microsecond as the capture gave it: nanoseconds since 1970 converted to a double
+// whole lost their last digits (.012999 printed as .0129988), in --json and in the JSON lines alike.
+TEST(JsonLines, TimesKeepTheirDigits) {
+    for (const auto& [time, text] :
+         {std::pair{1'700'000'000'012'999'000ns, "1700000000.012999"},
+          std::pair{1'700'000'000'000'001'000ns, "1700000000.000001"},
+          std::pair{1'700'000'000'500'000'000ns, "1700000000.5"}, std::pair{12'345'678ns, "0.012345678"}}) {
+        const mb::Timestamp t(time);
+        EXPECT_EQ(json(an::seconds(t)).dump(), text);
+        mb::JsonWriter w;
+        w.value(an::seconds(t));
+        EXPECT_EQ(w.text(), text);
+    }
+}
