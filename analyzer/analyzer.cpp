@@ -277,8 +277,26 @@ bool Analyzer::server_port(Transport transport, std::uint16_t port) const {
     return contains(options_.tcp_ports, port) || contains(options_.rtu_over_tcp_ports, port);
 }
 
-Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool& to_server) {
-    to_server = server_port(l4.transport, l4.destination.port);
+// A SYN tells who the client is (its sender; a SYN-ACK's receiver), whatever came before it on these
+// endpoints; without one, the end that spoke first is taken for the client, as a Modbus client speaks first
+// (a capture begun between a request and its reply gets it wrong; one begun with the connection does not).
+std::optional<bool> Analyzer::sent_by_client(const L4Packet& l4) {
+    const FlowKey forward = flow_key(l4.transport, l4.source, l4.destination);
+    const FlowKey backward = flow_key(l4.transport, l4.destination, l4.source);
+    if (l4.transport == Transport::Tcp && l4.syn) {
+        const bool from_client = !l4.has_ack;
+        told_clients_.erase(from_client ? backward : forward);
+        told_clients_.insert(from_client ? forward : backward);
+        return from_client;
+    }
+    if (told_clients_.count(forward)) return true;
+    if (told_clients_.count(backward)) return false;
+    if (l4.payload.empty()) return std::nullopt;  // an ACK, FIN or RST: nothing to decode, nothing told
+    told_clients_.insert(forward);
+    return true;
+}
+
+Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool to_server) {
     const Endpoint& client = to_server ? l4.source : l4.destination;
     const Endpoint& server = to_server ? l4.destination : l4.source;
     const FlowKey binary = flow_key(l4.transport, client, server);
@@ -544,7 +562,12 @@ void Analyzer::packet_in_source(const Packet& p) {
             modbus_like_.note(l4);
         return;
     }
-    bool to_server = false;
+    bool to_server = server_port(l4.transport, l4.destination.port);
+    if (to_server && server_port(l4.transport, l4.source.port)) {
+        const auto from_client = sent_by_client(l4);
+        if (!from_client) return;
+        to_server = *from_client;
+    }
     Flow& flow = flow_for(l4, to_server);
     if (l4.transport == Transport::Tcp) {
         auto& stream = *flow.reassembler[to_server ? 0 : 1];

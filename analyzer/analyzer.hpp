@@ -15,6 +15,7 @@
 #include <optional>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "analyzer/capture_merge.hpp"
@@ -195,7 +196,10 @@ class Analyzer {
     };
     static FlowKey flow_key(Transport transport, const Endpoint& client, const Endpoint& server);
     bool server_port(Transport transport, std::uint16_t port) const;
-    Flow& flow_for(const L4Packet& l4, bool& to_server);
+    // Both of a packet's ports are server ports (a client that bound 502 as its own port, as some PLCs and
+    // gateways do): whether its sender is the client, or nullopt while nothing has told yet.
+    std::optional<bool> sent_by_client(const L4Packet& l4);
+    Flow& flow_for(const L4Packet& l4, bool to_server);
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
     FrameRecord about_stream(const Flow& flow, modbus::Timestamp t) const;
     void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);
@@ -325,6 +329,9 @@ class Analyzer {
 
     std::map<std::string, std::unique_ptr<Flow>> flows_;  // owner, in a stable order for the end
     std::unordered_map<FlowKey, Flow*, FlowKeyHash> flow_index_;
+    // Of the pairs of endpoints whose ports are both server ports, the ones the analyzer has told the client
+    // of (sent_by_client): keyed client first.
+    std::unordered_set<FlowKey, FlowKeyHash> told_clients_;
     ModbusLikePorts modbus_like_;  // ADUs on ports not decoded, for the summary's hint
     IpReassembler ip_fragments_;
     // In front of the index: a direct-mapped cache by the hash's top bits, so that a packet of a known flow

@@ -40,14 +40,15 @@ struct Collect : an::Sink {
 };
 
 // IPv4 + TCP (or UDP) packet from client 10.0.0.1:40000 to server 10.0.0.2:502, or back. `ack` is the
-// acknowledgement number (with flags 0x18, PSH and ACK).
+// acknowledgement number (with flags 0x18, PSH and ACK); the client's port may be another.
 inline std::vector<std::uint8_t> packet(bool to_server, std::uint32_t seq,
                                         const std::vector<std::uint8_t>& payload, bool udp = false,
                                         std::uint8_t flags = 0x18, std::uint16_t server_port = 502,
-                                        std::uint32_t ack = 0) {
-    std::vector<std::uint8_t> p;
+                                        std::uint32_t ack = 0, std::uint16_t client_port = 40000) {
     const std::size_t l4 = udp ? 8 : 20;
     const std::size_t total = 20 + l4 + payload.size();
+    std::vector<std::uint8_t> p;
+    p.reserve(total);
     const std::uint8_t a[4] = {10, 0, 0, 1}, b[4] = {10, 0, 0, 2};
     const std::uint8_t* src = to_server ? a : b;
     const std::uint8_t* dst = to_server ? b : a;
@@ -55,7 +56,8 @@ inline std::vector<std::uint8_t> packet(bool to_server, std::uint32_t seq,
                        0x40, 0, 64, static_cast<std::uint8_t>(udp ? 17 : 6), 0, 0});
     p.insert(p.end(), src, src + 4);
     p.insert(p.end(), dst, dst + 4);
-    const std::uint16_t sport = to_server ? 40000 : server_port, dport = to_server ? server_port : 40000;
+    const std::uint16_t sport = to_server ? client_port : server_port,
+                        dport = to_server ? server_port : client_port;
     p.insert(p.end(), {static_cast<std::uint8_t>(sport >> 8), static_cast<std::uint8_t>(sport),
                        static_cast<std::uint8_t>(dport >> 8), static_cast<std::uint8_t>(dport)});
     if (udp) {
