@@ -733,6 +733,18 @@ void Analyzer::decode_and_judge(Flow& flow, FrameRecord& r, std::uint8_t unit) {
     on_frame(flow, r, stats);
 }
 
+namespace {
+// Where the longest silence inside a timed RTU frame was and how long: "silence of 2.0 character times
+// between bytes 4 and 5 of 8".
+std::string gap_place_text(const Frame& f) {
+    char chars[32];
+    std::snprintf(chars, sizeof chars, "%.1f", static_cast<double>(f.max_gap_chars));
+    return "silence of " + std::string(chars) + " character times between bytes " +
+           std::to_string(f.gap_before_byte) + " and " + std::to_string(f.gap_before_byte + 1) + " of " +
+           std::to_string(f.wire_length);
+}
+}  // namespace
+
 void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     ++summary_.frames;
     const bool damaged = r.frame.framing != Framing::Tcp && !r.frame.checksum_ok;
@@ -745,6 +757,8 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
         if (code == FindingCode::TcpLengthInvalid)
             message =
                 "MBAP length " + std::to_string(r.frame.length_field()) + " is above the 254 of TCP §3.1.3";
+        if (code == FindingCode::RtuGapInsideFrame)
+            message = gap_place_text(r.frame) + ", above t1.5: a receiver keeping t1.5 discards the frame";
         if (code == FindingCode::RtuCrcMismatch || code == FindingCode::AsciiLrcMismatch)
             message = std::string(code == FindingCode::RtuCrcMismatch ? "CRC " : "LRC ") +
                       hex16(r.frame.checksum_received()) + " received, " +
@@ -1563,18 +1577,24 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             }
         }
     } else {
-        // A request whose checksum failed is discarded by every slave (SL §2.5.1.2, §2.5.2.2): its silence is
-        // right, not a timeout held against the device. (It waited all the same: a capture can damage what
-        // the device got whole, and a reply then answers it.)
-        const bool discarded = request.frame.framing != Framing::Tcp && !request.frame.checksum_ok &&
-                               unanswered &&
+        // A request whose checksum failed is discarded by every slave (SL §2.5.1.2, §2.5.2.2), and so is one
+        // with a silence above t1.5 inside it (SL §2.5.1.1): its silence is right, not a timeout held
+        // against the device. (It waited all the same: a capture can damage what the device got whole, and
+        // a reply then answers it; a device that ignores t1.5 answers the gapped one.)
+        const bool gapped = request.frame.findings.contains(FindingCode::RtuGapInsideFrame);
+        const bool discarded = request.frame.framing != Framing::Tcp &&
+                               (!request.frame.checksum_ok || gapped) && unanswered &&
                                (unanswered->code == FindingCode::PairNoResponse ||
                                 unanswered->code == FindingCode::PairNoResponseAtEnd);
         if (discarded) {
             unanswered->code = FindingCode::PairDamagedRequestUnanswered;
-            unanswered->message = describe_request(request) + " to " + request.device.str() + ": its " +
-                                  (request.frame.framing == Framing::Ascii ? "LRC" : "CRC") +
-                                  " failed and no reply came, as a slave that discards such a frame does";
+            unanswered->message =
+                describe_request(request) + " to " + request.device.str() + ": " +
+                (!request.frame.checksum_ok
+                     ? std::string("its ") + (request.frame.framing == Framing::Ascii ? "LRC" : "CRC") +
+                           " failed"
+                     : "a " + gap_place_text(request.frame) + " inside it") +
+                " and no reply came, as a slave that discards such a frame does";
             timed_out = false;
         }
         // Only another unit replied while it waited (on_response): a timeout (or unanswered at the end) all

@@ -103,7 +103,9 @@ void TextSink::transaction(const TransactionRecord& t) {
              << (t.broadcast                ? "broadcast, no response expected"
                  : t.reply_not_captured     ? "answered, the reply not captured whole"
                  : t.reply_damaged          ? "answered, the reply damaged: it formed no frame"
-                 : t.discarded              ? "no response: the request's checksum failed, discarded"
+                 : t.discarded              ? (t.request.frame.checksum_ok
+                                                   ? "no response: the request had a silence inside, discarded"
+                                                   : "no response: the request's checksum failed, discarded")
                  : t.client_aborted         ? "no response: the client reset the connection first"
                  : t.answered_by_other_unit ? "no response from the unit asked, only another unit replied"
                  : t.timed_out              ? "no response"

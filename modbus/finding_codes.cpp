@@ -133,9 +133,10 @@ constexpr std::array findings{
                 "unknown, and the device is not blamed with a timeout",
                 "capture"},
     FindingInfo{PairDamagedRequestUnanswered, "pair.damaged_request_unanswered", S::Note,
-                "no reply to a request whose CRC or LRC failed: a slave discards such a frame, so the "
-                "silence is what the rules want (its checksum finding says what went wrong)",
-                "SL §2.5.1.2, §2.5.2.2"},
+                "no reply to a request whose CRC or LRC failed, or with a silence above t1.5 inside it "
+                "(RTU): a slave discards such a frame, so the silence is what the rules want (its checksum "
+                "or gap finding says what went wrong)",
+                "SL §2.5.1.1, §2.5.1.2, §2.5.2.2"},
     FindingInfo{PairClientAborted, "pair.client_aborted", S::Note,
                 "the client reset the connection while the request waited, and no reply came after: the "
                 "client gave up on it, not a timeout of the device",

@@ -322,6 +322,50 @@ TEST(SerialInput, ADamagedRequestLeftUnansweredIsNoTimeout) {
               2);
 }
 
+// A request with a silence above t1.5 inside it is incomplete, and a slave keeping t1.5 discards it (SL
+// §2.5.1.1), as the reference slave does: no reply is its right answer, not a timeout held against unit 17
+// (it was pair.no_response, an error, exit 1). The gap finding says where the silence was and how long. A
+// device that ignores t1.5 and answers is paired as before.
+TEST(SerialInput, ARequestWithASilenceInsideLeftUnansweredIsNoTimeout) {
+    // 9600 8N1: a character is 1.042 ms; 2 character times of silence after the request's 4th byte (a line's
+    // time is its last byte's).
+    const auto path = write_temp("gapped_request.txt",
+                                 "1.000000 > 11 03 00 60\n"
+                                 "1.006250 > 00 03 07 45\n"  // no reply: the master asks again
+                                 "1.500000 > 11 03 00 60 00 03 07 45\n"
+                                 "1.520000 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                 "2.000000 > 11 03 00 60\n"
+                                 "2.006250 > 00 03 07 45\n"
+                                 "2.030000 < 11 03 06 02 2B 00 00 00 64 C8 BA\n");  // answered all the same
+    auto r = decode(path, an::InputFormat::Text);
+    const auto& device = r->summary.devices.at("serial " + path + " unit 17");
+    EXPECT_EQ(device.requests, 3u);
+    EXPECT_EQ(device.responses, 2u);
+    EXPECT_EQ(device.timeouts, 0u);
+    EXPECT_EQ(device.damaged_unanswered, 1u);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 0);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::RtuGapInsideFrame), 2);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairDamagedRequestUnanswered), 1);
+    for (const auto& f : r->sink.findings) {
+        if (f.code == mb::FindingCode::RtuGapInsideFrame) {
+            EXPECT_EQ(f.message,
+                      "silence of 2.0 character times between bytes 4 and 5 of 8, above t1.5: a receiver "
+                      "keeping t1.5 discards the frame");
+        }
+        if (f.code == mb::FindingCode::PairDamagedRequestUnanswered) {
+            EXPECT_NE(
+                f.message.find(": a silence of 2.0 character times between bytes 4 and 5 of 8 inside it "
+                               "and no reply came"),
+                std::string::npos)
+                << f.message;
+        }
+    }
+    ASSERT_EQ(r->sink.transactions.size(), 3u);
+    EXPECT_TRUE(r->sink.transactions[0].discarded);
+    EXPECT_FALSE(r->sink.transactions[0].timed_out);
+    EXPECT_TRUE(r->sink.transactions[2].response.has_value());
+}
+
 // Line noise of a few bytes is a frame to some unit whose CRC fails: "3C 03 A1 22 7F" made unit 60 a device
 // with a discarded request, "FF 83 11 22" unit 255 (its function named FC3 on its line, FC131 in the
 // summary). A damaged request to a unit no frame of its line has shown is no device's, unless the unit shows
