@@ -123,6 +123,29 @@ TEST(LineMirrors, APortReadingAnotherFramingThanItSpeaksFails) {
         }
 }
 
+// RTU over a stream has no silence to end a frame: a device finds a request's end by its function code, so
+// a code whose request length nothing tells (9, unassigned) has no end it can find, and a gateway or a
+// stack that waits for more is no failure of the specification (pymodbus over rtu-tcp failed 113 such
+// rules). There the rule is graded as implied (a warning); a public code of known length (24) and every
+// code over Modbus/TCP, whose header gives the length, stay the manual's (the MK's names the exception).
+TEST(FunctionCodes, AnUnsupportedCodeWithoutALengthIsImpliedOnlyOverAStream) {
+    for (const std::string scheme : {"rtu-tcp", "tcp"}) {
+        SCOPED_TRACE(scheme);
+        RunningServer server({}, 1, "mmk-2030");
+        auto options = options_for();
+        options.run.rule_globs = {"fc.unsupported.9", "fc.unsupported.24"};
+        const auto run = certify(server, scheme, "mmk-2030", options);
+        std::map<std::string, Authority> authority;
+        for (const auto& x : run.report.results) {
+            authority[x.rule.id] = x.rule.authority;
+            EXPECT_EQ(x.outcome, Outcome::Pass) << x.rule.id << ": " << x.observed;
+        }
+        const auto nine = scheme == "rtu-tcp" ? Authority::Implied : Authority::Manual;
+        EXPECT_EQ(authority, (std::map<std::string, Authority>{{"fc.unsupported.9", nine},
+                                                               {"fc.unsupported.24", Authority::Manual}}));
+    }
+}
+
 // Over Modbus/TCP unit 255 asks the device on the connection, not one by its address (TCP §4.4.1): the
 // register mirroring the address (ENDER, 0 to 99) cannot read 255, and the rule failed a correct device.
 TEST(LineMirrors, TheAddressIsNotJudgedAgainstUnit255OverTcp) {
