@@ -155,8 +155,10 @@ ExchangeOracle::Expected ExchangeOracle::expect(const Request& r) const {
     }
     Expected answer = expect_pdu(r, *u->profile);
     // The generic profile knows no device's functions either: one it does not implement is refused (AP §7,
-    // 01). libmodbus's server, which has no FC8, was "exception for valid" on every diagnostics request.
-    if (u->profile->open_address_space && answer.normal) answer.exceptions.insert(0x01);
+    // 01). libmodbus's server, which has no FC8, was "exception for valid" on every diagnostics request, and
+    // "expected exception 03" on a malformed one: the state diagrams of AP §6 test the function code before
+    // the data, so 01 is right whatever else the request gets wrong.
+    if (u->profile->open_address_space && !answer.silence) answer.exceptions.insert(0x01);
     if (framing_ == Framing::Rtu) {
         const auto predicted = modbus::predict_pdu_length(r.pdu, modbus::Direction::Request);
         answer.silence_allowed =

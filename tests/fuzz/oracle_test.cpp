@@ -351,12 +351,20 @@ TEST(ExchangeOracle, TheGenericProfileAllowsTheRefusalsOfADeviceItDoesNotKnow) {
     EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(6, {20000, 7}), {0x86, 0x02})), "");
     EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(6, {20, 0xBEEF}), {0x86, 0x03})), "");
     EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(8, {0, 0x1234}), {0x88, 0x01})), "");
+    // A diagnostics request one byte short (libmodbus answered 01, "expected exception 03"): the function
+    // code is tested before the data (AP §6), so 01 is right too; another code is not.
+    const std::vector<std::uint8_t> short_fc8{0x08, 0x00, 0x0C, 0xFF};
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, short_fc8, {0x88, 0x01})), "");
+    EXPECT_EQ(rules(judge_rtu(oracle, 1, short_fc8, {0x88, 0x03})), "");
+    EXPECT_NE(rules(judge_rtu(oracle, 1, short_fc8, {0x88, 0x04})), "");
     EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(3, {0, 1}), {0x83, 0x04})), "reply.exception_for_valid ");
     EXPECT_EQ(rules(judge_rtu(oracle, 1, pdu(3, {0, 1}), {0x83, 0x03})), "reply.exception_for_valid ");
 
     const auto& mapped = mbscope::slave::test::profile("mmk-2030");
     cf::ExchangeOracle strict(Framing::Rtu, {{1, &mapped}}, false);
     EXPECT_EQ(rules(judge_rtu(strict, 1, pdu(3, {0, 1}), {0x83, 0x02})), "reply.exception_for_valid ");
+    EXPECT_NE(rules(judge_rtu(strict, 1, std::vector<std::uint8_t>{0x03, 0x00, 0x00, 0x00}, {0x83, 0x01})),
+              "");
 }
 
 // A reply to 21 coils answers them in three bytes, the last one's three high bits padded with zeros (AP
