@@ -7,6 +7,7 @@
 
 #include "analyzer/word_order.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/frame_text.hpp"
 
 namespace mbscope::analyzer {
 
@@ -126,8 +127,38 @@ std::string status_of(const TransactionRecord& t) {
 
 }  // namespace
 
-std::string csv_field(std::string_view text) {
-    if (text.find_first_of(",\"\r\n") == std::string_view::npos) return std::string(text);
+namespace {
+// Bytes that are not UTF-8 and control characters other than CR, LF and tab (a file name may hold both)
+// written as \xNN, as the text output writes them: RFC 4180's text holds neither, and a reader decoding the
+// file as UTF-8 stopped at them. CR and LF are a quoted field's own.
+std::string csv_text(std::string_view raw) {
+    std::string out;
+    out.reserve(raw.size());
+    for (std::size_t i = 0; i < raw.size();) {
+        const auto c = utf8_at(raw, i);
+        const bool control =
+            c.length != 0 && ((c.code < 0x20 && c.code != '\r' && c.code != '\n' && c.code != '\t') ||
+                              (c.code >= 0x7F && c.code <= 0x9F));
+        if (c.length != 0 && !control) {
+            out.append(raw.substr(i, c.length));
+            i += c.length;
+            continue;
+        }
+        const std::size_t n = c.length ? c.length : 1;
+        for (std::size_t k = 0; k < n; ++k) {
+            char hex[5];
+            std::snprintf(hex, sizeof hex, "\\x%02X", static_cast<unsigned char>(raw[i + k]));
+            out += hex;
+        }
+        i += n;
+    }
+    return out;
+}
+}  // namespace
+
+std::string csv_field(std::string_view raw) {
+    const std::string text = csv_text(raw);
+    if (text.find_first_of(",\"\r\n") == std::string_view::npos) return text;
     std::string quoted = "\"";
     for (char c : text) {
         if (c == '"') quoted += '"';

@@ -120,6 +120,11 @@ TEST(CsvSink, FieldsAreQuotedOnlyWhenTheyMustBe) {
     EXPECT_EQ(an::csv_field("say \"hi\""), "\"say \"\"hi\"\"\"");
     EXPECT_EQ(an::csv_field("two\r\nlines"), "\"two\r\nlines\"");
     EXPECT_EQ(an::csv_field(""), "");
+    // Not UTF-8, and control characters (a file name may hold them): written as the text output writes
+    // them, so that the file decodes as UTF-8; well-formed UTF-8 and tabs stay.
+    EXPECT_EQ(an::csv_field("we,ird\xFF\x01.txt"), "\"we,ird\\xFF\\x01.txt\"");
+    EXPECT_EQ(an::csv_field("caf\xC3\xA9\tok"), "caf\xC3\xA9\tok");
+    EXPECT_EQ(an::csv_field("\xC2\x9B\x7F"), "\\xC2\\x9B\\x7F");
 }
 
 TEST(CsvSink, RawValuesStatusesAndLatency) {
