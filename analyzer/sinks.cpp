@@ -321,24 +321,28 @@ void JsonSink::emit(nlohmann::ordered_json j) {
 }
 
 void JsonSink::frame(const FrameRecord& f) {
+    if (summary_only_) return;
     if (!lines_) return emit(frame_to_json(f));
     write_frame(f, writer_);
     line_written();
 }
 
 void JsonSink::transaction(const TransactionRecord& t) {
+    if (summary_only_) return;
     if (!lines_) return emit(transaction_to_json(t));
     write_transaction(t, writer_);
     line_written();
 }
 
 void JsonSink::finding(const FindingRecord& f) {
+    if (summary_only_) return;
     if (!lines_) return emit(finding_to_json(f));
     write_finding(f, writer_);
     line_written();
 }
 
 void JsonSink::unparsed(const UnparsedRecord& u) {
+    if (summary_only_) return;
     if (!lines_) return emit(unparsed_to_json(u));
     write_unparsed(u, writer_);
     line_written();

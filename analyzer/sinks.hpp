@@ -34,8 +34,9 @@ class JsonSink : public Sink {
   public:
     // lines: one object per line as records come (JSONL); otherwise one document written at the end.
     // Lines are written by json_lines.hpp's streaming writer into a buffer passed on to `out` in 64 KiB
-    // pieces; the document is built with nlohmann::json.
-    JsonSink(std::ostream& out, bool lines) : out_(out), lines_(lines) {}
+    // pieces; the document is built with nlohmann::json. summary_only: the summary record alone (--summary).
+    JsonSink(std::ostream& out, bool lines, bool summary_only = false)
+        : out_(out), lines_(lines), summary_only_(summary_only) {}
     ~JsonSink() override;
     void frame(const FrameRecord& f) override;
     void transaction(const TransactionRecord& t) override;
@@ -44,6 +45,7 @@ class JsonSink : public Sink {
     void end(const Summary& s) override;
     // JSON lines taken so far, to `out` and flushed (a document is written whole, at the end).
     void flush() override;
+    bool wants_transactions() const override { return !summary_only_; }
 
   private:
     void emit(nlohmann::ordered_json j);
@@ -51,6 +53,7 @@ class JsonSink : public Sink {
     void pass_on();  // the lines in the buffer, to `out`
     std::ostream& out_;
     bool lines_;
+    bool summary_only_;
     modbus::JsonWriter writer_;
     nlohmann::ordered_json document_ = nlohmann::ordered_json::array();
 };

@@ -42,7 +42,8 @@ void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
     auto* jsonl = cmd.add_flag("--jsonl", o.jsonl,
                                "One JSON object per line (frame, transaction, finding, unparsed, summary)");
     json->excludes(jsonl);
-    cmd.add_flag("--summary", o.summary, "Only the summary (the fastest path)");
+    cmd.add_flag("--summary", o.summary,
+                 "Only the summary (the fastest path; with --json or --jsonl, the summary record alone)");
     cmd.add_option("--csv", o.csv,
                    "One CSV row per transaction (RFC 4180) to FILE, or to standard output with -");
     cmd.add_option("--word-order", o.word_order,
@@ -202,7 +203,7 @@ bool Outputs::open(const AnalysisCliOptions& o, const std::string& command) {
         sinks_.push_back(std::make_unique<analyzer::CsvSink>(o.csv == "-" ? std::cout : csv_file_));
     if (o.csv != "-") {
         if (o.json || o.jsonl)
-            sinks_.push_back(std::make_unique<analyzer::JsonSink>(std::cout, o.jsonl));
+            sinks_.push_back(std::make_unique<analyzer::JsonSink>(std::cout, o.jsonl, o.summary));
         else
             sinks_.push_back(std::make_unique<analyzer::TextSink>(std::cout, o.summary));
     }

@@ -2,9 +2,12 @@
 // summary and the findings say must stay the same: each capture is decoded by a sink that takes every
 // record and by one that takes none, and the two are compared finding by finding and count by count.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 
 #include "analyzer/analyzer.hpp"
 #include "modbus/adu.hpp"
@@ -191,4 +194,37 @@ TEST(SummaryOnly, RealCapturesGiveTheSameSummary) {
     ASSERT_GE(files.size(), 2u);
     for (const auto& f : files)
         expect_same(f, f);
+}
+
+namespace {
+// `mbscope decode ARGS`: its exit code and standard output.
+std::pair<int, std::string> run_decode(const std::string& args) {
+    FILE* pipe = popen((std::string(MBSCOPE_BINARY) + " decode --no-progress " + args).c_str(), "r");
+    if (!pipe) return {-1, ""};
+    std::string out;
+    char buf[4096];
+    for (std::size_t n; (n = fread(buf, 1, sizeof buf, pipe)) > 0;)
+        out.append(buf, n);
+    return {WEXITSTATUS(pclose(pipe)), out};
+}
+}  // namespace
+
+// --summary with --json or --jsonl: the summary record alone, the one the whole output ends with. It was
+// ignored there, every record written.
+TEST(SummaryOnly, WithJsonItIsTheSummaryRecordAlone) {
+    const std::string capture = std::string(MBSCOPE_SOURCE_DIR) + "/captures/suricata-modbus.pcap";
+    const auto [all_code, all] = run_decode("--jsonl " + capture);
+    const auto [lines_code, lines] = run_decode("--summary --jsonl " + capture);
+    EXPECT_EQ(lines_code, all_code);
+    ASSERT_FALSE(all.empty());
+    const auto last = all.substr(all.rfind('\n', all.size() - 2) + 1);
+    EXPECT_EQ(lines, last);
+    EXPECT_EQ(nlohmann::json::parse(lines)["type"], "summary");
+
+    const auto [document_code, document] = run_decode("--summary --json " + capture);
+    EXPECT_EQ(document_code, all_code);
+    const auto records = nlohmann::json::parse(document);
+    ASSERT_TRUE(records.is_array());
+    ASSERT_EQ(records.size(), 1u);
+    EXPECT_EQ(records[0], nlohmann::json::parse(last));
 }
