@@ -79,14 +79,7 @@ std::vector<std::uint8_t> adu(std::uint16_t tid, const mb::Pdu& pdu) {
 
 // `mbscope decode ARGS`: its exit code and standard output.
 std::pair<int, std::string> decode(const std::string& args) {
-    const std::string command = std::string(MBSCOPE_BINARY) + " decode " + args;
-    FILE* pipe = popen(command.c_str(), "r");
-    if (!pipe) return {-1, ""};
-    std::string out;
-    char buf[4096];
-    for (std::size_t n; (n = fread(buf, 1, sizeof buf, pipe)) > 0;)
-        out.append(buf, n);
-    return {WEXITSTATUS(pclose(pipe)), out};
+    return mbscope::test::run_command(std::string(MBSCOPE_BINARY) + " decode " + args);
 }
 
 mb::Pdu response(mb::Pdu p) {

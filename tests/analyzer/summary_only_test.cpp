@@ -2,10 +2,8 @@
 // summary and the findings say must stay the same: each capture is decoded by a sink that takes every
 // record and by one that takes none, and the two are compared finding by finding and count by count.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <algorithm>
-#include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -199,13 +197,7 @@ TEST(SummaryOnly, RealCapturesGiveTheSameSummary) {
 namespace {
 // `mbscope decode ARGS`: its exit code and standard output.
 std::pair<int, std::string> run_decode(const std::string& args) {
-    FILE* pipe = popen((std::string(MBSCOPE_BINARY) + " decode --no-progress " + args).c_str(), "r");
-    if (!pipe) return {-1, ""};
-    std::string out;
-    char buf[4096];
-    for (std::size_t n; (n = fread(buf, 1, sizeof buf, pipe)) > 0;)
-        out.append(buf, n);
-    return {WEXITSTATUS(pclose(pipe)), out};
+    return mbscope::test::run_command(std::string(MBSCOPE_BINARY) + " decode --no-progress " + args);
 }
 }  // namespace
 

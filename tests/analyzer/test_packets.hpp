@@ -4,12 +4,15 @@
 // files holding records of any link type, and files of any bytes in the test's temporary directory.
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <fstream>
 #include <initializer_list>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "analyzer/analyzer.hpp"
@@ -155,6 +158,17 @@ inline Conversation five_reads() {
         c.send(false, bytes({0, t, 0, 0, 0, 5, 1, 3, 2, 0, t}), at + mb::Timestamp(2'000'000));
     }
     return c;
+}
+
+// `command` run by the shell: its exit code and standard output.
+inline std::pair<int, std::string> run_command(const std::string& command) {
+    FILE* pipe = popen(command.c_str(), "r");
+    if (!pipe) return {-1, ""};
+    std::string out;
+    char buf[4096];
+    for (std::size_t n; (n = fread(buf, 1, sizeof buf, pipe)) > 0;)
+        out.append(buf, n);
+    return {WEXITSTATUS(pclose(pipe)), out};
 }
 
 // `content` written to `name` in the test's temporary directory; its path.
