@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/json_text.hpp"
 #include "cli/number_checks.hpp"
 #include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
@@ -59,10 +60,8 @@ bool write_file(const std::string& path, const std::function<void(std::ostream&)
 bool write_reports(const CheckCliOptions& o, const conformance::Report& report) {
     bool written = true;
     if (!o.report.empty())
-        written &= write_file(o.report, [&](std::ostream& out) {
-            out << conformance::to_json(report).dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
-                << '\n';
-        });
+        written &= write_file(
+            o.report, [&](std::ostream& out) { out << json_text(conformance::to_json(report)) << '\n'; });
     if (!o.junit.empty())
         written &= write_file(o.junit, [&](std::ostream& out) { conformance::write_junit(out, report); });
     if (!o.html.empty())
@@ -70,7 +69,28 @@ bool write_reports(const CheckCliOptions& o, const conformance::Report& report) 
     return written;
 }
 
+// Prints the report of a run that was made (or interrupted) and writes its files; returns the exit code.
+int print_and_write(const CheckCliOptions& o, const conformance::Report& report) {
+    if (o.json)
+        std::cout << json_text(conformance::to_json(report)) << '\n';
+    else
+        conformance::write_text(std::cout, report, o.verbose);
+    const bool written = write_reports(o, report);
+    if (const auto none = conformance::nothing_judged(report); !none.empty()) {
+        std::cerr << "mbscope check: " << none << '\n';
+        return exit_failure;
+    }
+    if (!report.unanswered.empty()) {
+        std::cerr << "mbscope check: " << report.unanswered << '\n';
+        return exit_failure;
+    }
+    if (!written || report.stopped) return exit_failure;
+    return conformance::verdict(report) == 0 ? exit_ok : exit_findings;
+}
+
 int run_check_command(const CheckCliOptions& o) {
+    // Before the profile loads and the target opens: a signal from here on ends the run with its reports.
+    auto& stop = stop_on_signals(BrokenPipe::Ignored);
     auto endpoint = modbus::transport::parse_endpoint(o.target);
     if (!endpoint) {
         std::cerr << "mbscope check: " << endpoint.error() << '\n';
@@ -104,39 +124,24 @@ int run_check_command(const CheckCliOptions& o) {
             std::cerr << "\r\033[Kmbscope check: " << text << '\n';
         };
     }
+    // Stopped before the target was opened, or while it opened (the signal cut the connection short): no
+    // rule ran, and every report says the run was interrupted.
+    if (stop) return print_and_write(o, conformance::interrupted_report(*profile, options));
     auto client = modbus::transport::Client::open(*endpoint);
+    if (!client && stop) return print_and_write(o, conformance::interrupted_report(*profile, options));
     if (!client) {
         // The reports asked for are still written, one rule in error saying why: a CI job that publishes
         // them finds the reason instead of no file.
         std::cerr << "mbscope check: cannot reach the target: " << client.error() << '\n';
         const auto report = conformance::unreachable_report(*profile, options, client.error());
-        if (o.json)
-            std::cout << conformance::to_json(report).dump(2, ' ', false,
-                                                           nlohmann::json::error_handler_t::replace)
-                      << '\n';
+        if (o.json) std::cout << json_text(conformance::to_json(report)) << '\n';
         write_reports(o, report);
         return exit_failure;
     }
-    auto& stop = stop_on_signals(BrokenPipe::Ignored);
+    run_begins();
     const auto report = conformance::run_check(*client, *profile, options, &stop);
     if (done) std::cerr << "\r\033[K";
-    if (o.json)
-        std::cout << conformance::to_json(report).dump(2, ' ', false,
-                                                       nlohmann::json::error_handler_t::replace)
-                  << '\n';
-    else
-        conformance::write_text(std::cout, report, o.verbose);
-    const bool written = write_reports(o, report);
-    if (const auto none = conformance::nothing_judged(report); !none.empty()) {
-        std::cerr << "mbscope check: " << none << '\n';
-        return exit_failure;
-    }
-    if (!report.unanswered.empty()) {
-        std::cerr << "mbscope check: " << report.unanswered << '\n';
-        return exit_failure;
-    }
-    if (!written || report.stopped) return exit_failure;
-    return conformance::verdict(report) == 0 ? exit_ok : exit_findings;
+    return print_and_write(o, report);
 }
 
 }  // namespace

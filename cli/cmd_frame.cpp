@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/json_text.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
 #include "modbus/frame_text.hpp"
@@ -183,7 +184,10 @@ Direction chosen_direction(const std::string& d) {
     return Direction::Unknown;
 }
 
-int emit(const std::vector<DecodedFrame>& frames, bool json) {
+// Prints the frames decoded and returns the exit code they make. With `json`: one object for the frame given
+// on the command line, an array for a file's frames (`as_array`) however many it holds. A file of one frame
+// printed an object and a file of several an array, so a consumer had to handle both shapes.
+int emit(const std::vector<DecodedFrame>& frames, bool json, bool as_array) {
     int rc = exit_ok;
     nlohmann::json all = nlohmann::json::array();
     for (const auto& d : frames) {
@@ -196,10 +200,7 @@ int emit(const std::vector<DecodedFrame>& frames, bool json) {
         else if (d.broken() && rc == exit_ok)
             rc = exit_findings;
     }
-    if (json)
-        std::cout << (frames.size() == 1 ? all[0] : all)
-                         .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
-                  << '\n';
+    if (json) std::cout << json_text(as_array ? all : all.at(0)) << '\n';
     return rc;
 }
 
@@ -233,7 +234,7 @@ int run_file(const FrameOptions& o) {
         std::cerr << "mbscope frame: " << o.file << " holds no frames\n";
         return exit_failure;
     }
-    int rc = emit(frames, o.json);
+    int rc = emit(frames, o.json, true);
     return errors ? exit_failure : rc;
 }
 
@@ -273,7 +274,7 @@ int run_frame(const FrameOptions& o) {
         }
         auto wire = encode_adu(framing, static_cast<std::uint16_t>(o.transaction_id),
                                static_cast<std::uint8_t>(o.unit), std::move(bytes));
-        return emit({decode_frame(framing, std::move(wire), pdu->direction)}, o.json);
+        return emit({decode_frame(framing, std::move(wire), pdu->direction)}, o.json, false);
     }
     auto wire = wire_from_tokens(framing, o.args, error);
     if (!wire) {
@@ -284,7 +285,7 @@ int run_frame(const FrameOptions& o) {
         std::cerr << "mbscope frame: no bytes given\n";
         return exit_failure;
     }
-    return emit({decode_frame(framing, std::move(*wire), chosen_direction(o.direction))}, o.json);
+    return emit({decode_frame(framing, std::move(*wire), chosen_direction(o.direction))}, o.json, false);
 }
 
 }  // namespace
@@ -313,7 +314,8 @@ void register_frame(CLI::App& app, int& exit_code) {
         ->check(CLI::IsMember({"auto", "request", "response"}))
         ->capture_default_str();
     cmd->add_option("--file", o->file, "Decode every line 'rtu|ascii|tcp HEX... [# comment]' of a file");
-    cmd->add_flag("--json", o->json, "Machine-readable output");
+    cmd->add_flag("--json", o->json,
+                  "Machine-readable output: an object; with --file an array of them, one frame or many");
     cmd->add_option("bytes", o->args, "Hex bytes of the frame (or the verb and arguments with --encode)");
     cmd->callback([o, &exit_code] { exit_code = run_frame(*o); });
 }

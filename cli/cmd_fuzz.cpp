@@ -8,6 +8,7 @@
 #include <set>
 
 #include "cli/commands.hpp"
+#include "cli/json_text.hpp"
 #include "cli/number_checks.hpp"
 #include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
@@ -50,6 +51,8 @@ void show_progress(const fuzz::network::CampaignSummary& s) {
 }
 
 int run_fuzz_command(const FuzzCliOptions& o) {
+    // Before the profile loads (it takes a while): a signal from here on ends the run with its summary.
+    const auto& stop = stop_on_signals(BrokenPipe::Ignored);
     auto endpoint = modbus::transport::parse_endpoint(o.target);
     if (!endpoint) {
         std::cerr << "mbscope fuzz: " << endpoint.error() << '\n';
@@ -81,11 +84,12 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     options.max_findings = o.max_findings;
     const bool meter = o.progress && isatty(STDERR_FILENO);
     if (meter) options.progress = show_progress;
-    options.stop = &stop_on_signals(BrokenPipe::Ignored);
+    options.stop = &stop;
     options.stop_again = &second_stop_signal();
     if (meter)
         options.note = [](const std::string& text) { std::cerr << "\r\033[Kmbscope fuzz: " << text << '\n'; };
 
+    run_begins();
     const auto summary = fuzz::network::run_campaign(*profile, options);
     if (meter) std::cerr << "\r\033[K";
     auto j = fuzz::network::to_json(summary);
@@ -106,7 +110,7 @@ int run_fuzz_command(const FuzzCliOptions& o) {
                       "one, as mbscope replay sends it: it depends on the connection's history or timing"
                     : "")
             << '\n';
-    std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
+    std::cout << json_text(j) << '\n';
     if (summary.replies_after_timeout > 0)
         std::cerr << "mbscope fuzz: " << summary.replies_after_timeout << " replies came after --timeout ("
                   << options.timeout.count() << " ms); each was judged as its request's, "
@@ -116,7 +120,10 @@ int run_fuzz_command(const FuzzCliOptions& o) {
                   << " write probes not sent: with a request every " << options.interval.count()
                   << " ms, reading their points first would have run past --duration\n";
     if (!summary.reachable) {
-        std::cerr << "mbscope fuzz: cannot reach the target: " << summary.error << '\n';
+        if (summary.stopped)
+            std::cerr << "mbscope fuzz: interrupted before the fuzzing began; nothing was judged\n";
+        else
+            std::cerr << "mbscope fuzz: cannot reach the target: " << summary.error << '\n';
         return exit_failure;
     }
     bool unrestored = !summary.not_read.empty();

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "cli/commands.hpp"
+#include "cli/json_text.hpp"
 #include "cli/profile_json.hpp"
 #include "modbus/addressing.hpp"
 #include "modbus/describe.hpp"
@@ -123,7 +124,7 @@ int run_list(const ProfileOptions& o) {
                            {"discrete_inputs", e.discrete_inputs},
                            {"input_registers", e.input_registers},
                            {"holding_registers", e.holding_registers}}}});
-        std::cout << a.dump(2) << '\n';
+        std::cout << json_text(a) << '\n';
     } else {
         std::printf("%-22s %-14s %-11s %6s %6s  %s\n", "id", "vendor", "transports", "coils", "regs",
                     "aliases");
@@ -154,7 +155,7 @@ int run_show(const ProfileOptions& o) {
     auto p = load(o);
     if (!p) return exit_failure;
     if (o.json) {
-        std::cout << profile_to_json(*p).dump(2) << '\n';
+        std::cout << json_text(profile_to_json(*p)) << '\n';
         return exit_ok;
     }
     std::cout << p->id << " — " << p->vendor << " " << p->name << "  (" << p->file << ")\n";
@@ -338,8 +339,8 @@ int run_validate(const ProfileOptions& o) {
             if (!v.errors.empty()) e["errors"] = v.errors;
             list.push_back(std::move(e));
         }
-        std::cout << nlohmann::json{{"files", list}, {"documents", documents}, {"valid", rc == exit_ok}}.dump(
-                         2)
+        std::cout << json_text(
+                         nlohmann::json{{"files", list}, {"documents", documents}, {"valid", rc == exit_ok}})
                   << '\n';
         return rc;
     }
@@ -388,7 +389,7 @@ int run_lookup(const ProfileOptions& o) {
     }
     if (!pt) {
         if (o.json) {
-            std::cout << nlohmann::json{{"found", false}}.dump() << '\n';
+            std::cout << json_text(nlohmann::json{{"found", false}}, -1) << '\n';
         } else {
             std::cout << p->id << " " << to_string(*table) << " " << *address << ": not in the device map";
             if (of_table)
@@ -401,7 +402,7 @@ int run_lookup(const ProfileOptions& o) {
     if (o.json) {
         auto j = modbus::point_to_json(*pt);
         if (read_as_reference) j["read_as_reference"] = o.address;
-        std::cout << j.dump(2) << '\n';
+        std::cout << json_text(j) << '\n';
         return exit_ok;
     }
     std::cout << p->id << " " << to_string(*table) << " " << pt->address;
@@ -479,7 +480,7 @@ int run_decode(const ProfileOptions& o) {
         auto a = nlohmann::json::array();
         for (const auto& v : values)
             a.push_back(modbus::named_value_to_json(v));
-        std::cout << a.dump(2) << '\n';
+        std::cout << json_text(a) << '\n';
     } else {
         if (read_as_reference)
             std::cout << "  read as the reference " << *read_as_reference << ": no point at protocol address "

@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "cli/json_text.hpp"
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
 #include "conformance/report.hpp"
@@ -27,39 +28,26 @@ struct ReplayCliOptions {
     std::vector<std::string> config;
 };
 
-int run_replay_command(const ReplayCliOptions& o) {
-    auto reproducer = fuzz::network::load_reproducer(o.file);
-    if (!reproducer) {
-        std::cerr << "mbscope replay: " << reproducer.error() << '\n';
-        return exit_failure;
-    }
-    const auto& r = *reproducer;
-    auto endpoint = modbus::transport::parse_endpoint(o.target.empty() ? r.target : o.target);
-    if (!endpoint) {
-        std::cerr << "mbscope replay: " << endpoint.error() << '\n';
-        return exit_failure;
-    }
-    const auto profile =
-        load_profile_for(o.profile.empty() ? r.profile : o.profile, o.profile_dirs, o.config, "replay");
-    if (!profile) return exit_failure;
-    const auto framing = modbus::transport::framing_of(endpoint->scheme);
-    if (!r.framing.empty() && r.framing != modbus::to_string(framing))
-        std::cerr << "mbscope replay: the reproducer was recorded with " << r.framing
-                  << " framing; the target uses " << modbus::to_string(framing)
-                  << ": the bytes are sent as recorded\n";
-    auto client = modbus::transport::Client::open(*endpoint);
-    if (!client) {
-        std::cerr << "mbscope replay: cannot reach the target: " << client.error() << '\n';
-        return exit_failure;
-    }
-    // Until the target is open an interrupt ends the command as it would any other (a file that never ends,
-    // a FIFO no one writes to, a connection that hangs): nothing has been written yet. From here on it stops
-    // the steps, not the restore after them (nor the reads before them, which change nothing).
-    const std::atomic<bool>& stop = stop_on_signals(BrokenPipe::Ignored);
+// What a replay did: the steps sent (none when it was interrupted before the target was opened) and what it
+// left where.
+struct Replayed {
+    std::vector<fuzz::network::ReplayedStep> steps;
+    std::vector<conformance::Touched> restored;
+    std::vector<fuzz::network::WriteRange> unread;
+    fuzz::network::HeldReading unanswered;
+};
+
+// Sends the reproducer's steps to the open target and judges them; what they may write is read before and
+// written back after (unless --no-restore). `stop` stops the steps, not the reads before them (which change
+// nothing) nor the restore after them.
+Replayed replay_steps(modbus::transport::Client& client, const modbus::transport::Endpoint& endpoint,
+                      const modbus::Profile& profile, const fuzz::network::Reproducer& r,
+                      const ReplayCliOptions& o, const std::atomic<bool>& stop) {
+    const auto framing = modbus::transport::framing_of(endpoint.scheme);
     const std::uint8_t unit = o.unit >= 0 ? static_cast<std::uint8_t>(o.unit) : r.unit;
-    conformance::ExchangeOracle oracle(framing, {{unit, &*profile}},
-                                       endpoint->scheme == modbus::transport::Scheme::Tcp ||
-                                           endpoint->scheme == modbus::transport::Scheme::Udp);
+    conformance::ExchangeOracle oracle(framing, {{unit, &profile}},
+                                       endpoint.scheme == modbus::transport::Scheme::Tcp ||
+                                           endpoint.scheme == modbus::transport::Scheme::Udp);
     fuzz::network::ReplayOptions options;
     options.timeout = std::chrono::milliseconds(o.timeout_ms);
     // A slow reply is judged by the limit it broke when it was found, unless told another (0: not judged).
@@ -70,19 +58,26 @@ int run_replay_command(const ReplayCliOptions& o) {
     options.stop = &stop;
     // What the steps may write is read first and written back after them, as `mbscope fuzz` and
     // `mbscope check` do: replaying a finding leaves the device as it was.
-    conformance::Session session(*client, {unit, options.timeout, std::chrono::milliseconds(0)}, &*profile);
+    conformance::Session session(client, {unit, options.timeout, std::chrono::milliseconds(0)}, &profile);
     fuzz::network::RememberedWrites remembered;
-    if (!o.no_restore) remembered = fuzz::network::remember_writes(session, *profile, r.steps);
-    const auto steps = fuzz::network::replay(*client, oracle, r.steps, options);
+    if (!o.no_restore) remembered = fuzz::network::remember_writes(session, profile, r.steps);
+    Replayed done;
+    done.steps = fuzz::network::replay(client, oracle, r.steps, options);
     // Writes to points outside the map were not read first: a device that acknowledged one changed them.
-    auto unread = remembered.unread;
-    for (const auto& w : fuzz::network::acknowledged_unchecked(remembered.unchecked, framing, steps))
-        unread.push_back(w);
+    done.unread = remembered.unread;
+    for (const auto& w : fuzz::network::acknowledged_unchecked(remembered.unchecked, framing, done.steps))
+        done.unread.push_back(w);
     // Those a step wrote without drawing a reply (a broadcast): the device may have executed it where it
     // holds them; read now to see which it holds.
-    const auto unanswered = fuzz::network::read_held(
-        session, fuzz::network::unanswered_unchecked(remembered.unchecked, framing, steps));
-    const auto restored = session.touched().empty() ? std::vector<conformance::Touched>{} : session.restore();
+    done.unanswered = fuzz::network::read_held(
+        session, fuzz::network::unanswered_unchecked(remembered.unchecked, framing, done.steps));
+    if (!session.touched().empty()) done.restored = session.restore();
+    return done;
+}
+
+// Prints what the replay did (text, or JSON with --json) and returns the exit code.
+int report_replay(const ReplayCliOptions& o, const fuzz::network::Reproducer& r, const Replayed& done) {
+    const auto& [steps, restored, unread, unanswered] = done;
     bool unrestored = !unread.empty() || !unanswered.held.empty() || !unanswered.unread.empty();
     for (const auto& t : restored)
         unrestored |= !t.restored;
@@ -113,17 +108,17 @@ int run_replay_command(const ReplayCliOptions& o) {
         }
     }
     if (o.json) {
-        std::cout << nlohmann::json{{"file", o.file},
-                                    {"rule", r.rule},
-                                    {"reproduced", again},
-                                    {"stopped", stopped},
-                                    {"steps", out},
-                                    {"restored", conformance::to_json(restored)},
-                                    {"not_read", fuzz::network::to_json(unread)},
-                                    {"unanswered_writes", fuzz::network::to_json(unanswered.held)},
-                                    {"unanswered_unread", fuzz::network::to_json(unanswered.unread)},
-                                    {"unanswered_refused", fuzz::network::to_json(unanswered.refused)}}
-                         .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+        std::cout << json_text(
+                         nlohmann::json{{"file", o.file},
+                                        {"rule", r.rule},
+                                        {"reproduced", again},
+                                        {"stopped", stopped},
+                                        {"steps", out},
+                                        {"restored", conformance::to_json(restored)},
+                                        {"not_read", fuzz::network::to_json(unread)},
+                                        {"unanswered_writes", fuzz::network::to_json(unanswered.held)},
+                                        {"unanswered_unread", fuzz::network::to_json(unanswered.unread)},
+                                        {"unanswered_refused", fuzz::network::to_json(unanswered.refused)}})
                   << '\n';
     } else {
         for (const auto& w : unread)
@@ -166,6 +161,41 @@ int run_replay_command(const ReplayCliOptions& o) {
     if (again || violations || unrestored) return exit_findings;
     // Steps left unsent cannot show the rule kept: "not reproduced" is said only of a whole replay.
     return stopped ? exit_failure : exit_ok;
+}
+
+int run_replay_command(const ReplayCliOptions& o) {
+    // Reading its file an interrupt ends the command as it would any other (a file that never ends, a FIFO
+    // that no one writes to). From the file on, it ends the replay the documented way: before the target is
+    // opened, with nothing sent (exit 2, "stopped": true); later it stops the steps, not the restore.
+    auto reproducer = fuzz::network::load_reproducer(o.file);
+    if (!reproducer) {
+        std::cerr << "mbscope replay: " << reproducer.error() << '\n';
+        return exit_failure;
+    }
+    const std::atomic<bool>& stop = stop_on_signals(BrokenPipe::Ignored);
+    const auto& r = *reproducer;
+    auto endpoint = modbus::transport::parse_endpoint(o.target.empty() ? r.target : o.target);
+    if (!endpoint) {
+        std::cerr << "mbscope replay: " << endpoint.error() << '\n';
+        return exit_failure;
+    }
+    const auto profile =
+        load_profile_for(o.profile.empty() ? r.profile : o.profile, o.profile_dirs, o.config, "replay");
+    if (!profile) return exit_failure;
+    const auto framing = modbus::transport::framing_of(endpoint->scheme);
+    if (!r.framing.empty() && r.framing != modbus::to_string(framing))
+        std::cerr << "mbscope replay: the reproducer was recorded with " << r.framing
+                  << " framing; the target uses " << modbus::to_string(framing)
+                  << ": the bytes are sent as recorded\n";
+    if (stop) return report_replay(o, r, {});  // before the target was opened: nothing sent
+    auto client = modbus::transport::Client::open(*endpoint);
+    if (!client && stop) return report_replay(o, r, {});  // the signal cut the opening short
+    if (!client) {
+        std::cerr << "mbscope replay: cannot reach the target: " << client.error() << '\n';
+        return exit_failure;
+    }
+    run_begins();
+    return report_replay(o, r, replay_steps(*client, *endpoint, *profile, r, o, stop));
 }
 
 }  // namespace

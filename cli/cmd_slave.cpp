@@ -43,6 +43,9 @@ struct SlaveOptions {
 };
 
 int run_slave(const SlaveOptions& o) {
+    // Before the profiles load: a signal from here on stops the slave as one while it serves does (exit 0,
+    // its counts said), not by killing it.
+    const auto& stop = stop_on_signals(BrokenPipe::Ignored);
     auto endpoint = modbus::transport::parse_endpoint(o.listen);
     if (!endpoint) {
         std::cerr << "mbscope slave: " << endpoint.error() << '\n';
@@ -190,6 +193,7 @@ int run_slave(const SlaveOptions& o) {
         std::cerr << "mbscope slave: " << opened.error() << '\n';
         return exit_failure;
     }
+    run_begins();
     // The address first and alone on stdout, so scripts and tests can read where to connect.
     std::cout << server.address() << std::endl;
     if (!o.quiet) {
@@ -218,7 +222,7 @@ int run_slave(const SlaveOptions& o) {
         for (const auto& f : o.faults)
             std::cerr << "mbscope slave: planted fault " << f << '\n';
     }
-    auto ran = server.run(stop_on_signals(BrokenPipe::Ignored));
+    auto ran = server.run(stop);
     if (!ran) {
         std::cerr << "mbscope slave: " << ran.error() << '\n';
         return exit_failure;

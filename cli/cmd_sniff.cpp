@@ -22,9 +22,19 @@ struct SniffCliOptions {
     std::uint64_t count = 0;
 };
 
+// A step before the capture failed: exit 2, and said to be the stop's doing when a signal cut it short (the
+// open of a --csv FIFO no one reads, interrupted).
+int not_started(const std::atomic<bool>& stop) {
+    if (stop) std::cerr << "mbscope sniff: interrupted before the capture began\n";
+    return exit_failure;
+}
+
 int run_sniff(SniffCliOptions o) {
+    // Before the profiles load and the capture opens: a signal from here on stops the capture as one during
+    // it does (the summary printed), not by killing it.
+    const auto& stop = stop_on_signals(BrokenPipe::Stops);
     analyzer::AnalyzerOptions options;
-    if (!apply_analysis_options(o.common, "sniff", options)) return exit_failure;
+    if (!apply_analysis_options(o.common, "sniff", options)) return not_started(stop);
     auto& s = o.sniff;
     s.tcp_ports = options.tcp_ports;
     s.udp_ports = options.udp_ports;
@@ -32,7 +42,7 @@ int run_sniff(SniffCliOptions o) {
     if (!o.duration.empty()) s.duration = *parse_duration(o.duration);
     if (o.count > 0) s.count = o.count;
     Outputs outputs;
-    if (!outputs.open(o.common, "sniff")) return exit_failure;
+    if (!outputs.open(o.common, "sniff")) return not_started(stop);
     std::string error;
     bool permission_denied = false;
     auto capture = analyzer::LiveCapture::open(s, error, permission_denied);
@@ -42,10 +52,11 @@ int run_sniff(SniffCliOptions o) {
                                           "device's group)"
                                         : "")
                   << '\n';
-        return exit_failure;
+        return not_started(stop);
     }
     analyzer::Analyzer a(options, outputs.sink());
-    const bool ok = capture->run(a, stop_on_signals(BrokenPipe::Stops));
+    run_begins();
+    const bool ok = capture->run(a, stop);
     a.finish();
     const bool input_errors = report_input_problems(a.summary(), "sniff");
     report_unused_maps(o.common, options, "sniff");

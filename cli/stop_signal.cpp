@@ -10,25 +10,44 @@ namespace {
 std::atomic<bool> stop_requested{false};
 std::atomic<bool> stop_requested_again{false};
 static_assert(std::atomic<bool>::is_always_lock_free, "set from a signal handler");
+BrokenPipe installed_broken_pipe = BrokenPipe::Kills;
 
 extern "C" void on_stop_signal(int) {
     if (stop_requested.exchange(true)) stop_requested_again.store(true);
 }
 
-}  // namespace
-
-std::atomic<bool>& stop_on_signals(BrokenPipe broken_pipe) {
-    std::signal(SIGINT, on_stop_signal);
-    std::signal(SIGTERM, on_stop_signal);
+void install(BrokenPipe broken_pipe, bool restart) {
+    struct sigaction stop {};
+    stop.sa_handler = on_stop_signal;
+    sigemptyset(&stop.sa_mask);
+    stop.sa_flags = restart ? SA_RESTART : 0;
+    ::sigaction(SIGINT, &stop, nullptr);
+    ::sigaction(SIGTERM, &stop, nullptr);
     // A hangup (the terminal or SSH session gone) stops as Ctrl-C does: check restores what it wrote and
     // writes its reports, slave and sniff close and flush, instead of dying with the device left changed.
     // Unless it is ignored already (nohup): that is the user's wish to outlive the terminal.
     struct sigaction hup {};
     if (::sigaction(SIGHUP, nullptr, &hup) == 0 && hup.sa_handler != SIG_IGN)
-        std::signal(SIGHUP, on_stop_signal);
+        ::sigaction(SIGHUP, &stop, nullptr);
     if (broken_pipe == BrokenPipe::Ignored) std::signal(SIGPIPE, SIG_IGN);
-    if (broken_pipe == BrokenPipe::Stops) std::signal(SIGPIPE, on_stop_signal);
+    if (broken_pipe == BrokenPipe::Stops) ::sigaction(SIGPIPE, &stop, nullptr);
+}
+
+}  // namespace
+
+std::atomic<bool>& stop_on_signals(BrokenPipe broken_pipe) {
+    installed_broken_pipe = broken_pipe;
+    install(broken_pipe, false);
+    sigset_t stops;
+    sigemptyset(&stops);
+    sigaddset(&stops, SIGINT);
+    sigaddset(&stops, SIGTERM);
+    ::sigprocmask(SIG_UNBLOCK, &stops, nullptr);
     return stop_requested;
+}
+
+void run_begins() {
+    install(installed_broken_pipe, true);
 }
 
 const std::atomic<bool>& second_stop_signal() {

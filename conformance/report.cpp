@@ -33,6 +33,14 @@ std::string ms(std::chrono::nanoseconds d) {
     return buf;
 }
 
+// A JUnit `time`: seconds as the schema's xs:decimal, in fixed notation to the microsecond. Streamed as a
+// double it read "4.9333e-05", which the JUnit XSD and the CI tools that check against it refuse.
+std::string seconds_text(std::chrono::nanoseconds d) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6f", static_cast<double>(d.count()) / 1e9);
+    return buf;
+}
+
 // Failures of implied rules are warnings: the manual does not say it in so many words.
 std::string shown_outcome(const RuleResult& r) {
     if (r.outcome == Outcome::Fail && r.rule.authority == Authority::Implied) return "warn";
@@ -274,8 +282,7 @@ void write_junit(std::ostream& out, const Report& report) {
         << report.failures_of(Authority::Specification) + report.failures_of(Authority::Manual) +
                (not_restored ? 1 : 0)
         << "\" errors=\"" << report.count(Outcome::Error) + (run_error.empty() ? 0 : 1) << "\" skipped=\""
-        << report.count(Outcome::Skip) << "\" time=\"" << static_cast<double>(report.wall.count()) / 1e9
-        << "\">\n";
+        << report.count(Outcome::Skip) << "\" time=\"" << seconds_text(report.wall) << "\">\n";
     // An interrupted run, or one that judged no rule, certifies nothing: one testcase in error says so, so
     // that a CI job fails on it.
     if (!run_error.empty())
@@ -290,18 +297,18 @@ void write_junit(std::ostream& out, const Report& report) {
             << "  </testsuite>\n";
     for (const auto& [family, rules] : suites) {
         Tally t;
-        double seconds = 0;
+        std::chrono::nanoseconds time{0};
         for (const auto* r : rules) {
             t.add(*r);
-            seconds += static_cast<double>(r->duration.count()) / 1e9;
+            time += r->duration;
         }
         out << "  <testsuite name=\"" << xml_escape(family) << "\" tests=\"" << rules.size()
             << "\" failures=\"" << t.fail << "\" errors=\"" << t.error << "\" skipped=\"" << t.skip
-            << "\" time=\"" << seconds << "\">\n";
+            << "\" time=\"" << seconds_text(time) << "\">\n";
         for (const auto* r : rules) {
             out << "    <testcase classname=\"" << xml_escape("mbscope." + report.profile_id + "." + family)
-                << "\" name=\"" << xml_escape(r->rule.id) << "\" time=\""
-                << static_cast<double>(r->duration.count()) / 1e9 << "\">\n";
+                << "\" name=\"" << xml_escape(r->rule.id) << "\" time=\"" << seconds_text(r->duration)
+                << "\">\n";
             std::string body = r->rule.text + "\nsource: " + r->rule.source + " (" +
                                std::string(to_string(r->rule.authority)) + ")\nexpected: " + r->expected +
                                "\nobserved: " + r->observed + "\n";

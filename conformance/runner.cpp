@@ -225,6 +225,12 @@ Report unreachable_report(const modbus::Profile& profile, const CheckOptions& op
     return report;
 }
 
+Report interrupted_report(const modbus::Profile& profile, const CheckOptions& options) {
+    Report report = report_heading(profile, options);
+    report.stopped = true;
+    return report;
+}
+
 Report run_check(modbus::transport::Client& client, const modbus::Profile& profile,
                  const CheckOptions& options, const std::atomic<bool>* stop) {
     const auto started = std::chrono::steady_clock::now();

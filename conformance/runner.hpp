@@ -74,4 +74,8 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
 Report unreachable_report(const modbus::Profile& profile, const CheckOptions& options,
                           const std::string& why);
 
+// The report of a run interrupted before it began (a signal while the profile loaded or the target opened):
+// no rule run, nothing sent, `stopped` set, so that every report says "interrupted" as a later stop's does.
+Report interrupted_report(const modbus::Profile& profile, const CheckOptions& options);
+
 }  // namespace mbscope::conformance

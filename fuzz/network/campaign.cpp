@@ -850,6 +850,7 @@ CampaignSummary Campaign::run() {
     if (!healthy(nullptr, true)) {
         s_.error = "no normal reply to the health-check request " + modbus::hex_bytes(health_) + " (unit " +
                    std::to_string(options_.unit) + ")";
+        s_.stopped = options_.stop && options_.stop->load();
         return s_;
     }
     s_.reachable = true;
@@ -1035,10 +1036,19 @@ double CampaignSummary::requests_per_second() const {
 }
 
 CampaignSummary run_campaign(const modbus::Profile& profile, const CampaignOptions& options) {
+    const auto stopped = [&] { return options.stop && options.stop->load(); };
+    // Stopped before it began (a signal while the profile loaded): the target is not even opened, and the
+    // summary says the run was interrupted with nothing done. The same when the stop cut the opening short.
+    if (stopped()) {
+        CampaignSummary s;
+        s.stopped = true;
+        return s;
+    }
     auto client = modbus::transport::Client::open(options.endpoint);
     if (!client) {
         CampaignSummary s;
         s.error = client.error();
+        s.stopped = stopped();
         return s;
     }
     Campaign c(profile, options, *client);

@@ -188,3 +188,29 @@ TEST(FrameCommand, AFramesFileOverTheLimitIsRefused) {
     EXPECT_NE(r.out.find(path + ": larger than 67108864 bytes"), std::string::npos) << r.out;
     std::remove(path.c_str());
 }
+
+// `--file --json` printed an object for a file of one frame and an array for a file of several: a consumer
+// had to handle both. A file's frames are always an array; a frame given on the command line is one object.
+TEST(FrameCommand, AFileIsAnArrayInJsonHoweverManyFramesItHolds) {
+    const std::string path = ::testing::TempDir() + "frame_command_one_frame.txt";
+    {
+        std::FILE* f = std::fopen(path.c_str(), "wb");
+        ASSERT_NE(f, nullptr);
+        std::fputs("rtu 11 03 00 60 00 03 07 45  # 000:356 FC3 read registers 96..98 (request)\n", f);
+        std::fclose(f);
+    }
+    const auto one = run_mbscope("frame --file " + path + " --json");
+    ASSERT_EQ(one.exit_code, 0) << one.out;
+    const auto file = nlohmann::json::parse(one.out);
+    ASSERT_TRUE(file.is_array()) << one.out;
+    ASSERT_EQ(file.size(), 1u);
+    EXPECT_EQ(file[0]["wire"], "11 03 00 60 00 03 07 45");
+    EXPECT_EQ(file[0]["function_code"], 3);
+
+    const auto given = run_mbscope("frame --rtu 11 03 00 60 00 03 07 45 --json");
+    ASSERT_EQ(given.exit_code, 0) << given.out;
+    const auto frame = nlohmann::json::parse(given.out);
+    ASSERT_TRUE(frame.is_object()) << given.out;
+    EXPECT_EQ(frame["wire"], "11 03 00 60 00 03 07 45");
+    std::remove(path.c_str());
+}

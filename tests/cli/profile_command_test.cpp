@@ -407,3 +407,44 @@ TEST(ProfileCommand, LongNamesAreCutBetweenCharacters) {
     EXPECT_NE(r.out.find("Temperatura do canal de entrada um na posi…"), std::string::npos) << r.out;
     EXPECT_TRUE(utf8(r.out)) << r.out;
 }
+
+// A file name is the user's bytes, and need not be UTF-8: validate, list and show with --json aborted (exit
+// 134, nlohmann's type_error.316 "invalid UTF-8 byte") over a copy of a bundled profile named "c\xFFth.json".
+// Each prints its JSON whole, the byte that is not UTF-8 replaced (U+FFFD).
+TEST(ProfileCommand, JsonOutputTakesAFileNameThatIsNotUtf8) {
+    namespace fs = std::filesystem;
+    const fs::path d = fs::temp_directory_path() / ("mbscope-not-utf8-" + std::to_string(::getpid()));
+    fs::remove_all(d);
+    fs::create_directories(d);
+    const fs::path copy = d / "c\xFFth.json";
+    fs::copy_file(fs::path(MBSCOPE_SOURCE_DIR) / "profiles" / "cth2265i.json", copy);
+    const std::string shown = (d / "c\xEF\xBF\xBDth.json").string();  // U+FFFD in place of 0xFF
+    const auto parsed = [](const mbscope::test::CliRun& r) {
+        return nlohmann::json::parse(r.out, nullptr, false);
+    };
+
+    const auto validated = run_mbscope("profile validate --json '" + copy.string() + "' 2>/dev/null");
+    EXPECT_EQ(validated.exit_code, 0) << validated.out;
+    const auto v = parsed(validated);
+    ASSERT_FALSE(v.is_discarded()) << validated.out;
+    EXPECT_EQ(v["files"][0]["file"], shown);
+    EXPECT_EQ(v["files"][0]["status"], "ok");
+
+    const std::string in_dir = "profile --profile-dir " + d.string() + " ";
+    const auto listed = run_mbscope(in_dir + "list --json 2>/dev/null");
+    EXPECT_EQ(listed.exit_code, 0) << listed.out;
+    const auto l = parsed(listed);
+    ASSERT_FALSE(l.is_discarded()) << listed.out;
+    bool found = false;
+    for (const auto& e : l)
+        found |= e["id"] == "cth2265i" && e["file"] == shown;
+    EXPECT_TRUE(found) << listed.out;
+
+    const auto shown_profile = run_mbscope(in_dir + "show cth2265i --json 2>/dev/null");
+    EXPECT_EQ(shown_profile.exit_code, 0) << shown_profile.out;
+    const auto s = parsed(shown_profile);
+    ASSERT_FALSE(s.is_discarded()) << shown_profile.out;
+    EXPECT_EQ(s["file"], shown);
+    EXPECT_FALSE(s["tables"]["holding_registers"].empty());
+    fs::remove_all(d);
+}

@@ -15,6 +15,7 @@
 #include <poll.h>
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cctype>
 #include <cstdlib>
@@ -1154,6 +1155,48 @@ TEST(Reports, JunitIsWellFormedWhateverTheTextsHold) {
         path.string();
     EXPECT_EQ(std::system(check.c_str()), 0) << out.str();
     std::filesystem::remove(path);
+}
+
+// JUnit's `time` is an xs:decimal: a double streamed as is read "4.9333e-05" for a rule judged in 49 µs, and
+// the JUnit XSD (and the CI tools that validate against it) refused the file. Every time, of the run, of each
+// suite and of each testcase, is in seconds in fixed notation, to the microsecond.
+TEST(Reports, JunitTimesAreDecimalsNotScientificNotation) {
+    Report report;
+    report.profile_id = "mmk-2030";
+    report.wall = std::chrono::nanoseconds(49'333);
+    for (const auto& [id, ns] :
+         {std::pair{"fc.supported.3", 49'333}, std::pair{"fc.supported.4", 1'250'000'000}}) {
+        RuleResult r;
+        r.rule.id = id;
+        r.rule.family = "function codes";
+        r.outcome = Outcome::Pass;
+        r.duration = std::chrono::nanoseconds(ns);
+        report.results.push_back(r);
+    }
+    std::ostringstream out;
+    write_junit(out, report);
+    const std::string xml = out.str();
+    EXPECT_NE(xml.find("<testsuites name=\"mbscope check mmk-2030 \" tests=\"2\" failures=\"0\" errors=\"0\" "
+                       "skipped=\"0\" time=\"0.000049\">"),
+              std::string::npos)
+        << xml;
+    EXPECT_NE(xml.find("<testsuite name=\"function codes\" tests=\"2\" failures=\"0\" errors=\"0\" "
+                       "skipped=\"0\" time=\"1.250049\">"),
+              std::string::npos)
+        << xml;
+    EXPECT_NE(xml.find("name=\"fc.supported.3\" time=\"0.000049\""), std::string::npos) << xml;
+    EXPECT_NE(xml.find("name=\"fc.supported.4\" time=\"1.250000\""), std::string::npos) << xml;
+    // Every time attribute is an xs:decimal: digits, a point, digits; no exponent.
+    std::size_t times = 0;
+    for (auto at = xml.find(" time=\""); at != std::string::npos; at = xml.find(" time=\"", at + 1)) {
+        const auto from = at + 7;
+        const std::string value = xml.substr(from, xml.find('"', from) - from);
+        ++times;
+        EXPECT_FALSE(value.empty());
+        EXPECT_EQ(value.find_first_not_of("0123456789."), std::string::npos) << value;
+        EXPECT_LE(std::count(value.begin(), value.end(), '.'), 1) << value;
+    }
+    EXPECT_EQ(times, 4u) << xml;  // the run, the suite, its two testcases
 }
 
 TEST(Reports, JunitHasOneTestcasePerRuleAndMatchingCounts) {
