@@ -340,6 +340,24 @@ TEST(Peer, PymodbusRtuOverTcpPipeliningIsAWarning) {
     EXPECT_EQ(report.failures_of(Authority::Specification), 0u);
 }
 
+// pymodbus's RTU framer over a stream, given a request of a code whose length no function code tells,
+// waits for the rest of it: silence, which over RTU on a stream nothing can end (a line's silence does, SL
+// §2.5.1.1). check failed 113 fc.unsupported rules against the specification there: warnings now.
+TEST(Peer, PymodbusRtuOverTcpSilenceToAnUnknownCodeIsAWarning) {
+    if (::access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "no /usr/bin/python3 (python3-pymodbus)";
+    PymodbusPeer server("rtu-tcp");
+    ASSERT_TRUE(server.client.has_value()) << "pymodbus server did not start (python3-pymodbus installed?)";
+    const auto report =
+        certify(*server.client, {"fc.unsupported.9", "fc.unsupported.65", "fc.unsupported.100"});
+    ASSERT_EQ(report.results.size(), 3u);
+    for (const auto& x : report.results) {
+        EXPECT_EQ(x.outcome, Outcome::Fail) << x.rule.id << ": " << x.observed;
+        EXPECT_EQ(x.rule.authority, Authority::Implied) << x.rule.id;
+        EXPECT_NE(x.rule.source.find("no end a device can find"), std::string::npos) << x.rule.source;
+    }
+    EXPECT_EQ(report.failures_of(Authority::Specification), 0u);
+}
+
 // ASCII's hex digits are 0-9 and A-F (SL §2.5.2.1; the MK manual, 000:258): pymodbus's ASCII framer writes
 // its replies in upper case and reads a request in either. A request in lower case, which the specification
 // leaves undefined, may be read or ignored; a reply in lower case fails the specification. Both rules used to
