@@ -280,6 +280,8 @@ bool Analyzer::server_port(Transport transport, std::uint16_t port) const {
 // A SYN tells who the client is (its sender; a SYN-ACK's receiver), whatever came before it on these
 // endpoints; without one, the end that spoke first is taken for the client, as a Modbus client speaks first
 // (a capture begun between a request and its reply gets it wrong; one begun with the connection does not).
+// Spoke: at least an MBAP header and a function code, the shortest ADU; a keepalive probe's one byte, which
+// a server's stack may send first, tells nothing.
 std::optional<bool> Analyzer::sent_by_client(const L4Packet& l4) {
     const FlowKey forward = flow_key(l4.transport, l4.source, l4.destination);
     const FlowKey backward = flow_key(l4.transport, l4.destination, l4.source);
@@ -291,7 +293,8 @@ std::optional<bool> Analyzer::sent_by_client(const L4Packet& l4) {
     }
     if (told_clients_.count(forward)) return true;
     if (told_clients_.count(backward)) return false;
-    if (l4.payload.empty()) return std::nullopt;  // an ACK, FIN or RST: nothing to decode, nothing told
+    constexpr std::size_t shortest_adu = 8;
+    if (l4.payload.size() < shortest_adu) return std::nullopt;  // an ACK, a keepalive probe: nothing told
     told_clients_.insert(forward);
     return true;
 }
@@ -742,6 +745,13 @@ std::string gap_place_text(const Frame& f) {
     return "silence of " + std::string(chars) + " character times between bytes " +
            std::to_string(f.gap_before_byte) + " and " + std::to_string(f.gap_before_byte + 1) + " of " +
            std::to_string(f.wire_length);
+}
+
+// A serial request every slave discards: its checksum failed, or it has a silence above t1.5 inside (SL
+// §2.5.1.1, §2.5.1.2, §2.5.2.2).
+bool discardable(const FrameRecord& request) {
+    return request.frame.framing != Framing::Tcp &&
+           (!request.frame.checksum_ok || request.frame.findings.contains(FindingCode::RtuGapInsideFrame));
 }
 }  // namespace
 
@@ -1484,6 +1494,12 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
             return std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
         };
         ++stats.late_responses;
+        // Counted discarded at its timeout (its checksum failed, or a silence inside it), and answered
+        // after all: the device got it, late. A timeout answered late, as late_responses counts them.
+        if (discardable(request) && stats.damaged_unanswered > 0) {
+            --stats.damaged_unanswered;
+            ++stats.timeouts;
+        }
         if (made) {
             made->late_past = late->timeout;
             made->late_moved_on = late->moved_on_at != 0;
@@ -1581,9 +1597,7 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         // with a silence above t1.5 inside it (SL §2.5.1.1): its silence is right, not a timeout held
         // against the device. (It waited all the same: a capture can damage what the device got whole, and
         // a reply then answers it; a device that ignores t1.5 answers the gapped one.)
-        const bool gapped = request.frame.findings.contains(FindingCode::RtuGapInsideFrame);
-        const bool discarded = request.frame.framing != Framing::Tcp &&
-                               (!request.frame.checksum_ok || gapped) && unanswered &&
+        const bool discarded = discardable(request) && unanswered &&
                                (unanswered->code == FindingCode::PairNoResponse ||
                                 unanswered->code == FindingCode::PairNoResponseAtEnd);
         if (discarded) {

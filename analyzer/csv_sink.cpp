@@ -129,8 +129,8 @@ std::string status_of(const TransactionRecord& t) {
 
 namespace {
 // Bytes that are not UTF-8 and control characters other than CR, LF and tab (a file name may hold both)
-// written as \xNN, as the text output writes them: RFC 4180's text holds neither, and a reader decoding the
-// file as UTF-8 stopped at them. CR and LF are a quoted field's own.
+// written as \xNN: RFC 4180's text holds neither, and a reader decoding the file as UTF-8 stopped at them.
+// CR and LF are a quoted field's own.
 std::string csv_text(std::string_view raw) {
     std::string out;
     out.reserve(raw.size());

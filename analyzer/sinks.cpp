@@ -17,7 +17,7 @@ using json = nlohmann::json;
 // Whole seconds and their fraction converted apart: nanoseconds since 1970 (1.7e18) are past a double's
 // 53 bits, and converting them whole made .012999 print as .0129988.
 double seconds(Timestamp t) {
-    const auto whole = std::chrono::floor<std::chrono::seconds>(t);
+    const auto whole = std::chrono::duration_cast<std::chrono::seconds>(t);  // toward zero: -0.5 s is 0 - 0.5
     return static_cast<double>(whole.count()) + std::chrono::duration<double>(t - whole).count();
 }
 

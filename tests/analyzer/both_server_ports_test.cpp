@@ -82,13 +82,14 @@ TEST(BothServerPorts, TheSynSaysWhoTheClientIs) {
     }
 }
 
-// Without the SYN (a capture begun mid-connection) the first to speak is the client; an ACK before it
-// tells nothing.
+// Without the SYN (a capture begun mid-connection) the first to send an ADU is the client; an ACK or a
+// keepalive probe (one byte the server's stack sends again) before it tells nothing.
 TEST(BothServerPorts, WithoutTheSynTheFirstToSpeakIsTheClient) {
     for (const bool first_is_client : {true, false}) {
         SCOPED_TRACE(first_is_client);
         BothOn502 c;
-        c.send(!first_is_client, {}, 0x10);  // the server's ACK of something before the capture
+        c.send(!first_is_client, {}, 0x10);      // the server's ACK of something before the capture
+        c.send(!first_is_client, {0x00}, 0x10);  // its keepalive probe: one byte it sent before
         for (std::uint16_t tid = 1; tid <= 3; ++tid) {
             c.send(first_is_client, read_request(tid));
             c.send(!first_is_client, read_response(tid));

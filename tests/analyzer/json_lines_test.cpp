@@ -280,7 +280,9 @@ TEST(JsonLines, TimesKeepTheirDigits) {
     for (const auto& [time, text] :
          {std::pair{1'700'000'000'012'999'000ns, "1700000000.012999"},
           std::pair{1'700'000'000'000'001'000ns, "1700000000.000001"},
-          std::pair{1'700'000'000'500'000'000ns, "1700000000.5"}, std::pair{12'345'678ns, "0.012345678"}}) {
+          std::pair{1'700'000'000'500'000'000ns, "1700000000.5"}, std::pair{12'345'678ns, "0.012345678"},
+          std::pair{-12'999'000ns, "-0.012999"},
+          std::pair{-1'700'000'000'012'999'000ns, "-1700000000.012999"}}) {
         const mb::Timestamp t(time);
         EXPECT_EQ(json(an::seconds(t)).dump(), text);
         mb::JsonWriter w;

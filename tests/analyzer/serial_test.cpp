@@ -366,6 +366,27 @@ TEST(SerialInput, ARequestWithASilenceInsideLeftUnansweredIsNoTimeout) {
     EXPECT_TRUE(r->sink.transactions[2].response.has_value());
 }
 
+// A request counted discarded at its timeout (a silence inside it, or its CRC failed) that the device then
+// answers: it got the request, late. A timeout answered late, not also a discarded request (the summary said
+// "0 timeouts (1 answered late), 1 damaged requests discarded").
+TEST(SerialInput, ADiscardedRequestAnsweredLateIsATimeoutAnsweredLate) {
+    for (const bool gap : {true, false}) {
+        SCOPED_TRACE(gap ? "a silence inside" : "a bad CRC");
+        const auto path =
+            write_temp("late_discarded.txt", gap ? "1.000000 > 11 03 00 60\n"
+                                                   "1.006250 > 00 03 07 45\n"
+                                                   "2.500000 < 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                                                 : "1.000000 > 11 03 00 60 00 03 07 46\n"
+                                                   "2.500000 < 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+        auto r = decode(path, an::InputFormat::Text);
+        const auto& device = r->summary.devices.at("serial " + path + " unit 17");
+        EXPECT_EQ(device.requests, 1u);
+        EXPECT_EQ(device.timeouts, 1u);
+        EXPECT_EQ(device.late_responses, 1u);
+        EXPECT_EQ(device.damaged_unanswered, 0u);
+    }
+}
+
 // Line noise of a few bytes is a frame to some unit whose CRC fails: "3C 03 A1 22 7F" made unit 60 a device
 // with a discarded request, "FF 83 11 22" unit 255 (its function named FC3 on its line, FC131 in the
 // summary). A damaged request to a unit no frame of its line has shown is no device's, unless the unit shows
@@ -439,7 +460,8 @@ TEST(SerialInput, LineNoiseMakesNoDevice) {
     EXPECT_EQ(late5.requests, 1u);
     EXPECT_EQ(late5.responses, 0u);
     EXPECT_EQ(late5.late_responses, 1u);
-    EXPECT_EQ(late5.damaged_unanswered, 1u);
+    EXPECT_EQ(late5.timeouts, 1u);  // answered after all: a timeout answered late, not a discarded request
+    EXPECT_EQ(late5.damaged_unanswered, 0u);
     EXPECT_EQ(r->summary.damaged_to_unseen_units, 0u);
 }
 
