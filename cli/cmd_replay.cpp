@@ -59,10 +59,15 @@ Replayed replay_steps(modbus::transport::Client& client, const modbus::transport
     // What the steps may write is read first and written back after them, as `mbscope fuzz` and
     // `mbscope check` do: replaying a finding leaves the device as it was.
     conformance::Session session(client, {unit, options.timeout, std::chrono::milliseconds(0)}, &profile);
+    // The steps go out over the session's client: each is told to it, so that the restore puts back only what
+    // they changed and leaves what the device changed itself (a write it refused wrote nothing).
+    session.watch_writes();
     fuzz::network::RememberedWrites remembered;
     if (!o.no_restore) remembered = fuzz::network::remember_writes(session, profile, r.steps);
     Replayed done;
     done.steps = fuzz::network::replay(client, oracle, r.steps, options);
+    for (std::size_t i = 0; i < done.steps.size(); ++i)
+        fuzz::network::note_step_writes(session, r.steps[i], done.steps[i]);
     // Writes to points outside the map were not read first: a device that acknowledged one changed them.
     done.unread = remembered.unread;
     for (const auto& w : fuzz::network::acknowledged_unchecked(remembered.unchecked, framing, done.steps))

@@ -114,12 +114,19 @@ std::vector<WrittenPoint> points_written(
 
 }  // namespace
 
-void Session::note_point(Table table, std::uint16_t address, std::optional<std::uint16_t> value, bool acked) {
+void Session::note_point(Table table, std::uint16_t address, std::optional<std::uint16_t> value, bool acked,
+                         bool late) {
     const auto it = touched_.find({table, address});
     if (it == touched_.end()) return;  // not kept: nothing a rule means to restore
     Touched& t = it->second;
-    t.written = value;
-    t.acknowledged = acked;
+    // A late acknowledgement is of a write kept before, perhaps not the point's last one since: the last
+    // value written stays, acknowledged only when it is that write's.
+    if (!late) {
+        t.written = value;
+        t.acknowledged = acked;
+    } else if (t.written == value) {
+        t.acknowledged = true;
+    }
     if (!value || *value != t.original) t.changed = true;
     if (!value)
         t.unknown_value = true;
@@ -128,11 +135,11 @@ void Session::note_point(Table table, std::uint16_t address, std::optional<std::
     if (acked && (!value || *value != t.original)) t.acknowledged_change = true;
 }
 
-void Session::note_write(std::span<const std::uint8_t> pdu, const tp::Exchange& ex) {
+void Session::note_write(std::span<const std::uint8_t> pdu, const std::optional<modbus::Pdu>& reply,
+                         bool late) {
     if (!watch_writes_ || restoring_ || pdu.empty()) return;
     const std::uint8_t fc = pdu[0];
     if (fc != 5 && fc != 6 && fc != 15 && fc != 16 && fc != 22 && fc != 23) return;
-    const auto reply = response_pdu(ex);
     // Exceptions 01, 02, 03 and 06 say the write was not executed (AP §7: a function, address or value
     // refused, or the device busy, "the request was not processed"): nothing changed. Not 04 (a failure
     // "while attempting to perform" it, which may have written part or all of it; the reference slave's
@@ -143,17 +150,18 @@ void Session::note_write(std::span<const std::uint8_t> pdu, const tp::Exchange& 
         if (code == 1 || code == 2 || code == 3 || code == 6) return;
     }
     const bool acked = reply && !reply->is_exception() && reply->function_code() == fc;
+    if (late && !acked) return;
     const auto current = [&](std::uint16_t address) -> std::optional<std::uint16_t> {
         const auto it = touched_.find({Table::HoldingRegisters, address});
         if (it == touched_.end()) return std::nullopt;
         return it->second.changed ? it->second.written : std::optional<std::uint16_t>(it->second.original);
     };
     for (const auto& w : points_written(pdu, current)) {
-        note_point(w.table, w.address, w.value, acked);
+        note_point(w.table, w.address, w.value, acked, late);
         // Where coils are views of the holding registers at their addresses (Walchem), a coil write leaves
         // 0 or 1 in the register (002:244, 493).
         if (w.table == Table::Coils && profile_ && profile_->coils_view_registers)
-            note_point(Table::HoldingRegisters, w.address, w.value, acked);
+            note_point(Table::HoldingRegisters, w.address, w.value, acked, late);
     }
 }
 
@@ -322,7 +330,7 @@ tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::stri
     }
     log(ex, note, true);
     account(ex, to, pdu);
-    note_write(pdu, ex);
+    note_write(pdu, response_pdu(ex));
     return ex;
 }
 
@@ -380,9 +388,10 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
     // rest of a split request read together with its first part.
     if (rest) {
         part_.insert(part_.end(), bytes.begin(), bytes.end());
-        if (auto f = modbus::decode_adu(client_.framing(), part_)) note_write(f.value().pdu(), ex);
+        if (auto f = modbus::decode_adu(client_.framing(), part_))
+            note_write(f.value().pdu(), response_pdu(ex));
     } else if (whole && frames == 1) {
-        note_write(decoded->pdu(), ex);
+        note_write(decoded->pdu(), response_pdu(ex));
     }
     return ex;
 }

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "conformance/rule.hpp"
+#include "modbus/pdu.hpp"
 #include "modbus/profile.hpp"
 #include "modbus/result.hpp"
 #include "modbus/transport/client.hpp"
@@ -101,12 +102,19 @@ class Session {
     std::optional<std::vector<bool>> read_bits(modbus::Table table, std::uint16_t start,
                                                std::uint16_t quantity, const std::string& note);
 
-    // The session sees every write made to the device (the conformance runner's rules all go through it):
-    // restore() then reads the points first and writes back only those the run changed, leaving alone a
-    // point whose write was refused, or carried the value it held, or that the device changed itself. Off
-    // (the network fuzzer and replay write through their own client), every remembered point is written
-    // back.
+    // The session sees every write made to the device: the conformance runner's rules all go through it,
+    // and the network fuzzer and a replay, which send their own requests over the session's client, tell it
+    // of theirs (note_write). restore() then reads the points first and writes back only those the run
+    // changed, leaving alone a point whose write was refused, or carried the value it held, or that the
+    // device changed itself. Off, every remembered point is written back.
     void watch_writes() noexcept { watch_writes_ = true; }
+    // watch_writes(): a write request the caller sent over the session's client itself, and the device's
+    // answer to it (nullopt: none came, or a damaged one or another request's), kept as the session keeps
+    // its own (a write refused with 01, 02, 03 or 06 wrote nothing). `late`: the answer came after the
+    // write was kept as unanswered; an acknowledgement then makes it acknowledged (a late exception changes
+    // nothing: the write was kept as perhaps executed, which the restore's read settles).
+    void note_write(std::span<const std::uint8_t> request_pdu, const std::optional<modbus::Pdu>& reply,
+                    bool late = false);
     // Keep the original values of [start, start+count) before writing them. False: they could not be read,
     // and the rule must not write.
     bool remember(modbus::Table table, std::uint16_t start, std::uint16_t count, std::uint16_t chunk = 1);
@@ -191,11 +199,9 @@ class Session {
     void log_late(std::vector<std::uint8_t> bytes);
     // After an exchange: a request that got nothing back joins the owed ones (OwedRequests).
     void account(const modbus::transport::Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu);
-    // watch_writes(): after an exchange of the request `pdu`, what a write did to the points kept (its value
-    // and whether it was acknowledged; a refused one did nothing).
-    void note_write(std::span<const std::uint8_t> pdu, const modbus::transport::Exchange& ex);
+    // What a write did to one point kept: its value and whether it was acknowledged (note_write).
     void note_point(modbus::Table table, std::uint16_t address, std::optional<std::uint16_t> value,
-                    bool acked);
+                    bool acked, bool late);
     // watch_writes(): before restoring, reads the points the run changed and decides each one: back already
     // (restored), the device's own change (left alone), or to be written back.
     void classify_for_restore(Ledger& ledger);

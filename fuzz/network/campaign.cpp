@@ -86,6 +86,9 @@ class Campaign {
                 rewritable_.push_back(&p);
         std::shuffle(rewritable_.begin(), rewritable_.end(), rng_);
         session_.share_owed(owed_);
+        // The probes go out over the session's client, not through it: each is told to it
+        // (note_step_writes), so that the restore puts back only what the run changed.
+        session_.watch_writes();
         replay_.timeout = options.timeout;
         // A serial device may keep the line quiet for t3.5 before it answers.
         if (serial_line_)
@@ -111,8 +114,9 @@ class Campaign {
     bool healthy(std::chrono::nanoseconds* latency = nullptr, bool strict = false);
     // Whether a write in `p` can land: addressed to the unit, broadcast, or to any unit over Modbus/TCP
     // (devices that ignore the unit id are common there).
-    bool lands(const Probe& p) const {
-        return framing_ == modbus::Framing::Tcp || p.unit == options_.unit || p.unit == 0;
+    bool lands(const Probe& p) const { return lands(p.unit); }
+    bool lands(std::uint8_t unit) const {
+        return framing_ == modbus::Framing::Tcp || unit == options_.unit || unit == 0;
     }
     bool prepare_writes(const Probe& p);
     // The reads prepare_writes would send before `p` (none unless it writes where a write can land).
@@ -124,7 +128,14 @@ class Campaign {
     bool remember_before_write(const WriteRange& range, const std::function<bool()>& read);
     void note_unread(const modbus::transport::Exchange& ex);
     void read_unanswered_writes();
-    void note_late_acknowledgement(std::span<const std::uint8_t> request_pdu, const modbus::Frame& reply);
+    void note_late_acknowledgement(std::uint8_t unit, std::span<const std::uint8_t> request_pdu,
+                                   const modbus::Frame& reply);
+    // Replays `steps` (a minimisation's) with `oracle`; what their writes did goes into the session's ledger
+    // as the probes' does (note_step_writes): the device may answer them otherwise than it did the probes.
+    std::vector<ReplayedStep> replay_steps(const std::vector<Step>& steps,
+                                           conformance::ExchangeOracle& oracle);
+    // The ledger after the run: what the restore did, and the points it could not vouch for (doubtful_).
+    void list_restored();
     std::optional<Probe> round_trip();
     void pace();
     void classify(const Probe& p, const ReplayedStep& r);
@@ -252,6 +263,7 @@ ReplayedStep Campaign::send(const Step& step, std::chrono::milliseconds timeout)
     const auto minimised = minimised_;
     auto r = send_step(client_, oracle_, step, o, owed_.list());
     last_send_ = Clock::now();
+    note_step_writes(session_, step, r);
     // The latency of this request's own reply: late replies to earlier ones are not its.
     if (!r.exchange.own_received().empty()) latency_.add(r.exchange.first_byte);
     if (framing_ != modbus::Framing::Tcp) {
@@ -294,7 +306,8 @@ void Campaign::judge_claimed(std::string_view when) {
         if (request.reply_due) ++s_.replies_after_timeout;
         const std::uint8_t fc = request.exchange.sent.size() > 7 ? request.exchange.sent[7] : 0;
         if (request.exchange.sent.size() > 7)
-            note_late_acknowledgement(std::span<const std::uint8_t>(request.exchange.sent).subspan(7), reply);
+            note_late_acknowledgement(request.exchange.sent[6],
+                                      std::span<const std::uint8_t>(request.exchange.sent).subspan(7), reply);
         for (const auto& v : judge_late_frame(oracle_, request.exchange, reply, when))
             record(v, fc, true);
     }
@@ -311,7 +324,7 @@ void Campaign::judge_settled(std::vector<modbus::transport::SettledRequest> sett
         if (s.request.reply_due) ++s_.replies_after_timeout;
         modbus::transport::Exchange request;
         request.sent = s.request.sent;
-        note_late_acknowledgement(s.request.pdu, s.reply);
+        note_late_acknowledgement(s.request.unit, s.request.pdu, s.reply);
         for (const auto& v : judge_late_frame(oracle_, request, s.reply, came))
             record(v, s.request.pdu.empty() ? 0 : s.request.pdu[0], true);
     }
@@ -548,8 +561,9 @@ void Campaign::read_unanswered_writes() {
 // and ASCII by what it answers): a reply after --timeout, or over Modbus/TCP one to a request the rules want
 // unanswered (another unit, which a device ignoring the unit id executes), which is not waited for at all.
 // The points it reached that were not read first changed as surely as with a prompt acknowledgement.
-void Campaign::note_late_acknowledgement(std::span<const std::uint8_t> request_pdu,
+void Campaign::note_late_acknowledgement(std::uint8_t unit, std::span<const std::uint8_t> request_pdu,
                                          const modbus::Frame& reply) {
+    if (lands(unit)) note_late_answer(session_, request_pdu, reply);
     if (unknown_.empty() || !reply.checksum_ok) return;
     const auto range = write_range(request_pdu);
     if (!range || !acknowledges(request_pdu, reply.pdu())) return;
@@ -706,7 +720,7 @@ std::vector<Step> Campaign::minimise(const std::string& rule, std::vector<Step> 
         --budget;
         (void)client_.drain(std::chrono::milliseconds(0));
         conformance::ExchangeOracle fresh(framing_, {{options_.unit, &profile_}}, ip_network_);
-        return breaks(replay(client_, fresh, steps, replay_), rule);
+        return breaks(replay_steps(steps, fresh), rule);
     };
     // Steps are tried by their place in the window. A kept one is in every candidate: the device still
     // holds what the campaign wrote, so a candidate without the write that set a point the read reads may
@@ -759,9 +773,17 @@ std::vector<Step> Campaign::minimise(const std::string& rule, std::vector<Step> 
     std::vector<Step> steps = steps_of(found);
     if (!serial_line_ && client_.reconnect()) {
         conformance::ExchangeOracle fresh(framing_, {{options_.unit, &profile_}}, ip_network_);
-        on_new_connection = breaks(replay(client_, fresh, steps, replay_), rule);
+        on_new_connection = breaks(replay_steps(steps, fresh), rule);
     }
     return steps;
+}
+
+std::vector<ReplayedStep> Campaign::replay_steps(const std::vector<Step>& steps,
+                                                 conformance::ExchangeOracle& oracle) {
+    auto replayed = replay(client_, oracle, steps, replay_);
+    for (std::size_t i = 0; i < replayed.size(); ++i)
+        note_step_writes(session_, steps[i], replayed[i]);
+    return replayed;
 }
 
 void Campaign::record(const conformance::OracleViolation& v, std::uint8_t fc, bool replayable,
@@ -996,30 +1018,51 @@ CampaignSummary Campaign::run() {
     s_.elapsed = Clock::now() - start_;  // the fuzzing, not the restore after it
     s_.silence_wait = silence_wait();
     read_unanswered_writes();
-    if (s_.target_lost) {
-        // A target that stopped answering is not written to again (each point would wait out the timeout
-        // twice, an hour for 2,000 points at 1 s): every point written is listed as not restored, so the
-        // summary and the exit code say what was left changed.
-        for (const auto& [key, kept] : session_.touched()) {  // no std::views: clang 14 with libstdc++ 12
-            conformance::Touched t = kept;
-            t.restored = false;
-            t.problem = "not restored: the target stopped answering";
-            s_.restored.push_back(std::move(t));
-        }
-    } else {
-        if (const auto text = session_.restore_announcement(); options_.note && !text.empty())
-            options_.note(text);
-        if (!session_.touched().empty()) s_.restored = session_.restore();
-        for (auto& t : s_.restored)
-            if (doubtful_.count({t.table, t.address})) {
-                t.restored = false;
-                t.problem =
-                    "not restored: first read after a write that reached it unread, so the value put back "
-                    "may be one the fuzzer wrote";
-            }
-    }
+    list_restored();
     s_.not_read = ranges_of(not_read_);
     return s_;
+}
+
+void Campaign::list_restored() {
+    const std::string doubt =
+        "not restored: first read after a write that reached it unread, so the value read as its original "
+        "may be one the fuzzer wrote";
+    if (s_.target_lost) {
+        // A target that stopped answering is not written to again (each point would wait out the timeout
+        // twice, an hour for 2,000 points at 1 s): every point the run changed is listed as not restored, so
+        // the summary and the exit code say what was left changed.
+        for (const auto& [key, kept] : session_.touched()) {  // no std::views: clang 14 with libstdc++ 12
+            if (!kept.changed && !doubtful_.count(key)) continue;  // its writes refused, or of its value
+            conformance::Touched t = kept;
+            t.restored = false;
+            t.problem = kept.changed ? "not restored: the target stopped answering" : doubt;
+            s_.restored.push_back(std::move(t));
+        }
+        return;
+    }
+    if (const auto text = session_.restore_announcement(); options_.note && !text.empty())
+        options_.note(text);
+    if (!session_.touched().empty()) s_.restored = session_.restore();
+    for (auto& t : s_.restored)
+        if (doubtful_.count({t.table, t.address})) {
+            t.restored = false;
+            t.problem = doubt;
+        }
+    // A doubtful point the run did not change after its read is neither put back nor listed by the restore:
+    // what it held before the run is unknown all the same, and it is listed.
+    const auto listed = [&](const Location& point) {
+        return std::any_of(s_.restored.begin(), s_.restored.end(), [&](const auto& t) {
+            return t.table == point.first && t.address == point.second;
+        });
+    };
+    for (const auto& point : doubtful_) {
+        const auto kept = session_.touched().find(point);
+        if (kept == session_.touched().end() || listed(point)) continue;
+        conformance::Touched t = kept->second;
+        t.restored = false;
+        t.problem = doubt;
+        s_.restored.push_back(std::move(t));
+    }
 }
 
 std::string digest_text(std::uint64_t digest) {

@@ -378,6 +378,7 @@ std::vector<ReplayedStep> replay(modbus::transport::Client& client, conformance:
         const auto step = std::find_if(out.rbegin(), out.rend(),
                                        [&](const ReplayedStep& r) { return r.exchange.sent == sent; });
         if (step == out.rend()) return;
+        step->late_replies.push_back(reply);
         const auto found = judge_late_frame(oracle, step->exchange, reply, when);
         step->violations.insert(step->violations.end(), found.begin(), found.end());
     };

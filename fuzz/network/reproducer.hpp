@@ -70,6 +70,9 @@ struct ReplayedStep {
     // The rules want a reply (not silence: a bad checksum, a broadcast, another unit, a request voided by a
     // gap; nor no opinion).
     bool reply_due = false;
+    // Replies that came after the step was given up, during a later step or after the last (replay() judges
+    // them as this step's): a write acknowledged late changed its points all the same.
+    std::vector<modbus::Frame> late_replies;
 };
 
 struct ReplayOptions {

@@ -7,6 +7,7 @@
 #include "modbus/ascii_deframer.hpp"
 #include "modbus/pdu.hpp"
 #include "modbus/rtu_deframer.hpp"
+#include "modbus/transport/exchange.hpp"
 
 namespace mbscope::fuzz::network {
 namespace {
@@ -18,6 +19,7 @@ std::uint16_t word(std::span<const std::uint8_t> pdu, std::size_t at) {
 struct LooseRequest {
     std::uint8_t unit = 0;
     std::vector<std::uint8_t> pdu;
+    std::uint16_t transaction_id = 0;  // Modbus/TCP: its MBAP header's
 };
 
 // The requests a step's bytes carry as a device may read them, well formed or not. Over Modbus/TCP the ADUs
@@ -36,7 +38,8 @@ std::vector<LooseRequest> loose_requests(modbus::Framing framing, std::span<cons
             const std::size_t end = delimited ? at + 6 + length : bytes.size();
             out.push_back({bytes[at + 6],
                            {bytes.begin() + static_cast<std::ptrdiff_t>(at + header),
-                            bytes.begin() + static_cast<std::ptrdiff_t>(end)}});
+                            bytes.begin() + static_cast<std::ptrdiff_t>(end)},
+                           word(bytes, at)});
             at = end;
         }
         return out;
@@ -57,6 +60,34 @@ std::vector<LooseRequest> loose_requests(modbus::Framing framing, std::span<cons
             out.push_back({frame->unit_id(), {pdu.begin(), pdu.end()}});
         }
     return out;
+}
+
+// Whether a request to `unit` can land on the session's device: addressed to it or broadcast, or to any unit
+// over Modbus/TCP, where devices that ignore the unit id are common.
+bool lands(conformance::Session& session, std::uint8_t unit) {
+    return session.client().framing() == modbus::Framing::Tcp || unit == session.options().unit || unit == 0;
+}
+
+// The device's answer to `request` among `replies` (what came for its step, then its late replies), each
+// reply the answer to one request at most (`used`): over Modbus/TCP the one with its transaction id, unit
+// and protocol id 0, over RTU and ASCII the first one with a good checksum that could answer it (a device
+// answers in order). nullopt: none, or one no PDU decodes from, which tells nothing of what was done.
+std::optional<modbus::Pdu> reply_to(modbus::Framing framing, const LooseRequest& request,
+                                    const std::vector<modbus::Frame>& replies, std::vector<bool>& used) {
+    for (std::size_t i = 0; i < replies.size(); ++i) {
+        const modbus::Frame& f = replies[i];
+        const bool answers =
+            framing == modbus::Framing::Tcp
+                ? f.transaction_id() == request.transaction_id && f.protocol_id() == 0 &&
+                      (request.unit == 0 || f.unit_id() == request.unit)
+                : f.checksum_ok && modbus::transport::could_answer(request.unit, request.pdu, f);
+        if (used[i] || !answers) continue;
+        used[i] = true;
+        auto pdu = modbus::decode_response(f.pdu());
+        if (!pdu) return std::nullopt;
+        return std::move(pdu).value();
+    }
+    return std::nullopt;
 }
 
 }  // namespace
@@ -211,9 +242,7 @@ RememberedWrites remember_writes(conformance::Session& session, const modbus::Pr
     const auto framing = session.client().framing();
     for (std::size_t i = 0; i < steps.size(); ++i)
         for (const auto& request : loose_requests(framing, steps[i].joined())) {
-            if (framing != modbus::Framing::Tcp && request.unit != session.options().unit &&
-                request.unit != 0)
-                continue;
+            if (!lands(session, request.unit)) continue;
             const auto range = write_range(request.pdu);
             if (!range || range->count == 0) continue;
             if (!remember_range(session, profile, *range)) {
@@ -225,6 +254,27 @@ RememberedWrites remember_writes(conformance::Session& session, const modbus::Pr
             out.unchecked.push_back({i, request.pdu[0], ranges_of({missing.begin(), missing.end()})});
         }
     return out;
+}
+
+void note_step_writes(conformance::Session& session, const Step& step, const ReplayedStep& replayed) {
+    if (session.touched().empty()) return;  // no point read first: none a write could be kept for
+    const auto framing = session.client().framing();
+    auto requests = loose_requests(framing, step.joined());
+    std::erase_if(requests,
+                  [&](const LooseRequest& r) { return !lands(session, r.unit) || !write_range(r.pdu); });
+    if (requests.empty()) return;
+    auto replies = modbus::transport::frames_in(framing, replayed.exchange.own_received());
+    replies.insert(replies.end(), replayed.late_replies.begin(), replayed.late_replies.end());
+    std::vector<bool> used(replies.size());
+    for (const auto& request : requests)
+        session.note_write(request.pdu, reply_to(framing, request, replies, used));
+}
+
+void note_late_answer(conformance::Session& session, std::span<const std::uint8_t> request_pdu,
+                      const modbus::Frame& reply) {
+    if (!reply.checksum_ok) return;
+    auto pdu = modbus::decode_response(reply.pdu());
+    if (pdu) session.note_write(request_pdu, std::move(pdu).value(), true);
 }
 
 namespace {

@@ -135,6 +135,18 @@ struct RememberedWrites {
 };
 RememberedWrites remember_writes(conformance::Session& session, const modbus::Profile& profile,
                                  const std::vector<Step>& steps);
+// After a step was sent (a campaign's probe, a replay's step, a minimisation's): every write its bytes hold
+// that can land (as remember_writes reads them) is told to `session` with the device's answer to it
+// (conformance::Session::note_write, under watch_writes()): among what came for the step and its late
+// replies, over Modbus/TCP the reply carrying the write's transaction id, over RTU and ASCII the first that
+// could answer it. The restore then writes back only the points the steps changed, and leaves a point the
+// device changed itself after a write it refused or did not acknowledge.
+void note_step_writes(conformance::Session& session, const Step& step, const ReplayedStep& replayed);
+// A reply to the write `request_pdu` that came after its step was noted unanswered (the campaign's late
+// replies): an acknowledgement makes the write acknowledged (Session::note_write's `late`).
+void note_late_answer(conformance::Session& session, std::span<const std::uint8_t> request_pdu,
+                      const modbus::Frame& reply);
+
 // After the replay: the points of the unchecked writes whose step drew a normal reply of their function
 // (an acknowledgement, as a lax device gives to a write outside the map it holds after all). They may hold
 // the steps' values now and are not restored.

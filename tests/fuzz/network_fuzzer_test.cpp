@@ -31,9 +31,11 @@
 #include "fuzz/network/written_points.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/pdu.hpp"
 #include "modbus/transport/socket.hpp"
 #include "slave/slave_test_support.hpp"
 #include "tests/support/garbage_peer.hpp"
+#include "tests/support/map_device.hpp"
 #include "tests/support/process_support.hpp"
 
 namespace {
@@ -329,6 +331,111 @@ TEST(NetworkFuzzer, WritesALaxDeviceShouldHaveRefusedAreRestoredOrListed) {
                     << value(before, t, address) << " -> " << now;
             }
     }
+}
+
+// The device's own process beside the master, through `client`, a connection of its own: every coil and
+// holding register of [start, start + count) (count at most 123) takes a value other than the one it holds
+// (a register's XOR 0x5A5A, a coil's opposite). Returns the values it set.
+std::map<std::pair<Table, std::uint16_t>, std::uint16_t> device_moves(
+    mbscope::modbus::transport::Client& client, std::uint16_t start, std::uint16_t count) {
+    namespace mb = mbscope::modbus;
+    std::map<std::pair<Table, std::uint16_t>, std::uint16_t> set;
+    const auto ask = [&](const mb::Pdu& request) -> std::optional<mb::Pdu> {
+        const auto ex = client.transact(1, mb::encode_pdu(request), std::chrono::milliseconds(1000));
+        auto reply = ex.response ? mb::decode_response(ex.response->pdu()) : mb::decode_response({});
+        if (!reply || reply.value().is_exception()) {
+            ADD_FAILURE() << "the device's own process got no normal reply: " << mb::hex_bytes(ex.received);
+            return std::nullopt;
+        }
+        return std::move(reply).value();
+    };
+    if (const auto regs = ask(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, start, count))) {
+        auto values = std::get<mb::ReadRegistersResponse>(regs->body).values;
+        for (std::uint16_t i = 0; i < count; ++i) {
+            values[i] ^= 0x5A5A;
+            set[{Table::HoldingRegisters, static_cast<std::uint16_t>(start + i)}] = values[i];
+        }
+        (void)ask(mb::make_write_multiple_registers(start, values));
+    }
+    if (const auto bits = ask(mb::make_read_request(mb::FunctionCode::ReadCoils, start, count))) {
+        std::unique_ptr<bool[]> values(new bool[count]);
+        for (std::uint16_t i = 0; i < count; ++i) {
+            values[i] = !mb::bit_at(std::get<mb::ReadBitsResponse>(bits->body).values, i);
+            set[{Table::Coils, static_cast<std::uint16_t>(start + i)}] = values[i] ? 1 : 0;
+        }
+        (void)ask(mb::make_write_multiple_coils(start, {values.get(), count}));
+    }
+    return set;
+}
+
+// The campaign sends its probes over the session's client, and the session used to see none of them: the
+// restore wrote back every point it had read before a write, the writes the device refused and those of the
+// value a point held included, undoing what the device had changed itself since (the tester's counter at
+// register 50, rewound after a refused FC16), and the ledger said "written": null of every point. Now each
+// probe is told to the session as `mbscope check`'s rules are. Here the device's own process moves every
+// coil and holding register just before the restore (announced at a polling interval). A point the ledger
+// calls restored is back at its original, with what the run wrote there; one the device changed after a
+// write it did not acknowledge (a broadcast, which the slave executes and does not answer) keeps the
+// device's value, listed as its change; and a point the run did not change is not written back, keeping
+// the device's value too.
+TEST(NetworkFuzzer, TheRestorePutsBackOnlyWhatTheProbesChanged) {
+    RunningServer server({}, 7, "modbus");
+    auto o = options_for("tcp", server.start("tcp"));
+    o.requests = 1500;
+    o.interval = std::chrono::milliseconds(1);  // the restore is announced (CampaignOptions::note)
+    const auto& profile = mbscope::slave::test::profile("modbus");
+    const sl::RegisterImage before(profile, mbscope::modbus::transport::line_state(o.endpoint, 1));
+    std::map<std::pair<Table, std::uint16_t>, std::uint16_t> moved;
+    o.note = [&](const std::string& text) {
+        if (!text.starts_with("restoring")) return;
+        auto process = mbscope::modbus::transport::Client::open(o.endpoint);
+        ASSERT_TRUE(process.has_value()) << process.error();
+        for (std::uint32_t start = 0; start < 0x10000; start += 123) {
+            const auto count = static_cast<std::uint16_t>(std::min<std::uint32_t>(123, 0x10000 - start));
+            const auto set = device_moves(process.value(), static_cast<std::uint16_t>(start), count);
+            moved.insert(set.begin(), set.end());
+        }
+    };
+    const auto s = fz::run_campaign(profile, o);
+    server.stop();
+    ASSERT_TRUE(s.reachable) << s.error;
+    ASSERT_FALSE(s.target_lost) << listing(s);
+    ASSERT_FALSE(moved.empty()) << "the restore was not announced";
+    std::map<std::pair<Table, std::uint16_t>, mbscope::conformance::Touched> ledger;
+    for (const auto& t : s.restored)
+        ledger[{t.table, t.address}] = t;
+    const auto& after = server.device().image();
+    const auto value = [](const sl::RegisterImage& image, Table t, std::uint16_t a) {
+        return mbscope::modbus::is_bit_table(t) ? static_cast<std::uint16_t>(image.bit(t, a))
+                                                : image.reg(t, a);
+    };
+    std::size_t acknowledged = 0, device_changed = 0, left = 0;
+    for (const auto& [point, own] : moved) {
+        const auto& [table, address] = point;
+        const std::string where =
+            std::string(mbscope::modbus::to_string(table)) + " " + std::to_string(address);
+        const auto it = ledger.find(point);
+        if (it == ledger.end()) {
+            EXPECT_EQ(value(after, table, address), own) << where << ": written back, not changed by the run";
+            ++left;
+            continue;
+        }
+        const auto& t = it->second;
+        if (t.device_changed) {
+            EXPECT_FALSE(t.restored) << where;
+            EXPECT_EQ(value(after, table, address), own) << where << ": the device's own value overwritten";
+            EXPECT_EQ(t.left, std::optional<std::uint16_t>(own)) << where;
+            ++device_changed;
+        } else if (t.restored) {
+            EXPECT_EQ(t.original, value(before, table, address)) << where;
+            EXPECT_EQ(value(after, table, address), t.original) << where << ": called restored";
+            EXPECT_TRUE(t.written || t.unknown_value) << where << ": listed, and the run wrote nothing known";
+            acknowledged += t.acknowledged && t.written;
+        }
+    }
+    EXPECT_GT(acknowledged, 0u) << "no acknowledged write in the ledger";
+    EXPECT_GT(device_changed, 0u) << "no write the device did not acknowledge, changed by it since";
+    EXPECT_GT(left, 0u);
 }
 
 // A register mirroring a line setting is never given another value: a real MK device would leave the line.
@@ -1222,6 +1329,134 @@ TEST(FuzzCommand, AReplayListsAPointABroadcastStepReachedThatTheDeviceHolds) {
     EXPECT_EQ(u["unanswered_unread"][0]["table"], "holding_registers");
     EXPECT_EQ(u["unanswered_unread"][0]["start"], 5000);
     EXPECT_EQ(u["unanswered_unread"][0]["count"], 1);
+}
+
+// What `mbscope replay` wrote back, by point: the JSON ledger's entries.
+std::map<std::pair<std::string, int>, nlohmann::json> ledger_by_point(const nlohmann::json& j) {
+    std::map<std::pair<std::string, int>, nlohmann::json> out;
+    for (const auto& t : j["restored"])
+        out[{t["table"].get<std::string>(), t["address"].get<int>()}] = t;
+    return out;
+}
+
+// The tester's `repro_refused_write_pause.json` against a device whose register 50 counts by itself: a
+// step's FC16 was refused (exception 03: nothing written), the device's counter moved meanwhile, and the
+// restore wrote the value read before the steps back with FC6, undoing the device's own count, while the
+// ledger said "restored": true, "device_changed": false. The replay now tells the session its steps, as
+// `mbscope check`'s rules go through it: what a step changed goes back (an acknowledged FC6, the coils an
+// FC15 changed); a point no step changed (its write refused, or of the value it held) is not written back
+// nor listed, whatever the device did to it since; and one the device changed itself after a write it did
+// not acknowledge (exception 04: perhaps executed) is left as the device set it and listed as its change.
+TEST(FuzzCommand, AReplayPutsBackOnlyWhatItsStepsChanged) {
+    using mbscope::test::MapDevice;
+    MapDevice device(
+        [](MapDevice& d, const std::vector<std::uint8_t>& pdu) -> std::optional<MapDevice::Reply> {
+            // FC16 to 50-51 with byte count 3 for two registers: refused (exception 03) by the device's map.
+            if (pdu.size() == 9 && pdu[0] == 0x10 && pdu[2] == 50 && pdu[5] == 3) {
+                d.hr[50] = 0x0446;  // the device's counter, counting by itself
+                return std::nullopt;
+            }
+            if (pdu == std::vector<std::uint8_t>{0x06, 0x00, 70, 0x00, 0x09}) {
+                d.hr[70] = 4242;  // not executed, answered 04; the device's own value since
+                return MapDevice::Reply{std::vector<std::uint8_t>{0x86, 0x04}};
+            }
+            if (!pdu.empty() && pdu[0] == 0x04) d.hr[80] = 7777;  // after a step wrote 80 the value it held
+            return std::nullopt;
+        });
+    std::vector<std::uint8_t> coils{0x0F, 0x00, 0x00, 0x00, 100, 13};  // FC15 coils 0-99 on
+    coils.insert(coils.end(), 12, 0xFF);
+    coils.push_back(0x0F);
+    const auto file =
+        save_steps("mbscope-replay-own-changes.json", "tcp://127.0.0.1:" + std::to_string(device.port()),
+                   {{0x10, 0x00, 50, 0x00, 0x02, 0x03, 0x00, 0x01, 0x00},
+                    {0x06, 0x00, 60, 0x00, 0x05},
+                    {0x06, 0x00, 70, 0x00, 0x09},
+                    coils,
+                    {0x06, 0x00, 80, 0x04, 0x38},  // 1080, the value it holds
+                    {0x04, 0x00, 0x00, 0x00, 0x01}});
+    const auto replayed = run("replay --json --timeout 1000 " + file.string());
+    device.stop();
+    EXPECT_EQ(replayed.status, 1) << replayed.out;  // register 70 is not put back
+    EXPECT_EQ(device.hr[50], 0x0446) << "the device's own count was undone";
+    EXPECT_EQ(device.hr[51], 1051);
+    EXPECT_EQ(device.hr[60], 1060);
+    EXPECT_EQ(device.hr[70], 4242) << "the device's own value was overwritten";
+    EXPECT_EQ(device.hr[80], 7777) << "written back, though no step changed it";
+    for (unsigned i = 0; i < MapDevice::points; ++i)
+        EXPECT_EQ(device.co[i], i % 3 == 0) << "coil " << i;
+
+    const auto j = json_in(replayed.out);
+    ASSERT_FALSE(j.is_discarded()) << replayed.out;
+    const auto ledger = ledger_by_point(j);
+    for (const int address : {50, 51, 80})
+        EXPECT_EQ(ledger.count({"holding_registers", address}), 0u) << address << ": no step changed it";
+    ASSERT_EQ(ledger.count({"holding_registers", 60}), 1u) << replayed.out;
+    const auto& acked = ledger.at({"holding_registers", 60});
+    EXPECT_EQ(acked["written"], 5);
+    EXPECT_EQ(acked["write_acknowledged"], true);
+    EXPECT_EQ(acked["restored"], true);
+    EXPECT_EQ(acked["device_changed"], false);
+    ASSERT_EQ(ledger.count({"holding_registers", 70}), 1u) << replayed.out;
+    const auto& own = ledger.at({"holding_registers", 70});
+    EXPECT_EQ(own["written"], 9);
+    EXPECT_EQ(own["write_acknowledged"], false);
+    EXPECT_EQ(own["device_changed"], true);
+    EXPECT_EQ(own["restored"], false);
+    EXPECT_EQ(own["left"], 4242);
+    EXPECT_EQ(own["left_from"], "read");
+    std::size_t coils_listed = 0;
+    for (const auto& [point, t] : ledger) {
+        if (point.first != "coils") continue;
+        ++coils_listed;
+        EXPECT_NE(point.second % 3, 0) << "coil " << point.second << " held the value written";
+        EXPECT_EQ(t["written"], 1) << t.dump();
+        EXPECT_EQ(t["write_acknowledged"], true) << t.dump();
+        EXPECT_EQ(t["restored"], true) << t.dump();
+    }
+    EXPECT_EQ(coils_listed, 66u);  // of 100, the 34 already on were not changed
+}
+
+// The tester's `repro_ack_write.json` (FC6 holding register 60 := 5, echoed) and an FC15 of 428 coils the
+// device acknowledged: the ledger said "write_acknowledged": false, "written": null of each, the replay's
+// writes unseen by the session. Each point a step changed is listed with the value written and the
+// acknowledgement, and is back at its original in the reference slave's image.
+TEST(FuzzCommand, AReplaysLedgerSaysWhatItsStepsWroteAndTheDeviceAcknowledged) {
+    RunningServer server({}, 7, "modbus");
+    const auto target = "tcp://127.0.0.1:" + std::to_string(server.start("tcp"));
+    auto& image = server.device().image();
+    image.set_reg(Table::HoldingRegisters, 60, 0x0431);
+    // Coils 100-527: every other one on (0xAA a byte; the last 4 coils 0x0A).
+    std::vector<std::uint8_t> coils{0x0F, 0x00, 100, 0x01, 0xAC, 54};
+    coils.insert(coils.end(), 53, 0xAA);
+    coils.push_back(0x0A);
+    const auto file =
+        save_steps("mbscope-replay-acknowledged.json", target, {{0x06, 0x00, 60, 0x00, 0x05}, coils});
+    const auto replayed = run("replay --json --timeout 1000 " + file.string());
+    EXPECT_EQ(replayed.status, 0) << replayed.out;
+    EXPECT_EQ(image.reg(Table::HoldingRegisters, 60), 0x0431);
+    for (std::uint16_t a = 100; a < 528; ++a)
+        EXPECT_FALSE(image.bit(Table::Coils, a)) << "coil " << a;
+
+    const auto j = json_in(replayed.out);
+    ASSERT_FALSE(j.is_discarded()) << replayed.out;
+    const auto ledger = ledger_by_point(j);
+    ASSERT_EQ(ledger.count({"holding_registers", 60}), 1u) << replayed.out;
+    const auto& reg = ledger.at({"holding_registers", 60});
+    EXPECT_EQ(reg["original"], 0x0431);
+    EXPECT_EQ(reg["written"], 5);
+    EXPECT_EQ(reg["write_acknowledged"], true);
+    EXPECT_EQ(reg["restored"], true);
+    EXPECT_EQ(reg["left"], 0x0431);
+    std::size_t coils_listed = 0;
+    for (const auto& [point, t] : ledger) {
+        if (point.first != "coils") continue;
+        ++coils_listed;
+        EXPECT_EQ(point.second % 2, 1) << "coil " << point.second << " was written the value it held";
+        EXPECT_EQ(t["written"], 1) << t.dump();
+        EXPECT_EQ(t["write_acknowledged"], true) << t.dump();
+        EXPECT_EQ(t["restored"], true) << t.dump();
+    }
+    EXPECT_EQ(coils_listed, 214u);
 }
 
 // A Modbus/TCP relay in front of port `upstream` (a device serving unit 1) that makes it a device ignoring
