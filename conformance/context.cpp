@@ -307,7 +307,8 @@ std::string describe(const tp::Exchange& ex) {
 
 std::vector<std::optional<modbus::Pdu>> replies_in(const Context& c, const tp::Exchange& ex) {
     std::vector<std::optional<modbus::Pdu>> out;
-    for (const auto& f : tp::frames_in(c.session.client().framing(), ex.received)) {
+    // Late replies to earlier requests, set aside, are none of these.
+    for (const auto& f : tp::frames_in(c.session.client().framing(), ex.own_received())) {
         auto& reply = out.emplace_back();
         if (!f.checksum_ok || f.unit_id() != c.session.options().unit) continue;
         if (auto p = modbus::decode_response(f.pdu())) reply = std::move(p).value();
@@ -356,7 +357,8 @@ void expect_normal(RuleResult& r, const tp::Exchange& ex, std::uint8_t fc) {
 void expect_silence(RuleResult& r, const tp::Exchange& ex) {
     r.expected = "no reply";
     r.observed = describe(ex);
-    r.outcome = ex.received.empty() ? Outcome::Pass : Outcome::Fail;
+    // A late reply to an earlier request, set aside, is no reply to this one.
+    r.outcome = ex.own_received().empty() ? Outcome::Pass : Outcome::Fail;
 }
 
 std::optional<Context::ProbeRead> Context::probe_read() const {

@@ -95,8 +95,8 @@ void check_broadcast(Context& c) {
                       std::string("no reply, and the register ") + (in_broadcast ? "changed" : "unchanged");
                   r.observed = describe(ex) + (now ? "; register reads " + std::to_string((*now)[0])
                                                    : "; register unreadable");
-                  r.outcome =
-                      ex.received.empty() && now && changed == in_broadcast ? Outcome::Pass : Outcome::Fail;
+                  r.outcome = ex.own_received().empty() && now && changed == in_broadcast ? Outcome::Pass
+                                                                                          : Outcome::Fail;
               });
     }
 }

@@ -149,7 +149,8 @@ void check_framing(Context& c) {
                          both.insert(both.end(), good.begin(), good.end());
                          const auto ex = c.session.raw(both, "two requests in one write", 2);
                          r.expected = "two normal replies";
-                         r.observed = describe(ex) + " (" + std::to_string(ex.received.size()) + " bytes)";
+                         r.observed =
+                             describe(ex) + " (" + std::to_string(ex.own_received().size()) + " bytes)";
                          // Each reply judged, not the bytes counted (a reply's size depends on the table
                          // read).
                          const auto replies = replies_in(c, ex);
@@ -274,7 +275,7 @@ void check_framing(Context& c) {
                 const auto ex = c.session.raw(lower, "lower-case hex");
                 r.expected = "no reply, or a normal response to function " + std::to_string(fc);
                 r.observed = describe(ex);
-                r.outcome = ex.received.empty() || is_normal(ex, fc) ? Outcome::Pass : Outcome::Fail;
+                r.outcome = ex.own_received().empty() || is_normal(ex, fc) ? Outcome::Pass : Outcome::Fail;
             });
     }
 }

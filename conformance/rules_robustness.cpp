@@ -76,8 +76,8 @@ void check_robustness(Context& c) {
                 r.expected =
                     "two replies: an exception, then a normal response, function " + std::to_string(fc);
                 r.observed = std::to_string(replies.size()) + " whole frames in " +
-                             std::to_string(ex.received.size()) + " bytes: first " + said(0) + ", second " +
-                             said(1);
+                             std::to_string(ex.own_received().size()) + " bytes: first " + said(0) +
+                             ", second " + said(1);
                 r.outcome = replies.size() >= 2 && replies[0] && replies[0]->is_exception() &&
                                     is_normal_reply(replies[1], fc)
                                 ? Outcome::Pass

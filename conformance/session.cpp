@@ -251,7 +251,7 @@ void Session::log_late(std::vector<std::uint8_t> bytes) {
     // Each owed request a frame among them answers is settled; the others may still be answered.
     const auto frames = tp::frames_in(client_.framing(), bytes);
     for (const auto& frame : frames)
-        (void)owed().settle(frame);
+        if (owed().settle(frame)) ++answered_late_;
     late_replies_ += again ? frames.size() - std::min<std::size_t>(frames.size(), 1)
                            : std::max<std::size_t>(frames.size(), 1);
     evidence_.push_back(
@@ -265,8 +265,10 @@ void Session::log_late(std::vector<std::uint8_t> bytes) {
 }
 
 Evidence Session::listen_idle(std::chrono::milliseconds quiet) {
-    // A reply still owed would come while listening and pass for one nobody asked for.
-    if (unanswered_in_a_row_ > 0 || !owed().empty()) log_late(client_.drain(options_.timeout));
+    // A reply still owed would come while listening and pass for one nobody asked for. (Over Modbus/TCP
+    // only one due: requests the rules want unanswered, such as protocol id 1, are owed until the end.)
+    const bool owing = client_.framing() == modbus::Framing::Tcp ? owed().owes_reply() : !owed().empty();
+    if (unanswered_in_a_row_ > 0 || owing) log_late(client_.drain(options_.timeout));
     const auto start = std::chrono::steady_clock::now();
     Evidence e{"listening for " + std::to_string(quiet.count()) + " ms with no request out",
                {},
@@ -283,12 +285,13 @@ void Session::cite(const std::vector<Evidence>& evidence) {
     evidence_.insert(evidence_.end(), evidence.begin(), evidence.end());
 }
 
-void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) {
+void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu, bool several) {
     if (client_.framing() == modbus::Framing::Tcp) return;
     log_late(client_.drain(std::chrono::milliseconds(0)));
     if (quiet_waits_ >= tp::OwedRequests::quiet_waits_kept) return;
-    // A late reply to an owed request is told from this one's by its content, unless they look alike.
-    if (!owed().owes_reply_like(unit, pdu)) return;
+    // A late reply to an owed request is told from this one's by its content, unless they look alike; from
+    // the replies to several requests in one write, by nothing (the client sets nothing aside there).
+    if (several ? !owed().owes_reply() : !owed().owes_reply_like(unit, pdu)) return;
     // Another timeout after the owed request was given up: what has not come by then is taken as never.
     const auto until = owed().newest_given_up() + options_.timeout;
     const auto now = std::chrono::steady_clock::now();
@@ -299,9 +302,14 @@ void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu) 
 }
 
 void Session::account(const tp::Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu) {
-    if (client_.framing() == modbus::Framing::Tcp) return;
-    if (!ex.stale_replies.empty()) quiet_waits_ = 0;
-    (void)owed().after(ex, unit, pdu);
+    std::vector<tp::SettledRequest> settled;
+    if (client_.framing() == modbus::Framing::Tcp) {
+        (void)owed().after_tcp(ex, &settled);
+    } else {
+        if (!ex.stale_replies.empty()) quiet_waits_ = 0;
+        (void)owed().after(ex, unit, pdu, &settled);
+    }
+    answered_late_ += settled.size();
 }
 
 tp::Exchange Session::request(std::span<const std::uint8_t> pdu, const std::string& note,
@@ -354,8 +362,8 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
         if (auto f = modbus::decode_adu(client_.framing(), bytes)) decoded = std::move(f).value();
     // Bytes that decode as one request (whatever their checksum: a device that skips the check answers
     // them) are owed a reply like any other; others are no request anyone could answer.
-    const modbus::Frame* request =
-        decoded && client_.framing() != modbus::Framing::Tcp && frames == 1 ? &*decoded : nullptr;
+    const bool tcp = client_.framing() == modbus::Framing::Tcp;
+    const modbus::Frame* request = decoded && !tcp && frames == 1 ? &*decoded : nullptr;
     const std::uint8_t unit = request ? request->unit_id() : 0;
     const auto pdu = request ? request->pdu() : std::span<const std::uint8_t>{};
     const auto wait = timeout.value_or(options_.timeout);
@@ -364,14 +372,20 @@ tp::Exchange Session::raw(std::span<const std::uint8_t> bytes, const std::string
         const auto start = std::chrono::steady_clock::now();
         if (!connected(std::chrono::ceil<std::chrono::milliseconds>(wait)))
             return not_sent(bytes, note, std::chrono::steady_clock::now() - start);
-        settle_late(unit, pdu);
+        settle_late(unit, pdu, frames > 1);
     }
     const bool whole = decoded && decoded->wire_length == bytes.size();
     // One whole request with a good checksum to a unit is owed a reply as request()'s are.
-    if (whole && frames > 0 && decoded->checksum_ok &&
-        (decoded->unit_id() != 0 || client_.framing() == modbus::Framing::Tcp))
-        ++owed_reply_;
-    auto ex = client_.raw(bytes, wait, frames, {}, rest ? std::span<const tp::OwedRequest>{} : owed().list());
+    if (whole && frames > 0 && decoded->checksum_ok && (decoded->unit_id() != 0 || tcp)) ++owed_reply_;
+    // Over Modbus/TCP the rest of a split request is awaited as the whole request (its transaction id tells
+    // its reply from a late one); over RTU and ASCII what arrives is its reply, whoever it answers.
+    std::vector<std::uint8_t> whole_request;
+    if (rest && tcp) {
+        whole_request = part_;
+        whole_request.insert(whole_request.end(), bytes.begin(), bytes.end());
+    }
+    const auto owed_now = rest && !tcp ? std::span<const tp::OwedRequest>{} : owed().list();
+    auto ex = client_.raw(bytes, wait, frames, whole_request, owed_now);
     if (!rest && ex.closed && ex.elapsed.count() == 0) {
         // The write itself failed: nothing was sent (see request()).
         const auto start = std::chrono::steady_clock::now();

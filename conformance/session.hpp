@@ -160,6 +160,10 @@ class Session {
     // Replies (or bytes) that came after their request was given up: set aside during a later request, or
     // found waiting before one.
     std::uint64_t late_replies() const noexcept { return late_replies_; }
+    // Requests a late reply answered: given up with nothing back, then settled by a reply that came later
+    // (over Modbus/TCP one carrying the request's transaction id, over RTU and ASCII one that answers what
+    // it asked). The device answered them, only after the timeout.
+    std::uint64_t answered_late() const noexcept { return answered_late_; }
     // Requests answered twice (modbus::transport::repeats_reply): the reply again in the same read, before
     // the next request, or (Modbus/TCP) set aside by a later one; each with the request's bytes. Counted
     // for every exchange of one request (request(), and raw() of bytes that are one whole ADU awaiting one
@@ -173,7 +177,8 @@ class Session {
     // RTU and ASCII: keep the owed requests in `list` instead of the session's own, so that a caller that
     // sends its own requests over the same client (the network fuzzer) and the session each set aside the
     // other's late replies instead of taking them for their own (a value remembered for restoring among
-    // them). `list` must outlive the session's use of it.
+    // them). `list` must outlive the session's use of it. (Over Modbus/TCP the session keeps its own: a
+    // transaction id tells whose reply a frame is.)
     void share_owed(modbus::transport::OwedRequests& list) noexcept { shared_owed_ = &list; }
 
   private:
@@ -194,10 +199,13 @@ class Session {
     void log(const modbus::transport::Exchange& ex, const std::string& note, bool one_request);
     // RTU and ASCII, before a request to `unit` of `pdu` (empty: bytes that are no request) goes out: what
     // has arrived since the last exchange is a late reply, logged as such; when the request could draw the
-    // same reply as an owed one, the owed reply is waited for (content could not tell them apart).
-    void settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu);
+    // same reply as an owed one, the owed reply is waited for (content could not tell them apart). `several`:
+    // the bytes hold several requests, several replies are awaited, and any owed reply due is waited for.
+    void settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu, bool several = false);
     void log_late(std::vector<std::uint8_t> bytes);
-    // After an exchange: a request that got nothing back joins the owed ones (OwedRequests).
+    // After an exchange: a request that got nothing back joins the owed ones (OwedRequests; over Modbus/TCP
+    // each request of the exchange by its transaction id), and the owed ones its late replies answer are
+    // counted (answered_late()).
     void account(const modbus::transport::Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu);
     // What a write did to one point kept: its value and whether it was acknowledged (note_write).
     void note_point(modbus::Table table, std::uint16_t address, std::optional<std::uint16_t> value,
@@ -224,6 +232,7 @@ class Session {
     std::uint64_t requests_ = 0;
     std::uint64_t owed_reply_ = 0;
     std::uint64_t late_replies_ = 0;
+    std::uint64_t answered_late_ = 0;
     std::vector<Evidence> repeated_;
     // The reply to the last exchange of one request, when it came whole, and that request: a copy of it
     // arriving later is the request answered twice.
@@ -237,10 +246,12 @@ class Session {
     std::string connect_error_;
     std::uint64_t unsent_ = 0;
     std::uint32_t unanswered_in_a_row_ = 0;  // requests that got not a byte back, since the last that did
-    // RTU and ASCII: the last requests given up without a reply, each with when it was.
+    // The last requests given up without a reply, each with when it was (OwedRequests).
     modbus::transport::OwedRequests owed_;
-    modbus::transport::OwedRequests* shared_owed_ = nullptr;  // share_owed()
-    modbus::transport::OwedRequests& owed() noexcept { return shared_owed_ ? *shared_owed_ : owed_; }
+    modbus::transport::OwedRequests* shared_owed_ = nullptr;  // share_owed(), RTU and ASCII only
+    modbus::transport::OwedRequests& owed() noexcept {
+        return shared_owed_ && client_.framing() != modbus::Framing::Tcp ? *shared_owed_ : owed_;
+    }
     // Waits for an owed reply that came to nothing, since one came (OwedRequests::quiet_waits_kept).
     unsigned quiet_waits_ = 0;
     // Restoring stops writing to a device that answered none of this many requests in a row (a device

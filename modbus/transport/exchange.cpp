@@ -151,6 +151,10 @@ bool could_draw_same_reply(const OwedRequest& owed, std::uint8_t unit,
            (owed.unit == unit || owed.unit == 0 || unit == 0);
 }
 
+bool OwedRequests::owes_reply() const noexcept {
+    return std::any_of(owed_.begin(), owed_.end(), [](const OwedRequest& o) { return o.reply_due; });
+}
+
 bool OwedRequests::owes_reply_like(std::uint8_t unit, std::span<const std::uint8_t> pdu) const noexcept {
     return std::any_of(owed_.begin(), owed_.end(), [&](const OwedRequest& o) {
         return o.reply_due && could_draw_same_reply(o, unit, pdu);
@@ -181,7 +185,43 @@ bool OwedRequests::after(const Exchange& ex, std::uint8_t unit, std::span<const 
     return true;
 }
 
+std::size_t OwedRequests::after_tcp(const Exchange& ex, std::vector<SettledRequest>* settled) {
+    for (const auto& stale : ex.stale_replies) {
+        auto request = settle(stale);
+        if (request && settled) settled->push_back({std::move(*request), stale});
+    }
+    if (ex.closed) {
+        owed_.clear();  // the connection is gone, and the replies it owed with it
+        return 0;
+    }
+    const auto requests = frames_in(Framing::Tcp, ex.sent);
+    const auto answered = transaction_ids(ex.own_received());
+    // One request and anything back: its reply, right or wrong (a wrong id is for the rules to fail).
+    if (requests.size() == 1 && !ex.own_received().empty()) return owed_.size();
+    for (const auto& request : requests) {
+        if (std::find(answered.begin(), answered.end(), request.transaction_id()) != answered.end()) continue;
+        const auto pdu = request.pdu();
+        const bool due = request.protocol_id() == 0 && decode_request(pdu).has_value();
+        if (owed_.size() == kept_tcp) owed_.erase(owed_.begin());
+        owed_.push_back({request.unit_id(), std::vector<std::uint8_t>(pdu.begin(), pdu.end()),
+                         std::vector<std::uint8_t>(request.adu().begin(), request.adu().end()), due,
+                         std::chrono::steady_clock::now()});
+    }
+    return owed_.size();
+}
+
 std::optional<OwedRequest> OwedRequests::settle(const Frame& late) {
+    if (late.framing == Framing::Tcp) {
+        // The transaction id says which request it answers; none owed carries it: no owed request's.
+        const auto answered = std::find_if(owed_.begin(), owed_.end(), [&](const OwedRequest& o) {
+            const auto ids = transaction_ids(o.sent);
+            return !ids.empty() && ids.front() == late.transaction_id();
+        });
+        if (answered == owed_.end()) return std::nullopt;
+        OwedRequest request = std::move(*answered);
+        owed_.erase(answered);
+        return request;
+    }
     auto answered = std::find_if(owed_.begin(), owed_.end(), [&](const OwedRequest& o) {
         return o.reply_due && could_answer(o.unit, o.pdu, late);
     });
@@ -228,6 +268,17 @@ std::vector<Frame> frames_in(Framing framing, std::span<const std::uint8_t> byte
     return out;
 }
 
+std::vector<std::uint16_t> transaction_ids(std::span<const std::uint8_t> bytes) {
+    std::vector<std::uint16_t> ids;
+    while (bytes.size() >= 7) {
+        ids.push_back(word_at(bytes, 0));
+        const std::size_t total = 6u + ((std::size_t{bytes[4]} << 8) | bytes[5]);
+        if (total > bytes.size()) break;
+        bytes = bytes.subspan(total);
+    }
+    return ids;
+}
+
 std::span<const std::uint8_t> Exchange::own_received() const noexcept {
     std::size_t stale = 0;
     for (const auto& f : stale_replies)
@@ -270,6 +321,20 @@ bool repeats_response(const Exchange& ex) {
     return false;
 }
 
+bool ReplyScanner::late_over_tcp(const Exchange& ex, const Frame& frame) const {
+    const auto own = transaction_ids(ex.sent);
+    if (own.empty()) return false;  // no request to tell it from
+    const auto id = frame.transaction_id();
+    if (std::find(own.begin(), own.end(), id) != own.end()) return false;
+    // Just behind the one request awaited: the client's own ids count up, and this is an earlier one's.
+    const auto behind = static_cast<std::uint16_t>(own.front() - id);
+    if (frames_ <= 1 && behind >= 1 && behind <= stale_transaction_window) return true;
+    return std::any_of(owed_.begin(), owed_.end(), [&](const OwedRequest& o) {
+        const auto ids = transaction_ids(o.sent);
+        return !ids.empty() && ids.front() == id;
+    });
+}
+
 std::size_t ReplyScanner::scan(Exchange& ex, bool silence) {
     std::size_t found_now = 0;
     const auto echo_length = diagnostics_reply_length(framing_, ex.sent);
@@ -284,13 +349,9 @@ std::size_t ReplyScanner::scan(Exchange& ex, bool silence) {
         // exception, as libmodbus does, answers after the client gave up): kept in `received`, counted,
         // and not taken for this request's reply. Only while nothing else has come: own_received() counts
         // the stale replies off the front.
-        if (frame && framing_ == Framing::Tcp && frames_ <= 1 && found_ == 0 && ex.sent.size() >= 7) {
-            const auto sent_tid = static_cast<std::uint16_t>((ex.sent[0] << 8) | ex.sent[1]);
-            const auto behind = static_cast<std::uint16_t>(sent_tid - frame->transaction_id());
-            if (behind >= 1 && behind <= stale_transaction_window) {
-                ex.stale_replies.push_back(std::move(*frame));
-                continue;
-            }
+        if (frame && framing_ == Framing::Tcp && found_ == 0 && late_over_tcp(ex, *frame)) {
+            ex.stale_replies.push_back(std::move(*frame));
+            continue;
         }
         // RTU and ASCII: a reply that could answer only an earlier request. One that could answer both stays
         // this request's: content cannot tell them apart (the conformance session waits out such a late

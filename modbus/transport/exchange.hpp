@@ -50,9 +50,19 @@ bool repeats_reply(const Frame& reply, std::span<const std::uint8_t> later);
 // Whether what came for `ex` holds its response twice in a row (repeats_reply within one exchange).
 bool repeats_response(const Exchange& ex);
 
+// Over Modbus/TCP a reply whose transaction id is this many or fewer before the request's is a late reply to
+// an earlier request (ReplyScanner sets it aside); one further behind is taken for the request's own, unless
+// it carries the id of an owed request (OwedRequests::after_tcp).
+constexpr std::uint16_t stale_transaction_window = 256;
+
+// The transaction ids of the MBAP frames in `bytes` (several requests written at once), in order, one after
+// another by their length fields: the last one's too when its length claims more bytes than follow (a
+// request whose length is wrong on purpose still has its id); none when `bytes` hold no MBAP header and unit.
+std::vector<std::uint16_t> transaction_ids(std::span<const std::uint8_t> bytes);
+
 // A request sent earlier whose reply did not come in time. RTU and ASCII carry no transaction id: a reply
 // that comes after its request was given up, while the next request waits, can be told from that request's
-// own only by what it answers.
+// own only by what it answers. Over Modbus/TCP its transaction id (in `sent`) tells it.
 struct OwedRequest {
     std::uint8_t unit = 0;  // 0: a broadcast, whose reply (a fault in itself) may carry any unit id
     std::vector<std::uint8_t> pdu;
@@ -84,6 +94,11 @@ bool could_draw_same_reply(const OwedRequest& owed, std::uint8_t unit,
 // (when more were, those due a reply are kept before those the rules want unanswered).
 // Anything that comes for a later request clears them (a device answers in order: what it still owed would
 // have come first); a late reply settles the oldest request it could answer.
+// Over Modbus/TCP (after_tcp()), the last stale_transaction_window requests given up with nothing back,
+// whatever came for later ones (ids tell the replies apart): a reply carrying one of their transaction ids is
+// that request's, however far its id is from the current request's (a conformance rule's own ids 0, 0x1234,
+// 0xFFFF: the reply to tid 284 taken as the answer to tid 0 failed tcp.tid_echo.0 for a device that was
+// only slower than the timeout).
 class OwedRequests {
   public:
     // After an exchange of a request to `unit` of `pdu` (empty: bytes that are no request): its stale
@@ -91,8 +106,15 @@ class OwedRequests {
     // answers); true when the request is owed now. `reply_due`: see OwedRequest.
     bool after(const Exchange& ex, std::uint8_t unit, std::span<const std::uint8_t> pdu,
                std::vector<SettledRequest>* settled = nullptr, bool reply_due = true);
+    // Modbus/TCP: after an exchange of the MBAP requests in ex.sent (several when pipelined): its stale
+    // replies settle the requests whose transaction ids they carry (appended to `settled` when given); each
+    // request that drew no frame of its own is owed now (one request that drew anything was answered, by
+    // whatever id), due a reply when its protocol id is 0 and its PDU is a request that decodes. A closed
+    // connection carries no reply: every request owed is given up. Returns how many are owed now.
+    std::size_t after_tcp(const Exchange& ex, std::vector<SettledRequest>* settled = nullptr);
     // The oldest owed request due a reply that `late` could answer, else the oldest other; taken off the
-    // list. None when it answers none.
+    // list. None when it answers none. A Modbus/TCP frame answers the request whose transaction id it
+    // carries, nothing else.
     std::optional<OwedRequest> settle(const Frame& late);
     // `bytes` that came with no request waiting for them: each whole frame in them with a good checksum
     // that could answer an owed request settles it (appended to `settled`); returns the other bytes, in
@@ -103,6 +125,8 @@ class OwedRequests {
     // (could_draw_same_reply): should that reply come late, only its timing tells it from the request's own,
     // so a client waits it out before sending the request.
     bool owes_reply_like(std::uint8_t unit, std::span<const std::uint8_t> pdu) const noexcept;
+    // Whether any owed request is due a reply (one the rules want unanswered may never get one).
+    bool owes_reply() const noexcept;
     std::span<const OwedRequest> list() const noexcept { return owed_; }
     bool empty() const noexcept { return owed_.empty(); }
     void clear() noexcept { owed_.clear(); }
@@ -116,6 +140,7 @@ class OwedRequests {
 
   private:
     static constexpr std::size_t kept = 4;
+    static constexpr std::size_t kept_tcp = stale_transaction_window;
     std::vector<OwedRequest> owed_;
 };
 
@@ -123,10 +148,6 @@ class OwedRequests {
 // request went out), in order, each frame's `offset` where it begins in `bytes`; bytes that form none are
 // left out.
 std::vector<Frame> frames_in(Framing framing, std::span<const std::uint8_t> bytes);
-
-// Over Modbus/TCP a reply whose transaction id is this many or fewer before the request's is a late reply to
-// an earlier request (ReplyScanner sets it aside); one further behind is taken for the request's own.
-constexpr std::uint16_t stale_transaction_window = 256;
 
 // Finds the frames in an exchange's `received` as bytes are appended to it.
 class ReplyScanner {
@@ -140,8 +161,9 @@ class ReplyScanner {
 
     // Looks at the bytes of ex.received not yet framed. `silence`: the line has been quiet long enough to
     // end an RTU frame. A late reply to an earlier request, when nothing else came before it, is set aside
-    // in ex.stale_replies: over Modbus/TCP a reply whose transaction id is within the
-    // stale_transaction_window before the request's; over RTU and ASCII a frame with a good checksum that
+    // in ex.stale_replies: over Modbus/TCP a reply whose transaction id is none of the requests' in
+    // ex.sent and is within the stale_transaction_window before the request's (one request awaited) or is
+    // an owed request's (any number awaited); over RTU and ASCII a frame with a good checksum that
     // could answer an owed request and could not answer this one. Otherwise the first frame becomes
     // ex.response (nullopt when its bytes do not decode). Returns how many frames (not set aside) this call
     // found.
@@ -156,6 +178,9 @@ class ReplyScanner {
     bool complete() const noexcept { return frames_ != 0 && found_ >= frames_; }
 
   private:
+    // Modbus/TCP: whether `frame` answers an earlier request rather than one of those in ex.sent.
+    bool late_over_tcp(const Exchange& ex, const Frame& frame) const;
+
     Framing framing_;
     bool datagram_;
     std::size_t frames_;

@@ -29,6 +29,7 @@
 
 #include "conformance/context.hpp"
 #include "conformance/session.hpp"
+#include "modbus/adu.hpp"
 #include "modbus/transport/socket.hpp"
 #include "tests/conformance/runner_support.hpp"
 #include "tests/support/garbage_peer.hpp"
@@ -580,6 +581,79 @@ TEST(LateReplies, ARequestOfTheSameShapeWaitsOutTheOwedReply) {
     EXPECT_TRUE(evidence[1].note.starts_with("late")) << evidence[1].note;
     EXPECT_TRUE(evidence[1].sent.empty());
     EXPECT_EQ(evidence[1].received, modbus::encode_rtu(1, std::vector<std::uint8_t>{0x03, 0x02, 0x11, 0x11}));
+}
+
+// A device slower than the timeout, over Modbus/TCP: each reply comes while a later request waits. The TCP
+// envelope rules send transaction ids of their own (0, 0x1234, 0xFFFF, 7 ... 23), far from the client's
+// count: a late reply to one of the client's requests was taken for tcp.tid_echo.0's ("reply to transaction
+// 284 instead of 0"), failing it, and its time counted as a reply in time, so that the run was judged and
+// failed 163 rules (exit 1) where the cause was --timeout. Each late reply is set aside by the transaction id
+// of the request it answers; no rule takes one for its own, none fails, and the run is not judged.
+TEST(LateReplies, ASlowTcpDeviceFailsNoEnvelopeRuleAndIsNotJudged) {
+    // Twice the timeout: each reply comes while the next request but one waits (three requests in a row
+    // heard nothing, not even late, and the target would be taken for a silent one).
+    RunningServer server({"slow-reply=200"}, 1, "mmk-2030");
+    auto options = options_for(std::chrono::milliseconds(100));
+    options.run.rule_globs = {"tcp.*", "robustness.*", "reply.once", "silence.idle"};
+    const auto run = certify(server, "tcp", "mmk-2030", options);
+    const Report& r = run.report;
+    EXPECT_EQ(verdict_text(r), "error") << failures(r);
+    EXPECT_NE(r.unanswered.find("raise --timeout"), std::string::npos) << r.unanswered;
+    ASSERT_FALSE(r.results.empty());
+    EXPECT_EQ(r.results[0].rule.id, "target.answered");
+    std::size_t envelope_rules = 0;
+    for (const auto& x : r.results) {
+        EXPECT_NE(x.outcome, Outcome::Fail) << x.rule.id << ": " << x.observed;
+        // A late reply is never the rule's answer: no envelope rule saw another transaction's reply.
+        EXPECT_EQ(x.observed.find("reply to transaction"), std::string::npos)
+            << x.rule.id << ": " << x.observed;
+        envelope_rules += x.rule.id.starts_with("tcp.tid_echo.");
+    }
+    EXPECT_EQ(envelope_rules, 3u);
+    EXPECT_GT(r.late_replies, 0u);
+}
+
+// The same over RTU on a stream, where nothing but what a reply answers tells it from another's: the rules
+// sending several requests in one write (framing.back_to_back, robustness.pipeline_after_exception) wait the
+// owed replies out first. The run is not judged, and no rule fails.
+TEST(LateReplies, ASlowRtuDeviceFailsNoRuleAndIsNotJudged) {
+    RunningServer server({"slow-reply=150"}, 1, "mmk-2030");
+    auto options = options_for(std::chrono::milliseconds(100));
+    options.run.rule_globs = {"fc.supported.*", "framing.*", "robustness.*", "reply.once", "silence.idle"};
+    const auto run = certify(server, "rtu-tcp", "mmk-2030", options);
+    const Report& r = run.report;
+    EXPECT_EQ(verdict_text(r), "error") << failures(r);
+    EXPECT_NE(r.unanswered.find("raise --timeout"), std::string::npos) << r.unanswered;
+    ASSERT_FALSE(r.results.empty());
+    EXPECT_EQ(r.results[0].rule.id, "target.answered");
+    for (const auto& x : r.results)
+        EXPECT_NE(x.outcome, Outcome::Fail) << x.rule.id << ": " << x.observed;
+    EXPECT_GT(r.late_replies, 0u);
+}
+
+// The session over Modbus/TCP: a request of the rules' own transaction id 0 given up, the reply to it comes
+// while a request of id 0x1234 waits, 0x1234 behind it (outside the window of ids just behind the request's,
+// which a client counting up leaves): it is that owed request's late reply, set aside and counted, not the
+// answer to 0x1234, which comes after it.
+TEST(LateReplies, AReplyToAnOwedTransactionIdIsSetAsideHoweverFarItsId) {
+    RunningServer server({"slow-reply=400"}, 1, "mmk-2030");
+    const std::uint16_t port = server.start("tcp");
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(port)));
+    ASSERT_TRUE(client.has_value());
+    Session session(*client, SessionOptions{}, &slave::test::profile("mmk-2030"));
+    const auto read =
+        modbus::encode_pdu(modbus::make_read_request(modbus::FunctionCode::ReadHoldingRegisters, 0, 1));
+    const auto first =
+        session.raw(modbus::encode_tcp(0, 1, read), "transaction id 0", 1, std::chrono::milliseconds(100));
+    EXPECT_TRUE(first.timed_out);
+    const auto second = session.raw(modbus::encode_tcp(0x1234, 1, read), "transaction id 0x1234", 1,
+                                    std::chrono::milliseconds(2000));
+    ASSERT_EQ(second.stale_replies.size(), 1u);
+    EXPECT_EQ(second.stale_replies[0].transaction_id(), 0);
+    ASSERT_TRUE(second.response.has_value());
+    EXPECT_EQ(second.response->transaction_id(), 0x1234);
+    EXPECT_EQ(session.late_replies(), 1u);
+    EXPECT_EQ(session.answered_late(), 1u);
 }
 
 // ---- the reports
