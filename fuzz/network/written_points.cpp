@@ -74,6 +74,10 @@ bool lands(conformance::Session& session, std::uint8_t unit) {
 // answers in order). nullopt: none, or one no PDU decodes from, which tells nothing of what was done.
 std::optional<modbus::Pdu> reply_to(modbus::Framing framing, const LooseRequest& request,
                                     const std::vector<modbus::Frame>& replies, std::vector<bool>& used) {
+    // A broadcast on a serial line draws no reply (SL §2.1), and could_answer() takes any unit's for unit 0:
+    // the exception refusing the write after it in the same step made the executed broadcast "refused",
+    // and the point it wrote was neither restored nor listed. It is kept as a write that may have run.
+    if (framing != modbus::Framing::Tcp && request.unit == 0) return std::nullopt;
     for (std::size_t i = 0; i < replies.size(); ++i) {
         const modbus::Frame& f = replies[i];
         const bool answers =

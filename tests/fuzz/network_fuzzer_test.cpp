@@ -368,6 +368,38 @@ std::map<std::pair<Table, std::uint16_t>, std::uint16_t> device_moves(
     return set;
 }
 
+// On a serial line a broadcast draws no reply: in a step that also carries a write to the unit which the
+// device refuses (exception 02), that refusal is not the broadcast's answer. It was, so the broadcast's
+// point was kept as "not written" and, executed all the same, was neither restored nor listed.
+TEST(NetworkFuzzer, ABroadcastInAStepTakesNoOtherRequestsRefusal) {
+    RunningServer server({}, 1, "modbus");
+    const auto port = server.start("rtu-tcp");
+    auto client = mbscope::modbus::transport::Client::open(
+        *mbscope::modbus::transport::parse_endpoint("rtu-tcp://127.0.0.1:" + std::to_string(port)));
+    ASSERT_TRUE(client.has_value()) << client.error();
+    const auto& p = mbscope::slave::test::profile("modbus");
+    mbscope::conformance::Session session(*client, {1, std::chrono::milliseconds(1000), {}}, &p);
+    session.watch_writes();
+    ASSERT_TRUE(session.remember(Table::HoldingRegisters, 10, 1));
+    const auto original = session.touched().at({Table::HoldingRegisters, 10}).original;
+    const std::uint16_t value = original == 7 ? 8 : 7;
+    fz::Step step;
+    auto both = mbscope::modbus::encode_rtu(
+        0, mbscope::modbus::encode_pdu(mbscope::modbus::make_write_single_register(10, value)));
+    const auto refused = mbscope::modbus::encode_rtu(
+        1, mbscope::modbus::encode_pdu(mbscope::modbus::make_write_single_register(20, 1)));
+    both.insert(both.end(), refused.begin(), refused.end());
+    step.parts.push_back(both);
+    fz::ReplayedStep replayed;
+    replayed.exchange.sent = both;
+    replayed.exchange.received = mbscope::modbus::encode_rtu(1, std::vector<std::uint8_t>{0x86, 0x02});
+    fz::note_step_writes(session, step, replayed);
+    const auto& t = session.touched().at({Table::HoldingRegisters, 10});
+    EXPECT_TRUE(t.changed) << "the broadcast may have run";
+    EXPECT_FALSE(t.acknowledged);
+    EXPECT_EQ(t.written, value);
+}
+
 // The campaign sends its probes over the session's client, and the session used to see none of them: the
 // restore wrote back every point it had read before a write, the writes the device refused and those of the
 // value a point held included, undoing what the device had changed itself since (the tester's counter at
