@@ -31,20 +31,23 @@ std::string slurp(const fs::path& p) {
 
 std::int64_t total_bytes() {
     std::int64_t n = 0;
-    for (const auto& f : files()) n += static_cast<std::int64_t>(fs::file_size(f));
+    for (const auto& f : files())
+        n += static_cast<std::int64_t>(fs::file_size(f));
     return n;
 }
 
 void BM_ReadProfileFiles(benchmark::State& state) {
     for (auto _ : state)
-        for (const auto& f : files()) benchmark::DoNotOptimize(slurp(f));
+        for (const auto& f : files())
+            benchmark::DoNotOptimize(slurp(f));
     state.SetBytesProcessed(state.iterations() * total_bytes());
 }
 BENCHMARK(BM_ReadProfileFiles)->Unit(benchmark::kMillisecond);
 
 void BM_ParseProfileJsonOnly(benchmark::State& state) {
     for (auto _ : state)
-        for (const auto& f : files()) benchmark::DoNotOptimize(nlohmann::json::parse(slurp(f)));
+        for (const auto& f : files())
+            benchmark::DoNotOptimize(nlohmann::json::parse(slurp(f)));
     state.SetBytesProcessed(state.iterations() * total_bytes());
 }
 BENCHMARK(BM_ParseProfileJsonOnly)->Unit(benchmark::kMillisecond);
@@ -60,6 +63,45 @@ void BM_LoadEveryProfile(benchmark::State& state) {
     state.counters["profiles"] = static_cast<double>(profiles);
 }
 BENCHMARK(BM_LoadEveryProfile)->Unit(benchmark::kMillisecond);
+
+// What a command that names one device does: list the directory from the files' headers, then resolve the
+// one profile (the largest MK file's first model, and the largest Walchem controller).
+void BM_ListHeadersAndLoadOne(benchmark::State& state, const char* id) {
+    using mbscope::modbus::storage::ProfileDirectory;
+    using mbscope::modbus::storage::ProfileReading;
+    std::size_t points = 0;
+    for (auto _ : state) {
+        mbscope::modbus::storage::ProfileStore store(
+            std::vector<ProfileDirectory>{{dir, ProfileReading::headers}});
+        auto p = store.load(id);
+        if (!p) {
+            state.SkipWithError("the profile does not load");
+            return;
+        }
+        points = p->table(mbscope::modbus::Table::HoldingRegisters).size();
+        benchmark::DoNotOptimize(points);
+    }
+    state.SetBytesProcessed(state.iterations() * total_bytes());
+    state.counters["registers"] = static_cast<double>(points);
+}
+BENCHMARK_CAPTURE(BM_ListHeadersAndLoadOne, mmk_2015_ma, "mmk-2015-ma")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_ListHeadersAndLoadOne, walchem_w900, "walchem-w900")->Unit(benchmark::kMillisecond);
+
+// The same with every profile resolved first, as every command did before the headers.
+void BM_LoadEveryAndLoadOne(benchmark::State& state, const char* id) {
+    for (auto _ : state) {
+        mbscope::modbus::storage::ProfileStore store({dir});
+        auto p = store.load(id);
+        if (!p) {
+            state.SkipWithError("the profile does not load");
+            return;
+        }
+        benchmark::DoNotOptimize(p->table(mbscope::modbus::Table::HoldingRegisters).size());
+    }
+    state.SetBytesProcessed(state.iterations() * total_bytes());
+}
+BENCHMARK_CAPTURE(BM_LoadEveryAndLoadOne, mmk_2015_ma, "mmk-2015-ma")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_LoadEveryAndLoadOne, walchem_w900, "walchem-w900")->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -120,10 +120,10 @@ int run_list(const ProfileOptions& o) {
                          {"file", e.file},
                          {"transports", e.transports},
                          {"points",
-                          {{"coils", e.coils},
-                           {"discrete_inputs", e.discrete_inputs},
-                           {"input_registers", e.input_registers},
-                           {"holding_registers", e.holding_registers}}}});
+                          {{"coils", e.points->coils},
+                           {"discrete_inputs", e.points->discrete_inputs},
+                           {"input_registers", e.points->input_registers},
+                           {"holding_registers", e.points->holding_registers}}}});
         std::cout << json_text(a) << '\n';
     } else {
         std::printf("%-22s %-14s %-11s %6s %6s  %s\n", "id", "vendor", "transports", "coils", "regs",
@@ -135,7 +135,7 @@ int run_list(const ProfileOptions& o) {
             for (const auto& x : e.aliases)
                 aliases += (aliases.empty() ? "" : ", ") + x;
             std::printf("%-22s %-14s %-11s %6zu %6zu  %s\n", e.id.c_str(), cut_utf8(e.vendor, 14).c_str(),
-                        t.c_str(), e.coils, e.holding_registers, aliases.c_str());
+                        t.c_str(), e.points->coils, e.points->holding_registers, aliases.c_str());
         }
         std::printf("%zu profiles from %zu directories\n", store.entries().size(),
                     store.directories().size());

@@ -78,7 +78,14 @@ bool extra_profile_dirs_exist(const std::vector<std::string>& extra, const char*
 std::optional<storage::ProfileStore> open_profile_store(const std::vector<std::string>& extra,
                                                         const char* command) {
     if (!extra_profile_dirs_exist(extra, command)) return std::nullopt;
-    storage::ProfileStore store(profile_directories(extra));
+    // The bundled profiles (the last directory) are read only as far as a listing needs, and resolved when
+    // named: resolving all of them took most of each command's start-up. A user's directories are read in
+    // full, so a broken file of theirs is said at once.
+    std::vector<storage::ProfileDirectory> dirs;
+    for (auto& path : profile_directories(extra))
+        dirs.push_back({std::move(path), storage::ProfileReading::full});
+    dirs.back().reading = storage::ProfileReading::headers;
+    storage::ProfileStore store(std::move(dirs));
     const auto& errors = store.errors();
     for (std::size_t i = 0; i < errors.size();) {
         std::size_t j = i + 1;

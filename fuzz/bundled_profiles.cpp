@@ -35,7 +35,9 @@ const std::vector<modbus::Profile>& bundled_profiles() {
         std::vector<modbus::Profile> out;
         for (const auto& dir : candidate_directories()) {
             if (!std::filesystem::is_directory(dir)) continue;
-            modbus::storage::ProfileStore store({dir});
+            // Headers only: each profile is resolved once, by the load below.
+            modbus::storage::ProfileStore store(std::vector<modbus::storage::ProfileDirectory>{
+                {dir, modbus::storage::ProfileReading::headers}});
             for (const auto& entry : store.entries())
                 if (auto p = store.load(entry.id); p) out.push_back(std::move(p.value()));
             if (!out.empty()) break;

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "modbus/profile_headers.hpp"
 #include "modbus/storage/text_file.hpp"
 
 namespace mbscope::modbus::storage {
@@ -49,8 +50,24 @@ std::vector<std::string> split_path_list(const std::string& list) {
     return out;
 }
 
-ProfileStore::ProfileStore(std::vector<std::string> directories) : directories_(std::move(directories)) {
-    for (const auto& dir : directories_) {
+namespace {
+
+std::vector<ProfileDirectory> read_in_full(std::vector<std::string> paths) {
+    std::vector<ProfileDirectory> out;
+    for (auto& p : paths)
+        out.push_back({std::move(p), ProfileReading::full});
+    return out;
+}
+
+}  // namespace
+
+ProfileStore::ProfileStore(std::vector<std::string> directories)
+    : ProfileStore(read_in_full(std::move(directories))) {}
+
+ProfileStore::ProfileStore(std::vector<ProfileDirectory> directories) {
+    for (const auto& directory : directories) {
+        const std::string& dir = directory.path;
+        directories_.push_back(dir);
         std::error_code ec;
         if (!fs::is_directory(dir, ec)) {
             errors_.push_back({dir, "", "not a directory"});
@@ -62,27 +79,41 @@ ProfileStore::ProfileStore(std::vector<std::string> directories) : directories_(
             if (it->is_regular_file() && it->path().extension() == ".json") files.push_back(it->path());
         std::sort(files.begin(), files.end());
         std::vector<std::string> ids_here;
+        const auto add = [&](const fs::path& file, ProfileEntry e) {
+            if (e.id.empty()) return;
+            if (std::find(ids_here.begin(), ids_here.end(), e.id) != ids_here.end()) {
+                errors_.push_back(
+                    {file.string(), "", "device id \"" + e.id + "\" is defined twice in " + dir});
+                return;
+            }
+            ids_here.push_back(e.id);
+            if (find(e.id)) return;  // shadowed by an earlier directory
+            entries_.push_back(std::move(e));
+        };
         for (const auto& file : files) {
-            auto loaded = load_profile_file(file.string(), {}, includes_.get());
-            errors_.insert(errors_.end(), loaded.errors.begin(), loaded.errors.end());
-            for (const auto& p : loaded.profiles) {
-                if (p.id.empty()) continue;
-                if (std::find(ids_here.begin(), ids_here.end(), p.id) != ids_here.end()) {
-                    errors_.push_back(
-                        {file.string(), "", "device id \"" + p.id + "\" is defined twice in " + dir});
+            if (directory.reading == ProfileReading::headers) {
+                std::string error;
+                auto text = read_text_file(file.string(), error);
+                if (!text) {
+                    errors_.push_back({file.string(), "", error});
                     continue;
                 }
-                ids_here.push_back(p.id);
-                if (find(p.id)) continue;  // shadowed by an earlier directory
-                ProfileEntry e{
-                    p.id,      p.name, p.aliases, p.vendor, p.family, file.string(), p.line.transports,
-                    p.modular, 0,      0,         0,        0};
-                e.coils = p.table(Table::Coils).size();
-                e.discrete_inputs = p.table(Table::DiscreteInputs).size();
-                e.input_registers = p.table(Table::InputRegisters).size();
-                e.holding_registers = p.table(Table::HoldingRegisters).size();
-                entries_.push_back(std::move(e));
+                auto headers = scan_profile_headers(*text, file.string());
+                errors_.insert(errors_.end(), headers.errors.begin(), headers.errors.end());
+                for (auto& m : headers.models)
+                    add(file,
+                        {std::move(m.id), std::move(m.name), std::move(m.aliases), headers.vendor,
+                         headers.family, file.string(), headers.transports, headers.modular, std::nullopt});
+                continue;
             }
+            auto loaded = load_profile_file(file.string(), {}, includes_.get());
+            errors_.insert(errors_.end(), loaded.errors.begin(), loaded.errors.end());
+            for (const auto& p : loaded.profiles)
+                add(file,
+                    {p.id, p.name, p.aliases, p.vendor, p.family, file.string(), p.line.transports, p.modular,
+                     PointCounts{p.table(Table::Coils).size(), p.table(Table::DiscreteInputs).size(),
+                                 p.table(Table::InputRegisters).size(),
+                                 p.table(Table::HoldingRegisters).size()}});
         }
     }
     std::sort(entries_.begin(), entries_.end(), [](const auto& a, const auto& b) { return a.id < b.id; });

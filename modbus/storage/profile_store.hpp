@@ -5,12 +5,29 @@
 // an earlier directory shadows the same id in a later one, so a user's file replaces a bundled one.
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "modbus/profile_loader.hpp"
 
 namespace mbscope::modbus::storage {
+
+// How much of a directory's files a store reads when it opens.
+enum class ProfileReading {
+    full,     // every profile resolved: its errors reported and its points counted at once
+    headers,  // what each file says of itself (modbus/profile_headers.hpp); a profile is resolved, and its
+              // errors found, when it is loaded. For the bundled profiles, which the tests resolve.
+};
+
+struct ProfileDirectory {
+    std::string path;
+    ProfileReading reading = ProfileReading::full;
+};
+
+struct PointCounts {
+    std::size_t coils = 0, discrete_inputs = 0, input_registers = 0, holding_registers = 0;
+};
 
 struct ProfileEntry {
     std::string id;  // lower case
@@ -20,8 +37,8 @@ struct ProfileEntry {
     std::string family;
     std::string file;
     std::vector<std::string> transports;
-    bool modular = false;  // a configuration (--config) chooses its channels' maps
-    std::size_t coils = 0, discrete_inputs = 0, input_registers = 0, holding_registers = 0;
+    bool modular = false;               // a configuration (--config) chooses its channels' maps
+    std::optional<PointCounts> points;  // read in full: the points of its default configuration
 };
 
 class ProfileStore {
@@ -29,6 +46,7 @@ class ProfileStore {
     // Loads every *.json below each directory (recursively). Files of another kind (schemas, shared map
     // files) are skipped; broken profile files are reported in errors() and the rest still load.
     explicit ProfileStore(std::vector<std::string> directories);
+    explicit ProfileStore(std::vector<ProfileDirectory> directories);
 
     const std::vector<ProfileEntry>& entries() const noexcept { return entries_; }
     const std::vector<ProfileError>& errors() const noexcept { return errors_; }
