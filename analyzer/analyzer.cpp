@@ -51,7 +51,36 @@ struct Analyzer::Flow {
     bool rtu_over_tcp = false;
     RtuDeframer rtu_deframer[2];
     std::uint64_t rtu_lost[2] = {0, 0};  // stream bytes lost in gaps, so that offsets stay stream offsets
-    Timestamp rtu_last[2] = {};          // when each side last sent: the time of a frame closed later
+    // Where each side's bytes arrived, by the stream offset each packet's bytes start at: the packet and
+    // its time. A frame whose CRC fails is closed only by later bytes (the next frame from its side, the
+    // other side's turn, the end), and is the packet's that held it, not theirs.
+    struct Arrival {
+        std::uint64_t offset;
+        std::uint64_t packet;
+        Timestamp time;
+    };
+    std::deque<Arrival> rtu_arrivals[2];
+    const Arrival* rtu_arrival(int dir, std::uint64_t offset) const {
+        const auto& a = rtu_arrivals[dir];
+        const auto after = std::upper_bound(a.begin(), a.end(), offset,
+                                            [](std::uint64_t o, const Arrival& x) { return o < x.offset; });
+        return after == a.begin() ? nullptr : &*std::prev(after);
+    }
+    // Bytes about to be fed: the arrivals no event can name any more are dropped first (those before the
+    // one holding the first unreported byte, whose run needs only its first byte's, and those between it
+    // and the one holding the first byte held for a frame).
+    void rtu_arrived(int dir, std::uint64_t packet, Timestamp t) {
+        auto& a = rtu_arrivals[dir];
+        const std::uint64_t first = rtu_deframer[dir].unreported() + rtu_lost[dir];
+        const std::uint64_t held = rtu_deframer[dir].held_from() + rtu_lost[dir];
+        while (a.size() > 1 && a[1].offset <= first)
+            a.pop_front();
+        std::size_t from = 1;
+        while (from + 1 < a.size() && a[from + 1].offset <= held)
+            ++from;
+        if (from > 1) a.erase(a.begin() + 1, a.begin() + static_cast<std::ptrdiff_t>(from));
+        a.push_back({rtu_deframer[dir].bytes_in() + rtu_lost[dir], packet, t});
+    }
     std::size_t pending = 0;
     // The serial the first request after bytes of the request stream were lost gets (0: none lost, or a
     // request after them was answered): a reply nobody waits for may answer a request among those bytes.
@@ -110,6 +139,21 @@ struct Analyzer::Flow {
     // Whether a request on the link was captured: until then, on a connection whose opening the capture did
     // not show, a reply answers a request sent before the capture began.
     bool request_seen = false;
+    // After it, until a reply answers a captured request (a server answers a connection's requests in turn),
+    // a reply may still answer one pipelined ahead of the capture's first: the first request's transaction
+    // id, to tell the ids that came before it, and those already excused so (a request is answered once).
+    std::uint16_t first_request_id = 0;
+    bool captured_request_answered = false;
+    std::vector<std::uint16_t> excused_before_capture;
+    // Whether `tid` may name a request sent before the capture's first request of the link: a client numbers
+    // its transactions upwards, so the requests in flight when the capture began carry the ids just before
+    // it, no more of them than a link may have waiting.
+    bool may_predate_first_request(std::uint16_t tid, std::size_t max_waiting) const {
+        const auto before = static_cast<std::uint16_t>(first_request_id - tid);
+        return request_seen && !captured_request_answered && before != 0 && before <= max_waiting &&
+               std::find(excused_before_capture.begin(), excused_before_capture.end(), tid) ==
+                   excused_before_capture.end();
+    }
     // The client stream's position (+1) at a hole whose acknowledged bytes excused a reply already.
     std::uint64_t excused_hole = 0;
     // The client reset the connection and requests of it still wait (Pending::client_reset): its next SYN
@@ -394,12 +438,13 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
     }
     // A gateway carries one request and its response at a time: when one side speaks, what the other side
     // sent is complete. Without this a frame with a bad CRC would wait for the next frame from its own side
-    // to confirm where it ends, and its response would be decoded before it.
+    // to confirm where it ends, and its response would be decoded before it. (Either way it keeps the
+    // packet and time it came with: deframed stamps it by its bytes' arrival.)
     const int other = 1 - dir;
     f.rtu_deframer[other].finish(events);
     shift_offsets(events, f.rtu_lost[other]);
-    deframed(f, other == 0, events, f.rtu_last[other]);
-    f.rtu_last[dir] = t;
+    deframed(f, other == 0, events, t);
+    f.rtu_arrived(dir, packet, t);
     f.rtu_deframer[dir].feed(bytes, events);
     shift_offsets(events, f.rtu_lost[dir]);
     deframed(f, dir == 0, events, t, packet);
@@ -648,9 +693,13 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
             // datagram's or a serial record's are the packet being read, as are bytes that came before the
             // stream's start, which were never fed to the deframer).
             const bool fed = u->reason != UnparsedReason::BeforeStreamStart && !flow.rtu_over_tcp;
-            const std::uint64_t packet =
-                fed ? flow.packet_at(to_server ? 0 : 1, u->offset, current) : current;
-            const Timestamp when = fed && u->time.count() != 0 ? u->time : t;
+            std::uint64_t packet = fed ? flow.packet_at(to_server ? 0 : 1, u->offset, current) : current;
+            Timestamp when = fed && u->time.count() != 0 ? u->time : t;
+            if (u->reason != UnparsedReason::BeforeStreamStart && flow.rtu_over_tcp)
+                if (const auto* arrived = flow.rtu_arrival(to_server ? 0 : 1, u->offset)) {
+                    packet = arrived->packet;
+                    when = arrived->time;
+                }
             UnparsedRecord rec{source_,   flow.link, to_server ? Direction::Request : Direction::Response,
                                when,      packet,    u->offset,
                                u->length, u->reason};
@@ -694,6 +743,14 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
             r.time = r.frame.start;
             r.packet = flow.packet_at(to_server ? 0 : 1, r.frame.offset, current);
         }
+        // A gateway's frame is whole at its last byte, as a Modbus/TCP ADU is (a frame in one packet: that
+        // packet), whichever later bytes closed it.
+        if (flow.rtu_over_tcp && r.frame.wire_length != 0)
+            if (const auto* arrived =
+                    flow.rtu_arrival(to_server ? 0 : 1, r.frame.offset + r.frame.wire_length - 1)) {
+                r.packet = arrived->packet;
+                r.time = arrived->time;
+            }
         r.source = source_;
         r.link = flow.link;
         r.direction = to_server ? Direction::Request : Direction::Response;
@@ -921,6 +978,7 @@ void Analyzer::release_unseen(Flow& flow) {
 }
 
 void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
+    if (!flow.request_seen) flow.first_request_id = pairing_id(r.frame);
     flow.request_seen = true;
     if (stats) count_request(r, *stats);
     if (options_.semantics && r.pdu && stats)
@@ -1163,6 +1221,7 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                                        r.frame.framing != Framing::Tcp && !late_one_fits();
         if (auto late = answers_broadcast ? std::nullopt : late_for({flow.id, late_id(r.frame)})) {
             flow.keep_last_response(r);
+            flow.captured_request_answered = true;
             complete(late->pending, &r, false, &*late);
             return;
         }
@@ -1248,6 +1307,24 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             flow.keep_last_response(r);
             return;
         }
+        // Requests the capture holds wait, but none with this id, and no reply has answered one yet: a
+        // reply whose id comes before the first of them answers a request pipelined ahead of it, before
+        // the capture began, and the waiting requests' own replies may follow. Paired with one of them
+        // (the only one: a transaction-id mismatch), it made three errors and an unsolicited fourth of
+        // that request's own reply, and showed one unit's values as another's.
+        if (opening_unseen && r.frame.framing == Framing::Tcp &&
+            flow.may_predate_first_request(key.tid, options_.max_pending_per_flow)) {
+            flow.excused_before_capture.push_back(key.tid);
+            report(FindingCode::PairRequestNotCaptured, r,
+                   which +
+                       " comes before any reply to a request the capture holds, its id before that of "
+                       "the link's first one captured (" +
+                       std::to_string(flow.first_request_id) +
+                       "), on a connection the capture joined after it opened: its request went before the "
+                       "capture began");
+            flow.keep_last_response(r);
+            return;
+        }
         // The server acknowledged client bytes the capture does not hold (a tap's drop, given up as a gap
         // only at the client's next segment): the request this reply answers may be among them, once per
         // hole. An "unsolicited" error held the tap's loss against the device, where a request cut by the
@@ -1319,6 +1396,7 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         }
     }
     --flow.pending;
+    flow.captured_request_answered = true;
     // The transaction id reused while older requests with it still wait: the oldest the reply fits is the
     // one it answers (a server answers in turn), else the oldest.
     const PendingKey waiting = it->first;
@@ -1405,6 +1483,7 @@ void Analyzer::reply_cut(Flow& f, const CutAdu& cut, Timestamp t) {
     }
     auto taken = take_pending(key, answered->serial);
     --f.pending;
+    f.captured_request_answered = true;
     Unanswered why{FindingCode::PairResponseNotCaptured,
                    describe_request(taken->request) + " to " + taken->request.device.str() +
                        " was answered (transaction id " + std::to_string(cut.tid) +
@@ -2535,7 +2614,7 @@ void Analyzer::close_streams(Flow& f, Timestamp t, int only) {
         if (f.rtu_over_tcp) {
             f.rtu_deframer[dir].finish(events);
             shift_offsets(events, f.rtu_lost[dir]);
-            deframed(f, dir == 0, events, f.rtu_last[dir]);
+            deframed(f, dir == 0, events, t);
             continue;
         }
         f.deframer[dir].finish(events);
@@ -2639,6 +2718,7 @@ void Analyzer::restart_streams(Flow& f, int only) {
         f.last_fed_from[dir] = f.last_fed_packet[dir] = 0;
         f.rtu_deframer[dir].reset();
         f.rtu_lost[dir] = 0;
+        f.rtu_arrivals[dir].clear();
     }
 }
 

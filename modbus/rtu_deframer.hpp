@@ -32,6 +32,10 @@ class RtuDeframer {
     // End of input: whatever is buffered becomes frames or unparsed records.
     void finish(DeframeEvents& out);
     std::uint64_t bytes_in() const noexcept { return base_ + (buf_.size() - head_); }
+    // Stream offset of the first byte in no event yet: a run of unparsed bytes still gathering starts there.
+    std::uint64_t unreported() const noexcept { return pending_.length != 0 ? pending_.offset : base_; }
+    // Stream offset of the first byte held for a frame not yet whole.
+    std::uint64_t held_from() const noexcept { return base_; }
     // Back to a new deframer's state at stream offset 0, keeping the buffer's capacity.
     void reset() noexcept;
 

@@ -134,3 +134,76 @@ TEST(RtuOverTcp, TheGatewayPortIsNotDecodedUnlessNamed) {
     EXPECT_TRUE(d->sink.frames.empty());
     EXPECT_TRUE(d->sink.findings.empty());
 }
+
+// A frame whose CRC fails is closed only by later bytes: the next frame from its own side, or the other
+// side's turn. It was stamped with the packet (and, for its own side's, the time) of the bytes that closed
+// it; it is the packet's that held it, and so are its rtu.crc_mismatch and the frames after it. tshark (-d
+// tcp.port==4001,mbrtu) shows each at the packet that holds it.
+TEST(RtuOverTcp, AFrameWithABadCrcKeepsThePacketAndTimeItCameIn) {
+    const auto unit_1 = bytes({0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x84, 0x0A});
+    const auto unit_1_reply = bytes({0x01, 0x03, 0x02, 0x00, 0x01, 0x79, 0x84});
+    for (const bool answered : {false, true}) {
+        SCOPED_TRACE(answered);
+        Conversation c;
+        c.send(true, request_bad_crc, 300ms);          // packet 1
+        if (answered) c.send(false, response, 350ms);  // a slave that does not check the CRC
+        c.send(true, unit_1, 5s);                      // packet 2 or 3
+        c.send(false, unit_1_reply, 5s + 50ms);
+        auto d = decode_pcap(c.file(), gateway_options());
+        ASSERT_EQ(d->sink.frames.size(), answered ? 4u : 3u);
+        const auto& bad = d->sink.frames[0];
+        EXPECT_FALSE(bad.frame.checksum_ok);
+        EXPECT_EQ(bad.packet, 1u);
+        EXPECT_EQ(bad.time, 300ms);
+        const std::uint64_t next = answered ? 3 : 2;
+        EXPECT_EQ(d->sink.frames[answered ? 2 : 1].packet, next);
+        EXPECT_EQ(d->sink.frames[answered ? 2 : 1].time, 5s);
+        if (answered) {
+            EXPECT_EQ(d->sink.frames[1].packet, 2u);
+            EXPECT_EQ(d->sink.frames[1].time, 350ms);
+        }
+        ASSERT_EQ(d->sink.count(mb::FindingCode::RtuCrcMismatch), 1);
+        for (const auto& f : d->sink.findings) {
+            if (f.code == mb::FindingCode::RtuCrcMismatch) {
+                EXPECT_EQ(f.packet, 1u);
+                EXPECT_EQ(f.time, 300ms);
+                EXPECT_EQ(f.frames, std::vector<std::uint64_t>{1});
+            }
+        }
+    }
+}
+
+// A damaged reply over two segments, closed by the client's next request: whole at its last byte, the
+// packet that holds it, as a frame whose CRC holds is. Bytes that formed no frame are the packet's that held
+// their first byte, as on a Modbus/TCP stream (they were the packet's whose bytes showed where they end).
+TEST(RtuOverTcp, ADamagedFrameOverTwoSegmentsAndUnparsedBytesKeepTheirPackets) {
+    auto damaged = response;
+    damaged.back() ^= 0x01;
+    Conversation c;
+    c.send(true, bytes({0xFF, 0xFF}), 1s);                             // packet 1: no frame
+    c.send(true, request, 2s);                                         // packet 2
+    c.send(false, {damaged.begin(), damaged.begin() + 5}, 2s + 10ms);  // packet 3
+    c.send(false, {damaged.begin() + 5, damaged.end()}, 2s + 11ms);    // packet 4
+    c.send(true, request, 3s);                                         // packet 5
+    auto d = decode_pcap(c.file(), gateway_options());
+    ASSERT_EQ(d->sink.unparsed_records.size(), 1u);
+    EXPECT_EQ(d->sink.unparsed_records[0].packet, 1u);
+    EXPECT_EQ(d->sink.unparsed_records[0].time, 1s);
+    for (const auto& f : d->sink.findings) {
+        if (f.code == mb::FindingCode::StreamUnparsedBytes) {
+            EXPECT_EQ(f.packet, 1u);
+        }
+    }
+    ASSERT_EQ(d->sink.frames.size(), 3u);
+    EXPECT_EQ(d->sink.frames[0].packet, 2u);
+    EXPECT_EQ(d->sink.frames[0].time, 2s);
+    EXPECT_FALSE(d->sink.frames[1].frame.checksum_ok);
+    EXPECT_EQ(d->sink.frames[1].packet, 4u);
+    EXPECT_EQ(d->sink.frames[1].time, 2s + 11ms);
+    EXPECT_EQ(d->sink.frames[2].packet, 5u);
+    for (const auto& f : d->sink.findings) {
+        if (f.code == mb::FindingCode::RtuCrcMismatch) {
+            EXPECT_EQ(f.packet, 4u);
+        }
+    }
+}

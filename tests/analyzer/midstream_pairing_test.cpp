@@ -1,0 +1,134 @@
+// Pairing on a Modbus/TCP connection the capture joined after it opened (no SYN), with requests pipelined:
+// replies to requests sent before the capture began may still come after the capture's first request, and
+// are neither that request's reply (with another id) nor unsolicited.
+#include <gtest/gtest.h>
+
+#include "test_packets.hpp"
+
+namespace an = mbscope::analyzer;
+namespace mb = mbscope::modbus;
+using namespace std::chrono_literals;
+using mbscope::test::bytes;
+using mbscope::test::Conversation;
+using mbscope::test::decode_pcap;
+using mbscope::test::packet;
+
+namespace {
+
+std::vector<std::uint8_t> read_request(std::uint16_t tid, std::uint8_t unit, std::uint8_t quantity) {
+    return bytes({tid >> 8, tid & 0xFF, 0, 0, 0, 6, unit, 3, 0, 0, 0, quantity});
+}
+// A reply to read_request: `quantity` registers, each holding the unit's number.
+std::vector<std::uint8_t> read_reply(std::uint16_t tid, std::uint8_t unit, std::uint8_t quantity) {
+    std::vector<std::uint8_t> b =
+        bytes({tid >> 8, tid & 0xFF, 0, 0, 0, 3 + 2 * quantity, unit, 3, 2 * quantity});
+    for (int i = 0; i < quantity; ++i)
+        b.insert(b.end(), {0, unit});
+    return b;
+}
+
+// The connection opened in the capture: the client's SYN and the server's SYN-ACK.
+void open(Conversation& c, mb::Timestamp t) {
+    c.records.push_back({t, packet(true, c.seq[0] - 1, {}, false, 0x02, 502, 0)});
+    c.records.push_back({t, packet(false, c.seq[1] - 1, {}, false, 0x12, 502, c.seq[0])});
+}
+
+}  // namespace
+
+// The client sent id 10 (unit 1, one register) before the capture began; the capture holds request 11 (unit
+// 2, three registers), then reply 10, then reply 11, as tshark pairs them. Reply 10 was paired with request
+// 11: a transaction-id mismatch, a unit mismatch and a size mismatch, unit 1's value shown as unit 2's, and
+// reply 11 unsolicited. Also across the ids' wrap (65535 before 0).
+TEST(MidstreamPairing, AReplyToARequestPipelinedBeforeTheCaptureIsNotTheCapturedRequestsReply) {
+    for (const auto& [before, first] : {std::pair<std::uint16_t, std::uint16_t>{10, 11}, {65535, 0}}) {
+        SCOPED_TRACE(first);
+        Conversation c;
+        c.send(true, read_request(first, 2, 3), 10ms);
+        c.send(false, read_reply(before, 1, 1), 50ms);
+        c.send(false, read_reply(first, 2, 3), 90ms);
+        const auto d = decode_pcap(c.file());
+        ASSERT_EQ(d->sink.findings.size(), 1u);
+        const auto& f = d->sink.findings[0];
+        EXPECT_EQ(f.code, mb::FindingCode::PairRequestNotCaptured);
+        EXPECT_EQ(f.packet, 2u);
+        EXPECT_EQ(f.time, 50ms);
+        EXPECT_EQ(f.frames, std::vector<std::uint64_t>{2});
+        EXPECT_EQ(f.device.str(), "10.0.0.2:502 unit 1");
+        EXPECT_NE(f.message.find("transaction id " + std::to_string(before)), std::string::npos) << f.message;
+        EXPECT_EQ(d->summary.errors, 0u);
+        ASSERT_EQ(d->sink.transactions.size(), 1u);
+        const auto& t = d->sink.transactions[0];
+        EXPECT_EQ(t.request.frame.transaction_id(), first);
+        ASSERT_TRUE(t.response.has_value());
+        EXPECT_EQ(t.response->frame.transaction_id(), first);
+        EXPECT_EQ(t.response->packet, 3u);
+        ASSERT_TRUE(t.latency.has_value());
+        EXPECT_EQ(*t.latency, 80ms);
+        EXPECT_TRUE(t.findings.empty());
+        EXPECT_EQ(d->summary.devices.at("10.0.0.2:502 unit 2").responses, 1u);
+        EXPECT_EQ(d->summary.devices.count("10.0.0.2:502 unit 1"), 1u);
+        EXPECT_EQ(d->summary.devices.at("10.0.0.2:502 unit 1").responses, 0u);
+    }
+}
+
+// Two captured requests wait (11 to unit 2, 12 to unit 3) when reply 10 comes: it was unsolicited, an
+// error; each captured request is paired with its own reply.
+TEST(MidstreamPairing, AReplyBeforeTheCapturedRequestsWhileSeveralWaitIsNotUnsolicited) {
+    Conversation c;
+    c.send(true, read_request(11, 2, 3), 10ms);
+    c.send(true, read_request(12, 3, 2), 20ms);
+    c.send(false, read_reply(10, 1, 1), 50ms);
+    c.send(false, read_reply(11, 2, 3), 90ms);
+    c.send(false, read_reply(12, 3, 2), 100ms);
+    const auto d = decode_pcap(c.file());
+    ASSERT_EQ(d->sink.findings.size(), 1u);
+    EXPECT_EQ(d->sink.findings[0].code, mb::FindingCode::PairRequestNotCaptured);
+    EXPECT_EQ(d->sink.findings[0].packet, 3u);
+    EXPECT_EQ(d->summary.errors, 0u);
+    ASSERT_EQ(d->sink.transactions.size(), 2u);
+    for (const auto& t : d->sink.transactions) {
+        ASSERT_TRUE(t.response.has_value());
+        EXPECT_EQ(t.response->frame.transaction_id(), t.request.frame.transaction_id());
+        EXPECT_EQ(t.response->frame.unit_id(), t.request.frame.unit_id());
+    }
+}
+
+// What stays a transaction-id mismatch: a reply with an earlier id once a reply answered a captured request
+// (a server answers in turn: those sent before the capture were answered before it), the same id excused a
+// second time (a request is answered once), an id after the captured request's
+// (Analyzer.TransactionIdMismatch), and any of it on a connection whose opening the capture holds (nothing
+// went before it).
+TEST(MidstreamPairing, AWrongIdInsideTheCapturedConversationIsStillAMismatch) {
+    {
+        SCOPED_TRACE("after a reply answered a captured request");
+        Conversation c;
+        c.send(true, read_request(11, 2, 3), 10ms);
+        c.send(false, read_reply(11, 2, 3), 20ms);
+        c.send(true, read_request(12, 2, 3), 30ms);
+        c.send(false, read_reply(10, 2, 3), 40ms);
+        const auto d = decode_pcap(c.file());
+        EXPECT_EQ(d->sink.count(mb::FindingCode::PairTransactionIdMismatch), 1);
+        EXPECT_EQ(d->sink.count(mb::FindingCode::PairRequestNotCaptured), 0);
+        EXPECT_EQ(d->sink.transactions.size(), 2u);
+    }
+    {
+        SCOPED_TRACE("the same earlier id again");
+        Conversation c;
+        c.send(true, read_request(11, 2, 3), 10ms);
+        c.send(false, read_reply(10, 1, 1), 20ms);
+        c.send(false, read_reply(10, 2, 3), 30ms);
+        const auto d = decode_pcap(c.file());
+        EXPECT_EQ(d->sink.count(mb::FindingCode::PairRequestNotCaptured), 1);
+        EXPECT_EQ(d->sink.count(mb::FindingCode::PairTransactionIdMismatch), 1);
+    }
+    {
+        SCOPED_TRACE("a connection opened in the capture");
+        Conversation c;
+        open(c, 0s);
+        c.send(true, read_request(11, 2, 3), 10ms);
+        c.send(false, read_reply(10, 2, 3), 50ms);
+        const auto d = decode_pcap(c.file());
+        EXPECT_EQ(d->sink.count(mb::FindingCode::PairTransactionIdMismatch), 1);
+        EXPECT_EQ(d->sink.count(mb::FindingCode::PairRequestNotCaptured), 0);
+    }
+}
