@@ -81,6 +81,14 @@ struct Analyzer::Flow {
         if (from > 1) a.erase(a.begin() + 1, a.begin() + static_cast<std::ptrdiff_t>(from));
         a.push_back({rtu_deframer[dir].bytes_in() + rtu_lost[dir], packet, t});
     }
+    // The gateway's last run of bytes that formed no frame, while no frame has come after it (length 0:
+    // none), when it came and the unit and function code it begins with: a hole in the response stream
+    // right after it cut a reply that began with them (stream_gap).
+    struct ReplyTail {
+        std::uint32_t length = 0;
+        Timestamp time{0};
+        std::array<std::uint8_t, 2> head{};
+    } rtu_reply_tail;
     std::size_t pending = 0;
     // The serial the first request after bytes of the request stream were lost gets (0: none lost, or a
     // request after them was answered): a reply nobody waits for may answer a request among those bytes.
@@ -482,6 +490,7 @@ void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) 
     deframed(f, dir == 0, events, t);
     if (dir == 1) {
         if (cut) reply_cut(f, *cut, t);
+        if (f.rtu_over_tcp) rtu_reply_cut(f, missing);
         // The requests still waiting may have been answered in the hole (a tap's drop the client's
         // acknowledgement covered): the mirror of a request among lost bytes (first_request_after_gap).
         // Unless the hole is the tail of the reply cut, too short to hold anything of another; and not a
@@ -704,6 +713,7 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
                                when,      packet,    u->offset,
                                u->length, u->reason};
             sink_.unparsed(rec);
+            if (flow.rtu_over_tcp && !to_server) flow.rtu_reply_tail = {u->length, when, u->head};
             FrameRecord about;
             about.time = when;
             about.source = source_;
@@ -732,6 +742,7 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
                              std::string(to_string(u->reason)) + ")");
             continue;
         }
+        if (flow.rtu_over_tcp && !to_server) flow.rtu_reply_tail.length = 0;
         FrameRecord r(std::get<Frame>(e));
         r.index = ++next_frame_;
         r.packet = current;
@@ -994,7 +1005,10 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     // waiting is given up below: a reply that fits only that one is its late one.)
     if (!timed_out_.empty()) timed_out_.erase({flow.id, late_id(r.frame)});
     if (r.frame.framing != Framing::Tcp) release_unseen(flow);
-    if (r.frame.framing != Framing::Tcp)
+    // Not through a gateway on TCP (RTU over TCP): it queues the requests of a connection and answers them
+    // in turn, so a client may send the next before the reply to the last (pipelined, or several in one
+    // segment), and each waits to its own timeout (below, as a reused transaction id waits).
+    if (r.frame.framing != Framing::Tcp && !flow.rtu_over_tcp)
         if (auto it = pending_.find({flow.id, 0}); it != pending_.end()) {
             // The master moved on (a broadcast too: a master sends nothing while it waits for a reply): the
             // previous request was never answered.
@@ -1039,27 +1053,11 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
     if (auto it = pending_.find(key); it != pending_.end()) {
-        report(FindingCode::PairTransactionIdDuplicate, r,
-               "transaction id " + std::to_string(key.tid) + " reused while frame " +
-                   std::to_string(it->second.request.index) +
-                   " is still unanswered; replies with it are paired with the requests in turn",
-               {it->second.request.index, r.index});
-        // Both still wait: a server answers a connection's requests in turn, and a client that numbers
-        // every request alike (some do) gets every reply. Giving the older one up here blamed the device
-        // with a timeout, its reply with an echo mismatch and the last reply as unsolicited.
-        auto& older = reused_[key];
-        if (older.size() >= max_reused_per_id) {
-            Pending old = std::move(older.front());
-            older.pop_front();
-            --flow.pending;
-            give_up(old, true,
-                    {FindingCode::PairNoResponse,
-                     no_response_message(old.request,
-                                         "before its transaction id was used " +
-                                             std::to_string(max_reused_per_id + 1) + " more times",
-                                         r.time)});
-        }
-        older.push_back(std::move(it->second));
+        // Both still wait: a server answers a connection's requests in turn. RTU carries no transaction id
+        // (every request has key 0), so on RTU over TCP this is how requests queue, no client's doing; its
+        // queue is bounded by the link's (max_pending_per_flow, below).
+        if (!flow.rtu_over_tcp) transaction_id_reused(flow, it->second, r);
+        reused_[key].push_back(std::move(it->second));
         pending_.erase(it);
     }
     if (flow.pending >= options_.max_pending_per_flow) {
@@ -1116,6 +1114,29 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     ++flow.pending;
 }
 
+void Analyzer::transaction_id_reused(Flow& flow, const Pending& newest, const FrameRecord& r) {
+    const PendingKey key{flow.id, pairing_id(r.frame)};
+    report(FindingCode::PairTransactionIdDuplicate, r,
+           "transaction id " + std::to_string(key.tid) + " reused while frame " +
+               std::to_string(newest.request.index) +
+               " is still unanswered; replies with it are paired with the requests in turn",
+           {newest.request.index, r.index});
+    // Both still wait: a client that numbers every request alike (some do) gets every reply. Giving the
+    // older one up here blamed the device with a timeout, its reply with an echo mismatch and the last
+    // reply as unsolicited. Only so many, though.
+    auto& older = reused_[key];
+    if (older.size() < max_reused_per_id) return;
+    Pending old = std::move(older.front());
+    older.pop_front();
+    --flow.pending;
+    give_up(old, true,
+            {FindingCode::PairNoResponse,
+             no_response_message(old.request,
+                                 "before its transaction id was used " +
+                                     std::to_string(max_reused_per_id + 1) + " more times",
+                                 r.time)});
+}
+
 namespace {
 
 // Could `response` be the reply to `request`, as far as its bytes tell: its unit, its function (or the
@@ -1149,8 +1170,9 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         // slot of a request to a unit, it is that unit's reply slot a frame with a wrong address took: held
         // against the unit asked, and the request keeps waiting, as for a reply from another unit. Else it
         // answers a broadcast, which no slave may.
-        if (const auto waiting = pending_.find({flow.id, 0}); waiting != pending_.end()) {
-            Pending& asked = waiting->second;
+        // (Through a gateway on TCP, the oldest request waiting: replies come in turn.)
+        if (Pending* oldest = oldest_waiting({flow.id, 0}, [](const Pending&) { return true; })) {
+            Pending& asked = *oldest;
             asked.other_unit_reply = r.index;
             asked.other_unit = 0;
             FrameRecord about(r);
@@ -1173,8 +1195,10 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     }
     const PendingKey key{flow.id, pairing_id(r.frame)};
     auto it = pending_.find(key);
+    // (Through a gateway on TCP only when it is the one request waiting: the reply may answer another.)
     if (it != pending_.end() && it->second.unseen_unit_link && r.frame.checksum_ok &&
-        r.frame.unit_id() != it->second.request.frame.unit_id()) {
+        r.frame.unit_id() != it->second.request.frame.unit_id() &&
+        (!flow.rtu_over_tcp || flow.pending == 1)) {
         // What waits is a damaged request to a unit the link had not shown, and another unit answers: the
         // master asked that one (in bytes the capture lost), not the unit the damage names. Settled now, and
         // no request waits.
@@ -1188,12 +1212,17 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                                      "before unit " + std::to_string(r.frame.unit_id()) + " replied")});
         it = pending_.end();
     }
+    // Without transaction ids, the request a reply answers is found by its unit: on a serial line the one
+    // waiting, through a gateway on TCP the oldest of the unit's that wait (the gateway answers in turn).
+    const auto any = [](const Pending&) { return true; };
+    const auto same_unit = [&](const Pending& p) { return p.request.frame.unit_id() == r.frame.unit_id(); };
+    const auto fits = [&](const Pending& p) { return could_answer(p.request, r); };
     // On a serial line the request waiting may be to another unit, the master having moved on from this
     // one's: a reply that unit's late one names (with a checksum that holds, so its unit byte can be
-    // trusted) is that one's, not the waiting request's with a unit mismatch.
+    // trusted) is that one's, not the waiting request's with a unit mismatch. (So through a gateway when no
+    // request to the unit waits.)
     const bool other_unit_waits = it != pending_.end() && r.frame.framing != Framing::Tcp &&
-                                  r.frame.checksum_ok &&
-                                  it->second.request.frame.unit_id() != r.frame.unit_id();
+                                  r.frame.checksum_ok && !oldest_waiting(key, same_unit);
     // Over Modbus/TCP a request timed out while later ones that reused its id waited (a timed-out request's
     // entry is dropped when its id is sent again, so one that is here timed out after they were sent): a
     // reply that fits it is its late one, the oldest's, as a server answers in turn. Before, the reply went
@@ -1202,15 +1231,19 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         const auto t = timed_out_.find({flow.id, late_id(r.frame)});
         return t != timed_out_.end() && could_answer(t->second.pending.request, r);
     };
+    // So through a gateway on TCP, where a request to the unit that timed out was queued before those
+    // waiting.
     const bool late_behind_reuse =
-        it != pending_.end() && r.frame.framing == Framing::Tcp && !timed_out_.empty() && late_one_fits();
+        it != pending_.end() &&
+        (r.frame.framing == Framing::Tcp || (flow.rtu_over_tcp && r.frame.checksum_ok)) &&
+        !timed_out_.empty() && late_one_fits();
     // On a serial line the master asked the same unit again (other registers) before the reply to the first
     // came: a reply whose size or echo fits only the first request is that one's, late, and the new request
     // keeps waiting for its own. Before, it was paired with the new one (a size mismatch) and the new one's
     // reply that followed was unsolicited: two errors against a device that was only slow.
     const bool late_for_same_unit = it != pending_.end() && r.frame.framing != Framing::Tcp &&
                                     r.frame.checksum_ok && !other_unit_waits && !timed_out_.empty() &&
-                                    late_one_fits() && !could_answer(it->second.request, r);
+                                    late_one_fits() && !oldest_waiting(key, fits);
     if ((it == pending_.end() || other_unit_waits || late_behind_reuse || late_for_same_unit) &&
         !timed_out_.empty()) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
@@ -1233,7 +1266,7 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     // neither named from the asked unit's map nor remembered as its (the decimal places another unit reported
     // scaled every later value of the asked one).
     if (other_unit_waits) {
-        Pending& waiting = it->second;
+        Pending& waiting = *oldest_waiting(key, any);
         waiting.other_unit_reply = r.index;
         waiting.other_unit = r.frame.unit_id();
         report(FindingCode::PairUnitMismatch, r,
@@ -1397,11 +1430,17 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     }
     --flow.pending;
     flow.captured_request_answered = true;
-    // The transaction id reused while older requests with it still wait: the oldest the reply fits is the
-    // one it answers (a server answers in turn), else the oldest.
+    // The transaction id reused while older requests with it still wait (through a gateway on TCP, several
+    // requests queued): the oldest the reply fits is the one it answers (a server answers in turn), else
+    // the oldest (without ids, of the reply's unit). A request whose checksum failed, which the gateway or
+    // the device discards, only when no other fits: a client's good copy of it queued after it is the one
+    // answered (it took the reply, and the good copy was a timeout).
     const PendingKey waiting = it->first;
-    Pending* answered = oldest_waiting(waiting, [&](const Pending& p) { return could_answer(p.request, r); });
-    if (!answered) answered = oldest_waiting(waiting, [](const Pending&) { return true; });
+    Pending* answered =
+        oldest_waiting(waiting, [&](const Pending& p) { return p.request.frame.checksum_ok && fits(p); });
+    if (!answered) answered = oldest_waiting(waiting, fits);
+    if (!answered && r.frame.framing != Framing::Tcp) answered = oldest_waiting(waiting, same_unit);
+    if (!answered) answered = oldest_waiting(waiting, any);
     // A request after the lost bytes answered: the replies to those before it have had their turn.
     if (flow.first_request_after_gap && answered->serial >= flow.first_request_after_gap)
         flow.first_request_after_gap = 0;
@@ -1491,6 +1530,30 @@ void Analyzer::reply_cut(Flow& f, const CutAdu& cut, Timestamp t) {
                        std::to_string(cut.length) + " bytes" +
                        (cut.snapshot_length ? " (a packet cut to the capture's snapshot length)" : "") +
                        ": its values are unknown"};
+    complete(*taken, nullptr, false, nullptr, &why);
+}
+
+void Analyzer::rtu_reply_cut(Flow& f, std::uint64_t missing) {
+    const Flow::ReplyTail tail = f.rtu_reply_tail;
+    f.rtu_reply_tail.length = 0;  // the hole ends it: bytes after the hole begin anew
+    if (tail.length == 0 || !f.pending) return;
+    // Replies come in turn: the oldest request waiting that asked the unit and function the bytes begin
+    // with (an exception to it too), sent before they came.
+    const PendingKey key{f.id, 0};
+    const Pending* answered = oldest_waiting(key, [&](const Pending& p) {
+        const auto pdu = p.request.frame.pdu();
+        return !pdu.empty() && p.request.frame.unit_id() == tail.head[0] && pdu[0] == (tail.head[1] & 0x7F) &&
+               p.request.time <= tail.time;
+    });
+    if (!answered) return;
+    auto taken = take_pending(key, answered->serial);
+    --f.pending;
+    Unanswered why{FindingCode::PairResponseNotCaptured,
+                   describe_request(taken->request) + " to " + taken->request.device.str() +
+                       " was answered, but the capture holds only the first " + std::to_string(tail.length) +
+                       " bytes of the reply (unit " + std::to_string(tail.head[0]) + ", function code " +
+                       std::to_string(tail.head[1]) + "), the rest among " + std::to_string(missing) +
+                       " bytes of the response stream it lacks: its values are unknown"};
     complete(*taken, nullptr, false, nullptr, &why);
 }
 

@@ -271,6 +271,9 @@ class Analyzer {
     void rtac_packet(const Packet& packet);
     modbus::Direction classify(const Flow& flow, const modbus::Frame& frame) const;
     void on_request(Flow& flow, FrameRecord& record, DeviceStats* stats);
+    // Over Modbus/TCP, `record` carries the transaction id of `newest`, still waiting: said (a warning, the
+    // client's doing), and the oldest with the id given up when too many wait with it.
+    void transaction_id_reused(Flow& flow, const Pending& newest, const FrameRecord& record);
     bool settle_unit(Pending& pending);
     void release_unseen(Flow& flow);
     void on_response(Flow& flow, FrameRecord& record);
@@ -347,7 +350,8 @@ class Analyzer {
     std::unordered_map<PendingKey, Pending, PendingHash> pending_;
     // Over Modbus/TCP, requests still waiting whose transaction id a later request on the link reused, oldest
     // first (the newest with the id is in pending_). Clients that number every request alike exist; a server
-    // answers them in turn, so each keeps waiting for its own reply (take_pending, on_response).
+    // answers them in turn, so each keeps waiting for its own reply (take_pending, on_response). On RTU over
+    // TCP, which has no ids, the requests a gateway has queued before the newest.
     std::unordered_map<PendingKey, std::deque<Pending>, PendingHash> reused_;
     static constexpr std::size_t max_reused_per_id = 16;
     // The waiting request with this key and serial, from pending_ or reused_; nullptr when answered or given
@@ -378,6 +382,11 @@ class Analyzer {
     static std::optional<CutAdu> cut_adu(std::span<const std::uint8_t> incomplete, bool snapshot_length);
     // The request a cut reply answers is given up as answered, its values unknown (not a timeout).
     void reply_cut(Flow& flow, const CutAdu& cut, modbus::Timestamp t);
+    // RTU over TCP: a hole of `missing` bytes in the gateway's stream right after bytes that formed no frame
+    // and begin with a waiting request's unit and function code cut that request's reply. It is given up as
+    // answered, its values unknown (pair.response_not_captured, as a cut MBAP reply is), not a timeout held
+    // against the device.
+    void rtu_reply_cut(Flow& flow, std::uint64_t missing);
     // Requests cut by a gap, by flow and transaction id: a reply to one is not unsolicited. Bounded.
     std::unordered_map<PendingKey, CutAdu, PendingHash> cut_requests_;
     static constexpr std::size_t max_cut_requests = 1024;
