@@ -65,6 +65,8 @@ class HeaderScanner final : public nlohmann::json_sax<json> {
             }
         } else if (model_field() && k == "aliases") {
             out_.models.back().aliases.clear();
+        } else if (stack_.size() == 2 && stack_[0].key == "line" && stack_[1].object && k == "transports") {
+            out_.transports.clear();
         }
         return true;
     }

@@ -105,7 +105,7 @@ TEST(ProfileHeaders, ModelsTakeTheirIdAsNameAndLowerCaseAliases) {
 TEST(ProfileHeaders, AFieldGivenTwiceTakesItsLastValue) {
     const std::string text =
         R"({"format": "mbscope-profile/1", "vendor": "first", "vendor": "second", "family": "F",
-            "line": {"transports": ["rtu"]}, "line": {"transports": ["ascii"]},
+            "line": {"transports": ["rtu"]}, "line": {"transports": ["ascii"], "transports": ["tcp"]},
             "functions": {"supported": [3]},
             "tables": {"holding_registers": [{"address": 0, "name": "a", "access": "r", "source": "t:1"}]},
             "models": [{"id": "gone"}],
@@ -117,6 +117,7 @@ TEST(ProfileHeaders, AFieldGivenTwiceTakesItsLastValue) {
     EXPECT_EQ(h.models[0].id, "kept");
     EXPECT_EQ(h.models[0].aliases, std::vector<std::string>{"b"});
     EXPECT_EQ(h.vendor, "second");
+    EXPECT_EQ(h.transports, std::vector<std::string>{"tcp"});
     expect_same(h, full, "fields twice");
 }
 
