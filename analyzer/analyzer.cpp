@@ -815,11 +815,33 @@ std::string gap_place_text(const Frame& f) {
            std::to_string(f.wire_length);
 }
 
-// A serial request every slave discards: its checksum failed, or it has a silence above t1.5 inside (SL
-// §2.5.1.1, §2.5.1.2, §2.5.2.2).
+// "2.0 character times": a silence measured on a timed RTU line.
+std::string chars_text(float chars) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.1f", static_cast<double>(chars));
+    return std::string(text) + " character times";
+}
+
+// A serial request every slave discards: its checksum failed, it has a silence above t1.5 inside, or one
+// below t3.5 parts it from the line's bytes before or after it, with which a receiver keeping t3.5 takes it
+// as one frame (SL §2.5.1.1, §2.5.1.2, §2.5.2.2).
 bool discardable(const FrameRecord& request) {
     return request.frame.framing != Framing::Tcp &&
-           (!request.frame.checksum_ok || request.frame.findings.contains(FindingCode::RtuGapInsideFrame));
+           (!request.frame.checksum_ok || request.frame.findings.contains(FindingCode::RtuGapInsideFrame) ||
+            request.frame.short_silence_before_chars > 0 || request.frame.short_silence_after_chars > 0);
+}
+
+// Why a request every slave discards is discarded, for the finding that says it drew no reply.
+std::string discarded_because(const FrameRecord& request) {
+    const Frame& f = request.frame;
+    if (!f.checksum_ok)
+        return std::string("its ") + (f.framing == Framing::Ascii ? "LRC" : "CRC") + " failed";
+    if (f.findings.contains(FindingCode::RtuGapInsideFrame)) return "a " + gap_place_text(f) + " inside it";
+    if (f.short_silence_before_chars > 0)
+        return "only " + chars_text(f.short_silence_before_chars) +
+               " of silence before it, below t3.5, joined it to the bytes before";
+    return "only " + chars_text(f.short_silence_after_chars) +
+           " of silence after it, below t3.5, joined it to the bytes after";
 }
 }  // namespace
 
@@ -837,6 +859,11 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
                 "MBAP length " + std::to_string(r.frame.length_field()) + " is above the 254 of TCP §3.1.3";
         if (code == FindingCode::RtuGapInsideFrame)
             message = gap_place_text(r.frame) + ", above t1.5: a receiver keeping t1.5 discards the frame";
+        if (code == FindingCode::RtuShortSilenceBeforeFrame)
+            message =
+                "began after a silence of " + chars_text(r.frame.short_silence_before_chars) +
+                " from the line's bytes before it, below t3.5: a receiver keeping t3.5 takes them and it "
+                "as one frame, whose CRC fails (the silence as the capture's timestamps measure it)";
         if (code == FindingCode::RtuCrcMismatch || code == FindingCode::AsciiLrcMismatch)
             message = std::string(code == FindingCode::RtuCrcMismatch ? "CRC " : "LRC ") +
                       hex16(r.frame.checksum_received()) + " received, " +
@@ -1744,13 +1771,9 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                                 unanswered->code == FindingCode::PairNoResponseAtEnd);
         if (discarded) {
             unanswered->code = FindingCode::PairDamagedRequestUnanswered;
-            unanswered->message =
-                describe_request(request) + " to " + request.device.str() + ": " +
-                (!request.frame.checksum_ok
-                     ? std::string("its ") + (request.frame.framing == Framing::Ascii ? "LRC" : "CRC") +
-                           " failed"
-                     : "a " + gap_place_text(request.frame) + " inside it") +
-                " and no reply came, as a slave that discards such a frame does";
+            unanswered->message = describe_request(request) + " to " + request.device.str() + ": " +
+                                  discarded_because(request) +
+                                  " and no reply came, as a slave that discards such a frame does";
             timed_out = false;
         }
         // Only another unit replied while it waited (on_response): a timeout (or unanswered at the end) all

@@ -37,6 +37,7 @@ enum class FindingCode : std::uint16_t {
     RtuFrameTooLong = 203,
     RtuBroadcastResponse = 204,
     RtuUnitIdReserved = 205,
+    RtuShortSilenceBeforeFrame = 206,
     // ascii: serial line ASCII framing (SL §2.5.2)
     AsciiLrcMismatch = 300,
     AsciiLowercaseHex = 301,

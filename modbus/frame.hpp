@@ -44,7 +44,11 @@ struct Frame {
     Timestamp start{0};       // end of the first byte on the wire (timed input only)
     Timestamp end{0};         // end of the last byte (timed input only)
     float max_gap_chars = 0;  // longest silence inside the frame, in character times (timed RTU only)
-    std::uint16_t gap_before_byte = 0;  // index of the byte that followed that silence
+    // Timed RTU: the silence between the line's bytes before the frame and its first byte, in character
+    // times, when it was above t1.5 but below t3.5 (0: none so measured).
+    float short_silence_before_chars = 0;
+    float short_silence_after_chars = 0;  // the same between its last byte and the bytes after it
+    std::uint16_t gap_before_byte = 0;    // index of the byte that followed that silence
     // (a field added here must be added to operator= above: the size check below is there to say so)
 
     static constexpr std::size_t short_copy = 32;
@@ -75,6 +79,8 @@ struct Frame {
         start = other.start;
         end = other.end;
         max_gap_chars = other.max_gap_chars;
+        short_silence_before_chars = other.short_silence_before_chars;
+        short_silence_after_chars = other.short_silence_after_chars;
         gap_before_byte = other.gap_before_byte;
         return *this;
     }
@@ -96,7 +102,7 @@ struct Frame {
     std::uint16_t checksum_received() const noexcept;
     std::uint16_t checksum_computed() const noexcept;
 };
-static_assert(sizeof(void*) != 8 || sizeof(Frame) == 336,
+static_assert(sizeof(void*) != 8 || sizeof(Frame) == 344,
               "Frame changed: copy the new field in Frame::operator=");
 
 enum class UnparsedReason : std::uint8_t {

@@ -250,6 +250,9 @@ void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, Deframe
     frame.start = times_[begin];
     frame.end = times_[begin + length - 1];
     for (const Gap& g : gaps_) {
+        // A silence right before the frame, after other bytes of the run: the frame came too soon.
+        if (g.before_offset == frame.offset) frame.short_silence_before_chars = g.chars;
+        if (g.before_offset == frame.offset + length) frame.short_silence_after_chars = g.chars;
         if (g.before_offset <= frame.offset || g.before_offset >= frame.offset + length) continue;
         if (g.chars > frame.max_gap_chars) {
             frame.max_gap_chars = g.chars;
@@ -257,6 +260,7 @@ void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, Deframe
         }
     }
     if (frame.max_gap_chars > 0) frame.findings.add(FindingCode::RtuGapInsideFrame);
+    if (frame.short_silence_before_chars > 0) frame.findings.add(FindingCode::RtuShortSilenceBeforeFrame);
 }
 
 void RtuTimedDeframer::emit_unparsed(std::size_t begin, std::size_t length, UnparsedReason reason,

@@ -1281,3 +1281,64 @@ TEST(SerialInput, EachLineEndsWithItsOwnInput) {
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), 1);
     EXPECT_EQ(r->sink.transactions.size(), 11u);
 }
+
+// A frame must follow the line's bytes before it after a silence of at least t3.5 (SL §2.5.1.1): a reply
+// that began 2 character times after its request's end broke it, and a receiver keeping t3.5 took both as
+// one frame with a bad CRC. Frames are split by their content, so nothing said which device came too soon.
+// At 9600 8N1 a character is 1.042 ms; a line's time is its last byte's end. (Lines without a direction:
+// one tap on the line, deframed as one; with '>'/'<' each direction is deframed alone.)
+TEST(SerialInput, AFrameThatBeganBeforeT35IsTheWarningOfItsSender) {
+    auto r = decode(write_temp("too_soon.txt",
+                               "1.000000 11 03 00 60 00 03 07 45\n"
+                               "1.013542 11 03 06 02 2B 00 00 00 64 C8 BA\n"));  // 2.0 characters after
+    ASSERT_EQ(r->sink.count(mb::FindingCode::RtuShortSilenceBeforeFrame), 1);
+    for (const auto& f : r->sink.findings) {
+        if (f.code == mb::FindingCode::RtuShortSilenceBeforeFrame) {
+            EXPECT_EQ(mb::info(f.code).severity, mb::Severity::Warning);
+            EXPECT_EQ(f.frames, std::vector<std::uint64_t>{2});
+            EXPECT_NE(std::string(f.device.view()).find("unit 17"), std::string::npos);
+            EXPECT_EQ(f.message,
+                      "began after a silence of 2.0 character times from the line's bytes before it, below "
+                      "t3.5: a receiver keeping t3.5 takes them and it as one frame, whose CRC fails (the "
+                      "silence as the capture's timestamps measure it)");
+        }
+    }
+    // The reply is still the request's: a master that does not keep t3.5 took it.
+    ASSERT_EQ(r->sink.transactions.size(), 1u);
+    EXPECT_TRUE(r->sink.transactions[0].response.has_value());
+
+    // Time stamps that cannot tell (one stamp for both, a silence of 4 characters) say nothing.
+    for (const char* text :
+         {"1.000000 11 03 00 60 00 03 07 45\n1.000000 11 03 06 02 2B 00 00 00 64 C8 BA\n",
+          "1.000000 11 03 00 60 00 03 07 45\n1.015625 11 03 06 02 2B 00 00 00 64 C8 BA\n"}) {
+        auto quiet = decode(write_temp("not_too_soon.txt", text));
+        EXPECT_EQ(quiet->sink.count(mb::FindingCode::RtuShortSilenceBeforeFrame), 0) << text;
+    }
+}
+
+// The master's request 2 characters after the last reply: a slave keeping t3.5 saw the two as one frame and
+// rightly answered nothing. It was pair.no_response, an error against the slave; it is a discarded request.
+TEST(SerialInput, ARequestJoinedToTheBytesBeforeItAndUnansweredIsNoTimeout) {
+    auto r = decode(write_temp("glued_request.txt",
+                               "2.000000 11 03 00 60 00 03 07 45\n"
+                               "2.020000 11 03 06 02 2B 00 00 00 64 C8 BA\n"
+                               "2.030417 11 03 00 60 00 03 07 45\n"  // 2.0 characters after the reply
+                               "3.500000 11 03 00 60 00 03 07 45\n"
+                               "3.520000 11 03 06 02 2B 00 00 00 64 C8 BA\n"));
+    const auto& device = r->summary.devices.begin()->second;
+    EXPECT_EQ(device.requests, 3u);
+    EXPECT_EQ(device.timeouts, 0u);
+    EXPECT_EQ(device.damaged_unanswered, 1u);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 0);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::RtuShortSilenceBeforeFrame), 1);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairDamagedRequestUnanswered), 1);
+    for (const auto& f : r->sink.findings) {
+        if (f.code == mb::FindingCode::PairDamagedRequestUnanswered) {
+            EXPECT_NE(
+                f.message.find(": only 2.0 character times of silence before it, below t3.5, joined it to "
+                               "the bytes before and no reply came"),
+                std::string::npos)
+                << f.message;
+        }
+    }
+}
