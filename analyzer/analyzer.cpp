@@ -1028,10 +1028,14 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
                 report(rule.code, r, rule.message);
             }
         }
+    // A damaged request to a unit the link had not shown, whose timeout ran out before this frame: given up
+    // first, as it would have been at its timeout, so that this request supersedes it below as it does any
+    // request that timed out. (Given up after, it stayed the unit's late one: through a gateway on TCP the
+    // reply to this request, 2 s later, was paired with it as late, and this one was left unanswered.)
+    if (r.frame.framing != Framing::Tcp) release_unseen(flow);
     // A reply with this id (on a serial line, from this unit) now answers this request. (Before the request
     // waiting is given up below: a reply that fits only that one is its late one.)
     if (!timed_out_.empty()) timed_out_.erase({flow.id, late_id(r.frame)});
-    if (r.frame.framing != Framing::Tcp) release_unseen(flow);
     // Not through a gateway on TCP (RTU over TCP): it queues the requests of a connection and answers them
     // in turn, so a client may send the next before the reply to the last (pipelined, or several in one
     // segment), and each waits to its own timeout (below, as a reused transaction id waits).
@@ -1258,12 +1262,21 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         const auto t = timed_out_.find({flow.id, late_id(r.frame)});
         return t != timed_out_.end() && could_answer(t->second.pending.request, r);
     };
+    // A timed-out request whose checksum failed was discarded by the gateway or the device, and a waiting
+    // request with a good checksum that the reply fits (the client's copy of it, sent again) is the one
+    // answered, as among the requests waiting (below). Taken for the damaged one's late reply, it left the
+    // good copy a timeout against the device, and the device "answered a damaged request".
+    const auto good_copy_of_discarded_waits = [&] {
+        const auto t = timed_out_.find({flow.id, late_id(r.frame)});
+        return t != timed_out_.end() && !t->second.pending.request.frame.checksum_ok &&
+               oldest_waiting(key, [&](const Pending& p) { return p.request.frame.checksum_ok && fits(p); });
+    };
     // So through a gateway on TCP, where a request to the unit that timed out was queued before those
     // waiting.
     const bool late_behind_reuse =
         it != pending_.end() &&
         (r.frame.framing == Framing::Tcp || (flow.rtu_over_tcp && r.frame.checksum_ok)) &&
-        !timed_out_.empty() && late_one_fits();
+        !timed_out_.empty() && late_one_fits() && !good_copy_of_discarded_waits();
     // On a serial line the master asked the same unit again (other registers) before the reply to the first
     // came: a reply whose size or echo fits only the first request is that one's, late, and the new request
     // keeps waiting for its own. Before, it was paired with the new one (a size mismatch) and the new one's
@@ -1633,6 +1646,32 @@ void Analyzer::complete(Pending& pending, FrameRecord* response, bool timed_out,
           unanswered, &made);
 }
 
+namespace {
+// Whether `response` is a reply to `request`, a serial request whose CRC or LRC failed as captured: the same
+// unit, and its function (or the exception to it). The reply's own checksum must hold: a damaged reply's
+// unit and function bytes may be the damage, and what replied is then not known.
+bool answers_damaged_request(const FrameRecord& request, const FrameRecord& response) {
+    if (request.frame.framing == Framing::Tcp || request.frame.checksum_ok || !response.frame.checksum_ok)
+        return false;
+    const auto q = request.frame.pdu();
+    const auto a = response.frame.pdu();
+    return request.frame.unit_id() == response.frame.unit_id() && !q.empty() && !a.empty() &&
+           (a[0] & 0x7F) == q[0];
+}
+
+// pair.damaged_request_answered's message. Both readings, since a passive tap cannot tell them apart: the
+// device does not check the checksum, or the damage happened only on the tap's side of the line.
+std::string damaged_request_answered_message(const FrameRecord& request, const FrameRecord& response) {
+    const bool ascii = request.frame.framing == Framing::Ascii;
+    const std::string checksum = ascii ? "LRC" : "CRC";
+    return response.device.str() + " answered frame " + std::to_string(request.index) + " (" +
+           describe_request(request) + "), a request whose " + checksum +
+           " failed as captured: either it does not check the " + checksum +
+           " (a slave must discard such a frame and not reply, SL " + (ascii ? "§2.5.2.2" : "§2.5.1.2") +
+           ") or the capture damaged the request";
+}
+}  // namespace
+
 void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, DeviceStats& stats,
                      bool timed_out, const TimedOut* late, Unanswered* unanswered, TransactionRecord* made) {
     // A reply whose CRC or LRC fails has a damaged byte somewhere (SL §2.5.1.2: the master discards it):
@@ -1703,6 +1742,11 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                         " µs before its request: the capture's clock went back");
             }
         }
+        // A slave discards a request whose checksum failed (SL §2.5.1.2, §2.5.2.2): a reply to it is said,
+        // against the device that sent it, in time or late.
+        if (answers_damaged_request(request, rsp))
+            pair_finding(FindingCode::PairDamagedRequestAnswered,
+                         damaged_request_answered_message(request, rsp));
         if (!damaged && rsp.frame.unit_id() != request.frame.unit_id())
             pair_finding(FindingCode::PairUnitMismatch,
                          "request to unit " + std::to_string(request.frame.unit_id()) +

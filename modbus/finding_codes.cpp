@@ -140,6 +140,13 @@ constexpr std::array findings{
                 "(RTU): a slave discards such a frame, so the silence is what the rules want (its checksum "
                 "or gap finding says what went wrong)",
                 "SL §2.5.1.1, §2.5.1.2, §2.5.2.2"},
+    // A warning, not an error: a passive tap cannot tell a device that does not check the checksum from
+    // damage that happened only on the tap's side of the line (the device then got the request whole).
+    FindingInfo{PairDamagedRequestAnswered, "pair.damaged_request_answered", S::Warning,
+                "a device answered a request whose CRC or LRC failed as captured: a slave must discard such "
+                "a frame and not reply, so either it does not check the checksum or the capture damaged the "
+                "request (a passive tap cannot tell which)",
+                "SL §2.4.2, §2.5.1.2, §2.5.2.2"},
     FindingInfo{PairClientAborted, "pair.client_aborted", S::Note,
                 "the client reset the connection while the request waited, and no reply came after: the "
                 "client gave up on it, not a timeout of the device",

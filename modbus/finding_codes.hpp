@@ -80,6 +80,7 @@ enum class FindingCode : std::uint16_t {
     PairDamagedRequestUnanswered = 620,
     PairClientAborted = 621,
     PairResponseDamaged = 622,
+    PairDamagedRequestAnswered = 623,
     // profile: what the device's manual says, applied to traffic
     ProfileFunctionUnsupported = 700,
     ProfileQuantityAboveLimit = 701,
