@@ -51,15 +51,14 @@ int run_slave(const SlaveOptions& o) {
         std::cerr << "mbscope slave: " << endpoint.error() << '\n';
         return exit_failure;
     }
-    std::vector<slave::FaultSpec> specs;
-    for (const auto& f : o.faults) {
-        auto spec = slave::parse_fault(f);
-        if (!spec) {
-            std::cerr << "mbscope slave: " << spec.error() << '\n';
-            return exit_failure;
-        }
-        specs.push_back(*spec);
+    // A fault given twice is refused unless both instances act (stuck-value at two registers): every
+    // fault announced as planted below acts.
+    const auto parsed = slave::parse_faults(o.faults);
+    if (!parsed) {
+        std::cerr << "mbscope slave: " << parsed.error() << '\n';
+        return exit_failure;
     }
+    const std::vector<slave::FaultSpec>& specs = parsed.value();
     for (const auto& f : specs)
         if (const auto why =
                 slave::fault_without_effect(f.fault, modbus::transport::framing_of(endpoint->scheme))) {
@@ -260,6 +259,7 @@ void register_slave(CLI::App& app, int& exit_code) {
         "  A fault tied to one framing (bad-crc, bad-lrc, wrong-tid, the protocol id ones, "
         "gap-inside-frame)\n"
         "  is refused on an endpoint whose frames have nothing for it to change.\n"
+        "  Each fault is given once (one delay, one code, one rate), stuck-value once per register.\n"
         "\nExit codes: 0 stopped by SIGINT/SIGTERM/SIGHUP, 2 could not start (bad option, profile, endpoint, "
         "fault or state file).");
     cmd->add_option("--profile", o->profile,

@@ -138,13 +138,16 @@ void Device::count_frame(bool checksum_ok) noexcept {
 }
 
 bool Device::frozen(Table t, std::uint16_t address) const noexcept {
-    if (!faults_->enabled(Fault::StuckValue) || modbus::is_bit_table(t)) return false;
-    const auto stuck = static_cast<std::uint16_t>(faults_->arg(Fault::StuckValue));
-    if (stuck == address) return true;
-    // An address of an alternative map (Walchem) is stuck where its value is held: its object's field.
-    const modbus::Point* p = profile_->find(Table::HoldingRegisters, stuck);
-    return p && p->same_value_as &&
-           static_cast<std::uint16_t>(*p->same_value_as + (stuck - p->address)) == address;
+    if (modbus::is_bit_table(t)) return false;
+    for (const std::uint16_t stuck : faults_->stuck_addresses()) {
+        if (stuck == address) return true;
+        // An address of an alternative map (Walchem) is stuck where its value is held: its object's field.
+        const modbus::Point* p = profile_->find(Table::HoldingRegisters, stuck);
+        if (p && p->same_value_as &&
+            static_cast<std::uint16_t>(*p->same_value_as + (stuck - p->address)) == address)
+            return true;
+    }
+    return false;
 }
 
 std::uint16_t Device::acknowledged(std::uint16_t quantity) {
@@ -238,48 +241,74 @@ std::optional<std::uint8_t> Device::check_write_block(Table t, std::uint16_t sta
                                                       const std::vector<std::uint16_t>& values) {
     if (start + values.size() > 65536u)
         return modbus::exception_for(*profile_, "bad_address", exc_illegal_address);
+    // Judged as the device stores it: a device with the wrong word order judges the value it makes of the
+    // words, not the one the master meant.
+    const StoredBlock stored = as_stored(t, start, values);
+    const auto& block = stored.values;
     // A lone half of a 32-bit point is judged with the other half held.
-    auto rejection = modbus::check_writes(*profile_, t, start, values, [&](std::uint16_t a) {
+    auto rejection = modbus::check_writes(*profile_, t, stored.start, block, [&](std::uint16_t a) {
         return std::optional<std::uint16_t>(image_.reg(t, a));
     });
-    if (!rejection) rejection = check_conditional_access(*profile_, image_, t, start, values.size());
-    if (!rejection) rejection = check_linked_limits(*profile_, image_, t, start, values);
+    if (!rejection) rejection = check_conditional_access(*profile_, image_, t, stored.start, block.size());
+    if (!rejection) rejection = check_linked_limits(*profile_, image_, t, stored.start, block);
     if (!rejection) return std::nullopt;
     const bool is_value_rule =
         rejection->exception_code == modbus::exception_for(*profile_, "bad_value", exc_illegal_value) &&
         rejection->reason.rfind("value", 0) == 0;
     if (is_value_rule && faults_->enabled(Fault::AcceptOutOfRange)) {
         // Only the address and access rules are still applied.
-        for (std::size_t i = 0; i < values.size(); ++i)
-            if (auto r = modbus::check_writes(*profile_, t, static_cast<std::uint16_t>(start + i), {}))
+        for (std::size_t i = 0; i < block.size(); ++i)
+            if (auto r = modbus::check_writes(*profile_, t, static_cast<std::uint16_t>(stored.start + i), {}))
                 return r->exception_code;
         return std::nullopt;
     }
     return rejection->exception_code;
 }
 
+std::uint16_t Device::stored_address(Table t, std::uint16_t address) const noexcept {
+    if (!faults_->enabled(Fault::WordSwap) || profile_->open_address_space || modbus::is_bit_table(t))
+        return address;
+    const modbus::Point* p = profile_->find(t, address);
+    if (!p) return address;
+    if (p->encoding.words == 2)
+        return static_cast<std::uint16_t>(address == p->address ? address + 1 : address - 1);
+    // A 32-bit value the map gives as two points, its low and high words (CTH2265I's totals).
+    const auto type = p->encoding.type;
+    if ((type == modbus::EncodingType::U32Low || type == modbus::EncodingType::U32High) && p->encoding.pair)
+        return *p->encoding.pair;
+    return address;
+}
+
+Device::StoredBlock Device::as_stored(Table t, std::uint16_t start,
+                                      const std::vector<std::uint16_t>& values) const {
+    std::vector<std::uint16_t> at(values.size());
+    for (std::size_t i = 0; i < values.size(); ++i)
+        at[i] = stored_address(t, static_cast<std::uint16_t>(start + i));
+    if (at.empty()) return {start, {}, {}};
+    const auto [lo, hi] = std::minmax_element(at.begin(), at.end());
+    StoredBlock block{*lo, {}, std::vector<bool>(static_cast<std::size_t>(*hi - *lo + 1), false)};
+    for (std::size_t j = 0; j < block.written.size(); ++j)
+        block.values.push_back(image_.reg(t, static_cast<std::uint16_t>(block.start + j)));
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        block.values[at[i] - block.start] = values[i];
+        block.written[at[i] - block.start] = true;
+    }
+    return block;
+}
+
 std::uint16_t Device::read_word(Table t, std::uint16_t address) const noexcept {
     const modbus::Point* p = profile_->open_address_space ? nullptr : profile_->find(t, address);
     if (p && p->access == modbus::Access::Write)
         return 0;  // write-only points read as zero (manuals are silent)
-    if (p && faults_->enabled(Fault::WordSwap)) {
-        if (p->encoding.words == 2) {
-            const auto other = static_cast<std::uint16_t>(address == p->address ? address + 1 : address - 1);
-            return image_.reg(t, other);
-        }
-        // A 32-bit value the map gives as two points, its low and high words (CTH2265I's totals).
-        const auto type = p->encoding.type;
-        if ((type == modbus::EncodingType::U32Low || type == modbus::EncodingType::U32High) &&
-            p->encoding.pair)
-            return image_.reg(t, *p->encoding.pair);
-    }
-    return image_.reg(t, address);
+    return image_.reg(t, stored_address(t, address));
 }
 
 void Device::write_words(Table t, std::uint16_t start, const std::vector<std::uint16_t>& values) {
     if (faults_->fires(Fault::DropWrite)) return;
-    for (std::size_t i = 0; i < values.size(); ++i) {
-        const auto address = static_cast<std::uint16_t>(start + i);
+    const StoredBlock stored = as_stored(t, start, values);
+    for (std::size_t i = 0; i < stored.values.size(); ++i) {
+        if (!stored.written[i]) continue;
+        const auto address = static_cast<std::uint16_t>(stored.start + i);
         if (frozen(t, address)) continue;
         if (!profile_->open_address_space) {
             const modbus::Point* p = profile_->find(t, address);
@@ -287,7 +316,7 @@ void Device::write_words(Table t, std::uint16_t start, const std::vector<std::ui
                 continue;                  // unchecked tail (first-only)
             if (p->fixed_value) continue;  // reads its fixed value always
         }
-        image_.set_reg(t, address, values[i]);
+        image_.set_reg(t, address, stored.values[i]);
     }
 }
 
@@ -440,7 +469,8 @@ std::vector<std::uint8_t> Device::write_multiple_registers(const Pdu& req, bool&
 std::vector<std::uint8_t> Device::mask_write(const Pdu& req, bool& wrote) {
     const auto& m = std::get<modbus::MaskWriteRegister>(req.body);
     const std::uint16_t address = served(m.reference_address);
-    const std::uint16_t current = image_.reg(Table::HoldingRegisters, address);
+    const std::uint16_t current =
+        image_.reg(Table::HoldingRegisters, stored_address(Table::HoldingRegisters, address));
     // AP §6.16: result = (current AND and_mask) OR (or_mask AND (NOT and_mask)).
     const auto result = static_cast<std::uint16_t>((current & m.and_mask) | (m.or_mask & ~m.and_mask));
     if (auto e = check_write_block(Table::HoldingRegisters, address, {result})) return exception(22, *e);

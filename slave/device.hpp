@@ -98,6 +98,20 @@ class Device {
                                                   const std::vector<std::uint16_t>& values);
     std::uint16_t read_word(modbus::Table t, std::uint16_t address) const noexcept;
     void write_words(modbus::Table t, std::uint16_t start, const std::vector<std::uint16_t>& values);
+    // The register of the image that holds what a master calls `address`: itself, or under word-swap the
+    // other register of its 32-bit value. Reads and writes both go through it, so a device with the wrong
+    // word order is wrong the same way both ways (what it answers, written back, restores the value).
+    std::uint16_t stored_address(modbus::Table t, std::uint16_t address) const noexcept;
+    // A write as the image takes it: each value at its stored_address(), the block spanning them. A half of
+    // a 32-bit value the block leaves out can move past the block's edge; the registers the write does not
+    // set keep what the image holds (`written` false), so the value is judged whole with its other half.
+    struct StoredBlock {
+        std::uint16_t start = 0;
+        std::vector<std::uint16_t> values;
+        std::vector<bool> written;
+    };
+    StoredBlock as_stored(modbus::Table t, std::uint16_t start,
+                          const std::vector<std::uint16_t>& values) const;
     std::uint16_t served(std::uint16_t address) const noexcept;  // off-by-one-address fault
     std::uint16_t acknowledged(std::uint16_t quantity);          // wrong-quantity fault
 

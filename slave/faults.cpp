@@ -43,11 +43,11 @@ constexpr FaultInfo faults[] = {
     {Fault::GapInsideFrame, "gap-inside-frame", ArgKind::Characters,
      "=CHARS: RTU/ASCII: a silence of CHARS character times in the middle of each response"},
     {Fault::WordSwap, "word-swap", ArgKind::Rate,
-     "32-bit points, and 32-bit values the map gives as low and high words, are served with their two "
-     "registers swapped"},
+     "32-bit points, and 32-bit values the map gives as low and high words, are served and written with "
+     "their two registers swapped"},
     {Fault::OffByOneAddress, "off-by-one-address", ArgKind::Rate, "every request is served at address + 1"},
     {Fault::StuckValue, "stuck-value", ArgKind::Address,
-     "=ADDR: the register at ADDR never changes (writes acknowledged, process frozen)"},
+     "=ADDR: the register at ADDR never changes (writes acknowledged, process frozen); once per register"},
     {Fault::DropWrite, "drop-write", ArgKind::Rate, "writes are acknowledged and not kept"},
     {Fault::AcceptOutOfRange, "accept-out-of-range", ArgKind::Rate,
      "values outside the map's ranges and enumerations are accepted"},
@@ -64,6 +64,29 @@ constexpr FaultInfo faults[] = {
 
 const FaultInfo& info(Fault f) noexcept {
     return faults[static_cast<std::size_t>(f)];
+}
+
+// Instances at different addresses freeze different registers, all at once; every other argument (a rate,
+// a delay, a code, a count) is one setting of the slave, which two instances would contend for.
+bool repeatable(const FaultInfo& f) noexcept {
+    return f.arg == ArgKind::Address;
+}
+
+// Why `next` cannot be planted beside `planted` (the specs accepted before it, `texts` their command-line
+// text), nothing when it can.
+std::optional<std::string> second_instance(const std::vector<FaultSpec>& planted,
+                                           const std::vector<std::string>& texts, const FaultSpec& next,
+                                           const std::string& next_text) {
+    for (std::size_t i = 0; i < planted.size(); ++i) {
+        if (planted[i].fault != next.fault) continue;
+        const FaultInfo& f = info(next.fault);
+        if (!repeatable(f))
+            return "--fault " + next_text + ": " + std::string(f.name) + " is already planted (--fault " +
+                   texts[i] + ") and acts once, with one argument; only stuck-value takes several";
+        if (planted[i].arg == next.arg)
+            return "--fault " + next_text + ": that register is already stuck (--fault " + texts[i] + ")";
+    }
+    return std::nullopt;
 }
 
 }  // namespace
@@ -154,10 +177,22 @@ modbus::Result<FaultSpec, std::string> parse_fault(std::string_view text) {
            "' (see mbscope slave --help)";
 }
 
+modbus::Result<std::vector<FaultSpec>, std::string> parse_faults(const std::vector<std::string>& texts) {
+    std::vector<FaultSpec> specs;
+    for (const auto& text : texts) {
+        auto spec = parse_fault(text);
+        if (!spec) return spec.error();
+        if (auto why = second_instance(specs, texts, *spec, text)) return *why;
+        specs.push_back(*spec);
+    }
+    return specs;
+}
+
 FaultSet::FaultSet(const std::vector<FaultSpec>& specs, std::uint64_t seed) : rng_(seed) {
     for (const auto& s : specs) {
         on_[static_cast<std::size_t>(s.fault)] = true;
         arg_[static_cast<std::size_t>(s.fault)] = s.arg;
+        if (s.fault == Fault::StuckValue) stuck_.push_back(static_cast<std::uint16_t>(s.arg));
     }
 }
 

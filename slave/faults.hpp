@@ -35,9 +35,9 @@ enum class Fault : std::uint8_t {
     NoReply,            // requests are not answered at RATE
     SlowReply,          // responses are sent ARG ms late
     GapInsideFrame,     // RTU: a silence of ARG character times in the middle of the response
-    WordSwap,           // 32-bit points are served with their two registers swapped
+    WordSwap,           // 32-bit points are served and written with their two registers swapped
     OffByOneAddress,    // every request is served at address + 1
-    StuckValue,         // the register at ARG never changes (writes acknowledged, process frozen)
+    StuckValue,         // the register at ARG never changes (writes acknowledged, process frozen); repeatable
     DropWrite,          // writes are acknowledged and not kept
     AcceptOutOfRange,   // values outside the map's ranges and enumerations are accepted
     NoEcho,             // FC5, FC6 and FC8/00 answers do not echo the request
@@ -57,6 +57,10 @@ struct FaultSpec {
 };
 // "no-reply=0.25", "slow-reply=300", "bad-crc". Errors name the text and what was expected.
 modbus::Result<FaultSpec, std::string> parse_fault(std::string_view text);
+// Every --fault of a command line, each parsed. A fault planted at an address (stuck-value) may be given once
+// per address, each one acting; any other acts once, with one argument (one reply delay, one exception code,
+// one rate), so a second instance is refused: planted, it would be announced and not act.
+modbus::Result<std::vector<FaultSpec>, std::string> parse_faults(const std::vector<std::string>& texts);
 
 // Why `f` cannot show on a transport of `framing` (bad-crc over Modbus/TCP, whose frames carry no CRC),
 // nothing when it can. A fault planted where it has no effect would make a run that catches nothing look
@@ -66,6 +70,8 @@ std::optional<std::string> fault_without_effect(Fault f, modbus::Framing framing
 class FaultSet {
   public:
     FaultSet() = default;
+    // `specs` as parse_faults accepts them; of a fault given twice anyway, the last argument holds, except
+    // stuck-value's addresses, which all hold.
     FaultSet(const std::vector<FaultSpec>& specs, std::uint64_t seed);
 
     bool enabled(Fault f) const noexcept { return on_[static_cast<std::size_t>(f)]; }
@@ -74,10 +80,13 @@ class FaultSet {
     // a run's sequence of outcomes depends on the seed and the order of requests only.
     bool fires(Fault f);
     bool any() const noexcept;
+    // The registers stuck-value freezes, in the order given.
+    const std::vector<std::uint16_t>& stuck_addresses() const noexcept { return stuck_; }
 
   private:
     std::array<bool, fault_count> on_{};
     std::array<double, fault_count> arg_{};
+    std::vector<std::uint16_t> stuck_;
     std::mt19937_64 rng_{0};
 };
 

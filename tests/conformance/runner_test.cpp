@@ -5,7 +5,7 @@
 //    transport (rtu-tcp, ascii-tcp, udp; RTU and ASCII over a pseudo-terminal in serial_line_test.cpp),
 //    certify with no failure,
 //    restore every point they wrote, and leave the slave's register image as they found it.
-//  - PlantedFault: each of the slave's 25 faults makes the run fail (or warn, where only an implied rule
+//  - PlantedFault: each of the slave's faults makes the run fail (or warn, where only an implied rule
 //    of the manual catches it) through the rules that are meant to catch it.
 //  - Reports: the JSON report carries every rule with its evidence and the summary adds up; the JUnit XML
 //    report holds one testcase per rule with matching counts.
@@ -450,6 +450,32 @@ TEST(PlantedFaults, EveryFaultOfTheSlaveHasACase) {
     for (std::size_t i = 0; i < slave::fault_count; ++i) {
         const std::string name(slave::to_string(static_cast<slave::Fault>(i)));
         EXPECT_TRUE(named.count(name)) << name << " has no conformance case";
+    }
+}
+
+// word-swap read 32-bit values swapped and wrote them as given: the run could not put back what it wrote (a
+// Walchem float left at 361.25 instead of 1.0, the CTH2265I's K-factor words at 65535). Swapped both ways,
+// every point goes back and the device holds what it held. Walchem still fails the word-order rule: the
+// value written in the manual's order is one the device, reading the words the other way, refuses.
+TEST(PlantedFaults, AWordSwappedDeviceIsRestoredAsFound) {
+    for (const char* id : {"walchem-w600", "cth2265i"}) {
+        SCOPED_TRACE(id);
+        RunningServer server({"word-swap"}, 7, id);
+        const auto run = certify(server, "tcp", id);
+        EXPECT_FALSE(run.report.restored.empty());
+        EXPECT_TRUE(run.report.all_restored()) << failures(run.report);
+        std::string changed;
+        for (const auto& [table, m] : run.changes_after)
+            for (const auto& [address, value] : m)
+                changed += " " + std::to_string(address) + "=" + std::to_string(value);
+        EXPECT_EQ(changed, "") << "the run left values changed on the device";
+        if (std::string(id) == "walchem-w600") {
+            EXPECT_EQ(verdict(run.report), 1) << failures(run.report);
+            for (const auto& x : run.report.results)
+                if (x.rule.id == "data.word_order.hr148") {
+                    EXPECT_EQ(x.outcome, Outcome::Fail) << x.observed;
+                }
+        }
     }
 }
 

@@ -123,7 +123,9 @@ std::vector<FaultCase> fault_cases() {
         {"no-reply=0.3", "mmk-2030", "tcp", {"reply.missing", "target.unresponsive"}},
         {"slow-reply=800", "cth2265i", "tcp", {"timing.slow_reply"}},
         {"gap-inside-frame=60", "mmk-2030", "rtu-tcp", {"reply.checksum", "reply.unframed", "reply.late"}},
-        {"word-swap", "walchem-w600", "tcp", {"state.lost_write"}},
+        // Swapped both ways, a write reads back as written: the device refuses a valid float it reads as
+        // another one, out of range.
+        {"word-swap", "walchem-w600", "tcp", {"reply.exception_for_valid"}},
         {"off-by-one-address",
          "mmk-2030",
          "tcp",
@@ -803,26 +805,70 @@ INSTANTIATE_TEST_SUITE_P(Slave, SlowTarget,
                                            SlowCase{"cth2265i", "tcp"}),
                          profile_and_scheme);
 
+// A device that reads the two words of a CTH2265I 32-bit value crosswise and writes them as given (what
+// the slave's word-swap did before it swapped writes too): a register reads what was written to its
+// partner. The reference slave serves every request; the reads are rewritten.
+class CrosswiseReads {
+  public:
+    explicit CrosswiseReads(const std::string& profile_id)
+        : profile_(mbscope::slave::test::profile(profile_id)),
+          device_(profile_, 1),
+          map_([this](mbscope::test::MapDevice&, const std::vector<std::uint8_t>& pdu) {
+              return answer(pdu);
+          }) {}
+    std::uint16_t port() const { return map_.port(); }
+
+  private:
+    std::optional<mbscope::test::MapDevice::Reply> answer(const std::vector<std::uint8_t>& pdu) {
+        auto reply = device_.handle({pdu, false}).pdu;
+        if (reply.empty()) return mbscope::test::MapDevice::Reply{};  // silence
+        if (pdu.size() != 5 || pdu[0] != 3 || reply[0] != 3) return reply;
+        const auto start = static_cast<std::uint16_t>(pdu[1] << 8 | pdu[2]);
+        for (std::size_t i = 0; 3 + 2 * i < reply.size(); ++i) {
+            const auto* p = profile_.find(Table::HoldingRegisters, static_cast<std::uint16_t>(start + i));
+            const bool paired = p && p->encoding.pair &&
+                                (p->encoding.type == mbscope::modbus::EncodingType::U32Low ||
+                                 p->encoding.type == mbscope::modbus::EncodingType::U32High);
+            if (!paired) continue;
+            const std::uint16_t v = device_.image().reg(Table::HoldingRegisters, *p->encoding.pair);
+            reply[2 + 2 * i] = static_cast<std::uint8_t>(v >> 8);
+            reply[3 + 2 * i] = static_cast<std::uint8_t>(v);
+        }
+        return reply;
+    }
+
+    const mbscope::modbus::Profile& profile_;
+    sl::Device device_;
+    mbscope::test::MapDevice map_;  // last: its thread answers through the members above
+};
+
 // A finding's reproducer breaks its rule again when replayed against the same device. Two did not: a slow
 // reply was never judged by the replay (no limit to judge it by), and a lost write found on a read after a
 // health check had cleared the trace was saved without the write. The device: the reference slave slowed
 // down, or dropping every write it acknowledges.
-// word-swap's lost write is replayed on a slave started afresh, as a user replays a reproducer on another
-// device: the read shows the partner register's value, so the reproducer must hold the write that set the
-// partner too. The minimisation, on the campaign's device that still held that write, dropped it, and the
-// saved reproducer broke nothing elsewhere.
+// A device reading a value's words crosswise has its lost write replayed on a device started afresh, as a
+// user replays a reproducer on another device: the read shows the partner register's value, so the
+// reproducer must hold the write that set the partner too. The minimisation, on the campaign's device that
+// still held that write, dropped it, and the saved reproducer broke nothing elsewhere.
 TEST(NetworkFuzzer, ReproducersOfASlowReplyAndALostWriteReplayAsFound) {
     struct Case {
         std::string fault, profile, rule;
         std::uint64_t seed = 1, requests = 2000;
-        bool fresh_device = false;
+        bool crosswise_reads = false;  // CrosswiseReads, replayed on a new one; `fault` only names the case
     };
     for (const Case& c : {Case{"slow-reply=450", "cth2265i", "timing.slow_reply"},
                           Case{"drop-write", "mmk-2030", "state.lost_write"},
-                          Case{"word-swap", "cth2265i", "state.lost_write", 3, 3000, true}}) {
+                          Case{"crosswise reads", "cth2265i", "state.lost_write", 3, 3000, true}}) {
         SCOPED_TRACE(c.fault);
-        RunningServer server({c.fault}, 7, c.profile);
-        auto o = options_for("tcp", server.start("tcp"));
+        std::optional<RunningServer> server;
+        std::optional<CrosswiseReads> crosswise;
+        std::uint16_t port = 0;
+        if (c.crosswise_reads) {
+            port = crosswise.emplace(c.profile).port();
+        } else {
+            port = server.emplace(std::vector<std::string>{c.fault}, 7, c.profile).start("tcp");
+        }
+        auto o = options_for("tcp", port);
         o.timeout = milliseconds(1000);
         o.requests = c.requests;
         if (c.rule == "timing.slow_reply") {  // each slow exchange takes half a second: nothing to restore
@@ -833,11 +879,11 @@ TEST(NetworkFuzzer, ReproducersOfASlowReplyAndALostWriteReplayAsFound) {
         const auto& profile = mbscope::slave::test::profile(c.profile);
         const auto s = fz::run_campaign(profile, o);
         ASSERT_TRUE(s.reachable) << s.error;
-        std::optional<RunningServer> fresh;
+        std::optional<CrosswiseReads> fresh;
         auto endpoint = o.endpoint;
-        if (c.fresh_device) {
-            fresh.emplace(std::vector<std::string>{c.fault}, 7, c.profile);
-            endpoint = options_for("tcp", fresh->start("tcp")).endpoint;
+        if (c.crosswise_reads) {
+            crosswise.reset();
+            endpoint = options_for("tcp", fresh.emplace(c.profile).port()).endpoint;
         }
         std::size_t checked = 0;
         for (const auto& f : s.findings) {

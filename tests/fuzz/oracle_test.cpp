@@ -262,7 +262,9 @@ std::vector<FaultCase> fault_cases() {
         {"wrong-exception=4", "mmk-2030", Framing::Tcp, {"reply.unsupported_function", "reply.quantity"}},
         {"exception-for-valid", "mmk-2030", Framing::Tcp, {"reply.exception_for_valid"}},
         {"no-reply=1", "mmk-2030", Framing::Rtu, {"reply.missing"}},
-        {"word-swap", "walchem-w600", Framing::Tcp, {"state.lost_write"}},
+        // Swapped both ways, a write reads back as written; a valid float the device reads as another,
+        // out of its range, is refused.
+        {"word-swap", "walchem-w600", Framing::Tcp, {"reply.exception_for_valid"}},
         {"off-by-one-address", "mmk-2030", Framing::Tcp, {"reply.exception_for_valid", "state.lost_write"}},
         {"stuck-value", "mmk-2030", Framing::Tcp, {"state.lost_write"}},
         {"drop-write", "mmk-2030", Framing::Rtu, {"state.lost_write"}},

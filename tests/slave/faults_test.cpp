@@ -1,4 +1,4 @@
-// Every planted fault of slave/faults.hpp (23): what it does on the wire, and that without it the wire is
+// Every planted fault of slave/faults.hpp: what it does on the wire, and that without it the wire is
 // clean. Faults that live in the PDU are shown through slave::Device; faults that live in the ADU or in time
 // through slave::Server on 127.0.0.1 port 0 in a thread, with a raw socket client (tcp://, rtu-tcp://,
 // ascii-tcp://). Expected bytes are written by hand (CRCs and LRCs computed outside the code under test).
@@ -237,6 +237,79 @@ const std::vector<PduFaultCase> pdu_faults = {
 
 INSTANTIATE_TEST_SUITE_P(Device, PduFault, ::testing::ValuesIn(pdu_faults),
                          [](const auto& info) { return info.param.name; });
+
+// stuck-value given at two registers freezes both: only the last one acted, while the slave announced both.
+TEST(Faults, StuckValueAtTwoRegistersFreezesBoth) {
+    FaultSet faults({*parse_fault("stuck-value=1"), *parse_fault("stuck-value=2")}, 1);
+    Device device(profile("modbus"), 1, &faults);
+    EXPECT_EQ(ask(device, "06 00 01 00 AA"), "06 00 01 00 AA");  // acknowledged, not kept
+    EXPECT_EQ(ask(device, "06 00 02 00 BB"), "06 00 02 00 BB");
+    EXPECT_EQ(ask(device, "06 00 03 00 CC"), "06 00 03 00 CC");  // not stuck: kept
+    EXPECT_EQ(ask(device, "03 00 01 00 03"), "03 06 00 00 00 00 00 CC");
+    EXPECT_TRUE(device.frozen(HR, 1));
+    EXPECT_TRUE(device.frozen(HR, 2));
+    EXPECT_FALSE(device.frozen(HR, 3));
+}
+
+// Faults that act once are refused a second time, so none is announced as planted without acting; a
+// register stuck twice adds nothing and is refused too. Two registers stuck, or two different faults, pass.
+TEST(Faults, ASecondInstanceIsRefusedUnlessBothAct) {
+    for (const auto& [first, second] :
+         std::vector<std::pair<std::string, std::string>>{{"slow-reply=100", "slow-reply=300"},
+                                                          {"wrong-exception=2", "wrong-exception=3"},
+                                                          {"no-reply=0.5", "no-reply=0.5"},
+                                                          {"bad-crc", "bad-crc=0.5"},
+                                                          {"crash-after=5", "crash-after=9"}}) {
+        const auto refused = parse_faults({first, "word-swap", second});
+        ASSERT_FALSE(refused.has_value()) << first << ", " << second;
+        EXPECT_NE(refused.error().find("--fault " + second + ": "), std::string::npos) << refused.error();
+        EXPECT_NE(refused.error().find("already planted (--fault " + first + ")"), std::string::npos)
+            << refused.error();
+    }
+    const auto twice = parse_faults({"stuck-value=7", "stuck-value=7"});
+    ASSERT_FALSE(twice.has_value());
+    EXPECT_EQ(twice.error(), "--fault stuck-value=7: that register is already stuck (--fault stuck-value=7)");
+    const auto both = parse_faults({"stuck-value=1", "slow-reply=10", "stuck-value=2"});
+    ASSERT_TRUE(both.has_value()) << both.error();
+    EXPECT_EQ(FaultSet(*both, 1).stuck_addresses(), (std::vector<std::uint16_t>{1, 2}));
+    EXPECT_NE(parse_faults({"slow-reply"}).error().find("needs"), std::string::npos);  // parse_fault's
+}
+
+// word-swap is the wrong word order both ways: what the device answers, written back, leaves its value as
+// it was, for a 32-bit point (Walchem's floats) and for a value the map gives as low and high words
+// (CTH2265I). A register written alone lands where a read of it alone looks: the other register of its
+// value, even past the block's edge.
+TEST(Faults, WordSwapWritesTheWayItReads) {
+    FaultSet faults(specs("word-swap"), 1);
+    {
+        SCOPED_TRACE("walchem-w600 float at 148");
+        Device device(profile("walchem-w600"), 1, &faults);
+        device.image().set_f32(HR, 148, 7.0f, mb::WordOrder::Cdab);
+        EXPECT_EQ(ask(device, "03 00 94 00 02"), "03 04 40 E0 00 00");
+        EXPECT_EQ(ask(device, "10 00 94 00 02 04 40 E0 00 00"), "10 00 94 00 02");
+        EXPECT_EQ(device.image().f32(HR, 148, mb::WordOrder::Cdab), 7.0f);
+        EXPECT_EQ(ask(device, "06 00 94 40 E0"), "06 00 94 40 E0");  // each half alone, as read alone
+        EXPECT_EQ(ask(device, "06 00 95 00 00"), "06 00 95 00 00");
+        EXPECT_EQ(device.image().f32(HR, 148, mb::WordOrder::Cdab), 7.0f);
+        EXPECT_EQ(ask(device, "03 00 94 00 02"), "03 04 40 E0 00 00");
+    }
+    {
+        SCOPED_TRACE("cth2265i K-factor 1 at 4042 (low) and 4043 (high)");
+        Device device(profile("cth2265i"), 1, &faults);
+        device.image().set_reg(HR, 4042, 2);
+        device.image().set_reg(HR, 4043, 1);
+        EXPECT_EQ(ask(device, "03 0F CA 00 02"), "03 04 00 01 00 02");
+        EXPECT_EQ(ask(device, "10 0F CA 00 02 04 00 01 00 02"), "10 0F CA 00 02");
+        EXPECT_EQ(ask(device, "06 0F CA 00 01"), "06 0F CA 00 01");
+        EXPECT_EQ(device.image().reg(HR, 4042), 2);
+        EXPECT_EQ(device.image().reg(HR, 4043), 1);
+        // 4043 and 4044: K-factor 1's high word and K-factor 2's low word, each moved to its other half.
+        EXPECT_EQ(ask(device, "10 0F CB 00 02 04 00 07 00 08"), "10 0F CB 00 02");
+        EXPECT_EQ(device.image().reg(HR, 4042), 7);
+        EXPECT_EQ(device.image().reg(HR, 4045), 8);
+        EXPECT_EQ(ask(device, "03 0F CB 00 02"), "03 04 00 07 00 08");
+    }
+}
 
 // ---------------------------------------------------------------------------------------------------------
 // Faults in the ADU, through the Server.

@@ -16,6 +16,7 @@
 #include <fstream>
 #include <thread>
 
+#include "tests/cli/cli_run.hpp"
 #include "tests/slave/slave_process.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
@@ -291,6 +292,42 @@ TEST(SlaveProcess, HundredClientsAtOnceAreEachAnsweredWithTheirOwnData) {
                       (i + 500) & 0xFF, (1000 + i) >> 8, (1000 + i) & 0xFF);
         EXPECT_EQ(all[i]->exchange(mbap(static_cast<std::uint16_t>(i + 500), pdu), 11), expected)
             << "client " << i;
+    }
+}
+
+// `--fault stuck-value=1 --fault stuck-value=2` announced both as planted and froze register 2 only. Both
+// are announced, and both act.
+TEST(SlaveProcess, StuckValueGivenAtTwoRegistersFreezesBoth) {
+    SlaveProcess slave(
+        {"--listen", "tcp://127.0.0.1:0", "--fault", "stuck-value=1", "--fault", "stuck-value=2"}, true);
+    ASSERT_NE(slave.port(), 0);
+    const std::string said = slave.read_until("planted fault stuck-value=2");
+    EXPECT_NE(said.find("planted fault stuck-value=1\n"), std::string::npos) << said;
+    Client c(slave.port());
+    ASSERT_TRUE(c.connected());
+    EXPECT_EQ(c.exchange(mbap(1, "06 00 01 00 AA"), 12), "00 01 00 00 00 06 01 06 00 01 00 AA");
+    EXPECT_EQ(c.exchange(mbap(2, "06 00 02 00 BB"), 12), "00 02 00 00 00 06 01 06 00 02 00 BB");
+    EXPECT_EQ(c.exchange(mbap(3, "03 00 01 00 02"), 13), "00 03 00 00 00 07 01 03 04 00 00 00 00");
+}
+
+// A fault that acts once (one reply delay, one exception code, one rate, one count), given twice, kept the
+// last argument while the slave announced both. The second is refused as other bad fault input is: exit 2,
+// the slave not started, nothing announced. (Under `timeout`: a slave that starts anyway serves until
+// killed.)
+TEST(SlaveProcess, AFaultThatActsOnceIsRefusedASecondTime) {
+    for (const std::string faults : {"--fault slow-reply=100 --fault slow-reply=300",
+                                     "--fault wrong-exception=2 --fault wrong-exception=3",
+                                     "--fault no-reply=0.5 --fault crash-after=9 --fault no-reply=0.2",
+                                     "--fault stuck-value=4 --fault stuck-value=4"}) {
+        SCOPED_TRACE(faults);
+        const auto run =
+            mbscope::test::run_mbscope("slave --listen tcp://127.0.0.1:0 " + faults, "timeout 20");
+        EXPECT_EQ(run.exit_code, 2) << run.out;
+        EXPECT_NE(run.out.find("mbscope slave: --fault "), std::string::npos) << run.out;
+        EXPECT_TRUE(run.out.find("is already planted") != std::string::npos ||
+                    run.out.find("is already stuck") != std::string::npos)
+            << run.out;
+        EXPECT_EQ(run.out.find("planted fault"), std::string::npos) << run.out;
     }
 }
 
