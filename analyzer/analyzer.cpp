@@ -638,6 +638,13 @@ void Analyzer::packet_in_source(const Packet& p) {
         // bytes (a request behind a lost segment is released before the reply to it is paired).
         if (l4.has_ack) flow.reassembler[to_server ? 1 : 0]->acknowledged(l4.ack, p.time);
         if (!l4.payload.empty()) flow.reassembler[to_server ? 1 : 0]->peer_spoke();
+        // Through a gateway on TCP (RTU over TCP) the client's next data is its next request, which ends the
+        // wait of those still waiting (on_request): a reply it had acknowledged that the capture lacks was
+        // in the hole, given up now as at a request's deadline (expire), so that the request it answered is
+        // the capture's loss (pair.response_not_captured), not the device's no response before the next
+        // request.
+        if (flow.rtu_over_tcp && to_server && !l4.payload.empty() && flow.pending)
+            flow.reassembler[1]->give_up_acknowledged_before(p.time);
         stream.segment(l4.seq, l4.syn, l4.payload, p.time, p.number);
         // Bytes the IP header counts past the record's end are cut only when the record says so (its
         // original length): an IP length that lies about a whole record is not a snapshot length's doing.
@@ -1036,25 +1043,29 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     // A reply with this id (on a serial line, from this unit) now answers this request. (Before the request
     // waiting is given up below: a reply that fits only that one is its late one.)
     if (!timed_out_.empty()) timed_out_.erase({flow.id, late_id(r.frame)});
-    // Not through a gateway on TCP (RTU over TCP): it queues the requests of a connection and answers them
-    // in turn, so a client may send the next before the reply to the last (pipelined, or several in one
-    // segment), and each waits to its own timeout (below, as a reused transaction id waits).
-    if (r.frame.framing != Framing::Tcp && !flow.rtu_over_tcp)
-        if (auto it = pending_.find({flow.id, 0}); it != pending_.end()) {
-            // The master moved on (a broadcast too: a master sends nothing while it waits for a reply): the
-            // previous request was never answered.
-            Pending old = std::move(it->second);
-            pending_.erase(it);
-            --flow.pending;
-            // Its reply may still come, from a slow unit, while the master waits on another: late then. To
-            // the same unit again, a reply answers the new request, unless only the old one's fits it
-            // (on_response).
-            remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
-                               describe_request(old.request), r.index);
-            give_up(old, true,
-                    {FindingCode::PairNoResponse,
-                     "request to " + old.request.device.str() + " got no response before the next request"});
-        }
+    // The master moved on (a broadcast too: a master sends nothing while it waits for a reply): the requests
+    // waiting were never answered. So through a gateway on TCP (RTU over TCP): without transaction ids a
+    // client waits for each reply as a master on a line does, and its next request means it gave up on the
+    // last, its timeout often shorter than ours (kept waiting, one lost reply left every later reply paired
+    // with the request before its own). Only a request that began in the segment holding the last one
+    // waiting shows a client pipelining (check's framing.back_to_back writes two at once): the gateway
+    // queues them and answers in turn, so each waits to its own timeout (below, as a reused transaction id
+    // waits).
+    if (r.frame.framing != Framing::Tcp)
+        if (auto it = pending_.find({flow.id, 0});
+            it != pending_.end() && !(flow.rtu_over_tcp && sent_with(flow, it->second.request, r)))
+            while (Pending* oldest = oldest_waiting({flow.id, 0}, [](const Pending&) { return true; })) {
+                Pending old = std::move(*take_pending({flow.id, 0}, oldest->serial));
+                --flow.pending;
+                // Its reply may still come, from a slow unit, while the master waits on another: late then.
+                // To the same unit again, a reply answers the new request, unless only the old one's fits it
+                // (on_response).
+                remember_timed_out({flow.id, late_id(old.request.frame)}, old, r.time - old.request.time,
+                                   describe_request(old.request), r.index, true);
+                give_up(old, true,
+                        {FindingCode::PairNoResponse, "request to " + old.request.device.str() +
+                                                          " got no response before the next request"});
+            }
     if (r.frame.framing != Framing::Tcp) flow.last_broadcast = 0;
     if (r.frame.framing != Framing::Tcp && r.frame.unit_id() == 0) {
         flow.last_broadcast = r.index;
@@ -1143,6 +1154,12 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
     const auto made = pending_.try_emplace(key, std::move(r), serial, stats).first;
     if (!stats) made->second.unseen_unit_link = &flow;
     ++flow.pending;
+}
+
+bool Analyzer::sent_with(const Flow& flow, const FrameRecord& waiting, const FrameRecord& later) const {
+    // The later request's first byte, not its last: two requests written at once may straddle segments.
+    const auto* arrived = flow.rtu_arrival(0, later.frame.offset);
+    return (arrived ? arrived->packet : later.packet) == waiting.packet;
 }
 
 void Analyzer::transaction_id_reused(Flow& flow, const Pending& newest, const FrameRecord& r) {
@@ -1272,11 +1289,17 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
                oldest_waiting(key, [&](const Pending& p) { return p.request.frame.checksum_ok && fits(p); });
     };
     // So through a gateway on TCP, where a request to the unit that timed out was queued before those
-    // waiting.
-    const bool late_behind_reuse =
-        it != pending_.end() &&
-        (r.frame.framing == Framing::Tcp || (flow.rtu_over_tcp && r.frame.checksum_ok)) &&
-        !timed_out_.empty() && late_one_fits() && !good_copy_of_discarded_waits();
+    // waiting (pipelined). Not one whose wait the client's next request ended: the client gave up on it,
+    // and a reply that fits the request now waiting too is that one's (as on a line, below); taken as the
+    // old one's late reply, one lost reply left every later one paired with the request before its own.
+    const auto late_one_queued = [&] {
+        const auto t = timed_out_.find({flow.id, late_id(r.frame)});
+        return t != timed_out_.end() && !t->second.given_up_by_client;
+    };
+    const bool late_behind_reuse = it != pending_.end() && !timed_out_.empty() &&
+                                   (r.frame.framing == Framing::Tcp ||
+                                    (flow.rtu_over_tcp && r.frame.checksum_ok && late_one_queued())) &&
+                                   late_one_fits() && !good_copy_of_discarded_waits();
     // On a serial line the master asked the same unit again (other registers) before the reply to the first
     // came: a reply whose size or echo fits only the first request is that one's, late, and the new request
     // keeps waiting for its own. Before, it was paired with the new one (a size mismatch) and the new one's
@@ -1380,13 +1403,29 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
             flow.keep_last_response(r);
             return;
         }
+        // Whether the reply fits a request of the link waiting (its unit, function and size).
+        const auto fits_a_waiting_request = [&] {
+            std::size_t looked_at = 0;
+            for (const auto& entry : pending_) {
+                if (entry.first.flow != flow.id) continue;
+                if (oldest_waiting(entry.first, fits)) return true;
+                const auto queued = reused_.find(entry.first);
+                looked_at += 1 + (queued == reused_.end() ? 0 : queued->second.size());
+                if (looked_at >= flow.pending) break;
+            }
+            return false;
+        };
         // Requests the capture holds wait, but none with this id, and no reply has answered one yet: a
         // reply whose id comes before the first of them answers a request pipelined ahead of it, before
         // the capture began, and the waiting requests' own replies may follow. Paired with one of them
         // (the only one: a transaction-id mismatch), it made three errors and an unsolicited fourth of
-        // that request's own reply, and showed one unit's values as another's.
+        // that request's own reply, and showed one unit's values as another's. Unless it fits a waiting
+        // request: then it is that request's reply with a wrong id, as from a device that answers every
+        // request with id 0 (a firmware bug some have); excused, the first such reply hid the mismatch,
+        // every later one was unsolicited and every request a timeout.
         if (opening_unseen && r.frame.framing == Framing::Tcp &&
-            flow.may_predate_first_request(key.tid, options_.max_pending_per_flow)) {
+            flow.may_predate_first_request(key.tid, options_.max_pending_per_flow) &&
+            !fits_a_waiting_request()) {
             flow.excused_before_capture.push_back(key.tid);
             report(FindingCode::PairRequestNotCaptured, r,
                    which +
@@ -2032,12 +2071,12 @@ void Analyzer::expire(Timestamp now, bool at_end) {
 }
 
 void Analyzer::remember_timed_out(const PendingKey& key, Pending& pending, Timestamp timeout,
-                                  std::string what, std::uint64_t moved_on_at) {
+                                  std::string what, std::uint64_t moved_on_at, bool given_up_by_client) {
     if (!settle_unit(pending)) return;  // no device's: a reply from a unit that shows up later is not its
     const std::uint64_t serial = ++next_serial_;
     timed_out_.insert_or_assign(
         key, TimedOut{Pending(FrameRecord(pending.request), pending.serial, pending.stats), timeout,
-                      std::move(what), serial, moved_on_at});
+                      std::move(what), serial, moved_on_at, given_up_by_client});
     timed_out_order_.emplace_back(key, serial);
     while (timed_out_order_.size() > max_timed_out) {  // entries whose key was used again count too
         const auto& [old_key, old_serial] = timed_out_order_.front();

@@ -179,6 +179,9 @@ class Analyzer {
         std::string what;              // the request described
         std::uint64_t serial = 0;
         std::uint64_t moved_on_at = 0;  // the frame of the master's next request, when it moved on first
+        // Its wait ended by the client's next request on a link without transaction ids (not by its
+        // timeout, nor by the link's queue overflowing): the client gave up on it.
+        bool given_up_by_client = false;
     };
     static constexpr std::size_t max_timed_out = 4096;
 
@@ -274,6 +277,9 @@ class Analyzer {
     // Over Modbus/TCP, `record` carries the transaction id of `newest`, still waiting: said (a warning, the
     // client's doing), and the oldest with the id given up when too many wait with it.
     void transaction_id_reused(Flow& flow, const Pending& newest, const FrameRecord& record);
+    // RTU over TCP: whether `later` began in the segment that completed `waiting`, the client writing both at
+    // once (pipelined) rather than giving up on `waiting` and moving on.
+    bool sent_with(const Flow& flow, const FrameRecord& waiting, const FrameRecord& later) const;
     bool settle_unit(Pending& pending);
     void release_unseen(Flow& flow);
     void on_response(Flow& flow, FrameRecord& record);
@@ -309,7 +315,7 @@ class Analyzer {
     void expire(modbus::Timestamp now, bool at_end);
     // Keyed by late_id: the transaction id, or on a serial line the unit.
     void remember_timed_out(const PendingKey& key, Pending& pending, modbus::Timestamp timeout,
-                            std::string what, std::uint64_t moved_on_at = 0);
+                            std::string what, std::uint64_t moved_on_at = 0, bool given_up_by_client = false);
     // The timed-out request a response answers late, when there is one; it is forgotten then.
     std::optional<TimedOut> late_for(const PendingKey& key);
     // A packet or a serial chunk (`where`) stamped well before the latest time seen: the capture's clock was

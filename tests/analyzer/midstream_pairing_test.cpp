@@ -132,3 +132,44 @@ TEST(MidstreamPairing, AWrongIdInsideTheCapturedConversationIsStillAMismatch) {
         EXPECT_EQ(d->sink.count(mb::FindingCode::PairRequestNotCaptured), 0);
     }
 }
+
+// A device that answers every request with transaction id 0 (a firmware bug some have), polled with ids
+// 100 to 104 a second apart, each reply fitting its request (unit, function, size): over a connection the
+// capture joined after it opened, and over UDP. Each reply is its request's, with a wrong id: five
+// transaction-id mismatches and five responses. (The first reply was excused as answering a request sent
+// before the capture, every later one was unsolicited and every request a timeout: the device's bug never
+// named.)
+TEST(MidstreamPairing, ADeviceThatAlwaysAnswersWithIdZeroIsAMismatchEveryTime) {
+    for (const bool udp : {false, true}) {
+        SCOPED_TRACE(udp ? "Modbus/UDP" : "Modbus/TCP, no SYN");
+        Conversation c;
+        for (std::uint16_t i = 0; i < 5; ++i) {
+            const auto at = 1s + 1s * i;
+            // a value of its own in each: the same bytes again are a reply answered twice
+            const auto reply = bytes({0, 0, 0, 0, 0, 5, 1, 3, 2, 0, 40 + i});
+            if (udp) {
+                c.records.push_back({at, packet(true, 0, read_request(100 + i, 1, 1), true)});
+                c.records.push_back({at + 20ms, packet(false, 0, reply, true)});
+            } else {
+                c.send(true, read_request(100 + i, 1, 1), at);
+                c.send(false, reply, at + 20ms);
+            }
+        }
+        const auto d = decode_pcap(c.file());
+        EXPECT_EQ(d->summary.findings,
+                  (std::map<std::string, std::uint64_t>{{"pair.transaction_id_mismatch", 5}}));
+        // (no ASSERT here: one transport failing must not hide the other's result)
+        EXPECT_EQ(d->sink.transactions.size(), 5u);
+        for (const auto& t : d->sink.transactions) {
+            EXPECT_TRUE(t.response.has_value());
+            if (t.response) {
+                EXPECT_EQ(t.response->frame.transaction_id(), 0u);
+            }
+            EXPECT_EQ(t.latency, std::optional<mb::Timestamp>(20ms));
+        }
+        const auto& stats = d->summary.devices.at("10.0.0.2:502 unit 1");
+        EXPECT_EQ(stats.requests, 5u);
+        EXPECT_EQ(stats.responses, 5u);
+        EXPECT_EQ(stats.timeouts, 0u);
+    }
+}

@@ -1,8 +1,9 @@
 // Pairing on RTU over TCP (--rtu-over-tcp): a gateway queues the requests of a connection and answers them
-// in turn, so a request sent before the reply to the last (pipelined, or several in one segment) does not
-// end the last one's wait as a master's next request does on a serial line; and a reply the tap lost in
-// part, in bytes the client acknowledged, is the capture's loss (pair.response_not_captured), not the
-// device's timeout, as over Modbus/TCP.
+// in turn, so requests a client writes at once (in one segment) are pipelined and do not end each other's
+// wait; a request in a segment of its own does end the wait of those before it, as a master's next request
+// does on a serial line (RTU has no transaction id: a client waits for each reply, or gave up on it). And a
+// reply the tap lost in part, in bytes the client acknowledged, is the capture's loss
+// (pair.response_not_captured), not the device's timeout, as over Modbus/TCP.
 #include <gtest/gtest.h>
 
 #include "modbus/adu.hpp"
@@ -50,19 +51,20 @@ std::string device(int unit) {
 
 }  // namespace
 
-// The client sends reads of units 1 and 2 in one segment, or back to back without waiting; the gateway
-// answers unit 1 after 40 ms, then unit 2. Both answered, nothing to report. (It was pair.no_response,
-// "got no response before the next request", against unit 1, its reply "late, the master moved on after
-// 0 ms", exit 1.)
+// The client writes reads of units 1 and 2 at once: in one segment, or one write whose second request
+// straddles two segments; the gateway answers unit 1 after 40 ms, then unit 2. Both answered, nothing to
+// report. (It was pair.no_response, "got no response before the next request", against unit 1, its reply
+// "late, the master moved on after 0 ms", exit 1.)
 TEST(RtuOverTcpPairing, PipelinedRequestsAreAnsweredInTurn) {
     for (const bool one_segment : {true, false}) {
-        SCOPED_TRACE(one_segment ? "in one segment" : "back to back");
+        SCOPED_TRACE(one_segment ? "in one segment" : "one write across two segments");
         Conversation c = gateway_conversation();
+        const auto both = concat(read_holding(1, 0, 1), read_holding(2, 0, 1));
         if (one_segment) {
-            c.send(true, concat(read_holding(1, 0, 1), read_holding(2, 0, 1)), 10ms);
+            c.send(true, both, 10ms);
         } else {
-            c.send(true, read_holding(1, 0, 1), 10ms);
-            c.send(true, read_holding(2, 0, 1), 11ms);
+            c.send(true, {both.begin(), both.begin() + 11}, 10ms);
+            c.send(true, {both.begin() + 11, both.end()}, 10ms);
         }
         c.send(false, rtu(1, {0x03, 0x02, 0x00, 0x01}), 50ms);
         c.send(false, rtu(2, {0x03, 0x02, 0x00, 0x02}), 90ms);
@@ -78,7 +80,7 @@ TEST(RtuOverTcpPairing, PipelinedRequestsAreAnsweredInTurn) {
             EXPECT_EQ(t.response->frame.unit_id(), unit);
             EXPECT_FALSE(t.late_past);
             ASSERT_TRUE(t.latency);
-            EXPECT_EQ(*t.latency, one_segment || unit == 1 ? 40ms * unit : 79ms);
+            EXPECT_EQ(*t.latency, 40ms * unit);
             const auto& stats = d->summary.devices.at(device(unit));
             EXPECT_EQ(stats.requests, 1u);
             EXPECT_EQ(stats.responses, 1u);
@@ -86,6 +88,78 @@ TEST(RtuOverTcpPairing, PipelinedRequestsAreAnsweredInTurn) {
             EXPECT_EQ(stats.late_responses, 0u);
         }
     }
+}
+
+// The same reads in segments of their own, 1 ms apart: nothing shows the client pipelined, and a client of
+// a gateway without transaction ids waits for each reply, so the second request ends the first one's wait
+// as on a serial line, and the first reply is its late one.
+TEST(RtuOverTcpPairing, RequestsInSegmentsOfTheirOwnArePairedAsOnALine) {
+    Conversation c = gateway_conversation();
+    c.send(true, read_holding(1, 0, 1), 10ms);
+    c.send(true, read_holding(2, 0, 1), 11ms);
+    c.send(false, rtu(1, {0x03, 0x02, 0x00, 0x01}), 50ms);
+    c.send(false, rtu(2, {0x03, 0x02, 0x00, 0x02}), 90ms);
+    c.send(true, {}, 5s);
+    const auto d = decode_pcap(c.file(), gateway_options());
+    EXPECT_EQ(d->summary.findings,
+              (std::map<std::string, std::uint64_t>{{"pair.late_response", 1}, {"pair.no_response", 1}}));
+    for (const auto& f : d->sink.findings) {
+        if (f.code == mb::FindingCode::PairNoResponse) {
+            EXPECT_EQ(f.message, "request to 10.0.0.2:4001 unit 1 got no response before the next request");
+        }
+    }
+    const auto& unit1 = d->summary.devices.at(device(1));
+    EXPECT_EQ(unit1.timeouts, 1u);
+    EXPECT_EQ(unit1.late_responses, 1u);
+    const auto& unit2 = d->summary.devices.at(device(2));
+    EXPECT_EQ(unit2.responses, 1u);
+    EXPECT_EQ(unit2.timeouts, 0u);
+}
+
+// A master polls unit 1 through a gateway that does not queue, every 500 ms, alternating registers 0 and
+// 100 (replies of one size), and gives each reply 300 ms, less than the analyzer's 1 s; the reply to the
+// request at 2.0 s is lost on the line. That request is the timeout, and every later reply keeps its own
+// request. (Each waited to its own timeout: the reply at 2.53 s answered the request at 2.0 s, and every
+// later one the request before its own, register 100's values shown as register 0's, with no finding.)
+TEST(RtuOverTcpPairing, ALostReplyInSteadyPollingIsATimeoutAndTheLaterRepliesKeepTheirOwnRequests) {
+    Conversation c = gateway_conversation();
+    for (std::uint8_t i = 0; i < 6; ++i) {
+        const std::uint8_t start = i % 2 == 0 ? 0 : 100;
+        const auto at = 1s + 500ms * i;
+        c.send(true, read_holding(1, start, 2), at);
+        if (i != 2) {
+            c.send(false, rtu(1, {0x03, 0x04, 0x00, start, 0x00, i}), at + 30ms);
+        }
+    }
+    c.send(true, {}, 5s);
+    const auto d = decode_pcap(c.file(), gateway_options());
+    EXPECT_EQ(d->summary.findings, (std::map<std::string, std::uint64_t>{{"pair.no_response", 1}}));
+    EXPECT_EQ(d->summary.errors, 1u);
+    ASSERT_EQ(d->sink.transactions.size(), 6u);
+    for (std::size_t i = 0; i < 6; ++i) {
+        SCOPED_TRACE(i);
+        const auto& t = d->sink.transactions[i];
+        EXPECT_EQ(t.request.time, 1s + 500ms * static_cast<int>(i));
+        EXPECT_EQ(t.response.has_value(), i != 2);
+        if (t.response) {
+            // the reply carries the request's start register and the poll's number
+            EXPECT_EQ(t.response->frame.pdu()[3], t.request.frame.pdu()[2]);
+            EXPECT_EQ(t.response->frame.pdu()[5], i);
+            ASSERT_TRUE(t.latency);
+            EXPECT_EQ(*t.latency, 30ms);
+        }
+    }
+    for (const auto& f : d->sink.findings) {
+        if (f.code == mb::FindingCode::PairNoResponse) {
+            EXPECT_EQ(f.time, 2s);
+            EXPECT_EQ(f.message, "request to 10.0.0.2:4001 unit 1 got no response before the next request");
+        }
+    }
+    const auto& stats = d->summary.devices.at(device(1));
+    EXPECT_EQ(stats.requests, 6u);
+    EXPECT_EQ(stats.responses, 5u);
+    EXPECT_EQ(stats.timeouts, 1u);
+    EXPECT_EQ(stats.late_responses, 0u);
 }
 
 // Two reads of one unit, of different sizes, pipelined: each reply is paired with the request it fits, in
