@@ -6,7 +6,8 @@
 //
 // The scan reads the JSON as a stream of events and keeps no document, so it checks only what it reads:
 // the JSON syntax, the format, and that "models" is a list with something in it (a model that is no object
-// is listed by neither). Everything else is parse_profiles()'s to check when the profile is loaded. Where both succeed they agree (fuzz/fuzz_profile.cpp checks it).
+// is listed by neither). Everything else is parse_profiles()'s to check when the profile is loaded. Where
+// both succeed they agree (fuzz/fuzz_profile.cpp checks it).
 
 #include <string>
 #include <string_view>
