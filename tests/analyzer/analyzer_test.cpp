@@ -14,6 +14,8 @@
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_analyzer_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -2057,3 +2059,5 @@ TEST(Analyzer, BytesThatWaitedBehindAHoleKeepThePacketThatCarriedThem) {
         EXPECT_TRUE(seen);
     }
 }
+
+}  // namespace test_analyzer_analyzer_test

@@ -10,6 +10,8 @@
 #include "modbus/pdu.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_both_server_ports_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace mbscope::test;
@@ -98,3 +100,5 @@ TEST(BothServerPorts, WithoutTheSynTheFirstToSpeakIsTheClient) {
         expect_one_server(c, first_is_client ? "10.0.0.2:502" : "10.0.0.1:502", 3);
     }
 }
+
+}  // namespace test_analyzer_both_server_ports_test

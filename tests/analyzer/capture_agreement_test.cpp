@@ -12,6 +12,8 @@
 #include <string>
 #include <tuple>
 
+namespace test_analyzer_capture_agreement_test {
+
 namespace {
 
 using Key = std::tuple<long, long, long, long>;  // packet, transaction id (-1 serial), unit, function
@@ -201,3 +203,5 @@ TEST(SharedCaptures, WritesThatReuseATransactionIdAreAnsweredInTurn) {
         EXPECT_FALSE(t.contains("findings")) << t.dump();
     }
 }
+
+}  // namespace test_analyzer_capture_agreement_test

@@ -13,6 +13,8 @@
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_capture_merge_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::write_temp;
@@ -256,3 +258,5 @@ TEST(CaptureMerge, ACaptureSplitByDirectionDecodesAsAWhole) {
 }
 
 }  // namespace
+
+}  // namespace test_analyzer_capture_merge_test

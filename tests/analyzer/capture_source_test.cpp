@@ -11,6 +11,8 @@
 #include "analyzer/capture_source.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_capture_source_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 
@@ -116,3 +118,5 @@ TEST(CaptureSource, ClosingBeforeTheEndStopsTheReader) {
     }
     std::filesystem::remove(path);
 }
+
+}  // namespace test_analyzer_capture_source_test

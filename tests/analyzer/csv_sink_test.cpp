@@ -16,6 +16,8 @@
 #include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_csv_sink_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -451,3 +453,5 @@ TEST(CsvSink, FindingsReportedBeforeTheTransactionAreItsOwn) {
     EXPECT_EQ(rows[1].at("findings"), "profile.line_settings_changed") << out;
     std::remove(path.c_str());
 }
+
+}  // namespace test_analyzer_csv_sink_test

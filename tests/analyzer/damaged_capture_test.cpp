@@ -14,6 +14,8 @@
 #include "analyzer/analyzer.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_damaged_capture_test {
+
 namespace an = mbscope::analyzer;
 
 namespace {
@@ -330,3 +332,5 @@ TEST(DamagedCapture, TheWrongFileIsNotACleanDecode) {
     EXPECT_NE(garbage.second.find("no Modbus frame in the 270 bytes read"), std::string::npos)
         << garbage.second;
 }
+
+}  // namespace test_analyzer_damaged_capture_test

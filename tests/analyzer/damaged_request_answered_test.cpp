@@ -21,6 +21,8 @@
 #include "modbus/finding_codes.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_damaged_request_answered_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -328,3 +330,5 @@ TEST(DamagedRequestAnswered, ALateReplyIsWarnedAboutToo) {
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairLateResponse), 1);
     EXPECT_EQ(r->summary.devices.at(unit3).late_responses, 1u);
 }
+
+}  // namespace test_analyzer_damaged_request_answered_test

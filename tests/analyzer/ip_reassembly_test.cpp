@@ -13,6 +13,8 @@
 #include "modbus/pdu.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_ip_reassembly_test {
+
 using namespace mbscope::test;
 using namespace std::chrono_literals;
 
@@ -185,3 +187,5 @@ TEST(IpReassembly, GivesUpAfterTheTimeoutAndBoundsWhatItHolds) {
     EXPECT_EQ(whole->bytes, (std::vector<std::uint8_t>{0x11, 0x11, 0x11, 0x11, 0x11, 0x11, 0x11, 0x11, 0x11,
                                                        0x11, 0x11, 0x11}));
 }
+
+}  // namespace test_analyzer_ip_reassembly_test

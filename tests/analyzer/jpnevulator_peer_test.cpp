@@ -10,6 +10,8 @@
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_jpnevulator_peer_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace mbscope::test;
@@ -44,3 +46,5 @@ TEST(JpnevulatorPeer, LogOfTwoTapsDecodesIntoATransaction) {
     EXPECT_EQ(t.response->direction, mb::Direction::Response);
     EXPECT_TRUE(sink.findings.empty()) << slurp(log);
 }
+
+}  // namespace test_analyzer_jpnevulator_peer_test

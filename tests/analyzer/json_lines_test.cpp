@@ -19,6 +19,8 @@
 #include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_json_lines_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using json = nlohmann::json;
@@ -290,3 +292,5 @@ TEST(JsonLines, TimesKeepTheirDigits) {
         EXPECT_EQ(w.text(), text);
     }
 }
+
+}  // namespace test_analyzer_json_lines_test

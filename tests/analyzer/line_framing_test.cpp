@@ -13,6 +13,8 @@
 #include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_line_framing_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 
@@ -354,3 +356,5 @@ TEST(LineFraming, AReplyWithABadCrcPutsNoUnitOnTheLine) {
     EXPECT_EQ(run.framings(), (std::vector<mb::Framing>{R, R, R, A}));
     EXPECT_NE(run.note().find("; the line is read as ASCII from here on"), std::string::npos) << run.note();
 }
+
+}  // namespace test_analyzer_line_framing_test

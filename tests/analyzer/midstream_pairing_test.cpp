@@ -5,6 +5,8 @@
 
 #include "test_packets.hpp"
 
+namespace test_analyzer_midstream_pairing_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -173,3 +175,5 @@ TEST(MidstreamPairing, ADeviceThatAlwaysAnswersWithIdZeroIsAMismatchEveryTime) {
         EXPECT_EQ(stats.timeouts, 0u);
     }
 }
+
+}  // namespace test_analyzer_midstream_pairing_test

@@ -16,6 +16,8 @@
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_pcapng_interfaces_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::bytes;
@@ -320,3 +322,5 @@ TEST(PcapngInterfaces, MergecapsMergeOfRawIpCapturesDecodes) {
     EXPECT_EQ(ours.back(), "exit=0");
     EXPECT_EQ(decode_records("'" + merged + "'"), ours);
 }
+
+}  // namespace test_analyzer_pcapng_interfaces_test

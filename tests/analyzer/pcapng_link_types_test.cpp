@@ -17,6 +17,8 @@
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_pcapng_link_types_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::bytes;
@@ -467,3 +469,5 @@ TEST(PcapngLinkTypes, MergecapsMergeOfEthernetAndRawIpCapturesDecodes) {
                             [](const nlohmann::json& j) { return j.value("type", "") == "transaction"; }),
               5);
 }
+
+}  // namespace test_analyzer_pcapng_link_types_test

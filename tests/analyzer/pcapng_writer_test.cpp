@@ -15,6 +15,8 @@
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_pcapng_writer_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::bytes;
@@ -239,3 +241,5 @@ TEST(PcapngWriter, ErrorsNameTheFileAndNeverCrash) {
     EXPECT_EQ(w.close(), full);
     EXPECT_FALSE(w.is_open());
 }
+
+}  // namespace test_analyzer_pcapng_writer_test

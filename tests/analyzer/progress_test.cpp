@@ -7,6 +7,8 @@
 #include "analyzer/progress.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_progress_test {
+
 namespace {
 
 using mbscope::analyzer::format_progress;
@@ -78,3 +80,5 @@ TEST(Progress, NothingOnStandardErrorWhenItIsNotATerminal) {
 }
 
 }  // namespace
+
+}  // namespace test_analyzer_progress_test

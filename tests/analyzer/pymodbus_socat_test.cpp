@@ -19,6 +19,8 @@
 
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_pymodbus_socat_test {
+
 namespace {
 
 using namespace mbscope::test;
@@ -164,3 +166,5 @@ TEST(PymodbusOverSocat, BundledLogDecodesToTheGoldenOutput) {
         std::ofstream(golden, std::ios::binary) << got;
     EXPECT_EQ(got, slurp(golden));
 }
+
+}  // namespace test_analyzer_pymodbus_socat_test

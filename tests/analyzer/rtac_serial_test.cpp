@@ -15,6 +15,8 @@
 #include "analyzer/serial_input.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_rtac_serial_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -208,3 +210,5 @@ TEST(RtacSerial, TsharkDecodesTheSameFrames) {
     EXPECT_EQ(fields, ours);
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairExceptionResponse), 1);
 }
+
+}  // namespace test_analyzer_rtac_serial_test

@@ -9,6 +9,8 @@
 #include "modbus/adu.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_rtu_over_tcp_pairing_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -320,3 +322,5 @@ TEST(RtuOverTcpPairing, ACutReplyWithNoHoleAfterItIsNoExcuse) {
     EXPECT_EQ(d->summary.devices.at(device(4)).replies_not_captured, 0u);
     EXPECT_EQ(d->summary.devices.at(device(5)).responses, 1u);
 }
+
+}  // namespace test_analyzer_rtu_over_tcp_pairing_test

@@ -6,6 +6,8 @@
 
 #include "test_packets.hpp"
 
+namespace test_analyzer_rtu_over_tcp_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -217,3 +219,5 @@ TEST(RtuOverTcp, ADamagedFrameOverTwoSegmentsAndUnparsedBytesKeepTheirPackets) {
         }
     }
 }
+
+}  // namespace test_analyzer_rtu_over_tcp_test

@@ -14,6 +14,8 @@
 #include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_semantics_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -643,3 +645,5 @@ TEST(Semantics, WhatADeviceWasSeenHoldingMovesWithItsAddress) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 1);
     EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileAddressMoved), 2);
 }
+
+}  // namespace test_analyzer_semantics_test

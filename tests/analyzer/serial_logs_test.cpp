@@ -14,6 +14,8 @@
 #include "modbus/storage/text_file.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_serial_logs_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::bytes;
@@ -402,3 +404,5 @@ TEST(SerialLogs, ProgressReportsOffsetsWithinAFile) {
         EXPECT_GT(offsets.back(), content.size() / 2);
     }
 }
+
+}  // namespace test_analyzer_serial_logs_test

@@ -11,6 +11,8 @@
 #include "analyzer/serial_input.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_serial_pcap_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -273,3 +275,5 @@ TEST(ExportedPdu, CaptureWrittenByText2pcap) {
     EXPECT_TRUE(sink.findings.empty());
     EXPECT_EQ(a.summary().frames, 4u);
 }
+
+}  // namespace test_analyzer_serial_pcap_test

@@ -19,6 +19,8 @@
 #include "modbus/pdu.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_serial_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::Collect;
@@ -569,7 +571,7 @@ TEST(SerialInput, ASlowAsciiLinesChunksAreTimedFromTheirFirstCharacter) {
                                  "3.800000 < 30 36 41 30 30 36 42 30 30 36 43 30 30 36 44 30 30 36 45 30 30 "
                                  "36 46 30 30 37 30 30 30 37 31 30\n"
                                  "4.033333 < 30 37 32 39 39 0D 0A\n");
-    auto r = std::make_unique<::Run>();  // (Run alone is the test's own method)
+    auto r = std::make_unique<test_analyzer_serial_test::Run>();  // (Run alone is the test's own method)
     an::AnalyzerOptions options;
     options.serial_line = mb::SerialLine{300, 7, mb::Parity::Even, 1};
     an::Analyzer a(options, r->sink);
@@ -1342,3 +1344,5 @@ TEST(SerialInput, ARequestJoinedToTheBytesBeforeItAndUnansweredIsNoTimeout) {
         }
     }
 }
+
+}  // namespace test_analyzer_serial_test

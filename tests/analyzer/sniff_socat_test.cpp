@@ -12,6 +12,8 @@
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_sniff_socat_test {
+
 using namespace mbscope::test;
 
 namespace {
@@ -266,3 +268,5 @@ TEST(SniffSocat, ARequestThatTimedOutLiveTimesOutInTheWrittenFile) {
         run(std::string(MBSCOPE_BINARY) + " decode --timeout 0.3 --user-dlt rtu --jsonl '" + written + "'");
     EXPECT_EQ(timeouts(again), 1) << again;
 }
+
+}  // namespace test_analyzer_sniff_socat_test

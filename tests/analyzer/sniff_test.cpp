@@ -23,6 +23,8 @@
 #include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_sniff_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using mbscope::test::bytes;
@@ -438,3 +440,5 @@ TEST(Sniff, FullDiskEndsTheCaptureWithAnErrorNamingTheFile) {
     ASSERT_EQ(a.summary().input_errors.size(), 1u);
     EXPECT_EQ(a.summary().input_errors[0], classic + ": " + no_space);
 }
+
+}  // namespace test_analyzer_sniff_test

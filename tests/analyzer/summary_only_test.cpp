@@ -13,6 +13,8 @@
 #include "modbus/storage/profile_store.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_summary_only_test {
+
 using namespace std::chrono_literals;
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
@@ -220,3 +222,5 @@ TEST(SummaryOnly, WithJsonItIsTheSummaryRecordAlone) {
     ASSERT_EQ(records.size(), 1u);
     EXPECT_EQ(records[0], nlohmann::json::parse(last));
 }
+
+}  // namespace test_analyzer_summary_only_test

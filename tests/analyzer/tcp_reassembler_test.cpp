@@ -9,6 +9,8 @@
 #include <random>
 #include <vector>
 
+namespace test_analyzer_tcp_reassembler_test {
+
 namespace mb = mbscope::modbus;
 using mbscope::analyzer::TcpReassembler;
 
@@ -415,3 +417,5 @@ TEST(TcpReassembler, ShuffledSegmentsWithHolesComeOutInOrder) {
         EXPECT_EQ(h.out.stream.size(), furthest) << "seed " << seed;
     }
 }
+
+}  // namespace test_analyzer_tcp_reassembler_test

@@ -11,6 +11,8 @@
 #include "test_packets.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_analyzer_tshark_divergence_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -291,3 +293,5 @@ TEST_F(TsharkDivergence, ModbusAsciiHasNoTsharkDissector) {
 }
 
 }  // namespace
+
+}  // namespace test_analyzer_tshark_divergence_test

@@ -11,6 +11,8 @@
 #include "modbus/pdu.hpp"
 #include "test_packets.hpp"
 
+namespace test_analyzer_word_order_test {
+
 namespace an = mbscope::analyzer;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -118,3 +120,5 @@ TEST(WordOrder, NothingIsAddedWithoutTheOption) {
     EXPECT_FALSE(d->sink.transactions[0].word_order);
     EXPECT_TRUE(d->sink.transactions[0].registers32.empty());
 }
+
+}  // namespace test_analyzer_word_order_test

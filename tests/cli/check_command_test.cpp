@@ -12,6 +12,8 @@
 #include "tests/cli/cli_run.hpp"
 #include "tests/slave/slave_process.hpp"
 
+namespace test_cli_check_command_test {
+
 using mbscope::test::run_mbscope;
 
 TEST(CheckCommand, RulesThatSelectNothingOrSendNothingAreToldApartFromASilentTarget) {
@@ -86,3 +88,5 @@ TEST(CheckCommand, AReportThatCannotBeWrittenIsSaidWithItsReason) {
               std::string::npos)
         << r.out;
 }
+
+}  // namespace test_cli_check_command_test

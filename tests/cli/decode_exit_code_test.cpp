@@ -11,6 +11,8 @@
 
 #include "tests/cli/cli_run.hpp"
 
+namespace test_cli_decode_exit_code_test {
+
 using mbscope::test::run_mbscope;
 
 namespace {
@@ -90,3 +92,5 @@ TEST(DecodeExitCode, AClockGoingBackIsANoteNotAnError) {
     EXPECT_NE(json.out.find("\"input_notes\""), std::string::npos) << json.out;
     EXPECT_EQ(json.out.find("\"input_errors\""), std::string::npos) << json.out;
 }
+
+}  // namespace test_cli_decode_exit_code_test

@@ -9,6 +9,8 @@
 
 #include "tests/cli/cli_run.hpp"
 
+namespace test_cli_frame_command_test {
+
 namespace {
 
 using mbscope::test::run_mbscope;
@@ -214,3 +216,5 @@ TEST(FrameCommand, AFileIsAnArrayInJsonHoweverManyFramesItHolds) {
     EXPECT_EQ(frame["wire"], "11 03 00 60 00 03 07 45");
     std::remove(path.c_str());
 }
+
+}  // namespace test_cli_frame_command_test

@@ -7,6 +7,8 @@
 
 #include "tests/cli/cli_run.hpp"
 
+namespace test_cli_framing_option_test {
+
 using mbscope::test::run_mbscope;
 
 namespace {
@@ -59,3 +61,5 @@ TEST(FramingOption, PartsOfOneLineAreOneStreamWithOneLine) {
         << joined.out;
     EXPECT_EQ(joined.out.find("--one-line"), std::string::npos) << joined.out;
 }
+
+}  // namespace test_cli_framing_option_test

@@ -8,6 +8,8 @@
 
 #include "tests/cli/cli_run.hpp"
 
+namespace test_cli_number_options_test {
+
 using mbscope::test::run_mbscope;
 
 TEST(NumberOptions, ValuesOutsideTheirMeaningAreRefusedBeforeAnythingRuns) {
@@ -79,3 +81,5 @@ TEST(NumberOptions, TimeoutAppliesToSerialLinesToo) {
     EXPECT_NE(longer.out.find("1 responses, 0 exceptions, 0 timeouts"), std::string::npos) << longer.out;
     EXPECT_NE(longer.out.find("1500.000 ms"), std::string::npos) << longer.out;
 }
+
+}  // namespace test_cli_number_options_test

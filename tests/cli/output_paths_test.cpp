@@ -13,6 +13,8 @@
 
 #include "tests/cli/cli_run.hpp"
 
+namespace test_cli_output_paths_test {
+
 namespace {
 
 using mbscope::test::run_mbscope;
@@ -64,3 +66,5 @@ TEST(OutputPaths, FuzzMakesItsArtifactsDirectoryFirstOrStops) {
     EXPECT_NE(made.out.find("cannot reach the target"), std::string::npos) << made.out;
     EXPECT_TRUE(std::filesystem::is_directory(dir + "/new/artifacts"));
 }
+
+}  // namespace test_cli_output_paths_test

@@ -11,6 +11,8 @@
 
 #include "tests/cli/cli_run.hpp"
 
+namespace test_cli_profile_command_test {
+
 namespace {
 
 using mbscope::test::run_mbscope;
@@ -448,3 +450,5 @@ TEST(ProfileCommand, JsonOutputTakesAFileNameThatIsNotUtf8) {
     EXPECT_FALSE(s["tables"]["holding_registers"].empty());
     fs::remove_all(d);
 }
+
+}  // namespace test_cli_profile_command_test

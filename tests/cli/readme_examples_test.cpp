@@ -11,6 +11,8 @@
 
 #include "tests/cli/cli_run.hpp"
 
+namespace test_cli_readme_examples_test {
+
 namespace {
 
 struct Example {
@@ -76,3 +78,5 @@ TEST(ReadmeExamples, TheOutputShownIsWhatTheBinaryPrints) {
     }
     EXPECT_GE(shown, 3u);  // the FC3 request, the bad CRC, the suricata capture
 }
+
+}  // namespace test_cli_readme_examples_test

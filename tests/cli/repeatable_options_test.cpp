@@ -7,6 +7,8 @@
 
 #include "tests/cli/cli_run.hpp"
 
+namespace test_cli_repeatable_options_test {
+
 using mbscope::test::run_mbscope;
 
 TEST(RepeatableOptions, TakeOneValueEachAndLeaveTheFilesAlone) {
@@ -72,3 +74,5 @@ TEST(RepeatableOptions, AMapThatDescribedNoDeviceIsNoted) {
         std::string::npos)
         << twice.out;
 }
+
+}  // namespace test_cli_repeatable_options_test

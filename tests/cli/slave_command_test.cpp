@@ -8,6 +8,8 @@
 #include "tests/cli/cli_run.hpp"
 #include "tests/slave/slave_process.hpp"
 
+namespace test_cli_slave_command_test {
+
 TEST(SlaveCommand, APseudoTerminalIsNamedAsATargetTheOtherCommandsTake) {
     mbscope::slave::test::SlaveProcess slave(
         {"--profile", "mmk-2030", "--listen", "ascii:pty?baud=19200&parity=N", "--pty"}, true);
@@ -34,3 +36,5 @@ TEST(SlaveCommand, AFaultWithoutEffectOnTheEndpointIsRefused) {
     EXPECT_EQ(run_mbscope("slave --listen udp://127.0.0.1:0 --fault gap-inside-frame=4").exit_code, 2);
     EXPECT_EQ(run_mbscope("slave --listen rtu-tcp://127.0.0.1:0 --fault wrong-tid").exit_code, 2);
 }
+
+}  // namespace test_cli_slave_command_test

@@ -25,6 +25,8 @@
 #include "tests/slave/slave_process.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_cli_stop_signal_test {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -264,3 +266,5 @@ TEST(StopSignal, ASignalCutsShortAStepOfThePreparationThatWouldWaitForEver) {
         << ended.err;
     fs::remove(fifo);
 }
+
+}  // namespace test_cli_stop_signal_test

@@ -26,7 +26,7 @@
 #include "modbus/storage/profile_store.hpp"
 #include "modbus/transport/client.hpp"
 
-namespace mbscope::conformance {
+namespace mbscope::conformance::test_conformance_hostile_slave_test {
 namespace {
 
 namespace tp = modbus::transport;
@@ -421,4 +421,4 @@ INSTANTIATE_TEST_SUITE_P(Seeds, AgainstAHostileSlave,
                          });
 
 }  // namespace
-}  // namespace mbscope::conformance
+}  // namespace mbscope::conformance::test_conformance_hostile_slave_test

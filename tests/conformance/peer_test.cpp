@@ -18,7 +18,7 @@
 #include "modbus/transport/client.hpp"
 #include "tests/support/process_support.hpp"
 
-namespace mbscope::conformance {
+namespace mbscope::conformance::test_conformance_peer_test {
 namespace {
 
 namespace tp = modbus::transport;
@@ -389,4 +389,4 @@ TEST(Peer, PymodbusServerAsAnMk2030BreaksTheManualsLimits) {
 }
 
 }  // namespace
-}  // namespace mbscope::conformance
+}  // namespace mbscope::conformance::test_conformance_peer_test

@@ -16,7 +16,7 @@
 #include "tests/conformance/runner_support.hpp"
 #include "tests/support/map_device.hpp"
 
-namespace mbscope::conformance {
+namespace mbscope::conformance::test_conformance_restore_test {
 namespace {
 
 using namespace mbscope::conformance::test;
@@ -273,4 +273,4 @@ TEST(Runner, ATargetAnsweringOnlyLateIsNotJudged) {
 }
 
 }  // namespace
-}  // namespace mbscope::conformance
+}  // namespace mbscope::conformance::test_conformance_restore_test

@@ -34,7 +34,7 @@
 #include "tests/conformance/runner_support.hpp"
 #include "tests/support/garbage_peer.hpp"
 
-namespace mbscope::conformance {
+namespace mbscope::conformance::test_conformance_runner_test {
 namespace {
 
 using namespace mbscope::conformance::test;
@@ -1410,4 +1410,4 @@ TEST(Reports, AReadOnlyPointThatMovedIsShownWithWhatItReads) {
 }
 
 }  // namespace
-}  // namespace mbscope::conformance
+}  // namespace mbscope::conformance::test_conformance_runner_test

@@ -19,7 +19,7 @@
 #include "tests/conformance/runner_support.hpp"
 #include "tests/support/process_support.hpp"
 
-namespace mbscope::conformance {
+namespace mbscope::conformance::test_conformance_serial_line_test {
 namespace {
 
 using namespace mbscope::conformance::test;
@@ -418,4 +418,4 @@ TEST(SerialLine, ARequestForAnotherUnitIsNotAnswered) {
 INSTANTIATE_TEST_SUITE_P(Serial, OverPseudoTerminal, ::testing::Values("rtu", "ascii"));
 
 }  // namespace
-}  // namespace mbscope::conformance
+}  // namespace mbscope::conformance::test_conformance_serial_line_test

@@ -21,7 +21,7 @@
 #include "modbus/transport/client.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::conformance {
+namespace mbscope::conformance::test_conformance_unsolicited_test {
 namespace {
 
 namespace tp = modbus::transport;
@@ -235,4 +235,4 @@ TEST(SilenceIdle, PassesADeviceThatOnlyAnswers) {
 }
 
 }  // namespace
-}  // namespace mbscope::conformance
+}  // namespace mbscope::conformance::test_conformance_unsolicited_test

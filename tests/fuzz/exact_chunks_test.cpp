@@ -9,6 +9,8 @@
 
 #include "fuzz/fuzz_support.hpp"
 
+namespace test_fuzz_exact_chunks_test {
+
 namespace {
 
 using Chunks = mbscope::fuzz::ExactChunks<FuzzedDataProvider>;
@@ -48,3 +50,5 @@ TEST(ExactChunksDeathTest, AReadPastTheChunkIsCaught) {
 #endif
 
 }  // namespace
+
+}  // namespace test_fuzz_exact_chunks_test

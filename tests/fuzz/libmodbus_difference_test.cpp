@@ -8,6 +8,8 @@
 #include "slave/responder.hpp"
 #include "slave/slave_test_support.hpp"
 
+namespace test_fuzz_libmodbus_difference_test {
+
 namespace {
 
 namespace mb = mbscope::modbus;
@@ -89,3 +91,5 @@ TEST(LibmodbusDifference, AgreeOnPlainRequests) {
 }
 
 }  // namespace
+
+}  // namespace test_fuzz_libmodbus_difference_test

@@ -38,6 +38,8 @@
 #include "tests/support/map_device.hpp"
 #include "tests/support/process_support.hpp"
 
+namespace test_fuzz_network_fuzzer_test {
+
 namespace {
 
 namespace fz = mbscope::fuzz::network;
@@ -1962,7 +1964,7 @@ class Background {
                       "r");
     }
     ~Background() {
-        if (pipe_) (void)::finish(std::exchange(pipe_, nullptr));
+        if (pipe_) (void)test_fuzz_network_fuzzer_test::finish(std::exchange(pipe_, nullptr));
     }
     bool started() const { return pipe_ != nullptr; }
     pid_t pid() {
@@ -1976,7 +1978,7 @@ class Background {
     void signal(int number) {
         if (pid() > 0) ::kill(pid_, number);
     }
-    Run finish() { return ::finish(std::exchange(pipe_, nullptr)); }
+    Run finish() { return test_fuzz_network_fuzzer_test::finish(std::exchange(pipe_, nullptr)); }
 
   private:
     std::filesystem::path pid_file_;
@@ -2145,3 +2147,5 @@ TEST(WrittenPoints, AWriteCanBeMadeToKeepChosenRegisters) {
 }
 
 }  // namespace
+
+}  // namespace test_fuzz_network_fuzzer_test

@@ -18,6 +18,8 @@
 #include "slave/responder.hpp"
 #include "slave/slave_test_support.hpp"
 
+namespace test_fuzz_oracle_test {
+
 namespace {
 
 namespace mb = mbscope::modbus;
@@ -644,3 +646,5 @@ TEST(ExchangeOracle, ALoneHalfOfA32BitValueMayBeRefusedAndABooleanTakesZeroOrOne
     EXPECT_EQ(expect(pdu(6, {0x2300, 1})), "a normal response");
 }
 }  // namespace
+
+}  // namespace test_fuzz_oracle_test

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+namespace test_modbus_addressing_test {
+
 namespace mb = mbscope::modbus;
 
 TEST(Addressing, FiveAndSixDigitReferences) {
@@ -60,3 +62,5 @@ TEST(Addressing, ReadFunctionOfEachTable) {
                    mb::Table::HoldingRegisters})
         EXPECT_EQ(mb::table_of_function(static_cast<std::uint8_t>(mb::read_function(t))), t);
 }
+
+}  // namespace test_modbus_addressing_test

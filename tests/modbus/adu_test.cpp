@@ -4,6 +4,8 @@
 #include "modbus/pdu.hpp"
 #include "test_util.hpp"
 
+namespace test_modbus_adu_test {
+
 using mbscope::test::bytes_of;
 using mbscope::test::hex;
 namespace mb = mbscope::modbus;
@@ -135,3 +137,5 @@ TEST(Adu, DecodeAduChoosesTheFramingsDecoder) {
     EXPECT_EQ(mb::decode_adu(mb::Framing::Ascii, rtu).error().code, mb::ErrorCode::BadStartCharacter);
     EXPECT_EQ(mb::decode_adu(mb::Framing::Tcp, rtu).error().code, mb::ErrorCode::LengthFieldInvalid);
 }
+
+}  // namespace test_modbus_adu_test

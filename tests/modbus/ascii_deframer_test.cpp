@@ -5,6 +5,8 @@
 #include "deframer_util.hpp"
 #include "test_util.hpp"
 
+namespace test_modbus_ascii_deframer_test {
+
 using namespace mbscope::test;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -113,3 +115,5 @@ TEST(AsciiDeframer, OverlongFrameIsCut) {
     EXPECT_EQ(std::get<mb::Unparsed>(events[0]).reason, mb::UnparsedReason::TooLong);
     EXPECT_TRUE(std::get<mb::Frame>(events.back()).checksum_ok);
 }
+
+}  // namespace test_modbus_ascii_deframer_test

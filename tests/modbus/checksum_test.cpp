@@ -6,6 +6,8 @@
 
 #include "test_util.hpp"
 
+namespace test_modbus_checksum_test {
+
 using mbscope::test::hex;
 namespace mb = mbscope::modbus;
 
@@ -56,3 +58,5 @@ TEST(Checksum, EmptyInputs) {
     EXPECT_EQ(mb::crc16({}), 0xFFFF);
     EXPECT_EQ(mb::lrc({}), 0x00);
 }
+
+}  // namespace test_modbus_checksum_test

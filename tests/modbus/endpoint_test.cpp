@@ -4,7 +4,7 @@
 
 #include "modbus/transport/endpoint.hpp"
 
-namespace mbscope::modbus::transport {
+namespace mbscope::modbus::transport::test_modbus_endpoint_test {
 namespace {
 
 struct NetworkCase {
@@ -163,4 +163,4 @@ TEST(EndpointScheme, NamesAreTheUriSchemes) {
 }
 
 }  // namespace
-}  // namespace mbscope::modbus::transport
+}  // namespace mbscope::modbus::transport::test_modbus_endpoint_test

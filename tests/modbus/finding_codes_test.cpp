@@ -4,6 +4,8 @@
 
 #include <set>
 
+namespace test_modbus_finding_codes_test {
+
 namespace mb = mbscope::modbus;
 
 TEST(FindingCodes, NamesAreStableDottedAndUnique) {
@@ -39,3 +41,5 @@ TEST(FindingCodes, SmallListKeepsOrderAndDeduplicates) {
     EXPECT_EQ(l.size(), 2u);
     EXPECT_EQ(*l.begin(), mb::FindingCode::RtuCrcMismatch);
 }
+
+}  // namespace test_modbus_finding_codes_test

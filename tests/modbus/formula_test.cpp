@@ -8,6 +8,8 @@
 #include <cmath>
 #include <string>
 
+namespace test_modbus_formula_test {
+
 namespace mb = mbscope::modbus;
 
 namespace {
@@ -68,3 +70,5 @@ TEST(Formula, AProgramNotMadeByTheParserIsCheckedAsItRuns) {
     EXPECT_TRUE(std::isnan(mb::evaluate({{Op::Raw}, {Op::Raw}}, 1)));
     EXPECT_DOUBLE_EQ(mb::evaluate({{Op::Raw}, {Op::Number, 2}, {Op::Multiply}}, 3), 6.0);
 }
+
+}  // namespace test_modbus_formula_test

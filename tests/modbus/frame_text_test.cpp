@@ -10,6 +10,8 @@
 #include "modbus/adu.hpp"
 #include "modbus/frame_text.hpp"
 
+namespace test_modbus_frame_text_test {
+
 using namespace mbscope::modbus;
 
 namespace {
@@ -211,3 +213,5 @@ TEST(FrameText, ADirectionIsChosenByWhatTheBytesBreak) {
     ASSERT_TRUE(reply.pdu.has_value()) << reply.error;
     EXPECT_EQ(reply.direction_note, "response");
 }
+
+}  // namespace test_modbus_frame_text_test

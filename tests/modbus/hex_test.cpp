@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <string>
 
+namespace test_modbus_hex_test {
+
 namespace mb = mbscope::modbus;
 
 static_assert(mb::hex_digit('0') == 0 && mb::hex_digit('9') == 9 && mb::hex_digit('A') == 10 &&
@@ -24,3 +26,5 @@ TEST(Hex, EveryByteValueAgreesWithStrtol) {
             << "byte " << c;
     }
 }
+
+}  // namespace test_modbus_hex_test

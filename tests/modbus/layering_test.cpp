@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <fstream>
 
+namespace test_modbus_layering_test {
+
 namespace fs = std::filesystem;
 
 TEST(Layering, CodecIncludesNoIoHeaders) {
@@ -52,3 +54,5 @@ TEST(Layering, PartsDependOnlyOnTheCodec) {
         }
     }
 }
+
+}  // namespace test_modbus_layering_test

@@ -6,10 +6,10 @@
 #include "modbus/pdu.hpp"
 #include "test_util.hpp"
 
+namespace test_modbus_manual_examples_test {
+
 using mbscope::test::hex;
 namespace mb = mbscope::modbus;
-
-namespace {
 
 struct Example {
     const char* source;
@@ -64,8 +64,6 @@ std::vector<Example> mk_examples() {
         {"000:484 MK-EXC-05", "11 81 02 C0 54", mb::Direction::Response, mb::make_exception(0x01, 0x02)},
     };
 }
-
-}  // namespace
 
 class MkManualExample : public ::testing::TestWithParam<Example> {};
 
@@ -147,3 +145,5 @@ TEST(MkManualExample, CorruptedCrcOfRulesCatalogueIsReportedNotRejected) {
     EXPECT_TRUE(frame->findings.contains(mb::FindingCode::RtuCrcMismatch));
     EXPECT_EQ(frame->checksum_computed(), 0x4507);
 }
+
+}  // namespace test_modbus_manual_examples_test

@@ -7,6 +7,8 @@
 #include "modbus/adu.hpp"
 #include "modbus/pdu.hpp"
 
+namespace test_modbus_pdu_roundtrip_test {
+
 namespace mb = mbscope::modbus;
 
 namespace {
@@ -234,3 +236,5 @@ TEST(PduRoundTrip, ThroughEveryFraming) {
         EXPECT_EQ(std::vector<std::uint8_t>(tcp->pdu().begin(), tcp->pdu().end()), pdu);
     }
 }
+
+}  // namespace test_modbus_pdu_roundtrip_test

@@ -5,11 +5,11 @@
 #include "modbus/pdu.hpp"
 #include "test_util.hpp"
 
+namespace test_modbus_pdu_test {
+
 using mbscope::test::hex;
 namespace mb = mbscope::modbus;
 using FC = mb::FindingCode;
-
-namespace {
 
 struct SpecCase {
     const char* source;
@@ -92,8 +92,6 @@ std::vector<SpecCase> make_spec_cases() {
 }
 
 const std::vector<SpecCase> spec_cases = make_spec_cases();
-
-}  // namespace
 
 class SpecExample : public ::testing::TestWithParam<SpecCase> {};
 
@@ -263,3 +261,5 @@ TEST(PduLength, RequestsAndResponses) {
     EXPECT_EQ(p("41", D::Request).kind, K::Unknown);
     EXPECT_EQ(p("", D::Request).kind, K::NeedMore);
 }
+
+}  // namespace test_modbus_pdu_test

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+namespace test_modbus_profile_headers_test {
+
 namespace mb = mbscope::modbus;
 namespace fs = std::filesystem;
 
@@ -212,3 +214,5 @@ TEST(ProfileHeaders, AStoreReadByHeadersListsWhatAFullReadLists) {
     EXPECT_EQ(messages(loaded.error()), messages(eager.errors()));
     fs::remove_all(dir);
 }
+
+}  // namespace test_modbus_profile_headers_test

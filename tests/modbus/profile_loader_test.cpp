@@ -10,6 +10,8 @@
 #include <string>
 #include <utility>
 
+namespace test_modbus_profile_loader_test {
+
 namespace mb = mbscope::modbus;
 
 namespace {
@@ -963,3 +965,5 @@ TEST(ProfileLoader, APairNamesItsOtherHalf) {
     };
     EXPECT_EQ(pointers_and_messages(l), expected);
 }
+
+}  // namespace test_modbus_profile_loader_test

@@ -9,7 +9,7 @@
 #include "modbus/reply_fit.hpp"
 #include "test_util.hpp"
 
-namespace mbscope::modbus {
+namespace mbscope::modbus::test_modbus_reply_fit_test {
 namespace {
 
 Pdu request(const std::string& rtu_hex) {
@@ -123,4 +123,4 @@ TEST(ReplyClaims, ByTheByteCountAReadNeedsOrTheWritesAddressAndQuantity) {
 }
 
 }  // namespace
-}  // namespace mbscope::modbus
+}  // namespace mbscope::modbus::test_modbus_reply_fit_test

@@ -6,6 +6,8 @@
 #include "modbus/adu.hpp"
 #include "test_util.hpp"
 
+namespace test_modbus_rtu_deframer_test {
+
 using namespace mbscope::test;
 namespace mb = mbscope::modbus;
 using namespace std::chrono_literals;
@@ -469,3 +471,5 @@ TEST(RtuTimedDeframer, ResetStartsAFreshStreamAtOffsetZero) {
     EXPECT_TRUE(f.findings.empty()) << "the silence recorded before the reset is not this frame's";
     EXPECT_EQ(f.start, end - ct * 7);  // this line's character time, not the one before the reset
 }
+
+}  // namespace test_modbus_rtu_deframer_test

@@ -6,6 +6,8 @@
 #include "modbus/adu.hpp"
 #include "test_util.hpp"
 
+namespace test_modbus_tcp_deframer_test {
+
 using namespace mbscope::test;
 namespace mb = mbscope::modbus;
 
@@ -217,3 +219,5 @@ TEST(TcpStreamDeframer, ResetStartsAFreshStreamAtOffsetZero) {
     expect_every_byte_accounted(out, data.size());
     EXPECT_EQ(frames_bytes(out), adus);
 }
+
+}  // namespace test_modbus_tcp_deframer_test

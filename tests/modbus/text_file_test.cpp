@@ -11,6 +11,8 @@
 
 #include "modbus/storage/text_file.hpp"
 
+namespace test_modbus_text_file_test {
+
 namespace st = mbscope::modbus::storage;
 
 namespace {
@@ -134,3 +136,5 @@ TEST(ReadTextFile, ReadsWithinTheLimitAndRefusesBeyondIt) {
     EXPECT_EQ(error, "cannot open");
     std::remove(path.c_str());
 }
+
+}  // namespace test_modbus_text_file_test

@@ -23,6 +23,8 @@
 #include "modbus/rtu_deframer.hpp"
 #include "modbus/tcp_deframer.hpp"
 
+namespace test_peer_libmodbus_interop_test {
+
 namespace mb = mbscope::modbus;
 
 namespace {
@@ -365,3 +367,5 @@ TEST(LibmodbusRtuClient, RequestsOverAPseudoTerminal) {
     close(master);
     close(slave);
 }
+
+}  // namespace test_peer_libmodbus_interop_test

@@ -14,6 +14,8 @@
 
 #include "modbus/storage/profile_store.hpp"
 
+namespace test_profiles_profile_coverage_test {
+
 namespace fs = std::filesystem;
 namespace mb = mbscope::modbus;
 
@@ -502,3 +504,5 @@ TEST(BundledProfiles, AccessAndEncodingAgreeWithTheCitedLine) {
         ADD_FAILURE() << mismatches[i];
     EXPECT_TRUE(mismatches.empty()) << mismatches.size() << " points disagree with their line";
 }
+
+}  // namespace test_profiles_profile_coverage_test

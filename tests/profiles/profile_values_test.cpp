@@ -6,6 +6,8 @@
 
 #include "modbus/storage/profile_store.hpp"
 
+namespace test_profiles_profile_values_test {
+
 namespace mb = mbscope::modbus;
 
 namespace {
@@ -219,3 +221,5 @@ TEST(CthValues, AVariableDecimalPointIsTakenFromItsRegisterOrSaidUnknown) {
     v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4000, {0x1234, 0x0001});
     EXPECT_EQ(v[0].text, "701.96");  // 0x00011234
 }
+
+}  // namespace test_profiles_profile_values_test

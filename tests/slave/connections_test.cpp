@@ -14,7 +14,7 @@
 
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_connections_test {
 namespace {
 
 using namespace std::chrono_literals;
@@ -137,4 +137,4 @@ TEST(SerialLine, RtuAnswersOnlyAfterTheRequestsT35SilenceAndNeverABadCrc) {
 }
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_connections_test

@@ -7,7 +7,7 @@
 #include "slave/responder.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_device_test {
 namespace {
 
 using mb::Table;
@@ -461,4 +461,4 @@ TEST(Device, AnEnumerationStartsAtAValueItAllows) {
 }
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_device_test

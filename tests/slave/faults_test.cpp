@@ -9,7 +9,7 @@
 
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_faults_test {
 namespace {
 
 using mb::Table;
@@ -506,4 +506,4 @@ TEST(ServerFaults, FaultsPlantedTogetherEachShow) {
 }
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_faults_test

@@ -15,7 +15,7 @@
 #include "tests/slave/slave_test_support.hpp"
 #include "tests/support/process_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_libmodbus_client_test {
 namespace {
 
 using mb::Table;
@@ -154,4 +154,4 @@ INSTANTIATE_TEST_SUITE_P(EveryTransport, LibmodbusClient, ::testing::Values("tcp
                          transport_test_name);
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_libmodbus_client_test

@@ -11,7 +11,7 @@
 #include "slave/state_file.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_line_settings_test {
 namespace {
 
 using namespace std::chrono_literals;
@@ -254,4 +254,4 @@ TEST(LineSettings, TheSettingsAStateFileKeepsAreTheLinesAfterARestart) {
 }
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_line_settings_test

@@ -19,7 +19,7 @@
 #include "tests/slave/slave_process.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_multi_unit_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -234,4 +234,4 @@ INSTANTIATE_TEST_SUITE_P(Transports, MultiUnitLibmodbus, ::testing::Values("tcp"
                          transport_test_name);
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_multi_unit_test

@@ -10,7 +10,7 @@
 #include "slave/process.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_process_model_test {
 namespace {
 
 using mb::Table;
@@ -391,4 +391,4 @@ TEST(ProcessModel, AHiddenSignalHasNoPointButDrivesTheSignalsThatFollowIt) {
 }
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_process_model_test

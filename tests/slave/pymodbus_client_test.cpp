@@ -18,7 +18,7 @@
 #include "tests/slave/slave_test_support.hpp"
 #include "tests/support/process_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_pymodbus_client_test {
 namespace {
 
 using mb::Table;
@@ -109,4 +109,4 @@ INSTANTIATE_TEST_SUITE_P(EveryTransport, PymodbusClient,
                          transport_test_name);
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_pymodbus_client_test

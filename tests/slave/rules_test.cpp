@@ -17,7 +17,7 @@
 #include "modbus/function_code.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_rules_test {
 namespace {
 
 using mb::Table;
@@ -1026,9 +1026,9 @@ TEST(WalchemRules, WA_ADR_04_W600_HalfAFloatIsCheckedWithTheOtherHalfHeld) {
 }
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_rules_test
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_rules_test {
 
 // MK-CFG-01 (000:218-226, 500-503): ENDER, PROT, BAUD and PARID mirror the settings the device is on;
 // CTH-ADR-01 (003:435, 599): register 3999 holds the configured address. The slave served them as 0.
@@ -1049,4 +1049,4 @@ TEST(LineMirrors, MK_CFG_01_RegistersReadTheLineTheDeviceIsOn) {
     EXPECT_TRUE(on_rtu.image().changes().empty());
 }
 
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_rules_test

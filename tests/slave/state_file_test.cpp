@@ -8,7 +8,7 @@
 #include "slave/state_file.hpp"
 #include "tests/slave/slave_test_support.hpp"
 
-namespace mbscope::slave::test {
+namespace mbscope::slave::test::test_slave_state_file_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -325,4 +325,4 @@ TEST_F(StateFile, UnitsAreMatchedById) {
 }
 
 }  // namespace
-}  // namespace mbscope::slave::test
+}  // namespace mbscope::slave::test::test_slave_state_file_test

@@ -13,7 +13,7 @@
 #include "modbus/transport/serial_port.hpp"
 #include "modbus/transport/socket.hpp"
 
-namespace mbscope::modbus::transport {
+namespace mbscope::modbus::transport::test_transport_client_test {
 namespace {
 
 using namespace std::chrono_literals;
@@ -265,4 +265,4 @@ TEST(Client, UnreachableEndpointIsAnErrorNamingIt) {
 }
 
 }  // namespace
-}  // namespace mbscope::modbus::transport
+}  // namespace mbscope::modbus::transport::test_transport_client_test

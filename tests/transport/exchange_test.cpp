@@ -6,6 +6,8 @@
 #include "modbus/adu.hpp"
 #include "modbus/transport/exchange.hpp"
 
+namespace test_transport_exchange_test {
+
 using namespace mbscope::modbus;
 using transport::Exchange;
 using transport::ReplyScanner;
@@ -443,3 +445,5 @@ TEST(OwedRequests, SettleFramesTakesOutTheLateRepliesAndKeepsTheRest) {
     ASSERT_EQ(settled.size(), 1u);
     EXPECT_EQ(std::string(ascii_rest.begin(), ascii_rest.end()), "junktail");
 }
+
+}  // namespace test_transport_exchange_test
