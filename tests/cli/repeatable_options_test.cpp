@@ -3,6 +3,8 @@
 // `--map 1=mmk-2030 plant.pcap` swallowed the file ("files is required").
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+#include <filesystem>
 #include <string>
 
 #include "tests/cli/cli_run.hpp"
@@ -13,15 +15,19 @@ using mbscope::test::run_mbscope;
 
 TEST(RepeatableOptions, TakeOneValueEachAndLeaveTheFilesAlone) {
     const std::string capture = std::string(MBSCOPE_SOURCE_DIR) + "/captures/zeek-modbusSmall.pcap";
-    const char* spellings[] = {
+    // An empty directory of profiles: any directory would do, but one full of files (as /tmp may be) is
+    // read whole before the option is reached.
+    std::string empty_dir = (std::filesystem::temp_directory_path() / "mbscope-repeatable-XXXXXX").string();
+    ASSERT_NE(::mkdtemp(empty_dir.data()), nullptr);
+    const std::string spellings[] = {
         "decode --tcp-port 5020 ",
         "decode --map 1=mmk-2030 ",
-        "decode --profile-dir /tmp --config 1=none --map 1=mmk-2030 ",
+        "decode --profile-dir " + empty_dir + " --config 1=none --map 1=mmk-2030 ",
         "decode --tcp-port 5020 --tcp-port 5021 --udp-port 5020 --rtu-over-tcp 4001 ",
     };
-    for (const char* s : spellings) {
-        const auto r = run_mbscope(std::string(s) + capture + " --summary");
-        if (std::string(s).find("--config") != std::string::npos) {
+    for (const std::string& s : spellings) {
+        const auto r = run_mbscope(s + capture + " --summary");
+        if (s.find("--config") != std::string::npos) {
             // Reaches the --config check (mmk-2030 has no channels): the file was not taken as a value.
             EXPECT_NE(r.out.find("--config"), std::string::npos) << s << "\n" << r.out;
             EXPECT_EQ(r.out.find("files is required"), std::string::npos) << s << "\n" << r.out;
@@ -35,6 +41,7 @@ TEST(RepeatableOptions, TakeOneValueEachAndLeaveTheFilesAlone) {
     const auto two = run_mbscope("decode --tcp-port 5020 5021 " + capture + " --summary");
     EXPECT_EQ(two.exit_code, 2) << two.out;
     EXPECT_NE(two.out.find("5021"), std::string::npos) << two.out;
+    std::filesystem::remove(empty_dir);
 }
 
 // Each --map that described no device is a note after the run, the exit code unchanged: a mistyped address
