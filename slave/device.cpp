@@ -256,10 +256,12 @@ std::optional<std::uint8_t> Device::check_write_block(Table t, std::uint16_t sta
         rejection->exception_code == modbus::exception_for(*profile_, "bad_value", exc_illegal_value) &&
         rejection->reason.rfind("value", 0) == 0;
     if (is_value_rule && faults_->enabled(Fault::AcceptOutOfRange)) {
-        // Only the address and access rules are still applied.
-        for (std::size_t i = 0; i < block.size(); ++i)
-            if (auto r = modbus::check_writes(*profile_, t, static_cast<std::uint16_t>(stored.start + i), {}))
-                return r->exception_code;
+        // Only the address and access rules are still applied. check_writes judged every address and the
+        // map's access before any value, so those passed; a value rule that refused the block came before
+        // the access that depends on what the device holds (a point read-only in automatic mode), which is
+        // still applied.
+        if (auto r = check_conditional_access(*profile_, image_, t, stored.start, block.size()))
+            return r->exception_code;
         return std::nullopt;
     }
     return rejection->exception_code;

@@ -223,6 +223,13 @@ const std::vector<PduFaultCase> pdu_faults = {
       {"03 00 07 00 01", "03 02 00 01", "03 02 00 64"},  // ENDER reads the unit served (MK-CFG-01)
       {"06 00 57 02 58", "86 03", "06 00 57 02 58"},
       {"06 00 00 00 00", "86 02", "86 02"}}},
+    // DCY-2050's loop 1 output (HR 2, -100.0 to 100.0 %) is read-only in automatic mode (coil 0 set,
+    // MK-RO-02, 000:731): out of range and read-only now, the fault accepts the value but not the write.
+    {"AcceptOutOfRangeKeepsConditionalAccess",
+     "accept-out-of-range",
+     "dcy-2050",
+     {{"06 00 02 07 D0", "86 03", "86 02"}},
+     [](RegisterImage& i) { i.set_bit(Table::Coils, 0, true); }},
     {"NoEcho",
      "no-echo",
      "modbus",
