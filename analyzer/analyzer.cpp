@@ -60,6 +60,37 @@ struct Analyzer::Flow {
         Timestamp time;
     };
     std::deque<Arrival> rtu_arrivals[2];
+    // A Modbus/TCP port's connection may carry raw RTU frames instead (a serial gateway in transparent
+    // mode, left without --rtu-over-tcp): read as MBAP they made up units and transactions, which no later
+    // finding could take back from the records already written. So each connection's first bytes are held,
+    // both directions in the order they came, until the probe tells its framing (rtu_over_tcp_probe.hpp;
+    // for a genuine Modbus/TCP stream, almost always at its first request or reply): then fed to the MBAP
+    // deframers as they would have been, each chunk with its own time and packet, or, for RTU, reported as
+    // bytes not decoded. A stream event (a gap, the connection's end, the capture's) or the first held
+    // request's timeout settles it on what the probe has read.
+    // RTU is not decoded in its stead: the framing is the port's, which the user names, and a guess that
+    // decoded some connections of a port one way and some the other would make two views of one device.
+    enum class Reading : std::uint8_t { Probing, Mbap, Rtu };
+    Reading reading = Reading::Probing;
+    RtuOverTcpProbe probe;
+    struct HeldChunk {
+        int dir;
+        std::vector<std::uint8_t> bytes;
+        Timestamp time;
+        std::uint64_t packet;
+        SharedText source;  // the input that held the packet (several are merged by time)
+    };
+    std::vector<HeldChunk> held;
+    std::uint16_t server_port = 0;
+    // Reading::Rtu: each direction's bytes since the last report, as one run (offset, length, where its
+    // first byte came), reported when the connection ends or a gap breaks the run; and the next byte's
+    // stream offset.
+    struct NotDecoded {
+        std::uint64_t offset = 0, length = 0, packet = 0;
+        Timestamp time{0};
+        SharedText source;
+    } not_decoded[2];
+    std::uint64_t not_decoded_next[2] = {0, 0};
     const Arrival* rtu_arrival(int dir, std::uint64_t offset) const {
         const auto& a = rtu_arrivals[dir];
         const auto after = std::upper_bound(a.begin(), a.end(), offset,
@@ -373,6 +404,7 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool to_server) {
         f.carrier = l4.transport == Transport::Tcp ? Carrier::Tcp : Carrier::Udp;
         if (l4.transport == Transport::Tcp) {
             f.rtu_over_tcp = contains(options_.rtu_over_tcp_ports, server.port);
+            f.server_port = server.port;
             for (int dir = 0; dir < 2; ++dir) {
                 f.reassembler[dir] = std::make_unique<TcpReassembler>(
                     [this, &f, dir](std::span<const std::uint8_t> bytes, Timestamp t) {
@@ -415,33 +447,19 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
     const std::uint64_t carried = f.reassembler[dir]->delivering_packet();
     const std::uint64_t packet = carried ? carried : packet_number_;
     if (!f.rtu_over_tcp) {
-        auto& fed = f.fed[dir];
-        const std::uint64_t at = f.deframer[dir].offset();
-        if (at == 0 && !f.reassembler[dir]->saw_syn()) f.deframer[dir].start_unaligned();
-        if (f.last_fed_packet[dir] != packet) {
-            // The packet before left bytes unreported: kept where they start.
-            if (f.last_fed_packet[dir] && f.deframer[dir].unreported() < at)
-                fed.emplace_back(f.last_fed_from[dir], f.last_fed_packet[dir]);
-            f.last_fed_from[dir] = at;
-            f.last_fed_packet[dir] = packet;
+        switch (f.reading) {
+            case Flow::Reading::Probing:
+                if (f.held.empty()) probing_.push_back(&f);
+                f.held.push_back({dir, {bytes.begin(), bytes.end()}, t, packet, source_});
+                if (f.probe.feed(dir, bytes, !f.reassembler[dir]->saw_syn()) !=
+                    RtuOverTcpProbe::Verdict::Undecided)
+                    settle_framing(f, t);
+                return;
+            case Flow::Reading::Rtu:
+                return not_decoded(f, dir, bytes.size(), t, packet);
+            case Flow::Reading::Mbap:
+                return feed_mbap(f, dir, bytes, t, packet);
         }
-        f.deframer[dir].feed(bytes, t, events);
-        deframed(f, dir == 0, events, t, packet);
-        if (fed.empty()) return;
-        // Kept: the entry holding the first unreported byte (a run of unparsed bytes still gathering needs
-        // only its first byte's packet), and those from the one holding the first buffered byte on.
-        const std::uint64_t first = f.deframer[dir].unreported();
-        if (first >= f.last_fed_from[dir]) {
-            fed.clear();
-            return;
-        }
-        const std::uint64_t buffered = f.deframer[dir].offset() - f.deframer[dir].buffered();
-        while (fed.size() > 1 && fed[1].first <= first)
-            fed.pop_front();
-        std::size_t from = 1;
-        while (from + 1 < fed.size() && fed[from + 1].first <= buffered)
-            ++from;
-        if (from > 1) fed.erase(fed.begin() + 1, fed.begin() + static_cast<std::ptrdiff_t>(from));
         return;
     }
     // A gateway carries one request and its response at a time: when one side speaks, what the other side
@@ -458,6 +476,113 @@ void Analyzer::stream_bytes(Flow& f, int dir, std::span<const std::uint8_t> byte
     deframed(f, dir == 0, events, t, packet);
 }
 
+void Analyzer::feed_mbap(Flow& f, int dir, std::span<const std::uint8_t> bytes, Timestamp t,
+                         std::uint64_t packet) {
+    DeframeEvents& events = stream_events_;
+    events.clear();
+    auto& fed = f.fed[dir];
+    const std::uint64_t at = f.deframer[dir].offset();
+    if (at == 0 && !f.reassembler[dir]->saw_syn()) f.deframer[dir].start_unaligned();
+    if (f.last_fed_packet[dir] != packet) {
+        // The packet before left bytes unreported: kept where they start.
+        if (f.last_fed_packet[dir] && f.deframer[dir].unreported() < at)
+            fed.emplace_back(f.last_fed_from[dir], f.last_fed_packet[dir]);
+        f.last_fed_from[dir] = at;
+        f.last_fed_packet[dir] = packet;
+    }
+    f.deframer[dir].feed(bytes, t, events);
+    deframed(f, dir == 0, events, t, packet);
+    if (fed.empty()) return;
+    // Kept: the entry holding the first unreported byte (a run of unparsed bytes still gathering needs
+    // only its first byte's packet), and those from the one holding the first buffered byte on.
+    const std::uint64_t first = f.deframer[dir].unreported();
+    if (first >= f.last_fed_from[dir]) {
+        fed.clear();
+        return;
+    }
+    const std::uint64_t buffered = f.deframer[dir].offset() - f.deframer[dir].buffered();
+    while (fed.size() > 1 && fed[1].first <= first)
+        fed.pop_front();
+    std::size_t from = 1;
+    while (from + 1 < fed.size() && fed[from + 1].first <= buffered)
+        ++from;
+    if (from > 1) fed.erase(fed.begin() + 1, fed.begin() + static_cast<std::ptrdiff_t>(from));
+}
+
+void Analyzer::settle_framing(Flow& f, Timestamp t) {
+    if (f.rtu_over_tcp || f.carrier != Carrier::Tcp || f.reading != Flow::Reading::Probing) return;
+    const bool rtu = f.probe.settle() == RtuOverTcpProbe::Verdict::Rtu;
+    f.reading = rtu ? Flow::Reading::Rtu : Flow::Reading::Mbap;
+    std::vector<Flow::HeldChunk> held;
+    held.swap(f.held);
+    if (rtu) {
+        // Said at the bytes that told it (the last held), not at whatever ended the probing.
+        ++summary_.rtu_over_tcp_connections[f.server_port];
+        FrameRecord about = about_stream(f, held.empty() ? t : held.back().time);
+        if (!held.empty()) {
+            about.packet = held.back().packet;
+            about.source = held.back().source;
+        }
+        char first[64];
+        std::snprintf(first, sizeof first, "the first from unit %u, FC%u", unsigned{f.probe.first_unit()},
+                      unsigned{f.probe.first_function()});
+        const std::string port = std::to_string(f.server_port);
+        report(FindingCode::TcpRtuFraming, about,
+               "the connection " + f.link.str() + " carries RTU frames, not Modbus/TCP: " +
+                   (f.probe.frames() == 1
+                        ? std::string("an RTU frame with a valid CRC (")
+                        : std::to_string(f.probe.frames()) + " frames back to back with valid CRCs (") +
+                   first + "), while read as MBAP " + f.probe.mbap_misreading() +
+                   " (a serial gateway in transparent mode?); its bytes are not decoded as MBAP, which "
+                   "would make up units and transactions: decode with --rtu-over-tcp " +
+                   port);
+    }
+    // As if fed when they came, each from its own input: before each chunk the requests due by its time
+    // expire, as at its packet (a reply held behind its request's deadline is late, not in time).
+    const SharedText source = source_;
+    const bool nested = replaying_;
+    replaying_ = true;
+    for (const auto& c : held) {
+        source_ = c.source;
+        if (rtu) {
+            not_decoded(f, c.dir, c.bytes.size(), c.time, c.packet);
+            continue;
+        }
+        expire(c.time, false);
+        feed_mbap(f, c.dir, c.bytes, c.time, c.packet);
+    }
+    replaying_ = nested;
+    source_ = source;
+}
+
+void Analyzer::not_decoded(Flow& f, int dir, std::size_t length, Timestamp t, std::uint64_t packet) {
+    auto& run = f.not_decoded[dir];
+    if (run.length == 0) run = {f.not_decoded_next[dir], 0, packet, t, source_};
+    run.length += length;
+    f.not_decoded_next[dir] += length;
+}
+
+void Analyzer::report_not_decoded(Flow& f, int dir) {
+    auto& run = f.not_decoded[dir];
+    if (run.length == 0) return;
+    summary_.unparsed_bytes += run.length;
+    const Direction direction = dir == 0 ? Direction::Request : Direction::Response;
+    sink_.unparsed(UnparsedRecord{run.source, f.link, direction, run.time, run.packet, run.offset,
+                                  static_cast<std::uint32_t>(std::min<std::uint64_t>(run.length, UINT32_MAX)),
+                                  UnparsedReason::RtuOverTcp});
+    FrameRecord about;
+    about.time = run.time;
+    about.source = run.source;
+    about.link = f.link;
+    about.packet = run.packet;
+    report(FindingCode::StreamUnparsedBytes, about,
+           std::to_string(run.length) + " bytes at stream offset " + std::to_string(run.offset) + " of the " +
+               (dir == 0 ? "request" : "response") +
+               " stream are RTU frames, not Modbus/TCP: not decoded (decode with --rtu-over-tcp " +
+               std::to_string(f.server_port) + ")");
+    run = {};
+}
+
 // What a finding about a flow's stream, rather than one of its frames, is attached to.
 FrameRecord Analyzer::about_stream(const Flow& f, Timestamp t) const {
     FrameRecord about;
@@ -469,6 +594,16 @@ FrameRecord Analyzer::about_stream(const Flow& f, Timestamp t) const {
 }
 
 void Analyzer::stream_gap(Flow& f, int dir, std::uint64_t missing, Timestamp t) {
+    // The probe reads contiguous bytes: what it holds is read as it stands (MBAP, unless RTU was told).
+    settle_framing(f, t);
+    if (!f.rtu_over_tcp && f.reading == Flow::Reading::Rtu) {
+        report_not_decoded(f, dir);
+        f.not_decoded_next[dir] += missing;
+        report(FindingCode::StreamGap, about_stream(f, t),
+               std::to_string(missing) + " bytes of the " + (dir == 0 ? "request" : "response") +
+                   " stream were not captured, on a connection that carries RTU frames (not decoded)");
+        return;
+    }
     DeframeEvents events;
     std::optional<CutAdu> cut;  // the ADU the hole cuts, named by its header
     if (f.rtu_over_tcp) {
@@ -1982,6 +2117,25 @@ void Analyzer::clock_went_back(Timestamp to, const std::string& where) {
 }
 
 void Analyzer::expire(Timestamp now, bool at_end) {
+    // A connection whose framing is still being told holds its first bytes, and its requests wait in them
+    // unseen: by the time the first could time out it is settled on what the probe has read, so that they
+    // time out in time (in a live capture's quiet time too). Not while one is fed (settle_framing).
+    if (!probing_.empty() && !replaying_) {
+        // Not one whose bytes so far are all RTU frames while its MBAP reading holds: the quiet time would
+        // settle it as MBAP (a first poll of 2 registers unanswered) and make up units for good; it waits
+        // for its next bytes (its requests' timeouts are then said late, at their own times) or its end.
+        const auto due = [&](Flow* f) {
+            return f->held.empty() || at_end ||
+                   (f->held.front().time + options_.timeout <= now &&
+                    (!f->probe.rtu_reading_holds() || f->probe.settles_as_rtu()));
+        };
+        std::vector<Flow*> settling;
+        for (Flow* f : probing_)
+            if (due(f)) settling.push_back(f);
+        std::erase_if(probing_, due);
+        for (Flow* f : settling)
+            settle_framing(*f, now);
+    }
     // An answered request's entry would wait for its deadline: at 50,000 requests a second and a 3 s timeout
     // that is 150,000 entries. When entries outnumber the requests still pending, the answered ones at the
     // front leave at once, so memory follows what is outstanding, not the traffic's rate.
@@ -2779,7 +2933,14 @@ void Analyzer::close_streams(Flow& f, Timestamp t, int only) {
     for (int dir = 0; dir < 2; ++dir) {
         if (only >= 0 && dir != only) continue;
         f.reassembler[dir]->flush(t);
+        // Bytes still held are settled with the first stream that ends (a client's reset ends only its
+        // own, but the probe reads the connection): the other's come after them, as they came.
+        settle_framing(f, t);
         DeframeEvents events;
+        if (!f.rtu_over_tcp && f.reading == Flow::Reading::Rtu) {
+            report_not_decoded(f, dir);
+            continue;
+        }
         if (f.rtu_over_tcp) {
             f.rtu_deframer[dir].finish(events);
             shift_offsets(events, f.rtu_lost[dir]);
@@ -2792,6 +2953,7 @@ void Analyzer::close_streams(Flow& f, Timestamp t, int only) {
 }
 
 void Analyzer::give_up_waiting(Flow& f, Timestamp t, const std::string& how) {
+    settle_framing(f, t);  // requests still held are waiting too
     f.client_reset = false;
     if (!f.pending) return;
     std::vector<Pending> waiting;
@@ -2841,6 +3003,7 @@ std::optional<Analyzer::Unanswered> Analyzer::not_the_servers(const Pending& p) 
 }
 
 void Analyzer::client_reset(Flow& f, Timestamp t) {
+    settle_framing(f, t);  // requests still held wait for their replies as the others do
     // The streams end as at any reset (what they left unfinished reported, the next connection started
     // afresh), but a reply the server sent before the reset reached it still comes, after the reset in the
     // capture, and answers its request (tshark pairs it): the requests wait for it, to their timeout, a new
@@ -2849,7 +3012,10 @@ void Analyzer::client_reset(Flow& f, Timestamp t) {
     // Only the client's stream ends: the server's goes on at its own sequence numbers, and a reply it
     // sent in several segments, some after the reset in the capture, is still one reply (restarting it
     // cut the reply in two, "truncated" and "before the first header").
-    if (!f.pending) return end_connection(f, t, "the client reset the connection");
+    // A connection found to carry RTU frames has no requests waiting (none was decoded), but the server's
+    // stream goes on as RTU: only the client's ends.
+    if (!f.pending && f.reading != Flow::Reading::Rtu)
+        return end_connection(f, t, "the client reset the connection");
     for (auto& [k, p] : pending_)
         if (k.flow == f.id) p.client_reset = true;
     for (auto& [k, older] : reused_)
@@ -2888,6 +3054,20 @@ void Analyzer::restart_streams(Flow& f, int only) {
         f.rtu_deframer[dir].reset();
         f.rtu_lost[dir] = 0;
         f.rtu_arrivals[dir].clear();
+    }
+    // A new connection is probed afresh; after a client's reset the server's stream goes on, and so does
+    // the framing found for it.
+    if (only < 0) {
+        f.reading = Flow::Reading::Probing;
+        f.probe.reset();
+        f.held.clear();
+        for (int dir = 0; dir < 2; ++dir) {
+            f.not_decoded[dir] = {};
+            f.not_decoded_next[dir] = 0;
+        }
+    } else {
+        f.not_decoded[only] = {};
+        f.not_decoded_next[only] = 0;
     }
 }
 
@@ -2961,6 +3141,7 @@ void Analyzer::finish() {
     for (auto& [key, f] : flows_)
         release_unseen(*f);  // whose they were, as far as the capture shows
     summary_.modbus_like_ports = modbus_like_.tally();
+    summary_.rtu_like_ports = modbus_like_.rtu_tally();
     sink_.end(summary_);
 }
 

@@ -24,6 +24,7 @@
 #include "analyzer/modbus_like_ports.hpp"
 #include "analyzer/packet_parser.hpp"
 #include "analyzer/records.hpp"
+#include "analyzer/rtu_over_tcp_probe.hpp"
 #include "analyzer/semantics.hpp"
 #include "analyzer/tcp_reassembler.hpp"
 #include "modbus/ascii_deframer.hpp"
@@ -204,6 +205,16 @@ class Analyzer {
     std::optional<bool> sent_by_client(const L4Packet& l4);
     Flow& flow_for(const L4Packet& l4, bool to_server);
     void stream_bytes(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t);
+    // A Modbus/TCP stream's bytes to its MBAP deframer, `packet` the one that carried them.
+    void feed_mbap(Flow& flow, int dir, std::span<const std::uint8_t> bytes, modbus::Timestamp t,
+                   std::uint64_t packet);
+    // The end of a connection's probing (Flow::held): the probe's verdict (settled on what it has read when
+    // it has none yet), and the bytes held fed or reported accordingly. `t`: the time of what ended it.
+    void settle_framing(Flow& flow, modbus::Timestamp t);
+    // A connection found to carry RTU: `length` more bytes of direction `dir`, not decoded; and the run
+    // gathered so far reported (an unparsed record and its finding).
+    void not_decoded(Flow& flow, int dir, std::size_t length, modbus::Timestamp t, std::uint64_t packet);
+    void report_not_decoded(Flow& flow, int dir);
     FrameRecord about_stream(const Flow& flow, modbus::Timestamp t) const;
     void stream_gap(Flow& flow, int dir, std::uint64_t missing, modbus::Timestamp t);
     // Both directions' buffered bytes (or direction `only`'s) delivered and deframed to the end (at the end
@@ -342,6 +353,10 @@ class Analyzer {
     // of (sent_by_client): keyed client first.
     std::unordered_set<FlowKey, FlowKeyHash> told_clients_;
     ModbusLikePorts modbus_like_;  // ADUs on ports not decoded, for the summary's hint
+    // Connections whose first bytes are held while their framing is told (Flow::held), settled at the
+    // latest when the first held could time out; and whether held bytes are being fed (settle_framing).
+    std::vector<Flow*> probing_;
+    bool replaying_ = false;
     IpReassembler ip_fragments_;
     // In front of the index: a direct-mapped cache by the hash's top bits, so that a packet of a known flow
     // costs a hash and a compare, not the index's division by a prime and its node (the index's lookup was

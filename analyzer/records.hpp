@@ -199,6 +199,14 @@ struct Summary {
     // that fits the payload, a public function code), by (UDP?, the lower of the two ports): a server port a
     // user may have left out (--tcp-port, --udp-port), told rather than decoding to nothing.
     std::map<std::pair<bool, std::uint16_t>, std::uint64_t> modbus_like_ports;
+    // The same for raw RTU frames (a serial gateway in transparent mode): packets of conversations on ports
+    // not decoded that held three or more whole RTU ADUs with valid CRCs in a row, by (UDP?, server port),
+    // told to decode them with --rtu-over-tcp (TCP) or --udp-port (UDP, where datagrams' CRCs tell RTU).
+    // Their packets that also parse as one MBAP ADU (01 03 00 00 00 02 C4 0B does) are not counted above.
+    std::map<std::pair<bool, std::uint16_t>, std::uint64_t> rtu_like_ports;
+    // Connections to a port decoded as Modbus/TCP that carried RTU frames instead (tcp.rtu_framing), by
+    // server port: their bytes were not decoded, and --rtu-over-tcp PORT decodes them.
+    std::map<std::uint16_t, std::uint64_t> rtu_over_tcp_connections;
     // Serial lines (not exported PDUs): the framings each was read in, in order (more than one when a device
     // was told another), and whether the first was told from the line's bytes rather than stated.
     struct SerialLineRead {

@@ -245,6 +245,19 @@ void TextSink::end(const Summary& s) {
         out_ << "  hint: " << n << (where.first ? " UDP" : " TCP") << " packets on port " << where.second
              << " hold Modbus/TCP ADUs; decode them with " << (where.first ? "--udp-port " : "--tcp-port ")
              << where.second << '\n';
+    for (const auto& [where, n] : s.rtu_like_ports)
+        out_ << "  hint: " << n << (where.first ? " UDP" : " TCP") << " packets on port " << where.second
+             << " hold RTU frames with valid CRCs, not Modbus/TCP"
+             // A UDP port decoded tells RTU datagrams from MBAP ones by their CRC.
+             << (where.first
+                     ? "; decode them with --udp-port "
+                     : ": looks like RTU over TCP (a serial gateway); decode them with --rtu-over-tcp ")
+             << where.second << '\n';
+    for (const auto& [port, n] : s.rtu_over_tcp_connections)
+        out_ << "  hint: " << n << (n == 1 ? " TCP connection" : " TCP connections") << " to port " << port
+             << " carried RTU frames, not Modbus/TCP: looks like RTU over TCP (a serial gateway), "
+                "not decoded; decode them with --rtu-over-tcp "
+             << port << '\n';
 }
 
 // ---------------------------------------------------------------- JSON
@@ -486,6 +499,19 @@ json summary_to_json(const Summary& s) {
             ports.push_back(
                 {{"transport", where.first ? "udp" : "tcp"}, {"port", where.second}, {"packets", n}});
         j["modbus_like_ports"] = ports;
+    }
+    if (!s.rtu_like_ports.empty()) {
+        json ports = json::array();
+        for (const auto& [where, n] : s.rtu_like_ports)
+            ports.push_back(
+                {{"transport", where.first ? "udp" : "tcp"}, {"port", where.second}, {"packets", n}});
+        j["rtu_like_ports"] = ports;
+    }
+    if (!s.rtu_over_tcp_connections.empty()) {
+        json ports = json::array();
+        for (const auto& [port, n] : s.rtu_over_tcp_connections)
+            ports.push_back({{"port", port}, {"connections", n}});
+        j["rtu_over_tcp_connections"] = ports;
     }
     return j;
 }

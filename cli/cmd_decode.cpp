@@ -138,12 +138,16 @@ int run_decode(const DecodeOptions& o) {
     // Bytes read and not one frame among them: nothing was decoded (the wrong file, format or framing),
     // which is not a clean result.
     if (a.summary().frames == 0 && (a.summary().unparsed_bytes > 0 || a.summary().packets_cut > 0)) {
-        std::cerr << "mbscope decode: no Modbus frame in the " << a.summary().unparsed_bytes
-                  << " bytes read, every one unparsed: "
-                  << (a.summary().packets_cut
-                          ? "the capture's snapshot length cut them (capture with a larger one: tcpdump -s 0)"
-                          : "not Modbus, or read in the wrong format or framing (--format, --framing)")
-                  << '\n';
+        std::cerr
+            << "mbscope decode: no Modbus frame in the " << a.summary().unparsed_bytes
+            << " bytes read, every one unparsed: "
+            << (a.summary().packets_cut
+                    ? "the capture's snapshot length cut them (capture with a larger one: tcpdump -s 0)"
+                : !a.summary().rtu_over_tcp_connections.empty()
+                    ? "RTU frames over TCP, not Modbus/TCP (a serial gateway): decode with --rtu-over-tcp " +
+                          std::to_string(a.summary().rtu_over_tcp_connections.begin()->first)
+                    : "not Modbus, or read in the wrong format or framing (--format, --framing)")
+            << '\n';
         return exit_failure;
     }
     return a.summary().errors ? exit_findings : exit_ok;

@@ -74,6 +74,13 @@ constexpr std::array findings{
                 "MBAP protocol identifier is not 0 (not Modbus)", "TCP §3.1.3"},
     FindingInfo{TcpLengthInvalid, "tcp.length_invalid", S::Error, "MBAP length field outside 2..254",
                 "TCP §3.1.3; AP §4.1"},
+    // An error: the connection's traffic is not decoded at all (read as MBAP it made up units and
+    // transactions), and only the user can say the port is a gateway's.
+    FindingInfo{TcpRtuFraming, "tcp.rtu_framing", S::Error,
+                "a connection decoded as Modbus/TCP carries raw RTU frames (unit, PDU, CRC: a serial gateway "
+                "in transparent mode), no MBAP header: its bytes are not decoded; decode the port with "
+                "--rtu-over-tcp PORT",
+                "TCP §3.1.3; SL §2.5.1"},
     FindingInfo{StreamUnparsedBytes, "stream.unparsed_bytes", S::Warning,
                 "bytes that formed no frame (garbage, noise or a truncated frame)", "SL §2.5"},
     FindingInfo{StreamGap, "stream.gap", S::Warning, "bytes missing from a captured stream", "capture"},

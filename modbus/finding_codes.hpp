@@ -50,6 +50,7 @@ enum class FindingCode : std::uint16_t {
     // tcp: MBAP header (TCP §3.1.3)
     TcpProtocolIdNonzero = 400,
     TcpLengthInvalid = 401,
+    TcpRtuFraming = 402,
     // stream: bytes that formed no frame
     StreamUnparsedBytes = 500,
     StreamGap = 501,

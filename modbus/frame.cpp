@@ -46,6 +46,8 @@ std::string_view to_string(UnparsedReason r) noexcept {
             return "before_first_header";
         case UnparsedReason::AfterGap:
             return "after_gap";
+        case UnparsedReason::RtuOverTcp:
+            return "rtu_over_tcp";
     }
     return "?";
 }

@@ -120,6 +120,7 @@ enum class UnparsedReason : std::uint8_t {
     BeforeStreamStart = 11,  // TCP: bytes before the first one captured of their stream, arriving after it
     BeforeFirstHeader = 12,  // TCP: a stream begun before the capture, before its first header (an ADU's end)
     AfterGap = 13,           // TCP: after bytes the capture lacks, before the next header (an ADU's end)
+    RtuOverTcp = 14,         // TCP: a connection on a Modbus/TCP port that carries raw RTU frames
 };
 std::string_view to_string(UnparsedReason r) noexcept;
 
