@@ -493,20 +493,18 @@ json summary_to_json(const Summary& s) {
         }
         j["serial_lines"] = lines;
     }
-    if (!s.modbus_like_ports.empty()) {
+    // Ports not decoded, by (udp?, port): packets of Modbus/TCP ADUs, or of RTU frames.
+    const auto like_ports = [&j](const char* key,
+                                 const std::map<std::pair<bool, std::uint16_t>, std::uint64_t>& tally) {
+        if (tally.empty()) return;
         json ports = json::array();
-        for (const auto& [where, n] : s.modbus_like_ports)
+        for (const auto& [where, n] : tally)
             ports.push_back(
                 {{"transport", where.first ? "udp" : "tcp"}, {"port", where.second}, {"packets", n}});
-        j["modbus_like_ports"] = ports;
-    }
-    if (!s.rtu_like_ports.empty()) {
-        json ports = json::array();
-        for (const auto& [where, n] : s.rtu_like_ports)
-            ports.push_back(
-                {{"transport", where.first ? "udp" : "tcp"}, {"port", where.second}, {"packets", n}});
-        j["rtu_like_ports"] = ports;
-    }
+        j[key] = ports;
+    };
+    like_ports("modbus_like_ports", s.modbus_like_ports);
+    like_ports("rtu_like_ports", s.rtu_like_ports);
     if (!s.rtu_over_tcp_connections.empty()) {
         json ports = json::array();
         for (const auto& [port, n] : s.rtu_over_tcp_connections)
