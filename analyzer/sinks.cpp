@@ -7,6 +7,7 @@
 #include "analyzer/timestamps.hpp"
 #include "analyzer/word_order.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/frame_text.hpp"
 #include "modbus/profile_json.hpp"
 
 namespace mbscope::analyzer {
@@ -22,6 +23,20 @@ double seconds(Timestamp t) {
 }
 
 namespace {
+
+// Text from the input as a terminal may be given it: links, devices and serial lines are named after files
+// and interfaces, and messages quote them, so a file named with ESC sequences would drive the reader's
+// terminal (errors escape them the same way). Plain ASCII, nearly every name, is written as it is.
+struct Shown {
+    std::string_view text;
+};
+std::ostream& operator<<(std::ostream& out, Shown s) {
+    const bool plain = std::all_of(s.text.begin(), s.text.end(), [](char c) {
+        const auto u = static_cast<unsigned char>(c);
+        return u >= 0x20 && u < 0x7F;
+    });
+    return plain ? out << s.text : out << printable(s.text);
+}
 
 std::string pdu_brief(const FrameRecord& f) {
     if (!f.pdu) {
@@ -77,7 +92,8 @@ std::string TextSink::time_of(Timestamp t) {
 
 void TextSink::transaction(const TransactionRecord& t) {
     if (summary_only_) return;
-    out_ << time_of(t.request.time) << "  " << t.request.link << "  unit " << int(t.request.frame.unit_id());
+    out_ << time_of(t.request.time) << "  " << Shown{t.request.link.view()} << "  unit "
+         << int(t.request.frame.unit_id());
     if (t.request.frame.framing == Framing::Tcp)
         out_ << "  tid " << t.request.frame.transaction_id();
     else
@@ -114,7 +130,7 @@ void TextSink::transaction(const TransactionRecord& t) {
     for (const auto& v : t.values) {
         out_ << "                   " << v.address << "  ";
         if (v.point)
-            out_ << (v.point->name_en.empty() ? v.point->name : v.point->name_en);
+            out_ << Shown{v.point->name_en.empty() ? v.point->name : v.point->name_en};
         else
             out_ << "(not in the map)";
         out_ << " = " << v.text;
@@ -133,14 +149,15 @@ void TextSink::transaction(const TransactionRecord& t) {
 void TextSink::finding(const FindingRecord& f) {
     if (summary_only_) return;
     const auto& i = info(f.code);
-    out_ << time_of(f.time) << "  ! " << i.name << " (" << to_string(i.severity) << ") " << f.link;
+    out_ << time_of(f.time) << "  ! " << i.name << " (" << to_string(i.severity) << ") "
+         << Shown{f.link.view()};
     // A gateway or a multi-drop line has several devices on one link: the line says which one the finding is
     // about (as its JSON record's `device` does), unless the message names it already.
     if (const std::string_view device = f.device.view();
         !device.empty() && f.message.find(device) == std::string::npos)
         if (const auto unit = device.rfind(" unit "); unit != std::string_view::npos)
-            out_ << device.substr(unit);
-    out_ << ": " << f.message;
+            out_ << Shown{device.substr(unit)};
+    out_ << ": " << Shown{f.message};
     if (!f.frames.empty()) {
         out_ << " [frame";
         for (auto n : f.frames)
@@ -162,7 +179,7 @@ void TextSink::end(const Summary& s) {
              << " damaged frames to units not seen on their line (bad CRC/LRC: no device's)";
     out_ << '\n';
     for (const auto& [device, d] : s.devices) {
-        out_ << "  " << device << ": " << d.requests << " requests, " << d.responses << " responses, "
+        out_ << "  " << Shown{device} << ": " << d.requests << " requests, " << d.responses << " responses, "
              << d.exceptions << " exceptions, " << d.timeouts << " timeouts";
         if (d.late_responses) out_ << " (" << d.late_responses << " answered late)";
         if (d.unanswered_at_end) out_ << ", " << d.unanswered_at_end << " unanswered at the end";
@@ -205,7 +222,7 @@ void TextSink::end(const Summary& s) {
         }
     }
     for (const auto& [line, read] : s.serial_lines) {
-        out_ << "  " << line << ": read as ";
+        out_ << "  " << Shown{line} << ": read as ";
         for (std::size_t i = 0; i < read.framings.size(); ++i)
             out_ << (i ? ", then " : "") << (read.framings[i] == Framing::Ascii ? "ASCII" : "RTU")
                  << (i == 0 && read.told ? " (told from its first bytes)" : "");
@@ -218,11 +235,11 @@ void TextSink::end(const Summary& s) {
         out_ << '\n';
     }
     for (const auto& e : s.input_errors)
-        out_ << "  input error: " << e << '\n';
+        out_ << "  input error: " << Shown{e} << '\n';
     if (s.input_errors_unlisted)
         out_ << "  input errors: " << s.input_errors_unlisted << " more, not listed\n";
     for (const auto& e : s.input_notes)
-        out_ << "  input note: " << e << '\n';
+        out_ << "  input note: " << Shown{e} << '\n';
     if (s.input_notes_unlisted) out_ << "  input notes: " << s.input_notes_unlisted << " more, not listed\n";
     if (s.ip_datagrams_incomplete)
         out_ << "  not decoded: " << s.ip_datagrams_incomplete << " IP datagrams missing fragments ("

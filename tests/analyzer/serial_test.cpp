@@ -1345,4 +1345,42 @@ TEST(SerialInput, ARequestJoinedToTheBytesBeforeItAndUnansweredIsNoTimeout) {
     }
 }
 
+// A serial line is named after its file, and findings quote the name: a file named with an ESC sequence
+// ("ls" shows it as '?') drove the reader's terminal through the text output, where the error messages
+// escaped it. Written as the errors write it; JSON carries the name as it is, escaped by JSON's rules.
+TEST(SerialInput, AFileNameIsWrittenEscapedInTheTextOutput) {
+    const auto path = write_temp(
+        "line\x1b[2J\x9b"
+        "31m.txt",
+        "1.000 > 11 03 00 60 00 03 07 45\n"
+        "3.000 > 11 03 00 60 00 03 07 45\n"
+        "3.050 < 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_TRUE(r->ok);
+    ASSERT_EQ(r->sink.transactions.size(), 2u);
+    ASSERT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
+    std::ostringstream text;
+    an::TextSink sink(text);
+    for (const auto& t : r->sink.transactions)
+        sink.transaction(t);
+    for (const auto& f : r->sink.findings)
+        sink.finding(f);
+    sink.end(r->summary);
+    const std::string out = text.str();
+    EXPECT_EQ(out.find('\x1b'), std::string::npos) << out;
+    EXPECT_EQ(out.find('\x9b'), std::string::npos) << out;
+    const std::string shown = "line\\x1B[2J\\x9B31m.txt";
+    // The transaction lines, the finding (its link and its message) and the summary's device and line.
+    std::size_t times = 0;
+    for (auto at = out.find(shown); at != std::string::npos; at = out.find(shown, at + 1))
+        ++times;
+    EXPECT_EQ(times, 2u + 2u + 2u) << out;
+    const auto json = an::summary_to_json(r->summary)["devices"].dump(
+        -1, ' ', false, nlohmann::json::error_handler_t::replace);  // as the JSON sink writes it
+    EXPECT_NE(json.find("line\\u001b[2J\xEF\xBF\xBD"
+                        "31m.txt"),
+              std::string::npos)
+        << json;
+}
+
 }  // namespace test_analyzer_serial_test
