@@ -16,6 +16,9 @@ extern "C" void on_stop_signal(int) {
     if (stop_requested.exchange(true)) stop_requested_again.store(true);
 }
 
+// Whether SIGHUP stops the run (it is not when it was ignored already).
+bool hangup_stops = false;
+
 void install(BrokenPipe broken_pipe, bool restart) {
     struct sigaction stop {};
     stop.sa_handler = on_stop_signal;
@@ -27,8 +30,10 @@ void install(BrokenPipe broken_pipe, bool restart) {
     // writes its reports, slave and sniff close and flush, instead of dying with the device left changed.
     // Unless it is ignored already (nohup): that is the user's wish to outlive the terminal.
     struct sigaction hup {};
-    if (::sigaction(SIGHUP, nullptr, &hup) == 0 && hup.sa_handler != SIG_IGN)
+    if (::sigaction(SIGHUP, nullptr, &hup) == 0 && hup.sa_handler != SIG_IGN) {
         ::sigaction(SIGHUP, &stop, nullptr);
+        hangup_stops = true;
+    }
     if (broken_pipe == BrokenPipe::Ignored) std::signal(SIGPIPE, SIG_IGN);
     if (broken_pipe == BrokenPipe::Stops) ::sigaction(SIGPIPE, &stop, nullptr);
 }
@@ -42,6 +47,7 @@ std::atomic<bool>& stop_on_signals(BrokenPipe broken_pipe) {
     sigemptyset(&stops);
     sigaddset(&stops, SIGINT);
     sigaddset(&stops, SIGTERM);
+    if (hangup_stops) sigaddset(&stops, SIGHUP);
     ::sigprocmask(SIG_UNBLOCK, &stops, nullptr);
     return stop_requested;
 }

@@ -18,9 +18,9 @@ enum class BrokenPipe {
     Ignored,  // a peer closed its socket: a send fails with EPIPE and the run carries on or reports it
 };
 
-// Installs the handlers and returns the flag they set. SIGINT and SIGTERM are unblocked too: a command
-// started with them blocked (a mask inherited from its parent) would hold them pending for ever, and only
-// SIGKILL could end it.
+// Installs the handlers and returns the flag they set. SIGINT, SIGTERM and SIGHUP (unless ignored) are
+// unblocked too: a command started with them blocked (a mask inherited from its parent) would hold them
+// pending for ever, and only SIGKILL could end it.
 //
 // Until run_begins(), a blocking call a stop signal interrupts fails with EINTR instead of starting again: a
 // step of the preparation that would wait for ever (opening a FIFO no one opens at the other end) ends, and

@@ -39,11 +39,11 @@ struct Ended {
     std::string out, err;
 };
 
-// `mbscope ARGS` in a child process, its standard output and error in files, SIGTERM pending from the start
-// (blocked until the command unblocks it: stop_on_signals).
+// `mbscope ARGS` in a child process, its standard output and error in files, `pending` (SIGTERM unless
+// told) pending from the start (blocked until the command unblocks it: stop_on_signals).
 class Mbscope {
   public:
-    Mbscope(const std::string& name, std::vector<std::string> args)
+    Mbscope(const std::string& name, std::vector<std::string> args, int pending = SIGTERM)
         : out_(fs::path(::testing::TempDir()) / (name + ".out")),
           err_(fs::path(::testing::TempDir()) / (name + ".err")) {
         args.insert(args.begin(), MBSCOPE_BINARY);
@@ -56,7 +56,7 @@ class Mbscope {
         // than ending the child before its exec.
         sigset_t term, before;
         sigemptyset(&term);
-        sigaddset(&term, SIGTERM);
+        sigaddset(&term, pending);
         ::sigprocmask(SIG_BLOCK, &term, &before);
         pid_ = ::fork();
         if (pid_ != 0) {
@@ -69,8 +69,8 @@ class Mbscope {
         if (o < 0 || e < 0 || ::dup2(o, 1) < 0 || ::dup2(e, 2) < 0) ::_exit(127);
         struct sigaction by_default {};
         by_default.sa_handler = SIG_DFL;
-        ::sigaction(SIGTERM, &by_default, nullptr);
-        ::raise(SIGTERM);
+        ::sigaction(pending, &by_default, nullptr);
+        ::raise(pending);
         ::execv(argv[0], argv.data());
         ::_exit(127);
     }
@@ -217,8 +217,7 @@ TEST(StopSignal, AReplaySignalledBeforeItOpenedTheTargetSendsNothingAndExitsTwo)
 }
 
 // A slave stops as it does when it is serving: exit 0, its counts said.
-TEST(StopSignal, ASlaveSignalledBeforeItServedStopsWithItsCounts) {
-    Mbscope slave("stop-signal-slave", {"slave", "--listen", "tcp://127.0.0.1:0"});
+void expect_slave_stopped_with_counts(Mbscope& slave) {
     ASSERT_TRUE(slave.started());
     const auto ended = slave.wait();
     EXPECT_EQ(ended.signal, 0) << ended.err;
@@ -226,6 +225,19 @@ TEST(StopSignal, ASlaveSignalledBeforeItServedStopsWithItsCounts) {
     EXPECT_NE(ended.err.find("mbscope slave: 0 requests, 0 responses, 0 bad frames, 0 connections"),
               std::string::npos)
         << ended.err;
+}
+
+TEST(StopSignal, ASlaveSignalledBeforeItServedStopsWithItsCounts) {
+    Mbscope slave("stop-signal-slave", {"slave", "--listen", "tcp://127.0.0.1:0"});
+    expect_slave_stopped_with_counts(slave);
+}
+
+// A hangup stops a run as SIGTERM does (cli/stop_signal.hpp), blocked or not when the command started: a
+// slave started with SIGHUP blocked (a parent's mask) held a hangup pending for ever, where it unblocked
+// SIGINT and SIGTERM.
+TEST(StopSignal, AHangupPendingFromTheStartStopsASlaveAsSigtermDoes) {
+    Mbscope slave("stop-signal-slave-hup", {"slave", "--listen", "tcp://127.0.0.1:0"}, SIGHUP);
+    expect_slave_stopped_with_counts(slave);
 }
 
 // A capture stops and prints its summary, as at a later SIGTERM.
