@@ -1,7 +1,7 @@
 /* The reference point of the slave benchmark: a Modbus/TCP server built on libmodbus alone, serving a
  * mapping equivalent to `mbscope slave --profile modbus` for the registers the load reads (10000 holding
  * registers, 10000 coils). Several clients at once, served by one select() loop as libmodbus's own
- * multi-client examples do. Prints the bound port on stdout, runs until SIGTERM.
+ * multi-client examples do. Prints the bound port on stdout, runs until SIGTERM or its parent's end.
  *
  *   libmodbus_server PORT    (0: any free port)
  */
@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/prctl.h>
 #include <sys/select.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -23,6 +24,11 @@ static void on_signal(int sig) {
 }
 
 int main(int argc, char** argv) {
+    /* Ends with whoever started it (a test or the bench script): a parent killed from outside left this
+     * server behind, serving nobody. Asked before anything else, then checked: the parent may be gone. */
+    const pid_t parent = getppid();
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != parent) return 0;
     const int port = argc > 1 ? atoi(argv[1]) : 0;
     modbus_t* ctx = modbus_new_tcp("127.0.0.1", port);
     modbus_mapping_t* map = modbus_mapping_new(10000, 10000, 10000, 10000);
