@@ -1973,7 +1973,8 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
                         }
                         case ReplyMisfit::Kind::Echo:
                             pair_finding(FindingCode::PairEchoMismatch,
-                                         describe_request(q) + ": the response is not " + misfit->expected);
+                                         describe_request(q) + ": the response is not " + misfit->expected +
+                                             (misfit->differs.empty() ? "" : ": " + misfit->differs));
                             break;
                     }
                 }

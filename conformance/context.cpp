@@ -278,7 +278,8 @@ std::string misfit_text(const modbus::ReplyMisfit& m) {
         case modbus::ReplyMisfit::Kind::Echo:
             break;
     }
-    return "the reply is not " + m.expected + " (" + m.source + ")";
+    return "the reply is not " + m.expected + " (" + m.source + ")" +
+           (m.differs.empty() ? "" : ": " + m.differs);
 }
 
 std::string describe(const tp::Exchange& ex) {

@@ -295,7 +295,8 @@ void ExchangeOracle::check_normal_shape(const Request& r, const modbus::Pdu& rep
     const char* rule = misfit->kind == Kind::DataSize  ? "reply.byte_count"
                        : misfit->kind == Kind::Padding ? "reply.padding"
                                                        : "reply.echo";
-    out.push_back({rule, misfit->source, misfit->expected, "a response that differs"});
+    out.push_back({rule, misfit->source, misfit->expected,
+                   misfit->differs.empty() ? "a response that differs" : "a response: " + misfit->differs});
 }
 
 bool ExchangeOracle::tracked(const modbus::Profile& p, Table t, std::uint16_t address) const {

@@ -1,5 +1,9 @@
 #include "modbus/reply_fit.hpp"
 
+#include <algorithm>
+
+#include "modbus/describe.hpp"
+
 namespace mbscope::modbus {
 
 namespace {
@@ -33,6 +37,56 @@ std::optional<WriteMultipleResponse> multiple_write_echo(const Pdu& request) {
     return std::nullopt;
 }
 
+// The fields in which an echo differs from what it echoes, in words ("its value is 927, not 926"; several
+// joined by "; "); nothing when the response's body is of another shape.
+std::string echo_differences(const Pdu& request, const Pdu& response) {
+    std::string out;
+    const auto field = [&](const char* name, std::string got, std::string due) {
+        if (got == due) return;
+        out += (out.empty() ? "its " : "; its ") + std::string(name) + " is " + got + ", not " + due;
+    };
+    const auto number = [](std::uint16_t v) { return std::to_string(v); };
+    if (const auto* q = std::get_if<WriteSingle>(&request.body)) {
+        const auto* a = std::get_if<WriteSingle>(&response.body);
+        if (!a) return out;
+        field("address", number(a->address), number(q->address));
+        // A coil's value is one of two words, 0xFF00 and 0x0000 (AP §6.5), said as such.
+        const bool coil = request.function_code() == 5;
+        field("value", coil ? hex16(a->value) : number(a->value), coil ? hex16(q->value) : number(q->value));
+    } else if (const auto* q = std::get_if<MaskWriteRegister>(&request.body)) {
+        const auto* a = std::get_if<MaskWriteRegister>(&response.body);
+        if (!a) return out;
+        field("reference address", number(a->reference_address), number(q->reference_address));
+        field("AND mask", hex16(a->and_mask), hex16(q->and_mask));
+        field("OR mask", hex16(a->or_mask), hex16(q->or_mask));
+    } else if (const auto* q = std::get_if<Diagnostics>(&request.body)) {
+        const auto* a = std::get_if<Diagnostics>(&response.body);
+        if (!a) return out;
+        // Another sub-function's data is that one's answer, not a wrong echo: the sub-function alone is said.
+        field("sub-function", number(a->sub_function), number(q->sub_function));
+        if (!out.empty()) return out;
+        const auto data = [](const std::vector<std::uint8_t>& d) {
+            if (d.empty()) return std::string("empty");
+            if (d.size() <= 16) return hex_bytes(d);
+            // A message, not a dump: the frames are in the record.
+            return hex_bytes(std::span(d).first(16)) + " ... (" + std::to_string(d.size()) + " bytes)";
+        };
+        const auto [got, due] = std::mismatch(a->data.begin(), a->data.end(), q->data.begin(), q->data.end());
+        const auto at = static_cast<std::size_t>(got - a->data.begin());
+        if (got == a->data.end() && due == q->data.end()) return out;
+        if (at < 16 || a->data.size() != q->data.size())  // the shortened texts differ
+            field("data", data(a->data), data(q->data));
+        else
+            out = "its data's byte " + std::to_string(at + 1) + " is " + hex8(*got) + ", not " + hex8(*due);
+    } else if (const auto echo = multiple_write_echo(request)) {
+        const auto* a = std::get_if<WriteMultipleResponse>(&response.body);
+        if (!a) return out;
+        field("starting address", number(a->starting_address), number(echo->starting_address));
+        field("quantity", number(a->quantity), number(echo->quantity));
+    }
+    return out;
+}
+
 }  // namespace
 
 std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response) {
@@ -40,7 +94,8 @@ std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response)
     const std::uint8_t fc = request.function_code();
     const auto echo = [&](const char* source) -> std::optional<ReplyMisfit> {
         if (request.body == response.body) return std::nullopt;
-        return ReplyMisfit{Kind::Echo, "an echo of the request", source};
+        return ReplyMisfit{Kind::Echo, "an echo of the request",           source, 0,
+                           0,          echo_differences(request, response)};
     };
     if (const auto* read = std::get_if<ReadRequest>(&request.body)) {
         if (fc <= 2) {
@@ -79,7 +134,9 @@ std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response)
             const auto* a = std::get_if<Diagnostics>(&response.body);
             if (!q) return std::nullopt;
             if (!a || a->sub_function != q->sub_function)
-                return ReplyMisfit{Kind::Echo, "an echo of the request's sub-function", "AP §6.8"};
+                return ReplyMisfit{Kind::Echo, "an echo of the request's sub-function",
+                                   "AP §6.8",  0,
+                                   0,          a ? echo_differences(request, response) : std::string()};
             return echoing_sub_function(q->sub_function) ? echo("AP §6.8.1") : std::nullopt;
         }
         case 15:
@@ -88,8 +145,9 @@ std::optional<ReplyMisfit> reply_misfit(const Pdu& request, const Pdu& response)
             const auto echo_due = multiple_write_echo(request);
             if (!echo_due) return std::nullopt;
             if (!a || *a != *echo_due)
-                return ReplyMisfit{Kind::Echo, "an echo of the request's starting address and quantity",
-                                   "AP §6.11-6.12"};
+                return ReplyMisfit{
+                    Kind::Echo, "an echo of the request's starting address and quantity", "AP §6.11-6.12", 0,
+                    0,          a ? echo_differences(request, response) : std::string()};
             return std::nullopt;
         }
         default:

@@ -22,6 +22,9 @@ struct ReplyMisfit {
     // DataSize: the data bytes the request asks for and those the response carries.
     std::size_t expected_bytes = 0;
     std::size_t got_bytes = 0;
+    // Echo: the fields the response got wrong, each with what it carries and what was due: "its value is
+    // 927, not 926" (for a reader who would otherwise compare the two frames byte by byte).
+    std::string differs = {};
 };
 
 // The first way `response`, a normal (non-exception) response of the request's function, fails to answer

@@ -1316,11 +1316,23 @@ TEST(Analyzer, Fc8CountersReturnACountAndOnlyEchoingSubFunctionsAreJudgedAsEchoe
     h.send(false, mb::encode_tcp(3, 17, diagnostics(0x0A, 1, mb::Direction::Response)), 3s + 1ms);
     h.analyzer.finish();
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairEchoMismatch), 2);
+    std::vector<std::string> messages;
     for (const auto& f : h.sink.findings) {
         if (f.code == mb::FindingCode::PairEchoMismatch) {
             EXPECT_EQ(f.message.find("sub-function 11"), std::string::npos) << f.message;
+            messages.push_back(f.message);
         }
     }
+    // Each says what differs.
+    ASSERT_EQ(messages.size(), 2u);
+    EXPECT_NE(
+        messages[0].find("the response is not an echo of the request's sub-function: its sub-function is "
+                         "13, not 12"),
+        std::string::npos)
+        << messages[0];
+    EXPECT_NE(messages[1].find("the response is not an echo of the request: its data is 00 01, not 00 00"),
+              std::string::npos)
+        << messages[1];
 }
 
 // A capture begun mid-connection whose first client segment is the last 5 bytes of a request ("03 00 00 00

@@ -29,6 +29,12 @@ Pdu response_pdu(std::initializer_list<std::uint8_t> pdu) {
     return decode_response(bytes).value();
 }
 
+// What an echo got wrong, in words ("fits" when it is no misfit).
+std::string differs(const Pdu& request, std::initializer_list<std::uint8_t> reply) {
+    const auto misfit = reply_misfit(request, response_pdu(reply));
+    return misfit ? misfit->differs : "fits";
+}
+
 TEST(ReplyFit, TheManualsExamplesAnswerTheirRequests) {
     const std::pair<const char*, const char*> pairs[] = {
         {"11 01 00 13 00 15 0E 90", "11 01 03 B2 0E 1B DA 92"},                 // 000:330, 343
@@ -68,12 +74,21 @@ TEST(ReplyFit, AWriteOfSeveralAcknowledgesItsStartAndQuantity) {
     ASSERT_TRUE(more.has_value());
     EXPECT_EQ(more->kind, ReplyMisfit::Kind::Echo);
     EXPECT_EQ(more->expected, "an echo of the request's starting address and quantity");
-    EXPECT_TRUE(reply_misfit(fc16, response_pdu({0x10, 0x00, 0x61, 0x00, 0x02})).has_value());
+    // What differs is said, field by field: a reader should not have to compare the frames byte by byte.
+    EXPECT_EQ(more->differs, "its quantity is 3, not 2");
+    EXPECT_EQ(differs(fc16, {0x10, 0x00, 0x61, 0x00, 0x01}),
+              "its starting address is 97, not 96; its quantity is 1, not 2");
     const auto fc15 = request("11 0F 00 13 00 0A 02 CD 00 7E CB");
-    EXPECT_TRUE(reply_misfit(fc15, response_pdu({0x0F, 0x00, 0x13, 0x00, 0x0B})).has_value());
+    EXPECT_EQ(differs(fc15, {0x0F, 0x00, 0x13, 0x00, 0x0B}), "its quantity is 11, not 10");
     // FC6's echo: the value too (000:405).
-    const auto fc6 = request("11 06 00 54 03 9E 4B D2");
-    EXPECT_TRUE(reply_misfit(fc6, response_pdu({0x06, 0x00, 0x54, 0x03, 0x9F})).has_value());
+    EXPECT_EQ(differs(request("11 06 00 54 03 9E 4B D2"), {0x06, 0x00, 0x54, 0x03, 0x9F}),
+              "its value is 927, not 926");
+    // A coil's value in the words the specification gives it (000:385).
+    EXPECT_EQ(differs(request("11 05 00 54 FF 00 CF 7A"), {0x05, 0x00, 0x55, 0x00, 0x00}),
+              "its address is 85, not 84; its value is 0x0000, not 0xFF00");
+    EXPECT_EQ(differs(make_mask_write_register(4, 0x00F2, 0x0025),  // AP §6.16's example
+                      {0x16, 0x00, 0x04, 0x00, 0xF2, 0x00, 0x24}),
+              "its OR mask is 0x0024, not 0x0025");
 }
 
 TEST(ReplyFit, Fc8EchoesWhereTheSpecificationSaysAndReturnsACounterElsewhere) {
@@ -85,13 +100,32 @@ TEST(ReplyFit, Fc8EchoesWhereTheSpecificationSaysAndReturnsACounterElsewhere) {
     const auto other = reply_misfit(count, response_pdu({0x08, 0x00, 0x0C, 0x00, 0x2A}));
     ASSERT_TRUE(other.has_value());
     EXPECT_EQ(other->expected, "an echo of the request's sub-function");
+    EXPECT_EQ(other->differs, "its sub-function is 12, not 11");  // its data is that one's answer
     // Sub-function 0x0A (clear counters) echoes the request.
     const auto clear = make_diagnostics(0x0A, zero);
     EXPECT_FALSE(reply_misfit(clear, response_pdu({0x08, 0x00, 0x0A, 0x00, 0x00})).has_value());
     EXPECT_TRUE(reply_misfit(clear, response_pdu({0x08, 0x00, 0x0A, 0x00, 0x01})).has_value());
     // Sub-function 0x00 echoes its data (000:425).
     const auto echo = request("11 08 00 00 A5 37 D8 1D");
-    EXPECT_TRUE(reply_misfit(echo, response_pdu({0x08, 0x00, 0x00, 0xA5, 0x38})).has_value());
+    const auto data = reply_misfit(echo, response_pdu({0x08, 0x00, 0x00, 0xA5, 0x38}));
+    ASSERT_TRUE(data.has_value());
+    EXPECT_EQ(data->differs, "its data is A5 38, not A5 37");
+    // Long data is cut in the message (the frames carry all of it); a difference past the cut is named.
+    std::vector<std::uint8_t> twenty(20, 0x00), changed(20, 0x00);
+    changed[19] = 0x01;
+    std::vector<std::uint8_t> reply = {0x08, 0x00, 0x00};
+    reply.insert(reply.end(), changed.begin(), changed.end());
+    const auto cut = reply_misfit(make_diagnostics(0x00, twenty), decode_response(reply).value());
+    ASSERT_TRUE(cut.has_value());
+    EXPECT_EQ(cut->differs, "its data's byte 20 is 0x01, not 0x00");
+    changed[3] = 0xFF;
+    reply.resize(3);
+    reply.insert(reply.end(), changed.begin(), changed.end());
+    const auto early = reply_misfit(make_diagnostics(0x00, twenty), decode_response(reply).value());
+    ASSERT_TRUE(early.has_value());
+    EXPECT_EQ(early->differs,
+              "its data is 00 00 00 FF 00 00 00 00 00 00 00 00 00 00 00 00 ... (20 bytes), not "
+              "00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 ... (20 bytes)");
 }
 
 TEST(ReplyFit, AnExceptionOrAnotherFunctionIsNotJudgedHere) {
