@@ -329,7 +329,11 @@ Result<Pdu> decode_response_body(Pdu pdu, ByteReader& r) {
     if (is(fc, Code::ReadFileRecord)) {
         auto bc = r.u8();
         if (!bc) return truncated(r);
-        if (*bc != r.remaining()) pdu.violations.add(FindingCode::PduByteCountMismatch);
+        // A request reads at least one record (its byte count is 0x07 or more), so a reply with no
+        // sub-response answers none. AP §6.14 gives the reply's byte count the request's range, 0x07..0xF5,
+        // which one record of one register (4 bytes) falls below and its own example's sub-response length
+        // 0x05 contradicts: only the empty reply is refused.
+        if (*bc != r.remaining() || *bc == 0) pdu.violations.add(FindingCode::PduByteCountMismatch);
         ReadFileRecordResponse body{*bc, {}};
         while (!r.empty()) {
             auto len = r.u8();

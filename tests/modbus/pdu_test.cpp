@@ -173,6 +173,7 @@ INSTANTIATE_TEST_SUITE_P(
                       FC::PduFileRecordInvalid},
         ViolationCase{"AP §6.14 record number 10000", "14 07 06 00 04 27 10 00 02", D::Request,
                       FC::PduFileRecordInvalid},
+        ViolationCase{"AP §6.14 response reading no record", "14 00", D::Response, FC::PduByteCountMismatch},
         ViolationCase{"AP §6.18 fifo count 32", "18 00 42 00 20", D::Response, FC::PduFifoCountTooLarge},
         ViolationCase{"AP §6.19 MEI type 0x0F", "2B 0F 00", D::Request, FC::PduMeiTypeUnknown},
         ViolationCase{"AP §6.21 read device id code 5", "2B 0E 05 00", D::Request,
