@@ -306,6 +306,18 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
                                   "is the target answering? a read any device of the profile answers");
             (void)session.take_evidence();
         }
+    // A target that answered nothing may be slower than the timeout several times over rather than silent:
+    // it was told "wrong unit id, transport or line settings?" (a device 4x slower than the timeout, whose
+    // first reply came after the run had stopped). Three timeouts more are listened to, as long again as the
+    // run's first requests waited, and what comes is late.
+    const bool silent =
+        session.requests_owed_reply() > 0 && session.response_times().empty() && session.late_replies() == 0;
+    const auto listened = 3 * options.session.timeout;
+    std::vector<Evidence> last_listening;
+    if (!report.stopped && silent) {
+        session.listen_for_late(listened);
+        last_listening = session.take_evidence();
+    }
     // Nothing lost: every point a rule wrote goes back to its original value, even after a stop (and any a
     // later family wrote, none today).
     restore();
@@ -343,10 +355,15 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
         else
             report.unanswered =
                 "the target answered none of the " + std::to_string(report.requests) + " requests sent " +
-                (heard == 0 ? std::string("(wrong unit id, transport or line settings?)")
-                            : "with a reply: the " + std::to_string(heard) +
-                                  " bytes it sent form none for this framing and unit (another protocol, or "
-                                  "replies cut off?)");
+                (heard == 0
+                     ? "(wrong unit id, transport or line settings?" +
+                           (last_listening.empty() ? std::string()
+                                                   : " Nothing came in " + std::to_string(listened.count()) +
+                                                         " ms more either") +
+                           ")"
+                     : "with a reply: the " + std::to_string(heard) +
+                           " bytes it sent form none for this framing and unit (another protocol, or "
+                           "replies cut off?)");
         // What the rules saw is silence, not the device's behaviour: nothing was judged. Rules that pass on
         // silence pass vacuously, and failures for want of a reply are no failures of the device.
         for (auto& r : report.results) {
@@ -360,6 +377,7 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
             "AP §4.1; SL §2.1",       "The target answers the run's requests within the timeout.",
             Authority::Specification, false};
         answered.outcome = Outcome::Error;
+        answered.evidence = std::move(last_listening);
         answered.expected = "replies to requests any device of the profile answers";
         answered.observed = in_time > 0           ? "more late replies than replies in time"
                             : report.late_replies ? "only late replies"

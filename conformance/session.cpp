@@ -241,7 +241,7 @@ void Session::log(const tp::Exchange& ex, const std::string& note, bool one_requ
     unanswered_in_a_row_ = ex.received.empty() ? unanswered_in_a_row_ + 1 : 0;
 }
 
-void Session::log_late(std::vector<std::uint8_t> bytes) {
+void Session::log_late(std::vector<std::uint8_t> bytes, const char* when) {
     if (bytes.empty()) return;
     // The last reply again is that request answered twice, not a late reply.
     const bool again = last_reply_ && tp::repeats_reply(*last_reply_, bytes);
@@ -254,13 +254,11 @@ void Session::log_late(std::vector<std::uint8_t> bytes) {
         if (owed().settle(frame)) ++answered_late_;
     late_replies_ += again ? frames.size() - std::min<std::size_t>(frames.size(), 1)
                            : std::max<std::size_t>(frames.size(), 1);
-    evidence_.push_back(
-        {again ? "the last reply again: arrived after the last exchange ended, before this request"
-               : "late: arrived after the last exchange ended, before this request",
-         {},
-         std::move(bytes),
-         {},
-         false});
+    evidence_.push_back({(again ? "the last reply again: arrived " : "late: arrived ") + std::string(when),
+                         {},
+                         std::move(bytes),
+                         {},
+                         false});
     quiet_waits_ = 0;
 }
 
@@ -279,6 +277,19 @@ Evidence Session::listen_idle(std::chrono::milliseconds quiet) {
     e.timed_out = e.received.empty();
     evidence_.push_back(e);
     return e;
+}
+
+void Session::listen_for_late(std::chrono::milliseconds quiet) {
+    const auto start = std::chrono::steady_clock::now();
+    auto bytes = client_.drain(quiet);
+    if (bytes.empty()) {
+        Evidence e{
+            "listening " + std::to_string(quiet.count()) + " ms more for late replies", {}, {}, {}, true};
+        e.elapsed = std::chrono::steady_clock::now() - start;
+        evidence_.push_back(std::move(e));
+        return;
+    }
+    log_late(std::move(bytes), "after the run had given its requests up");
 }
 
 void Session::cite(const std::vector<Evidence>& evidence) {

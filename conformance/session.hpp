@@ -172,6 +172,10 @@ class Session {
     // With no request out, listens until `quiet` passes without a byte (replies still owed are waited out
     // first, up to the timeout, and logged as late); the listening joins the evidence and is returned.
     Evidence listen_idle(std::chrono::milliseconds quiet);
+    // With requests given up and no request out, reads for `quiet` more (until that long passes without a
+    // byte): replies that come even later are logged as late ones (late_replies(), answered_late()), and the
+    // listening joins the evidence. A run stopped for silence is then told apart from one too impatient.
+    void listen_for_late(std::chrono::milliseconds quiet);
     // Adds to the current rule's evidence (what the session kept for a judgement over the whole run).
     void cite(const std::vector<Evidence>& evidence);
     // RTU and ASCII: keep the owed requests in `list` instead of the session's own, so that a caller that
@@ -202,7 +206,8 @@ class Session {
     // same reply as an owed one, the owed reply is waited for (content could not tell them apart). `several`:
     // the bytes hold several requests, several replies are awaited, and any owed reply due is waited for.
     void settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu, bool several = false);
-    void log_late(std::vector<std::uint8_t> bytes);
+    void log_late(std::vector<std::uint8_t> bytes,
+                  const char* when = "after the last exchange ended, before this request");
     // After an exchange: a request that got nothing back joins the owed ones (OwedRequests; over Modbus/TCP
     // each request of the exchange by its transaction id), and the owed ones its late replies answer are
     // counted (answered_late()).

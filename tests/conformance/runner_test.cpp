@@ -661,6 +661,40 @@ TEST(LateReplies, ASlowRtuDeviceFailsNoRuleAndIsNotJudged) {
 // while a request of id 0x1234 waits, 0x1234 behind it (outside the window of ids just behind the request's,
 // which a client counting up leaves): it is that owed request's late reply, set aside and counted, not the
 // answer to 0x1234, which comes after it.
+// Four times the timeout: the run's first three requests owed a reply all went unanswered before the first
+// reply came, and the run stopped there. It was told "wrong unit id, transport or line settings?", which
+// sent the user to check the wiring of a device that only needed a longer --timeout. The run listens three
+// timeouts more: the replies are late, over Modbus/TCP and RTU alike; a unit nobody serves still hears
+// nothing, and says it listened.
+TEST(LateReplies, ADeviceSlowerThanTheRunWaitedIsToldToNeedALongerTimeout) {
+    auto options = options_for(std::chrono::milliseconds(100));
+    for (const char* transport : {"tcp", "rtu-tcp"}) {
+        RunningServer server({"slow-reply=400"}, 1, "mmk-2030");
+        const auto run = certify(server, transport, "mmk-2030", options);
+        const Report& r = run.report;
+        EXPECT_EQ(verdict_text(r), "error") << transport << failures(r);
+        EXPECT_NE(r.unanswered.find("only after it"), std::string::npos) << transport << r.unanswered;
+        EXPECT_NE(r.unanswered.find("raise --timeout"), std::string::npos) << transport << r.unanswered;
+        EXPECT_EQ(r.unanswered.find("wrong unit id"), std::string::npos) << transport << r.unanswered;
+        EXPECT_GT(r.late_replies, 0u) << transport;
+        ASSERT_FALSE(r.results.empty()) << transport;
+        EXPECT_EQ(r.results[0].rule.id, "target.answered");
+        bool late_evidence = false;
+        for (const auto& e : r.results[0].evidence)
+            late_evidence =
+                late_evidence || (!e.received.empty() && e.note.find("late") != std::string::npos);
+        EXPECT_TRUE(late_evidence) << transport;
+    }
+    options.session.unit = 9;  // served by nobody
+    RunningServer server({"slow-reply=400"}, 1, "mmk-2030");
+    const auto run = certify(server, "tcp", "mmk-2030", options);
+    EXPECT_NE(run.report.unanswered.find("wrong unit id, transport or line settings? Nothing came in 300 ms "
+                                         "more either"),
+              std::string::npos)
+        << run.report.unanswered;
+    EXPECT_EQ(run.report.late_replies, 0u);
+}
+
 TEST(LateReplies, AReplyToAnOwedTransactionIdIsSetAsideHoweverFarItsId) {
     RunningServer server({"slow-reply=400"}, 1, "mmk-2030");
     const std::uint16_t port = server.start("tcp");
