@@ -121,6 +121,9 @@ struct Analyzer::Flow {
         std::array<std::uint8_t, 2> head{};
     } rtu_reply_tail;
     std::size_t pending = 0;
+    // On a serial line, the serial of the last request a reply answered in time (0: none yet): the requests
+    // given up before it take no late reply while another unit's request waits (on_response).
+    std::uint64_t late_closed_before = 0;
     // The serial the first request after bytes of the request stream were lost gets (0: none lost, or a
     // request after them was answered): a reply nobody waits for may answer a request among those bytes.
     std::uint64_t first_request_after_gap = 0;
@@ -1322,18 +1325,21 @@ void Analyzer::transaction_id_reused(Flow& flow, const Pending& newest, const Fr
 
 namespace {
 
-// Could `response` be the reply to `request`, as far as its bytes tell: its unit, its function (or the
-// exception to it), and for a pair that decodes, the echo and the data size the request asks for.
-bool could_answer(const FrameRecord& request, const FrameRecord& response) {
+// Whether `response`'s PDU fits `request`'s, whatever unit either names: its function (or the exception to
+// it), and for a pair that decodes, the echo and the data size the request asks for.
+bool fits_pdu(const FrameRecord& request, const FrameRecord& response) {
     const auto q = request.frame.pdu();
     const auto a = response.frame.pdu();
-    if (request.frame.unit_id() != response.frame.unit_id() || q.empty() || a.empty() ||
-        (a[0] & 0x7F) != q[0])
-        return false;
+    if (q.empty() || a.empty() || (a[0] & 0x7F) != q[0]) return false;
     if (!request.pdu || !response.pdu || response.pdu->is_exception()) return true;
     const auto misfit = reply_misfit(*request.pdu, *response.pdu);
     return !misfit ||
            misfit->kind == ReplyMisfit::Kind::Padding;  // padding is the reply's fault, not another's
+}
+
+// Could `response` be the reply to `request`, as far as its bytes tell: its unit, and its PDU (fits_pdu).
+bool could_answer(const FrameRecord& request, const FrameRecord& response) {
+    return request.frame.unit_id() == response.frame.unit_id() && fits_pdu(request, response);
 }
 
 }  // namespace
@@ -1406,6 +1412,19 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     // request to the unit waits.)
     const bool other_unit_waits = it != pending_.end() && r.frame.framing != Framing::Tcp &&
                                   r.frame.checksum_ok && !oldest_waiting(key, same_unit);
+    // A half-duplex line carries one exchange at a time: once the master asked another request and a reply
+    // answered it, a request given up before it is over, and a reply that comes while yet another unit's
+    // request waits is that request's slot, answered with a wrong unit byte, not the old one's late reply
+    // (an exception from unit 17, 2 s after it was asked and 20 ms after the master polled unit 18 a second
+    // time, 18 having answered the first: it was unit 17's, 2020 ms late, in its latency and exceptions).
+    // With nothing waiting the old request keeps its late reply: a slow slave answers when it is done,
+    // whatever the master did meanwhile. Only on a line captured as one: through a gateway on TCP or UDP
+    // the requests of several units may wait at once (queued, or on the gateway's several serial ports),
+    // and their replies come as they do.
+    if (flow.carrier == Carrier::Serial && other_unit_waits && flow.late_closed_before && !timed_out_.empty())
+        if (const auto t = timed_out_.find({flow.id, late_id(r.frame)});
+            t != timed_out_.end() && t->second.pending.serial < flow.late_closed_before)
+            timed_out_.erase(t);
     // Over Modbus/TCP a request timed out while later ones that reused its id waited (a timed-out request's
     // entry is dropped when its id is sent again, so one that is here timed out after they were sent): a
     // reply that fits it is its late one, the oldest's, as a server answers in turn. Before, the reply went
@@ -1442,7 +1461,17 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     const bool late_for_same_unit = it != pending_.end() && r.frame.framing != Framing::Tcp &&
                                     r.frame.checksum_ok && !other_unit_waits && !timed_out_.empty() &&
                                     late_one_fits() && !oldest_waiting(key, fits);
-    if ((it == pending_.end() || other_unit_waits || late_behind_reuse || late_for_same_unit) &&
+    // Another unit's request waits, and the reply names a unit whose earlier request was given up: the unit
+    // byte (its checksum holding) says it is that one's late reply, unless its PDU fits the request waiting
+    // and not that one (3 registers asked of unit 17, 20 ms before, and 1 of unit 18, 1.5 s before: a reply
+    // from "unit 18" with 3 registers is unit 17's slot answered with a wrong unit byte, as with no earlier
+    // request of unit 18, not unit 18's reply 1.5 s late with a size mismatch, its latency in unit 18's).
+    // A PDU that fits both, or neither, leaves the unit byte to decide: late.
+    const Pending* const waiting_other = other_unit_waits ? oldest_waiting(key, any) : nullptr;
+    const bool fits_only_waiting_other =
+        waiting_other && !timed_out_.empty() && fits_pdu(waiting_other->request, r) && !late_one_fits();
+    if ((it == pending_.end() || (other_unit_waits && !fits_only_waiting_other) || late_behind_reuse ||
+         late_for_same_unit) &&
         !timed_out_.empty()) {
         // The reply to a request already reported unanswered: late, not unsolicited, nor the last reply
         // again (a poll's late reply on a serial line often carries the same bytes as the one before).
@@ -1458,21 +1487,29 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         }
     }
     // A reply from another unit than the one asked, its checksum holding (so its unit byte is what was sent),
-    // and no late request of that unit: no answer to the waiting request, as a slave answers only frames
-    // with its own address (SL §2.2; MK-MS-02, 000:285) and a master discards it. The request keeps waiting
-    // for its own unit's reply; what the other unit sent is held against that unit, and its values are
-    // neither named from the asked unit's map nor remembered as its (the decimal places another unit reported
-    // scaled every later value of the asked one).
+    // and no late request of that unit it is taken for (above): no answer to the waiting request, as a slave
+    // answers only frames with its own address (SL §2.2; MK-MS-02, 000:285) and a master discards it. The
+    // request keeps waiting for its own unit's reply; what the other unit sent is held against that unit, and
+    // its values are neither named from the asked unit's map nor remembered as its (the decimal places
+    // another unit reported scaled every later value of the asked one).
     if (other_unit_waits) {
         Pending& waiting = *oldest_waiting(key, any);
         waiting.other_unit_reply = r.index;
         waiting.other_unit = r.frame.unit_id();
+        // The named unit's earlier request, whose PDU the reply does not fit: said, as the reason it is no
+        // late reply to that one.
+        std::string not_late;
+        if (fits_only_waiting_other)
+            if (const auto t = timed_out_.find({flow.id, late_id(r.frame)}); t != timed_out_.end())
+                not_late = "; it fits this request, not unit " + std::to_string(r.frame.unit_id()) +
+                           "'s frame " + std::to_string(t->second.pending.request.index) + " (" +
+                           t->second.what + ") given up before: no late reply to that";
         report(FindingCode::PairUnitMismatch, r,
                "request to unit " + std::to_string(waiting.request.frame.unit_id()) + " (frame " +
                    std::to_string(waiting.request.index) + ") waits, response from unit " +
                    std::to_string(r.frame.unit_id()) + ": no answer from unit " +
                    std::to_string(waiting.request.frame.unit_id()) +
-                   " (a master discards it), nor its values",
+                   " (a master discards it), nor its values" + not_late,
                {waiting.request.index, r.index});
         return;
     }
@@ -1659,6 +1696,9 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
     if (flow.first_request_after_gap && answered->serial >= flow.first_request_after_gap)
         flow.first_request_after_gap = 0;
     flow.keep_last_response(r);
+    // An exchange completed on a line: the requests given up before this one take no late reply in another
+    // unit's slot now.
+    if (flow.carrier == Carrier::Serial) flow.late_closed_before = answered->serial;
     complete(*answered, &r, false);  // reports and sinks never touch the pending table
     (void)take_pending(waiting, answered->serial);
 }

@@ -198,6 +198,26 @@ TEST(RtuOverTcpPairing, AReplyAnswersTheRequestOfItsUnit) {
     }
 }
 
+// On a serial line a request given up takes no late reply in another unit's slot once another exchange has
+// completed (the line carried it since); through a gateway with a port per line it does: unit 1's line may
+// answer after unit 2's exchange on another port, while unit 3 is asked, and its reply is unit 1's late one.
+TEST(RtuOverTcpPairing, ALateReplyAfterAnotherUnitsExchangeIsStillLate) {
+    Conversation c = gateway_conversation();
+    c.send(true, read_holding(1, 0, 1), 10ms);
+    c.send(true, read_holding(2, 0, 1), 1200ms);
+    c.send(false, rtu(2, {0x03, 0x02, 0x00, 0x02}), 1250ms);
+    c.send(true, read_holding(3, 0, 1), 1280ms);
+    c.send(false, rtu(1, {0x03, 0x02, 0x00, 0x01}), 1300ms);
+    const auto d = decode_pcap(c.file(), gateway_options());
+    EXPECT_EQ(d->summary.findings,
+              (std::map<std::string, std::uint64_t>{
+                  {"pair.late_response", 1}, {"pair.no_response", 1}, {"pair.no_response_at_end", 1}}));
+    const auto& unit1 = d->summary.devices.at(device(1));
+    EXPECT_EQ(unit1.timeouts, 1u);
+    EXPECT_EQ(unit1.late_responses, 1u);
+    EXPECT_EQ(d->summary.devices.at(device(2)).responses, 1u);
+}
+
 // A queued request still times out by the response timeout (the serial one, 1 s): unit 1's, which the
 // gateway never answered, while unit 2's reply came.
 TEST(RtuOverTcpPairing, AQueuedRequestStillTimesOut) {

@@ -908,6 +908,125 @@ TEST(SerialInput, ASlowUnitsReplyWhileTheMasterWaitsOnAnotherIsLate) {
     }
 }
 
+// The findings of a run whose first request timed out, whose last is left at the end, and where a reply
+// naming another unit answered neither: the unit mismatch is between `frames`, and returned.
+const an::FindingRecord* expect_timeout_and_unit_mismatch(const Run& r, std::vector<std::uint64_t> frames) {
+    EXPECT_EQ(r.summary.findings,
+              (std::map<std::string, std::uint64_t>{
+                  {"pair.no_response", 1}, {"pair.no_response_at_end", 1}, {"pair.unit_mismatch", 1}}));
+    const auto* mismatch = r.sink.first(mb::FindingCode::PairUnitMismatch);
+    if (mismatch) {
+        EXPECT_EQ(mismatch->frames, frames);
+    }
+    return mismatch;
+}
+
+// Unit 18 asked for 1 register and timed out; 1.5 s later the master asks unit 17 for 3 (the MK manual's
+// example, 000:356), and 20 ms after that a reply carrying unit 18 and 3 registers comes. It was unit 18's
+// late reply (1520 ms in its latency, and a size mismatch against it) and unit 17 a plain timeout. Its size
+// fits only unit 17's request: that request's reply with a wrong unit byte, pair.unit_mismatch, as with no
+// earlier request of unit 18. A reply that fits only unit 18's request is still its late one (so is one
+// that fits both: ASlowUnitsReplyWhileTheMasterWaitsOnAnotherIsLate).
+TEST(SerialInput, AnotherUnitsReplyThatFitsOnlyTheWaitingRequestIsNoLateReply) {
+    const std::string to_18 = "12 03 00 00 00 01 86 A9", to_17 = "11 03 00 60 00 03 07 45";
+    for (const char* marks : {"> ", ""}) {
+        SCOPED_TRACE(marks);
+        const std::string reply = marks[0] ? "< " : "";
+        const auto path =
+            write_temp("cross_unit.txt", "1.000 " + std::string(marks) + to_18 + "\n2.500 " + marks + to_17 +
+                                             "\n2.520 " + reply + "12 03 06 02 2B 00 00 00 64 DC 4A\n");
+        auto r = decode(path, an::InputFormat::Text);
+        ASSERT_TRUE(r->ok);
+        const auto* mismatch = expect_timeout_and_unit_mismatch(*r, {2, 3});
+        ASSERT_NE(mismatch, nullptr);
+        EXPECT_EQ(
+            mismatch->message,
+            "request to unit 17 (frame 2) waits, response from unit 18: no answer from unit 17 (a master "
+            "discards it), nor its values; it fits this request, not unit 18's frame 1 (FC3 Read Holding "
+            "Registers 0+1) given up before: no late reply to that");
+        ASSERT_EQ(r->sink.transactions.size(), 2u);
+        for (const auto& t : r->sink.transactions) {
+            EXPECT_FALSE(t.response.has_value()) << t.request.index;
+            EXPECT_FALSE(t.late_past.has_value()) << t.request.index;
+            EXPECT_EQ(t.answered_by_other_unit, t.request.index == 2) << t.request.index;
+        }
+        const auto& unit18 = r->summary.devices.at("serial " + path + " unit 18");
+        EXPECT_EQ(unit18.timeouts, 1u);
+        EXPECT_EQ(unit18.late_responses, 0u);
+        EXPECT_EQ(unit18.latency.count(), 0u);  // no 1520 ms
+        const auto& unit17 = r->summary.devices.at("serial " + path + " unit 17");
+        EXPECT_EQ(unit17.unanswered_at_end, 1u);
+        EXPECT_EQ(unit17.answered_by_other_unit, 1u);
+        EXPECT_EQ(unit17.findings.count("pair.unit_mismatch"), 0u);  // held against unit 18, who sent it
+    }
+    // Unit 18's reply of 1 register in the same place fits only its request: its late one, as before.
+    const auto late = write_temp("cross_unit_late.txt", "1.000 > " + to_18 + "\n2.500 > " + to_17 +
+                                                            "\n2.520 < 12 03 02 00 2A BC 58\n");
+    auto r = decode(late, an::InputFormat::Text);
+    EXPECT_EQ(r->summary.findings,
+              (std::map<std::string, std::uint64_t>{
+                  {"pair.late_response", 1}, {"pair.no_response", 1}, {"pair.no_response_at_end", 1}}));
+    const auto& unit18 = r->summary.devices.at("serial " + late + " unit 18");
+    EXPECT_EQ(unit18.late_responses, 1u);
+    EXPECT_EQ(unit18.latency.max(), std::chrono::milliseconds(1520));
+    EXPECT_EQ(r->summary.devices.at("serial " + late + " unit 17").answered_by_other_unit, 0u);
+}
+
+// Unit 17 was asked and timed out; then unit 18 was asked and answered, and asked again, and 20 ms after
+// that an exception from unit 17 comes. It was unit 17's reply 2020 ms late (in its exceptions and its
+// latency). On a half-duplex line a slave does not answer across another device's exchange: once 18's had
+// completed, 17's request was over for good, and the exception is a wrong-address reply in unit 18's slot,
+// pair.unit_mismatch. Without the completed exchange between (unit 18 asked but silent, or not asked), it is
+// still unit 17's late reply.
+TEST(SerialInput, AnExchangeOnTheLineEndsTheWaitForALateReply) {
+    const std::string to_17 = "4.000 > 11 03 00 60 00 03 07 45\n", to_18 = " > 12 03 00 00 00 01 86 A9\n";
+    const std::string exception_17 = "6.020 < 11 83 02 C1 34\n";
+    const auto path =
+        write_temp("late_after_traffic.txt",
+                   to_17 + "5.100" + to_18 + "5.120 < 12 03 02 00 2A BC 58\n6.000" + to_18 + exception_17);
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_TRUE(r->ok);
+    EXPECT_NE(expect_timeout_and_unit_mismatch(*r, {4, 5}), nullptr);
+    for (const auto& t : r->sink.transactions) {
+        EXPECT_FALSE(t.late_past.has_value()) << t.request.index;
+        EXPECT_EQ(t.response.has_value(), t.request.index == 2) << t.request.index;
+        EXPECT_EQ(t.answered_by_other_unit, t.request.index == 4) << t.request.index;
+    }
+    const auto& unit17 = r->summary.devices.at("serial " + path + " unit 17");
+    EXPECT_EQ(unit17.timeouts, 1u);
+    EXPECT_EQ(unit17.late_responses, 0u);
+    EXPECT_EQ(unit17.exceptions, 0u);
+    EXPECT_TRUE(unit17.exception_codes.empty());
+    EXPECT_EQ(unit17.latency.count(), 0u);  // no 2020 ms
+    const auto& unit18 = r->summary.devices.at("serial " + path + " unit 18");
+    EXPECT_EQ(unit18.responses, 1u);
+    EXPECT_EQ(unit18.unanswered_at_end, 1u);
+    EXPECT_EQ(unit18.answered_by_other_unit, 1u);
+    EXPECT_EQ(unit18.latency.max(), std::chrono::milliseconds(20));
+    // No exchange completed after unit 17's request: the exception is its late one.
+    for (const std::string& between : {std::string(), "5.100" + to_18}) {
+        SCOPED_TRACE(between);
+        const auto no_exchange =
+            write_temp("late_no_exchange.txt", to_17 + between + "6.000" + to_18 + exception_17);
+        auto q = decode(no_exchange, an::InputFormat::Text);
+        EXPECT_EQ(q->sink.count(mb::FindingCode::PairLateResponse), 1);
+        EXPECT_EQ(q->sink.count(mb::FindingCode::PairUnitMismatch), 0);
+        const auto& late17 = q->summary.devices.at("serial " + no_exchange + " unit 17");
+        EXPECT_EQ(late17.late_responses, 1u);
+        EXPECT_EQ(late17.latency.max(), std::chrono::milliseconds(2020));
+    }
+    // An exchange completed, and nothing waits when unit 17's reply comes: a slow slave answers when it is
+    // done, whatever the master did meanwhile. Still its late one.
+    const auto nothing_waits =
+        write_temp("late_nothing_waits.txt", to_17 + "5.100" + to_18 + "5.120 < 12 03 02 00 2A BC 58\n" +
+                                                 "5.300 < 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto q = decode(nothing_waits, an::InputFormat::Text);
+    EXPECT_EQ(q->sink.count(mb::FindingCode::PairLateResponse), 1);
+    EXPECT_EQ(q->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    EXPECT_EQ(q->summary.devices.at("serial " + nothing_waits + " unit 17").latency.max(),
+              std::chrono::milliseconds(1300));
+}
+
 // A capture file given with a serial --format decoded to thousands of unparsed bytes, no error finding and
 // exit 0. It is still decoded as asked, and the run fails naming what the file is.
 TEST(SerialInput, ACaptureReadAsSerialBytesIsNamed) {

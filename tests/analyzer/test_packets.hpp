@@ -40,6 +40,12 @@ struct Collect : an::Sink {
             n += f.code == c;
         return n;
     }
+    // The first finding of the code, or none.
+    const an::FindingRecord* first(mb::FindingCode c) const {
+        for (const auto& f : findings)
+            if (f.code == c) return &f;
+        return nullptr;
+    }
 };
 
 // IPv4 + TCP (or UDP) packet from client 10.0.0.1:40000 to server 10.0.0.2:502, or back. `ack` is the
