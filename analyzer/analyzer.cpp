@@ -19,10 +19,26 @@ namespace mbscope::analyzer {
 using namespace mbscope::modbus;
 
 namespace {
-TcpStreamDeframer passive() {
+// `carries`: a client's stream carries requests, a server's replies.
+TcpStreamDeframer passive(Direction carries) {
     TcpStreamDeframer d;
-    d.observe_passively();
+    d.observe_passively(carries);
     return d;
+}
+
+// tcp.length_beyond_segment: the MBAP length, what the segment held, what a receiver reading by the length
+// does.
+std::string length_beyond_segment_text(const FrameRecord& r) {
+    const Frame& f = r.frame;
+    const bool reply = r.direction == Direction::Response;
+    const std::size_t held = f.length > 6 ? f.length - 6u : 0;
+    const std::size_t more = f.length_field() > held ? f.length_field() - held : 0;
+    return "MBAP length " + std::to_string(f.length_field()) + ", the " + (reply ? "server" : "client") +
+           "'s segment held " + std::to_string(held) +
+           " bytes after the first 6 (unit id + PDU): " + (reply ? "a client" : "the server") +
+           " reading by the length waits for " + std::to_string(more) +
+           (more == 1 ? " more byte and takes it" : " more bytes and takes them") + " from the next " +
+           (reply ? "reply" : "request");
 }
 }  // namespace
 
@@ -32,7 +48,7 @@ struct Analyzer::Flow {
     std::string server;                              // "server"
     Carrier carrier = Carrier::Tcp;                  // Tcp: reassembled; the others come whole
     std::unique_ptr<TcpReassembler> reassembler[2];  // [0] client → server, [1] server → client
-    TcpStreamDeframer deframer[2] = {passive(), passive()};
+    TcpStreamDeframer deframer[2] = {passive(Direction::Request), passive(Direction::Response)};
     // Unparsed bytes are reported at the packet that carried them, not at whatever packet (of any
     // connection) ends them. Per direction: the last packet fed to the deframer and the stream offset its
     // bytes start at, and, for earlier packets whose bytes were still unreported when the next came, the
@@ -899,6 +915,12 @@ void Analyzer::deframed(Flow& flow, bool to_server, DeframeEvents& events, Times
             r.time = r.frame.start;
             r.packet = flow.packet_at(to_server ? 0 : 1, r.frame.offset, current);
         }
+        // An ADU sent whole with an MBAP length too long is cut at its segment's end when the next segment
+        // comes: it was whole at its own segment's time and packet, not the next's.
+        if (r.frame.findings.contains(FindingCode::TcpLengthBeyondSegment) && r.frame.end < r.time) {
+            r.time = r.frame.end;
+            r.packet = flow.packet_at(to_server ? 0 : 1, r.frame.offset + r.frame.length - 1u, current);
+        }
         // A gateway's frame is whole at its last byte, as a Modbus/TCP ADU is (a frame in one packet: that
         // packet), whichever later bytes closed it.
         if (flow.rtu_over_tcp && r.frame.wire_length != 0)
@@ -1002,6 +1024,7 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
         if (code == FindingCode::TcpLengthInvalid)
             message =
                 "MBAP length " + std::to_string(r.frame.length_field()) + " is above the 254 of TCP §3.1.3";
+        if (code == FindingCode::TcpLengthBeyondSegment) message = length_beyond_segment_text(r);
         if (code == FindingCode::RtuGapInsideFrame)
             message = gap_place_text(r.frame) + ", above t1.5: a receiver keeping t1.5 discards the frame";
         if (code == FindingCode::RtuShortSilenceBeforeFrame)

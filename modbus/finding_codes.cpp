@@ -81,6 +81,14 @@ constexpr std::array findings{
                 "in transparent mode), no MBAP header: its bytes are not decoded; decode the port with "
                 "--rtu-over-tcp PORT",
                 "TCP §3.1.3; SL §2.5.1"},
+    // An error against the sender: the ADU came whole in one segment, but a receiver reading by the length
+    // waits for bytes that were never sent and takes them from the next ADU (told by the analyzer only when
+    // the next segment starts with a whole ADU: see tcp_deframer.hpp).
+    FindingInfo{TcpLengthBeyondSegment, "tcp.length_beyond_segment", S::Error,
+                "MBAP length counts 1 or 2 bytes more than the sender put in the segment that carried the "
+                "whole ADU (a gateway counting the RTU CRC?): a receiver reading by the length waits for "
+                "them and takes them from the next ADU",
+                "TCP §3.1.3"},
     FindingInfo{StreamUnparsedBytes, "stream.unparsed_bytes", S::Warning,
                 "bytes that formed no frame (garbage, noise or a truncated frame)", "SL §2.5"},
     FindingInfo{StreamGap, "stream.gap", S::Warning, "bytes missing from a captured stream", "capture"},

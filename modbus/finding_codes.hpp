@@ -51,6 +51,7 @@ enum class FindingCode : std::uint16_t {
     TcpProtocolIdNonzero = 400,
     TcpLengthInvalid = 401,
     TcpRtuFraming = 402,
+    TcpLengthBeyondSegment = 403,
     // stream: bytes that formed no frame
     StreamUnparsedBytes = 500,
     StreamGap = 501,

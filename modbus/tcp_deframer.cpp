@@ -52,6 +52,23 @@ bool plausible_pdu(std::span<const std::uint8_t> pdu) noexcept {
     return response && response->violations.empty();
 }
 
+// Whether a PDU decodes cleanly and whole (no rule broken, no byte missing or left over) in `direction`, or
+// in either when it is Unknown.
+bool clean_pdu(std::span<const std::uint8_t> pdu, Direction direction) noexcept {
+    if (direction == Direction::Unknown) return plausible_pdu(pdu);
+    auto decoded = direction == Direction::Request ? decode_request(pdu) : decode_response(pdu);
+    return decoded && decoded->violations.empty();
+}
+
+// How many bytes an MBAP length may count beyond an ADU sent whole in one segment, for the ADU to be cut at
+// the segment's end: 2, a gateway counting the RTU CRC; 1, one counting a byte of its own (the unit id
+// twice, say). No more, because up to 2 a legitimately split ADU cannot pass for one: its next segment
+// starts with its last 1 or 2 bytes, then the next ADU's header, and read as a header these bytes take
+// their length field from the next ADU's protocol id (2 bytes missing) or from its low byte and the high
+// byte of the next length (1 missing), 0 either way, a length no ADU has. From 3 on, the length field would
+// be the next ADU's length or transaction id, anything: only the decoding would tell the two readings apart.
+constexpr std::size_t max_length_excess = 2;
+
 }  // namespace
 
 DeframeStep tcp_step(std::span<const std::uint8_t> buf, bool at_end, bool in_sync) noexcept {
@@ -126,6 +143,23 @@ bool TcpStreamDeframer::trusted_header(std::span<const std::uint8_t> rest) const
     return decodes(rest.subspan(7, total - 7));
 }
 
+// rest[0, held): the bytes buffered when the chunk rest[held...) came, the front of an ADU read in step by
+// its length, which reaches past them.
+bool TcpStreamDeframer::cut_at_segment_end(std::span<const std::uint8_t> rest,
+                                           std::size_t held) const noexcept {
+    if (held < 8 || rest.size() <= held || !length_ok(length_field(rest))) return false;
+    const std::size_t total = 6 + length_field(rest);
+    if (total <= held || total - held > max_length_excess) return false;
+    // The bytes held, a PDU by themselves: a PDU cut mid-way (a read reply's first registers) is truncated.
+    if (!clean_pdu(rest.subspan(7, held - 7), carries_)) return false;
+    // The next chunk starts with a header, and its ADU is whole in it (or is cut the same way again).
+    const auto next = rest.subspan(held);
+    if (next.size() < 8 || !plausible_header(next)) return false;
+    const std::size_t next_total = 6 + length_field(next);
+    if (next.size() >= next_total) return clean_pdu(next.subspan(7, next_total - 7), carries_);
+    return next_total - next.size() <= max_length_excess && clean_pdu(next.subspan(7), carries_);
+}
+
 DeframeStep TcpStreamDeframer::unaligned_step(std::span<const std::uint8_t> rest,
                                               bool at_end) const noexcept {
     if (rest.size() < 8 && !at_end) return {Kind::NeedMore, 8};  // the header with its function code
@@ -159,9 +193,18 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
         // A non-zero protocol id after an ADU that does not decode is, unless it makes a frame that
         // does, that ADU's own bytes, not a header.
         // (Once bytes were skipped, the first header is searched for as after a gap.)
-        const DeframeStep step =
-            unaligned_ && in_sync_ ? unaligned_step(rest, at_end)
-                                   : tcp_step(rest, at_end, in_sync_ && (!passive_ || trusted_header(rest)));
+        const bool unaligned = unaligned_ && in_sync_;
+        const bool by_length = !unaligned && in_sync_ && (!passive_ || trusted_header(rest));
+        DeframeStep step = unaligned ? unaligned_step(rest, at_end) : tcp_step(rest, at_end, by_length);
+        // An ADU read by its length across the start of the chunk just fed, whose length is too long: the
+        // bytes before the chunk are the frame (see the header).
+        bool cut = false;
+        if (passive_ && by_length && step.kind != Kind::Skip && chunk_start_ != no_chunk &&
+            head_ < chunk_start_ && step.length > chunk_start_ - head_ &&
+            cut_at_segment_end(rest, chunk_start_ - head_)) {
+            step = {Kind::Complete, chunk_start_ - head_};
+            cut = true;
+        }
         if (step.kind == Kind::NeedMore) break;
         // Every byte before the first frame of a stream begun before the capture: one run, one reason.
         // So is every byte after a gap before the next frame: the tail of the ADU the hole cut.
@@ -186,9 +229,10 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
             frame.wire_length = frame.length;
             std::memcpy(frame.bytes.data(), rest.data(), step.length);
             frame.start = first_;
-            frame.end = last_;
+            frame.end = cut ? held_until_ : last_;  // a cut frame's last byte came before the chunk
             if (frame.protocol_id() != 0) frame.findings.add(FindingCode::TcpProtocolIdNonzero);
             if (frame.length_field() > max_pdu_length + 1) frame.findings.add(FindingCode::TcpLengthInvalid);
+            if (cut) frame.findings.add(FindingCode::TcpLengthBeyondSegment);
             if (passive_) {
                 last_pdu_size_ = step.length - 7;
                 std::memcpy(last_pdu_.data(), rest.data() + 7, last_pdu_size_);
@@ -214,9 +258,12 @@ void TcpStreamDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp rece
         head_ = 0;
         first_ = received;
     }
+    held_until_ = last_;
     last_ = received;
+    chunk_start_ = buf_.size();
     buf_.insert(buf_.end(), bytes.begin(), bytes.end());
     run(false, out);
+    chunk_start_ = no_chunk;
 }
 
 void TcpStreamDeframer::gap(std::uint64_t missing, DeframeEvents& out) {
@@ -251,6 +298,8 @@ void TcpStreamDeframer::reset() noexcept {
     last_pdu_size_ = 0;
     last_ = Timestamp{0};
     first_ = Timestamp{0};
+    held_until_ = Timestamp{0};
+    chunk_start_ = no_chunk;
     pending_ = Unparsed{};
 }
 

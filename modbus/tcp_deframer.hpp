@@ -7,8 +7,16 @@
 // A passive observer (observe_passively(): the analyzer) goes further: right after an ADU whose PDU does
 // not decode, a length field too short for its PDU ("length 2" on a 12-byte read request) puts the rest of
 // that ADU in front of the next header, where it reads as a header with a non-zero protocol id; unless that
-// header's own ADU decodes, the stream is out of sync there, and resynchronises. An endpoint (the slave,
-// a client) reads the stream as a device does, by the length fields alone.
+// header's own ADU decodes, the stream is out of sync there, and resynchronises. It also reads an MBAP
+// length 1 or 2 too long (a gateway counting the RTU CRC in it) where the segments show it: an ADU left
+// incomplete at the end of one chunk (one feed(): one segment's bytes as the analyzer feeds them) whose
+// bytes so far make a PDU that decodes cleanly and whole in the direction the stream carries, followed by a
+// chunk that starts with a plausible header (protocol id 0) whose ADU is whole in it and decodes cleanly
+// (or is cut the same way again: such a gateway does it in every reply), is the held bytes, a frame flagged
+// tcp.length_beyond_segment, and the next chunk read from its header. Read by the length, the frame took
+// the next ADU's first byte, whose rest formed no frame: a 1 s "latency", a bad byte count and a lost
+// reply. Within one chunk, or an ADU whose bytes so far do not decode whole, the length is followed. An
+// endpoint (the slave, a client) reads the stream as a device does, by the length fields alone.
 
 #include <array>
 #include <cstdint>
@@ -16,6 +24,7 @@
 #include <vector>
 
 #include "modbus/frame.hpp"
+#include "modbus/pdu.hpp"
 
 namespace mbscope::modbus {
 
@@ -41,8 +50,13 @@ class TcpStreamDeframer {
     std::span<const std::uint8_t> incomplete() const noexcept { return {buf_.data() + head_, buffered()}; }
     // Back to a new deframer's state at stream offset 0, keeping the buffer's capacity (and the mode).
     void reset() noexcept;
-    // Reads the stream as a passive observer (the analyzer), see above.
-    void observe_passively() noexcept { passive_ = true; }
+    // Reads the stream as a passive observer (the analyzer), see above. `carries`: the direction of the PDUs
+    // on the stream (the analyzer's client-to-server stream carries requests), which an ADU cut at a
+    // segment's end must decode in; Unknown: either.
+    void observe_passively(Direction carries = Direction::Unknown) noexcept {
+        passive_ = true;
+        carries_ = carries;
+    }
     // The stream's start was not seen (a capture begun mid-connection, no SYN): its first bytes may be the
     // end of an ADU sent before the capture began. The first header is taken only when it is plausible
     // (protocol id 0, a function code, a length in range) and its ADU is here whole (and, when its PDU does
@@ -54,6 +68,9 @@ class TcpStreamDeframer {
 
   private:
     void run(bool at_end, DeframeEvents& out);
+    // Whether the bytes buffered before the chunk that starts at rest[held] are an ADU whose MBAP length is
+    // too long, sent whole (see above).
+    bool cut_at_segment_end(std::span<const std::uint8_t> rest, std::size_t held) const noexcept;
     void flush_unparsed(DeframeEvents& out);
 
     std::vector<std::uint8_t> buf_;
@@ -61,6 +78,12 @@ class TcpStreamDeframer {
     std::uint64_t base_ = 0;
     bool in_sync_ = true;
     bool passive_ = false;
+    Direction carries_ = Direction::Unknown;
+    // While feed() runs: where in buf_ the chunk fed starts (none outside it), and when the bytes before it
+    // came.
+    static constexpr std::size_t no_chunk = static_cast<std::size_t>(-1);
+    std::size_t chunk_start_ = no_chunk;
+    Timestamp held_until_{0};
     bool unaligned_ = false;  // start_unaligned() or gap(), until the first frame
     bool after_gap_ = false;  // unaligned_ since a gap, not the stream's start
     DeframeStep unaligned_step(std::span<const std::uint8_t> rest, bool at_end) const noexcept;

@@ -2072,4 +2072,55 @@ TEST(Analyzer, BytesThatWaitedBehindAHoleKeepThePacketThatCarriedThem) {
     }
 }
 
+// A server sends each reply whole in its own segment, the first with an MBAP length 1 or 2 too long (a
+// gateway counting the RTU CRC). Read by the length, reply 1 took reply 2's first byte: answered at 2.01 s
+// (1,010 ms) with a bad byte count, 12 bytes formed no frame (tcp.length_invalid) and request 2 went
+// unanswered. The segments show what happened: reply 1 is what its segment held, in 10 ms, and its length
+// is the server's fault.
+TEST(Analyzer, AReplySentWholeWithItsLengthTooLongIsAnsweredInTime) {
+    for (const std::uint8_t excess : {1, 2}) {
+        Harness h;
+        h.open(0s);
+        h.send(true, read_request(1), 1s);
+        auto reply = read_response(1);  // MBAP length 9
+        reply[5] = static_cast<std::uint8_t>(reply[5] + excess);
+        h.send(false, reply, 1s + 10ms);  // packet 4
+        h.send(true, read_request(2), 2s);
+        h.send(false, read_response(2), 2s + 10ms);
+        h.analyzer.finish();
+        ASSERT_EQ(h.sink.transactions.size(), 2u) << int{excess};
+        for (const auto& t : h.sink.transactions) {
+            ASSERT_TRUE(t.response) << t.request.frame.transaction_id();
+            EXPECT_FALSE(t.timed_out);
+            ASSERT_TRUE(t.latency);
+            EXPECT_EQ(*t.latency, 10ms) << t.request.frame.transaction_id();
+            EXPECT_EQ(t.response->frame.transaction_id(), t.request.frame.transaction_id());
+        }
+        EXPECT_EQ(h.sink.transactions[0].response->packet, 4u);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::TcpLengthBeyondSegment), 1);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::TcpLengthInvalid), 0);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PduByteCountMismatch), 0);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 0);
+        EXPECT_TRUE(h.sink.unparsed_records.empty());
+        EXPECT_EQ(h.analyzer.summary().unparsed_bytes, 0u);
+        const auto& device = h.analyzer.summary().devices.at("10.0.0.2:502 unit 17");
+        EXPECT_EQ(device.responses, 2u);
+        EXPECT_EQ(device.timeouts, 0u);
+        for (const auto& f : h.sink.findings) {
+            if (f.code == mb::FindingCode::TcpLengthBeyondSegment) {
+                EXPECT_EQ(f.packet, 4u);
+                EXPECT_EQ(f.time, 1s + 10ms);
+                EXPECT_EQ(f.message, excess == 1
+                                         ? "MBAP length 10, the server's segment held 9 bytes after the "
+                                           "first 6 (unit id + PDU): a client reading by the length "
+                                           "waits for 1 more byte and takes it from the next reply"
+                                         : "MBAP length 11, the server's segment held 9 bytes after the "
+                                           "first 6 (unit id + PDU): a client reading by the length "
+                                           "waits for 2 more bytes and takes them from the next reply");
+            }
+        }
+    }
+}
+
 }  // namespace test_analyzer_analyzer_test

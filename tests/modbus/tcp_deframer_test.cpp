@@ -220,4 +220,148 @@ TEST(TcpStreamDeframer, ResetStartsAFreshStreamAtOffsetZero) {
     EXPECT_EQ(frames_bytes(out), adus);
 }
 
+// A server (often a gateway counting the RTU CRC) sends each reply whole in one segment, its MBAP length 1 or
+// 2 too long. Read by the length, the reply took the next reply's first byte, whose rest formed no frame. A
+// passive observer sees the segments: the reply is the bytes its segment held, flagged, and the next reply
+// is read from its header.
+namespace {
+
+// An FC3 reply of 2 registers to unit 1 whose MBAP length is `excess` too long.
+std::vector<std::uint8_t> long_reply(std::uint8_t tid, std::uint8_t excess) {
+    return concat(
+        {{0x00, tid, 0x00, 0x00, 0x00, static_cast<std::uint8_t>(7 + excess)}, hex("01 03 04 00 01 00 02")});
+}
+std::vector<std::uint8_t> reply(std::uint8_t tid) {
+    return long_reply(tid, 0);
+}
+
+// Feeds each chunk at its own time (chunk i at i + 1 seconds) and finishes.
+mb::DeframeEvents feed_chunks(mb::TcpStreamDeframer& d,
+                              const std::vector<std::vector<std::uint8_t>>& chunks) {
+    mb::DeframeEvents out;
+    for (std::size_t i = 0; i < chunks.size(); ++i) {
+        d.feed(chunks[i], mb::Timestamp{static_cast<std::int64_t>(i + 1) * 1'000'000'000}, out);
+    }
+    d.finish(out);
+    return out;
+}
+
+int cut_frames(const mb::DeframeEvents& events) {
+    int n = 0;
+    for (const auto& e : events) {
+        if (const auto* f = std::get_if<mb::Frame>(&e)) {
+            n += f->findings.contains(mb::FindingCode::TcpLengthBeyondSegment);
+        }
+    }
+    return n;
+}
+
+mb::TcpStreamDeframer passive_deframer(mb::Direction carries) {
+    mb::TcpStreamDeframer d;
+    d.observe_passively(carries);
+    return d;
+}
+
+}  // namespace
+
+TEST(TcpStreamDeframer, ALengthTooLongInAWholeSegmentIsCutAtTheSegmentsEnd) {
+    for (const std::uint8_t excess : {1, 2}) {
+        for (const auto carries : {mb::Direction::Response, mb::Direction::Unknown}) {
+            auto d = passive_deframer(carries);
+            const auto first = long_reply(1, excess), second = reply(2);
+            const auto events = feed_chunks(d, {first, second});
+            expect_every_byte_accounted(events, first.size() + second.size());
+            ASSERT_EQ(frames_bytes(events), (std::vector{first, second})) << int{excess};
+            const auto& cut = std::get<mb::Frame>(events[0]);
+            EXPECT_TRUE(cut.findings.contains(mb::FindingCode::TcpLengthBeyondSegment));
+            EXPECT_EQ(cut.length_field(), 7 + excess);
+            EXPECT_EQ(cut.pdu().size(), 6u);
+            // Whole when its own segment came (1 s), not the next (2 s).
+            EXPECT_EQ(cut.end, mb::Timestamp{1'000'000'000});
+            const auto& next = std::get<mb::Frame>(events[1]);
+            EXPECT_TRUE(next.findings.empty());
+            EXPECT_EQ(next.transaction_id(), 2);
+            EXPECT_EQ(next.end, mb::Timestamp{2'000'000'000});
+        }
+    }
+    // A client's request alike, on a stream carrying requests; the reply above is no request.
+    const auto request = hex("00 01 00 00 00 07 01 03 00 00 00 02");
+    const auto next_request = hex("00 02 00 00 00 06 01 03 00 00 00 02");
+    auto client = passive_deframer(mb::Direction::Request);
+    const auto events = feed_chunks(client, {request, next_request});
+    expect_every_byte_accounted(events, request.size() + next_request.size());
+    EXPECT_EQ(frames_bytes(events), (std::vector{request, next_request}));
+    EXPECT_EQ(cut_frames(events), 1);
+    auto wrong_way = passive_deframer(mb::Direction::Request);
+    EXPECT_EQ(cut_frames(feed_chunks(wrong_way, {long_reply(1, 1), reply(2)})), 0);
+}
+
+// A gateway counting the CRC does so in every reply: each is cut when the next comes, itself too long. The
+// last, with no segment after it, is read by its length: truncated at the end.
+TEST(TcpStreamDeframer, EveryReplyTooLongIsCutButTheLast) {
+    auto d = passive_deframer(mb::Direction::Response);
+    const auto r1 = long_reply(1, 2), r2 = long_reply(2, 2), r3 = long_reply(3, 2);
+    const auto events = feed_chunks(d, {r1, r2, r3});
+    expect_every_byte_accounted(events, r1.size() + r2.size() + r3.size());
+    EXPECT_EQ(frames_bytes(events), (std::vector{r1, r2}));
+    EXPECT_EQ(cut_frames(events), 2);
+    ASSERT_EQ(events.size(), 3u);
+    EXPECT_EQ(std::get<mb::Unparsed>(events[2]).reason, mb::UnparsedReason::Truncated);
+}
+
+TEST(TcpStreamDeframer, ALegitimatelySplitAduIsNotCut) {
+    const auto whole = reply(1), next = reply(2);
+    const auto data = concat({whole, next});
+    // The header (and unit id) in one segment, the PDU in the next; the PDU split mid-way, its first part
+    // ("03 04 00", one byte of the registers) no whole PDU; the header and a register in one segment, then
+    // the rest and a whole reply.
+    for (const std::size_t split : {std::size_t{6}, std::size_t{7}, std::size_t{10}, std::size_t{11}}) {
+        for (const auto carries : {mb::Direction::Response, mb::Direction::Unknown}) {
+            auto d = passive_deframer(carries);
+            const auto events =
+                feed_chunks(d, {{data.begin(), data.begin() + static_cast<std::ptrdiff_t>(split)},
+                                {data.begin() + static_cast<std::ptrdiff_t>(split), data.end()}});
+            expect_every_byte_accounted(events, data.size());
+            EXPECT_EQ(frames_bytes(events), (std::vector{whole, next})) << split;
+            EXPECT_EQ(cut_frames(events), 0) << split;
+        }
+    }
+    // A split whose first part does decode whole by itself: an FC7 reply "07 6D" cut after "07", an FC7
+    // request. Its next segment starts with "6D", then the next reply's header: no header there.
+    const auto fc7 = hex("00 01 00 00 00 03 01 07 6D"), fc7_next = hex("00 02 00 00 00 03 01 07 6D");
+    auto d = passive_deframer(mb::Direction::Unknown);
+    const auto events = feed_chunks(d, {{fc7.begin(), fc7.end() - 1}, concat({{fc7.back()}, fc7_next})});
+    EXPECT_EQ(frames_bytes(events), (std::vector{fc7, fc7_next}));
+    EXPECT_EQ(cut_frames(events), 0);
+}
+
+// Legitimate streams in every chunking, read passively: never cut.
+TEST(TcpStreamDeframer, NoChunkingOfAHealthyStreamIsCut) {
+    const auto adus = sample_adus();
+    const auto data = concat(adus);
+    for (const auto& sizes : chunkings(data.size(), 200, 23)) {
+        auto events = run(data, sizes, true);
+        expect_every_byte_accounted(events, data.size());
+        ASSERT_EQ(frames_bytes(events), adus);
+        ASSERT_EQ(cut_frames(events), 0);
+    }
+}
+
+// Without a segment boundary after the too-long ADU (both in one chunk), or read as an endpoint reads (by the
+// lengths alone), the length is followed: the frame takes the next reply's first byte.
+TEST(TcpStreamDeframer, ALengthTooLongIsFollowedWithinAChunkAndByAnEndpoint) {
+    const auto first = long_reply(1, 1), second = reply(2);
+    const auto data = concat({first, second});
+    auto one_chunk = passive_deframer(mb::Direction::Response);
+    auto endpoint = mb::TcpStreamDeframer{};
+    for (const auto& events : {feed_chunks(one_chunk, {data}), feed_chunks(endpoint, {first, second})}) {
+        expect_every_byte_accounted(events, data.size());
+        EXPECT_EQ(cut_frames(events), 0);
+        ASSERT_FALSE(events.empty());
+        const auto* frame = std::get_if<mb::Frame>(&events[0]);
+        ASSERT_NE(frame, nullptr);
+        EXPECT_EQ(frame->length, first.size() + 1);
+    }
+}
+
 }  // namespace test_modbus_tcp_deframer_test
