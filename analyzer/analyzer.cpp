@@ -982,6 +982,19 @@ std::string gap_place_text(const Frame& f) {
            std::to_string(f.wire_length);
 }
 
+// A frame a silence of t3.5 or more cut in two, whose pieces verify only together (the timed deframer
+// joined them): no frame on the wire, though its bytes were all sent. Who paused is its sender, unit N for a
+// reply, the master for a request.
+std::string t3_5_gap_text(const FrameRecord& r) {
+    const std::string unit = "unit " + std::to_string(r.frame.unit_id());
+    const bool reply = r.direction == Direction::Response;
+    return gap_place_text(r.frame) +
+           ", at or above t3.5: " + (reply ? unit + "'s reply" : "the master's request to " + unit) +
+           " came in two pieces (its sender paused, or the capture stamped its reads apart) whose CRC holds "
+           "over both only; a receiver keeping t3.5 takes two frames whose CRCs both fail, and " +
+           (reply ? "a strict master discards the reply" : unit + " discards the request");
+}
+
 // "2.0 character times": a silence measured on a timed RTU line.
 std::string chars_text(float chars) {
     char text[32];
@@ -1003,7 +1016,8 @@ std::string discarded_because(const FrameRecord& request) {
     const Frame& f = request.frame;
     if (!f.checksum_ok)
         return std::string("its ") + (f.framing == Framing::Ascii ? "LRC" : "CRC") + " failed";
-    if (f.findings.contains(FindingCode::RtuGapInsideFrame)) return "a " + gap_place_text(f) + " inside it";
+    if (f.findings.contains(FindingCode::RtuGapInsideFrame))
+        return "a " + gap_place_text(f) + (f.gap_at_t3_5 ? ", at or above t3.5," : "") + " inside it";
     if (f.short_silence_before_chars > 0)
         return "only " + chars_text(f.short_silence_before_chars) +
                " of silence before it, below t3.5, joined it to the bytes before";
@@ -1025,8 +1039,9 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
             message =
                 "MBAP length " + std::to_string(r.frame.length_field()) + " is above the 254 of TCP §3.1.3";
         if (code == FindingCode::TcpLengthBeyondSegment) message = length_beyond_segment_text(r);
-        if (code == FindingCode::RtuGapInsideFrame)
+        if (code == FindingCode::RtuGapInsideFrame && !r.frame.gap_at_t3_5)
             message = gap_place_text(r.frame) + ", above t1.5: a receiver keeping t1.5 discards the frame";
+        if (code == FindingCode::RtuGapInsideFrame && r.frame.gap_at_t3_5) message = t3_5_gap_text(r);
         if (code == FindingCode::RtuShortSilenceBeforeFrame)
             message =
                 "began after a silence of " + chars_text(r.frame.short_silence_before_chars) +
@@ -3162,10 +3177,13 @@ void Analyzer::end_silent_frames(Timestamp now, const std::string* except, bool 
         // frame with no gap (a reply read in two chunks, the second stamped at its last byte). Only a request
         // on the line about to be timed out at `now` makes the frame end here, so that its reply, if this is
         // it, is paired first. (In a live capture's quiet time the silence is the line's own.)
-        if (only_when_due)
-            if (const auto it = pending_.find({link->flow->id, 0});
-                it == pending_.end() || now - it->second.request.time < options_.serial_timeout)
-                continue;
+        const auto waiting = pending_.find({link->flow->id, 0});
+        const bool due =
+            waiting != pending_.end() && now - waiting->second.request.time >= options_.serial_timeout;
+        if (only_when_due && !due) continue;
+        // The head of a frame a silence cut, which the deframer holds for its tail (a reply read in two
+        // chunks stamped far apart), waits as long as the deframer would, unless a request is due.
+        if (!due && now - link->last_received < link->timed->closing_silence()) continue;
         source_ = link->source;
         close_frames(*link, now);
     }

@@ -49,6 +49,9 @@ struct Frame {
     float short_silence_before_chars = 0;
     float short_silence_after_chars = 0;  // the same between its last byte and the bytes after it
     std::uint16_t gap_before_byte = 0;    // index of the byte that followed that silence
+    // That silence was t3.5 or more: the frame came in two runs, joined as their CRC verifies together (a
+    // receiver keeping t3.5 took two frames whose CRCs both fail).
+    bool gap_at_t3_5 = false;
     // (a field added here must be added to operator= above: the size check below is there to say so)
 
     static constexpr std::size_t short_copy = 32;
@@ -82,6 +85,7 @@ struct Frame {
         short_silence_before_chars = other.short_silence_before_chars;
         short_silence_after_chars = other.short_silence_after_chars;
         gap_before_byte = other.gap_before_byte;
+        gap_at_t3_5 = other.gap_at_t3_5;
         return *this;
     }
 

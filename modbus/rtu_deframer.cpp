@@ -239,8 +239,23 @@ void RtuTimedDeframer::reset(SerialLine line) noexcept {
     times_.clear();
     gaps_.clear();
     seg_offset_ = 0;
+    held_ = 0;
     last_end_ = Timestamp{0};
     has_last_ = false;
+}
+
+Timestamp RtuTimedDeframer::hold_limit() const noexcept {
+    // A host's reads of a USB adapter are some tens of ms apart at worst (a latency timer of 16 ms, a clock
+    // of 15.6 ms); a slow line's t3.5 is itself that long. A longer silence ends what was sent.
+    return std::max<Timestamp>(std::chrono::milliseconds(100), line_.t3_5() * 4);
+}
+
+Timestamp RtuTimedDeframer::closing_silence() const noexcept {
+    if (held_ != 0 && seg_.size() == held_) return hold_limit();
+    // Bytes not yet ended by a silence that would be held at it: they wait as long. (Whether a frame verifies
+    // among them is not looked at here; one that does only comes out later.)
+    if (held_ == 0 && may_be_head(0, seg_.size())) return hold_limit();
+    return line_.t3_5();
 }
 
 void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, DeframeEvents& out) {
@@ -250,16 +265,20 @@ void RtuTimedDeframer::emit_frame(std::size_t begin, std::size_t length, Deframe
     frame.start = times_[begin];
     frame.end = times_[begin + length - 1];
     for (const Gap& g : gaps_) {
-        // A silence right before the frame, after other bytes of the run: the frame came too soon.
-        if (g.before_offset == frame.offset) frame.short_silence_before_chars = g.chars;
-        if (g.before_offset == frame.offset + length) frame.short_silence_after_chars = g.chars;
+        // A silence right before the frame, after other bytes of the run: the frame came too soon. (The
+        // silence after a held head ended a run: at a frame's edge it is no short silence.)
+        if (!g.t3_5 && g.before_offset == frame.offset) frame.short_silence_before_chars = g.chars;
+        if (!g.t3_5 && g.before_offset == frame.offset + length) frame.short_silence_after_chars = g.chars;
         if (g.before_offset <= frame.offset || g.before_offset >= frame.offset + length) continue;
-        if (g.chars > frame.max_gap_chars) {
+        // The silence of t3.5 or more that a joined frame holds is its longest, whatever the other measured.
+        if (g.t3_5 ? !frame.gap_at_t3_5 || g.chars > frame.max_gap_chars
+                   : !frame.gap_at_t3_5 && g.chars > frame.max_gap_chars) {
             frame.max_gap_chars = g.chars;
             frame.gap_before_byte = static_cast<std::uint16_t>(g.before_offset - frame.offset);
+            frame.gap_at_t3_5 = g.t3_5;
         }
     }
-    if (frame.max_gap_chars > 0) frame.findings.add(FindingCode::RtuGapInsideFrame);
+    if (frame.max_gap_chars > 0 || frame.gap_at_t3_5) frame.findings.add(FindingCode::RtuGapInsideFrame);
     if (frame.short_silence_before_chars > 0) frame.findings.add(FindingCode::RtuShortSilenceBeforeFrame);
 }
 
@@ -270,61 +289,110 @@ void RtuTimedDeframer::emit_unparsed(std::size_t begin, std::size_t length, Unpa
     if (begin + 1 < seg_.size()) u.head = {seg_[begin], seg_[begin + 1]};
 }
 
-void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {
-    const bool at_end = end != SegmentEnd::Open;
-    const std::size_t n = seg_.size();
-    std::size_t consumed = 0;
-    if (at_end && n >= 4 && n <= max_rtu_adu_length && rtu_crc_ok(seg_) && !valid_frame_inside(seg_)) {
-        emit_frame(0, n, out);
-        consumed = n;
-    } else if (at_end && n > 0) {
-        // Split by content. Keep the result only if it finds at least one frame whose CRC holds; otherwise
-        // the silence-delimited run is one frame with a bad CRC (or too short to be one): a damaged reply
-        // split by content was a byte of garbage and a made-up frame of another unit, which took the fault.
-        // The pieces go straight into `out` and are taken back when no frame verified (they are then unparsed
-        // runs and damaged frames only, cheap to drop): no list of its own to build and copy from.
-        const std::size_t mark = out.size();
-        std::size_t pos = 0;
-        bool any_frame = false;
-        bool cut = false;  // the run's first bytes ask for a frame longer than the rest of the input
-        std::size_t run_begin = 0;
-        std::size_t run_length = 0;
-        UnparsedReason run_reason{};
-        auto flush_run = [&] {
-            if (run_length) emit_unparsed(run_begin, run_length, run_reason, out);
-            run_length = 0;
-        };
-        while (pos < n) {
-            const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, true, end == SegmentEnd::Input);
-            if (step.kind == Kind::Complete) {
-                flush_run();
-                emit_frame(pos, step.length, out);
-                any_frame |= step.checksum_ok;
-                pos += step.length;
-            } else {
-                const std::size_t len = std::max<std::size_t>(step.length, 1);
-                cut |= pos == 0 && step.reason == UnparsedReason::Truncated;
-                if (run_length && run_reason != step.reason) flush_run();
-                if (!run_length) {
-                    run_begin = pos;
-                    run_reason = step.reason;
-                }
-                run_length += len;
-                pos += len;
+bool RtuTimedDeframer::close_run(std::size_t begin, std::size_t n, SegmentEnd end, DeframeEvents& out) {
+    const std::span<const std::uint8_t> run(seg_.data() + begin, n);
+    if (n >= 4 && n <= max_rtu_adu_length && rtu_crc_ok(run) && !valid_frame_inside(run)) {
+        emit_frame(begin, n, out);
+        return true;
+    }
+    // Split by content. Keep the result only if it finds at least one frame whose CRC holds; otherwise the
+    // silence-delimited run is one frame with a bad CRC (or too short to be one): a damaged reply split by
+    // content was a byte of garbage and a made-up frame of another unit, which took the fault. The pieces go
+    // straight into `out` and are taken back when no frame verified (they are then unparsed runs and damaged
+    // frames only, cheap to drop): no list of its own to build and copy from.
+    const std::size_t mark = out.size();
+    std::size_t pos = 0;
+    bool any_frame = false;
+    bool cut = false;  // the run's first bytes ask for a frame longer than the rest of the input
+    std::size_t run_begin = 0;
+    std::size_t run_length = 0;
+    UnparsedReason run_reason{};
+    auto flush_run = [&] {
+        if (run_length) emit_unparsed(begin + run_begin, run_length, run_reason, out);
+        run_length = 0;
+    };
+    while (pos < n) {
+        const DeframeStep step = rtu_step(from(run, pos), true, end == SegmentEnd::Input);
+        if (step.kind == Kind::Complete) {
+            flush_run();
+            emit_frame(begin + pos, step.length, out);
+            any_frame |= step.checksum_ok;
+            pos += step.length;
+        } else {
+            const std::size_t len = std::max<std::size_t>(step.length, 1);
+            cut |= pos == 0 && step.reason == UnparsedReason::Truncated;
+            if (run_length && run_reason != step.reason) flush_run();
+            if (!run_length) {
+                run_begin = pos;
+                run_reason = step.reason;
+            }
+            run_length += len;
+            pos += len;
+        }
+    }
+    flush_run();
+    if (!any_frame && !(end == SegmentEnd::Input && cut)) {
+        out.erase(out.begin() + static_cast<std::ptrdiff_t>(mark), out.end());
+        if (n >= 4 && n <= max_rtu_adu_length)
+            emit_frame(begin, n, out);
+        else
+            emit_unparsed(begin, n, n < 4 ? UnparsedReason::TooShort : UnparsedReason::TooLong, out);
+    }
+    return any_frame;
+}
+
+bool RtuTimedDeframer::may_be_head(std::size_t begin, std::size_t n) const noexcept {
+    // Two bytes at least: a unit and a function code that says what follows. Shorter than a whole frame.
+    if (n < 2 || n >= max_rtu_adu_length) return false;
+    const std::span<const std::uint8_t> head(seg_.data() + begin, n);
+    if (!plausible_start(head)) return false;
+    if (n < 4) return true;  // no frame is that short
+    const Candidates c = candidates(head);
+    return c.need > n || (c.count != 0 && c.length(c.count - 1) > n);
+}
+
+std::size_t RtuTimedDeframer::resolve_head(DeframeEvents& out) {
+    const std::size_t h = held_;
+    held_ = 0;
+    const std::span<const std::uint8_t> all(seg_.data(), seg_.size());
+    // Joined when the head and the first bytes after it, as many as their content asks for, verify, and the
+    // bytes after the head do not begin a frame of their own that verifies. The lengths are told from the
+    // joined bytes: a head of two or three bytes has not reached its byte count yet. At most two CRCs over at
+    // most 256 bytes and one probe, once per held head: bounded work per run.
+    if (all.size() > h && probe_valid(from(all, h), true).probe != Probe::Yes) {
+        const Candidates c = candidates(all);
+        for (std::size_t i = 0; i < c.count; ++i) {
+            const std::size_t len = c.length(i);
+            if (len > h && len <= all.size() && rtu_crc_ok(all.first(len))) {
+                emit_frame(0, len, out);
+                return len;
             }
         }
-        flush_run();
-        if (!any_frame && !(end == SegmentEnd::Input && cut)) {
+    }
+    // No tail came, or it did not complete the head: the head is what the silence after it made it.
+    close_run(0, h, SegmentEnd::Silence, out);
+    return h;
+}
+
+void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {
+    const std::size_t n = seg_.size();
+    // A head held at the silence before these bytes is joined to them or given up first; what follows the
+    // frame it makes goes through the same rules as any run.
+    std::size_t consumed = held_ != 0 ? resolve_head(out) : 0;
+    if (end != SegmentEnd::Open && consumed < n) {
+        const std::size_t mark = out.size();
+        const bool verified = close_run(consumed, n - consumed, end, out);
+        // A run ended by a silence, in which no frame verifies, that starts a frame longer than itself: the
+        // head of a frame the silence cut, maybe. Held (its pieces taken back) until the next run ends.
+        if (end == SegmentEnd::Silence && !verified && may_be_head(consumed, n - consumed)) {
             out.erase(out.begin() + static_cast<std::ptrdiff_t>(mark), out.end());
-            if (n >= 4 && n <= max_rtu_adu_length)
-                emit_frame(0, n, out);
-            else
-                emit_unparsed(0, n, n < 4 ? UnparsedReason::TooShort : UnparsedReason::TooLong, out);
+            held_ = n - consumed;
+        } else {
+            consumed = n;
         }
-        consumed = n;
-    } else {
+    } else if (end == SegmentEnd::Open) {
         // A long run without silence: frame its front by content, keep the tail for more bytes.
-        std::size_t pos = 0;
+        std::size_t pos = consumed;
         while (n - pos > 2 * max_rtu_adu_length) {
             const DeframeStep step = rtu_step({seg_.data() + pos, n - pos}, false, false);
             if (step.kind == Kind::NeedMore) break;
@@ -336,11 +404,26 @@ void RtuTimedDeframer::close_segment(SegmentEnd end, DeframeEvents& out) {
         }
         consumed = pos;
     }
+    drop_front(consumed);
+}
+
+void RtuTimedDeframer::drop_front(std::size_t consumed) noexcept {
     if (consumed == 0) return;
     seg_.erase(seg_.begin(), seg_.begin() + static_cast<std::ptrdiff_t>(consumed));
     times_.erase(times_.begin(), times_.begin() + static_cast<std::ptrdiff_t>(consumed));
     seg_offset_ += consumed;
     std::erase_if(gaps_, [&](const Gap& g) { return g.before_offset < seg_offset_; });
+}
+
+bool RtuTimedDeframer::head_may_join() const noexcept {
+    const std::span<const std::uint8_t> all(seg_.data(), seg_.size());
+    const Candidates c = candidates(all);
+    if (c.need > all.size()) return true;  // the lengths are not known yet
+    for (std::size_t i = 0; i < c.count; ++i) {
+        const std::size_t len = c.length(i);
+        if (len > held_ && (len > all.size() || rtu_crc_ok(all.first(len)))) return true;
+    }
+    return false;
 }
 
 void RtuTimedDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp received, DeframeEvents& out) {
@@ -351,11 +434,18 @@ void RtuTimedDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp recei
     if (has_last_) {
         if (first_end < last_end_ + ct) first_end = last_end_ + ct;  // coarse timestamps: no overlap
         const auto silence = first_end - ct - last_end_;
-        if (silence >= line_.t3_5()) {
-            close_segment(SegmentEnd::Silence, out);
+        const float chars = static_cast<float>(static_cast<double>(silence.count()) / ct.count());
+        // The silence ends the bytes since the last one (a head held before them is resolved with them).
+        if (silence >= line_.t3_5() && seg_.size() > held_) close_segment(SegmentEnd::Silence, out);
+        if (held_ != 0 && seg_.size() == held_) {
+            // These bytes are the first after a held head: the silence is inside the frame if they complete
+            // it. After a silence too long for that, the head is given up first.
+            if (silence > hold_limit())
+                close_segment(SegmentEnd::Silence, out);
+            else
+                gaps_.push_back({seg_offset_ + held_, chars, true});
         } else if (silence > line_.t1_5() && !seg_.empty()) {
-            gaps_.push_back({seg_offset_ + seg_.size(),
-                             static_cast<float>(static_cast<double>(silence.count()) / ct.count())});
+            gaps_.push_back({seg_offset_ + seg_.size(), chars, false});
         }
     }
     // Grown once per chunk, not a byte at a time (a capacity check per byte and per time stamp).
@@ -366,12 +456,25 @@ void RtuTimedDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp recei
         times_[old + i] = first_end + ct * static_cast<std::int64_t>(i);
     last_end_ = times_.back();
     has_last_ = true;
+    // A held head that these bytes cannot complete is given up as soon as they tell (every length its content
+    // asks for is here and none verifies), not when their run ends: a damaged one-register reply, held so,
+    // would come out only after the next request's run, which a reader's clock (a request's timeout) may
+    // have passed.
+    if (held_ != 0 && seg_.size() > held_ && !head_may_join()) {
+        const std::size_t h = held_;
+        held_ = 0;
+        close_run(0, h, SegmentEnd::Silence, out);
+        drop_front(h);
+    }
     if (seg_.size() > 4 * max_rtu_adu_length) close_segment(SegmentEnd::Open, out);
 }
 
 void RtuTimedDeframer::advance(Timestamp now, DeframeEvents& out) {
-    if (has_last_ && !seg_.empty() && now - last_end_ >= line_.t3_5())
-        close_segment(SegmentEnd::Silence, out);
+    if (!has_last_ || seg_.empty()) return;
+    const auto quiet = now - last_end_;
+    if (seg_.size() > held_ && quiet >= line_.t3_5()) close_segment(SegmentEnd::Silence, out);
+    // A head held for its tail, and none has come within the longest silence a frame is joined across.
+    if (held_ != 0 && seg_.size() == held_ && quiet > hold_limit()) close_segment(SegmentEnd::Silence, out);
 }
 
 void RtuTimedDeframer::finish(DeframeEvents& out) {

@@ -777,6 +777,46 @@ TEST(Analyzer, QuietTimeEndsFramesAndTimesOutRequests) {
     EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponseAtEnd), 0);
 }
 
+// Quiet time in a live capture gives up the head of a frame a silence of t3.5 cut (a reply a USB adapter
+// delivered in two reads) no sooner than the deframer would: the tail read 14 ms later still completes it,
+// one reply whose CRC holds, paired; a head no tail follows comes out, a reply whose CRC fails, once 100 ms
+// of silence have passed.
+TEST(Analyzer, QuietTimeWaitsForTheTailOfAFrameASilenceCut) {
+    Collect sink;
+    an::AnalyzerOptions o;
+    o.serial_framing = mb::Framing::Rtu;
+    an::Analyzer a(o, sink);
+    const auto request = mbscope::test::bytes({0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45});
+    const auto head = mbscope::test::bytes({0x11, 0x03, 0x06, 0x02, 0x2B});
+    const auto tail = mbscope::test::bytes({0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA});
+    a.serial("line", request, 10s);
+    a.idle(10s + 5ms);
+    ASSERT_EQ(sink.frames.size(), 1u);
+    a.serial("line", head, 10s + 20ms);
+    a.idle(10s + 30ms);  // t3.5 has passed: the head waits for its tail
+    EXPECT_EQ(sink.frames.size(), 1u);
+    a.serial("line", tail, 10s + 40ms);
+    a.idle(10s + 50ms);
+    ASSERT_EQ(sink.frames.size(), 2u);
+    EXPECT_TRUE(sink.frames[1].frame.checksum_ok);
+    EXPECT_EQ(sink.frames[1].frame.wire_length, 11u);
+    EXPECT_TRUE(sink.frames[1].frame.gap_at_t3_5);
+    ASSERT_EQ(sink.transactions.size(), 1u);
+    EXPECT_TRUE(sink.transactions[0].response.has_value());
+
+    a.serial("line", request, 11s);
+    a.serial("line", head, 11s + 20ms);
+    a.idle(11s + 110ms);
+    EXPECT_EQ(sink.frames.size(), 3u) << "the head waits up to 100 ms";
+    a.idle(11s + 125ms);
+    ASSERT_EQ(sink.frames.size(), 4u);
+    EXPECT_FALSE(sink.frames[3].frame.checksum_ok);
+    EXPECT_EQ(sink.frames[3].frame.wire_length, 5u);
+    a.finish();
+    EXPECT_EQ(sink.count(mb::FindingCode::RtuGapInsideFrame), 1);
+    EXPECT_EQ(sink.count(mb::FindingCode::PairNoResponse), 0);
+}
+
 TEST(Analyzer, UnansweredAtTheEndOfTheCaptureIsANoteNotATimeout) {
     Harness h;
     h.send(true, read_request(1), 1s);

@@ -255,7 +255,9 @@ TEST(SerialInput, NoiseToUnitZeroIsNoBroadcastAndNoDevice) {
 }
 
 // On the slaves' side too: five bytes of noise after a poll's reply, "00 00 00 00 00", and the tail of a
-// reply cut by a silence, "00 00 00 64 C8 BA", were frames from unit 0 whose CRC fails, each reported as
+// reply cut by a silence, "00 00 00 64 C8 BB" (damaged too: head and tail do not verify joined, so they stay
+// two pieces, see AReplyCutInTwoByASilenceOfT35IsUnit17sReplyNotADamagedBroadcast), were frames from unit 0
+// whose CRC fails, each reported as
 // pair.broadcast_response (an error: a slave answering a broadcast nobody sent) from a device "unit 0".
 // A damaged reply that no request waits for, naming no unit seen on the line, is its CRC finding alone.
 // A unit the line knows still has a damaged reply nobody asked for held against it.
@@ -266,7 +268,7 @@ TEST(SerialInput, DamagedBytesFromTheSlavesSideNameNoDeviceTheLineDoesNotHave) {
                                  "1.500 < 00 00 00 00 00\n"
                                  "2.000 > 11 03 00 60 00 03 07 45\n"
                                  "2.020 < 11 03 06 02 2B\n"  // the reply cut by a 20 ms silence
-                                 "2.040 < 00 00 00 64 C8 BA\n"
+                                 "2.040 < 00 00 00 64 C8 BB\n"
                                  "3.000 < 11 03 06 02 2B 00 00 00 64 C8 BB\n");  // unasked, damaged
     auto r = decode(path, an::InputFormat::Text);
     ASSERT_TRUE(r->ok);
@@ -1500,6 +1502,109 @@ TEST(SerialInput, AFileNameIsWrittenEscapedInTheTextOutput) {
                         "31m.txt"),
               std::string::npos)
         << json;
+}
+
+// A frame a silence cut, joined: no damaged broadcast made of its tail, no bad CRC, no request left
+// unanswered.
+void expect_joined_and_answered(const Run& r) {
+    EXPECT_EQ(r.summary.damaged_broadcasts, 0u);
+    EXPECT_EQ(r.sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(r.sink.count(mb::FindingCode::RtuCrcMismatch), 0);
+}
+
+// The MK manual's FC3 exchange (000:356, 365), the reply cut after its fifth byte by a silence of 5
+// character times (a USB adapter's two reads stamped apart, or a pause of the slave's): its tail "00 00 00 64
+// C8 BA" was a frame to unit 0 whose CRC fails, counted as a damaged broadcast, and the head a damaged
+// reply: two bad CRCs blaming nobody right. Head and tail verify together: the reply is
+// unit 17's, paired with its request, and the silence inside it is the error it is, said to be at or above
+// t3.5 (a receiver keeping t3.5 took two frames whose CRCs both fail). 9600 8N1: a character is 1.042 ms; a
+// line's time is its last byte's end.
+// A damaged reply of one register (7 bytes, shorter than the 8 a request's reading of its bytes asks for) is
+// held as the head of a frame a silence may have cut; the next request's bytes cannot complete it: it is
+// still the reply to its request, damaged, and the next request is answered in its turn.
+TEST(SerialInput, ADamagedShortReplyHeldForATailStillAnswersItsRequest) {
+    const auto path = write_temp("held_reply.txt",
+                                 "0.000 11 03 00 60 00 01 86 84\n"
+                                 "0.950 11 03 02 00 2B 39 99\n"  // its CRC is 39 98
+                                 "1.040 11 03 00 60 00 01 86 84\n"
+                                 "1.060 11 03 02 00 2B 39 98\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_TRUE(r->ok);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::RtuCrcMismatch), 1);
+    ASSERT_EQ(r->sink.transactions.size(), 2u);
+    ASSERT_TRUE(r->sink.transactions[0].response.has_value());
+    EXPECT_FALSE(r->sink.transactions[0].response->frame.checksum_ok);
+    ASSERT_TRUE(r->sink.transactions[1].response.has_value());
+    EXPECT_TRUE(r->sink.transactions[1].response->frame.checksum_ok);
+}
+
+TEST(SerialInput, AReplyCutInTwoByASilenceOfT35IsUnit17sReplyNotADamagedBroadcast) {
+    const auto path = write_temp("cut_reply.txt",
+                                 "1.000000 11 03 00 60 00 03 07 45\n"
+                                 "1.020000 11 03 06 02 2B\n"
+                                 "1.031458 00 00 00 64 C8 BA\n"  // 5.0 characters after the head
+                                 "2.000000 11 03 00 60 00 03 07 45\n"
+                                 "2.020000 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_TRUE(r->ok);
+    expect_joined_and_answered(*r);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairUnsolicitedResponse), 0);
+    ASSERT_EQ(r->summary.devices.size(), 1u);
+    const auto& device = r->summary.devices.at("serial " + path + " unit 17");
+    EXPECT_EQ(device.requests, 2u);
+    EXPECT_EQ(device.responses, 2u);
+    EXPECT_EQ(device.timeouts, 0u);
+    EXPECT_EQ(device.checksum_errors, 0u);
+    ASSERT_EQ(r->sink.transactions.size(), 2u);
+    for (const auto& t : r->sink.transactions) {
+        ASSERT_TRUE(t.response.has_value());
+        EXPECT_TRUE(t.response->frame.checksum_ok);
+        EXPECT_EQ(t.response->frame.wire_length, 11u);
+    }
+    ASSERT_EQ(r->sink.count(mb::FindingCode::RtuGapInsideFrame), 1);
+    for (const auto& f : r->sink.findings) {
+        if (f.code == mb::FindingCode::RtuGapInsideFrame) {
+            EXPECT_EQ(mb::info(f.code).severity, mb::Severity::Error);
+            EXPECT_EQ(f.frames, std::vector<std::uint64_t>{2});
+            EXPECT_NE(std::string(f.device.view()).find("unit 17"), std::string::npos);
+            EXPECT_EQ(
+                f.message,
+                "silence of 5.0 character times between bytes 5 and 6 of 11, at or above t3.5: unit 17's "
+                "reply came in two pieces (its sender paused, or the capture stamped its reads apart) "
+                "whose CRC holds over both only; a receiver keeping t3.5 takes two frames whose CRCs both "
+                "fail, and a strict master discards the reply");
+        }
+    }
+    EXPECT_EQ(an::summary_to_json(r->summary)["damaged_broadcasts"], 0);
+}
+
+// The same for the master's request, cut after its fourth byte by a silence of 5 character times (MK-RTU-01
+// (a)): one request to unit 17, answered, its tail "00 03 07 45" no damaged broadcast; the finding names the
+// master as the one that paused and says unit 17 keeping t3.5 discards it.
+TEST(SerialInput, ARequestCutInTwoByASilenceOfT35IsOneRequestAnswered) {
+    const auto path = write_temp("cut_request.txt",
+                                 "1.000000 11 03 00 60\n"
+                                 "1.009375 00 03 07 45\n"  // 5.0 characters after the head
+                                 "1.030000 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_TRUE(r->ok);
+    expect_joined_and_answered(*r);
+    ASSERT_EQ(r->sink.transactions.size(), 1u);
+    EXPECT_TRUE(r->sink.transactions[0].request.frame.checksum_ok);
+    EXPECT_TRUE(r->sink.transactions[0].response.has_value());
+    ASSERT_EQ(r->sink.count(mb::FindingCode::RtuGapInsideFrame), 1);
+    for (const auto& f : r->sink.findings) {
+        if (f.code == mb::FindingCode::RtuGapInsideFrame) {
+            EXPECT_EQ(
+                f.message,
+                "silence of 5.0 character times between bytes 4 and 5 of 8, at or above t3.5: the master's "
+                "request to unit 17 came in two pieces (its sender paused, or the capture stamped its reads "
+                "apart) whose CRC holds over both only; a receiver keeping t3.5 takes two frames whose CRCs "
+                "both fail, and unit 17 discards the request");
+        }
+    }
 }
 
 }  // namespace test_analyzer_serial_test

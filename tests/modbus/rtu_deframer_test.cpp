@@ -217,15 +217,216 @@ TEST(RtuTimedDeframer, GapOfOneCharacterIsNotFlagged) {
     EXPECT_TRUE(std::get<mb::Frame>(events[0]).findings.empty());
 }
 
-TEST(RtuTimedDeframer, GapAboveT35SplitsAFrameIntoTwoBadOnes) {
-    // MK-RTU-01 (a): the FC3 request split by a 5-character gap → two fragments, neither a valid frame.
+// A frame joined across a silence of 5 character times after byte `gap_before`: its CRC holds, and the
+// silence is inside it, an error still.
+void expect_joined(const mb::Frame& f, std::size_t length, std::uint16_t gap_before) {
+    EXPECT_TRUE(f.checksum_ok);
+    EXPECT_EQ(f.wire_length, length);
+    EXPECT_TRUE(f.findings.contains(mb::FindingCode::RtuGapInsideFrame));
+    EXPECT_FALSE(f.findings.contains(mb::FindingCode::RtuCrcMismatch));
+    EXPECT_TRUE(f.gap_at_t3_5);
+    EXPECT_NEAR(f.max_gap_chars, 5.0, 0.05);
+    EXPECT_EQ(f.gap_before_byte, gap_before);
+}
+
+// MK-RTU-01 (a): the FC3 request split by a 5-character gap. A receiver keeping t3.5 takes two fragments,
+// neither a valid frame; the pieces verify together, so the analyzer sees the master's request, cut by a
+// silence of t3.5 or more: one frame whose CRC holds, with that silence recorded inside it (an error still).
+TEST(RtuTimedDeframer, ARequestCutByASilenceOfT35IsOneFrameWithTheSilenceInside) {
     auto events = run_timed({{hex("11 03 00 60"), 0ms}, {hex("00 03 07 45"), 5208us}});
     expect_every_byte_accounted(events, 8);
-    for (const auto& e : events) {
-        if (auto* f = std::get_if<mb::Frame>(&e)) {
-            EXPECT_FALSE(f->checksum_ok);
+    ASSERT_EQ(events.size(), 1u);
+    expect_joined(std::get<mb::Frame>(events[0]), 8, 4);
+}
+
+// The MK manual's FC3 reply (000:365) cut after its fifth byte by a silence of 5 character times (a USB
+// adapter's two reads stamped far apart): its tail "00 00 00 64 C8 BA" was a damaged frame to unit 0 and the
+// head a damaged reply, two bad CRCs blaming nobody right. Head and tail verify together: one frame of unit
+// 17, its CRC good, the silence recorded inside it as one of t3.5 or more, its times the first and last
+// byte's.
+TEST(RtuTimedDeframer, AReplyCutByASilenceOfT35IsJoinedByItsCrc) {
+    const mb::SerialLine line;
+    const auto ct = line.character_time();
+    const auto request = hex("11 03 00 60 00 03 07 45");
+    const auto head = hex("11 03 06 02 2B");
+    const auto tail = hex("00 00 00 64 C8 BA");
+    mb::RtuTimedDeframer d(line);
+    mb::DeframeEvents out;
+    const mb::Timestamp head_end = 1s + 20ms;
+    d.feed(request, 1s, out);
+    EXPECT_EQ(d.closing_silence(), line.t3_5());
+    d.advance(head_end - ct * 5, out);
+    d.feed(head, head_end, out);
+    const mb::Timestamp tail_end = head_end + ct * 5 + ct * 6;  // 5 characters of silence, then 6 bytes
+    d.advance(tail_end - ct * 6, out);
+    EXPECT_TRUE(d.holding()) << "the head waits for its tail";
+    ASSERT_EQ(out.size(), 1u);
+    d.feed(tail, tail_end, out);
+    d.advance(tail_end + 10ms, out);
+    EXPECT_FALSE(d.holding());
+    d.finish(out);
+    expect_every_byte_accounted(out, request.size() + head.size() + tail.size());
+    ASSERT_EQ(out.size(), 2u);
+    EXPECT_TRUE(std::get<mb::Frame>(out[0]).checksum_ok);
+    const auto& f = std::get<mb::Frame>(out[1]);
+    EXPECT_EQ(frames_bytes(out)[1], hex("11 03 06 02 2B 00 00 00 64 C8 BA"));
+    expect_joined(f, 11, 5);
+    EXPECT_EQ(f.unit_id(), 0x11);
+    EXPECT_EQ(f.offset, 8u);
+    EXPECT_FALSE(f.findings.contains(mb::FindingCode::RtuShortSilenceBeforeFrame));
+    EXPECT_EQ(f.start, head_end - ct * 4);
+    EXPECT_EQ(f.end, tail_end);
+    EXPECT_EQ(f.short_silence_before_chars, 0);
+    EXPECT_EQ(f.short_silence_after_chars, 0);
+}
+
+// Every frame of the MK manual's exchange, cut once at every byte from the second on by a silence of 5
+// character times, comes out whole, its CRC good, the silence recorded where it was; chunked a byte at a
+// time too. Bytes glued after the tail (the next frame, sent before t3.5) go on as frames of their own.
+TEST(RtuTimedDeframer, EveryManualFrameCutOnceIsJoined) {
+    const auto frames = mk_frames();
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        const auto& frame = frames[i];
+        for (std::size_t cut = 2; cut < frame.size(); ++cut) {
+            for (const bool bytewise : {false, true}) {
+                SCOPED_TRACE(std::string(mk_stream[i]) + " cut at " + std::to_string(cut) +
+                             (bytewise ? " bytewise" : ""));
+                const std::vector<std::uint8_t> head(frame.begin(), frame.begin() + static_cast<long>(cut));
+                std::vector<std::uint8_t> tail(frame.begin() + static_cast<long>(cut), frame.end());
+                const auto& next = frames[(i + 1) % frames.size()];
+                tail.insert(tail.end(), next.begin(), next.end());  // the next frame glued to the tail
+                std::vector<TimedChunk> chunks;
+                const auto add = [&](const std::vector<std::uint8_t>& bytes,
+                                     std::chrono::nanoseconds before) {
+                    if (!bytewise) {
+                        chunks.push_back({bytes, before});
+                        return;
+                    }
+                    for (std::size_t b = 0; b < bytes.size(); ++b)
+                        chunks.push_back({{bytes[b]}, b == 0 ? before : 0ns});
+                };
+                add(frames[0], 0ms);
+                add(head, 20ms);
+                add(tail, 5208us);
+                auto events = run_timed(chunks);
+                expect_every_byte_accounted(events, frames[0].size() + frame.size() + next.size());
+                ASSERT_EQ(frames_bytes(events), (std::vector{frames[0], frame, next}));
+                const auto& f = std::get<mb::Frame>(events[1]);
+                EXPECT_TRUE(f.checksum_ok);
+                EXPECT_TRUE(f.gap_at_t3_5);
+                EXPECT_EQ(f.gap_before_byte, cut);
+                EXPECT_NEAR(f.max_gap_chars, 5.0, 0.05);
+                EXPECT_TRUE(std::get<mb::Frame>(events[2]).checksum_ok);
+                EXPECT_FALSE(
+                    std::get<mb::Frame>(events[2]).findings.contains(mb::FindingCode::RtuGapInsideFrame));
+            }
         }
     }
+}
+
+// Only pieces that verify together are joined. A reply cut short (the device stopped), then the master's
+// retry, a good frame of its own: the head stays a frame with a bad CRC and the retry a good frame. A head
+// whose tail is damaged too: two bad pieces make no frame. A silence longer than a frame is held across
+// (hold_limit): the pieces stay apart though they would verify.
+TEST(RtuTimedDeframer, PiecesThatDoNotVerifyTogetherAreNotJoined) {
+    const auto request = hex("11 03 00 60 00 03 07 45");
+    const auto head = hex("11 03 06 02 2B");
+    struct Case {
+        const char* what;
+        std::vector<std::uint8_t> after;
+        std::chrono::nanoseconds silence;
+        bool after_ok;
+    };
+    for (const Case& c :
+         {Case{"retry", request, 10ms, true}, Case{"damaged tail", hex("00 00 00 64 C8 BB"), 10ms, false},
+          Case{"long silence", hex("00 00 00 64 C8 BA"), 150ms, false}}) {
+        SCOPED_TRACE(c.what);
+        auto events = run_timed({{request, 0ms}, {head, 20ms}, {c.after, c.silence}});
+        expect_every_byte_accounted(events, request.size() + head.size() + c.after.size());
+        ASSERT_EQ(events.size(), 3u);
+        const auto& cut = std::get<mb::Frame>(events[1]);
+        EXPECT_FALSE(cut.checksum_ok);
+        EXPECT_EQ(cut.offset, 8u);
+        EXPECT_EQ(cut.wire_length, head.size());
+        EXPECT_FALSE(cut.findings.contains(mb::FindingCode::RtuGapInsideFrame));
+        EXPECT_EQ(cut.short_silence_after_chars, 0);
+        const auto& after = std::get<mb::Frame>(events[2]);
+        EXPECT_EQ(after.checksum_ok, c.after_ok);
+        EXPECT_EQ(after.offset, 8u + head.size());
+        EXPECT_EQ(after.wire_length, c.after.size());
+        EXPECT_TRUE(after.findings.size() == (c.after_ok ? 0u : 1u));
+        EXPECT_EQ(after.short_silence_before_chars, 0);
+    }
+}
+
+// A head held for its tail that none completes before finish() or before advance() passes the longest
+// silence a frame is joined across comes out as it did before the wait: a frame whose CRC fails (the silence
+// ended it), or an unparsed run too short to be a frame. reset() drops it.
+TEST(RtuTimedDeframer, AHeadWithNoTailComesOutAsBefore) {
+    const mb::SerialLine line;
+    const auto request = hex("11 03 00 60 00 03 07 45");
+    for (const char* cut : {"11 03 06 02 2B", "11 03 06"}) {
+        const auto head = hex(cut);
+        const bool frame = head.size() >= 4;
+        for (const bool by_advance : {false, true}) {
+            SCOPED_TRACE(std::string(cut) + (by_advance ? " advance" : " finish"));
+            mb::RtuTimedDeframer d(line);
+            mb::DeframeEvents out;
+            d.feed(request, 1s, out);
+            d.feed(head, 1s + 20ms, out);
+            EXPECT_EQ(d.closing_silence(), 100ms) << "bytes that would be held wait as long";
+            d.advance(1s + 30ms, out);  // past t3.5: the head is held
+            EXPECT_TRUE(d.holding());
+            EXPECT_EQ(d.closing_silence(), 100ms);
+            ASSERT_EQ(out.size(), 1u);
+            if (by_advance) {
+                d.advance(1s + 110ms, out);
+                EXPECT_EQ(out.size(), 1u) << "held up to 100 ms of silence";
+                d.advance(1s + 121ms, out);
+                EXPECT_FALSE(d.holding());
+                ASSERT_EQ(out.size(), 2u);
+            }
+            d.finish(out);
+            expect_every_byte_accounted(out, request.size() + head.size());
+            ASSERT_EQ(out.size(), 2u);
+            if (frame) {
+                const auto& f = std::get<mb::Frame>(out[1]);
+                EXPECT_FALSE(f.checksum_ok);
+                EXPECT_EQ(f.offset, 8u);
+                EXPECT_EQ(f.wire_length, head.size());
+                EXPECT_FALSE(f.findings.contains(mb::FindingCode::RtuGapInsideFrame));
+            } else {
+                const auto& u = std::get<mb::Unparsed>(out[1]);
+                EXPECT_EQ(u.reason, mb::UnparsedReason::TooShort);
+                EXPECT_EQ(u.offset, 8u);
+                EXPECT_EQ(u.length, head.size());
+            }
+        }
+    }
+    // A held head, then bytes that start no tail before the input ends: the head as the silence made it,
+    // the bytes after it as the end of the input makes them (truncated).
+    mb::RtuTimedDeframer d(line);
+    mb::DeframeEvents out;
+    d.feed(hex("11 03 06 02 2B"), 1s, out);
+    d.feed(hex("11 03 06"), 1s + 20ms, out);
+    d.finish(out);
+    expect_every_byte_accounted(out, 8);
+    ASSERT_EQ(out.size(), 2u);
+    EXPECT_FALSE(std::get<mb::Frame>(out[0]).checksum_ok);
+    EXPECT_EQ(std::get<mb::Unparsed>(out[1]).reason, mb::UnparsedReason::Truncated);
+    // reset() forgets a held head: a tail after it is a stream of its own.
+    d.reset(line);
+    out.clear();
+    d.feed(hex("11 03 06 02 2B"), 1s, out);
+    d.advance(1s + 10ms, out);
+    EXPECT_TRUE(d.holding());
+    d.reset(line);
+    EXPECT_FALSE(d.holding());
+    d.feed(hex("00 00 00 64 C8 BA"), 1s + 20ms, out);
+    d.finish(out);
+    expect_every_byte_accounted(out, 6);
+    ASSERT_EQ(out.size(), 1u);
+    EXPECT_FALSE(std::get<mb::Frame>(out[0]).checksum_ok);
 }
 
 // A damaged reply alone between silences (a second device at address 2 answering too, one bit of its byte
