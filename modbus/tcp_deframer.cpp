@@ -229,7 +229,9 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
             frame.wire_length = frame.length;
             std::memcpy(frame.bytes.data(), rest.data(), step.length);
             frame.start = first_;
-            frame.end = cut ? held_until_ : last_;  // a cut frame's last byte came before the chunk
+            // A cut frame's last byte came before the chunk; never before its first (segments fed out of
+            // their capture order).
+            frame.end = cut ? std::max(first_, held_until_) : last_;
             if (frame.protocol_id() != 0) frame.findings.add(FindingCode::TcpProtocolIdNonzero);
             if (frame.length_field() > max_pdu_length + 1) frame.findings.add(FindingCode::TcpLengthInvalid);
             if (cut) frame.findings.add(FindingCode::TcpLengthBeyondSegment);
@@ -253,6 +255,8 @@ void TcpStreamDeframer::run(bool at_end, DeframeEvents& out) {
 }
 
 void TcpStreamDeframer::feed(std::span<const std::uint8_t> bytes, Timestamp received, DeframeEvents& out) {
+    // Nothing new to read; and its time would pass for the held bytes' (held_until_).
+    if (bytes.empty()) return;
     if (head_ == buf_.size()) {
         buf_.clear();
         head_ = 0;

@@ -235,12 +235,17 @@ std::vector<std::uint8_t> reply(std::uint8_t tid) {
     return long_reply(tid, 0);
 }
 
-// Feeds each chunk at its own time (chunk i at i + 1 seconds) and finishes.
-mb::DeframeEvents feed_chunks(mb::TcpStreamDeframer& d,
-                              const std::vector<std::vector<std::uint8_t>>& chunks) {
+mb::Timestamp seconds(std::int64_t s) {
+    return mb::Timestamp{s * 1'000'000'000};
+}
+
+// Feeds each chunk at its own time (chunk i at seconds_at[i], or at i + 1 seconds) and finishes.
+mb::DeframeEvents feed_chunks(mb::TcpStreamDeframer& d, const std::vector<std::vector<std::uint8_t>>& chunks,
+                              const std::vector<std::int64_t>& seconds_at = {}) {
     mb::DeframeEvents out;
     for (std::size_t i = 0; i < chunks.size(); ++i) {
-        d.feed(chunks[i], mb::Timestamp{static_cast<std::int64_t>(i + 1) * 1'000'000'000}, out);
+        d.feed(chunks[i], seconds(i < seconds_at.size() ? seconds_at[i] : static_cast<std::int64_t>(i + 1)),
+               out);
     }
     d.finish(out);
     return out;
@@ -294,6 +299,28 @@ TEST(TcpStreamDeframer, ALengthTooLongInAWholeSegmentIsCutAtTheSegmentsEnd) {
     EXPECT_EQ(cut_frames(events), 1);
     auto wrong_way = passive_deframer(mb::Direction::Request);
     EXPECT_EQ(cut_frames(feed_chunks(wrong_way, {long_reply(1, 1), reply(2)})), 0);
+}
+
+// The cut frame's time is when its own bytes came: an empty feed between does not move it, and segments fed
+// out of their capture order do not put its end before its start.
+TEST(TcpStreamDeframer, ACutFramesEndIsItsOwnBytesTime) {
+    const auto first = long_reply(1, 1), second = reply(2);
+    auto with_empty = passive_deframer(mb::Direction::Response);
+    auto events = feed_chunks(with_empty, {first, {}, second});
+    ASSERT_EQ(frames_bytes(events), (std::vector{first, second}));
+    EXPECT_EQ(std::get<mb::Frame>(events[0]).end, seconds(1));
+    EXPECT_EQ(std::get<mb::Frame>(events[1]).end, seconds(3));
+
+    // The cut frame's header and byte count at 5 s (no whole PDU yet, so not cut there), its registers
+    // stamped 3 s, the next reply at 4 s.
+    const auto split = first.begin() + 9;
+    auto out_of_order = passive_deframer(mb::Direction::Response);
+    events = feed_chunks(out_of_order, {{first.begin(), split}, {split, first.end()}, second}, {5, 3, 4});
+    ASSERT_EQ(frames_bytes(events), (std::vector{first, second}));
+    const auto& cut = std::get<mb::Frame>(events[0]);
+    EXPECT_TRUE(cut.findings.contains(mb::FindingCode::TcpLengthBeyondSegment));
+    EXPECT_EQ(cut.start, seconds(5));
+    EXPECT_GE(cut.end, cut.start);
 }
 
 // A gateway counting the CRC does so in every reply: each is cut when the next comes, itself too long. The
