@@ -1047,10 +1047,12 @@ void Analyzer::on_frame(Flow& flow, FrameRecord& r, DeviceStats* stats) {
                 "began after a silence of " + chars_text(r.frame.short_silence_before_chars) +
                 " from the line's bytes before it, below t3.5: a receiver keeping t3.5 takes them and it "
                 "as one frame, whose CRC fails (the silence as the capture's timestamps measure it)";
-        if (code == FindingCode::RtuCrcMismatch || code == FindingCode::AsciiLrcMismatch)
-            message = std::string(code == FindingCode::RtuCrcMismatch ? "CRC " : "LRC ") +
-                      hex16(r.frame.checksum_received()) + " received, " +
+        if (code == FindingCode::RtuCrcMismatch)
+            message = "CRC " + hex16(r.frame.checksum_received()) + " received, " +
                       hex16(r.frame.checksum_computed()) + " computed";
+        if (code == FindingCode::AsciiLrcMismatch)  // one byte (SL §2.5.2.2)
+            message = "LRC " + hex8(static_cast<std::uint8_t>(r.frame.checksum_received())) + " received, " +
+                      hex8(static_cast<std::uint8_t>(r.frame.checksum_computed())) + " computed";
         report(code, r, message);
     }
     if (r.pdu)

@@ -146,6 +146,7 @@ TEST(DamagedRequestAnswered, OnAnAsciiLineTheUnitThatAnsweredIsWarned) {
                                                      line(0.350, "<", chars(":0303020003F5\r\n")));
     const auto r = decode_serial(path, an::InputFormat::Text);
     ASSERT_EQ(r->sink.count(mb::FindingCode::AsciiLrcMismatch), 1);
+    EXPECT_EQ(r->sink.first(mb::FindingCode::AsciiLrcMismatch)->message, "LRC 0xF8 received, 0xF9 computed");
     const std::string unit3 = "serial " + path + " unit 3";
     expect_one_answered(r->sink, unit3, 1, 2, message(unit3, 1, "LRC", "§2.5.2.2"));
     EXPECT_EQ(r->summary.devices.at(unit3).findings.at("pair.damaged_request_answered"), 1u);
