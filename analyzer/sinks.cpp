@@ -105,6 +105,10 @@ void TextSink::transaction(const TransactionRecord& t) {
         if (!t.response->frame.checksum_ok)
             out_ << "  bad " << (t.response->frame.framing == Framing::Ascii ? "LRC" : "CRC")
                  << ", a master discards it";
+        // Paired all the same, as most masters take it (rtu.gap_inside_frame says what SL §2.5.1.1 wants).
+        else if (t.response->frame.findings.contains(FindingCode::RtuGapInsideFrame))
+            out_ << "  silence inside " << (t.response->frame.gap_at_t3_5 ? "at or above t3.5" : "above t1.5")
+                 << ", a strict master discards it";
         if (t.late_past) {
             const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(*t.late_past).count();
             if (!t.late_moved_on)

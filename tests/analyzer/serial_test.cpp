@@ -10,7 +10,9 @@
 #include <atomic>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <thread>
+#include <utility>
 
 #include "analyzer/serial_input.hpp"
 #include "analyzer/sinks.hpp"
@@ -56,6 +58,18 @@ std::unique_ptr<Run> decode_all(const std::vector<std::string>& paths, bool one_
 
 std::unique_ptr<Run> decode(const std::string& path, an::InputFormat format = an::InputFormat::Auto) {
     return decode_all({path}, false, format);
+}
+
+// The run as the text output writes it: its transactions, findings and summary.
+std::string text_output(const Run& r) {
+    std::ostringstream text;
+    an::TextSink sink(text);
+    for (const auto& t : r.sink.transactions)
+        sink.transaction(t);
+    for (const auto& f : r.sink.findings)
+        sink.finding(f);
+    sink.end(r.summary);
+    return text.str();
 }
 
 }  // namespace
@@ -1480,14 +1494,7 @@ TEST(SerialInput, AFileNameIsWrittenEscapedInTheTextOutput) {
     ASSERT_TRUE(r->ok);
     ASSERT_EQ(r->sink.transactions.size(), 2u);
     ASSERT_EQ(r->sink.count(mb::FindingCode::PairNoResponse), 1);
-    std::ostringstream text;
-    an::TextSink sink(text);
-    for (const auto& t : r->sink.transactions)
-        sink.transaction(t);
-    for (const auto& f : r->sink.findings)
-        sink.finding(f);
-    sink.end(r->summary);
-    const std::string out = text.str();
+    const std::string out = text_output(*r);
     EXPECT_EQ(out.find('\x1b'), std::string::npos) << out;
     EXPECT_EQ(out.find('\x9b'), std::string::npos) << out;
     const std::string shown = "line\\x1B[2J\\x9B31m.txt";
@@ -1578,6 +1585,30 @@ TEST(SerialInput, AReplyCutInTwoByASilenceOfT35IsUnit17sReplyNotADamagedBroadcas
         }
     }
     EXPECT_EQ(an::summary_to_json(r->summary)["damaged_broadcasts"], 0);
+}
+
+// A reply with a silence inside it is paired, as most masters take it, and its transaction line says that a
+// strict master (SL §2.5.1.1) discards it, as it says of a bad CRC.
+TEST(SerialInput, AReplyWithASilenceInsideSaysAStrictMasterDiscardsIt) {
+    const std::string request = "1.000000 11 03 00 60 00 03 07 45\n";
+    const auto above_t1_5 = write_temp("reply_gap_t15.txt", request +
+                                                                "1.020000 11 03 06 02 2B\n"
+                                                                "1.028854 00 00 00 64 C8 BA\n");  // 2.5 chars
+    const auto at_t3_5 = write_temp("reply_gap_t35.txt", request +
+                                                             "1.020000 11 03 06 02 2B\n"
+                                                             "1.031458 00 00 00 64 C8 BA\n");  // 5.0 chars
+    for (const auto& [path, shown] :
+         {std::pair{above_t1_5, "above t1.5"}, std::pair{at_t3_5, "at or above t3.5"}}) {
+        auto r = decode(path, an::InputFormat::Text);
+        ASSERT_TRUE(r->ok);
+        ASSERT_EQ(r->sink.transactions.size(), 1u);
+        ASSERT_TRUE(r->sink.transactions[0].response.has_value());
+        EXPECT_EQ(r->sink.count(mb::FindingCode::RtuGapInsideFrame), 1);
+        const auto out = text_output(*r);
+        EXPECT_NE(out.find(std::string("  silence inside ") + shown + ", a strict master discards it\n"),
+                  std::string::npos)
+            << out;
+    }
 }
 
 // The same for the master's request, cut after its fourth byte by a silence of 5 character times (MK-RTU-01
