@@ -252,9 +252,13 @@ Timestamp RtuTimedDeframer::hold_limit() const noexcept {
 
 Timestamp RtuTimedDeframer::closing_silence() const noexcept {
     if (held_ != 0 && seg_.size() == held_) return hold_limit();
-    // Bytes not yet ended by a silence that would be held at it: they wait as long. (Whether a frame verifies
-    // among them is not looked at here; one that does only comes out later.)
-    if (held_ == 0 && may_be_head(0, seg_.size())) return hold_limit();
+    // Bytes not yet ended by a silence that would be held at it: they wait as long. Bytes that verify whole
+    // are a frame, which that silence ends, not a head: a 7-byte FC3 reply reads as the front of an 8-byte
+    // request by its length alone, and a live reader showed it only after the longer wait. (A frame that
+    // verifies among other bytes is not looked for here; it only comes out later.)
+    const std::span<const std::uint8_t> run(seg_.data(), seg_.size());
+    if (held_ == 0 && may_be_head(0, run.size()) && !(run.size() >= 4 && rtu_crc_ok(run)))
+        return hold_limit();
     return line_.t3_5();
 }
 

@@ -4,6 +4,8 @@
 
 #include "deframer_util.hpp"
 #include "modbus/adu.hpp"
+#include "modbus/describe.hpp"
+#include "modbus/pdu.hpp"
 #include "test_util.hpp"
 
 namespace test_modbus_rtu_deframer_test {
@@ -357,6 +359,40 @@ TEST(RtuTimedDeframer, PiecesThatDoNotVerifyTogetherAreNotJoined) {
         EXPECT_TRUE(after.findings.size() == (c.after_ok ? 0u : 1u));
         EXPECT_EQ(after.short_silence_before_chars, 0);
     }
+}
+
+// A whole frame that is shorter than another frame its first bytes could start (a one-register FC3 reply
+// against an 8-byte request, an FC16 reply against an FC16 request, a one-byte FC1 reply) is ended by t3.5 of
+// silence, not waited for as a head: a live reader shows it then.
+TEST(RtuTimedDeframer, AHealthyShortFrameIsClosedAtT35) {
+    const mb::SerialLine line;
+    const std::uint16_t one_register[] = {43};
+    const bool one_coil[] = {true};
+    const std::vector<std::vector<std::uint8_t>> frames = {
+        mb::encode_rtu(0x11, mb::encode_pdu(mb::make_read_registers_response(
+                                 mb::FunctionCode::ReadHoldingRegisters, one_register))),
+        mb::encode_rtu(0x11, mb::encode_pdu(mb::make_write_multiple_response(
+                                 mb::FunctionCode::WriteMultipleRegisters, 0x60, 2))),
+        mb::encode_rtu(0x11,
+                       mb::encode_pdu(mb::make_read_bits_response(mb::FunctionCode::ReadCoils, one_coil))),
+    };
+    for (const auto& frame : frames) {
+        mb::RtuTimedDeframer d(line);
+        mb::DeframeEvents out;
+        d.feed(frame, 1s, out);
+        EXPECT_EQ(d.closing_silence(), line.t3_5()) << mb::hex_bytes(frame);
+        d.advance(1s + line.t3_5(), out);
+        EXPECT_FALSE(d.holding()) << mb::hex_bytes(frame);
+        ASSERT_EQ(frames_bytes(out), std::vector<std::vector<std::uint8_t>>{frame});
+        EXPECT_TRUE(std::get<mb::Frame>(out[0]).checksum_ok);
+    }
+    // The same bytes with a CRC that fails may be a head: they wait.
+    auto damaged = frames[0];
+    damaged.back() ^= 0x01;
+    mb::RtuTimedDeframer d(line);
+    mb::DeframeEvents out;
+    d.feed(damaged, 1s, out);
+    EXPECT_EQ(d.closing_silence(), 100ms);
 }
 
 // A head held for its tail that none completes before finish() or before advance() passes the longest
