@@ -506,7 +506,8 @@ std::optional<Semantics::LineSettingsTold> Semantics::follow_broadcast_line_sett
     const auto w = written_registers(q);
     if (!w) return std::nullopt;
     auto told = line_settings_written(device, profile, w->start, w->values, "broadcast");
-    keep(device, w->start, w->values, true);  // taken without a reply: as an acknowledged write's values
+    keep(profile, device, Table::HoldingRegisters, w->start,
+         w->values);  // taken without a reply: as an acknowledged write's values
     return told;
 }
 
@@ -549,13 +550,13 @@ std::optional<RuleBreak> Semantics::follow_address(const std::string& server, co
 void Semantics::remember(const Profile& profile, const std::string& device, const Pdu& q, const Pdu& a) {
     if (a.is_exception()) return;
     if (const auto w = written_registers(q))
-        keep(device, w->start, w->values, true);  // FC23: before its read
+        keep(profile, device, Table::HoldingRegisters, w->start, w->values);  // FC23: before its read
     for (const WrittenPoint& p : written_points(q))
         keep_state(profile, device, p.table, p.address, std::span<const std::uint16_t>(&p.value, 1));
     const auto span = read_span(q);
     if (!span) return;
     if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body)) {
-        keep(device, span->start, regs->values, span->table == Table::HoldingRegisters);
+        keep(profile, device, span->table, span->start, regs->values);
         keep_state(profile, device, span->table, span->start, regs->values);
     }
     if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) {
@@ -566,11 +567,15 @@ void Semantics::remember(const Profile& profile, const std::string& device, cons
     }
 }
 
-void Semantics::keep(const std::string& device, std::uint16_t start, std::span<const std::uint16_t> words,
-                     bool holding_table) {
-    // Every register by its address (decoding takes context from any table: a decimal point read by FC3
-    // scales an FC4 value), and the holding registers apart (what a write of line settings changes).
-    auto &seen = registers_[device], &holding = holding_[device];
+void Semantics::keep(const Profile& profile, const std::string& device, Table table, std::uint16_t start,
+                     std::span<const std::uint16_t> words) {
+    // Every register in its table as the profile resolves it (a decimal point read by FC3 scales an FC4 value
+    // of a device that serves one map through both; a device with two maps takes no 32-bit half from the
+    // other), and the holding registers read or written apart (what a write of line settings changes).
+    const bool holding_table = table == Table::HoldingRegisters;
+    auto& context = registers_[device];
+    auto& seen = profile.resolve(table) == Table::InputRegisters ? context.input : context.holding;
+    auto& holding = holding_[device];
     for (std::size_t i = 0; i < count_within_address_space(start, words.size()); ++i) {
         seen[static_cast<std::uint16_t>(start + i)] = words[i];
         if (holding_table) holding[static_cast<std::uint16_t>(start + i)] = words[i];

@@ -105,13 +105,14 @@ class Semantics {
     std::vector<std::pair<DeviceSelector, std::shared_ptr<const modbus::Profile>>> maps_;
     mutable std::vector<SelectorUse> uses_;       // beside maps_, filled by profile_for
     mutable std::set<std::string> line_checked_;  // devices check_line has looked at
-    // `words` seen at `start` on `device`: in registers_, and in holding_ when they are holding registers.
-    void keep(const std::string& device, std::uint16_t start, std::span<const std::uint16_t> words,
-              bool holding_table);
-    std::map<std::string, std::map<std::uint16_t, std::uint16_t>> registers_;  // device → last values seen
-    std::map<std::string, std::map<std::uint16_t, std::uint16_t>> holding_;    // the holding registers alone
+    // `words` of `table` seen at `start` on `device`: in registers_, and in holding_ when they are holding
+    // registers.
+    void keep(const modbus::Profile& profile, const std::string& device, modbus::Table table,
+              std::uint16_t start, std::span<const std::uint16_t> words);
+    std::map<std::string, modbus::RegisterContext> registers_;               // device → last values seen
+    std::map<std::string, std::map<std::uint16_t, std::uint16_t>> holding_;  // the holding registers alone
     // device → (table as the profile resolves it, address) → the last value seen, bits as 0/1: what a
-    // conditional access asks (registers_ mixes the tables, and keeps no bits).
+    // conditional access asks (registers_ keeps only what decoding asks, and no bits).
     std::map<std::string, std::map<std::pair<modbus::Table, std::uint16_t>, std::uint16_t>> state_;
     // Per profile, the points others' access depends on (read_only_when), by resolved table.
     std::map<const modbus::Profile*, std::set<std::pair<modbus::Table, std::uint16_t>>> conditions_;

@@ -54,7 +54,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                                                    " is not found at its own address");
                 // Every encoding shows a value, its formula evaluated and its decimal point looked up.
                 (void)modbus::decode_registers(p, table, point.address, {0x8001, 0xFFFF},
-                                               {{point.address, 0x0003}});
+                                               {{{point.address, 0x0003}}, {{point.address, 0x0003}}});
             }
             (void)modbus::check_read(p, table, 0, 125);
             (void)modbus::check_writes(p, table, 0, std::vector<std::uint16_t>(16, 0xFFFF));

@@ -385,28 +385,41 @@ bool in_block(std::uint16_t address, std::uint16_t start, const std::vector<std:
     return address >= start && address - start < static_cast<int>(words.size());
 }
 
-std::optional<std::uint16_t> word_at(std::uint16_t address, std::uint16_t start,
-                                     const std::vector<std::uint16_t>& words,
-                                     const std::map<std::uint16_t, std::uint16_t>& context) {
-    if (in_block(address, start, words)) return words[address - start];
-    if (auto it = context.find(address); it != context.end()) return it->second;
-    return std::nullopt;
-}
+// The registers a block is decoded with: its own words, then those known from elsewhere, each in its table.
+struct Known {
+    const Profile& profile;
+    Table table;  // the block's
+    std::uint16_t start;
+    const std::vector<std::uint16_t>& words;
+    const RegisterContext& context;
+
+    // Register `address` of table `t`, from the block when it is the block's table (or the same map).
+    std::optional<std::uint16_t> at(Table t, std::uint16_t address) const {
+        const Table resolved = profile.resolve(t);
+        if (resolved == profile.resolve(table) && in_block(address, start, words))
+            return words[address - start];
+        if (resolved != Table::HoldingRegisters && resolved != Table::InputRegisters) return std::nullopt;
+        const auto& seen = resolved == Table::InputRegisters ? context.input : context.holding;
+        if (auto it = seen.find(address); it != seen.end()) return it->second;
+        return std::nullopt;
+    }
+    std::optional<std::uint16_t> at(std::uint16_t address) const { return at(table, address); }
+    std::optional<std::uint16_t> at(const PointRef& ref) const { return at(ref.table, ref.address); }
+};
 
 // The decimals of a value: the encoding's own, or those another register gives (`decimals_from`).
 struct Decimals {
     std::optional<int> places;
     std::string why_not;  // when there are none: " (unscaled: ...)"
 };
-Decimals decimals_of(const Profile& profile, const Encoding& e, std::uint16_t start,
-                     const std::vector<std::uint16_t>& words,
-                     const std::map<std::uint16_t, std::uint16_t>& context) {
+Decimals decimals_of(const Encoding& e, const Known& known) {
+    const Profile& profile = known.profile;
     if (!e.decimals_unknown.empty()) return {std::nullopt, " (unscaled: " + e.decimals_unknown + ")"};
     if (const auto& field = e.decimals_from_byte) {
         // One byte of the register is this value's decimal point, the other another value's, and the manual
         // does not say which: known when both hold the same. (Shown as a plain number, 100000 was taken for
         // a set-point of 100000 where the device meant 1000.00.)
-        const auto d = word_at(field->address, start, words, context);
+        const auto d = known.at(*field);
         const std::string reg = "register " + std::to_string(field->address);
         if (!d) return {std::nullopt, " (unscaled: decimal point unknown, " + reg + " not seen)"};
         const int high = *d >> 8, low = *d & 0xFF;
@@ -423,7 +436,7 @@ Decimals decimals_of(const Profile& profile, const Encoding& e, std::uint16_t st
     if (const auto& choice = e.decimals_selected) {
         // The register that gives the decimals is the one the selector's value names; with the selector not
         // known, so is the decimal point not.
-        const auto selected = word_at(choice->selector.address, start, words, context);
+        const auto selected = known.at(choice->selector);
         if (!selected)
             return {std::nullopt, " (unscaled: decimal point unknown, register " +
                                       std::to_string(choice->selector.address) +
@@ -436,7 +449,7 @@ Decimals decimals_of(const Profile& profile, const Encoding& e, std::uint16_t st
                                       ", which selects no decimal point register)"};
     }
     if (!decimals_from) return {e.decimals, {}};
-    const auto d = word_at(decimals_from->address, start, words, context);
+    const auto d = known.at(*decimals_from);
     if (!d) return {std::nullopt, " (unscaled: decimal point unknown)"};
     // What that register may hold: 0 to 9, and within its own enumeration and range (MK's PT.DEC of a
     // totalization, 0 to 7: 000:1358). Another value is no number of places, and is said to be.
@@ -509,7 +522,8 @@ NamedValue with_text(NamedValue v) {
 
 std::vector<NamedValue> decode_registers(const Profile& profile, Table table, std::uint16_t start,
                                          const std::vector<std::uint16_t>& words,
-                                         const std::map<std::uint16_t, std::uint16_t>& context) {
+                                         const RegisterContext& context) {
+    const Known known{profile, table, start, words, context};
     std::vector<NamedValue> out;
     // Words past address 65535 (a reply to a read that ran past the end) are named by nothing here.
     const std::size_t in_space = count_within_address_space(start, words.size());
@@ -541,7 +555,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
             // word); a block that starts here (a read from the middle of a value, a write of one register)
             // still shows it: whole when the first half is known from elsewhere, else alone.
             if (address != start) continue;
-            if (auto first = word_at(p.address, start, words, context)) {
+            if (auto first = known.at(p.address)) {
                 whole_32(*first, w);
                 earlier(p.address);
             } else {
@@ -564,7 +578,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 break;
             case EncodingType::Scaled: {
                 const double raw = e.is_signed ? static_cast<std::int16_t>(w) : w;
-                const auto decimals = decimals_of(profile, e, start, words, context);
+                const auto decimals = decimals_of(e, known);
                 v.partial = !decimals.places;  // shown unscaled, and said to be
                 v.number = raw / std::pow(10.0, decimals.places.value_or(0));
                 v.text = format_number(*v.number, decimals.places.value_or(0)) + decimals.why_not;
@@ -595,7 +609,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
             case EncodingType::U32High: {
                 const bool high_first =
                     e.type == EncodingType::Digits4High || e.type == EncodingType::U32High;
-                auto other = e.pair ? word_at(*e.pair, start, words, context) : std::nullopt;
+                auto other = e.pair ? known.at(*e.pair) : std::nullopt;
                 const bool digits = e.type == EncodingType::Digits4High || e.type == EncodingType::Digits4Low;
                 if (!other) {
                     v.partial = true;
@@ -623,7 +637,7 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
                 earlier(*e.pair);
                 // A total whose decimal point another register gives (MK 3.13, 3.22: PT.DEC of the
                 // totalization, 000:1243): shown unscaled, and said to be, while that register is unknown.
-                const auto decimals = decimals_of(profile, e, start, words, context);
+                const auto decimals = decimals_of(e, known);
                 v.number = whole / std::pow(10.0, decimals.places.value_or(0));
                 v.text = format_number(*v.number, decimals.places.value_or(0)) + decimals.why_not;
                 v.partial = !decimals.places;
@@ -632,9 +646,8 @@ std::vector<NamedValue> decode_registers(const Profile& profile, Table table, st
             case EncodingType::U32:
             case EncodingType::S32:
             case EncodingType::F32: {
-                auto second = address == 0xFFFF
-                                  ? std::nullopt
-                                  : word_at(static_cast<std::uint16_t>(address + 1), start, words, context);
+                auto second =
+                    address == 0xFFFF ? std::nullopt : known.at(static_cast<std::uint16_t>(address + 1));
                 if (!second) {
                     v.partial = true;
                     v.text = std::to_string(w) + " (first half only)";

@@ -339,12 +339,20 @@ std::optional<std::string> set_word_order(Profile& profile, WordOrder order);
 // Shortest text that reads back as the same float ("1.5", "0.000123", "1e-10", "nan", "-inf").
 std::string float_text(float f);
 
+// Registers known from outside a block, by table: a 32-bit value's other half, a decimal point register. The
+// input registers are apart from the holding registers unless the profile makes them one map (same_as, as
+// MK's): input register 11 of a device with two maps is no half of holding register 10.
+struct RegisterContext {
+    std::map<std::uint16_t, std::uint16_t> holding = {};
+    std::map<std::uint16_t, std::uint16_t> input = {};  // kept apart from `holding` only (resolve())
+};
+
 // Decode a block of raw registers read from `start` (FC3/FC4 reply) into named, scaled values.
-// `context` supplies registers outside the block (decimal-point registers), may be empty. Words past address
-// 65535 get no value (they are not wrapped round to address 0).
+// `context` supplies registers outside the block, may be empty. Words past address 65535 get no value (they
+// are not wrapped round to address 0).
 std::vector<NamedValue> decode_registers(const Profile& profile, Table table, std::uint16_t start,
                                          const std::vector<std::uint16_t>& words,
-                                         const std::map<std::uint16_t, std::uint16_t>& context = {});
+                                         const RegisterContext& context = {});
 
 // Would the device accept reading `quantity` items from `start` in table `t` (FC1-FC4, FC23's read part)?
 // nullopt: yes; otherwise the profile's code for a bad address (02 unless the manual gives another): an

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 #include "analyzer/analyzer.hpp"
@@ -32,10 +33,14 @@ struct Harness {
     mb::Timestamp t = 1s;
     std::uint16_t tid = 0;
     std::uint8_t unit = 1;  // of the exchanges to come
-    // The fixture profile for every device, or a bundled one mapped to one unit (--map UNIT=ID).
-    explicit Harness(const std::string& id = "test-device", std::optional<int> mapped_unit = std::nullopt) {
-        mb::storage::ProfileStore store({std::string(MBSCOPE_SOURCE_DIR) +
-                                         (id == "test-device" ? "/tests/fixtures/profiles" : "/profiles")});
+    // The fixture profile for every device, or a bundled one mapped to one unit (--map UNIT=ID), or one of
+    // the profiles in `dir`.
+    explicit Harness(const std::string& id = "test-device", std::optional<int> mapped_unit = std::nullopt,
+                     const std::string& dir = {}) {
+        mb::storage::ProfileStore store(
+            {!dir.empty() ? dir
+                          : std::string(MBSCOPE_SOURCE_DIR) +
+                                (id == "test-device" ? "/tests/fixtures/profiles" : "/profiles")});
         auto p = store.load(id);
         EXPECT_TRUE(p.has_value());
         an::AnalyzerOptions o;
@@ -644,6 +649,56 @@ TEST(Semantics, WhatADeviceWasSeenHoldingMovesWithItsAddress) {
     h.analyzer->finish();
     EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileWriteReadOnly), 1);
     EXPECT_EQ(h.sink.count(mb::FindingCode::ProfileAddressMoved), 2);
+}
+
+// A device with an input register map of its own: a 32-bit input value read from its second half takes no
+// first half from the holding register at the same address, and an input register read is no half of a
+// holding register's value (a made-up 66036 kWh from set-point 500 and input register 11).
+TEST(Semantics, A32BitValueTakesItsOtherHalfFromItsOwnTableOnly) {
+    const std::string dir = ::testing::TempDir() + "semantics_two_maps";
+    std::filesystem::create_directories(dir);
+    std::ofstream(dir + "/two-maps.json") << R"({
+  "format": "mbscope-profile/1", "family": "two-maps", "vendor": "Test Vendor", "title": "Two maps",
+  "source": {"manual": "none", "section": "tests", "lines": "test:1"},
+  "line": {"transports": ["tcp"], "unit_id": {"min": 1, "max": 247}},
+  "functions": {"supported": [3, 4]},
+  "tables": {
+    "holding_registers": [
+      {"address": 10, "name": "limite", "name_en": "limit", "access": "rw",
+       "encoding": {"type": "u32", "word_order": "abcd"}, "source": "test:10"},
+      {"address": 12, "name": "ajuste", "name_en": "setpoint", "access": "rw", "source": "test:12"}
+    ],
+    "input_registers": [
+      {"address": 10, "name": "energia", "name_en": "energy", "access": "r", "unit": "kWh",
+       "encoding": {"type": "u32", "word_order": "abcd"}, "source": "test:20"}
+    ]
+  },
+  "models": [{"id": "two-maps", "name": "TWO-MAPS", "source": "test:1"}]
+})";
+    Harness h("two-maps", std::nullopt, dir);
+    const std::uint16_t limit[] = {0x0001, 0x0002}, energy_low[] = {0x0003};
+    // Holding 10-11 seen: 65538. Then input register 11 alone: its first half is input register 10, unseen.
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 10, 2),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, limit));
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadInputRegisters, 11, 1),
+               mb::make_read_registers_response(mb::FunctionCode::ReadInputRegisters, energy_low));
+    // And holding register 10 alone after it: its second half is holding register 11 (2), not input 11 (3).
+    const std::uint16_t limit_high[] = {0x0001};
+    h.exchange(mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 10, 1),
+               mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, limit_high));
+    h.analyzer->finish();
+    ASSERT_EQ(h.sink.transactions.size(), 3u);
+    ASSERT_EQ(h.sink.transactions[0].values.size(), 1u);
+    EXPECT_EQ(h.sink.transactions[0].values[0].text, "65538");
+    ASSERT_EQ(h.sink.transactions[1].values.size(), 1u);
+    const auto& energy = h.sink.transactions[1].values[0];
+    EXPECT_TRUE(energy.partial);
+    EXPECT_EQ(energy.text, "3 (second half only)");
+    EXPECT_FALSE(energy.other_half_earlier.has_value());
+    ASSERT_EQ(h.sink.transactions[2].values.size(), 1u);
+    const auto& again = h.sink.transactions[2].values[0];
+    EXPECT_EQ(again.text, "65538");
+    EXPECT_EQ(again.other_half_earlier, std::optional<std::uint16_t>{11});
 }
 
 }  // namespace test_analyzer_semantics_test

@@ -114,7 +114,7 @@ TEST(ProfileLoader, DecodesNamedScaledValues) {
     auto l = load(mk_like);
     const auto& p = l.profiles[0];
     // PV 1234 with PT.DEC 2 given as context, filter 10 → 1.0 s, setpoint 0xFC19 = -999.
-    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 0, {1234}, {{17, 2}});
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 0, {1234}, {{{17, 2}}});
     ASSERT_EQ(v.size(), 1u);
     EXPECT_DOUBLE_EQ(*v[0].number, 12.34);
     EXPECT_EQ(v[0].text, "12.34");
@@ -173,7 +173,7 @@ TEST(ProfileLoader, ABlockStartingAtASecondHalfShowsIt) {
     // The first half known from elsewhere (an earlier read): the whole value, 1.5 in cdab order, which says
     // where its other half came from (that half may have changed since: a value glued from halves read
     // minutes apart was shown as the device's).
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 71, {0x3FC0}, {{70, 0x0000}});
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 71, {0x3FC0}, {{{70, 0x0000}}});
     ASSERT_EQ(v.size(), 1u);
     EXPECT_FALSE(v[0].partial);
     EXPECT_DOUBLE_EQ(*v[0].number, 1.5);
@@ -181,14 +181,14 @@ TEST(ProfileLoader, ABlockStartingAtASecondHalfShowsIt) {
     EXPECT_EQ(v[0].other_half_earlier, std::optional<std::uint16_t>(70));
     EXPECT_EQ(mb::named_value_to_json(v[0])["other_half_earlier"], 70);
     // So does a first half completed from an earlier reply, and a decimal split's other register.
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 70, {0x0000}, {{71, 0x3FC0}});
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 70, {0x0000}, {{{71, 0x3FC0}}});
     EXPECT_DOUBLE_EQ(*v[0].number, 1.5);
     EXPECT_EQ(v[0].other_half_earlier, std::optional<std::uint16_t>(71));
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 60, {1234}, {{61, 5678}});
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 60, {1234}, {{{61, 5678}}});
     EXPECT_DOUBLE_EQ(*v[0].number, 12345678.0);
     EXPECT_EQ(v[0].other_half_earlier, std::optional<std::uint16_t>(61));
     // Inside a block that holds the first half, the second is still taken with it, from this block.
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 69, {1, 0x0000, 0x3FC0}, {{70, 9}, {71, 9}});
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 69, {1, 0x0000, 0x3FC0}, {{{70, 9}, {71, 9}}});
     ASSERT_EQ(v.size(), 2u);
     EXPECT_EQ(v[1].address, 70);
     EXPECT_DOUBLE_EQ(*v[1].number, 1.5);
@@ -545,8 +545,8 @@ TEST(ProfileLoader, DecimalsSelectedByAnotherRegisterAreChecked) {
     };
     EXPECT_EQ(pointers_and_messages(l), expected);
     ASSERT_EQ(l.profiles.size(), 1u);
-    auto v =
-        mb::decode_registers(l.profiles[0], mb::Table::HoldingRegisters, 1, {1234}, {{7, 1}, {8, 2}, {9, 1}});
+    auto v = mb::decode_registers(l.profiles[0], mb::Table::HoldingRegisters, 1, {1234},
+                                  {{{7, 1}, {8, 2}, {9, 1}}});
     ASSERT_EQ(v.size(), 1u);
     EXPECT_EQ(v[0].text, "12.34");
 }

@@ -82,7 +82,7 @@ TEST(CthValues, APairsRegistersAreGivenInAddressOrder) {
     }
     // MK's four first digits are at the lower address (000:1243): the same order is theirs.
     const auto mk = mb::decode_registers(bundled("mmk-2030-tot"), mb::Table::HoldingRegisters, 2,
-                                         {1234, 5678}, {{125, 0}});
+                                         {1234, 5678}, {{{125, 0}}});
     ASSERT_FALSE(mk.empty());
     EXPECT_EQ(mk[0].raw, (std::vector<std::uint16_t>{1234, 5678}));
 }
@@ -98,7 +98,7 @@ TEST(MkValues, ATotalTakesTheDecimalPointOfItsTotalization) {
         SCOPED_TRACE(c.id);
         const auto& p = bundled(c.id);
         auto v =
-            mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1234, 5678}, {{c.decimals, 3}});
+            mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1234, 5678}, {{{c.decimals, 3}}});
         ASSERT_EQ(v.size(), 2u);
         EXPECT_DOUBLE_EQ(*v[0].number, 12345.678);
         EXPECT_EQ(v[0].text, "12345.678");
@@ -109,16 +109,16 @@ TEST(MkValues, ATotalTakesTheDecimalPointOfItsTotalization) {
         EXPECT_EQ(v[0].text, "12345678 (unscaled: decimal point unknown)");
         EXPECT_EQ(v[0].number, std::nullopt);
         // A PT.DEC its own enumeration does not allow (0 to 7 places, 000:1358) is no number of places.
-        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1234, 5678}, {{c.decimals, 8}});
+        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1234, 5678}, {{{c.decimals, 8}}});
         EXPECT_TRUE(v[0].partial);
         EXPECT_EQ(v[0].text, "12345678 (unscaled: its decimal point register " + std::to_string(c.decimals) +
                                  " holds 8, no number of places)");
         // Four digits a register (000:1243): a half above 9999 is no total. Before, 10000 and 0 read as
         // 100000000.
-        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {10000, 0}, {{c.decimals, 3}});
+        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {10000, 0}, {{{c.decimals, 3}}});
         EXPECT_EQ(v[0].number, std::nullopt);
         EXPECT_EQ(v[0].text, "10000 0 (not digits: each half holds four, 0 to 9999)");
-        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1, 65535}, {{c.decimals, 3}});
+        v = mb::decode_registers(p, mb::Table::HoldingRegisters, c.total, {1, 65535}, {{{c.decimals, 3}}});
         EXPECT_EQ(v[0].number, std::nullopt);
     }
 }
@@ -158,7 +158,7 @@ TEST(WalchemValues, ABitTheMapDoesNotNameIsShownByItsNumber) {
 // selector is seen the value is unscaled, and said to be.
 TEST(MkValues, TyRetransmissionLimitsTakeTheDecimalsOfTheInputTheirOutputFollows) {
     const auto& p = bundled("ty-2090");
-    const std::map<std::uint16_t, std::uint16_t> seen{{17, 1}, {18, 3}, {27, 1}, {28, 0}};
+    const mb::RegisterContext seen{{{17, 1}, {18, 3}, {27, 1}, {28, 0}}};
     auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 97, {1234, 1234, 1234, 1234}, seen);
     ASSERT_EQ(v.size(), 4u);
     EXPECT_EQ(v[0].text, "1.234");
@@ -166,10 +166,10 @@ TEST(MkValues, TyRetransmissionLimitsTakeTheDecimalsOfTheInputTheirOutputFollows
     EXPECT_EQ(v[2].text, "1.234");
     EXPECT_EQ(v[3].text, "123.4");
     EXPECT_FALSE(v[0].partial);
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 97, {1234}, {{17, 1}, {18, 3}});
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 97, {1234}, {{{17, 1}, {18, 3}}});
     EXPECT_TRUE(v[0].partial);
     EXPECT_EQ(v[0].text, "1234 (unscaled: decimal point unknown, register 27 that selects it not seen)");
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 98, {1234}, {{17, 1}, {18, 3}, {28, 5}});
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 98, {1234}, {{{17, 1}, {18, 3}, {28, 5}}});
     EXPECT_EQ(v[0].text, "1234 (unscaled: register 28 holds 5, which selects no decimal point register)");
     // The -F model alike; the MMK-2030's 97 stays on channel 1 (000:626).
     v = mb::decode_registers(bundled("ty-2090-f"), mb::Table::HoldingRegisters, 97, {1234}, seen);
@@ -200,11 +200,11 @@ TEST(MkValues, AValueTheManualListsAsNotAllowedIsRefused) {
 // point, else unscaled and said to be; the total at 4006-4007, whose point no register is named for, alike.
 TEST(CthValues, AVariableDecimalPointIsTakenFromItsRegisterOrSaidUnknown) {
     const auto& p = bundled("cth2265i");
-    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4012, {0x86A0, 0x0001}, {{4020, 0x0202}});
+    auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4012, {0x86A0, 0x0001}, {{{4020, 0x0202}}});
     ASSERT_EQ(v.size(), 2u);
     EXPECT_EQ(v[0].text, "1000.00");
     EXPECT_DOUBLE_EQ(*v[0].number, 1000.0);
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4012, {0x86A0, 0x0001}, {{4020, 0x0203}});
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4012, {0x86A0, 0x0001}, {{{4020, 0x0203}}});
     EXPECT_TRUE(v[0].partial);
     EXPECT_EQ(v[0].number, std::nullopt);
     EXPECT_EQ(v[0].text,
@@ -212,7 +212,7 @@ TEST(CthValues, AVariableDecimalPointIsTakenFromItsRegisterOrSaidUnknown) {
               "manual does not say which is this value's)");
     v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4022, {0x86A0, 0x0001});
     EXPECT_EQ(v[0].text, "100000 (unscaled: decimal point unknown, register 4026 not seen)");
-    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4006, {0x001A, 0x0F1B}, {{4010, 0x0303}});
+    v = mb::decode_registers(p, mb::Table::HoldingRegisters, 4006, {0x001A, 0x0F1B}, {{{4010, 0x0303}}});
     EXPECT_TRUE(v[0].partial);
     EXPECT_NE(v[0].text.find("(unscaled: the manual names no register for its decimal point"),
               std::string::npos)
