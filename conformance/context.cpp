@@ -189,8 +189,9 @@ std::optional<std::uint16_t> valid_alternative(const modbus::Point* p, std::uint
 
 bool freely_writable(const modbus::Point& p) {
     // A point mirroring a line setting is never written: a valid value takes the device off the line.
-    if (p.access != modbus::Access::ReadWrite || p.reserved || p.fixed_value || p.encoding.words != 1 ||
-        p.min_from || p.max_from || p.mirrors || p.read_only_when)
+    // Nor is a momentary command: writing it acts, and writing the old value back undoes nothing.
+    if (p.access != modbus::Access::ReadWrite || p.reserved || p.momentary || p.fixed_value ||
+        p.encoding.words != 1 || p.min_from || p.max_from || p.mirrors || p.read_only_when)
         return false;
     std::string n = p.name_en + " " + p.name;
     std::transform(n.begin(), n.end(), n.begin(),

@@ -19,7 +19,8 @@ namespace {
 const modbus::Point* first_writable(const modbus::Profile& p, Table t, int words) {
     for (const auto& pt : p.table(t)) {
         if (words == 1 && freely_writable(pt)) return &pt;
-        if (words == 2 && pt.access == modbus::Access::ReadWrite && !pt.reserved && pt.encoding.words == 2)
+        if (words == 2 && pt.access == modbus::Access::ReadWrite && !pt.reserved && !pt.momentary &&
+            pt.encoding.words == 2)
             return &pt;
     }
     return nullptr;

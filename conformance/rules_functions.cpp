@@ -45,7 +45,7 @@ std::optional<std::vector<std::uint8_t>> harmless_request(Context& c, std::uint8
         case 5:
         case 15: {
             const auto at = rewritable(c, Table::Coils, [](const modbus::Point& p) {
-                return p.access == modbus::Access::ReadWrite && !p.reserved;
+                return p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary;
             });
             if (!at) {
                 why_not = "no readable and writable coil to rewrite with its own value";
@@ -68,8 +68,8 @@ std::optional<std::vector<std::uint8_t>> harmless_request(Context& c, std::uint8
         case 22:
         case 23: {
             const auto at = rewritable(c, Table::HoldingRegisters, [](const modbus::Point& p) {
-                return p.access == modbus::Access::ReadWrite && !p.reserved && p.encoding.words == 1 &&
-                       !p.fixed_value;
+                return p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary &&
+                       p.encoding.words == 1 && !p.fixed_value;
             });
             if (!at) {
                 why_not = "no readable and writable register to rewrite with its own value";

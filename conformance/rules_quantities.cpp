@@ -22,7 +22,8 @@ std::optional<std::uint16_t> writable_run(const Context& c, Table t, std::uint32
     std::optional<std::uint16_t> start;
     std::optional<std::uint16_t> previous;
     for (const auto& p : c.profile.table(t)) {
-        const bool ok = p.access == modbus::Access::ReadWrite && !p.reserved && !p.fixed_value;
+        const bool ok =
+            p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary && !p.fixed_value;
         for (int w = 0; w < p.encoding.words; ++w) {
             const auto a = static_cast<std::uint16_t>(p.address + w);
             if (ok && previous && a == *previous + 1 && length > 0) {

@@ -232,7 +232,15 @@ void check_write_encoding(Context& c) {
                   // to read (the CTH2265I's map has none: the read is refused) still gets the request: the
                   // value is judged before the address (AP §6.5), and there is nothing there to restore. A
                   // read that went unanswered says nothing of the kind: the coil may be there, unkept.
-                  const auto start = c.facts(Table::Coils).first_valid().value_or(0);
+                  auto start = c.facts(Table::Coils).first_valid().value_or(0);
+                  // Not at a momentary command (a device that takes the value would act on it): at the
+                  // first coil that is none.
+                  if (const auto* there = c.profile.find(Table::Coils, start); there && there->momentary)
+                      for (const auto& p : c.profile.table(Table::Coils))
+                          if (!p.momentary) {
+                              start = p.address;
+                              break;
+                          }
                   if (!c.session.remember(Table::Coils, start, 1) && !c.session.last_read_refused()) {
                       r.outcome = Outcome::Error;
                       r.reason = "the coil's value could not be read, so nothing was written";
@@ -301,9 +309,14 @@ void check_write_encoding(Context& c) {
                   // an executed write shows on reading back.
                   const modbus::Point* wc = nullptr;
                   for (const auto& p : c.profile.table(Table::Coils))
-                      if (!wc && p.access == modbus::Access::ReadWrite && !p.reserved) wc = &p;
+                      if (!wc && p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary)
+                          wc = &p;
                   const auto first = c.facts(Table::Coils).first_valid();
                   const std::uint16_t start = wc ? wc->address : first.value_or(0);
+                  // The first coil when none is freely writable: a momentary command there is sent 0, which a
+                  // device that wrongly executes the write takes as no command.
+                  const auto* at_start = c.profile.find(Table::Coils, start);
+                  const bool pressed_if_executed = !wc && at_start && at_start->momentary;
                   std::optional<bool> now;
                   if (wc || first) {
                       if (!c.session.remember(Table::Coils, start, 1)) {
@@ -322,7 +335,7 @@ void check_write_encoding(Context& c) {
                       0x00,
                       0x01,
                       0x02,
-                      static_cast<std::uint8_t>(now && !*now ? 0x01 : 0x00),
+                      static_cast<std::uint8_t>(now && !*now && !pressed_if_executed ? 0x01 : 0x00),
                       0x00};
                   expect_exception(r, c.session.request(pdu, "quantity 1, byte count 2"), 15, 0x03);
                   if (!now) return;

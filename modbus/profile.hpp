@@ -154,6 +154,10 @@ struct Point {
     std::string unit;
     std::optional<std::uint16_t> fixed_value;
     bool reserved = false;
+    // A write-1-to-act command (Walchem "Gravar 1 para ...", 002:412-417 call them reset buttons): a write
+    // acts on the device, and no later write undoes it, so a run that restores what it wrote must not write
+    // it.
+    bool momentary = false;
     bool reconstructed = false;
     std::string reconstructed_why;  // the profile's reason and the lines it was reconstructed from
     std::string source;             // "000:493"

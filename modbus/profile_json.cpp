@@ -55,6 +55,7 @@ json point_to_json(const Point& p) {
     if (!p.unit.empty()) j["unit"] = p.unit;
     if (p.fixed_value) j["fixed_value"] = *p.fixed_value;
     if (p.reserved) j["reserved"] = true;
+    if (p.momentary) j["momentary"] = true;
     if (p.reconstructed)
         j["reconstructed"] =
             p.reconstructed_why.empty() ? nlohmann::json(true) : nlohmann::json(p.reconstructed_why);

@@ -428,6 +428,12 @@ std::optional<RawPoint> parse_point(Reader& r, const json& j, const std::string&
     if (auto f = r.integer(j, "fixed_value", ptr, false, 0, 65535))
         p.fixed_value = static_cast<std::uint16_t>(*f);
     if (auto res = r.child(j, "reserved"); res && res->is_boolean()) p.reserved = res->get<bool>();
+    if (const auto* m = r.child(j, "momentary")) {
+        if (m->is_boolean())
+            p.momentary = m->get<bool>();
+        else
+            r.error(ptr + "/momentary", "must be true or false");
+    }
     if (const auto* rec = r.child(j, "reconstructed")) {
         p.reconstructed = true;
         if (rec->is_object()) {

@@ -82,7 +82,7 @@ class Campaign {
         health_ = health_request();
         rng_.seed(options.seed ^ 0x9E3779B97F4A7C15ull);
         for (const auto& p : profile.table(Table::HoldingRegisters))
-            if (p.access == modbus::Access::ReadWrite && !p.reserved && !p.fixed_value)
+            if (p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary && !p.fixed_value)
                 rewritable_.push_back(&p);
         std::shuffle(rewritable_.begin(), rewritable_.end(), rng_);
         session_.share_owed(owed_);

@@ -31,10 +31,12 @@ bool writes(std::uint8_t fc) {
 Generator::Generator(const modbus::Profile& profile, GeneratorOptions options)
     : profile_(profile), options_(options), rng_(options.seed), functions_(profile.functions.supported) {
     if (functions_.empty()) functions_.assign(public_functions.begin(), public_functions.end());
+    // Writes aim at the writable points, but not at momentary commands: one acts on the device, and the
+    // campaign's restore cannot undo it (an address drawn at random may still reach one).
     for (const auto& p : profile.table(Table::HoldingRegisters))
-        if (p.access != modbus::Access::Read) writable_registers_.push_back(&p);
+        if (p.access != modbus::Access::Read && !p.momentary) writable_registers_.push_back(&p);
     for (const auto& p : profile.table(Table::Coils))
-        if (p.access != modbus::Access::Read) writable_coils_.push_back(&p);
+        if (p.access != modbus::Access::Read && !p.momentary) writable_coils_.push_back(&p);
 }
 
 bool Generator::allowed(const std::vector<std::uint8_t>& pdu) const {

@@ -47,6 +47,13 @@ TEST_P(EveryProfileOverTcp, CertifiesWithNoFailureAndRestoresEverything) {
     RunningServer server({}, 1, GetParam());
     const auto run = certify(server, "tcp", GetParam());
     expect_clean(run, 150);
+    // No momentary command was written (Walchem's "write 1 to reset" points): writing one acts, and no
+    // restore undoes that. Every point written is in the restore list.
+    const auto& profile = slave::test::profile(GetParam());
+    for (const auto& t : run.report.restored) {
+        const auto* point = profile.find(t.table, t.address);
+        EXPECT_FALSE(point && point->momentary) << modbus::to_string(t.table) << ' ' << t.address;
+    }
     // Every rule names where it comes from and says what it checks.
     for (const auto& x : run.report.results) {
         EXPECT_FALSE(x.rule.id.empty());

@@ -126,8 +126,8 @@ std::vector<FaultCase> fault_cases() {
         {"slow-reply=800", "cth2265i", "tcp", {"timing.slow_reply"}},
         {"gap-inside-frame=60", "mmk-2030", "rtu-tcp", {"reply.checksum", "reply.unframed", "reply.late"}},
         // Swapped both ways, a write reads back as written: the device refuses a valid float it reads as
-        // another one, out of range.
-        {"word-swap", "walchem-w600", "tcp", {"reply.exception_for_valid"}},
+        // another one, out of range, and takes an invalid one it reads as another in range.
+        {"word-swap", "walchem-w600", "tcp", {"reply.exception_for_valid", "reply.rejected_write"}},
         {"off-by-one-address",
          "mmk-2030",
          "tcp",

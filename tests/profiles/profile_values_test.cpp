@@ -222,4 +222,24 @@ TEST(CthValues, AVariableDecimalPointIsTakenFromItsRegisterOrSaidUnknown) {
     EXPECT_EQ(v[0].text, "701.96");  // 0x00011234
 }
 
+// Walchem's "Gravar 1 para ..." points are commands (002:412-417: reset buttons) and carry `momentary`, which
+// the loader keeps: the conformance runner and the network fuzzer pick no such point to write.
+TEST(WalchemProfiles, WriteOneToActCommandsAreMomentary) {
+    struct Case {
+        const char* id;
+        std::uint16_t command;  // 002:851 (W900's ad-hoc session), 002:992 (DI-1's total time reset)
+    };
+    for (const auto& c : {Case{"walchem-w900", 170}, Case{"walchem-w600", 320}}) {
+        const auto& p = bundled(c.id);
+        for (const auto table : {mb::Table::Coils, mb::Table::HoldingRegisters}) {
+            const auto* point = p.find(table, c.command);
+            ASSERT_NE(point, nullptr) << c.id;
+            EXPECT_TRUE(point->momentary) << c.id << ' ' << point->name;
+        }
+        const auto* setpoint = p.find(mb::Table::HoldingRegisters, 148);
+        ASSERT_NE(setpoint, nullptr);
+        EXPECT_FALSE(setpoint->momentary) << setpoint->name;
+    }
+}
+
 }  // namespace test_profiles_profile_values_test
