@@ -297,7 +297,16 @@ void Session::cite(const std::vector<Evidence>& evidence) {
 }
 
 void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu, bool several) {
-    if (client_.framing() == modbus::Framing::Tcp) return;
+    if (client_.framing() == modbus::Framing::Tcp) {
+        // Over UDP what waits before a request is whole datagrams (the second copy of a reply sent twice, a
+        // late reply): read now, each is logged for what it is. Left queued, the next exchange took it for
+        // its own reply whenever its transaction id was not just behind the request's (the envelope rules
+        // send ids 0, 4660 and 65535), and blamed the device's transaction id echo. Over TCP a read now could
+        // cut an ADU still arriving; the scanner sets late ones aside there.
+        if (client_.endpoint().scheme == tp::Scheme::Udp)
+            log_late(client_.drain(std::chrono::milliseconds(0)));
+        return;
+    }
     log_late(client_.drain(std::chrono::milliseconds(0)));
     if (quiet_waits_ >= tp::OwedRequests::quiet_waits_kept) return;
     // A late reply to an owed request is told from this one's by its content, unless they look alike; from

@@ -56,7 +56,7 @@ constexpr FaultInfo faults[] = {
     {Fault::CrashAfter, "crash-after", ArgKind::Count,
      "=N: after N answered requests the slave never answers again"},
     {Fault::DuplicateReply, "duplicate-reply", ArgKind::Rate,
-     "every response is sent twice, back to back (the same bytes)"},
+     "every response is sent twice, back to back (the same bytes; over UDP two datagrams)"},
     {Fault::WrongQuantity, "wrong-quantity", ArgKind::Rate,
      "reads answer one register (one fewer at 125) or one byte of bits more than asked, the byte count "
      "to match; FC15 and FC16 acknowledge a quantity one more than written"},

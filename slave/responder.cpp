@@ -29,6 +29,7 @@ Device* Responder::route(std::uint8_t unit) const {
 }
 
 std::vector<std::uint8_t> Responder::respond(const modbus::Frame& f) {
+    last_copies_ = 1;
     for (Device* d : units_)
         if (!d->off_line()) d->count_frame(f.checksum_ok);
     if (!f.checksum_ok) return {};  // SL §2.5.1.2: a frame with a bad CRC/LRC is not answered
@@ -42,6 +43,7 @@ std::vector<std::uint8_t> Responder::respond(const modbus::Frame& f) {
     if (faults_.fires(Fault::DuplicateReply)) {
         const auto once = adu;  // a vector cannot insert a range of itself
         adu.insert(adu.end(), once.begin(), once.end());
+        last_copies_ = 2;
     }
     return adu;
 }

@@ -26,6 +26,10 @@ class Responder {
     // The reply ADU to a frame seen on the line, framed like the request; empty when it is not answered
     // (bad CRC/LRC, foreign protocol id, broadcast, a unit not served, a device in listen-only mode).
     std::vector<std::uint8_t> respond(const modbus::Frame& frame);
+    // How many copies of one ADU the last respond() returned back to back: 2 when duplicate-reply fired, else
+    // 1. A stream sends them in one write; a datagram transport sends each copy as a datagram of its own,
+    // as a device sending its reply twice does (one datagram holding both is no Modbus/UDP reply at all).
+    std::size_t last_copies() const noexcept { return last_copies_; }
 
     Device* route(std::uint8_t unit) const;
     // The line's framing changed (a device told to talk ASCII instead of RTU, MK-CFG-01): replies follow.
@@ -43,6 +47,7 @@ class Responder {
     bool ip_network_;
     std::function<bool()> save_;
     std::uint64_t answered_ = 0;  // replies sent, for crash-after
+    std::size_t last_copies_ = 1;
 };
 
 }  // namespace mbscope::slave

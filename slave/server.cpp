@@ -586,7 +586,14 @@ struct Server::Impl {
             // Another protocol id is not Modbus: the Responder discards it (unless the fault says otherwise).
             ++(f->protocol_id() == 0 ? stats.requests : stats.bad_frames);
             auto reply = responder.respond(*f);
-            if (!reply.empty()) send(0, &peer, len, std::move(reply));
+            if (reply.empty()) continue;
+            // Each copy of a reply sent twice (duplicate-reply) in a datagram of its own.
+            const std::size_t copies = responder.last_copies();
+            const std::size_t each = reply.size() / copies;
+            for (std::size_t i = 1; i < copies; ++i)
+                send(0, &peer, len, {reply.begin(), reply.begin() + static_cast<std::ptrdiff_t>(each)});
+            reply.resize(each);
+            send(0, &peer, len, std::move(reply));
         }
     }
 

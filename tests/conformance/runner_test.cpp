@@ -450,6 +450,21 @@ std::vector<FaultCase> fault_cases() {
     };
 }
 
+// Over UDP each copy of a reply sent twice is a datagram of its own: reply.once catches it, and the second
+// copy, waiting when the next request goes out, is not taken for that request's reply (which blamed the
+// device's transaction id echo when the next request carried id 0, 4660 or 65535).
+TEST(PlantedFaults, ADuplicateReplyOverUdpFailsReplyOnceAndNothingElse) {
+    RunningServer server({"duplicate-reply"}, 7, "mmk-2030");
+    auto options = options_for();
+    options.run.rule_globs = {"fc.supported.*", "reply.once", "tcp.tid_echo.*"};
+    const auto run = certify(server, "udp", "mmk-2030", options);
+    std::vector<std::string> failed;
+    for (const auto& x : run.report.results) {
+        if (x.outcome == Outcome::Fail || x.outcome == Outcome::Error) failed.push_back(x.rule.id);
+    }
+    EXPECT_EQ(failed, std::vector<std::string>{"reply.once"}) << failures(run.report);
+}
+
 TEST(PlantedFaults, EveryFaultOfTheSlaveHasACase) {
     std::set<std::string> named;
     for (const auto& c : fault_cases())

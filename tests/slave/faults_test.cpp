@@ -396,6 +396,35 @@ const std::vector<WireFaultCase> wire_faults = {
 INSTANTIATE_TEST_SUITE_P(Server, WireFault, ::testing::ValuesIn(wire_faults),
                          [](const auto& info) { return info.param.name; });
 
+// Over UDP each copy of a reply sent twice is a datagram of its own: one datagram holding both is no
+// Modbus/UDP reply, and a client reading it saw bytes that form no frame, not a reply that came twice.
+TEST(ServerFaults, DuplicateReplyOverUdpIsTwoDatagrams) {
+    for (bool planted : {false, true}) {
+        SCOPED_TRACE(planted ? "--fault duplicate-reply" : "no fault");
+        RunningServer server(planted ? std::vector<std::string>{"duplicate-reply"}
+                                     : std::vector<std::string>{});
+        const std::uint16_t port = server.start("udp");
+        const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+        ASSERT_GE(fd, 0);
+        sockaddr_in a{};
+        a.sin_family = AF_INET;
+        a.sin_port = htons(port);
+        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        ASSERT_EQ(::connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a), 0);
+        const auto request = bytes(tcp_request);
+        ASSERT_EQ(::send(fd, request.data(), request.size(), 0), static_cast<ssize_t>(request.size()));
+        std::vector<std::string> datagrams;
+        for (pollfd p{fd, POLLIN, 0}; ::poll(&p, 1, datagrams.empty() ? 5000 : 300) > 0;) {
+            std::uint8_t buf[300];
+            const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+            if (n <= 0) break;
+            datagrams.push_back(hex(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n))));
+        }
+        ::close(fd);
+        EXPECT_EQ(datagrams, std::vector<std::string>(planted ? 2 : 1, tcp_reply));
+    }
+}
+
 std::string tcp_read_request(std::uint16_t tid) {
     const std::uint8_t adu[] = {
         static_cast<std::uint8_t>(tid >> 8), static_cast<std::uint8_t>(tid), 0, 0, 0, 6, 1, 3, 0, 0, 0, 1};
