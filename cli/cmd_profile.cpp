@@ -260,10 +260,9 @@ int run_validate(const ProfileOptions& o) {
     std::vector<Validated> results;
     const auto files = files_to_validate(o.files, results);
     std::size_t documents = 0;  // profile documents among the files, valid or not
-    // A device id and the directory it was found in, and the file that defined it first there: the profile
-    // search refuses the same id twice in one directory (ProfileStore), and so must a check of that
-    // directory.
-    std::map<std::pair<std::string, std::string>, std::string> defined;
+    // The ids and aliases each directory's models take: the profile search refuses one name for two devices
+    // of a directory (ProfileStore), and so must a check of that directory, in the same words.
+    std::map<std::string, storage::DirectoryNames> names;
     for (const auto& [f, directory] : files) {
         const bool found = !directory.empty();
         Validated v{f, "ok", {}, {}, nlohmann::json::array()};
@@ -296,21 +295,18 @@ int run_validate(const ProfileOptions& o) {
             results.push_back(std::move(v));
             continue;
         }
-        std::vector<ProfileError> twice;
-        for (const auto& p : loaded.profiles) {
-            if (!found) continue;
-            const auto [first, fresh] = defined.try_emplace({directory, p.id}, f);
-            if (!fresh)
-                twice.push_back({f, "",
-                                 "device id \"" + p.id + "\" is defined twice in " + directory +
-                                     " (first in " + first->second +
-                                     "): the profile search keeps the first"});
+        std::vector<ProfileError> clashes;
+        if (found) {
+            auto& here = names.try_emplace(directory, directory).first->second;
+            for (const auto& p : loaded.profiles)
+                for (auto& problem : here.take(f, p.id, p.aliases).problems)
+                    clashes.push_back({f, "", std::move(problem)});
         }
-        if (!twice.empty()) {
-            if (!o.json) print_errors(twice);
+        if (!clashes.empty()) {
+            if (!o.json) print_errors(clashes);
             v.status = "errors";
-            v.notes.push_back(std::to_string(twice.size()) + " error(s)");
-            for (const auto& e : twice)
+            v.notes.push_back(std::to_string(clashes.size()) + " error(s)");
+            for (const auto& e : clashes)
                 v.errors.push_back(to_string(e));
             results.push_back(std::move(v));
             continue;

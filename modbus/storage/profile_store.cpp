@@ -50,6 +50,39 @@ std::vector<std::string> split_path_list(const std::string& list) {
     return out;
 }
 
+DirectoryNames::Taken DirectoryNames::take(const std::string& file, const std::string& id,
+                                           const std::vector<std::string>& aliases) {
+    Taken out;
+    if (const auto it = names_.find(id); it != names_.end()) {
+        const Owner& o = it->second;
+        if (!o.alias) {
+            out.id_taken = true;
+            out.problems.push_back("device id \"" + id + "\" is defined twice in " + directory_ +
+                                   " (first in " + o.file + "): the profile search keeps the first");
+            return out;
+        }
+        // The id is found before any alias: the earlier model loses the name, not this one.
+        out.problems.push_back("device id \"" + id + "\" is also an alias of \"" + o.id + "\" in " + o.file +
+                               ": the profile search finds the id by it, not \"" + o.id + "\"");
+        it->second = {file, id, false};
+    } else {
+        names_.emplace(id, Owner{file, id, false});
+    }
+    for (const auto& alias : aliases) {
+        const auto [it, fresh] = names_.try_emplace(alias, Owner{file, id, true});
+        const Owner& o = it->second;
+        if (fresh || o.id == id) continue;  // the model's own id, or an alias it lists twice: one device
+        if (o.alias)
+            out.problems.push_back("alias \"" + alias + "\" of \"" + id + "\" is also an alias of \"" + o.id +
+                                   "\" in " + o.file + ": the profile search finds \"" + o.id + "\" by it");
+        else
+            out.problems.push_back("alias \"" + alias + "\" of \"" + id + "\" is also a device id, in " +
+                                   o.file + ": the profile search finds that device by it, not \"" + id +
+                                   "\"");
+    }
+    return out;
+}
+
 namespace {
 
 std::vector<ProfileDirectory> read_in_full(std::vector<std::string> paths) {
@@ -78,16 +111,20 @@ ProfileStore::ProfileStore(std::vector<ProfileDirectory> directories) {
              !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
             if (it->is_regular_file() && it->path().extension() == ".json") files.push_back(it->path());
         std::sort(files.begin(), files.end());
-        std::vector<std::string> ids_here;
+        DirectoryNames names(dir);
         const auto add = [&](const fs::path& file, ProfileEntry e) {
             if (e.id.empty()) return;
-            if (std::find(ids_here.begin(), ids_here.end(), e.id) != ids_here.end()) {
-                errors_.push_back(
-                    {file.string(), "", "device id \"" + e.id + "\" is defined twice in " + dir});
+            auto taken = names.take(file.string(), e.id, e.aliases);
+            for (auto& problem : taken.problems)
+                errors_.push_back({file.string(), "", std::move(problem)});
+            if (taken.id_taken) return;
+            // Shadowed by an earlier directory's device of the same id (a user's file replaces a bundled
+            // one), by id only: find() would match an alias too, even this directory's own, and an alias
+            // equal to another device's id made that device disappear.
+            if (std::any_of(entries_.begin(), entries_.end(), [&](const auto& x) { return x.id == e.id; }))
                 return;
-            }
-            ids_here.push_back(e.id);
-            if (find(e.id)) return;  // shadowed by an earlier directory
+            for (const auto& alias : e.aliases)
+                aliases_.try_emplace(alias, e.id);  // an earlier directory's alias keeps its name
             entries_.push_back(std::move(e));
         };
         for (const auto& file : files) {
@@ -120,12 +157,15 @@ ProfileStore::ProfileStore(std::vector<ProfileDirectory> directories) {
 }
 
 const ProfileEntry* ProfileStore::find(std::string_view id_or_alias) const {
+    const auto by_id = [this](const std::string& id) -> const ProfileEntry* {
+        for (const auto& e : entries_)
+            if (e.id == id) return &e;
+        return nullptr;
+    };
     const std::string key = lower(std::string(id_or_alias));
-    for (const auto& e : entries_)
-        if (e.id == key) return &e;
-    for (const auto& e : entries_)
-        if (std::find(e.aliases.begin(), e.aliases.end(), key) != e.aliases.end()) return &e;
-    return nullptr;
+    if (const ProfileEntry* e = by_id(key)) return e;  // an exact id is never hidden by another's alias
+    const auto it = aliases_.find(key);
+    return it == aliases_.end() ? nullptr : by_id(it->second);
 }
 
 Result<Profile, std::vector<ProfileError>> ProfileStore::load(std::string_view id_or_alias,

@@ -2,8 +2,11 @@
 // Finds and loads profile files from directories (the installed profiles, the source tree's profiles/, a
 // user's --profile-dir or $MBSCOPE_PROFILE_PATH). This is the only place that reads profile files from disk;
 // the codec parses text (modbus/profile_loader.hpp). Directories are searched in order: a device id found in
-// an earlier directory shadows the same id in a later one, so a user's file replaces a bundled one.
+// an earlier directory shadows the same id in a later one, so a user's file replaces a bundled one. A name
+// is looked up as an id first: an alias never hides a device's id, whichever directory either comes from.
+// Of two aliases alike in different directories, the earlier directory's answers.
 
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -52,7 +55,7 @@ class ProfileStore {
     const std::vector<ProfileError>& errors() const noexcept { return errors_; }
     const std::vector<std::string>& directories() const noexcept { return directories_; }
 
-    // Case-insensitive id or alias; nullptr when unknown.
+    // Case-insensitive id or alias (an id before any alias); nullptr when unknown.
     const ProfileEntry* find(std::string_view id_or_alias) const;
     // The resolved profile, with a configuration for modular devices; errors name file and JSON pointer.
     Result<Profile, std::vector<ProfileError>> load(std::string_view id_or_alias,
@@ -62,8 +65,34 @@ class ProfileStore {
     std::vector<std::string> directories_;
     std::vector<ProfileEntry> entries_;
     std::vector<ProfileError> errors_;
+    std::map<std::string, std::string> aliases_;  // alias → the id of the first entry that has it
     // The maps files read while listing, for load() too (shared: a copy of the store may share it).
     std::shared_ptr<IncludeCache> includes_ = std::make_shared<IncludeCache>();
+};
+
+// The device ids and aliases one directory's models take, and the file that gave each. The profile search
+// finds one device per name in a directory: an id given twice, or a name that is one model's id and another
+// model's alias, or two models' aliases, is an error naming both files (`mbscope profile validate` and the
+// store say the same).
+class DirectoryNames {
+  public:
+    explicit DirectoryNames(std::string directory) : directory_(std::move(directory)) {}
+
+    struct Taken {
+        bool id_taken = false;              // another file of the directory defines the id: passed over
+        std::vector<std::string> problems;  // each a message for an error of `file`
+    };
+    // Takes a model's names (lower case), the first taker of a name keeping it.
+    Taken take(const std::string& file, const std::string& id, const std::vector<std::string>& aliases);
+
+  private:
+    struct Owner {
+        std::string file;
+        std::string id;  // the model's
+        bool alias = false;
+    };
+    std::string directory_;
+    std::map<std::string, Owner> names_;
 };
 
 // Loads a single file (for `mbscope profile validate`): every profile it defines, every error it has.

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 
 #include "tests/cli/cli_run.hpp"
@@ -448,6 +449,52 @@ TEST(ProfileCommand, JsonOutputTakesAFileNameThatIsNotUtf8) {
     ASSERT_FALSE(s.is_discarded()) << shown_profile.out;
     EXPECT_EQ(s["file"], shown);
     EXPECT_FALSE(s["tables"]["holding_registers"].empty());
+    fs::remove_all(d);
+}
+
+// A model's alias equal to another model's id hid that model from the profile search while validate said
+// "ok": validate compared ids with ids only. A name that one directory gives two models is an error naming
+// both files, and the id is the one the search finds.
+TEST(ProfileCommand, AnAliasThatIsAnotherModelsIdIsAnError) {
+    namespace fs = std::filesystem;
+    const fs::path d = fs::temp_directory_path() / ("mbscope-validate-aliases-" + std::to_string(::getpid()));
+    fs::remove_all(d);
+    fs::create_directories(d);
+    std::ifstream in(fixtures + "/profiles/test-device.json");
+    auto base = nlohmann::json::parse(in);
+    const auto write = [&](const std::string& name, const nlohmann::json& models) {
+        auto doc = base;
+        doc["models"] = models;
+        std::ofstream(d / name) << doc.dump(1);
+    };
+    write("a.json", {{{"id", "aaa"}, {"name", "A"}, {"aliases", {"bbb"}}}});
+    write("b.json", {{{"id", "bbb"}, {"name", "B"}}});
+    auto r = run_mbscope("profile validate " + d.string());
+    EXPECT_EQ(r.exit_code, 1) << r.out;
+    EXPECT_NE(r.out.find((d / "b.json").string() + ": device id \"bbb\" is also an alias of \"aaa\" in " +
+                         (d / "a.json").string() + ": the profile search finds the id by it, not \"aaa\""),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("a.json: aaa ok"), std::string::npos) << r.out;
+    r = run_mbscope("profile --profile-dir " + d.string() + " show bbb");
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("bbb — Test Vendor B"), std::string::npos) << r.out;
+    // Standard output alone: the command's 2>&1 applies to cat.
+    r = run_mbscope("profile --profile-dir " + d.string() + " list --json 2>/dev/null | cat");
+    const auto listed = nlohmann::json::parse(r.out, nullptr, false);
+    ASSERT_FALSE(listed.is_discarded()) << r.out;
+    std::set<std::string> ids;
+    for (const auto& e : listed)
+        ids.insert(e["id"].get<std::string>());
+    EXPECT_EQ(ids.count("aaa"), 1u);
+    EXPECT_EQ(ids.count("bbb"), 1u);
+    // Across directories: a user's alias "cth2265i" hid the bundled cth2265i. The id is found.
+    fs::remove_all(d);
+    fs::create_directories(d);
+    write("mine.json", {{{"id", "my-meter"}, {"name", "Mine"}, {"aliases", {"cth2265i"}}}});
+    r = run_mbscope("profile --profile-dir " + d.string() + " show cth2265i");
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_EQ(r.out.rfind("cth2265i — CTH", 0), 0u) << r.out;
     fs::remove_all(d);
 }
 

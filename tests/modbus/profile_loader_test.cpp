@@ -5,7 +5,10 @@
 #include "modbus/storage/profile_store.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <filesystem>
+#include <fstream>
 #include <optional>
 #include <string>
 #include <utility>
@@ -964,6 +967,61 @@ TEST(ProfileLoader, APairNamesItsOtherHalf) {
          "half"},
     };
     EXPECT_EQ(pointers_and_messages(l), expected);
+}
+
+// A model's alias equal to another model's id made that model disappear: the store asked whether an earlier
+// directory had the id with find(), which also matches aliases (and this directory's own entries), so
+// b.json's "bbb" was passed over for a.json's alias "bbb", and a user's alias "theirs" hid the bundled
+// "theirs". An id is now shadowed by an earlier directory's id only, an exact id is never hidden by an alias,
+// and one name taken twice in one directory is an error naming both files.
+TEST(ProfileStore, AnAliasNeverHidesAnId) {
+    namespace fs = std::filesystem;
+    const fs::path root = fs::temp_directory_path() / ("mbscope-store-aliases-" + std::to_string(::getpid()));
+    fs::remove_all(root);
+    const auto write = [](const fs::path& file, const std::string& models) {
+        fs::create_directories(file.parent_path());
+        std::ofstream(file) << doc(R"({"holding_registers": [{"address": 0, "name": "a", "access": "r",
+                                                               "source": "000:1"}]})",
+                                   R"("models": )" + models);
+    };
+    write(root / "one" / "a.json", R"([{"id": "aaa", "aliases": ["bbb"]}])");
+    write(root / "one" / "b.json", R"([{"id": "bbb"}])");
+    const mb::storage::ProfileStore one({(root / "one").string()});
+    EXPECT_EQ(one.entries().size(), 2u);
+    ASSERT_NE(one.find("bbb"), nullptr);
+    EXPECT_EQ(one.find("bbb")->id, "bbb");
+    ASSERT_EQ(one.errors().size(), 1u);
+    EXPECT_EQ(one.errors()[0].file, (root / "one" / "b.json").string());
+    EXPECT_EQ(one.errors()[0].message, "device id \"bbb\" is also an alias of \"aaa\" in " +
+                                           (root / "one" / "a.json").string() +
+                                           ": the profile search finds the id by it, not \"aaa\"");
+
+    write(root / "two" / "a.json", R"([{"id": "p", "aliases": ["x"]}])");
+    write(root / "two" / "b.json", R"([{"id": "q", "aliases": ["X", "p"]}])");
+    const mb::storage::ProfileStore two({(root / "two").string()});
+    EXPECT_EQ(two.entries().size(), 2u);
+    ASSERT_NE(two.find("x"), nullptr);
+    EXPECT_EQ(two.find("x")->id, "p");
+    EXPECT_EQ(two.find("p")->id, "p");
+    const std::string a = (root / "two" / "a.json").string();
+    ASSERT_EQ(two.errors().size(), 2u);
+    EXPECT_EQ(two.errors()[0].message, "alias \"x\" of \"q\" is also an alias of \"p\" in " + a +
+                                           ": the profile search finds \"p\" by it");
+    EXPECT_EQ(two.errors()[1].message, "alias \"p\" of \"q\" is also a device id, in " + a +
+                                           ": the profile search finds that device by it, not \"q\"");
+
+    // Across directories an alias is no error (a user's directory names its devices as it likes), and no id
+    // is hidden by it; of two aliases, the earlier directory's answers.
+    write(root / "user" / "mine.json", R"([{"id": "my-meter", "aliases": ["theirs", "shared"]}])");
+    write(root / "bundled" / "theirs.json", R"([{"id": "theirs", "aliases": ["shared"]}])");
+    const mb::storage::ProfileStore both({(root / "user").string(), (root / "bundled").string()});
+    EXPECT_TRUE(both.errors().empty()) << mb::to_string(both.errors()[0]);
+    EXPECT_EQ(both.entries().size(), 2u);
+    ASSERT_NE(both.find("theirs"), nullptr);
+    EXPECT_EQ(both.find("theirs")->id, "theirs");
+    EXPECT_EQ(both.find("shared")->id, "my-meter");
+    EXPECT_EQ(both.load("theirs")->id, "theirs");
+    fs::remove_all(root);
 }
 
 }  // namespace test_modbus_profile_loader_test
