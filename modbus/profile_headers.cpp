@@ -2,6 +2,7 @@
 
 #include <cctype>
 #include <optional>
+#include <set>
 
 #include <nlohmann/json.hpp>
 
@@ -20,15 +21,26 @@ std::string lower(std::string s) {
 // Where the event stream is: one entry per open object or array, with the key or index being read in it.
 struct Level {
     bool object = false;
-    std::string key;           // objects: the key whose value comes next
-    std::size_t elements = 0;  // arrays: the values read so far
-    bool models = false;       // this array is the root's "models"
+    std::string key;             // objects: the key whose value comes next
+    std::size_t elements = 0;    // arrays: the values read so far
+    bool models = false;         // this array is the root's "models"
+    std::set<std::string> keys;  // the objects read from (the root, "line", a model): their keys so far
 };
 
+// A JSON pointer's reference token for an object key (RFC 6901), as the document parser writes it.
+std::string pointer_token(const std::string& key) {
+    std::string out;
+    for (char c : key)
+        out += c == '~' ? "~0" : c == '/' ? "~1" : std::string(1, c);
+    return out;
+}
+
 // Reads the few fields a listing needs and skips the rest of the document, which the stream still checks
-// for JSON syntax. A field given twice takes its last value, as the document parser does. Places, as
-// stack depths: 1 the root object, 2 a root field's value ("models" or "line"), 3 a model object or the
-// line's "transports", 4 a model's "aliases".
+// for JSON syntax. A key given twice in an object it reads from is refused, as the document parser refuses
+// it (the parser refuses one anywhere in the document, which the load finds): the scan took the last "id"
+// given, and a listing could name a device the load does not give. Places, as stack depths: 1 the root
+// object, 2 a root field's value ("models" or "line"), 3 a model object or the line's "transports", 4 a
+// model's "aliases".
 class HeaderScanner final : public nlohmann::json_sax<json> {
   public:
     explicit HeaderScanner(ProfileHeaders& out) : out_(out) {}
@@ -48,12 +60,19 @@ class HeaderScanner final : public nlohmann::json_sax<json> {
             named_.push_back(false);
         }
         value(nullptr);
-        stack_.push_back({true, {}, 0, false});
+        stack_.push_back({true, {}, 0, false, {}});
         return true;
     }
     bool key(string_t& k) override {
+        if (const bool read_from = stack_.size() == 1 || model_field() ||
+                                   (stack_.size() == 2 && stack_[0].key == "line" && stack_[1].object);
+            read_from && !stack_.back().keys.insert(k).second) {
+            if (stack_.size() == 1 && k == "format") format_twice_ = true;
+            if (!repeat_) repeat_ = {pointer(), k};
+        }
         stack_.back().key = k;
-        if (stack_.size() == 1) {  // a root field given again replaces what was read of it
+        if (stack_.size() == 1) {  // a root field given again replaces what was read of it (a profile
+                                   // is refused for it, a document of another kind is not)
             if (k == "models") {
                 out_.models.clear();
                 named_.clear();
@@ -77,7 +96,7 @@ class HeaderScanner final : public nlohmann::json_sax<json> {
     bool start_array(std::size_t) override {
         const bool models = stack_.size() == 1 && stack_.back().object && stack_.back().key == "models";
         value(nullptr);
-        stack_.push_back({false, {}, 0, models});
+        stack_.push_back({false, {}, 0, models, {}});
         return true;
     }
     bool end_array() override {
@@ -91,6 +110,9 @@ class HeaderScanner final : public nlohmann::json_sax<json> {
     }
 
     bool root_is_object() const { return root_is_object_; }
+    // The first object read from that gives a key twice: its pointer and the key.
+    const std::optional<std::pair<std::string, std::string>>& repeat() const { return repeat_; }
+    bool format_twice() const { return format_twice_; }
     const std::string& syntax_error() const { return syntax_error_; }
     bool format_given() const { return format_given_; }
     const std::optional<std::string>& format() const { return format_; }
@@ -102,6 +124,14 @@ class HeaderScanner final : public nlohmann::json_sax<json> {
   private:
     bool in_models() const { return stack_.size() == 2 && stack_[1].models; }
     bool model_field() const { return stack_.size() == 3 && stack_[1].models && stack_[2].object; }
+    // The pointer of the innermost object or array.
+    std::string pointer() const {
+        std::string out;
+        for (std::size_t i = 0; i + 1 < stack_.size(); ++i)
+            out += '/' +
+                   (stack_[i].object ? pointer_token(stack_[i].key) : std::to_string(stack_[i].elements - 1));
+        return out;
+    }
 
     // A value (a scalar, or the start of an object or array) at the current place; `s` when it is a string.
     bool value(const std::string* s) {
@@ -143,6 +173,8 @@ class HeaderScanner final : public nlohmann::json_sax<json> {
     std::optional<std::size_t> models_;
     std::vector<bool> named_;
     std::string syntax_error_;
+    std::optional<std::pair<std::string, std::string>> repeat_;
+    bool format_twice_ = false;
 };
 
 }  // namespace
@@ -160,6 +192,12 @@ ProfileHeaders scan_profile_headers(std::string_view text, const std::string& fi
     };
     if (!whole) return refuse("", scan.syntax_error().empty() ? "not valid JSON" : scan.syntax_error(), true);
     if (!scan.root_is_object()) return refuse("", "a profile is a JSON object", true);
+    const auto repeated = [&] {
+        return refuse(scan.repeat()->first,
+                      "key \"" + scan.repeat()->second + "\" is given twice: which one counts is not defined",
+                      true);
+    };
+    if (scan.format_twice()) return repeated();  // which kind of document it is is undecided
     if (scan.format_given() && !scan.format()) return refuse("/format", "must be a string", false);
     if (!scan.format() || *scan.format() != profile_format) {
         if (scan.format() && scan.format()->rfind("mbscope-profile/", 0) == 0)
@@ -169,6 +207,7 @@ ProfileHeaders scan_profile_headers(std::string_view text, const std::string& fi
                           false);
         return refuse("", "", false);
     }
+    if (scan.repeat()) return repeated();
     if (!scan.models() || *scan.models() == 0)
         return refuse("", "\"models\" must list at least one model (the device ids this file resolves to)",
                       true);

@@ -1651,6 +1651,115 @@ void check_text(Reader& r, const json& j, std::string& ptr, int depth = 0) {
     }
 }
 
+// A key that an object of the document gives twice: the object's JSON pointer, and the key.
+struct RepeatedKey {
+    std::string object;
+    std::string key;
+};
+
+std::string repeated_key_message(const RepeatedKey& repeat) {
+    return "key \"" + repeat.key + "\" is given twice: which one counts is not defined";
+}
+
+// Builds the document json::parse() builds, and notes each object that gives a key twice. JSON leaves such a
+// document to the reader (RFC 8259 §4) and nlohmann keeps the last value: a point with "address": 0,
+// "address": 99 loaded as 99, either of which may be the one meant. The check is the lookup that inserting
+// the key does anyway.
+class DocumentBuilder {
+  public:
+    DocumentBuilder(json& root, std::vector<RepeatedKey>& repeats) : root_(root), repeats_(repeats) {}
+
+    bool null() { return add(nullptr); }
+    bool boolean(bool v) { return add(v); }
+    bool number_integer(json::number_integer_t v) { return add(v); }
+    bool number_unsigned(json::number_unsigned_t v) { return add(v); }
+    bool number_float(json::number_float_t v, const json::string_t&) { return add(v); }
+    bool string(json::string_t& v) { return add(std::move(v)); }
+    bool binary(json::binary_t& v) { return add(json(std::move(v))); }
+    bool start_object(std::size_t) {
+        levels_.push_back({place(json::object())});
+        return true;
+    }
+    bool start_array(std::size_t) {
+        levels_.push_back({place(json::array())});
+        return true;
+    }
+    bool end_object() {
+        levels_.pop_back();
+        return true;
+    }
+    bool end_array() {
+        levels_.pop_back();
+        return true;
+    }
+    bool key(json::string_t& k) {
+        Level& at = levels_.back();
+        const auto [it, fresh] = at.value->get_ref<json::object_t&>().try_emplace(k);
+        if (!fresh) repeats_.push_back({pointer(), k});  // the last value is kept, as json::parse() keeps it
+        at.key = &it->first;
+        at.slot = &it->second;
+        return true;
+    }
+    bool parse_error(std::size_t, const std::string&, const json::exception& e) {
+        error_ = e.what();
+        return false;
+    }
+
+    // nlohmann's message, which says where: empty when the text is JSON.
+    const std::string& error() const { return error_; }
+
+  private:
+    struct Level {
+        json* value;                       // the object or array being read
+        const std::string* key = nullptr;  // objects: the key whose value comes next (a node of the map)
+        json* slot = nullptr;              // and where its value goes
+    };
+
+    bool add(json&& v) {
+        place(std::move(v));
+        return true;
+    }
+    json* place(json&& v) {
+        if (levels_.empty()) {
+            root_ = std::move(v);
+            return &root_;
+        }
+        Level& at = levels_.back();
+        if (at.value->is_array()) {
+            auto& array = at.value->get_ref<json::array_t&>();
+            array.push_back(std::move(v));
+            return &array.back();
+        }
+        *at.slot = std::move(v);
+        return at.slot;
+    }
+    // The pointer of the innermost object or array being read.
+    std::string pointer() const {
+        std::string out;
+        for (std::size_t i = 0; i + 1 < levels_.size(); ++i)
+            out += '/' + (levels_[i].value->is_array() ? std::to_string(levels_[i].value->size() - 1)
+                                                       : pointer_token(*levels_[i].key));
+        return out;
+    }
+
+    json& root_;
+    std::vector<RepeatedKey>& repeats_;
+    std::vector<Level> levels_;
+    std::string error_;
+};
+
+// `text` as a document; nullopt with `error` set (nlohmann's message) when it is not JSON.
+std::optional<json> parse_document(std::string_view text, std::vector<RepeatedKey>& repeats,
+                                   std::string& error) {
+    json doc;
+    DocumentBuilder builder(doc, repeats);
+    if (!json::sax_parse(text.begin(), text.end(), &builder)) {
+        error = builder.error().empty() ? "not JSON" : builder.error();
+        return std::nullopt;
+    }
+    return doc;
+}
+
 // What reading a maps file gave: its maps, or why the document including it cannot have them (`failure`,
 // reported at the document's "/maps_file"), and the errors in the file itself, which name it.
 struct IncludedMaps {
@@ -1662,7 +1771,14 @@ struct IncludedMaps {
 IncludedMaps read_maps(const std::string& name, const std::string& text) {
     IncludedMaps out;
     try {
-        json m = json::parse(text);
+        std::vector<RepeatedKey> repeats;
+        std::string not_json;
+        auto parsed = parse_document(text, repeats, not_json);
+        if (!parsed) {
+            out.failure = name + " is not valid JSON: " + not_json;
+            return out;
+        }
+        json m = std::move(*parsed);
         // Moved out, not copied: the Walchem type maps are half a megabyte of JSON.
         const auto take = [&m](const char* key) {
             auto it = m.find(key);
@@ -1673,6 +1789,12 @@ IncludedMaps read_maps(const std::string& name, const std::string& text) {
             return out;
         }
         Reader maps_reader(name, out.errors);  // errors name the maps file
+        if (!repeats.empty()) {  // as in a profile: which value is meant is not known, so neither is used
+            for (const auto& repeat : repeats)
+                maps_reader.error(repeat.object, repeated_key_message(repeat));
+            out.failure = name + " gives a key twice in one object";
+            return out;
+        }
         std::string root;
         check_text(maps_reader, m, root);
         ModularMaps& maps = out.maps.emplace(ModularMaps{
@@ -1723,17 +1845,28 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
                               const ProfileConfig& config, IncludeCache* cache) {
     LoadedProfiles out;
     Reader r(file, out.errors);
-    json doc;
-    try {
-        doc = json::parse(text.begin(), text.end());
-    } catch (const json::exception& e) {  // parse_error, and out_of_range for a number too large (406)
-        r.error("", std::string("not valid JSON: ") + e.what());
+    std::vector<RepeatedKey> repeats;
+    std::string not_json;  // parse_error, and out_of_range for a number too large (406)
+    auto parsed = parse_document(text, repeats, not_json);
+    if (!parsed) {
+        r.error("", "not valid JSON: " + not_json);
         return out;
     }
+    const json& doc = *parsed;
     if (!doc.is_object()) {
         r.error("", "a profile is a JSON object");
         return out;
     }
+    // A key given twice is a profile's fault, each reported; JSON of another kind beside the profiles (a
+    // schema) is passed over with its repeats. A "format" given twice leaves undecided which kind it is.
+    const auto refuse_repeats = [&] {
+        for (const auto& repeat : repeats)
+            r.error(repeat.object, repeated_key_message(repeat));
+        return out;
+    };
+    if (std::any_of(repeats.begin(), repeats.end(),
+                    [](const RepeatedKey& k) { return k.object.empty() && k.key == "format"; }))
+        return refuse_repeats();
     const auto format = r.string(doc, "format", "", false);
     if (!format || *format != profile_format) {
         out.is_profile = false;
@@ -1742,6 +1875,7 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
                                    std::string(profile_format) + ")");
         return out;
     }
+    if (!repeats.empty()) return refuse_repeats();
     std::string root;
     check_text(r, doc, root);
     Profile common;

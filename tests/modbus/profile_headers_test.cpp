@@ -103,24 +103,49 @@ TEST(ProfileHeaders, ModelsTakeTheirIdAsNameAndLowerCaseAliases) {
     expect_same(h, mb::parse_profiles(text, "t.json"), "three models");
 }
 
-// JSON allows a key twice; the parser keeps the last value, and so does the scan.
-TEST(ProfileHeaders, AFieldGivenTwiceTakesItsLastValue) {
-    const std::string text =
-        R"({"format": "mbscope-profile/1", "vendor": "first", "vendor": "second", "family": "F",
-            "line": {"transports": ["rtu"]}, "line": {"transports": ["ascii"], "transports": ["tcp"]},
-            "functions": {"supported": [3]},
-            "tables": {"holding_registers": [{"address": 0, "name": "a", "access": "r", "source": "t:1"}]},
-            "models": [{"id": "gone"}],
-            "models": [{"id": "kept", "aliases": ["a"], "aliases": ["b"], "name": "n1", "name": "n2"}]})";
-    const auto h = mb::scan_profile_headers(text, "t.json");
-    const auto full = mb::parse_profiles(text, "t.json");
-    ASSERT_TRUE(full.errors.empty()) << messages(full.errors)[0];
+// JSON allows a key twice, and the scan took the last "id" or "aliases" as the parser did; the parser now
+// refuses a profile that gives a key twice in one object, and so does the scan in the objects it reads (the
+// root, "line", each model), in the same words at the same pointer: a device the listing named would fail to
+// load, or be another. A repeat elsewhere is the load's to find, as any fault inside the document.
+TEST(ProfileHeaders, AKeyGivenTwiceIsRefusedAsTheParserRefusesIt) {
+    const std::vector<std::string> twice{
+        doc(R"([{"id": "gone"}, {"id": "one", "id": "two"}])"),
+        doc(R"([{"id": "a", "aliases": ["x"], "aliases": ["y"]}])"),
+        doc(R"([{"id": "a"}])", R"( "vendor": "W",)"),
+        R"({"format": "mbscope-profile/1", "family": "F", "vendor": "V", "line": {"transports": ["rtu"],
+            "transports": ["tcp"]}, "models": [{"id": "a"}]})",
+        R"({"format": "mbscope-profile/1", "format": "other", "models": [{"id": "a"}]})",
+    };
+    const std::vector<std::string> expected{
+        "/models/1: key \"id\" is given twice: which one counts is not defined",
+        "/models/0: key \"aliases\" is given twice: which one counts is not defined",
+        ": key \"vendor\" is given twice: which one counts is not defined",
+        "/line: key \"transports\" is given twice: which one counts is not defined",
+        ": key \"format\" is given twice: which one counts is not defined",
+    };
+    for (std::size_t i = 0; i < twice.size(); ++i) {
+        const auto h = mb::scan_profile_headers(twice[i], "t.json");
+        const auto full = mb::parse_profiles(twice[i], "t.json");
+        EXPECT_EQ(messages(h.errors), std::vector<std::string>{expected[i]}) << twice[i];
+        EXPECT_EQ(messages(full.errors), messages(h.errors)) << twice[i];
+        EXPECT_TRUE(h.models.empty()) << twice[i];
+        EXPECT_TRUE(h.is_profile) << twice[i];
+        for (const auto& e : h.errors)
+            EXPECT_EQ(e.file, "t.json");
+    }
+    const std::string inner =
+        doc(R"([{"id": "a"}])", R"( "notes": [{"text": "a"}, {"text": "b", "text": "c"}],)");
+    const auto h = mb::scan_profile_headers(inner, "t.json");
+    EXPECT_TRUE(h.errors.empty());
     ASSERT_EQ(h.models.size(), 1u);
-    EXPECT_EQ(h.models[0].id, "kept");
-    EXPECT_EQ(h.models[0].aliases, std::vector<std::string>{"b"});
-    EXPECT_EQ(h.vendor, "second");
-    EXPECT_EQ(h.transports, std::vector<std::string>{"tcp"});
-    expect_same(h, full, "fields twice");
+    EXPECT_EQ(
+        messages(mb::parse_profiles(inner, "t.json").errors),
+        std::vector<std::string>{"/notes/1: key \"text\" is given twice: which one counts is not defined"});
+    // JSON of another kind is no profile, repeats or not: passed over as before.
+    const auto other = R"({"$schema": "x", "$schema": "y", "format": "mbscope-walchem-maps/1"})";
+    EXPECT_TRUE(mb::scan_profile_headers(other, "s.json").errors.empty());
+    EXPECT_TRUE(mb::parse_profiles(other, "s.json").errors.empty());
+    EXPECT_FALSE(mb::parse_profiles(other, "s.json").is_profile);
 }
 
 // Fields named like the ones read, elsewhere in the document, are not taken for them.

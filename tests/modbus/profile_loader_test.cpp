@@ -1024,4 +1024,38 @@ TEST(ProfileStore, AnAliasNeverHidesAnId) {
     fs::remove_all(root);
 }
 
+// JSON leaves a key given twice to the reader (RFC 8259 §4), and nlohmann kept the last: a point with
+// "address": 0, "address": 99 loaded as 99 and validated. Either value may be the one meant: the document is
+// refused, at the pointer of the object, naming the key.
+TEST(ProfileLoader, AKeyGivenTwiceInOneObjectIsAnError) {
+    const auto only_error = [](const std::string& text) {
+        const auto l = load(text);
+        EXPECT_TRUE(l.profiles.empty());
+        EXPECT_EQ(l.errors.size(), 1u);
+        for (const auto& e : l.errors)
+            EXPECT_EQ(e.file, "test.json");
+        return pointers_and_messages(l);
+    };
+    using Errors = std::vector<std::pair<std::string, std::string>>;
+    EXPECT_EQ(only_error(doc(R"({"holding_registers": [
+                {"address": 0, "name": "a", "access": "r", "source": "000:1", "address": 99}]})")),
+              (Errors{{"/tables/holding_registers/0",
+                       "key \"address\" is given twice: which one counts is not defined"}}));
+    EXPECT_EQ(
+        only_error(doc(R"({"holding_registers": [{"address": 0, "name": "a", "access": "r", "source": "1"},
+                {"address": 1, "name": "b", "access": "r", "source": "2",
+                 "encoding": {"type": "u16", "type": "s16"}}]})")),
+        (Errors{{"/tables/holding_registers/1/encoding",
+                 "key \"type\" is given twice: which one counts is not defined"}}));
+    EXPECT_EQ(only_error(doc(R"({"holding_registers": []})",
+                             R"("x/y~": {"k": 1, "k": 1}, "models": [{"id": "m"}])")),
+              (Errors{{"/x~1y~0", "key \"k\" is given twice: which one counts is not defined"}}));
+    EXPECT_EQ(only_error(doc(R"({"holding_registers": []})", R"("models": [{"id": "m"}], "vendor": "U")")),
+              (Errors{{"", "key \"vendor\" is given twice: which one counts is not defined"}}));
+    // The same key in different objects is no repeat.
+    EXPECT_TRUE(load(doc(R"({"holding_registers": [{"address": 0, "name": "a", "access": "r", "source": "1"},
+                      {"address": 1, "name": "a", "access": "r", "source": "1"}]})"))
+                    .errors.empty());
+}
+
 }  // namespace test_modbus_profile_loader_test
