@@ -242,7 +242,8 @@ std::vector<ToValidate> files_to_validate(const std::vector<std::string>& named,
         const auto skip = std::filesystem::directory_options::skip_permission_denied;
         for (std::filesystem::recursive_directory_iterator it(f, skip, ec), end; !ec && it != end;
              it.increment(ec))
-            if (it->path().extension() == ".json" && it->is_regular_file(ec))
+            // A *.json that is no regular file (a FIFO) is listed, to be reported as one, not passed over.
+            if (std::error_code type; it->path().extension() == ".json" && !it->is_directory(type))
                 found.push_back(it->path().string());
         if (ec)
             out.push_back({f, "not_listed", {"cannot list: " + ec.message()}, {}, nlohmann::json::array()});
@@ -267,10 +268,20 @@ int run_validate(const ProfileOptions& o) {
         const bool found = !directory.empty();
         Validated v{f, "ok", {}, {}, nlohmann::json::array()};
         // A file that is not there or cannot be read is input the run could not read (exit 2, as frame and
-        // decode), not a profile found invalid (1); the others are still validated.
-        if (std::ifstream probe(f, std::ios::binary); !probe) {
+        // decode), not a profile found invalid (1); the others are still validated. What is not a regular
+        // file is not opened: a FIFO's open waits for a writer, and validate waited for ever.
+        std::error_code ec;
+        const auto type = std::filesystem::status(f, ec);
+        std::string unreadable;
+        if (ec)
+            unreadable = "cannot read: " + ec.message();
+        else if (!std::filesystem::is_regular_file(type))
+            unreadable = "not a regular file";
+        else if (std::ifstream probe(f, std::ios::binary); !probe)
+            unreadable = std::string("cannot read: ") + std::strerror(errno);
+        if (!unreadable.empty()) {
             v.status = "unreadable";
-            v.notes.push_back(std::string("cannot read: ") + std::strerror(errno));
+            v.notes.push_back(unreadable);
             v.errors.push_back(v.notes.back());
             results.push_back(std::move(v));
             continue;

@@ -20,9 +20,21 @@ std::string lower(std::string s) {
     return s;
 }
 
+// A profile or maps file, read whole. What is not a regular file is said to be so and not opened: a FIFO's
+// open waits for a writer (a profile directory holding one hung every command), a device's read may not end.
+std::optional<std::string> read_profile_text(const std::string& path, std::string& error) {
+    std::error_code ec;
+    const auto status = fs::status(path, ec);
+    if (!ec && !fs::is_regular_file(status)) {
+        error = fs::is_directory(status) ? "is a directory, not a file" : "not a regular file";
+        return std::nullopt;
+    }
+    return read_text_file(path, error);  // one that is not there says so when opened
+}
+
 std::optional<std::string> read_text(const fs::path& path) {
     std::string error;
-    return read_text_file(path.string(), error);
+    return read_profile_text(path.string(), error);
 }
 
 IncludeFn sibling_reader(const fs::path& file) {
@@ -33,7 +45,7 @@ IncludeFn sibling_reader(const fs::path& file) {
 
 LoadedProfiles load_profile_file(const std::string& path, const ProfileConfig& config, IncludeCache* cache) {
     std::string error;
-    auto text = read_text_file(path, error);
+    auto text = read_profile_text(path, error);
     if (!text) {
         LoadedProfiles out;
         out.errors.push_back({path, "", error});
@@ -109,7 +121,10 @@ ProfileStore::ProfileStore(std::vector<ProfileDirectory> directories) {
         std::vector<fs::path> files;
         for (auto it = fs::recursive_directory_iterator(dir, ec);
              !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
-            if (it->is_regular_file() && it->path().extension() == ".json") files.push_back(it->path());
+            // Every *.json but a directory (which is descended into): one that is no regular file is
+            // reported when read, not passed over without a word.
+            if (std::error_code type; it->path().extension() == ".json" && !it->is_directory(type))
+                files.push_back(it->path());
         std::sort(files.begin(), files.end());
         DirectoryNames names(dir);
         const auto add = [&](const fs::path& file, ProfileEntry e) {
@@ -130,7 +145,7 @@ ProfileStore::ProfileStore(std::vector<ProfileDirectory> directories) {
         for (const auto& file : files) {
             if (directory.reading == ProfileReading::headers) {
                 std::string error;
-                auto text = read_text_file(file.string(), error);
+                auto text = read_profile_text(file.string(), error);
                 if (!text) {
                     errors_.push_back({file.string(), "", error});
                     continue;

@@ -47,7 +47,8 @@ struct ProfileEntry {
 class ProfileStore {
   public:
     // Loads every *.json below each directory (recursively). Files of another kind (schemas, shared map
-    // files) are skipped; broken profile files are reported in errors() and the rest still load.
+    // files) are skipped; broken profile files, and a *.json that is no regular file (a FIFO, never opened),
+    // are reported in errors() and the rest still load.
     explicit ProfileStore(std::vector<std::string> directories);
     explicit ProfileStore(std::vector<ProfileDirectory> directories);
 
