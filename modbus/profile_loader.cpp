@@ -37,6 +37,16 @@ std::string pointer_token(const std::string& key) {
     return (json::json_pointer() / key).to_string().substr(1);
 }
 
+// The start of a text quoted in a message, cut between UTF-8 characters: an "expr" that does not parse may
+// be 200 kB, and the message says at which character it fails.
+std::string excerpt(const std::string& text, std::size_t bytes = 40) {
+    if (text.size() <= bytes) return text;
+    std::size_t n = bytes;
+    while (n > 0 && (static_cast<unsigned char>(text[n]) & 0xC0) == 0x80)  // text[n] continues a character
+        --n;
+    return text.substr(0, n) + "…";
+}
+
 // A JSON integer as a 64-bit signed one; nullopt for any other value, and for an unsigned one past
 // INT64_MAX, which get<std::int64_t>() would wrap to a negative number.
 std::optional<std::int64_t> as_int64(const json& j) {
@@ -289,7 +299,7 @@ Encoding parse_encoding(Reader& r, const json& j, const std::string& ptr, Table 
         if (e.expr.empty()) {
             r.error(ptr, "\"formula\" needs \"expr\"");
         } else if (auto f = parse_formula(e.expr); !f) {
-            r.error(ptr + "/expr", "\"" + e.expr + "\": " + f.error());
+            r.error(ptr + "/expr", "\"" + excerpt(e.expr) + "\": " + f.error());
         } else {
             e.formula = std::move(f).value();
         }

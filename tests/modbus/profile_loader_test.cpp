@@ -1058,4 +1058,25 @@ TEST(ProfileLoader, AKeyGivenTwiceInOneObjectIsAnError) {
                     .errors.empty());
 }
 
+// A formula that does not parse is named in its error: all of it, which for a hostile 200 kB "expr" was a
+// 200 kB line. An excerpt is quoted, its first 40 characters.
+TEST(ProfileLoader, AFormulaErrorQuotesAnExcerptOfTheExpression) {
+    const auto error_of = [](const std::string& expr) {
+        const auto l =
+            load(doc(R"({"holding_registers": [{"address": 0, "name": "a", "access": "r", "source": "1",
+                                     "encoding": {"type": "formula", "expr": ")" +
+                     expr + R"("}}]})"));
+        EXPECT_EQ(l.errors.size(), 1u);
+        return l.errors.empty() ? std::string() : l.errors[0].message;
+    };
+    EXPECT_EQ(error_of(std::string(200000, '1')),
+              "\"" + std::string(40, '1') + "…\": longer than 256 characters");
+    EXPECT_EQ(error_of("I = R * " + std::string(60, '2') + " +"),
+              "\"I = R * " + std::string(32, '2') + "…\": expression ends early at character 71");
+    // Cut between characters, not inside one: "ã" is two bytes, the 40th and 41st.
+    EXPECT_EQ(error_of(std::string(39, '1') + "ã" + std::string(300, '1')),
+              "\"" + std::string(39, '1') + "…\": longer than 256 characters");
+    EXPECT_EQ(error_of("I = 4 + * R"), "\"I = 4 + * R\": unexpected '*' at character 9");
+}
+
 }  // namespace test_modbus_profile_loader_test
