@@ -519,8 +519,12 @@ void register_profile(CLI::App& app, int& exit_code) {
         "installed profiles; the first directory that defines an id wins. A --profile-dir that is not a\n"
         "directory is an error; a file that cannot be read is warned about when a profile is loaded.\n"
         "Ids and aliases are matched case-insensitively.\n"
-        "Exit codes: 0 ok, 1 something is missing or invalid, 2 could not run (a --profile-dir that is not a"
-        " directory, a file to validate that cannot be read).");
+        "Exit codes, as for every command: 0 ok; 1 faults found: a profile file with errors (or no profile\n"
+        "among the files validated), a point or word not in the device map; 2 the run could not complete:\n"
+        "an id or alias no directory defines, an argument that is not a table, address or hex word, a bad\n"
+        "--config or --word-order, a --profile-dir that is not a directory, a file to validate that cannot "
+        "be\n"
+        "read or is not a regular file.");
     auto common = [&](CLI::App* sub) {
         sub->add_flag("--json", o->json, "Machine-readable output");
         sub->add_option("--config", o->config, "Modular devices: CHANNEL=MAP (repeatable)");

@@ -532,4 +532,19 @@ TEST(ProfileCommand, AFileThatIsNotARegularFileIsSaidNotWaitedFor) {
     fs::remove_all(d);
 }
 
+// The help said "1 something is missing or invalid, 2 could not run" while an unknown id or table exited 2;
+// README.md's convention, the same for every subcommand, is that 2 is a run that could not complete, and the
+// tests hold the commands to it. The help says which is which.
+TEST(ProfileCommand, TheHelpGivesTheExitCodesTheCommandsUse) {
+    const auto help = run_mbscope("profile --help");
+    EXPECT_EQ(help.exit_code, 0);
+    EXPECT_EQ(help.out.find("1 something is missing or invalid"), std::string::npos) << help.out;
+    EXPECT_NE(help.out.find("1 faults found"), std::string::npos) << help.out;
+    EXPECT_NE(help.out.find("2 the run could not complete"), std::string::npos) << help.out;
+    EXPECT_NE(help.out.find("an id or alias no directory defines"), std::string::npos) << help.out;
+    EXPECT_EQ(run_mbscope("profile show nope").exit_code, 2);
+    EXPECT_EQ(run_mbscope("profile decode mmk-2030 bogus 0 0001").exit_code, 2);
+    EXPECT_EQ(run_mbscope("profile lookup mmk-2030 holding 9999").exit_code, 1);
+}
+
 }  // namespace test_cli_profile_command_test
