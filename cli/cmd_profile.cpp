@@ -462,8 +462,15 @@ int run_decode(const ProfileOptions& o) {
     if (!p) return exit_failure;
     if (!o.word_order.empty())
         if (auto why = modbus::set_word_order(*p, *modbus::parse_word_order(o.word_order))) {
-            std::cerr << "mbscope profile: --word-order " << o.word_order << ": " << *why << '\n';
-            return exit_failure;
+            // A manual that fixes the order leaves nothing to choose: the values are read in it and a note
+            // says the option was not applied, as `decode --profile` does (analyzer/README.md). An order the
+            // device cannot be set to, where its manual lists the ones it can, is a wrong argument.
+            if (!p->word_orders.empty()) {
+                std::cerr << "mbscope profile: --word-order " << o.word_order << ": " << *why << '\n';
+                return exit_failure;
+            }
+            std::cerr << "mbscope profile: note: --word-order " << o.word_order << " is not applied to "
+                      << p->id << ": " << *why << '\n';
         }
     auto values = decode_registers(*p, *table, *start, words);
     // As in lookup: a start that reads as a reference of the table, where no word of the block is a point at

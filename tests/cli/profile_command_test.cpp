@@ -144,8 +144,6 @@ TEST(ProfileCommand, AWordOrderTheManualMakesASettingIsApplied) {
     EXPECT_NE(r.out.find("walchem-w600's manual gives cdab or abcd (the device's setting), not dcba"),
               std::string::npos)
         << r.out;
-    r = run_mbscope("profile decode cth2265i holding 4012 0001 0000 --word-order abcd");
-    EXPECT_EQ(r.exit_code, 2) << r.out;
     const std::string log = ::testing::TempDir() + "walchem-inverse.txt";
     std::ofstream(log) << "1.000 01 03 02 40 00 02 C4 67\n1.020 01 03 04 3F C0 00 00 F6 1B\n";
     r = run_mbscope("decode --profile walchem-w600 --word-order abcd " + log);
@@ -545,6 +543,23 @@ TEST(ProfileCommand, TheHelpGivesTheExitCodesTheCommandsUse) {
     EXPECT_EQ(run_mbscope("profile show nope").exit_code, 2);
     EXPECT_EQ(run_mbscope("profile decode mmk-2030 bogus 0 0001").exit_code, 2);
     EXPECT_EQ(run_mbscope("profile lookup mmk-2030 holding 9999").exit_code, 1);
+}
+
+// analyzer/README.md: a profile whose manual fixes the 32-bit order keeps it under --word-order, with a note
+// on standard error, in `decode` and `profile decode` alike. `profile decode` stopped instead (exit 2, no
+// values); it now says the note and decodes in the profile's order.
+TEST(ProfileCommand, AWordOrderTheManualFixesIsKeptWithANote) {
+    const std::string words = "profile decode cth2265i holding 4012 0001 0000";
+    const auto plain = run_mbscope(words);
+    ASSERT_EQ(plain.exit_code, 0) << plain.out;
+    const auto stdout_only = run_mbscope(words + " --word-order abcd 2>/dev/null | cat");
+    EXPECT_EQ(stdout_only.out, plain.out);
+    const auto r = run_mbscope(words + " --word-order abcd");
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("mbscope profile: note: --word-order abcd is not applied to cth2265i: cth2265i's "
+                         "manual gives its 32-bit values one order"),
+              std::string::npos)
+        << r.out;
 }
 
 }  // namespace test_cli_profile_command_test
