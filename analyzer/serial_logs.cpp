@@ -5,6 +5,7 @@
 #include <charconv>
 #include <chrono>
 
+#include "modbus/describe.hpp"    // hex_bytes()
 #include "modbus/frame_text.hpp"  // quote_excerpt()
 #include "modbus/hex.hpp"
 #include "modbus/storage/text_file.hpp"
@@ -242,14 +243,17 @@ bool socat_diagnostic(std::string_view line) {
     return parse_calendar(line, p, '/') && line.substr(p).starts_with(" socat[");
 }
 
-// " xx xx ..." up to `most` bytes; returns how many were read.
-std::size_t socat_bytes(std::string_view line, std::size_t most, std::vector<std::uint8_t>& out) {
-    std::size_t n = 0;
-    for (std::size_t p = 0; n < most && p + 3 <= line.size() && line[p] == ' ' && is_hex(line[p + 1]) &&
+// " xx xx ...": the hex pairs that lead the line, each after one space, all of them (socat writes 16 a line
+// at most; a line holding more than its block announced is told by the caller, not cut here). socat -x -v
+// pads the hex to sixteen pairs' width and puts two spaces more before its ASCII rendering, so that column
+// ("ab" may read as a byte) stops the pairs and is never taken for bytes.
+std::vector<std::uint8_t> socat_bytes(std::string_view line) {
+    std::vector<std::uint8_t> out;
+    for (std::size_t p = 0; p + 3 <= line.size() && line[p] == ' ' && is_hex(line[p + 1]) &&
                             is_hex(line[p + 2]) && (p + 3 == line.size() || line[p + 3] == ' ');
-         p += 3, ++n)
+         p += 3)
         out.push_back(hex_pair(line[p + 1], line[p + 2]));
-    return n;
+    return out;
 }
 
 }  // namespace
@@ -357,16 +361,30 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
             continue;
         }
         if (open && block.bytes.size() < announced) {
-            const std::size_t want = std::min<std::size_t>(16, announced - block.bytes.size());
-            const std::size_t got = socat_bytes(line, want, block.bytes);
-            if (got == 0 && !any_data) {
+            auto got = socat_bytes(line);
+            if (got.empty() && !any_data) {
                 error(where(name, number) +
                       "socat wrote this block as text (-v without -x): non-printable bytes are lost; "
                       "capture with socat -x -v");
                 return false;
             }
-            if (got) {  // fewer than 16 when the data held a 0x0A: socat -v breaks the line after it
+            if (!got.empty()) {  // fewer than 16 when the data held a 0x0A: socat -v breaks the line after it
                 any_data = true;
+                // Bytes past the announced length: the header and the data disagree (a log edited or two
+                // blocks run together). The announced bytes are the block, as socat counted them; the
+                // rest are named here rather than dropped unseen or decoded as part of a frame.
+                const std::size_t room = announced - block.bytes.size();
+                if (got.size() > room) {
+                    const std::span<const std::uint8_t> extra(got.data() + room, got.size() - room);
+                    error(where(name, number) + "block announces " + std::to_string(announced) +
+                          " bytes (line " + std::to_string(header_line) + "), this line holds " +
+                          std::to_string(extra.size()) + " more, not decoded: " +
+                          modbus::hex_bytes(extra.first(std::min<std::size_t>(extra.size(), 16))) +
+                          (extra.size() > 16 ? " ..." : ""));
+                    ok = false;
+                    got.resize(room);
+                }
+                block.bytes.insert(block.bytes.end(), got.begin(), got.end());
                 continue;
             }
         }

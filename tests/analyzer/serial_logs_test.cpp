@@ -299,6 +299,30 @@ TEST(SocatLog, ShortBlocksAndStrayLinesAreNamedAndTheRestRead) {
     EXPECT_EQ(p.chunks[1].bytes, fc3_response);
 }
 
+// A data line holding more bytes than its header announced (a log edited, two blocks run together): the
+// announced bytes are the block, and the rest are an error naming the line, not dropped unseen. An ASCII
+// column that reads as hex ("ab" for 61 62) is no such bytes.
+TEST(SocatLog, BytesPastTheAnnouncedLengthAreNamedNotDropped) {
+    const auto p = socat(
+        "> 2026/11/30 06:29:31.000429684  length=8 from=0 to=7\n"
+        " 11 03 00 6b 00 03 76 87                          ...k..v.\n"
+        "--\n"
+        "< 2026/11/30 06:29:31.000451484  length=11 from=0 to=10\n"
+        " 11 03 06 02 2b 00 00 00 64 c8 ba 99 98\n"
+        "--\n"
+        "> 2026/11/30 06:29:31.000503159  length=2 from=8 to=9\n"
+        " 61 62                                            ab\n"
+        "--\n");
+    EXPECT_FALSE(p.ok);
+    ASSERT_EQ(p.errors.size(), 1u);
+    EXPECT_EQ(p.errors[0].rfind("socat.log:5: ", 0), 0u) << p.errors[0];
+    EXPECT_NE(p.errors[0].find("2 more, not decoded: 99 98"), std::string::npos) << p.errors[0];
+    ASSERT_EQ(p.chunks.size(), 3u);
+    EXPECT_EQ(p.chunks[0].bytes, fc3_request);
+    EXPECT_EQ(p.chunks[1].bytes, fc3_response);
+    EXPECT_EQ(p.chunks[2].bytes, bytes({0x61, 0x62}));
+}
+
 TEST(SocatLog, DecodesRequestsExceptionsAndLatency) {
     auto r = decode(write_temp("socat.log", socat_log), an::InputFormat::Auto);
     ASSERT_TRUE(r->ok) << (r->summary.input_errors.empty() ? "" : r->summary.input_errors[0]);
