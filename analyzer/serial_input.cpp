@@ -142,7 +142,9 @@ std::optional<Input> open_input(const std::string& name, std::string& error, boo
     return Input{path, name, std::move(spool), {}, {}};
 }
 
-bool read_text(Analyzer& a, const Input& input) {
+// The readers add to `bytes` every data byte they hand the analyzer, so that an input that held none is
+// told from a quiet line.
+bool read_text(Analyzer& a, const Input& input, std::uint64_t& bytes) {
     const std::string& path = input.name;
     std::ifstream in(input.path);
     if (!in) {
@@ -185,14 +187,22 @@ bool read_text(Analyzer& a, const Input& input) {
             ok = false;
             continue;
         }
-        std::vector<std::uint8_t>& bytes = *parsed;
+        // "TIME [DIR] HEX...": a time (and direction) with no bytes is no chunk, a line cut or a logger
+        // that wrote an empty read; it was counted as a packet of nothing.
+        if (parsed->empty()) {
+            a.input_error(path + ":" + std::to_string(number) +
+                          ": a time and no bytes after it: " + modbus::quote_excerpt(line));
+            ok = false;
+            continue;
+        }
         if (t.count() == 0) t = modbus::Timestamp(1);  // zero means "untimed" to the analyzer
-        a.serial(path, bytes, t, dir.value_or(Direction::Unknown));
+        a.serial(path, *parsed, t, dir.value_or(Direction::Unknown));
+        bytes += parsed->size();
     }
     return ok;
 }
 
-bool read_raw(Analyzer& a, const Input& input) {
+bool read_raw(Analyzer& a, const Input& input, std::uint64_t& bytes) {
     const std::string& path = input.name;
     std::ifstream in(input.path, std::ios::binary);
     if (!in) {
@@ -206,12 +216,14 @@ bool read_raw(Analyzer& a, const Input& input) {
         const auto n = static_cast<std::size_t>(in.gcount());
         if (n) a.serial(path, {reinterpret_cast<const std::uint8_t*>(buf.data()), n}, modbus::Timestamp{0});
         offset += n;
+        bytes += n;
         a.reached(offset);
     }
     return true;
 }
 
-bool read_log(Analyzer& a, const Input& input, InputFormat format, const SerialLogOptions& options) {
+bool read_log(Analyzer& a, const Input& input, InputFormat format, const SerialLogOptions& options,
+              std::uint64_t& bytes) {
     const std::string& path = input.name;
     std::ifstream in(input.path, std::ios::binary);
     if (!in) {
@@ -221,6 +233,7 @@ bool read_log(Analyzer& a, const Input& input, InputFormat format, const SerialL
     Position position(a, in);
     const auto chunk = [&](const SerialChunk& c) {
         a.serial(path, c.bytes, c.received, c.direction);
+        bytes += c.bytes.size();
         position.record();
     };
     const auto error = [&](const std::string& message) { a.input_error(message); };
@@ -360,6 +373,7 @@ std::optional<Prepared> prepare(Analyzer& a, const std::string& name, InputForma
 
 bool read_prepared(Analyzer& a, Prepared& p, const SerialLogOptions& options) {
     bool read = false;
+    std::uint64_t bytes = 0;
     switch (p.format) {
         case InputFormat::Pcap: {
             if (!p.input.stream) return a.read_capture(p.input.path, p.input.name);
@@ -374,7 +388,7 @@ bool read_prepared(Analyzer& a, Prepared& p, const SerialLogOptions& options) {
             return a.read_capture(*capture);
         }
         case InputFormat::Text:
-            read = read_text(a, p.input);
+            read = read_text(a, p.input, bytes);
             break;
         case InputFormat::RtuRaw:
         case InputFormat::AsciiRaw:
@@ -383,14 +397,21 @@ bool read_prepared(Analyzer& a, Prepared& p, const SerialLogOptions& options) {
             if (p.asked != InputFormat::Auto && !a.serial_framing())
                 a.set_serial_framing(p.format == InputFormat::AsciiRaw ? modbus::Framing::Ascii
                                                                        : modbus::Framing::Rtu);
-            read = read_raw(a, p.input);
+            read = read_raw(a, p.input, bytes);
             break;
         case InputFormat::Jpnevulator:
         case InputFormat::Socat:
-            read = read_log(a, p.input, p.format, options);
+            read = read_log(a, p.input, p.format, options, bytes);
             break;
         case InputFormat::Auto:
             break;
+    }
+    // Read without an error and not one data byte in it (comments, a log's headers, a socat -d log of
+    // diagnostics alone): nothing was decoded, as with an empty file, which is not a quiet line. A reader
+    // that reported errors has said why already.
+    if (read && bytes == 0) {
+        a.input_error(p.input.name + ": no data bytes in it, nothing to decode");
+        read = false;
     }
     return read && !p.capture_read_as_serial;
 }

@@ -405,6 +405,42 @@ TEST(SerialLogs, LinesLongerThanTheBoundAreNamedAndTheRestRead) {
     EXPECT_EQ(r->sink.frames[0].time, mb::Timestamp(1'500'000'000));
 }
 
+// An input from which not one data byte was read (comments alone, a log's header alone, socat -d
+// diagnostics alone) decodes to nothing, as an empty file does: an input error naming it, not a quiet line.
+TEST(SerialLogs, InputsWithoutADataByteAreInputErrors) {
+    for (const auto& [name, content] :
+         {std::pair{"mbscope-no-bytes.txt", "# only a comment\n"},
+          std::pair{"mbscope-no-bytes-jp.log", "2026-11-30 06:22:57.009496: master\n"},
+          std::pair{"mbscope-no-bytes-socat.log",
+                    "2026/11/30 06:29:30 socat[25059] N PTY is /dev/pts/0\n"}}) {
+        SCOPED_TRACE(name);
+        const auto path = write_temp(name, content);
+        const auto r = decode(path, an::InputFormat::Auto);
+        EXPECT_FALSE(r->ok);
+        ASSERT_EQ(r->summary.input_errors.size(), 1u);
+        EXPECT_EQ(r->summary.input_errors[0], path + ": no data bytes in it, nothing to decode");
+    }
+}
+
+// "TIME [DIR] HEX...": a time and a direction with no bytes is a malformed line, named, not a packet of
+// nothing; the lines after it still decode.
+TEST(TextLog, ATimeWithoutBytesIsAMalformedLine) {
+    const auto path = write_temp("mbscope-text-no-bytes.txt",
+                                 "1.0 > \n"
+                                 "1.2\n"
+                                 "1.5 > 11 03 00 6B 00 03 76 87\n");
+    const auto r = decode(path, an::InputFormat::Text);
+    EXPECT_FALSE(r->ok);
+    ASSERT_EQ(r->summary.input_errors.size(), 2u);
+    EXPECT_EQ(r->summary.input_errors[0].rfind(path + ":1: a time and no bytes after it", 0), 0u)
+        << r->summary.input_errors[0];
+    EXPECT_EQ(r->summary.input_errors[1].rfind(path + ":2: a time and no bytes after it", 0), 0u)
+        << r->summary.input_errors[1];
+    EXPECT_EQ(r->summary.packets, 1u);
+    ASSERT_EQ(r->sink.frames.size(), 1u);
+    EXPECT_EQ(r->sink.frames[0].time, mb::Timestamp(1'500'000'000));
+}
+
 // A progress line for a serial log moves within the file: the readers report the offset they reached every
 // so many records, in order, never past the end.
 TEST(SerialLogs, ProgressReportsOffsetsWithinAFile) {
