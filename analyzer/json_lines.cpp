@@ -88,10 +88,13 @@ void write_transaction(const TransactionRecord& t, JsonWriter& out) {
     if (t.word_order) {
         out.key("registers32");
         out.begin_array();
-        for (const auto& reg : t.registers32) {  // a NaN or infinite f32 is written as null
+        // JSON has no NaN or infinity: such an f32 is null, and f32_text ("nan", "inf", "-inf", or the
+        // number as the text output writes it) tells which, as a profile value's text does.
+        for (const auto& reg : t.registers32) {
             out.begin_object();
             out.member("address", reg.address);
             out.member("f32", reg.f32);
+            out.plain_member("f32_text", float_text(reg.f32));
             out.member("u32", reg.u32);
             out.end_object();
         }

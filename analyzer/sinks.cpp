@@ -417,8 +417,9 @@ json transaction_to_json(const TransactionRecord& t) {
     if (t.word_order) {
         j["word_order"] = std::string(to_string(*t.word_order));
         j["registers32"] = json::array();
-        for (const auto& r : t.registers32)  // a NaN or infinite f32 is written as null
-            j["registers32"].push_back({{"address", r.address}, {"u32", r.u32}, {"f32", r.f32}});
+        for (const auto& r : t.registers32)  // a NaN or infinite f32 is null: f32_text tells which
+            j["registers32"].push_back(
+                {{"address", r.address}, {"u32", r.u32}, {"f32", r.f32}, {"f32_text", float_text(r.f32)}});
     }
     return j;
 }

@@ -114,6 +114,38 @@ TEST(WordOrder, TransactionsCarryThePairsInTextAndJson) {
     EXPECT_EQ(j["transport"], "tcp");
 }
 
+// JSON has no NaN or infinity: f32 is null for each, and f32_text says which (it was null alone, so a NaN,
+// +inf and -inf read alike), in the document and in JSON lines the same.
+TEST(WordOrder, NonFiniteFloatsAreToldApartInJson) {
+    an::AnalyzerOptions o;
+    o.word_order = mb::WordOrder::Abcd;
+    auto d = mbscope::test::decode_pcap(
+        exchange({0x7FC0, 0x0000, 0xFF80, 0x0000, 0x7F80, 0x0000, 0x3FC0, 0x0000}), o);
+    ASSERT_EQ(d->sink.transactions.size(), 1u);
+    for (const bool lines : {true, false}) {
+        SCOPED_TRACE(lines ? "json lines" : "json");
+        std::ostringstream out;
+        {
+            an::JsonSink sink(out, lines);
+            sink.transaction(d->sink.transactions[0]);
+            sink.end(an::Summary{});
+        }
+        const auto text = out.str();
+        auto j = nlohmann::json::parse(lines ? text.substr(0, text.find('\n')) : text);
+        if (!lines) j = j.at(0);
+        const auto& r = j.at("registers32");
+        ASSERT_EQ(r.size(), 4u);
+        EXPECT_TRUE(r[0]["f32"].is_null());
+        EXPECT_EQ(r[0]["f32_text"], "nan");
+        EXPECT_TRUE(r[1]["f32"].is_null());
+        EXPECT_EQ(r[1]["f32_text"], "-inf");
+        EXPECT_TRUE(r[2]["f32"].is_null());
+        EXPECT_EQ(r[2]["f32_text"], "inf");
+        EXPECT_EQ(r[3]["f32"], 1.5);
+        EXPECT_EQ(r[3]["f32_text"], "1.5");
+    }
+}
+
 TEST(WordOrder, NothingIsAddedWithoutTheOption) {
     auto d = mbscope::test::decode_pcap(exchange(cases[0].registers));
     ASSERT_EQ(d->sink.transactions.size(), 1u);
