@@ -332,7 +332,11 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
     const auto close = [&] {
         if (!open) return;
         open = false;
-        if (block.bytes.size() != announced) {
+        if (block.bytes.empty() && announced) {
+            error(where(name, header_line) + "block announces " + std::to_string(announced) +
+                  " bytes and the log holds none of them: its data lines are missing (a log cut or edited)");
+            ok = false;
+        } else if (block.bytes.size() != announced) {
             error(where(name, header_line) + "block announces " + std::to_string(announced) +
                   " bytes, the log holds " + std::to_string(block.bytes.size()));
             ok = false;
@@ -358,6 +362,13 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
             block.received = to_timestamp(h->time, nine_is_micro);
             block.direction =
                 h->left_to_right == options.socat_master_left ? Direction::Request : Direction::Response;
+            continue;
+        }
+        // "--" ends a block. One whose bytes are missing (a header and "--" alone: a log cut or edited)
+        // is named as such by close(); it is no sign of socat's text mode, which writes no "--" before
+        // its first block's text.
+        if (line == "--") {
+            close();
             continue;
         }
         if (open && block.bytes.size() < announced) {
@@ -388,7 +399,7 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
                 continue;
             }
         }
-        if (line == "--" || socat_diagnostic(line)) continue;
+        if (socat_diagnostic(line)) continue;
         error(where(name, number) + "not a socat -x line: " + modbus::quote_excerpt(line));
         ok = false;
     }

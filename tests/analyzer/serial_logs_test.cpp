@@ -323,6 +323,24 @@ TEST(SocatLog, BytesPastTheAnnouncedLengthAreNamedNotDropped) {
     EXPECT_EQ(p.chunks[2].bytes, bytes({0x61, 0x62}));
 }
 
+// A header and "--" with no data line between (a log cut or edited) is a block whose bytes are missing,
+// named at its header; it was taken for socat's text mode and the rest of the log was not read.
+TEST(SocatLog, ABlockWithoutDataLinesIsNamedAsMissingItsBytes) {
+    const auto p = socat(
+        "> 2026/11/30 06:29:31.000429684  length=8 from=0 to=7\n"
+        "--\n"
+        "< 2026/11/30 06:29:31.000451484  length=11 from=0 to=10\n"
+        " 11 03 06 02 2b 00 00 00 64 c8 ba                 ....+...d..\n"
+        "--\n");
+    EXPECT_FALSE(p.ok);
+    ASSERT_EQ(p.errors.size(), 1u);
+    EXPECT_EQ(p.errors[0].rfind("socat.log:1: block announces 8 bytes and the log holds none of them", 0), 0u)
+        << p.errors[0];
+    EXPECT_EQ(p.errors[0].find("-x -v"), std::string::npos) << p.errors[0];
+    ASSERT_EQ(p.chunks.size(), 1u);
+    EXPECT_EQ(p.chunks[0].bytes, fc3_response);
+}
+
 TEST(SocatLog, DecodesRequestsExceptionsAndLatency) {
     auto r = decode(write_temp("socat.log", socat_log), an::InputFormat::Auto);
     ASSERT_TRUE(r->ok) << (r->summary.input_errors.empty() ? "" : r->summary.input_errors[0]);
