@@ -298,12 +298,14 @@ void Session::cite(const std::vector<Evidence>& evidence) {
 
 void Session::settle_late(std::uint8_t unit, std::span<const std::uint8_t> pdu, bool several) {
     if (client_.framing() == modbus::Framing::Tcp) {
-        // Over UDP what waits before a request is whole datagrams (the second copy of a reply sent twice, a
-        // late reply): read now, each is logged for what it is. Left queued, the next exchange took it for
-        // its own reply whenever its transaction id was not just behind the request's (the envelope rules
-        // send ids 0, 4660 and 65535), and blamed the device's transaction id echo. Over TCP a read now could
-        // cut an ADU still arriving; the scanner sets late ones aside there.
-        if (client_.endpoint().scheme == tp::Scheme::Udp)
+        // Over UDP what waits before a request, after one answered in full, is whole datagrams that answer
+        // nothing (the second copy of a reply sent twice): read now, each is logged for what it is. Left
+        // queued, the next exchange took it for its own reply whenever its transaction id was not just
+        // behind the request's (the envelope rules send ids 0, 4660 and 65535), and blamed the device's
+        // transaction id echo. After bytes sent without waiting (a rule's pipelined requests) the replies
+        // waiting are the next exchange's. Over TCP a read now could cut an ADU still arriving; the scanner
+        // sets late ones aside there.
+        if (client_.endpoint().scheme == tp::Scheme::Udp && last_reply_)
             log_late(client_.drain(std::chrono::milliseconds(0)));
         return;
     }
