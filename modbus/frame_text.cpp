@@ -390,7 +390,16 @@ nlohmann::json render_json(const DecodedFrame& d) {
     j["wire"] = d.framing == Framing::Ascii ? std::string(d.wire.begin(), d.wire.end()) : hex_bytes(d.wire);
     j["length"] = d.wire.size();
     if (!d.source.empty()) j["source"] = d.source;
-    if (!d.direction_note.empty()) j["direction"] = d.direction_note;
+    // "direction" is one word a program can compare ("request", "response"); what reading the bytes both
+    // ways found ("request, or its echo response (identical bytes)") is a note beside it.
+    if (d.pdu) {
+        const std::string direction(to_string(d.pdu->direction));
+        j["direction"] = direction;
+        if (!d.direction_note.empty() && d.direction_note != direction)
+            j["direction_note"] = d.direction_note;
+    } else if (!d.direction_note.empty()) {
+        j["direction"] = d.direction_note;
+    }
     if (d.frame) {
         j["checksum_ok"] = d.frame->checksum_ok;
         for (const auto& f : describe_framing(*d.frame)) {

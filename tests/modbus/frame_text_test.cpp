@@ -214,4 +214,19 @@ TEST(FrameText, ADirectionIsChosenByWhatTheBytesBreak) {
     EXPECT_EQ(reply.direction_note, "response");
 }
 
+// JSON's "direction" is the word a program compares; an FC6 request, identical to its echo, says so in a note
+// beside it (the prose was the direction, and `--direction` refused it back).
+TEST(FrameText, JsonDirectionIsOneWordWithTheReadingInANote) {
+    const auto echo =
+        decode_frame(Framing::Rtu, encode_rtu(1, bytes({0x06, 0x00, 0x01, 0xFF, 0xFF})), Direction::Unknown);
+    ASSERT_TRUE(echo.pdu.has_value()) << echo.error;
+    const auto j = render_json(echo);
+    EXPECT_EQ(j["direction"], "request");
+    EXPECT_EQ(j["direction_note"], "request, or its echo response (identical bytes)");
+    const auto plain = render_json(
+        decode_frame(Framing::Rtu, encode_rtu(1, bytes({0x03, 0x02, 0x00, 0x7B})), Direction::Unknown));
+    EXPECT_EQ(plain["direction"], "response");
+    EXPECT_FALSE(plain.contains("direction_note"));
+}
+
 }  // namespace test_modbus_frame_text_test
