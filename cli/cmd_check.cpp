@@ -15,6 +15,7 @@
 #include "cli/stop_signal.hpp"
 #include "conformance/report.hpp"
 #include "conformance/runner.hpp"
+#include "modbus/frame_text.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "modbus/transport/client.hpp"
 
@@ -93,7 +94,7 @@ int run_check_command(const CheckCliOptions& o) {
     auto& stop = stop_on_signals(BrokenPipe::Ignored);
     auto endpoint = modbus::transport::parse_endpoint(o.target);
     if (!endpoint) {
-        std::cerr << "mbscope check: " << endpoint.error() << '\n';
+        std::cerr << "mbscope check: " << modbus::printable(endpoint.error()) << '\n';
         return exit_failure;
     }
     for (const auto* file : {&o.report, &o.junit, &o.html})
@@ -132,7 +133,7 @@ int run_check_command(const CheckCliOptions& o) {
     if (!client) {
         // The reports asked for are still written, one rule in error saying why: a CI job that publishes
         // them finds the reason instead of no file.
-        std::cerr << "mbscope check: cannot reach the target: " << client.error() << '\n';
+        std::cerr << "mbscope check: cannot reach the target: " << modbus::printable(client.error()) << '\n';
         const auto report = conformance::unreachable_report(*profile, options, client.error());
         if (o.json) std::cout << json_text(conformance::to_json(report)) << '\n';
         write_reports(o, report);

@@ -14,6 +14,7 @@
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
 #include "fuzz/network/campaign.hpp"
+#include "modbus/frame_text.hpp"
 #include "modbus/transport/endpoint.hpp"
 
 namespace mbscope::cli {
@@ -55,7 +56,7 @@ int run_fuzz_command(const FuzzCliOptions& o) {
     const auto& stop = stop_on_signals(BrokenPipe::Ignored);
     auto endpoint = modbus::transport::parse_endpoint(o.target);
     if (!endpoint) {
-        std::cerr << "mbscope fuzz: " << endpoint.error() << '\n';
+        std::cerr << "mbscope fuzz: " << modbus::printable(endpoint.error()) << '\n';
         return exit_failure;
     }
     if (!o.artifacts.empty())
@@ -123,7 +124,8 @@ int run_fuzz_command(const FuzzCliOptions& o) {
         if (summary.stopped)
             std::cerr << "mbscope fuzz: interrupted before the fuzzing began; nothing was judged\n";
         else
-            std::cerr << "mbscope fuzz: cannot reach the target: " << summary.error << '\n';
+            std::cerr << "mbscope fuzz: cannot reach the target: " << modbus::printable(summary.error)
+                      << '\n';
         return exit_failure;
     }
     bool unrestored = !summary.not_read.empty();

@@ -10,6 +10,7 @@
 #include "fuzz/network/reproducer.hpp"
 #include "fuzz/network/written_points.hpp"
 #include "modbus/describe.hpp"
+#include "modbus/frame_text.hpp"
 #include "modbus/transport/endpoint.hpp"
 
 namespace mbscope::cli {
@@ -181,7 +182,7 @@ int run_replay_command(const ReplayCliOptions& o) {
     const auto& r = *reproducer;
     auto endpoint = modbus::transport::parse_endpoint(o.target.empty() ? r.target : o.target);
     if (!endpoint) {
-        std::cerr << "mbscope replay: " << endpoint.error() << '\n';
+        std::cerr << "mbscope replay: " << modbus::printable(endpoint.error()) << '\n';
         return exit_failure;
     }
     const auto profile =
@@ -196,7 +197,7 @@ int run_replay_command(const ReplayCliOptions& o) {
     auto client = modbus::transport::Client::open(*endpoint);
     if (!client && stop) return report_replay(o, r, {});  // the signal cut the opening short
     if (!client) {
-        std::cerr << "mbscope replay: cannot reach the target: " << client.error() << '\n';
+        std::cerr << "mbscope replay: cannot reach the target: " << modbus::printable(client.error()) << '\n';
         return exit_failure;
     }
     run_begins();

@@ -9,6 +9,7 @@
 #include "cli/output_paths.hpp"
 #include "cli/profile_json.hpp"
 #include "cli/stop_signal.hpp"
+#include "modbus/frame_text.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "modbus/transport/endpoint.hpp"
 #include "slave/faults.hpp"
@@ -48,7 +49,7 @@ int run_slave(const SlaveOptions& o) {
     const auto& stop = stop_on_signals(BrokenPipe::Ignored);
     auto endpoint = modbus::transport::parse_endpoint(o.listen);
     if (!endpoint) {
-        std::cerr << "mbscope slave: " << endpoint.error() << '\n';
+        std::cerr << "mbscope slave: " << modbus::printable(endpoint.error()) << '\n';
         return exit_failure;
     }
     // A fault given twice is refused unless both instances act (stuck-value at two registers): every

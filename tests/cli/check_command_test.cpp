@@ -89,4 +89,18 @@ TEST(CheckCommand, AReportThatCannotBeWrittenIsSaidWithItsReason) {
         << r.out;
 }
 
+// A target (or a reproducer's, or a listening address) with terminal control sequences in it is quoted
+// escaped in the error, as every other input is: it drove the reader's terminal.
+TEST(CheckCommand, AnEndpointInAnErrorIsWrittenEscaped) {
+    const std::string bad = "\"$(printf 'tcp://127.0.0.1:1\\033[2J')\"";
+    for (const std::string& command : {"check --target " + bad + " --profile mmk-2030",
+                                       "fuzz --target " + bad + " --profile mmk-2030 --requests 1",
+                                       "slave --profile mmk-2030 --listen " + bad}) {
+        const auto r = run_mbscope(command);
+        EXPECT_EQ(r.exit_code, 2) << command << r.out;
+        EXPECT_EQ(r.out.find('\x1b'), std::string::npos) << command << r.out;
+        EXPECT_NE(r.out.find("1\\x1B[2J"), std::string::npos) << command << r.out;
+    }
+}
+
 }  // namespace test_cli_check_command_test
