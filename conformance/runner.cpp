@@ -334,11 +334,9 @@ Report run_check(modbus::transport::Client& client, const modbus::Profile& profi
     const bool mostly_late = session.answered_late() > in_time;
     if (report.requests > 0 && (in_time == 0 || mostly_late) && !report.stopped) {
         // Bytes that came back all the same are no silence: a peer that speaks something else, or breaks
-        // off its replies, is not a wrong unit id.
-        std::size_t heard = 0;
-        for (const auto& r : report.results)
-            for (const auto& e : r.evidence)
-                heard += e.received.size();
+        // off its replies, is not a wrong unit id. Counted over the whole run: a target answering every
+        // request with noise stops the run in its probing, before any rule kept evidence.
+        const std::uint64_t heard = session.bytes_received();
         // The count is every request sent, the address space's probing (three reads of each table's address
         // 0) included; the rules stop after the first three owed a reply (Context::silent_after).
         if (in_time > 0)

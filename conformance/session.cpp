@@ -230,6 +230,7 @@ void Session::log(const tp::Exchange& ex, const std::string& note, bool one_requ
         last_reply_request_ = ex.sent;
     }
     late_replies_ += ex.stale_replies.size() - copies;
+    bytes_received_ += ex.received.size();
     // A connection the peer closed ended the wait, no timeout did: "timed out" after 0.003 ms misled.
     evidence_.push_back({ex.closed ? note + " (the connection closed)" : note, ex.sent, ex.received,
                          ex.elapsed, ex.timed_out && !ex.closed});
@@ -243,6 +244,7 @@ void Session::log(const tp::Exchange& ex, const std::string& note, bool one_requ
 
 void Session::log_late(std::vector<std::uint8_t> bytes, const char* when) {
     if (bytes.empty()) return;
+    bytes_received_ += bytes.size();
     // The last reply again is that request answered twice, not a late reply.
     const bool again = last_reply_ && tp::repeats_reply(*last_reply_, bytes);
     if (again)
@@ -275,6 +277,7 @@ Evidence Session::listen_idle(std::chrono::milliseconds quiet) {
                false};
     e.elapsed = std::chrono::steady_clock::now() - start;
     e.timed_out = e.received.empty();
+    bytes_received_ += e.received.size();
     evidence_.push_back(e);
     return e;
 }

@@ -164,6 +164,9 @@ class Session {
     // (over Modbus/TCP one carrying the request's transaction id, over RTU and ASCII one that answers what
     // it asked). The device answered them, only after the timeout.
     std::uint64_t answered_late() const noexcept { return answered_late_; }
+    // Every byte the target sent in the run, replies or not, the address space's probing included: a target
+    // whose bytes form no reply is not a silent one.
+    std::uint64_t bytes_received() const noexcept { return bytes_received_; }
     // Requests answered twice (modbus::transport::repeats_reply): the reply again in the same read, before
     // the next request, or (Modbus/TCP) set aside by a later one; each with the request's bytes. Counted
     // for every exchange of one request (request(), and raw() of bytes that are one whole ADU awaiting one
@@ -238,6 +241,7 @@ class Session {
     std::uint64_t owed_reply_ = 0;
     std::uint64_t late_replies_ = 0;
     std::uint64_t answered_late_ = 0;
+    std::uint64_t bytes_received_ = 0;
     std::vector<Evidence> repeated_;
     // The reply to the last exchange of one request, when it came whole, and that request: a copy of it
     // arriving later is the request answered twice.
