@@ -22,6 +22,23 @@ using mbscope::test::run_mbscope;
 const std::string fixtures = std::string(MBSCOPE_SOURCE_DIR) + "/tests/fixtures";
 const std::string dir = " --profile-dir " + fixtures + "/profiles ";
 
+// An empty directory of the test's own under the system's temporary one.
+std::filesystem::path fresh_directory(const std::string& name) {
+    namespace fs = std::filesystem;
+    const fs::path d = fs::temp_directory_path() / ("mbscope-" + name + "-" + std::to_string(::getpid()));
+    fs::remove_all(d);
+    fs::create_directories(d);
+    return d;
+}
+
+// The fixture profile with its "models" replaced, written to `path`.
+void write_fixture_with_models(const std::filesystem::path& path, const nlohmann::json& models) {
+    std::ifstream in(fixtures + "/profiles/test-device.json");
+    auto doc = nlohmann::json::parse(in);
+    doc["models"] = models;
+    std::ofstream(path) << doc.dump(1);
+}
+
 }  // namespace
 
 TEST(ProfileCommand, ListShowsTheUsersProfile) {
@@ -199,14 +216,9 @@ TEST(ProfileCommand, ValidateADirectoryChecksEveryProfileUnderIt) {
 // one id, and an empty id were each "ok" to validate while the search passed over them without a word.
 TEST(ProfileCommand, ValidateRefusesADeviceIdTheProfileSearchCouldNotFind) {
     namespace fs = std::filesystem;
-    const fs::path d = fs::temp_directory_path() / ("mbscope-validate-ids-" + std::to_string(::getpid()));
-    fs::create_directories(d);
-    std::ifstream in(fixtures + "/profiles/test-device.json");
-    auto base = nlohmann::json::parse(in);
+    const fs::path d = fresh_directory("validate-ids");
     const auto write = [&](const std::string& name, const nlohmann::json& models) {
-        auto doc = base;
-        doc["models"] = models;
-        std::ofstream(d / name) << doc.dump(1);
+        write_fixture_with_models(d / name, models);
     };
     write("a.json", {{{"id", "dup"}, {"name", "first"}}});
     write("b.json", {{{"id", "Dup"}, {"name", "second"}}});
@@ -417,9 +429,7 @@ TEST(ProfileCommand, LongNamesAreCutBetweenCharacters) {
 // Each prints its JSON whole, the byte that is not UTF-8 replaced (U+FFFD).
 TEST(ProfileCommand, JsonOutputTakesAFileNameThatIsNotUtf8) {
     namespace fs = std::filesystem;
-    const fs::path d = fs::temp_directory_path() / ("mbscope-not-utf8-" + std::to_string(::getpid()));
-    fs::remove_all(d);
-    fs::create_directories(d);
+    const fs::path d = fresh_directory("not-utf8");
     const fs::path copy = d / "c\xFFth.json";
     fs::copy_file(fs::path(MBSCOPE_SOURCE_DIR) / "profiles" / "cth2265i.json", copy);
     const std::string shown = (d / "c\xEF\xBF\xBDth.json").string();  // U+FFFD in place of 0xFF
@@ -458,15 +468,9 @@ TEST(ProfileCommand, JsonOutputTakesAFileNameThatIsNotUtf8) {
 // both files, and the id is the one the search finds.
 TEST(ProfileCommand, AnAliasThatIsAnotherModelsIdIsAnError) {
     namespace fs = std::filesystem;
-    const fs::path d = fs::temp_directory_path() / ("mbscope-validate-aliases-" + std::to_string(::getpid()));
-    fs::remove_all(d);
-    fs::create_directories(d);
-    std::ifstream in(fixtures + "/profiles/test-device.json");
-    auto base = nlohmann::json::parse(in);
+    const fs::path d = fresh_directory("validate-aliases");
     const auto write = [&](const std::string& name, const nlohmann::json& models) {
-        auto doc = base;
-        doc["models"] = models;
-        std::ofstream(d / name) << doc.dump(1);
+        write_fixture_with_models(d / name, models);
     };
     write("a.json", {{{"id", "aaa"}, {"name", "A"}, {"aliases", {"bbb"}}}});
     write("b.json", {{{"id", "bbb"}, {"name", "B"}}});
@@ -490,8 +494,7 @@ TEST(ProfileCommand, AnAliasThatIsAnotherModelsIdIsAnError) {
     EXPECT_EQ(ids.count("aaa"), 1u);
     EXPECT_EQ(ids.count("bbb"), 1u);
     // Across directories: a user's alias "cth2265i" hid the bundled cth2265i. The id is found.
-    fs::remove_all(d);
-    fs::create_directories(d);
+    fresh_directory("validate-aliases");
     write("mine.json", {{{"id", "my-meter"}, {"name", "Mine"}, {"aliases", {"cth2265i"}}}});
     r = run_mbscope("profile --profile-dir " + d.string() + " show cth2265i");
     EXPECT_EQ(r.exit_code, 0) << r.out;
@@ -505,9 +508,7 @@ TEST(ProfileCommand, AnAliasThatIsAnotherModelsIdIsAnError) {
 // a warning for the search.
 TEST(ProfileCommand, AFileThatIsNotARegularFileIsSaidNotWaitedFor) {
     namespace fs = std::filesystem;
-    const fs::path d = fs::temp_directory_path() / ("mbscope-validate-fifo-" + std::to_string(::getpid()));
-    fs::remove_all(d);
-    fs::create_directories(d);
+    const fs::path d = fresh_directory("validate-fifo");
     fs::copy_file(fixtures + "/profiles/test-device.json", d / "a.json");
     ASSERT_EQ(::mkfifo((d / "pipe.json").c_str(), 0600), 0);
     const std::string limit = "timeout 20";  // the run waited for ever: 124 when it still does
