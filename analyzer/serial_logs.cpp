@@ -245,14 +245,27 @@ bool socat_diagnostic(std::string_view line) {
 
 // " xx xx ...": the hex pairs that lead the line, each after one space, all of them (socat writes 16 a line
 // at most; a line holding more than its block announced is told by the caller, not cut here). socat -x -v
-// pads the hex to sixteen pairs' width and puts two spaces more before its ASCII rendering, so that column
-// ("ab" may read as a byte) stops the pairs and is never taken for bytes.
-std::vector<std::uint8_t> socat_bytes(std::string_view line) {
-    std::vector<std::uint8_t> out;
-    for (std::size_t p = 0; p + 3 <= line.size() && line[p] == ' ' && is_hex(line[p + 1]) &&
-                            is_hex(line[p + 2]) && (p + 3 == line.size() || line[p + 3] == ' ');
+// pads the hex to sixteen pairs' width and puts two spaces more before its ASCII rendering, one character a
+// byte, so that column ("ab" may read as a byte) stops the pairs and is never taken for bytes. Anything
+// else after the pairs (" 11 03 zz", a log edited by hand) is returned as `rest` for the caller to name.
+struct SocatBytes {
+    std::vector<std::uint8_t> bytes;
+    std::string_view rest;  // not hex pairs and not socat's ASCII column; empty when the line is socat's
+};
+
+SocatBytes socat_bytes(std::string_view line) {
+    constexpr std::size_t ascii_column = 16 * 3 + 2;
+    SocatBytes out;
+    std::size_t p = 0;
+    for (; p + 3 <= line.size() && line[p] == ' ' && is_hex(line[p + 1]) && is_hex(line[p + 2]) &&
+           (p + 3 == line.size() || line[p + 3] == ' ');
          p += 3)
-        out.push_back(hex_pair(line[p + 1], line[p + 2]));
+        out.bytes.push_back(hex_pair(line[p + 1], line[p + 2]));
+    if (p == line.size()) return out;
+    // trim_right took any spaces at the line's end: something follows the pairs here.
+    const std::size_t text_at = line.find_first_not_of(' ', p);
+    if (text_at < ascii_column || line.size() - ascii_column > out.bytes.size())
+        out.rest = line.substr(text_at);
     return out;
 }
 
@@ -372,7 +385,7 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
             continue;
         }
         if (open && block.bytes.size() < announced) {
-            auto got = socat_bytes(line);
+            auto [got, rest] = socat_bytes(line);
             if (got.empty() && !any_data) {
                 error(where(name, number) +
                       "socat wrote this block as text (-v without -x): non-printable bytes are lost; "
@@ -396,6 +409,14 @@ bool read_socat_log(std::istream& in, const std::string& name, const SerialLogOp
                     got.resize(room);
                 }
                 block.bytes.insert(block.bytes.end(), got.begin(), got.end());
+                // The pairs are taken; what follows them is neither more pairs nor socat's ASCII column.
+                if (!rest.empty()) {
+                    error(where(name, number) +
+                          "this line's hex pairs are followed by what is neither a pair nor socat -x -v's "
+                          "ASCII column, not decoded: " +
+                          modbus::quote_excerpt(rest));
+                    ok = false;
+                }
                 continue;
             }
         }

@@ -323,6 +323,30 @@ TEST(SocatLog, BytesPastTheAnnouncedLengthAreNamedNotDropped) {
     EXPECT_EQ(p.chunks[2].bytes, bytes({0x61, 0x62}));
 }
 
+// After its hex pairs a socat -x line holds nothing, or (-x -v) spaces to column 50 and one character a byte.
+// Anything else (a log edited by hand) is named, not dropped unseen: the pairs before it are still read.
+TEST(SocatLog, TextAfterThePairsThatIsNoAsciiColumnIsNamed) {
+    const auto p = socat(
+        "> 2026/11/30 06:29:31.000429684  length=2 from=0 to=1\n"
+        " 11 03 zz\n"
+        "--\n"
+        "> 2026/11/30 06:29:31.000451484  length=2 from=2 to=3\n"
+        " 11 03                                            ..xyz\n"
+        "--\n"
+        "> 2026/11/30 06:29:31.000503159  length=2 from=4 to=5\n"
+        " 61 62                                            ab\n"
+        "--\n");
+    EXPECT_FALSE(p.ok);
+    ASSERT_EQ(p.errors.size(), 2u);
+    EXPECT_EQ(p.errors[0].rfind("socat.log:2: ", 0), 0u) << p.errors[0];
+    EXPECT_NE(p.errors[0].find("not decoded: 'zz'"), std::string::npos) << p.errors[0];
+    EXPECT_EQ(p.errors[1].rfind("socat.log:5: ", 0), 0u) << p.errors[1];
+    ASSERT_EQ(p.chunks.size(), 3u);
+    EXPECT_EQ(p.chunks[0].bytes, bytes({0x11, 0x03}));
+    EXPECT_EQ(p.chunks[1].bytes, bytes({0x11, 0x03}));
+    EXPECT_EQ(p.chunks[2].bytes, bytes({0x61, 0x62}));
+}
+
 // A header and "--" with no data line between (a log cut or edited) is a block whose bytes are missing,
 // named at its header; it was taken for socat's text mode and the rest of the log was not read.
 TEST(SocatLog, ABlockWithoutDataLinesIsNamedAsMissingItsBytes) {
