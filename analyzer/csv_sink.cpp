@@ -1,5 +1,6 @@
 #include "analyzer/csv_sink.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <optional>
@@ -106,6 +107,17 @@ std::string named_values(const std::vector<NamedValue>& values) {
     return s;
 }
 
+// A reply paired with the request that does not answer it as asked: another function, unit or transaction
+// id, a data size the request does not call for, a write not echoed. Its row said "ok" beside the finding,
+// and a reader counting rows by status took the exchange for a clean one.
+bool answers_another_request(const TransactionRecord& t) {
+    return std::any_of(t.findings.begin(), t.findings.end(), [](FindingCode code) {
+        return code == FindingCode::PairFunctionMismatch || code == FindingCode::PairUnitMismatch ||
+               code == FindingCode::PairTransactionIdMismatch ||
+               code == FindingCode::PairResponseSizeMismatch || code == FindingCode::PairEchoMismatch;
+    });
+}
+
 std::string status_of(const TransactionRecord& t) {
     if (t.broadcast) return "broadcast";
     if (!t.response)
@@ -120,6 +132,7 @@ std::string status_of(const TransactionRecord& t) {
     if (!t.response->frame.checksum_ok) return "bad_checksum";
     // After its timeout: the request has a row of its own already, "timeout".
     if (t.late_past) return t.response->pdu->is_exception() ? "late_exception" : "late";
+    if (answers_another_request(t)) return "mismatch";
     if (t.response->pdu->is_exception()) return "exception";
     // A normal reply to a request that does not decode was "ok": the row passed for a clean exchange.
     return t.request.pdu ? "ok" : "malformed_request";

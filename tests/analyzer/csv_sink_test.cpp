@@ -195,6 +195,31 @@ TEST(CsvSink, ANormalReplyToARequestThatDoesNotDecodeIsNotOk) {
     EXPECT_NE(rows[1].at("findings").find("pdu.malformed"), std::string::npos) << rows[1].at("findings");
 }
 
+// A reply that does not answer its request as asked (two registers for three, a write echoed with another
+// value): its row said "ok" beside the finding; it is "mismatch".
+TEST(CsvSink, AReplyThatDoesNotAnswerItsRequestIsAMismatch) {
+    mbscope::test::Conversation c;
+    const std::uint16_t two[] = {1, 2};
+    c.send(true, adu(1, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 107, 3)), 1s);
+    c.send(false,
+           adu(1, response(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, two))),
+           1s + 1ms);
+    c.send(true, mb::encode_tcp(2, 1, std::vector<std::uint8_t>{0x06, 0x00, 0x01, 0x00, 0x03}), 2s);
+    c.send(false, mb::encode_tcp(2, 1, std::vector<std::uint8_t>{0x06, 0x00, 0x01, 0x00, 0x05}), 2s + 1ms);
+    c.send(true, adu(3, mb::make_read_request(mb::FunctionCode::ReadHoldingRegisters, 107, 2)), 3s);
+    c.send(false,
+           adu(3, response(mb::make_read_registers_response(mb::FunctionCode::ReadHoldingRegisters, two))),
+           3s + 1ms);
+    const auto rows = rows_of(csv_of(c));
+    ASSERT_EQ(rows.size(), 3u);
+    EXPECT_EQ(rows[0].at("status"), "mismatch");
+    EXPECT_NE(rows[0].at("findings").find("pair.response_size_mismatch"), std::string::npos)
+        << rows[0].at("findings");
+    EXPECT_EQ(rows[1].at("status"), "mismatch");
+    EXPECT_NE(rows[1].at("findings").find("pair.echo_mismatch"), std::string::npos) << rows[1].at("findings");
+    EXPECT_EQ(rows[2].at("status"), "ok");
+}
+
 // A reply after its request's timeout: the request's row says "timeout", and the reply has a row of its own
 // with its values and latency.
 TEST(CsvSink, ALateReplyHasARowOfItsOwn) {
