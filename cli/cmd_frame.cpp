@@ -306,17 +306,27 @@ void register_frame(CLI::App& app, int& exit_code) {
         " limits), 2 could not decode.");
     cmd->add_flag("--rtu", o->rtu, "Modbus RTU: unit, PDU, CRC (low byte first)");
     cmd->add_flag("--ascii", o->ascii, "Modbus ASCII: ':' hex LRC CR LF (give the text or its bytes in hex)");
-    cmd->add_flag("--tcp", o->tcp, "Modbus/TCP: MBAP header and PDU");
-    cmd->add_flag("--encode", o->encode, "Build a frame from a verb and its arguments instead of decoding");
-    cmd->add_option("--unit", o->unit, "Unit id for --encode")->capture_default_str();
-    cmd->add_option("--tid", o->transaction_id, "Transaction id for --encode --tcp")->capture_default_str();
-    cmd->add_option("--direction", o->direction, "request, response or auto (try both)")
+    auto* tcp = cmd->add_flag("--tcp", o->tcp, "Modbus/TCP: MBAP header and PDU");
+    auto* encode = cmd->add_flag("--encode", o->encode,
+                                 "Build a frame from a verb and its arguments instead of decoding");
+    // An option that cannot act where it is given is refused rather than dropped: `--encode --rtu --tid 5`
+    // printed a frame with no transaction id and exit 0, `--unit 5` on a frame decoded changed nothing.
+    cmd->add_option("--unit", o->unit, "Unit id for --encode")->capture_default_str()->needs(encode);
+    cmd->add_option("--tid", o->transaction_id, "Transaction id for --encode --tcp")
+        ->capture_default_str()
+        ->needs(encode)
+        ->needs(tcp);
+    cmd->add_option("--direction", o->direction, "request, response or auto (try both); not with --encode")
         ->check(CLI::IsMember({"auto", "request", "response"}))
-        ->capture_default_str();
-    cmd->add_option("--file", o->file, "Decode every line 'rtu|ascii|tcp HEX... [# comment]' of a file");
+        ->capture_default_str()
+        ->excludes(encode);
+    auto* file =
+        cmd->add_option("--file", o->file, "Decode every line 'rtu|ascii|tcp HEX... [# comment]' of a file")
+            ->excludes(encode);
     cmd->add_flag("--json", o->json,
                   "Machine-readable output: an object; with --file an array of them, one frame or many");
-    cmd->add_option("bytes", o->args, "Hex bytes of the frame (or the verb and arguments with --encode)");
+    cmd->add_option("bytes", o->args, "Hex bytes of the frame (or the verb and arguments with --encode)")
+        ->excludes(file);
     cmd->callback([o, &exit_code] { exit_code = run_frame(*o); });
 }
 

@@ -120,6 +120,27 @@ TEST(FrameCommand, EncodeRefusesWhatTheFrameCannotHold) {
     EXPECT_NE(over.out.find("1969"), std::string::npos) << over.out;
 }
 
+// An option that cannot act where it is given is a usage error (exit 2), not dropped: `--encode --rtu --tid
+// 5` printed an RTU frame and exit 0, as if the transaction id were in it.
+TEST(FrameCommand, OptionsThatCannotActAreRefused) {
+    const struct {
+        std::string args, message;
+    } cases[] = {
+        {"frame --encode --rtu --tid 5 read-holding 96 3", "--tid requires --tcp"},
+        {"frame --tcp --tid 5 00 01 00 00 00 06 11 03 00 6B 00 03", "--tid requires --encode"},
+        {"frame --rtu --unit 5 11 03 00 60 00 03 07 45", "--unit requires --encode"},
+        {"frame --encode --tcp --direction response read-holding 1 1", "--encode excludes --direction"},
+        {"frame --file captures/manual-examples.txt --encode read-holding 1 1", "--encode excludes --file"},
+        {"frame --file captures/manual-examples.txt 11 03", "--file excludes bytes"},
+    };
+    for (const auto& c : cases) {
+        const auto r = run_mbscope(c.args);
+        EXPECT_EQ(r.exit_code, 2) << c.args << "\n" << r.out;
+        EXPECT_NE(r.out.find(c.message), std::string::npos) << c.args << "\n" << r.out;
+    }
+    EXPECT_EQ(run_mbscope("frame --encode --tcp --tid 5 --unit 17 read-holding 96 3").exit_code, 0);
+}
+
 TEST(FrameCommand, EchoIsNamedAsSuch) {
     auto r = run_mbscope("frame --rtu 11 06 00 54 03 9E 4B D2");
     EXPECT_NE(r.out.find("echo response"), std::string::npos) << r.out;
