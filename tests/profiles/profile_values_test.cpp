@@ -87,6 +87,26 @@ TEST(CthValues, APairsRegistersAreGivenInAddressOrder) {
     EXPECT_EQ(mk[0].raw, (std::vector<std::uint16_t>{1234, 5678}));
 }
 
+// The K-factors (003:644-683) have their decimal point in register 4036, "Ponto decimal do fator k"
+// (003:638), kept as the manual keeps variable points (003:578): the value sent as a positive integer, the
+// point apart. The points said so in a note but carried no decimal point, so 12345 with two places read
+// 12345.
+TEST(CthValues, AKFactorTakesTheDecimalPointOfRegister4036) {
+    const auto& p = bundled("cth2265i");
+    for (std::uint16_t k = 0; k < 20; ++k) {
+        const auto low = static_cast<std::uint16_t>(4042 + 2 * k);
+        SCOPED_TRACE(low);
+        auto v = mb::decode_registers(p, mb::Table::HoldingRegisters, low, {12345, 0}, {{{4036, 0x0202}}});
+        ASSERT_EQ(v.size(), 2u);
+        EXPECT_EQ(v[0].text, "123.45");
+        EXPECT_FALSE(v[0].partial);
+        v = mb::decode_registers(p, mb::Table::HoldingRegisters, low, {12345, 0});
+        ASSERT_EQ(v.size(), 2u);
+        EXPECT_TRUE(v[0].partial);
+        EXPECT_EQ(v[0].number, std::nullopt);
+    }
+}
+
 TEST(MkValues, ATotalTakesTheDecimalPointOfItsTotalization) {
     struct Case {
         const char* id;
