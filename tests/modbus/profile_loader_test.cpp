@@ -722,6 +722,18 @@ TEST(ProfileLoader, ModularDeviceExpandsItsConfiguration) {
     EXPECT_EQ(coded.errors[0].file, "maps.json");
     EXPECT_EQ(coded.errors[0].pointer, "/status_codes/x1");
     EXPECT_NE(coded.errors[0].message.find("from 0 to 65535"), std::string::npos) << coded.errors[0].message;
+    // A key given twice in the maps file (status code 1 with two texts): which text a status 1 shows is not
+    // defined, so neither is used. Named in the maps file at its object, and the device told on /maps_file.
+    std::string twice = maps;
+    twice.replace(twice.find(last_code), last_code.size(), last_code + R"(, "1": {"text": "Falha"})");
+    auto repeated = load(device, [&](const std::string&) -> std::optional<std::string> { return twice; });
+    ASSERT_EQ(repeated.errors.size(), 2u) << mb::to_string(repeated.errors[0]);
+    EXPECT_EQ(repeated.errors[0].file, "maps.json");
+    EXPECT_EQ(repeated.errors[0].pointer, "/status_codes");
+    EXPECT_EQ(repeated.errors[0].message, "key \"1\" is given twice: which one counts is not defined");
+    EXPECT_EQ(repeated.errors[1].pointer, "/maps_file");
+    EXPECT_NE(repeated.errors[1].message.find("maps.json gives a key twice in one object"), std::string::npos)
+        << repeated.errors[1].message;
 }
 
 // A two-register value's second register listed as a point of its own: Profile::find named register 11 by
