@@ -102,6 +102,23 @@ void TcpReassembler::take_segment(std::uint32_t seq, std::span<const std::uint8_
         if (buffered_ > max_buffered_) skip_to_first_buffered(t);  // the hole will not fill: give it up
         return;
     }
+    // A segment that fills a hole and runs on over bytes waiting behind it (a sender retransmitting all it
+    // has unacknowledged): its bytes up to the first waiting piece are new, the waiting ones are delivered
+    // from their own packet and time, and the segment's copy of them is a retransmission. Delivered whole,
+    // the waiting bytes took the new packet's time (a reply captured 50 ms after its request got the
+    // retransmission's 900 ms) and the new copy's content, said to be the first copy's.
+    while (!pending_.empty() && pending_.front().at < base_ + payload.size()) {
+        const auto fresh = static_cast<std::size_t>(pending_.front().at - base_);  // drain() left at > base_
+        deliver(payload.first(fresh), t, packet);
+        const std::uint64_t resumed_at = base_;
+        drain(t);
+        const auto rest = payload.subspan(fresh);
+        const auto again = static_cast<std::size_t>(std::min<std::uint64_t>(base_ - resumed_at, rest.size()));
+        compare_retransmission(resumed_at, rest.first(again), t);
+        retransmitted_ += again;
+        payload = rest.subspan(again);
+        if (payload.empty()) return;
+    }
     deliver(payload, t, packet);
     drain(t);
 }

@@ -5,6 +5,7 @@
 // A retransmission whose bytes differ from the copy already delivered is reported (the first copy is kept:
 // a receiver may have kept the other, so the decoded stream may not be the one the device acted on).
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -65,6 +66,11 @@ class TcpReassembler {
     // at a request's deadline that its reply, sent before then, is not coming.
     void give_up_acknowledged_before(modbus::Timestamp t) {
         if (acknowledged_ && acknowledged_at_ <= t) give_up_acknowledged(t);
+    }
+    // Whether bytes captured at or before `t` wait behind a hole: a reply sent in time may be among them,
+    // delivered with its own time and packet when the hole fills or is given up.
+    bool holds_bytes_captured_by(modbus::Timestamp t) const noexcept {
+        return std::any_of(pending_.begin(), pending_.end(), [t](const Piece& p) { return p.time <= t; });
     }
     // The stream offset of the next byte to deliver.
     std::uint64_t delivered() const noexcept { return base_; }

@@ -213,6 +213,49 @@ TEST(TcpReassembler, BytesThatWaitedKeepTheirPacketAndTime) {
     EXPECT_EQ(seen, (Seen{{3, mb::Timestamp{3000}}, {2, mb::Timestamp{2000}}}));
 }
 
+// A sender retransmits all it has unacknowledged: one segment that fills the hole and runs on over the bytes
+// waiting behind it. Those were delivered with the retransmission's packet and time, and its copy of them
+// (differing here) was decoded while the conflict said the first copy was. The waiting bytes keep their own
+// packet and time and content; the segment's copy of them is compared, and what lies past them is new.
+TEST(TcpReassembler, ARetransmissionOverBytesThatWaitedLeavesThemTheirOwn) {
+    const auto s = stream_of(40);
+    auto again = s;
+    again[22] ^= 0xFF;  // the retransmission's copy of a waiting byte differs
+    struct Delivery {
+        std::uint64_t packet;
+        mb::Timestamp time;
+        std::vector<std::uint8_t> bytes;
+        bool operator==(const Delivery&) const = default;
+    };
+    std::vector<Delivery> seen;
+    std::vector<std::pair<std::uint64_t, std::size_t>> conflicts;
+    const TcpReassembler* self = nullptr;
+    TcpReassembler r(
+        [&seen, &self](std::span<const std::uint8_t> b, mb::Timestamp t) {
+            seen.push_back({self->delivering_packet(), t, {b.begin(), b.end()}});
+        },
+        [](std::uint64_t, mb::Timestamp) {});
+    r.on_conflict(
+        [&conflicts](std::uint64_t at, std::size_t n, mb::Timestamp) { conflicts.emplace_back(at, n); });
+    self = &r;
+    r.segment(0, true, {}, mb::Timestamp{0}, 1);
+    r.segment(21, false, std::span(s).subspan(20, 10), mb::Timestamp{2000}, 2);  // ahead of 0..20
+    EXPECT_TRUE(r.holds_bytes_captured_by(mb::Timestamp{2000}));
+    EXPECT_FALSE(r.holds_bytes_captured_by(mb::Timestamp{1999}));
+    r.segment(1, false, std::span(again).first(35), mb::Timestamp{9000}, 3);  // 0..35 in one
+    const auto part = [&](std::size_t from, std::size_t n) {
+        return std::vector<std::uint8_t>(s.begin() + static_cast<std::ptrdiff_t>(from),
+                                         s.begin() + static_cast<std::ptrdiff_t>(from + n));
+    };
+    const std::vector<Delivery> expected{{3, mb::Timestamp{9000}, part(0, 20)},
+                                         {2, mb::Timestamp{2000}, part(20, 10)},
+                                         {3, mb::Timestamp{9000}, part(30, 5)}};
+    EXPECT_EQ(seen, expected);
+    EXPECT_EQ(conflicts, (std::vector<std::pair<std::uint64_t, std::size_t>>{{22, 1}}));
+    EXPECT_EQ(r.retransmitted_bytes(), 10u);
+    EXPECT_FALSE(r.holds_bytes_captured_by(mb::Timestamp{9000}));
+}
+
 TEST(TcpReassembler, AnAcknowledgementPastAHoleGivesItUp) {
     Harness h;
     const auto s = stream_of(100);
