@@ -1292,6 +1292,10 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
                 if (!oldest || e.serial < oldest->serial) oldest = e;
                 break;
             }
+        for (const auto& [queue, e] : held_expiries_)
+            if (e.key.flow == flow.id && find_pending(e.key, e.serial) &&
+                (!oldest || e.serial < oldest->serial))
+                oldest = e;
         if (auto taken = oldest ? take_pending(oldest->key, oldest->serial) : std::nullopt) {
             Pending given_up = std::move(*taken);
             --flow.pending;
@@ -1385,6 +1389,7 @@ bool could_answer(const FrameRecord& request, const FrameRecord& response) {
 }  // namespace
 
 void Analyzer::on_response(Flow& flow, FrameRecord& r) {
+    if (!held_expiries_.empty()) time_out_held_before(flow, r);
     if (flow.unseen_expired && r.frame.checksum_ok) {
         // A reply shows whose the damaged request was, if it is its unit's (a late one then), and that the
         // master asked another unit in bytes the capture lost, if it is another's.
@@ -2188,6 +2193,8 @@ void Analyzer::clock_went_back(Timestamp to, const std::string& where) {
     for (auto& queue : expiries_)
         for (auto& e : queue)
             if (e.deadline != Timestamp::max()) e.deadline -= back;
+    for (auto& [queue, e] : held_expiries_)
+        e.deadline -= back;
     now_ = to;
     const std::string& source = source_.str();
     if (clock_warned_source_ == source) return;
@@ -2217,6 +2224,7 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         for (Flow* f : settling)
             settle_framing(*f, now);
     }
+    release_held_expiries(at_end);
     // An answered request's entry would wait for its deadline: at 50,000 requests a second and a 3 s timeout
     // that is 150,000 entries. When entries outnumber the requests still pending, the answered ones at the
     // front leave at once, so memory follows what is outstanding, not the traffic's rate.
@@ -2252,57 +2260,112 @@ void Analyzer::expire(Timestamp now, bool at_end) {
                     if (f->reassembler[1]->cut_before(e.deadline)) f->reassembler[1]->peer_spoke();
                     f->reassembler[1]->give_up_acknowledged_before(e.deadline);
                 }
-        auto taken = take_pending(e.key, e.serial);
-        if (!taken) continue;  // answered meanwhile
-        Pending p = std::move(*taken);
-        Flow* flow = nullptr;
-        for (auto& [k, f] : flows_)
-            if (f->id == e.key.flow) {
-                --f->pending;
-                flow = f.get();
-            }
-        const bool ended = at_end && e.deadline > now_;
-        if (!ended && flow && p.unseen_unit_link) {
-            // Whose it was is not known yet: the next frame on its link tells (release_unseen).
-            release_unseen(*flow);
-            flow->unseen_expired.emplace(std::move(p));
+        if (!at_end && reply_may_wait_behind_hole(e)) {
+            held_expiries_.emplace_back(static_cast<ExpiryQueue>(next - expiries_.data()), e);
+            ++expiry_entries_;
             continue;
         }
-        std::string what = describe_request(p.request);
-        if (ended && flow && p.request.frame.framing != Framing::Tcp &&
-            flow->tail_begins_reply_to(p.request)) {
-            // The capture ends inside its reply: answered, its values unknown (as a Modbus/TCP reply cut by
-            // the snapshot length is), not "no response".
-            const bool ascii = p.request.frame.framing == Framing::Ascii;
-            give_up(p, false,
-                    {FindingCode::PairResponseNotCaptured,
-                     what + " to " + p.request.device.str() + " was answered, but the capture ends " +
-                         std::to_string(flow->tail_length) + (ascii ? " characters" : " bytes") +
-                         " into the reply (unit " + std::to_string(flow->tail_head[0]) + ", function code " +
-                         std::to_string(flow->tail_head[1]) + "): its values are unknown"});
-            continue;
-        }
-        if (auto why = not_the_servers(p)) {
-            give_up(p, false, std::move(*why));
-            continue;
-        }
-        if (ended) {
-            give_up(p, false,
-                    {FindingCode::PairNoResponseAtEnd, what + " unanswered when the capture ended"});
-            continue;
-        }
-        const Timestamp timeout =
-            p.request.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
-        Unanswered why{
-            FindingCode::PairNoResponse,
-            no_response_message(
-                p.request,
-                "within " +
-                    std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
-                    " ms")};
-        remember_timed_out({e.key.flow, late_id(p.request.frame)}, p, timeout, std::move(what));
-        give_up(p, true, std::move(why));
+        time_out(e, at_end);
     }
+}
+
+// The request of a due entry, still pending, is given up: a timeout, or what else the capture says of it.
+void Analyzer::time_out(const Expiry& e, bool at_end) {
+    auto taken = take_pending(e.key, e.serial);
+    if (!taken) return;  // answered meanwhile
+    Pending p = std::move(*taken);
+    Flow* flow = nullptr;
+    for (auto& [k, f] : flows_)
+        if (f->id == e.key.flow) {
+            --f->pending;
+            flow = f.get();
+        }
+    const bool ended = at_end && e.deadline > now_;
+    if (!ended && flow && p.unseen_unit_link) {
+        // Whose it was is not known yet: the next frame on its link tells (release_unseen).
+        release_unseen(*flow);
+        flow->unseen_expired.emplace(std::move(p));
+        return;
+    }
+    std::string what = describe_request(p.request);
+    if (ended && flow && p.request.frame.framing != Framing::Tcp && flow->tail_begins_reply_to(p.request)) {
+        // The capture ends inside its reply: answered, its values unknown (as a Modbus/TCP reply cut by
+        // the snapshot length is), not "no response".
+        const bool ascii = p.request.frame.framing == Framing::Ascii;
+        give_up(p, false,
+                {FindingCode::PairResponseNotCaptured,
+                 what + " to " + p.request.device.str() + " was answered, but the capture ends " +
+                     std::to_string(flow->tail_length) + (ascii ? " characters" : " bytes") +
+                     " into the reply (unit " + std::to_string(flow->tail_head[0]) + ", function code " +
+                     std::to_string(flow->tail_head[1]) + "): its values are unknown"});
+        return;
+    }
+    if (auto why = not_the_servers(p)) {
+        give_up(p, false, std::move(*why));
+        return;
+    }
+    if (ended) {
+        give_up(p, false, {FindingCode::PairNoResponseAtEnd, what + " unanswered when the capture ended"});
+        return;
+    }
+    const Timestamp timeout =
+        p.request.frame.framing == Framing::Tcp ? options_.timeout : options_.serial_timeout;
+    Unanswered why{
+        FindingCode::PairNoResponse,
+        no_response_message(
+            p.request,
+            "within " +
+                std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()) +
+                " ms")};
+    remember_timed_out({e.key.flow, late_id(p.request.frame)}, p, timeout, std::move(what));
+    give_up(p, true, std::move(why));
+}
+
+// Bytes of the server's stream captured by the request's deadline wait behind a hole (the reply to an
+// earlier request lost and sent again, a segment the tap dropped): its reply may be among them, sent in
+// time. Timed out at its deadline, it was a pair.no_response held against the device and then a reply
+// "50 ms after it, past the 3000 ms timeout" when the hole filled.
+bool Analyzer::reply_may_wait_behind_hole(const Expiry& e) {
+    if (!find_pending(e.key, e.serial)) return false;
+    for (const auto& [k, f] : flows_)
+        if (f->id == e.key.flow)
+            return f->reassembler[1] && f->reassembler[1]->holds_bytes_captured_by(e.deadline);
+    return false;
+}
+
+// Held requests go back to their queues, in deadline order, once their flow's hole filled or was given up
+// (the reply, if it was there, has been paired meanwhile) or at the end; answered ones leave.
+void Analyzer::release_held_expiries(bool at_end) {
+    if (held_expiries_.empty()) return;
+    std::erase_if(held_expiries_, [&](const std::pair<ExpiryQueue, Expiry>& held) {
+        const auto& [queue_id, e] = held;
+        if (!find_pending(e.key, e.serial)) {
+            --expiry_entries_;
+            return true;
+        }
+        if (!at_end && reply_may_wait_behind_hole(e)) return false;
+        auto& queue = expiries_[queue_id];
+        queue.insert(std::upper_bound(queue.begin(), queue.end(), e.deadline,
+                                      [](Timestamp d, const Expiry& x) { return d < x.deadline; }),
+                     e);
+        return true;
+    });
+}
+
+// With a transaction id, the held request of that id; through an RTU gateway (one key for the link), the
+// oldest held, whose reply comes first.
+void Analyzer::time_out_held_before(const Flow& flow, const FrameRecord& r) {
+    const PendingKey key{flow.id, pairing_id(r.frame)};
+    auto first = held_expiries_.end();
+    for (auto it = held_expiries_.begin(); it != held_expiries_.end(); ++it)
+        if (it->second.key == key &&
+            (first == held_expiries_.end() || it->second.serial < first->second.serial))
+            first = it;
+    if (first == held_expiries_.end() || first->second.deadline >= r.time) return;
+    const Expiry e = first->second;
+    held_expiries_.erase(first);
+    --expiry_entries_;
+    time_out(e, false);
 }
 
 void Analyzer::remember_timed_out(const PendingKey& key, Pending& pending, Timestamp timeout,

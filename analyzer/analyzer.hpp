@@ -324,6 +324,14 @@ class Analyzer {
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,
                const TimedOut* late, Unanswered* unanswered, TransactionRecord* made);
     void expire(modbus::Timestamp now, bool at_end);
+    // A due request whose reply may wait behind a hole in its response stream (bytes captured by its
+    // deadline are held there): not timed out until the hole fills or is given up.
+    bool reply_may_wait_behind_hole(const Expiry& e);
+    void release_held_expiries(bool at_end);
+    // A reply `r` on `flow` captured after the deadline of a held request it may answer: that request timed
+    // out first, and the reply is late (the hole held a reply in time for another request, not for it).
+    void time_out_held_before(const Flow& flow, const FrameRecord& r);
+    void time_out(const Expiry& e, bool at_end);
     // Keyed by late_id: the transaction id, or on a serial line the unit.
     void remember_timed_out(const PendingKey& key, Pending& pending, modbus::Timestamp timeout,
                             std::string what, std::uint64_t moved_on_at = 0, bool given_up_by_client = false);
@@ -416,7 +424,9 @@ class Analyzer {
     // dumps) wait in a queue of their own: they end only when the master moves on, or the capture.
     enum ExpiryQueue : std::uint8_t { tcp_timeout, serial_timeout, untimed };
     std::array<std::deque<Expiry>, 3> expiries_;
-    std::size_t expiry_entries_ = 0;  // in all three queues (not three sizes summed for every packet)
+    std::size_t expiry_entries_ = 0;  // in all three queues and held_expiries_
+    // Due, but held by reply_may_wait_behind_hole(), with the queue each goes back to.
+    std::vector<std::pair<ExpiryQueue, Expiry>> held_expiries_;
     std::unordered_map<PendingKey, TimedOut, PendingHash> timed_out_;
     std::deque<std::pair<PendingKey, std::uint64_t>> timed_out_order_;  // key and serial, oldest first
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;

@@ -2063,6 +2063,58 @@ TEST(Analyzer, ARequestTheClientResetOnIsTheClientsAbortNotATimeout) {
 // Bytes that waited ahead of a hole are the packet's that carried them, at its time: two replies captured
 // out of order (43_ooo_replies.pcap) each keep their packet and latency; the tail after a gap and the reply
 // sharing its segment, released by the client's next packet, are the segment's packet's.
+// Two pipelined requests; the reply to the first is lost on the network, the reply to the second captured
+// 50 ms after it and waiting behind that hole; the server sends the lost reply again 3.5 s later, past the
+// 3 s timeout. The second request was answered in 50 ms: it was a pair.no_response at its deadline and then
+// a reply "50 ms after it, past the 3000 ms timeout". Only the first timed out, and its reply is late. When
+// the retransmission runs on over the waiting reply (with other values here), the waiting copy keeps its own
+// packet, time and values, and the new copy is the conflict.
+TEST(Analyzer, AReplyWaitingBehindAHoleWhenItsRequestsDeadlinePassesWasInTime) {
+    for (const bool over_both : {false, true}) {
+        SCOPED_TRACE(over_both ? "the retransmission covers both replies"
+                               : "the retransmission fills the hole");
+        Harness h;
+        h.open(0s);
+        auto both = read_request(1);
+        const auto second = read_request(2);
+        both.insert(both.end(), second.begin(), second.end());
+        h.send(true, both, 1s);  // packet 3
+        const auto r1 = read_response(1), r2 = read_response(2);
+        const std::uint32_t r1_at = h.seq[1];
+        h.lose(false, r1);
+        h.send(false, r2, 1s + 50ms);  // packet 4
+        auto again = r1;
+        if (over_both) {
+            auto other = read_response(2, {9, 9, 9});
+            again.insert(again.end(), other.begin(), other.end());
+        }
+        h.resend(false, again, r1_at, 4s + 500ms);  // packet 5
+        h.analyzer.finish();
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairNoResponse), 1);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::PairLateResponse), 1);
+        EXPECT_EQ(h.sink.count(mb::FindingCode::StreamRetransmissionConflict), over_both ? 1 : 0);
+        bool answered_in_time = false, late = false;
+        for (const auto& t : h.sink.transactions) {
+            if (!t.response) continue;
+            if (t.request.frame.transaction_id() == 2) {
+                answered_in_time = true;
+                EXPECT_EQ(t.response->packet, 4u);
+                EXPECT_EQ(t.latency, 50ms);
+                EXPECT_FALSE(t.late_past);
+                const auto adu = t.response->frame.adu();
+                EXPECT_EQ(std::vector<std::uint8_t>(adu.begin(), adu.end()), r2);  // the first copy's values
+            } else {
+                late = true;
+                EXPECT_EQ(t.response->packet, 5u);
+                EXPECT_EQ(t.latency, 3500ms);
+                EXPECT_TRUE(t.late_past);
+            }
+        }
+        EXPECT_TRUE(answered_in_time);
+        EXPECT_TRUE(late);
+    }
+}
+
 TEST(Analyzer, BytesThatWaitedBehindAHoleKeepThePacketThatCarriedThem) {
     {
         Harness h;
