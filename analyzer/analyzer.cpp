@@ -208,9 +208,23 @@ struct Analyzer::Flow {
     // it, no more of them than a link may have waiting.
     bool may_predate_first_request(std::uint16_t tid, std::size_t max_waiting) const {
         const auto before = static_cast<std::uint16_t>(first_request_id - tid);
-        return request_seen && !captured_request_answered && before != 0 && before <= max_waiting &&
+        return before != 0 && before <= max_waiting && may_answer_uncaptured_request(tid, max_waiting);
+    }
+    // Whether a reply with `tid` may still answer a request sent before the capture, whatever its id: after
+    // the link's first captured request, before any reply answered one, not excused already, and no more of
+    // them than a link may have waiting. A client whose ids start over (ModbusTCP.pcap: replies 31998 to
+    // 32000 in flight, the first captured request 0) numbers them from anywhere.
+    bool may_answer_uncaptured_request(std::uint16_t tid, std::size_t max_waiting) const {
+        return request_seen && !captured_request_answered && excused_before_capture.size() < max_waiting &&
                std::find(excused_before_capture.begin(), excused_before_capture.end(), tid) ==
                    excused_before_capture.end();
+    }
+    // The id after the last one excused so: a client numbers its requests upwards, and the replies to those
+    // in flight when the capture began come in turn (31998, 31999 and 32000 in one segment: 31999 fits the
+    // captured request 0, whose own reply follows).
+    bool follows_excused(std::uint16_t tid) const {
+        return !excused_before_capture.empty() &&
+               static_cast<std::uint16_t>(excused_before_capture.back() + 1) == tid;
     }
     // The client stream's position (+1) at a hole whose acknowledged bytes excused a reply already.
     std::uint64_t excused_hole = 0;
@@ -1640,19 +1654,30 @@ void Analyzer::on_response(Flow& flow, FrameRecord& r) {
         // request: then it is that request's reply with a wrong id, as from a device that answers every
         // request with id 0 (a firmware bug some have); excused, the first such reply hid the mismatch,
         // every later one was unsolicited and every request a timeout.
+        // So is one whose id is not just before the first captured (a client's ids may start over) when it
+        // fits none of the waiting requests, and one whose id follows the last excused (the replies to the
+        // requests in flight come in turn): paired with the only request waiting, reply 31998 of 198 bytes
+        // was request 0's (a transaction-id and a size mismatch), and every reply after it went astray.
         if (opening_unseen && r.frame.framing == Framing::Tcp &&
-            flow.may_predate_first_request(key.tid, options_.max_pending_per_flow) &&
-            !fits_a_waiting_request()) {
-            flow.excused_before_capture.push_back(key.tid);
-            report(FindingCode::PairRequestNotCaptured, r,
-                   which +
-                       " comes before any reply to a request the capture holds, its id before that of "
-                       "the link's first one captured (" +
-                       std::to_string(flow.first_request_id) +
-                       "), on a connection the capture joined after it opened: its request went before the "
-                       "capture began");
-            flow.keep_last_response(r);
-            return;
+            flow.may_answer_uncaptured_request(key.tid, options_.max_pending_per_flow)) {
+            const bool just_before = flow.may_predate_first_request(key.tid, options_.max_pending_per_flow);
+            const bool in_turn = !just_before && flow.follows_excused(key.tid);
+            if (in_turn || !fits_a_waiting_request()) {
+                const std::string previous =
+                    in_turn ? std::to_string(flow.excused_before_capture.back()) : "";
+                flow.excused_before_capture.push_back(key.tid);
+                report(
+                    FindingCode::PairRequestNotCaptured, r,
+                    which + " comes before any reply to a request the capture holds, " +
+                        (just_before ? "its id before that of the link's first one captured (" +
+                                           std::to_string(flow.first_request_id) + ")"
+                         : in_turn ? "its id next after that of " + previous + " (replies come in turn)"
+                                   : "and fits none of the requests waiting (unit, function, size)") +
+                        ", on a connection the capture joined after it opened: its request went before the "
+                        "capture began");
+                flow.keep_last_response(r);
+                return;
+            }
         }
         // The server acknowledged client bytes the capture does not hold (a tap's drop, given up as a gap
         // only at the client's next segment): the request this reply answers may be among them, once per

@@ -135,6 +135,46 @@ TEST(MidstreamPairing, AWrongIdInsideTheCapturedConversationIsStillAMismatch) {
     }
 }
 
+// ModbusTCP.pcap (ITI), connection from port 57184: the capture's first request of the link is id 0, and
+// one segment brings replies 31998, 31999 and 32000 to requests sent before it (a client whose ids started
+// over), then replies 0 and 1. 31998 is far from the id before 0, so it was paired with request 0 (a
+// transaction-id and a size mismatch), 31999 and 32000 were unsolicited, and request 1 got reply 0 (a
+// function mismatch): eight errors against a device that answered everything. A reply that fits none of the
+// waiting requests is one sent before the capture, and so are those whose ids follow it, fitting or not.
+TEST(MidstreamPairing, RepliesInFlightWithIdsFarFromTheFirstCapturedAreNotItsReplies) {
+    Conversation c;
+    c.send(true, read_request(0, 1, 2), 10ms);
+    auto early = read_reply(31998, 1, 99);
+    for (const auto& reply : {read_reply(31999, 1, 2), read_reply(32000, 1, 20)})
+        early.insert(early.end(), reply.begin(), reply.end());
+    c.send(false, early, 11ms);
+    c.send(true, read_request(1, 1, 3), 12ms);
+    auto replies = read_reply(0, 1, 2);
+    const auto second = read_reply(1, 1, 3);
+    replies.insert(replies.end(), second.begin(), second.end());
+    c.send(false, replies, 60ms);
+    const auto d = decode_pcap(c.file());
+    EXPECT_EQ(d->summary.findings, (std::map<std::string, std::uint64_t>{{"pair.request_not_captured", 3}}));
+    EXPECT_EQ(d->summary.errors, 0u);
+    ASSERT_EQ(d->sink.transactions.size(), 2u);
+    for (const auto& t : d->sink.transactions) {
+        ASSERT_TRUE(t.response.has_value());
+        EXPECT_EQ(t.response->frame.transaction_id(), t.request.frame.transaction_id());
+    }
+    std::string said;
+    for (const auto& f : d->sink.findings)
+        said += f.message + "\n";
+    EXPECT_NE(
+        said.find("transaction id 31998 comes before any reply to a request the capture holds, and fits "
+                  "none of the requests waiting"),
+        std::string::npos)
+        << said;
+    EXPECT_NE(said.find("transaction id 31999 comes before any reply to a request the capture holds, its id "
+                        "next after that of 31998"),
+              std::string::npos)
+        << said;
+}
+
 // A device that answers every request with transaction id 0 (a firmware bug some have), polled with ids
 // 100 to 104 a second apart, each reply fitting its request (unit, function, size): over a connection the
 // capture joined after it opened, and over UDP. Each reply is its request's, with a wrong id: five
