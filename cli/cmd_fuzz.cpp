@@ -214,6 +214,7 @@ void register_fuzz(CLI::App& app, int& exit_code) {
                     "Run this long: 60s, 500ms, 5m (default 60s without --requests)")
         ->check(duration_text());
     cmd->add_option("--requests", o->requests, "Stop after N requests")
+        ->check(whole_number("N"))  // before the range: CLI11 wraps "-1" to 2^64-1, which it passes
         ->check(CLI::Range(std::uint64_t{1}, std::numeric_limits<std::uint64_t>::max()));
     cmd->add_option("--seed", o->seed,
                     "Seed: the same seed against a target that answers alike sends the same requests "

@@ -94,6 +94,7 @@ void register_sniff(CLI::App& app, int& exit_code) {
     cmd->add_option("--duration", o->duration, "Stop after this long: 60 (seconds), 60s, 500ms, 5m")
         ->check(duration_text());
     cmd->add_option("--count", o->count, "Stop after this many packets (serial: reads)")
+        ->check(whole_number("N"))  // before the range: CLI11 wraps "-1" to 2^64-1, which it passes
         ->check(CLI::Range(std::uint64_t{1}, std::numeric_limits<std::uint64_t>::max()));
     cmd->footer(
         "Stops at --duration, --count, SIGINT, SIGTERM or SIGHUP, then prints the summary.\n"

@@ -51,6 +51,10 @@ TEST(NumberOptions, ValuesOutsideTheirMeaningAreRefusedBeforeAnythingRuns) {
         // Wrapped to 2^64-1 as well: a run with no limit on findings and on shortening.
         {"fuzz --target tcp://127.0.0.1:1 --max-findings -1", "--max-findings: a whole number from 0 to"},
         {"fuzz --target tcp://127.0.0.1:1 --minimise -1", "--minimise: a whole number from 0 to"},
+        // And runs that ended only at a signal: --requests -1 sent requests without end.
+        {"fuzz --target tcp://127.0.0.1:1 --requests -1", "--requests: a whole number from 0 to"},
+        {"fuzz --target tcp://127.0.0.1:1 --requests 18446744073709551616", "--requests: a whole number"},
+        {"sniff -i lo --count -1", "--count: a whole number from 0 to"},
     };
     for (const auto& c : cases) {
         const auto r = run_mbscope(c.args);
