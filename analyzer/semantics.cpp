@@ -587,27 +587,44 @@ std::vector<NamedValue> Semantics::values(const Profile& profile, const std::str
     if (a.is_exception()) return {};
     remember(profile, device, q, a);
     const auto& seen = registers_[device];
+    // A coil or discrete input under its name, and its value under the point's text for it where it has one.
+    const auto named_bit = [&](Table table, std::uint16_t address, bool on) {
+        NamedValue v;
+        v.address = address;
+        v.point = profile.find(table, address);
+        v.raw = {static_cast<std::uint16_t>(on)};
+        v.number = on;
+        v.text = on ? "1" : "0";
+        if (v.point)
+            for (const auto& ev : v.point->encoding.values)
+                if (ev.value == on) v.text = ev.text_en.empty() ? ev.text : ev.text_en;
+        return v;
+    };
     if (auto s = read_span(q)) {
         if (const auto* regs = std::get_if<ReadRegistersResponse>(&a.body))
             return decode_registers(profile, s->table, s->start, regs->values, seen);
         if (const auto* bits = std::get_if<ReadBitsResponse>(&a.body)) {
             std::vector<NamedValue> out;
             for (std::size_t i = 0;
-                 i < count_within_address_space(s->start, s->quantity) && i / 8 < bits->values.size(); ++i) {
-                NamedValue v;
-                v.address = static_cast<std::uint16_t>(s->start + i);
-                v.point = profile.find(s->table, v.address);
-                const bool on = bit_at(bits->values, i);
-                v.raw = {static_cast<std::uint16_t>(on)};
-                v.number = on;
-                v.text = on ? "1" : "0";
-                if (v.point)
-                    for (const auto& ev : v.point->encoding.values)
-                        if (ev.value == on) v.text = ev.text_en.empty() ? ev.text : ev.text_en;
-                out.push_back(std::move(v));
-            }
+                 i < count_within_address_space(s->start, s->quantity) && i / 8 < bits->values.size(); ++i)
+                out.push_back(
+                    named_bit(s->table, static_cast<std::uint16_t>(s->start + i), bit_at(bits->values, i)));
             return out;
         }
+    }
+    // Coils written, named as the registers written are (FC6, FC16, below); they were shown unnamed. FC5's
+    // value is ON (FF00) or OFF (0000) only (AP §6.5): any other names no state.
+    if (const auto* w = std::get_if<WriteSingle>(&q.body);
+        w && q.function_code() == 5 && (w->value == 0xFF00 || w->value == 0x0000))
+        return {named_bit(Table::Coils, w->address, w->value == 0xFF00)};
+    if (const auto* w = std::get_if<WriteMultipleCoilsRequest>(&q.body)) {
+        std::vector<NamedValue> out;
+        for (std::size_t i = 0;
+             i < count_within_address_space(w->starting_address, w->quantity) && i / 8 < w->values.size();
+             ++i)
+            out.push_back(named_bit(Table::Coils, static_cast<std::uint16_t>(w->starting_address + i),
+                                    bit_at(w->values, i)));
+        return out;
     }
     if (const auto* w = std::get_if<WriteSingle>(&q.body); w && q.function_code() == 6)
         return decode_registers(profile, Table::HoldingRegisters, w->address, {w->value}, seen);

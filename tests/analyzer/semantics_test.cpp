@@ -87,6 +87,30 @@ TEST(Semantics, NamesAndScalesValuesWithNoFindingOnCleanTraffic) {
     EXPECT_EQ(h.sink.transactions[1].values[0].text, "25.0");
 }
 
+// Coils written (FC5, FC15) are named from the map as registers written are (FC6, FC16): they were shown as
+// bare addresses. MMK-2030's coils 78 and 79 enable outputs 1 and 2 (000:714).
+TEST(Semantics, CoilsWrittenAreNamedFromTheMap) {
+    Harness h("mmk-2030");
+    h.exchange(mb::make_write_single_coil(78, true), mb::make_write_single_coil(78, true));
+    const bool outputs[] = {false, true};
+    h.exchange(mb::make_write_multiple_coils(78, outputs),
+               mb::make_write_multiple_response(mb::FunctionCode::WriteMultipleCoils, 78, 2));
+    h.analyzer->finish();
+    ASSERT_EQ(h.sink.transactions.size(), 2u);
+    const auto& one = h.sink.transactions[0].values;
+    ASSERT_EQ(one.size(), 1u);
+    ASSERT_NE(one[0].point, nullptr);
+    EXPECT_EQ(one[0].point->name_en, "enable output 1");
+    EXPECT_EQ(one[0].text, "1");
+    const auto& two = h.sink.transactions[1].values;
+    ASSERT_EQ(two.size(), 2u);
+    ASSERT_NE(two[1].point, nullptr);
+    EXPECT_EQ(two[0].address, 78);
+    EXPECT_EQ(two[0].text, "0");
+    EXPECT_EQ(two[1].point->name_en, "enable output 2");
+    EXPECT_EQ(two[1].text, "1");
+}
+
 TEST(Semantics, ScaleRegisterRememberedFromAnEarlierRead) {
     Harness h;
     const std::uint16_t scale[] = {3};
