@@ -91,11 +91,20 @@ bool load_semantics(const AnalysisCliOptions& o, const std::string& command,
         }
         // The device may be set to send its 32-bit values in another order (Walchem, 002:470-477): given,
         // it is read so. Dropped without a word, a controller set to the inverse format read 1.5 as 0.
+        // A manual that fixes the order leaves nothing to choose: read in it, with a note. An order the
+        // device cannot be set to, where its manual lists those it can (Walchem: cdab or abcd), is a wrong
+        // argument, as in `profile decode`: noted, the values were read in the profile's order all the same.
         if (!o.word_order.empty())
             if (const auto order = modbus::parse_word_order(o.word_order))
-                if (auto why = modbus::set_word_order(p.value(), *order))
+                if (auto why = modbus::set_word_order(p.value(), *order)) {
+                    if (!p->word_orders.empty()) {
+                        std::cerr << "mbscope " << command << ": --word-order " << o.word_order << ": "
+                                  << *why << '\n';
+                        return false;
+                    }
                     std::cerr << "mbscope " << command << ": note: --word-order " << o.word_order
                               << " is not applied to " << id << ": " << *why << '\n';
+                }
         semantics->add(selector, std::make_shared<const modbus::Profile>(std::move(p.value())));
         return true;
     };

@@ -166,6 +166,13 @@ TEST(ProfileCommand, AWordOrderTheManualMakesASettingIsApplied) {
     r = run_mbscope("decode --profile walchem-w600 --word-order abcd " + log);
     EXPECT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(r.out.find("576  sensor-1-1 primary value = 1.5"), std::string::npos) << r.out;
+    // An order the manual does not list is refused by decode as by profile decode: noted, the values were
+    // read in the profile's order all the same.
+    r = run_mbscope("decode --profile walchem-w600 --word-order dcba " + log);
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("mbscope decode: --word-order dcba: walchem-w600's manual gives cdab or abcd"),
+              std::string::npos)
+        << r.out;
     r = run_mbscope("decode --profile cth2265i --word-order abcd " + log);
     EXPECT_NE(r.out.find("note: --word-order abcd is not applied to cth2265i: cth2265i's manual gives its "
                          "32-bit values one order"),
