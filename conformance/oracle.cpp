@@ -136,14 +136,43 @@ ExchangeOracle::Expected ExchangeOracle::expect(const Request& r) const {
     if (u && u->id == 0) return silence("silence.address_disabled", "MK-ADR-01");
     if (!u) {
         if (serial(framing_)) return silence("silence.other_unit", "SL §2.1");
-        // A Modbus/TCP device that does not serve the unit id: silence, or a gateway's exceptions 0A/0B.
+        // Over Modbus/TCP the unit id is of no use to a server reached by its IP address (TCP §4.4.1.2):
+        // a lone device may serve any unit id as its own (pymodbus with one context, many embedded servers),
+        // judged as its own request then; or refuse it as a gateway does (0A, 0B); or not answer. A normal
+        // reply was "reply.other_unit", a finding saved against a device the specification lets do so.
+        if (const Unit* lone = lone_on_ip(r.unit)) {
+            Expected answer = expect_served(r, *lone);
+            answer.silence_allowed = true;
+            answer.exceptions.insert(0x0A);
+            answer.exceptions.insert(0x0B);
+            return answer;
+        }
+        // Several devices served: one that serves none of them: silence, or a gateway's exceptions 0A/0B.
         e.silence = true;
         e.exceptions = {0x0A, 0x0B};
         e.rule = "reply.other_unit";
         e.source = "TCP §4.4.1.2";
         return e;
     }
+    return expect_served(r, *u);
+}
+
+const ExchangeOracle::Unit* ExchangeOracle::lone_on_ip(std::uint8_t unit) const {
+    if (!ip_network_ || units_.size() != 1 || unit == 0 || route(unit)) return nullptr;
+    return &units_.front();
+}
+
+ExchangeOracle::Expected ExchangeOracle::expect_served(const Request& r, const Unit& served) const {
+    const Unit* u = &served;
+    const auto silence = [](const char* rule, const char* source) {
+        Expected e;
+        e.silence = true;
+        e.rule = rule;
+        e.source = source;
+        return e;
+    };
     if (listen_only_unknown_.count(u->id)) {
+        Expected e;
         e.judged = false;  // silence and a reply may both be right (see judge())
         return e;
     }
@@ -328,6 +357,7 @@ void ExchangeOracle::forget_points_written(const Request& r) {
     // The points a write names (FC5, 6, 15, 16): what they hold is unknown. Mask writes and FC23 are not
     // modelled point by point: everything written on the unit is.
     const Unit* u = route(r.unit);
+    if (!u) u = lone_on_ip(r.unit);
     if (!u || !r.decoded) return;
     const modbus::Profile& p = *u->profile;
     const auto forget = [&](Table t, std::uint16_t start, std::uint32_t quantity) {
@@ -368,6 +398,7 @@ void ExchangeOracle::forget_written(const Request& r) {
     // Writes the oracle does not model (mask write, FC23, broadcasts): the addresses they touch are unknown.
     if (!r.decoded) return;
     const Unit* u = route(r.unit);
+    if (!u) u = lone_on_ip(r.unit);
     std::erase_if(written_, [&](const auto& kv) { return !u || std::get<0>(kv.first) == u->id; });
 }
 
@@ -513,8 +544,18 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
         ~WriteOutcome() {
             if (!settled) oracle.forget_points_written(request);
         }
-    } write_outcome{*this, *r, !u || !r->decoded || !writes_points(r->pdu[0])};
+    };
+    // Another unit's request to a lone device over Modbus/TCP (lone_on_ip): a device serving it as its own
+    // took its write or its listen-only switch, a gateway passed it on; which, the replies do not tell.
+    const Unit* lone = u ? nullptr : lone_on_ip(r->unit);
+    WriteOutcome write_outcome{*this, *r, (!u && !lone) || !r->decoded || !writes_points(r->pdu[0])};
     const Expected e = expect(*r);
+    // (A restart outside listen-only mode changes none: as for a broadcast, above.)
+    if (lone && r->checksum_ok && listen_only_diagnostics(r->pdu) &&
+        (r->pdu[2] == 4 || listen_only_.count(lone->id))) {
+        listen_only_unknown_.insert(lone->id);
+        listen_only_.erase(lone->id);
+    }
     if (!e.judged) return out;
     // The reply in words, only for a violation: most exchanges keep every rule, and describing one decodes
     // the reply again and formats text.
@@ -599,7 +640,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
     check_normal_shape(*r, *pdu, out);
     // An acknowledgement like the request settles it (a repeat or bytes after it do not unsettle the
     // write); one unlike it (another value, another quantity) leaves which values were stored unknown.
-    if (out.size() == before_shape) write_outcome.settled = true;
+    if (out.size() == before_shape && !lone) write_outcome.settled = true;
     // Values written with an acknowledgement read back as written.
     if (u && r->decoded) {
         const modbus::Pdu& req = *r->decoded;

@@ -107,6 +107,10 @@ class ExchangeOracle {
     std::optional<Request> decode_sent(const std::vector<std::uint8_t>& sent) const;
     const Unit* route(std::uint8_t unit) const;
     Expected expect(const Request& r) const;
+    Expected expect_served(const Request& r, const Unit& u) const;
+    // Over Modbus/TCP and UDP, the lone device for a unit id no profile is given for: a server reached by
+    // its IP address has no use for the unit id (TCP §4.4.1.2) and may serve it as its own. nullptr else.
+    const Unit* lone_on_ip(std::uint8_t unit) const;
     Expected expect_pdu(const Request& r, const modbus::Profile& p) const;
     void check_normal_shape(const Request& r, const modbus::Pdu& reply,
                             std::vector<OracleViolation>& out) const;

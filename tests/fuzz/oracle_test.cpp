@@ -417,6 +417,57 @@ TEST(ExchangeOracle, ALateReplyToAnEarlierRequestIsNotThisRequests) {
     EXPECT_EQ(v[0].rule, "reply.missing");
 }
 
+// Over Modbus/TCP a server reached by its IP address has no use for the unit id (TCP §4.4.1.2): a lone
+// device may answer unit 74 as its own (pymodbus with one context does), refuse it as a gateway (0A, 0B) or
+// not answer. Its normal reply was reply.other_unit, a finding saved against a device doing what the
+// specification allows. Served as its own, the request is judged as the device's; and a write it took for
+// unit 74 leaves what its own points hold unknown (no state.lost_write when they read it back). On a line,
+// another unit's request still goes unanswered.
+TEST(ExchangeOracle, OverTcpALoneDeviceMayServeAnyUnitAsItsOwn) {
+    const auto& p = mbscope::slave::test::profile("mmk-2030");
+    cf::ExchangeOracle oracle(Framing::Tcp, {{1, &p}}, true);
+    const auto exchange = [](std::uint16_t tid, std::uint8_t unit, const std::vector<std::uint8_t>& request,
+                             const std::vector<std::uint8_t>& reply) {
+        mbscope::modbus::transport::Exchange ex;
+        ex.sent = mb::encode_tcp(tid, unit, request);
+        if (!reply.empty()) {
+            ex.received = mb::encode_tcp(tid, unit, reply);
+            ex.response = *mb::decode_tcp(ex.received);
+        }
+        return ex;
+    };
+    const auto read = pdu(3, {0, 1});
+    for (const auto& reply : {std::vector<std::uint8_t>{0x03, 0x02, 0x00, 0x07}, std::vector<std::uint8_t>{},
+                              std::vector<std::uint8_t>{0x83, 0x0A}, std::vector<std::uint8_t>{0x83, 0x0B}}) {
+        const auto v = oracle.judge(exchange(1, 74, read, reply));
+        EXPECT_TRUE(v.empty()) << listing(v);
+    }
+    // Judged as the device's own: a read of a point it has refused with 02 is a refusal it may not make.
+    auto v = oracle.judge(exchange(2, 74, read, {0x83, 0x02}));
+    ASSERT_EQ(v.size(), 1u) << listing(v);
+    EXPECT_NE(v[0].rule, "reply.other_unit");
+    // Unit 1 wrote 3 to register 21 (square-root cut-off, 0 to 5), unit 74 wrote 4 there, and unit 1 reads
+    // 4: the device took unit 74's write as its own, no write of unit 1 was lost.
+    const auto cut_off = pdu(3, {21, 1});
+    v = oracle.judge(exchange(3, 1, pdu(6, {21, 3}), pdu(6, {21, 3})));
+    EXPECT_TRUE(v.empty()) << listing(v);
+    v = oracle.judge(exchange(4, 74, pdu(6, {21, 4}), pdu(6, {21, 4})));
+    EXPECT_TRUE(v.empty()) << listing(v);
+    v = oracle.judge(exchange(5, 1, cut_off, {0x03, 0x02, 0x00, 4}));
+    EXPECT_TRUE(v.empty()) << listing(v);
+    // A write of unit 1 is still held against it.
+    v = oracle.judge(exchange(6, 1, pdu(6, {21, 3}), pdu(6, {21, 3})));
+    EXPECT_TRUE(v.empty()) << listing(v);
+    v = oracle.judge(exchange(7, 1, cut_off, {0x03, 0x02, 0x00, 4}));
+    ASSERT_EQ(v.size(), 1u) << listing(v);
+    EXPECT_EQ(v[0].rule, "state.lost_write");
+
+    cf::ExchangeOracle line(Framing::Rtu, {{1, &p}}, false);
+    v = judge_rtu(line, 74, read, {0x03, 0x02, 0x00, 0x07});
+    ASSERT_EQ(v.size(), 1u) << listing(v);
+    EXPECT_EQ(v[0].rule, "silence.other_unit");
+}
+
 // 01 0C 00 25 00 is two CRC-valid RTU requests at once: FC12 with one data byte up to the silence, and
 // FC12 as its function code ends it after four bytes (CRC 0x2500; the fifth byte 00 keeps the longer
 // frame's CRC valid too). A slave that ends frames by content answers the four bytes normally, one that
