@@ -189,10 +189,15 @@ int run_replay_command(const ReplayCliOptions& o) {
         load_profile_for(o.profile.empty() ? r.profile : o.profile, o.profile_dirs, o.config, "replay");
     if (!profile) return exit_failure;
     const auto framing = modbus::transport::framing_of(endpoint->scheme);
-    if (!r.framing.empty() && r.framing != modbus::to_string(framing))
+    // Frames of another framing are bytes the target does not read as requests: sent as recorded, every step
+    // drew nothing and the run said "not reproduced" with exit 0, as if the device had been cleared.
+    if (!r.framing.empty() && r.framing != modbus::to_string(framing)) {
         std::cerr << "mbscope replay: the reproducer was recorded with " << r.framing
-                  << " framing; the target uses " << modbus::to_string(framing)
-                  << ": the bytes are sent as recorded\n";
+                  << " framing and the target uses " << modbus::to_string(framing)
+                  << ": its steps are frames the target would not read as requests; give a target of "
+                  << r.framing << " framing\n";
+        return exit_failure;
+    }
     if (stop) return report_replay(o, r, {});  // before the target was opened: nothing sent
     auto client = modbus::transport::Client::open(*endpoint);
     if (!client && stop) return report_replay(o, r, {});  // the signal cut the opening short

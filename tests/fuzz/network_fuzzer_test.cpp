@@ -1165,6 +1165,11 @@ TEST(FuzzCommand, ExitCodesSummaryAndReplay) {
     const auto replayed = run("replay --target " + target + " " + files.front().string());
     EXPECT_EQ(replayed.status, 1) << replayed.out;
     EXPECT_NE(replayed.out.find("reproduced: reply.function"), std::string::npos) << replayed.out;
+    // Modbus/TCP frames sent to an RTU target drew nothing and "not reproduced", exit 0: refused instead.
+    const auto other = run("replay --target rtu-tcp://127.0.0.1:1 " + files.front().string());
+    EXPECT_EQ(other.status, 2) << other.out;
+    EXPECT_NE(other.out.find("recorded with tcp framing and the target uses rtu"), std::string::npos)
+        << other.out;
 
     const auto unreachable = run("fuzz --target tcp://127.0.0.1:1 --profile cth2265i --requests 10");
     EXPECT_EQ(unreachable.status, 2) << unreachable.out;
