@@ -150,6 +150,15 @@ int run_decode(const DecodeOptions& o) {
             << '\n';
         return exit_failure;
     }
+    // Not one frame decoded while packets on ports not decoded held Modbus (the summary's hint names the
+    // port and the option): the capture's Modbus was left undecoded, which exit 0 told a pipeline was clean.
+    if (a.summary().frames == 0 &&
+        (!a.summary().modbus_like_ports.empty() || !a.summary().rtu_like_ports.empty())) {
+        std::cerr
+            << "mbscope decode: no Modbus frame decoded, while packets on ports not decoded hold Modbus: "
+               "decode them as the summary's hint says\n";
+        return exit_failure;
+    }
     return a.summary().errors ? exit_findings : exit_ok;
 }
 

@@ -93,4 +93,29 @@ TEST(DecodeExitCode, AClockGoingBackIsANoteNotAnError) {
     EXPECT_EQ(json.out.find("\"input_errors\""), std::string::npos) << json.out;
 }
 
+// A Modbus/TCP request in UDP datagrams to port 1502, not a port decoded: the summary's hint named it, and
+// the run said 0 (no fault) for a capture of which nothing was decoded. It fails now, the hint still given;
+// with --udp-port 1502 the request is decoded.
+TEST(DecodeExitCode, ModbusOnlyOnAPortNotDecodedFailsTheRun) {
+    const std::string adu("\x00\x01\x00\x00\x00\x06\x11\x03\x00\x6B\x00\x03", 12);
+    std::string datagram("\x45\x00\x00\x28\x00\x01\x00\x00\x40\x11\x00\x00\x0A\x00\x00\x01\x0A\x00\x00\x02",
+                         20);  // IPv4, 40 bytes, UDP, 10.0.0.1 -> 10.0.0.2
+    datagram += std::string("\x9C\x40\x05\xDE\x00\x14\x00\x00", 8);  // 40000 -> 1502, 20 bytes
+    datagram += adu;
+    const auto path = pcap("decode-exit-udp1502.pcap", 101, {datagram, datagram});
+    const auto r = run_mbscope("decode " + path);
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(
+        r.out.find("hint: 2 UDP packets on port 1502 hold Modbus/TCP ADUs; decode them with --udp-port 1502"),
+        std::string::npos)
+        << r.out;
+    EXPECT_NE(
+        r.out.find("mbscope decode: no Modbus frame decoded, while packets on ports not decoded hold Modbus"),
+        std::string::npos)
+        << r.out;
+    const auto told = run_mbscope("decode --udp-port 1502 " + path);
+    EXPECT_NE(told.out.find("FC3 read 107+3"), std::string::npos) << told.out;
+    EXPECT_NE(told.exit_code, 2) << told.out;
+}
+
 }  // namespace test_cli_decode_exit_code_test
