@@ -223,7 +223,8 @@ void register_decode(CLI::App& app, int& exit_code) {
         "interfaces have several is read once per link type.\n"
         "Exit codes: 0 decoded with no error-severity finding (an exception response is a warning, a "
         "gateway's exceptions 10 and 11 are errors), 1 faults found, 2 an input could not be read or part "
-        "of it was not decoded (an input error: a link type not decoded, USER0-15 without --user-dlt), "
+        "of it was not decoded (an input error: a link type not decoded, USER0-15 without --user-dlt; no "
+        "frame decoded while Modbus went by on a port not decoded), "
         "everything decodable still reported.\n"
         "Record types and fields: analyzer/README.md.");
     cmd->callback([o, &exit_code] { exit_code = run_decode(*o); });
