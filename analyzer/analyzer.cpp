@@ -1306,9 +1306,9 @@ void Analyzer::on_request(Flow& flow, FrameRecord& r, DeviceStats* stats) {
                 if (!oldest || e.serial < oldest->serial) oldest = e;
                 break;
             }
-        for (const auto& [queue, e] : held_expiries_)
-            if (e.key.flow == flow.id && find_pending(e.key, e.serial) &&
-                (!oldest || e.serial < oldest->serial))
+        for (const HeldExpiry& held : held_expiries_)
+            if (const Expiry& e = held.expiry; e.key.flow == flow.id && find_pending(e.key, e.serial) &&
+                                               (!oldest || e.serial < oldest->serial))
                 oldest = e;
         if (auto taken = oldest ? take_pending(oldest->key, oldest->serial) : std::nullopt) {
             Pending given_up = std::move(*taken);
@@ -2218,8 +2218,8 @@ void Analyzer::clock_went_back(Timestamp to, const std::string& where) {
     for (auto& queue : expiries_)
         for (auto& e : queue)
             if (e.deadline != Timestamp::max()) e.deadline -= back;
-    for (auto& [queue, e] : held_expiries_)
-        e.deadline -= back;
+    for (HeldExpiry& held : held_expiries_)
+        held.expiry.deadline -= back;
     now_ = to;
     const std::string& source = source_.str();
     if (clock_warned_source_ == source) return;
@@ -2285,8 +2285,9 @@ void Analyzer::expire(Timestamp now, bool at_end) {
                     if (f->reassembler[1]->cut_before(e.deadline)) f->reassembler[1]->peer_spoke();
                     f->reassembler[1]->give_up_acknowledged_before(e.deadline);
                 }
-        if (!at_end && reply_may_wait_behind_hole(e)) {
-            held_expiries_.emplace_back(static_cast<ExpiryQueue>(next - expiries_.data()), e);
+        if (const Flow* flow = at_end ? nullptr : flow_of(e.key.flow);
+            flow && reply_may_wait_behind_hole(e, *flow)) {
+            held_expiries_.push_back({static_cast<ExpiryQueue>(next - expiries_.data()), e, flow});
             ++expiry_entries_;
             continue;
         }
@@ -2350,26 +2351,29 @@ void Analyzer::time_out(const Expiry& e, bool at_end) {
 // earlier request lost and sent again, a segment the tap dropped): its reply may be among them, sent in
 // time. Timed out at its deadline, it was a pair.no_response held against the device and then a reply
 // "50 ms after it, past the 3000 ms timeout" when the hole filled.
-bool Analyzer::reply_may_wait_behind_hole(const Expiry& e) {
-    if (!find_pending(e.key, e.serial)) return false;
+bool Analyzer::reply_may_wait_behind_hole(const Expiry& e, const Flow& flow) {
+    return flow.reassembler[1] && flow.reassembler[1]->holds_bytes_captured_by(e.deadline) &&
+           find_pending(e.key, e.serial);
+}
+
+const Analyzer::Flow* Analyzer::flow_of(std::uint64_t id) const {
     for (const auto& [k, f] : flows_)
-        if (f->id == e.key.flow)
-            return f->reassembler[1] && f->reassembler[1]->holds_bytes_captured_by(e.deadline);
-    return false;
+        if (f->id == id) return f.get();
+    return nullptr;
 }
 
 // Held requests go back to their queues, in deadline order, once their flow's hole filled or was given up
 // (the reply, if it was there, has been paired meanwhile) or at the end; answered ones leave.
 void Analyzer::release_held_expiries(bool at_end) {
     if (held_expiries_.empty()) return;
-    std::erase_if(held_expiries_, [&](const std::pair<ExpiryQueue, Expiry>& held) {
-        const auto& [queue_id, e] = held;
+    std::erase_if(held_expiries_, [&](const HeldExpiry& held) {
+        const Expiry& e = held.expiry;
         if (!find_pending(e.key, e.serial)) {
             --expiry_entries_;
             return true;
         }
-        if (!at_end && reply_may_wait_behind_hole(e)) return false;
-        auto& queue = expiries_[queue_id];
+        if (!at_end && reply_may_wait_behind_hole(e, *held.flow)) return false;
+        auto& queue = expiries_[held.queue];
         queue.insert(std::upper_bound(queue.begin(), queue.end(), e.deadline,
                                       [](Timestamp d, const Expiry& x) { return d < x.deadline; }),
                      e);
@@ -2383,11 +2387,11 @@ void Analyzer::time_out_held_before(const Flow& flow, const FrameRecord& r) {
     const PendingKey key{flow.id, pairing_id(r.frame)};
     auto first = held_expiries_.end();
     for (auto it = held_expiries_.begin(); it != held_expiries_.end(); ++it)
-        if (it->second.key == key &&
-            (first == held_expiries_.end() || it->second.serial < first->second.serial))
+        if (it->expiry.key == key &&
+            (first == held_expiries_.end() || it->expiry.serial < first->expiry.serial))
             first = it;
-    if (first == held_expiries_.end() || first->second.deadline >= r.time) return;
-    const Expiry e = first->second;
+    if (first == held_expiries_.end() || first->expiry.deadline >= r.time) return;
+    const Expiry e = first->expiry;
     held_expiries_.erase(first);
     --expiry_entries_;
     time_out(e, false);

@@ -326,7 +326,8 @@ class Analyzer {
     void expire(modbus::Timestamp now, bool at_end);
     // A due request whose reply may wait behind a hole in its response stream (bytes captured by its
     // deadline are held there): not timed out until the hole fills or is given up.
-    bool reply_may_wait_behind_hole(const Expiry& e);
+    bool reply_may_wait_behind_hole(const Expiry& e, const Flow& flow);
+    const Flow* flow_of(std::uint64_t id) const;
     void release_held_expiries(bool at_end);
     // A reply `r` on `flow` captured after the deadline of a held request it may answer: that request timed
     // out first, and the reply is late (the hole held a reply in time for another request, not for it).
@@ -425,8 +426,14 @@ class Analyzer {
     enum ExpiryQueue : std::uint8_t { tcp_timeout, serial_timeout, untimed };
     std::array<std::deque<Expiry>, 3> expiries_;
     std::size_t expiry_entries_ = 0;  // in all three queues and held_expiries_
-    // Due, but held by reply_may_wait_behind_hole(), with the queue each goes back to.
-    std::vector<std::pair<ExpiryQueue, Expiry>> held_expiries_;
+    // Due, but held by reply_may_wait_behind_hole(), with the queue each goes back to and its flow (flows
+    // are never removed: looked up by id for every held entry at every packet, the flows made it quadratic).
+    struct HeldExpiry {
+        ExpiryQueue queue;
+        Expiry expiry;
+        const Flow* flow;
+    };
+    std::vector<HeldExpiry> held_expiries_;
     std::unordered_map<PendingKey, TimedOut, PendingHash> timed_out_;
     std::deque<std::pair<PendingKey, std::uint64_t>> timed_out_order_;  // key and serial, oldest first
     std::uint64_t next_serial_ = 0, next_frame_ = 0, next_flow_ = 0;
