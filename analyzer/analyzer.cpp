@@ -2279,18 +2279,18 @@ void Analyzer::expire(Timestamp now, bool at_end) {
         // of the server's has shown the hole yet, it waits, and the request was a timeout. Acknowledged
         // before this request's deadline, it is given up now: a gap, and the requests waiting may have been
         // answered in it (stream_gap).
+        // A request still pending whose reply may wait behind a hole in its response stream is held
+        // (reply_may_wait_behind_hole); its flow is looked up only then, not for every answered entry.
         if (!at_end && find_pending(e.key, e.serial))
-            for (auto& [k, f] : flows_)
-                if (f->id == e.key.flow && f->reassembler[1]) {
-                    if (f->reassembler[1]->cut_before(e.deadline)) f->reassembler[1]->peer_spoke();
-                    f->reassembler[1]->give_up_acknowledged_before(e.deadline);
+            if (Flow* flow = flow_of(e.key.flow); flow && flow->reassembler[1]) {
+                if (flow->reassembler[1]->cut_before(e.deadline)) flow->reassembler[1]->peer_spoke();
+                flow->reassembler[1]->give_up_acknowledged_before(e.deadline);
+                if (reply_may_wait_behind_hole(e, *flow)) {
+                    held_expiries_.push_back({static_cast<ExpiryQueue>(next - expiries_.data()), e, flow});
+                    ++expiry_entries_;
+                    continue;
                 }
-        if (const Flow* flow = at_end ? nullptr : flow_of(e.key.flow);
-            flow && reply_may_wait_behind_hole(e, *flow)) {
-            held_expiries_.push_back({static_cast<ExpiryQueue>(next - expiries_.data()), e, flow});
-            ++expiry_entries_;
-            continue;
-        }
+            }
         time_out(e, at_end);
     }
 }
@@ -2356,7 +2356,7 @@ bool Analyzer::reply_may_wait_behind_hole(const Expiry& e, const Flow& flow) {
            find_pending(e.key, e.serial);
 }
 
-const Analyzer::Flow* Analyzer::flow_of(std::uint64_t id) const {
+Analyzer::Flow* Analyzer::flow_of(std::uint64_t id) const {
     for (const auto& [k, f] : flows_)
         if (f->id == id) return f.get();
     return nullptr;

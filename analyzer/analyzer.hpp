@@ -327,7 +327,7 @@ class Analyzer {
     // A due request whose reply may wait behind a hole in its response stream (bytes captured by its
     // deadline are held there): not timed out until the hole fills or is given up.
     bool reply_may_wait_behind_hole(const Expiry& e, const Flow& flow);
-    const Flow* flow_of(std::uint64_t id) const;
+    Flow* flow_of(std::uint64_t id) const;
     void release_held_expiries(bool at_end);
     // A reply `r` on `flow` captured after the deadline of a held request it may answer: that request timed
     // out first, and the reply is late (the hole held a reply in time for another request, not for it).
