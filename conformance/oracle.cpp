@@ -162,8 +162,12 @@ const ExchangeOracle::Unit* ExchangeOracle::lone_on_ip(std::uint8_t unit) const 
     return &units_.front();
 }
 
-ExchangeOracle::Expected ExchangeOracle::expect_served(const Request& r, const Unit& served) const {
-    const Unit* u = &served;
+const ExchangeOracle::Unit* ExchangeOracle::served_by(std::uint8_t unit) const {
+    const Unit* u = route(unit);
+    return u ? u : lone_on_ip(unit);
+}
+
+ExchangeOracle::Expected ExchangeOracle::expect_served(const Request& r, const Unit& u) const {
     const auto silence = [](const char* rule, const char* source) {
         Expected e;
         e.silence = true;
@@ -171,23 +175,23 @@ ExchangeOracle::Expected ExchangeOracle::expect_served(const Request& r, const U
         e.source = source;
         return e;
     };
-    if (listen_only_unknown_.count(u->id)) {
+    if (listen_only_unknown_.count(u.id)) {
         Expected e;
         e.judged = false;  // silence and a reply may both be right (see judge())
         return e;
     }
-    if (listen_only_.count(u->id)) {
+    if (listen_only_.count(u.id)) {
         // Only "restart communications" acts, and even it is not answered (AP §6.8.1 sub-function 01).
         return silence(modbus::is_restart_communications(r.pdu) ? "silence.restart_from_listen_only"
                                                                 : "silence.listen_only",
                        "AP §6.8.1");
     }
-    Expected answer = expect_pdu(r, *u->profile);
+    Expected answer = expect_pdu(r, *u.profile);
     // The generic profile knows no device's functions either: one it does not implement is refused (AP §7,
     // 01). libmodbus's server, which has no FC8, was "exception for valid" on every diagnostics request, and
     // "expected exception 03" on a malformed one: the state diagrams of AP §6 test the function code before
     // the data, so 01 is right whatever else the request gets wrong.
-    if (u->profile->open_address_space && !answer.silence) answer.exceptions.insert(0x01);
+    if (u.profile->open_address_space && !answer.silence) answer.exceptions.insert(0x01);
     if (framing_ == Framing::Rtu) {
         const auto predicted = modbus::predict_pdu_length(r.pdu, modbus::Direction::Request);
         answer.silence_allowed =
@@ -356,8 +360,7 @@ bool writes_points(std::uint8_t function_code) {
 void ExchangeOracle::forget_points_written(const Request& r) {
     // The points a write names (FC5, 6, 15, 16): what they hold is unknown. Mask writes and FC23 are not
     // modelled point by point: everything written on the unit is.
-    const Unit* u = route(r.unit);
-    if (!u) u = lone_on_ip(r.unit);
+    const Unit* u = served_by(r.unit);
     if (!u || !r.decoded) return;
     const modbus::Profile& p = *u->profile;
     const auto forget = [&](Table t, std::uint16_t start, std::uint32_t quantity) {
@@ -397,8 +400,7 @@ void ExchangeOracle::forget_points_written(const Request& r) {
 void ExchangeOracle::forget_written(const Request& r) {
     // Writes the oracle does not model (mask write, FC23, broadcasts): the addresses they touch are unknown.
     if (!r.decoded) return;
-    const Unit* u = route(r.unit);
-    if (!u) u = lone_on_ip(r.unit);
+    const Unit* u = served_by(r.unit);
     std::erase_if(written_, [&](const auto& kv) { return !u || std::get<0>(kv.first) == u->id; });
 }
 
@@ -686,6 +688,15 @@ std::string ExchangeOracle::expectation(const std::vector<std::uint8_t>& sent) c
     return (e.exceptions.empty() ? "a normal response"
                                  : "a normal response or " + codes_text(e.exceptions.bits)) +
            quiet;
+}
+
+ExchangeOracle::Answer ExchangeOracle::answer_due(const std::vector<std::uint8_t>& sent) const {
+    const auto r = decode_sent(sent);
+    if (!r) return Answer::Unjudged;
+    const Expected e = expect(*r);
+    if (!e.judged) return Answer::Unjudged;
+    if (e.silence) return Answer::Silence;
+    return e.silence_allowed ? Answer::Optional : Answer::Reply;
 }
 
 }  // namespace mbscope::conformance

@@ -71,6 +71,11 @@ class ExchangeOracle {
     // What the oracle would accept for this request, in words ("no reply", "normal response or exception
     // 02"); "" when it does not judge the request (the bytes are no frame).
     std::string expectation(const std::vector<std::uint8_t>& sent) const;
+    // The same, as what a sender should wait for: no opinion (the bytes are no frame, unit 0 over TCP),
+    // silence demanded (a reply is a violation or a gateway's exception), a reply or silence both allowed,
+    // a reply due.
+    enum class Answer { Unjudged, Silence, Optional, Reply };
+    Answer answer_due(const std::vector<std::uint8_t>& sent) const;
 
     // Forget what was learnt from acknowledged writes and listen-only mode (the target was restarted).
     void reset();
@@ -111,6 +116,7 @@ class ExchangeOracle {
     // Over Modbus/TCP and UDP, the lone device for a unit id no profile is given for: a server reached by
     // its IP address has no use for the unit id (TCP §4.4.1.2) and may serve it as its own. nullptr else.
     const Unit* lone_on_ip(std::uint8_t unit) const;
+    const Unit* served_by(std::uint8_t unit) const;  // route(), else lone_on_ip()
     Expected expect_pdu(const Request& r, const modbus::Profile& p) const;
     void check_normal_shape(const Request& r, const modbus::Pdu& reply,
                             std::vector<OracleViolation>& out) const;

@@ -279,11 +279,10 @@ ReplayedStep send_step(modbus::transport::Client& client, conformance::ExchangeO
     // judged as that request's all the same (unanswered.hpp): where silence is allowed there (another unit's
     // request, which a lone device may serve or ignore), waiting --timeout for it made each such request
     // cost the whole timeout against a device that ignores other units.
-    const auto expected = oracle.expectation(whole);
-    const bool quiet_over_tcp =
-        client.framing() == modbus::Framing::Tcp && expected.ends_with(", or no reply");
-    const bool silence =
-        step.void_by_gap || expected.empty() || expected.starts_with("no reply") || quiet_over_tcp;
+    using Answer = conformance::ExchangeOracle::Answer;
+    const Answer answer = oracle.answer_due(whole);
+    const bool silence = step.void_by_gap || answer == Answer::Unjudged || answer == Answer::Silence ||
+                         (answer == Answer::Optional && client.framing() == modbus::Framing::Tcp);
     r.reply_due = !silence;
     for (std::size_t i = 0; i + 1 < step.parts.size(); ++i) {
         (void)client.write(step.parts[i]);

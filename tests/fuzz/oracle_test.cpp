@@ -468,6 +468,32 @@ TEST(ExchangeOracle, OverTcpALoneDeviceMayServeAnyUnitAsItsOwn) {
     EXPECT_EQ(v[0].rule, "silence.other_unit");
 }
 
+// What a sender waits for, from the same expectations: a reply due, silence demanded (a broadcast, a bad CRC,
+// another unit on a line), both allowed (another unit to a lone device over Modbus/TCP, an RTU request whose
+// length its function does not predict), no opinion (no frame).
+TEST(ExchangeOracle, AnswerDueFollowsTheExpectation) {
+    using Answer = cf::ExchangeOracle::Answer;
+    const auto& p = mbscope::slave::test::profile("mmk-2030");
+    cf::ExchangeOracle tcp(Framing::Tcp, {{1, &p}}, true);
+    EXPECT_EQ(tcp.answer_due(mb::encode_tcp(1, 1, pdu(3, {0, 1}))), Answer::Reply);
+    EXPECT_EQ(tcp.answer_due(mb::encode_tcp(1, 74, pdu(3, {0, 1}))), Answer::Optional);
+    EXPECT_EQ(tcp.expectation(mb::encode_tcp(1, 74, pdu(3, {0, 1}))).ends_with(", or no reply"), true);
+    EXPECT_EQ(tcp.answer_due(mb::encode_tcp(1, 0, pdu(3, {0, 1}))), Answer::Unjudged);
+    EXPECT_EQ(tcp.answer_due({0x00, 0x01, 0x00}), Answer::Unjudged);
+
+    cf::ExchangeOracle rtu(Framing::Rtu, {{1, &p}}, false);
+    EXPECT_EQ(rtu.answer_due(mb::encode_rtu(1, pdu(3, {0, 1}))), Answer::Reply);
+    EXPECT_EQ(rtu.answer_due(mb::encode_rtu(0, pdu(6, {21, 3}))), Answer::Silence);
+    EXPECT_EQ(rtu.answer_due(mb::encode_rtu(74, pdu(3, {0, 1}))), Answer::Silence);
+    auto corrupt = mb::encode_rtu(1, pdu(3, {0, 1}));
+    corrupt.back() ^= 1;
+    EXPECT_EQ(rtu.answer_due(corrupt), Answer::Silence);
+    // FC3 with one byte too many: its length is not the one its function gives.
+    EXPECT_EQ(
+        rtu.answer_due(mb::encode_rtu(1, std::vector<std::uint8_t>{0x03, 0x00, 0x00, 0x00, 0x01, 0x00})),
+        Answer::Optional);
+}
+
 // 01 0C 00 25 00 is two CRC-valid RTU requests at once: FC12 with one data byte up to the silence, and
 // FC12 as its function code ends it after four bytes (CRC 0x2500; the fifth byte 00 keeps the longer
 // frame's CRC valid too). A slave that ends frames by content answers the four bytes normally, one that
