@@ -432,6 +432,7 @@ Analyzer::Flow& Analyzer::flow_for(const L4Packet& l4, bool to_server) {
         slot = std::make_unique<Flow>();
         Flow& f = *slot;
         f.id = ++next_flow_;
+        flow_by_id_.push_back(&f);
         f.link = client.to_string() + " -> " + server.to_string();
         f.server = server.to_string();
         f.carrier = l4.transport == Transport::Tcp ? Carrier::Tcp : Carrier::Udp;
@@ -2357,9 +2358,7 @@ bool Analyzer::reply_may_wait_behind_hole(const Expiry& e, const Flow& flow) {
 }
 
 Analyzer::Flow* Analyzer::flow_of(std::uint64_t id) const {
-    for (const auto& [k, f] : flows_)
-        if (f->id == id) return f.get();
-    return nullptr;
+    return id >= 1 && id <= flow_by_id_.size() ? flow_by_id_[id - 1] : nullptr;
 }
 
 // Held requests go back to their queues, in deadline order, once their flow's hole filled or was given up
@@ -2432,6 +2431,7 @@ Analyzer::SerialLink& Analyzer::serial_link(const std::string& key, const std::s
         auto& flow = flows_[key];
         flow = std::make_unique<Flow>();
         flow->id = ++next_flow_;
+        flow_by_id_.push_back(flow.get());
         flow->link = link;
         flow->server = server;
         flow->carrier = carrier;

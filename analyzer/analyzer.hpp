@@ -358,6 +358,7 @@ class Analyzer {
 
     std::map<std::string, std::unique_ptr<Flow>> flows_;  // owner, in a stable order for the end
     std::unordered_map<FlowKey, Flow*, FlowKeyHash> flow_index_;
+    std::vector<Flow*> flow_by_id_;  // [id - 1]: ids are given in order and flows never leave
     // Of the pairs of endpoints whose ports are both server ports, the ones the analyzer has told the client
     // of (sent_by_client): keyed client first.
     std::unordered_set<FlowKey, FlowKeyHash> told_clients_;
