@@ -60,6 +60,11 @@ std::string capture_filter(const SniffOptions& o) {
         add("tcp", p);
     for (auto p : o.udp_ports)
         add("udp", p);
+    // A port test matches a datagram's first fragment only: the others carry no UDP or TCP header. Every
+    // later fragment passes (IPv4 with a fragment offset; IPv6 whose first extension header is a fragment
+    // header, whose first fragment a port test misses too); the analyzer reassembles what belongs to a
+    // datagram it decodes and leaves the rest.
+    if (!filter.empty()) filter += " or (ip and ip[6:2] & 0x1fff != 0) or (ip6 and ip6[6] == 44)";
     return filter;
 }
 
@@ -83,6 +88,30 @@ struct LiveCapture::Impl {
     }
     bool direction_header = false;  // two serial taps: one byte of UserDltDirection ahead of each record
     std::vector<std::uint8_t> record;
+    std::uint32_t drops_seen = 0;  // pcap_stats' ps_drop at the last look (an unsigned count that wraps)
+    std::uint64_t dropped = 0;
+    Timestamp drops_looked{};  // when they were last looked at
+
+    // Packets the kernel dropped since the last look, said as an input error with the time they were lost
+    // in: its buffer was full, the reader behind (a slow reader of the output, a stopped process, a burst).
+    void count_drops(Analyzer& a, const std::string& name) {
+        if (!pcap) return;
+        pcap_stat st{};
+        const Timestamp now = wall_clock();
+        if (pcap_stats(pcap, &st) != 0) return;
+        const std::uint32_t fresh = static_cast<std::uint32_t>(st.ps_drop) - drops_seen;
+        drops_seen = static_cast<std::uint32_t>(st.ps_drop);
+        const Timestamp since = drops_looked;
+        drops_looked = now;
+        if (fresh == 0) return;
+        dropped += fresh;
+        a.input_error(name + ": the kernel dropped " + std::to_string(fresh) +
+                      (fresh == 1 ? " packet" : " packets") + " between " + time_of_day_text(since) +
+                      " and " + time_of_day_text(now) +
+                      " UTC, its capture buffer full (the reader fell behind): the exchanges around then may "
+                      "show as unanswered, cut or unsolicited; a larger --buffer-size, or an output read as "
+                      "fast as it comes, keeps them");
+    }
 
     // The capture file for `names` (the interface, or each serial port), all of `linktype` and `snaplen`.
     std::string open_output(const std::string& path, int linktype, int snaplen,
@@ -100,7 +129,11 @@ struct LiveCapture::Impl {
         pcap_t* source = pcap ? pcap : (dead = pcap_open_dead(linktype, snap_length));
         if (!source) return path + ": " + std::strerror(ENOMEM);
         dumper = pcap_dump_open(source, path.c_str());
-        if (!dumper) return path + ": " + pcap_geterr(source);
+        if (!dumper) {
+            // libpcap names the file itself ("x.pcap: No such file or directory"): not twice.
+            const std::string e = pcap_geterr(source);
+            return e.starts_with(path + ":") ? e : path + ": " + e;
+        }
         return {};
     }
 
@@ -158,11 +191,13 @@ std::unique_ptr<LiveCapture> LiveCapture::open(const SniffOptions& o, std::strin
         }
         pcap_set_snaplen(m.pcap, snap_length);
         pcap_set_immediate_mode(m.pcap, 1);
+        pcap_set_buffer_size(m.pcap, std::max(o.buffer_mib, 1) * 1024 * 1024);
         if (const int status = pcap_activate(m.pcap); status < 0) {
             permission_denied = status == PCAP_ERROR_PERM_DENIED;
-            const std::string detail = pcap_geterr(m.pcap);
+            const std::string detail = pcap_geterr(m.pcap), reason = pcap_statustostr(status);
+            // libpcap's detail is often the status again ("No such device exists (No such device exists)").
             error =
-                o.interface + ": " + pcap_statustostr(status) + (detail.empty() ? "" : " (" + detail + ")");
+                o.interface + ": " + reason + (detail.empty() || detail == reason ? "" : " (" + detail + ")");
             return nullptr;
         }
         bpf_program program{};
@@ -217,6 +252,10 @@ bool LiveCapture::direction_header() const noexcept {
     return impl_->direction_header;
 }
 
+std::uint64_t LiveCapture::dropped() const noexcept {
+    return impl_->dropped;
+}
+
 bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
     Impl& m = *impl_;
     const auto start = std::chrono::steady_clock::now();
@@ -235,16 +274,24 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
     // The capture file is flushed at the same pace: a process killed, or stopped by a reader of its output
     // that went away, leaves what it captured in the file (pcap_dump buffers, and a network --write file
     // held no packet after ten transactions were printed). The write's error, or empty.
-    const auto pass_time = [&](bool quiet) -> std::string {
+    // `up_to`: the time up to which nothing more can come. Quiet (nothing to read), that is the clock less
+    // the loop's wait; busy, only the last packet's time: packets still waiting in the kernel's buffer were
+    // captured earlier than the clock says, and a reader that fell behind (a slow reader of its output, a
+    // process stopped and continued) timed out requests whose replies were waiting there, then read them
+    // as late, and the capture's clock went back.
+    const auto pass_time = [&](Timestamp up_to, bool quiet) -> std::string {
         const auto t = std::chrono::steady_clock::now();
         if (!quiet && t - last_pass < std::chrono::milliseconds(read_timeout_ms)) return {};
         last_pass = t;
-        a.idle(quiet_until());
+        a.idle(up_to);
+        m.count_drops(a, name_);
         return m.flush(options_.write);
     };
+    m.drops_looked = wall_clock();
     const auto finished = [&] {
         const Timestamp end = quiet_until();
         a.idle(end);  // what timed out while the capture ran is a timeout, not cut off by its end
+        m.count_drops(a, name_);
         // pcapng says when the capture ended, so that its decode times out what this run did.
         if (m.pcapng.is_open())
             if (const auto e = m.pcapng.end_statistics(end); !e.empty()) return write_failed(e);
@@ -276,7 +323,8 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
                 const int ready = ::poll(&wait, 1, draining ? drain_timeout_ms : read_timeout_ms);
                 if (ready == 0 && draining) break;
                 if (ready == 0)
-                    if (const auto written = pass_time(true); !written.empty()) return write_failed(written);
+                    if (const auto written = pass_time(quiet_until(), true); !written.empty())
+                        return write_failed(written);
                 continue;
             }
             if (status < 0) {
@@ -294,7 +342,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
             const std::string written = m.dump(p.time, p.data, h->len, 0);
             a.packet(name_, p);
             if (!written.empty()) return write_failed(written);
-            if (const auto flushed = pass_time(false); !flushed.empty()) return write_failed(flushed);
+            if (const auto flushed = pass_time(p.time, false); !flushed.empty()) return write_failed(flushed);
         }
         return finished();
     }
@@ -319,6 +367,18 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         port_line = *line;
     };
     std::uint8_t buf[4096];
+    // One read of `got` bytes in buf from serial port `port`: to the file and the analyzer, stamped now.
+    const auto take_read = [&](int port, std::size_t got) {
+        const Timestamp t = wall_clock();
+        const std::span<const std::uint8_t> bytes(buf, got);
+        ++captured_;
+        std::string written = m.dump(t, bytes, static_cast<std::uint32_t>(bytes.size()), port);
+        // A serial read is rare: flushed at once, the file is whole even if the process is killed.
+        if (written.empty()) written = m.flush(options_.write);
+        a.serial(name_, bytes, t,
+                 two ? (port == 0 ? Direction::Request : Direction::Response) : Direction::Unknown);
+        return written;
+    };
     while (!done() && !drained()) {
         pollfd fds[2];
         nfds_t n = 0;
@@ -336,11 +396,14 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         }
         if (ready <= 0) {
             if (draining) break;
-            if (const auto written = pass_time(true); !written.empty()) return write_failed(written);
+            if (const auto written = pass_time(quiet_until(), true); !written.empty())
+                return write_failed(written);
             follow_line();
             continue;
         }
-        for (nfds_t k = 0; k < n; ++k) {
+        int hung = -1;  // the port that went away this round
+        std::string how;
+        for (nfds_t k = 0; k < n && !done(); ++k) {  // --count 1 with both ports ready read two
             const bool hung_up = fds[k].revents & (POLLHUP | POLLERR | POLLNVAL);
             ssize_t got = 0;
             if (fds[k].revents & POLLIN) {
@@ -350,28 +413,32 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
                 continue;
             }
             if (got <= 0 && (hung_up || got < 0)) {
-                // The port went away (a USB adapter unplugged, a pseudo-terminal's other end closed): poll
-                // says so at once, forever, and the capture would spin in silence. What was read is kept.
-                const std::string& device = which[k] == 0 ? options_.serial : options_.serial2;
-                a.input_error(device + ": the port " +
-                              (got < 0 ? "failed (" + std::string(std::strerror(errno)) + ")"
-                                       : std::string("hung up")) +
-                              "; the capture ends here");
-                finished();
-                return false;
+                hung = which[k];
+                how = got < 0 ? "failed (" + std::string(std::strerror(errno)) + ")" : std::string("hung up");
+                continue;  // the other port's bytes of this round are still read
             }
             if (got == 0) continue;
-            const Timestamp t = wall_clock();
-            const std::span<const std::uint8_t> bytes(buf, static_cast<std::size_t>(got));
-            ++captured_;
-            std::string written = m.dump(t, bytes, static_cast<std::uint32_t>(bytes.size()), which[k]);
-            // A serial read is rare: flushed at once, the file is whole even if the process is killed.
-            if (written.empty()) written = m.flush(options_.write);
-            a.serial(name_, bytes, t,
-                     two ? (which[k] == 0 ? Direction::Request : Direction::Response) : Direction::Unknown);
-            if (!written.empty()) return write_failed(written);
+            if (auto written = take_read(which[k], static_cast<std::size_t>(got)); !written.empty())
+                return write_failed(written);
         }
-        if (const auto written = pass_time(false); !written.empty()) return write_failed(written);
+        if (hung >= 0) {
+            // The port went away (a USB adapter unplugged, a pseudo-terminal's other end closed): poll says
+            // so at once, forever, and the capture would spin in silence. What was read is kept, and so is
+            // what the other port holds already (a reply waiting there when the request's port hung up was
+            // lost).
+            for (int i = 0; i < 2 && !done(); ++i) {
+                if (i == hung || !m.serial[i]) continue;
+                for (ssize_t got; !done() && (got = ::read(m.serial[i].get(), buf, sizeof buf)) > 0;)
+                    if (auto written = take_read(i, static_cast<std::size_t>(got)); !written.empty())
+                        return write_failed(written);
+            }
+            const std::string& device = hung == 0 ? options_.serial : options_.serial2;
+            a.input_error(device + ": the port " + how + "; the capture ends here");
+            finished();
+            return false;
+        }
+        if (const auto written = pass_time(quiet_until(), false); !written.empty())
+            return write_failed(written);
         follow_line();
     }
     return finished();

@@ -34,9 +34,13 @@ struct SniffOptions {
     std::string write;  // capture file to write (see writes_pcapng), empty for none
     std::optional<std::chrono::duration<double>> duration;  // stop after this long
     std::optional<std::uint64_t> count;                     // stop after this many packets or serial reads
+    // The kernel's buffer for packets not yet read (libpcap's, tcpdump's -B), in MiB. libpcap's 2 MiB hold
+    // 16 packets on lo at its 64 KiB frames: a short burst overflowed it.
+    int buffer_mib = 32;
 };
 
-// The filter for the options' ports: "tcp port 502 or udp port 502 ...".
+// The filter for the options' ports: "tcp port 502 or udp port 502 ...", and every IP fragment but a
+// datagram's first (which alone carries the ports): a Modbus/UDP request in two fragments lost its second.
 std::string capture_filter(const SniffOptions& options);
 
 // True when `path` ends in .pcapng, in any case: the capture file is then written as pcapng, otherwise as
@@ -55,9 +59,12 @@ class LiveCapture {
 
     // Captures into the analyzer until the duration or count is reached or `stop` is set; then reads what
     // is already waiting, flushes the capture file and returns. False on a capture error or a failed write
-    // of the capture file (recorded as the analyzer's input error, naming the file).
+    // of the capture file (recorded as the analyzer's input error, naming the file). Packets the kernel
+    // dropped (its buffer full: the reader fell behind) are the analyzer's input errors too, said at the
+    // loop's pace as they are counted: the exchanges around them may show as unanswered, cut or unsolicited.
     bool run(Analyzer& analyzer, const std::atomic<bool>& stop);
     std::uint64_t captured() const noexcept { return captured_; }
+    std::uint64_t dropped() const noexcept;  // packets the kernel dropped (network capture)
     const std::string& name() const noexcept { return name_; }
     // True when serial records carry the direction pseudo-header (two ports).
     bool direction_header() const noexcept;

@@ -81,13 +81,7 @@ json direction_json(Direction d) {
 
 std::string TextSink::time_of(Timestamp t) {
     if (t.count() == 0) return "       (untimed)";
-    // UTC time of day with microseconds: what a technician matches against other logs.
-    const auto us = std::chrono::duration_cast<std::chrono::microseconds>(t).count();
-    const long long day_us = ((us % 86'400'000'000LL) + 86'400'000'000LL) % 86'400'000'000LL;
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%02lld:%02lld:%02lld.%06lld", day_us / 3'600'000'000LL,
-                  day_us / 60'000'000 % 60, day_us / 1'000'000 % 60, day_us % 1'000'000);
-    return buf;
+    return time_of_day_text(t);
 }
 
 void TextSink::transaction(const TransactionRecord& t) {

@@ -30,6 +30,16 @@ inline std::optional<modbus::Timestamp> timestamp_from_seconds(double seconds) {
     return modbus::Timestamp(static_cast<std::int64_t>(std::llround(seconds * 1e9)));
 }
 
+// The UTC time of day with microseconds, "14:03:07.123456": what a technician matches against other logs.
+inline std::string time_of_day_text(modbus::Timestamp t) {
+    const auto us = std::chrono::duration_cast<std::chrono::microseconds>(t).count();
+    const long long day_us = ((us % 86'400'000'000LL) + 86'400'000'000LL) % 86'400'000'000LL;
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%02lld:%02lld:%02lld.%06lld", day_us / 3'600'000'000LL,
+                  day_us / 60'000'000 % 60, day_us / 1'000'000 % 60, day_us % 1'000'000);
+    return buf;
+}
+
 // A duration as people read latencies: "1.912 ms".
 inline std::string milliseconds_text(modbus::Timestamp d) {
     char text[40];

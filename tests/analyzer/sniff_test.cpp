@@ -4,12 +4,15 @@
 // example (000:356-370). Capturing on lo needs root or CAP_NET_RAW: without it the test is skipped with
 // libpcap's reason, never passed.
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <pty.h>
 #include <sys/socket.h>
 #include <termios.h>
 #include <unistd.h>
+
+#include <fcntl.h>
 
 #include <cerrno>
 #include <cstring>
@@ -116,7 +119,9 @@ TEST(Sniff, FilterNamesEveryPort) {
     an::SniffOptions o;
     o.tcp_ports = {502, 1502};
     o.udp_ports = {502};
-    EXPECT_EQ(an::capture_filter(o), "tcp port 502 or tcp port 1502 or udp port 502");
+    EXPECT_EQ(an::capture_filter(o),
+              "tcp port 502 or tcp port 1502 or udp port 502 or (ip and ip[6:2] & 0x1fff != 0) or (ip6 and "
+              "ip6[6] == 44)");
 }
 
 // A Modbus/TCP exchange on lo, decoded as it comes and written into `name`, whose format `expected_magic`
@@ -401,6 +406,7 @@ TEST(Sniff, UnwritableFileIsNamedWhenOpening) {
         bool denied = false;
         EXPECT_FALSE(an::LiveCapture::open(o, error, denied));
         EXPECT_EQ(error.rfind(o.write + ": ", 0), 0u) << error;
+        EXPECT_EQ(error.find(o.write, 1), std::string::npos) << error;  // named once
     }
     ::close(master);
     ::close(slave);
@@ -439,6 +445,185 @@ TEST(Sniff, FullDiskEndsTheCaptureWithAnErrorNamingTheFile) {
     ::close(slave);
     ASSERT_EQ(a.summary().input_errors.size(), 1u);
     EXPECT_EQ(a.summary().input_errors[0], classic + ": " + no_space);
+}
+
+// Two UDP sockets on lo: a server bound to a port of its own, and a client. For captures of Modbus/UDP.
+struct UdpPair {
+    int server = ::socket(AF_INET, SOCK_DGRAM, 0), client = ::socket(AF_INET, SOCK_DGRAM, 0);
+    sockaddr_in server_addr{}, client_addr{};
+    std::uint16_t port = 0;
+    UdpPair() {
+        server_addr.sin_family = AF_INET;
+        server_addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        EXPECT_EQ(::bind(server, reinterpret_cast<sockaddr*>(&server_addr), sizeof server_addr), 0);
+        socklen_t len = sizeof server_addr;
+        ::getsockname(server, reinterpret_cast<sockaddr*>(&server_addr), &len);
+        port = ntohs(server_addr.sin_port);
+        client_addr = server_addr;
+        client_addr.sin_port = 0;
+        EXPECT_EQ(::bind(client, reinterpret_cast<sockaddr*>(&client_addr), sizeof client_addr), 0);
+        len = sizeof client_addr;
+        ::getsockname(client, reinterpret_cast<sockaddr*>(&client_addr), &len);
+    }
+    ~UdpPair() {
+        ::close(server);
+        ::close(client);
+    }
+    UdpPair(const UdpPair&) = delete;
+    UdpPair& operator=(const UdpPair&) = delete;
+    void request(const std::vector<std::uint8_t>& b) const {
+        EXPECT_EQ(::sendto(client, b.data(), b.size(), 0, reinterpret_cast<const sockaddr*>(&server_addr),
+                           sizeof server_addr),
+                  static_cast<ssize_t>(b.size()));
+    }
+    void reply(const std::vector<std::uint8_t>& b) const {
+        EXPECT_EQ(::sendto(server, b.data(), b.size(), 0, reinterpret_cast<const sockaddr*>(&client_addr),
+                           sizeof client_addr),
+                  static_cast<ssize_t>(b.size()));
+    }
+};
+
+// A capture of lo for the pair's port; null when capturing is not permitted (the caller skips).
+std::unique_ptr<an::LiveCapture> capture_udp(const UdpPair& udp, an::SniffOptions o,
+                                             std::string& denied_why) {
+    o.interface = "lo";
+    o.tcp_ports = {};
+    o.udp_ports = {udp.port};
+    std::string error;
+    bool denied = false;
+    auto capture = an::LiveCapture::open(o, error, denied);
+    if (!capture && denied) denied_why = error;
+    if (!capture && !denied) ADD_FAILURE() << error;
+    return capture;
+}
+
+// Runs the capture until what was sent before has been read (a short moment), then stops it.
+bool run_briefly(an::LiveCapture& capture, an::Analyzer& a) {
+    std::atomic<bool> stop{false};
+    bool ran = false;
+    std::thread sniffer([&] { ran = capture.run(a, stop); });
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    stop = true;
+    sniffer.join();
+    a.finish();
+    return ran;
+}
+
+// The kernel keeps what the capture has not read in a buffer, and drops what does not fit: the packets
+// lost were never said (and their exchanges came out unanswered). A buffer of 1 MiB holds 16 packets of
+// lo's 64 KiB frames; 200 datagrams sent before the capture reads anything overflow it.
+TEST(Sniff, PacketsTheKernelDroppedAreInputErrors) {
+    UdpPair udp;
+    an::SniffOptions o;
+    o.buffer_mib = 1;
+    std::string denied;
+    auto capture = capture_udp(udp, o, denied);
+    if (!capture) {
+        if (!denied.empty()) GTEST_SKIP() << "no permission to capture on lo: " << denied;
+        return;
+    }
+    auto request = tcp_request;
+    for (int i = 0; i < 200; ++i) {
+        request[1] = static_cast<std::uint8_t>(i);
+        udp.request(request);
+    }
+    Collect sink;
+    an::AnalyzerOptions options;
+    options.udp_ports = {udp.port};
+    an::Analyzer a(options, sink);
+    run_briefly(*capture, a);
+    EXPECT_GT(capture->dropped(), 0u);
+    // (Not captured + dropped = 200: on lo the kernel counts the drops of both copies of a packet, the
+    // outgoing one libpcap would have passed over.)
+    EXPECT_LT(capture->captured(), 200u);
+    ASSERT_EQ(a.summary().input_errors.size(), 1u);
+    EXPECT_NE(a.summary().input_errors[0].find("lo: the kernel dropped " +
+                                               std::to_string(capture->dropped()) + " packets between "),
+              std::string::npos)
+        << a.summary().input_errors[0];
+}
+
+// A sink that takes its time over the first frame, as a slow reader of sniff's output makes the capture
+// fall behind: meanwhile packets wait in the kernel's buffer.
+struct SlowFirstFrame : Collect {
+    bool slept = false;
+    void frame(const an::FrameRecord& f) override {
+        if (!std::exchange(slept, true)) std::this_thread::sleep_for(std::chrono::milliseconds(250));
+        Collect::frame(f);
+    }
+};
+
+// A capture that fell behind passed time for the analyzer by the clock, past packets still waiting to be
+// read: a request whose reply had come 10 ms after it timed out (100 ms), then the reply was "late", and
+// the capture's clock went back. Busy, time passes only by the packets read.
+TEST(Sniff, AReaderBehindDoesNotTimeOutRepliesWaitingToBeRead) {
+    UdpPair udp;
+    std::string denied;
+    auto capture = capture_udp(udp, {}, denied);
+    if (!capture) {
+        if (!denied.empty()) GTEST_SKIP() << "no permission to capture on lo: " << denied;
+        return;
+    }
+    udp.request(tcp_request);
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    udp.reply(tcp_response);
+    std::this_thread::sleep_for(std::chrono::milliseconds(400));  // both wait in the buffer, unread
+    SlowFirstFrame sink;
+    an::AnalyzerOptions options;
+    options.udp_ports = {udp.port};
+    options.timeout = std::chrono::milliseconds(100);
+    an::Analyzer a(options, sink);
+    EXPECT_TRUE(run_briefly(*capture, a));
+    ASSERT_EQ(sink.transactions.size(), 1u);
+    EXPECT_TRUE(sink.transactions[0].response.has_value());
+    EXPECT_FALSE(sink.transactions[0].timed_out);
+    EXPECT_TRUE(sink.findings.empty());
+    EXPECT_TRUE(a.summary().input_notes.empty());  // no clock going back
+    EXPECT_TRUE(a.summary().input_errors.empty());
+}
+
+// Two taps, both holding a read when the capture looks: --count 1 read both.
+TEST(Sniff, CountOneReadsOneWithBothTapsReady) {
+    Pty taps[2];
+    ASSERT_EQ(::write(taps[0].master, rtu_request.data(), rtu_request.size()), 8);
+    ASSERT_EQ(::write(taps[1].master, rtu_response.data(), rtu_response.size()), 11);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    an::SniffOptions o;
+    o.serial2 = taps[1].path;
+    o.count = 1;
+    o.duration = std::chrono::seconds(10);  // a bound, should the count not end it
+    auto capture = capture_of(taps[0], o);
+    ASSERT_TRUE(capture);
+    Collect sink;
+    an::Analyzer a({}, sink);
+    std::atomic<bool> stop{false};
+    EXPECT_TRUE(capture->run(a, stop));
+    EXPECT_EQ(capture->captured(), 1u);
+}
+
+// One tap hangs up while the other holds bytes not read yet: the capture ended at the hang-up, and what
+// the other port held was lost without a word (a reply already written when the request's tap went away).
+TEST(Sniff, WhatTheOtherTapHoldsIsReadWhenOneHangsUp) {
+    Pty request_tap, reply_tap;
+    an::SniffOptions o;
+    o.serial2 = reply_tap.path;
+    o.duration = std::chrono::seconds(10);  // a bound, should the hang-up not end it
+    auto capture = capture_of(request_tap, o);
+    ASSERT_TRUE(capture);
+    ASSERT_EQ(::write(reply_tap.master, rtu_response.data(), rtu_response.size()), 11);
+    ::close(request_tap.master);  // the first port hangs up; the second holds the reply
+    request_tap.master = ::open("/dev/null", O_RDONLY);  // for ~Pty to close
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    Collect sink;
+    an::Analyzer a({}, sink);
+    std::atomic<bool> stop{false};
+    EXPECT_FALSE(capture->run(a, stop));
+    a.finish();
+    ASSERT_EQ(a.summary().input_errors.size(), 1u);
+    EXPECT_NE(a.summary().input_errors[0].find("hung up"), std::string::npos) << a.summary().input_errors[0];
+    EXPECT_EQ(capture->captured(), 1u);
+    ASSERT_EQ(sink.frames.size(), 1u);
+    EXPECT_EQ(sink.frames[0].direction, mb::Direction::Response);
 }
 
 }  // namespace test_analyzer_sniff_test
