@@ -16,6 +16,9 @@ void add_analysis_options(CLI::App& cmd, AnalysisCliOptions& o) {
         ->check(CLI::Range(1, 65535));
     cmd.add_option("--udp-port", o.udp_ports, "Modbus/UDP server port besides 502 (repeatable)")
         ->check(CLI::Range(1, 65535));
+    cmd.add_option("--rtu-over-tcp", o.rtu_over_tcp_ports,
+                   "TCP port of a serial gateway whose streams carry raw RTU frames, no MBAP (repeatable)")
+        ->check(CLI::Range(1, 65535));
     cmd.add_option("--baud", o.baud, "Serial line: baud rate (for t1.5/t3.5)")
         ->check(CLI::Range(50u, 10'000'000u))
         ->capture_default_str();
@@ -129,6 +132,7 @@ bool apply_analysis_options(const AnalysisCliOptions& o, const std::string& comm
                             analyzer::AnalyzerOptions& options) {
     options.tcp_ports.insert(options.tcp_ports.end(), o.tcp_ports.begin(), o.tcp_ports.end());
     options.udp_ports.insert(options.udp_ports.end(), o.udp_ports.begin(), o.udp_ports.end());
+    options.rtu_over_tcp_ports = o.rtu_over_tcp_ports;
     if (!o.word_order.empty()) options.word_order = modbus::parse_word_order(o.word_order);
     if (o.timeout_s > 0) {
         options.timeout =

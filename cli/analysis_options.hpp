@@ -18,6 +18,7 @@ namespace mbscope::cli {
 
 struct AnalysisCliOptions {
     std::vector<std::uint16_t> tcp_ports, udp_ports;  // besides 502
+    std::vector<std::uint16_t> rtu_over_tcp_ports;    // serial gateways' raw RTU streams
     std::uint32_t baud = 9600;
     std::string parity = "N";
     int data_bits = 8, stop_bits = 1;

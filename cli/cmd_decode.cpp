@@ -21,7 +21,6 @@ namespace {
 struct DecodeOptions {
     AnalysisCliOptions common;
     std::vector<std::string> files;
-    std::vector<std::uint16_t> rtu_over_tcp_ports;
     std::string user_dlt;
     bool no_progress = false;
     std::string format = "auto";
@@ -33,7 +32,6 @@ struct DecodeOptions {
 
 int run_decode(const DecodeOptions& o) {
     analyzer::AnalyzerOptions options;
-    options.rtu_over_tcp_ports = o.rtu_over_tcp_ports;
     if (!o.user_dlt.empty()) {
         if (o.user_dlt.starts_with("serial"))
             options.user_dlt.emplace();  // no framing: the line's bytes tell it
@@ -200,9 +198,6 @@ void register_decode(CLI::App& app, int& exit_code) {
         "The serial inputs are consecutive parts of one line (a log written a file an hour, a capture "
         "in pieces): one stream in the order given, its devices named after the first; a reply in "
         "the next part is its request's, a frame cut in two is whole");
-    cmd->add_option("--rtu-over-tcp", o->rtu_over_tcp_ports,
-                    "TCP port of a serial gateway whose streams carry raw RTU frames, no MBAP (repeatable)")
-        ->check(CLI::Range(1, 65535));
     cmd->add_option(
            "--user-dlt", o->user_dlt,
            "What pcap link types USER0..USER15 (147-162) carry: rtu or ascii serial bytes, or serial "

@@ -1,6 +1,7 @@
 #include "cli/stop_signal.hpp"
 
 #include <signal.h>
+#include <unistd.h>
 
 #include <csignal>
 
@@ -12,8 +13,30 @@ std::atomic<bool> stop_requested_again{false};
 static_assert(std::atomic<bool>::is_always_lock_free, "set from a signal handler");
 BrokenPipe installed_broken_pipe = BrokenPipe::Kills;
 
-extern "C" void on_stop_signal(int) {
-    if (stop_requested.exchange(true)) stop_requested_again.store(true);
+// stop_is_forced(): seconds a stop may take before the process ends by its signal; 0 for never.
+volatile sig_atomic_t forced_after_s = 0;
+volatile sig_atomic_t first_stop_signal = 0;
+
+extern "C" void die_by_stop_signal(int) {
+    // The signal's default action, as if no handler had been installed: the process ends by it (exit status
+    // 128 + its number in a shell). Raised here it is delivered as this handler returns.
+    ::signal(first_stop_signal, SIG_DFL);
+    ::raise(first_stop_signal);
+}
+
+extern "C" void on_stop_signal(int sig) {
+    // A broken pipe is no user's stop: a write to it fails at once, it blocks nothing.
+    const bool forced = forced_after_s && sig != SIGPIPE;
+    if (stop_requested.exchange(true)) {
+        stop_requested_again.store(true);
+        if (forced) {
+            first_stop_signal = sig;
+            die_by_stop_signal(sig);
+        }
+        return;
+    }
+    first_stop_signal = sig;
+    if (forced) ::alarm(static_cast<unsigned>(forced_after_s));
 }
 
 // Whether SIGHUP stops the run (it is not when it was ignored already).
@@ -58,6 +81,14 @@ void run_begins() {
 
 const std::atomic<bool>& second_stop_signal() {
     return stop_requested_again;
+}
+
+void stop_is_forced(unsigned seconds) {
+    struct sigaction alarm {};
+    alarm.sa_handler = die_by_stop_signal;
+    sigemptyset(&alarm.sa_mask);
+    ::sigaction(SIGALRM, &alarm, nullptr);
+    forced_after_s = static_cast<sig_atomic_t>(seconds);
 }
 
 }  // namespace mbscope::cli

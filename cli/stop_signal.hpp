@@ -33,5 +33,10 @@ void run_begins();
 // that only informs (the fuzzer's read-back of points written without a reply) is cut short. Restoring what
 // was written is not.
 const std::atomic<bool>& second_stop_signal();
+// For a run with nothing to restore (sniff): a stop that has not ended the process `seconds` after the
+// first stop signal, or a second stop signal, ends it by that signal's default action. A run whose output
+// a reader does not read is blocked in a write the signal cannot interrupt (SA_RESTART): `sniff | (sleep
+// 20; cat)` ignored SIGTERM and SIGINT until its reader read.
+void stop_is_forced(unsigned seconds);
 
 }  // namespace mbscope::cli

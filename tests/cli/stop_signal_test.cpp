@@ -10,6 +10,7 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/ioctl.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -20,6 +21,7 @@
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "tests/slave/slave_process.hpp"
@@ -135,6 +137,7 @@ class Pty {
     Pty(const Pty&) = delete;
     Pty& operator=(const Pty&) = delete;
     const std::string& path() const { return path_; }
+    int master() const { return master_; }  // the line's far end
 
   private:
     int master_;
@@ -277,6 +280,45 @@ TEST(StopSignal, ASignalCutsShortAStepOfThePreparationThatWouldWaitForEver) {
     EXPECT_NE(ended.err.find("mbscope sniff: interrupted before the capture began"), std::string::npos)
         << ended.err;
     fs::remove(fifo);
+}
+
+// Sniff's output blocked by a reader that never reads (here its --csv FIFO; `sniff | (sleep 20; cat)` alike):
+// the write it waits in starts again after the handler, and SIGTERM was ignored until the reader read. A stop
+// that has not ended the run in 5 s ends it by the signal.
+TEST(StopSignal, ASniffWhoseOutputIsBlockedEndsByTheSignal) {
+    Pty line;
+    ASSERT_FALSE(line.path().empty());
+    const fs::path fifo = fs::path(::testing::TempDir()) / "stop-signal-blocked.csv";
+    fs::remove(fifo);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);  // open, and never read
+    ASSERT_GE(reader, 0);
+    // Nothing pending from the start: SIGWINCH, ignored by default.
+    Mbscope sniff("stop-signal-blocked",
+                  {"sniff", "--serial", line.path(), "--framing", "rtu", "--csv", fifo}, SIGWINCH);
+    ASSERT_TRUE(sniff.started());
+    // The MK manual's FC3 exchange (000:356-370), again and again, until the FIFO is full.
+    const std::vector<std::uint8_t> exchange{0x11, 0x03, 0x00, 0x60, 0x00, 0x03, 0x07, 0x45, 0x11, 0x03,
+                                             0x06, 0x02, 0x2B, 0x00, 0x00, 0x00, 0x64, 0xC8, 0xBA};
+    ::fcntl(line.master(), F_SETFL, ::fcntl(line.master(), F_GETFL) | O_NONBLOCK);
+    // Full: what it holds no longer grows while the line still brings exchanges (a pipe's pages fill with
+    // whatever each flush wrote, so how much it holds when full varies).
+    int queued = 0, unchanged = 0;
+    const bool full = wait_for([&] {
+        for (int i = 0; i < 20; ++i)
+            if (::write(line.master(), exchange.data(), exchange.size()) < 0) break;
+        int now = 0;
+        if (::ioctl(reader, FIONREAD, &now) != 0) return false;
+        unchanged = now > 0 && now == queued ? unchanged + 1 : 0;
+        queued = now;
+        return unchanged >= 50;
+    });
+    ASSERT_TRUE(full) << "the CSV FIFO never filled: " << queued << " bytes; "
+                      << read_file(fs::path(::testing::TempDir()) / "stop-signal-blocked.err");
+    sniff.signal(SIGTERM);
+    const auto ended = sniff.wait();
+    EXPECT_EQ(ended.signal, SIGTERM) << ended.exit_code << ": " << ended.err;
+    ::close(reader);
 }
 
 }  // namespace test_cli_stop_signal_test
