@@ -1,5 +1,6 @@
 #include "slave/server.hpp"
 
+#include <fcntl.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sched.h>
@@ -86,6 +87,10 @@ struct Server::Impl {
     Framing framing = Framing::Tcp;
 
     tp::UniqueFd listener;
+    // A descriptor held in reserve: out of descriptors, accept() fails and leaves the client queued, and
+    // poll reports the listener ready at once, for ever (a core spun and new clients hung). Closed for a
+    // moment, it lets the client be accepted and closed, as one over max_clients is.
+    tp::UniqueFd spare;
     tp::UniqueFd udp;
     tp::Pty pty;
     std::uint64_t serial_id = 0;
@@ -341,6 +346,7 @@ struct Server::Impl {
                 auto fd = tp::listen_tcp(endpoint.host, endpoint.port, 512);
                 if (!fd) return endpoint.text() + ": " + fd.error();
                 listener = std::move(fd).value();
+                spare = tp::UniqueFd(::open("/dev/null", O_RDONLY | O_CLOEXEC));
                 return {};
             }
             case S::Udp: {
@@ -376,6 +382,15 @@ struct Server::Impl {
     void accept_clients() {
         for (;;) {
             tp::UniqueFd fd(::accept4(listener.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
+            if (!fd && (errno == EMFILE || errno == ENFILE) && spare) {
+                spare = tp::UniqueFd();
+                const bool accepted = static_cast<bool>(
+                    tp::UniqueFd(::accept4(listener.get(), nullptr, nullptr, SOCK_CLOEXEC)));
+                spare = tp::UniqueFd(::open("/dev/null", O_RDONLY | O_CLOEXEC));  // after the close above
+                if (!accepted) return;
+                ++stats.refused;  // closed at once, as over max_clients
+                continue;
+            }
             if (!fd) return;
             if (connections.size() >= options.max_clients) {
                 ++stats.refused;
@@ -668,7 +683,13 @@ struct Server::Impl {
                 if (fds[i].revents & (POLLIN | POLLHUP | POLLERR)) {
                     if (!read_stream(ids[i], c) || (!c.serial && (fds[i].revents & POLLERR)))
                         to_close.push_back(ids[i]);
-                    // A pty whose client closed reports POLLHUP until one opens it again: do not spin.
+                    // The port itself went away (a USB adapter unplugged, the far end of a pseudo-terminal
+                    // closed): poll says so at once, for ever, with a read of nothing, and the loop spun a
+                    // core in silence. The run ends with the reason (every write acknowledged is saved).
+                    if (c.serial && !options.create_pty && (fds[i].revents & (POLLHUP | POLLERR)))
+                        return endpoint.device + ": the port hung up";
+                    // A pty of our own whose client closed reports POLLHUP until one opens it again: do not
+                    // spin.
                     if (c.serial && (fds[i].revents & POLLHUP) && !(fds[i].revents & POLLIN))
                         ::poll(nullptr, 0, 10);
                 }

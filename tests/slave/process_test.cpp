@@ -3,8 +3,11 @@
 //    a new process started on the same --state file serves every written value;
 //  - 100 clients at once, each with its own requests, every one answered with its own data, while a
 //    client sending garbage is disconnected without disturbing them.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <pty.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -14,6 +17,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <thread>
 
 #include "tests/cli/cli_run.hpp"
@@ -329,6 +333,83 @@ TEST(SlaveProcess, AFaultThatActsOnceIsRefusedASecondTime) {
             << run.out;
         EXPECT_EQ(run.out.find("planted fault"), std::string::npos) << run.out;
     }
+}
+
+// The serial port goes away under the slave (the far end of its pseudo-terminal closed, as a USB adapter
+// unplugged): poll said so for ever with a read of nothing, and the slave spun a core without a word. It
+// ends saying so, exit 2.
+TEST(SlaveProcess, ASerialPortThatHangsUpEndsTheSlave) {
+    int master = -1, slave_end = -1;
+    char path[64] = {};
+    ASSERT_EQ(::openpty(&master, &slave_end, path, nullptr, nullptr), 0);
+    ::close(slave_end);                    // the slave opens its own
+    ::fcntl(master, F_SETFD, FD_CLOEXEC);  // and does not inherit the far end, which would keep it up
+    SlaveProcess slave({"--listen", std::string("rtu:") + path}, true);
+    ASSERT_FALSE(slave.address().empty());
+    ::close(master);
+    const auto said = slave.read_until("the port hung up");
+    EXPECT_NE(said.find(std::string("mbscope slave: ") + path + ": the port hung up"), std::string::npos)
+        << said;
+    if (said.find("the port hung up") != std::string::npos) {
+        EXPECT_EQ(slave.wait_exit(), 2);
+    }
+}
+
+// Out of file descriptors, accept() failed and left the client queued while poll said the listener was
+// ready, for ever: a core spun and a new client was neither served nor closed. It is closed at once, as
+// one over --max-clients is, and the clients already connected keep their service.
+TEST(SlaveProcess, AClientBeyondTheDescriptorLimitIsClosedAtOnce) {
+    rlimit before{};
+    ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
+    rlimit low = before;
+    low.rlim_cur = 32;  // inherited by the slave spawned now
+    ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+    SlaveProcess slave({"--listen", "tcp://127.0.0.1:0"});
+    ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &before), 0);
+    ASSERT_NE(slave.port(), 0);
+    std::vector<std::unique_ptr<Client>> clients;
+    for (int i = 0; i < 40; ++i) {
+        clients.push_back(std::make_unique<Client>(slave.port()));
+        ASSERT_TRUE(clients.back()->connected());
+    }
+    EXPECT_TRUE(clients.back()->closed_within(std::chrono::seconds(5)));
+    EXPECT_EQ(clients.front()->exchange(mbap(1, "03 00 00 00 01"), 11), "00 01 00 00 00 05 01 03 02 00 00");
+}
+
+// A --state that is a symbolic link keeps the file it names: saved by a rename over the path, the link became
+// a file of its own and the file it named stayed as it was; and a second slave given the file's own name,
+// whose lock is named after it, was not refused beside the first.
+TEST(SlaveProcess, AStateFileReachedByALinkIsTheFileItNames) {
+    const auto [dir, real] = state_in_new_directory("link");
+    {
+        SlaveProcess first({"--profile", "modbus", "--listen", "tcp://127.0.0.1:0", "--state", real});
+        ASSERT_NE(first.port(), 0);
+        Client c(first.port());
+        ASSERT_TRUE(c.connected());
+        EXPECT_EQ(c.exchange(mbap(1, "06 00 0A 00 01"), 12), "00 01 00 00 00 06 01 06 00 0A 00 01");
+    }
+    ASSERT_TRUE(fs::exists(real));
+    const std::string link = (dir / "link.json").string();
+    fs::create_symlink(real, link);
+    {
+        SlaveProcess slave({"--profile", "modbus", "--listen", "tcp://127.0.0.1:0", "--state", link});
+        ASSERT_NE(slave.port(), 0);
+        Client c(slave.port());
+        ASSERT_TRUE(c.connected());
+        EXPECT_EQ(c.exchange(mbap(1, "06 00 0A 00 6F"), 12), "00 01 00 00 00 06 01 06 00 0A 00 6F");
+        // (Under `timeout`: a second slave that starts serves until killed.)
+        const auto second = mbscope::test::run_mbscope(
+            "slave --profile modbus --listen tcp://127.0.0.1:0 --state " + real, "timeout 10");
+        EXPECT_EQ(second.exit_code, 2) << second.out;
+        EXPECT_NE(second.out.find("in use by another mbscope slave"), std::string::npos) << second.out;
+    }
+    EXPECT_TRUE(fs::is_symlink(link));
+    SlaveProcess again({"--profile", "modbus", "--listen", "tcp://127.0.0.1:0", "--state", real});
+    ASSERT_NE(again.port(), 0);
+    Client c(again.port());
+    ASSERT_TRUE(c.connected());
+    EXPECT_EQ(c.exchange(mbap(2, "03 00 0A 00 01"), 11), "00 02 00 00 00 05 01 03 02 00 6F");
+    fs::remove_all(dir);
 }
 
 }  // namespace

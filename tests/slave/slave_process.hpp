@@ -77,6 +77,14 @@ class SlaveProcess {
         }
         return got;
     }
+    // Waits for the process to end by itself: its exit code, or -1 when a signal ended it.
+    int wait_exit() {
+        if (!spawned_ || pid_ <= 0) return -1;
+        int status = 0;
+        ::waitpid(pid_, &status, 0);
+        pid_ = -1;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    }
     // Sends `sig` and reaps the process.
     void kill(int sig) {
         if (!spawned_ || pid_ <= 0) return;
