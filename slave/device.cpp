@@ -223,7 +223,12 @@ Reply Device::handle(const Request& request) {
     if (!out.empty() && (out[0] & 0x80) == 0 && faults_->fires(Fault::ExceptionForValid)) {
         out = exception(fc, exc_device_failure);
     }
-    if (request.broadcast && !answer_broadcast) return reply;  // executed, not answered
+    if (request.broadcast && !answer_broadcast) {
+        // Executed, not answered. An exception formed for it was never returned: 0x0D counts the exception
+        // responses returned (AP §6.8.1), and the broadcast is counted under no response already.
+        if (!out.empty() && (out[0] & 0x80) != 0) --counters_.exceptions;
+        return reply;
+    }
     reply.pdu = std::move(out);
     return reply;
 }

@@ -119,6 +119,18 @@ TEST(Device, Fc8CountersCountWhatTheServerAndDeviceSaw) {
     EXPECT_EQ(ask(device, "08 00 10 00 00"), "08 00 10 00 00");  // never naks
 }
 
+// A broadcast the device refuses (a byte count that disagrees with its quantity) forms an exception that is
+// never sent: 0x0D counts exception responses returned, and counted it too, beside 0x0F's no response.
+TEST(Device, Fc8ExceptionCountLeavesOutBroadcastsNotAnswered) {
+    Device device(profile("modbus"), 1);
+    for (int i = 0; i < 3; ++i)
+        EXPECT_EQ(ask(device, "0F 00 00 00 08 02 FF", true), "");
+    EXPECT_EQ(ask(device, "08 00 0D 00 00"), "08 00 0D 00 00");  // exceptions returned
+    EXPECT_EQ(ask(device, "08 00 0F 00 00"), "08 00 0F 00 03");  // no response
+    EXPECT_EQ(ask(device, "0F 00 00 00 08 02 FF"), "8F 03");     // addressed: returned, counted
+    EXPECT_EQ(ask(device, "08 00 0D 00 00"), "08 00 0D 00 01");
+}
+
 // The initial image follows the map (register_image.hpp): fixed values, an enumeration's first value, a
 // range's minimum when zero lies outside it, floats in the profile's word order.
 TEST(Device, InitialImageFollowsTheMap) {
