@@ -1,6 +1,7 @@
 // mbscope slave: serve device profiles over TCP, UDP, serial framing over TCP, a serial port or a
 // pseudo-terminal, with planted faults on demand.
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 
@@ -43,7 +44,7 @@ struct SlaveOptions {
     std::size_t max_clients = 1024;
 };
 
-int run_slave(const SlaveOptions& o) {
+int run_slave(SlaveOptions o) {  // a copy: --state is resolved
     // Before the profiles load: a signal from here on stops the slave as one while it serves does (exit 0,
     // its counts said), not by killing it.
     const auto& stop = stop_on_signals(BrokenPipe::Ignored);
@@ -135,6 +136,12 @@ int run_slave(const SlaveOptions& o) {
         processes.emplace_back(*devices[i], o.seed + i);
     slave::ServerOptions options;
     modbus::transport::UniqueFd state_lock;  // held until the slave stops
+    if (std::error_code ec; !o.state.empty() && std::filesystem::is_symlink(o.state, ec)) {
+        // A link's file is the one kept: saved by a rename over the path, the link became a file of its own
+        // and the file it named stayed as it was; and a slave given the file's own name, whose lock file is
+        // named after it, was not refused beside one given the link.
+        if (auto target = std::filesystem::canonical(o.state, ec); !ec) o.state = target.string();
+    }
     if (!o.state.empty()) {
         // Saved as a file beside it, renamed over it: a directory that cannot take it would make every
         // write fail (exception 04) from the first one on.
