@@ -44,8 +44,11 @@ std::optional<std::vector<std::uint8_t>> harmless_request(Context& c, std::uint8
         }
         case 5:
         case 15: {
+            // Not a point read-only in some state (read_only_when): in that state the device refuses it
+            // with 02, as access.*.read_only_when expects, and the function seemed unsupported.
             const auto at = rewritable(c, Table::Coils, [](const modbus::Point& p) {
-                return p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary;
+                return p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary &&
+                       !p.read_only_when;
             });
             if (!at) {
                 why_not = "no readable and writable coil to rewrite with its own value";
@@ -69,7 +72,7 @@ std::optional<std::vector<std::uint8_t>> harmless_request(Context& c, std::uint8
         case 23: {
             const auto at = rewritable(c, Table::HoldingRegisters, [](const modbus::Point& p) {
                 return p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary &&
-                       p.encoding.words == 1 && !p.fixed_value;
+                       p.encoding.words == 1 && !p.fixed_value && !p.read_only_when;
             });
             if (!at) {
                 why_not = "no readable and writable register to rewrite with its own value";
@@ -216,6 +219,19 @@ void check_function_codes(Context& c) {
                       r.expected += ", or exception 02 (Illegal Data Address) at address 0";
                   }
                   if (unmapped && r.outcome == Outcome::Fail) r.observed += "; " + c.facts(*table).damaged;
+                  // FC24 points at any register: one that counts more than 31 is refused with 03 as AP
+                  // §6.18 demands (the reference slave failed for the data it held).
+                  if (fc == 24 && r.outcome == Outcome::Fail && is_exception(ex, fc, 0x03)) {
+                      const auto pointer = static_cast<std::uint16_t>((*pdu)[1] << 8 | (*pdu)[2]);
+                      const auto count = c.session.read_registers(Table::HoldingRegisters, pointer, 1,
+                                                                  "the FIFO count the pointer names");
+                      if (count && (*count)[0] > 31) {
+                          r.outcome = Outcome::Pass;
+                          r.expected += ", or exception 03 (Illegal Data Value) for a FIFO count above 31";
+                          r.observed += "; register " + std::to_string(pointer) + " counts " +
+                                        std::to_string((*count)[0]) + " (AP §6.18)";
+                      }
+                  }
                   // The generic profile knows no device: a function the device does not implement, refused
                   // as AP §7 says, is conformant.
                   if (c.profile.open_address_space && r.outcome == Outcome::Fail &&

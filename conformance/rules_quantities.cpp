@@ -22,8 +22,10 @@ std::optional<std::uint16_t> writable_run(const Context& c, Table t, std::uint32
     std::optional<std::uint16_t> start;
     std::optional<std::uint16_t> previous;
     for (const auto& p : c.profile.table(t)) {
-        const bool ok =
-            p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary && !p.fixed_value;
+        // A point read-only while another holds some value (a loop output in automatic mode, 000:961) is
+        // refused with 02 then, as access.*.read_only_when expects: a run across it failed .max.
+        const bool ok = p.access == modbus::Access::ReadWrite && !p.reserved && !p.momentary &&
+                        !p.fixed_value && !p.read_only_when;
         for (int w = 0; w < p.encoding.words; ++w) {
             const auto a = static_cast<std::uint16_t>(p.address + w);
             if (ok && previous && a == *previous + 1 && length > 0) {

@@ -1469,5 +1469,34 @@ TEST(Reports, AReadOnlyPointThatMovedIsShownWithWhatItReads) {
     EXPECT_EQ(verdict(report), 1);
 }
 
+// A DCY controller in automatic mode (coil 0 set) makes its loop output, register 2, read-only (000:961):
+// the rules that rewrite a register with its own value, and the write of the maximum quantity, picked it and
+// failed a correct device with its exception 02, in the same report that passed access.hr2.read_only_when
+// for that very refusal.
+TEST(Runner, APointReadOnlyInTheDevicesStateIsNotTheOneRewritten) {
+    RunningServer server({}, 1, "dcy-2050");
+    server.device().image().set_bit(modbus::Table::Coils, 0, true);  // automatic mode
+    auto options = options_for();
+    options.run.rule_globs = {"fc.supported.*", "quantity.fc16.max", "access.hr2.*"};
+    const auto run = certify(server, "tcp", "dcy-2050", options);
+    EXPECT_EQ(run.report.count(Outcome::Fail), 0u) << failures(run.report);
+    EXPECT_GT(run.report.count(Outcome::Pass), 5u);
+    EXPECT_TRUE(run.report.all_restored()) << failures(run.report);
+}
+
+// FC24 points at a register the device holds: one counting more than 31 is refused with 03, as AP §6.18
+// demands. fc.supported.24 failed the reference slave for the value its register 0 held.
+TEST(Runner, AFifoCountAbove31RefusedWith03StillShowsTheFunctionSupported) {
+    for (const std::uint16_t held : {std::uint16_t{0}, std::uint16_t{40}}) {
+        RunningServer server({}, 1, "modbus");
+        server.device().image().set_reg(modbus::Table::HoldingRegisters, 0, held);
+        auto options = options_for();
+        options.run.rule_globs = {"fc.supported.24"};
+        const auto run = certify(server, "tcp", "modbus", options);
+        ASSERT_EQ(run.report.results.size(), 1u);
+        EXPECT_EQ(run.report.results[0].outcome, Outcome::Pass) << held << failures(run.report);
+    }
+}
+
 }  // namespace
 }  // namespace mbscope::conformance::test_conformance_runner_test
