@@ -3,6 +3,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -28,6 +29,7 @@ struct CheckCliOptions {
     int unit = 1;
     std::vector<std::string> rules;
     bool read_only = false;
+    bool broadcast_writes = false;
     std::string report, junit, html;
     int timeout_ms = 1000;
     int interval_ms = -1;  // -1: the profile's minimum polling interval
@@ -103,6 +105,21 @@ int run_check_command(const CheckCliOptions& o) {
                 std::cerr << "mbscope check: cannot write " << *why << '\n';
                 return exit_failure;
             }
+    // Two reports into one file: the last written replaced the first (--report X --junit X kept the JUnit
+    // file alone, exit 0).
+    const std::pair<const char*, const std::string*> reports[] = {
+        {"--report", &o.report}, {"--junit", &o.junit}, {"--html", &o.html}};
+    for (std::size_t i = 0; i < std::size(reports); ++i)
+        for (std::size_t j = i + 1; j < std::size(reports); ++j) {
+            const std::string &a = *reports[i].second, &b = *reports[j].second;
+            std::error_code ea, eb;
+            if (!a.empty() && !b.empty() &&
+                std::filesystem::weakly_canonical(a, ea) == std::filesystem::weakly_canonical(b, eb)) {
+                std::cerr << "mbscope check: " << reports[i].first << " and " << reports[j].first
+                          << " name the same file, " << a << ": one report would replace the other\n";
+                return exit_failure;
+            }
+        }
     const auto profile = load_profile_for(o.profile, o.profile_dirs, o.config, "check");
     if (!profile) return exit_failure;
     conformance::CheckOptions options;
@@ -112,6 +129,7 @@ int run_check_command(const CheckCliOptions& o) {
     options.session.interval = std::chrono::milliseconds(
         o.interval_ms >= 0 ? o.interval_ms : profile->line.min_poll_interval_ms.value_or(0));
     options.run.read_only = o.read_only;
+    options.run.broadcast_writes = o.broadcast_writes;
     options.run.rule_globs = o.rules;
     options.run.seed = o.seed;
     options.run.idle = std::chrono::milliseconds(o.idle_ms);
@@ -175,6 +193,10 @@ void register_check(CLI::App& app, int& exit_code) {
     cmd->add_option("--rules", o->rules,
                     "Run only rules whose id matches GLOB (repeatable), e.g. 'quantity.*'");
     cmd->add_flag("--read-only", o->read_only, "Run only rules that write nothing");
+    cmd->add_flag("--broadcast-writes", o->broadcast_writes,
+                  "Send the broadcast rules' writes to unit 0 (broadcast.fc6/fc16): every device on the "
+                  "line executes them and only the device under test is put back, so for a device alone on "
+                  "its line (skipped without)");
     cmd->add_option("--report", o->report, "Write the JSON report to FILE");
     cmd->add_option("--junit", o->junit, "Write a JUnit XML report to FILE (one testcase per rule)");
     cmd->add_option("--html", o->html, "Write a self-contained HTML report to FILE");

@@ -49,6 +49,9 @@ struct TableFacts {
 
 struct RunOptions {
     bool read_only = false;
+    // Writes to unit 0 (broadcast.fcN rules) are sent. Every device on the line executes them and only the
+    // device under test is put back: for a device alone on its line (a bench), as the user says.
+    bool broadcast_writes = false;
     std::vector<std::string> rule_globs;  // empty: every rule
     std::uint64_t seed = 1;
     // How long silence.idle listens with no request out. The manuals' own test idles 10 s (MK-MS-01,

@@ -50,6 +50,18 @@ std::string nothing_judged(const Report& report) {
     // Every rule skipped (--read-only with writing rules only, broadcast rules over Modbus/TCP): as empty a
     // run, whatever the target is, even one that never answers (it was sent nothing).
     const auto skipped = report.count(Outcome::Skip);
+    // Every rule skipped or ended in error (none could be judged: a device that damaged every reply to
+    // them, say): as empty a run, not a failed one ("fail", exit 1, with 0 failed). Unless a point written
+    // was not put back: that fails the run whatever else.
+    const auto errors = report.count(Outcome::Error);
+    if (errors > 0 && skipped + errors == report.results.size() && report.all_restored()) {
+        const auto error = std::find_if(report.results.begin(), report.results.end(),
+                                        [](const RuleResult& r) { return r.outcome == Outcome::Error; });
+        return "no rule selected could be judged: " + std::to_string(errors) + " ended in error (" +
+               error->rule.id + ": " + (error->reason.empty() ? error->observed : error->reason) +
+               (errors > 1 ? ", ..." : "") + ")" +
+               (skipped ? ", " + std::to_string(skipped) + " skipped" : "");
+    }
     if (skipped < report.results.size()) return {};
     const RuleResult& first = report.results.front();
     return (skipped == 1 ? std::string("the one rule selected was skipped (")

@@ -58,6 +58,9 @@ TEST(NumberOptions, ValuesOutsideTheirMeaningAreRefusedBeforeAnythingRuns) {
         {"fuzz --target tcp://127.0.0.1:1 --requests -1", "--requests: a whole number from 0 to"},
         {"fuzz --target tcp://127.0.0.1:1 --requests 18446744073709551616", "--requests: a whole number"},
         {"sniff -i lo --count -1", "--count: a whole number from 0 to"},
+        // Not a number, but refused as early: two reports into one file, the last replacing the first.
+        {"check --target tcp://127.0.0.1:1 --report same-report.json --junit ./same-report.json",
+         "--report and --junit name the same file, same-report.json: one report would replace the other"},
     };
     for (const auto& c : cases) {
         const auto r = run_mbscope(c.args);

@@ -305,6 +305,7 @@ TEST(Broadcast, WritesAreJudgedAgainstTheValueTheRegisterHoldsThen) {
     });
     auto options = options_for();
     options.run.rule_globs = {"echo.fc6", "broadcast.fc*"};
+    options.run.broadcast_writes = true;  // the device is alone on its line
     for (const char* manual : {"mmk-2030", "mmk-2030-broadcast-5-15"}) {
         RunningServer server({}, 1, "mmk-2030-broadcast-5-15");
         const auto run = certify(server, "rtu-tcp", manual, options);
@@ -322,6 +323,39 @@ TEST(Broadcast, WritesAreJudgedAgainstTheValueTheRegisterHoldsThen) {
             << manual << failures(run.report);
         EXPECT_TRUE(run.report.all_restored()) << failures(run.report);
     }
+}
+
+// A write to unit 0 is executed by every device on the line, and the run puts back only the device under
+// test: on a line shared with a second MMK-2030 the broadcast rules changed it, and the ledger said every
+// point written was restored. They are sent only when the user says the device is alone on its line.
+TEST(Broadcast, WritesAreSentOnlyForADeviceSaidToBeAloneOnItsLine) {
+    RunningServer server({}, 1, "mmk-2030");
+    auto options = options_for();
+    options.run.rule_globs = {"broadcast.fc*"};
+    const auto run = certify(server, "rtu-tcp", "mmk-2030", options);
+    ASSERT_EQ(run.report.results.size(), 2u);
+    for (const auto& x : run.report.results) {
+        EXPECT_EQ(x.outcome, Outcome::Skip) << x.rule.id;
+        EXPECT_NE(x.reason.find("--broadcast-writes"), std::string::npos) << x.reason;
+    }
+    EXPECT_EQ(server.device().image().modifications(), 0u);  // nothing written, to anyone
+}
+
+// A run whose every rule ended in error judged nothing: it said "fail", exit 1, with 0 failed. The MMK-2030
+// whose addresses are off by one refuses the read value.hr26.enumeration needs, which leaves it in error.
+TEST(Reports, ARunWhoseEveryRuleEndedInErrorJudgedNothing) {
+    RunningServer server({"off-by-one-address"}, 1, "mmk-2030");
+    auto options = options_for();
+    options.run.rule_globs = {"value.hr26.enumeration"};
+    const auto run = certify(server, "tcp", "mmk-2030", options);
+    ASSERT_EQ(run.report.results.size(), 1u);
+    ASSERT_EQ(run.report.results[0].outcome, Outcome::Error) << failures(run.report);
+    EXPECT_EQ(verdict_text(run.report), "error");
+    EXPECT_NE(nothing_judged(run.report)
+                  .find("no rule selected could be judged: 1 ended in error "
+                        "(value.hr26.enumeration: "),
+              std::string::npos)
+        << nothing_judged(run.report);
 }
 
 // A stop during the last family (here its only rule) was not recorded: the report said "pass", the exit
