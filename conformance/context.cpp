@@ -87,6 +87,37 @@ bool Context::selected(const std::string& rule_id) const {
     return false;
 }
 
+namespace {
+// The function a rule is about, from its id's segment "fcN" (quantity.fc2.zero, echo.fc6); none for others.
+std::optional<std::uint8_t> function_of_rule(std::string_view id) {
+    for (std::size_t at = 0; at <= id.size();) {
+        const std::size_t end = std::min(id.find('.', at), id.size());
+        const std::string_view part = id.substr(at, end - at);
+        if (part.size() > 2 && part.size() <= 5 && part.starts_with("fc") &&
+            part.find_first_not_of("0123456789", 2) == std::string_view::npos) {
+            const int n = std::stoi(std::string(part.substr(2)));
+            if (n <= 255) return static_cast<std::uint8_t>(n);
+        }
+        at = end + 1;
+    }
+    return std::nullopt;
+}
+}  // namespace
+
+bool Context::refused_every_request_of(const std::vector<Evidence>& evidence, std::uint8_t fc) const {
+    const auto framing = session.client().framing();
+    bool any = false;
+    for (const auto& e : evidence) {
+        const auto sent = modbus::decode_adu(framing, e.sent);
+        if (!sent || sent->pdu().empty() || sent->pdu()[0] != fc) continue;
+        const auto got = modbus::decode_adu(framing, e.received);
+        if (!got || got->pdu().size() != 2 || got->pdu()[0] != (fc | 0x80) || got->pdu()[1] != 0x01)
+            return false;
+        any = true;
+    }
+    return any;
+}
+
 void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& body) {
     if (!selected(rule.id) || (stop && stop->load())) return;
     if (silent()) {
@@ -98,6 +129,13 @@ void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& 
     if (rule.writes && options.read_only) {
         r.outcome = Outcome::Skip;
         r.reason = "writes to the device (--read-only)";
+        results.push_back(std::move(r));
+        return;
+    }
+    if (const auto fc = function_of_rule(rule.id); fc && functions_refused.test(*fc)) {
+        r.outcome = Outcome::Skip;
+        r.reason = "the device does not implement function " + std::to_string(*fc) +
+                   ": it refused it with exception 01 earlier in the run, as AP §7 allows";
         results.push_back(std::move(r));
         return;
     }
@@ -121,6 +159,16 @@ void Context::run(const RuleInfo& rule, const std::function<void(RuleResult&)>& 
     }
     r.duration = std::chrono::steady_clock::now() - start;
     r.evidence = session.take_evidence();
+    // The generic profile knows no device's functions: a rule of function N that failed because every
+    // request of N it sent was refused with 01 found a device that does not implement N, which AP §7 allows
+    // (fc.supported.N passes it). Skipped, saying so; and so are the rules of N after it.
+    if (profile.open_address_space && r.outcome == Outcome::Fail)
+        if (const auto fc = function_of_rule(rule.id); fc && refused_every_request_of(r.evidence, *fc)) {
+            functions_refused.set(*fc);
+            r.outcome = Outcome::Skip;
+            r.reason = "the device does not implement function " + std::to_string(*fc) +
+                       ": it refused it with exception 01, as AP §7 allows";
+        }
     if (options.progress) options.progress(r);
     results.push_back(std::move(r));
 }

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <atomic>
+#include <bitset>
 #include <functional>
 #include <optional>
 #include <string>
@@ -73,12 +74,18 @@ struct Context {
     std::array<TableFacts, 5> tables;  // indexed by Table's value
     std::vector<RuleResult> results;
     const std::atomic<bool>* stop = nullptr;  // set on Ctrl-C: the remaining rules are not run
+    // The generic profile: functions the device refused with exception 01 (fc.supported.N), as AP §7 lets a
+    // device of unknown make. The other rules of such a function (an id with a segment fcN) are skipped:
+    // quantity.fc2.zero failed a device for refusing FC2 with the 01 that passed fc.supported.2.
+    std::bitset<256> functions_refused{};
 
     const TableFacts& facts(modbus::Table t) const { return tables[static_cast<int>(t)]; }
     bool selected(const std::string& rule_id) const;
     // Runs one rule: skips it when not selected or when it writes under --read-only, times it, collects
     // its evidence. The body sets outcome, expected and observed. Nothing is run once the target is silent.
     void run(const RuleInfo& rule, const std::function<void(RuleResult&)>& body);
+    // Whether every request of function `fc` among the exchanges was refused with exception 01 (and one was).
+    bool refused_every_request_of(const std::vector<Evidence>& evidence, std::uint8_t fc) const;
     // The target answered none of the run's first `silent_after` requests or more in time (a wrong unit id,
     // transport or line settings): every rule after would wait out its timeouts and fail for that one
     // reason, so none is run.

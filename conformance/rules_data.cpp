@@ -91,6 +91,15 @@ void check_data(Context& c) {
                   const auto ex = c.session.request(pdu, "write a different value in range");
                   r.expected = "an exact echo, then " + std::to_string(value) + " on read-back";
                   r.observed = describe(ex);
+                  // The generic profile guessed the register: one the device reads but keeps read-only (a
+                  // process value) is refused with 02, and there is no echo to judge.
+                  if (generic && is_exception(ex, 6, 0x02)) {
+                      r.outcome = Outcome::Skip;
+                      r.reason = "register " + std::to_string(address) +
+                                 ", the first the device reads, is not writable (exception 02): the generic "
+                                 "profile knows no writable one";
+                      return;
+                  }
                   r.outcome = echoes(ex, pdu) ? Outcome::Pass : Outcome::Fail;
                   auto back = c.session.read_registers(Table::HoldingRegisters, address, 1, "read it back");
                   r.observed +=

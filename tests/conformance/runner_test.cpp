@@ -358,6 +358,28 @@ TEST(Reports, ARunWhoseEveryRuleEndedInErrorJudgedNothing) {
         << nothing_judged(run.report);
 }
 
+// The generic profile knows no device: an MMK-2030 refuses FC2 (it has no discrete inputs) with 01, which
+// passed fc.supported.2, and then failed quantity.fc2.zero and address.fc2.overflow; and its register 0, the
+// first it reads, is a process value it does not let be written (02), which failed fc.supported.6 and 16 and
+// echo.fc6. A device judged by the specification alone fails none of these.
+TEST(GenericProfile, ADeviceIsNotFailedForAFunctionItLacksOrARegisterItKeepsReadOnly) {
+    RunningServer server({}, 1, "mmk-2030");
+    const auto run = certify(server, "tcp", "modbus");
+    EXPECT_EQ(run.report.count(Outcome::Fail), 0u) << failures(run.report);
+    EXPECT_TRUE(run.report.all_restored()) << failures(run.report);
+    std::map<std::string, const RuleResult*> by_id;
+    for (const auto& x : run.report.results)
+        by_id[x.rule.id] = &x;
+    for (const char* id : {"quantity.fc2.zero", "address.fc2.overflow"}) {
+        ASSERT_TRUE(by_id.count(id)) << id;
+        EXPECT_EQ(by_id[id]->outcome, Outcome::Skip) << id;
+        EXPECT_NE(by_id[id]->reason.find("does not implement function 2"), std::string::npos)
+            << by_id[id]->reason;
+    }
+    ASSERT_TRUE(by_id.count("fc.supported.6"));
+    EXPECT_EQ(by_id["fc.supported.6"]->outcome, Outcome::Pass);
+}
+
 // A stop during the last family (here its only rule) was not recorded: the report said "pass", the exit
 // code was 0. Every report now says the run was interrupted; the JUnit file has an error for it.
 TEST(Runner, AStopDuringTheLastFamilyIsAnInterruptedRun) {
