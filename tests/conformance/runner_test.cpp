@@ -380,6 +380,18 @@ TEST(GenericProfile, ADeviceIsNotFailedForAFunctionItLacksOrARegisterItKeepsRead
     EXPECT_EQ(by_id["fc.supported.6"]->outcome, Outcome::Pass);
 }
 
+// --idle 0 listens to nothing: silence.idle passed saying "nothing in 0 ms".
+TEST(Runner, SilenceIdleOfZeroMillisecondsIsNotJudged) {
+    RunningServer server({}, 1, "modbus");
+    auto options = options_for();
+    options.run.rule_globs = {"silence.idle"};
+    options.run.idle = std::chrono::milliseconds(0);
+    const auto run = certify(server, "tcp", "modbus", options);
+    ASSERT_EQ(run.report.results.size(), 1u);
+    EXPECT_EQ(run.report.results[0].outcome, Outcome::Skip);
+    EXPECT_EQ(run.report.results[0].reason, "--idle 0: nothing was listened for");
+}
+
 // A stop during the last family (here its only rule) was not recorded: the report said "pass", the exit
 // code was 0. Every report now says the run was interrupted; the JUnit file has an error for it.
 TEST(Runner, AStopDuringTheLastFamilyIsAnInterruptedRun) {
