@@ -114,7 +114,8 @@ int run_check_command(const CheckCliOptions& o) {
             const std::string &a = *reports[i].second, &b = *reports[j].second;
             std::error_code ea, eb;
             if (!a.empty() && !b.empty() &&
-                std::filesystem::weakly_canonical(a, ea) == std::filesystem::weakly_canonical(b, eb)) {
+                std::filesystem::weakly_canonical(std::filesystem::absolute(a), ea) ==
+                    std::filesystem::weakly_canonical(std::filesystem::absolute(b), eb)) {
                 std::cerr << "mbscope check: " << reports[i].first << " and " << reports[j].first
                           << " name the same file, " << a << ": one report would replace the other\n";
                 return exit_failure;
