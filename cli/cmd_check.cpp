@@ -1,4 +1,5 @@
 // mbscope check: certify a slave against the Modbus specification and its device's manual.
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -7,6 +8,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <thread>
 
 #include "cli/commands.hpp"
 #include "cli/json_text.hpp"
@@ -19,6 +21,7 @@
 #include "modbus/frame_text.hpp"
 #include "modbus/storage/profile_store.hpp"
 #include "modbus/transport/client.hpp"
+#include "modbus/transport/unique_fd.hpp"
 
 namespace mbscope::cli {
 namespace {
@@ -42,7 +45,29 @@ struct CheckCliOptions {
     std::vector<std::string> config;
 };
 
+// A report going to a FIFO waits for its reader, and a stop signal ends the wait: opened blocking, a FIFO no
+// one read held the finished run in open() for ever, SIGINT and SIGTERM ignored (the call starts again
+// after the handler). The reader, once there, is held open until the report's own open has it.
+bool wait_for_reader(const std::string& path, modbus::transport::UniqueFd& held) {
+    std::error_code ec;
+    if (!std::filesystem::is_fifo(path, ec)) return true;
+    const unsigned signals = stop_signal_count();
+    for (;;) {
+        held = modbus::transport::UniqueFd(::open(path.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC));
+        if (held) return true;
+        if (errno != ENXIO) return true;  // the open below says what is wrong
+        if (stop_signal_count() != signals) {
+            std::cerr << "mbscope check: " << path << ": no reader of the FIFO came before the stop; "
+                      << "the report was not written\n";
+            return false;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+}
+
 bool write_file(const std::string& path, const std::function<void(std::ostream&)>& writer) {
+    modbus::transport::UniqueFd reader_waiting;
+    if (!wait_for_reader(path, reader_waiting)) return false;
     std::ofstream out(path, std::ios::binary);
     if (!out) {
         std::cerr << "mbscope check: cannot write " << path << '\n';

@@ -10,6 +10,8 @@ namespace {
 
 std::atomic<bool> stop_requested{false};
 std::atomic<bool> stop_requested_again{false};
+std::atomic<unsigned> stop_signals{0};
+static_assert(std::atomic<unsigned>::is_always_lock_free, "set from a signal handler");
 static_assert(std::atomic<bool>::is_always_lock_free, "set from a signal handler");
 BrokenPipe installed_broken_pipe = BrokenPipe::Kills;
 
@@ -27,6 +29,7 @@ extern "C" void die_by_stop_signal(int) {
 extern "C" void on_stop_signal(int sig) {
     // A broken pipe is no user's stop: a write to it fails at once, it blocks nothing.
     const bool forced = forced_after_s && sig != SIGPIPE;
+    stop_signals.fetch_add(1);
     if (stop_requested.exchange(true)) {
         stop_requested_again.store(true);
         if (forced) {
@@ -81,6 +84,10 @@ void run_begins() {
 
 const std::atomic<bool>& second_stop_signal() {
     return stop_requested_again;
+}
+
+unsigned stop_signal_count() {
+    return stop_signals.load();
 }
 
 void stop_is_forced(unsigned seconds) {

@@ -38,5 +38,8 @@ const std::atomic<bool>& second_stop_signal();
 // a reader does not read is blocked in a write the signal cannot interrupt (SA_RESTART): `sniff | (sleep
 // 20; cat)` ignored SIGTERM and SIGINT until its reader read.
 void stop_is_forced(unsigned seconds);
+// How many stop signals have come: a wait that a signal must end (one begun after the run was stopped
+// included) ends when this moves.
+unsigned stop_signal_count();
 
 }  // namespace mbscope::cli

@@ -321,4 +321,30 @@ TEST(StopSignal, ASniffWhoseOutputIsBlockedEndsByTheSignal) {
     ::close(reader);
 }
 
+// check's report going to a FIFO no one reads: the finished run waited in the open for ever, SIGINT and
+// SIGTERM ignored (the call starts again after the handler). It waits for a reader until a stop signal, then
+// says the report was not written (exit 2).
+TEST(StopSignal, ACheckWaitingForItsReportsReaderStopsAtASignal) {
+    const fs::path fifo = fs::path(::testing::TempDir()) / "stop-signal-check.json";
+    fs::remove(fifo);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    // SIGTERM pending from the start, as above: the run is interrupted before it begins and its report goes
+    // to the FIFO, where the signals sent next find it waiting.
+    Mbscope check("stop-signal-check-fifo",
+                  {"check", "--target", "tcp://127.0.0.1:1", "--report", fifo.string()});
+    ASSERT_TRUE(check.started());
+    const bool ended_by_signals = wait_for([&] {
+        check.signal(SIGTERM);
+        return !check.running();
+    });
+    // Should it wait on, a reader lets it through.
+    if (!ended_by_signals) ::close(::open(fifo.c_str(), O_RDONLY | O_NONBLOCK));
+    const auto ended = check.wait();
+    EXPECT_TRUE(ended_by_signals) << ended.err;
+    EXPECT_EQ(ended.signal, 0) << ended.err;
+    EXPECT_EQ(ended.exit_code, 2) << ended.err;
+    EXPECT_NE(ended.err.find("no reader of the FIFO came before the stop"), std::string::npos) << ended.err;
+    fs::remove(fifo);
+}
+
 }  // namespace test_cli_stop_signal_test
