@@ -294,7 +294,7 @@ bool LiveCapture::run(Analyzer& a, const std::atomic<bool>& stop) {
         m.count_drops(a, name_);
         // pcapng says when the capture ended, so that its decode times out what this run did.
         if (m.pcapng.is_open())
-            if (const auto e = m.pcapng.end_statistics(end); !e.empty()) return write_failed(e);
+            if (const auto e = m.pcapng.end_statistics(end, m.dropped); !e.empty()) return write_failed(e);
         const std::string written = m.flush(options_.write);
         return written.empty() || write_failed(written);
     };

@@ -84,7 +84,8 @@ std::optional<modbus::Timestamp> in_nanoseconds(std::uint64_t ticks, std::uint8_
 
 }  // namespace
 
-std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path, modbus::Timestamp last_packet) {
+std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path, modbus::Timestamp last_packet,
+                                                    std::uint64_t* dropped) {
     Reader file(path);
     std::vector<std::uint8_t> b;
     if (!file.read(0, 12, b)) return std::nullopt;
@@ -144,6 +145,9 @@ std::optional<modbus::Timestamp> pcapng_capture_end(const std::string& path, mod
         each_option(s, b, 20, [&](std::uint16_t code, std::size_t value, std::uint16_t size) {
             if (code == isb_endtime && size == 8)
                 ticks = std::uint64_t{s.u32(b, value)} << 32 | s.u32(b, value + 4);
+            if ((code == isb_ifdrop || code == isb_osdrop) && size == 8 && dropped)
+                *dropped += s.big_endian ? std::uint64_t{s.u32(b, value)} << 32 | s.u32(b, value + 4)
+                                         : std::uint64_t{s.u32(b, value + 4)} << 32 | s.u32(b, value);
         });
         const Interface& i = interfaces[interface];
         auto t = at_offset(in_nanoseconds(ticks, i.resolution), i.offset_s);

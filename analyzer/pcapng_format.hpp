@@ -17,6 +17,6 @@ inline constexpr std::uint32_t byte_order_magic = 0x1A2B3C4D;
 
 inline constexpr std::uint16_t shb_userappl = 4;
 inline constexpr std::uint16_t if_name = 2, if_tsresol = 9, if_tsoffset = 14;
-inline constexpr std::uint16_t isb_endtime = 3;
+inline constexpr std::uint16_t isb_endtime = 3, isb_ifdrop = 5, isb_osdrop = 7;
 
 }  // namespace mbscope::analyzer::pcapng

@@ -124,7 +124,7 @@ std::string PcapngWriter::write_packet(std::uint32_t interface_id, modbus::Times
     return write(b.finish());
 }
 
-std::string PcapngWriter::end_statistics(modbus::Timestamp end) {
+std::string PcapngWriter::end_statistics(modbus::Timestamp end, std::uint64_t dropped) {
     if (auto e = unusable(); !e.empty()) return e;
     const auto ns = static_cast<std::uint64_t>(std::max<std::int64_t>(end.count(), 0));
     std::uint8_t value[8];
@@ -138,6 +138,11 @@ std::string PcapngWriter::end_statistics(modbus::Timestamp end) {
         b.u32(static_cast<std::uint32_t>(ns >> 32));
         b.u32(static_cast<std::uint32_t>(ns));
         b.option(isb_endtime, value);
+        if (i == 0 && dropped > 0) {
+            std::uint8_t count[8];  // a plain 64-bit number in the section's (the host's) byte order
+            std::memcpy(count, &dropped, sizeof count);
+            b.option(isb_osdrop, count);
+        }
         b.end_of_options();
         if (auto e = write(b.finish()); !e.empty()) return e;
     }

@@ -39,8 +39,9 @@ class PcapngWriter {
                              std::span<const std::uint8_t> data, std::uint32_t original_length);
     // Ends the capture: an Interface Statistics Block per interface whose isb_endtime is `end`, when the
     // capture stopped, which no packet says (a request unanswered until then timed out, or did not, by it).
-    // Written once, last.
-    std::string end_statistics(modbus::Timestamp end);
+    // Written once, last. `dropped`: packets the capture lost on interface 0 (libpcap's ps_drop, written as
+    // isb_osdrop, as dumpcap does), so that a later decode can say so; 0 writes none.
+    std::string end_statistics(modbus::Timestamp end, std::uint64_t dropped = 0);
     // Hands what is buffered to the file system, so the file is whole up to here if the process dies.
     std::string flush();
     // Flushes and closes; the writer can then open another file.

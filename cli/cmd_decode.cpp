@@ -102,20 +102,26 @@ int run_decode(const DecodeOptions& o) {
     // timed out before it is a timeout, as the live run said, not "unanswered when the capture ended". With
     // several files, only when each says so, to the earliest end: every tap saw the line until then. Not
     // when part of the input was not read: a reply in what was lost would be taken for none.
+    // Their statistics also say what the capture lost (isb_ifdrop, isb_osdrop): said, since the exchanges
+    // around a loss may show as unanswered, cut or unsolicited. A note: an interface's count takes in
+    // traffic of every kind, not only what was captured.
     std::optional<modbus::Timestamp> ended;
+    bool every_file_ended = true;
     const bool whole = all_read && a.summary().input_errors.empty() && !a.summary().input_errors_unlisted;
     for (const auto& f : o.files) {
         std::error_code ec;
-        const auto end = whole && std::filesystem::is_regular_file(f, ec)
-                             ? analyzer::pcapng_capture_end(f, a.latest_time())
+        std::uint64_t dropped = 0;
+        const auto end = std::filesystem::is_regular_file(f, ec)
+                             ? analyzer::pcapng_capture_end(f, a.latest_time(), &dropped)
                              : std::nullopt;
-        if (!end) {
-            ended.reset();
-            break;
-        }
-        ended = ended ? std::min(*ended, *end) : *end;
+        if (dropped)
+            a.input_note(f + ": its statistics say the capture dropped " + std::to_string(dropped) +
+                         (dropped == 1 ? " packet" : " packets") +
+                         ": the exchanges around a loss may show as unanswered, cut or unsolicited");
+        every_file_ended = every_file_ended && end;
+        if (end) ended = ended ? std::min(*ended, *end) : *end;
     }
-    if (ended) a.idle(*ended);
+    if (whole && every_file_ended && ended) a.idle(*ended);
     a.finish();
     const bool input_errors = report_input_problems(a.summary(), "decode");
     report_unused_maps(o.common, options, "decode");

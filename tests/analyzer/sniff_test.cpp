@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "analyzer/live_capture.hpp"
+#include "analyzer/pcapng_end.hpp"
 #include "analyzer/serial_input.hpp"
 #include "modbus/adu.hpp"
 #include "modbus/storage/profile_store.hpp"
@@ -516,6 +517,7 @@ TEST(Sniff, PacketsTheKernelDroppedAreInputErrors) {
     UdpPair udp;
     an::SniffOptions o;
     o.buffer_mib = 1;
+    o.write = ::testing::TempDir() + "sniff_drops.pcapng";
     std::string denied;
     auto capture = capture_udp(udp, o, denied);
     if (!capture) {
@@ -536,9 +538,15 @@ TEST(Sniff, PacketsTheKernelDroppedAreInputErrors) {
     // (Not captured + dropped = 200: on lo the kernel counts the drops of both copies of a packet, the
     // outgoing one libpcap would have passed over.)
     EXPECT_LT(capture->captured(), 200u);
+    // The file keeps the count for a later decode (pcapng statistics, isb_osdrop).
+    const auto dropped = capture->dropped();
+    capture.reset();  // closes the file
+    std::uint64_t in_file = 0;
+    (void)an::pcapng_capture_end(o.write, mb::Timestamp(0), &in_file);
+    EXPECT_EQ(in_file, dropped);
     ASSERT_EQ(a.summary().input_errors.size(), 1u);
-    EXPECT_NE(a.summary().input_errors[0].find("lo: the kernel dropped " +
-                                               std::to_string(capture->dropped()) + " packets between "),
+    EXPECT_NE(a.summary().input_errors[0].find("lo: the kernel dropped " + std::to_string(dropped) +
+                                               " packets between "),
               std::string::npos)
         << a.summary().input_errors[0];
 }
