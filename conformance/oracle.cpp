@@ -340,23 +340,6 @@ bool ExchangeOracle::tracked(const modbus::Profile& p, Table t, std::uint16_t ad
     return point && !point->reserved && point->access == modbus::Access::ReadWrite && !point->fixed_value;
 }
 
-namespace {
-// The functions that write points: what they leave the oracle expects to read back.
-bool writes_points(std::uint8_t function_code) {
-    switch (function_code) {
-        case 5:
-        case 6:
-        case 15:
-        case 16:
-        case 22:
-        case 23:
-            return true;
-        default:
-            return false;
-    }
-}
-}  // namespace
-
 void ExchangeOracle::forget_points_written(const Request& r) {
     // The points a write names (FC5, 6, 15, 16): what they hold is unknown. Mask writes and FC23 are not
     // modelled point by point: everything written on the unit is.
@@ -550,7 +533,7 @@ std::vector<OracleViolation> ExchangeOracle::judge_frame(const tp::Exchange& ex,
     // Another unit's request to a lone device over Modbus/TCP (lone_on_ip): a device serving it as its own
     // took its write or its listen-only switch, a gateway passed it on; which, the replies do not tell.
     const Unit* lone = u ? nullptr : lone_on_ip(r->unit);
-    WriteOutcome write_outcome{*this, *r, (!u && !lone) || !r->decoded || !writes_points(r->pdu[0])};
+    WriteOutcome write_outcome{*this, *r, (!u && !lone) || !r->decoded || !modbus::writes_points(r->pdu[0])};
     const Expected e = expect(*r);
     // (A restart outside listen-only mode changes none: as for a broadcast, above.)
     if (lone && r->checksum_ok && listen_only_diagnostics(r->pdu) &&

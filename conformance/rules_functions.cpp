@@ -222,7 +222,9 @@ void check_function_codes(Context& c) {
                   // FC24 points at any register: one that counts more than 31 is refused with 03 as AP
                   // §6.18 demands (the reference slave failed for the data it held).
                   if (fc == 24 && r.outcome == Outcome::Fail && is_exception(ex, fc, 0x03)) {
-                      const auto pointer = static_cast<std::uint16_t>((*pdu)[1] << 8 | (*pdu)[2]);
+                      const auto pointer =
+                          std::get<modbus::ReadFifoQueueRequest>(modbus::decode_request(*pdu)->body)
+                              .fifo_pointer_address;
                       const auto count = c.session.read_registers(Table::HoldingRegisters, pointer, 1,
                                                                   "the FIFO count the pointer names");
                       if (count && (*count)[0] > 31) {
@@ -242,9 +244,8 @@ void check_function_codes(Context& c) {
                   }
                   // Nor does it know which register is writable: the first the device reads is written with
                   // its own value, and one read-only to the device (a process value) is refused with 02.
-                  const bool write = fc == 5 || fc == 6 || fc == 15 || fc == 16 || fc == 22 || fc == 23;
-                  if (c.profile.open_address_space && write && r.outcome == Outcome::Fail &&
-                      is_exception(ex, fc, 0x02)) {
+                  if (c.profile.open_address_space && modbus::writes_points(fc) &&
+                      r.outcome == Outcome::Fail && is_exception(ex, fc, 0x02)) {
                       r.outcome = Outcome::Pass;
                       r.expected +=
                           ", or exception 02 (Illegal Data Address) for an address the device reads "

@@ -56,6 +56,24 @@ bool is_public_function(std::uint8_t function_code) noexcept {
     return function_name(function_code).has_value();
 }
 
+bool writes_points(std::uint8_t function_code) noexcept {
+    switch (function_code) {
+        case 5:
+        case 6:
+        case 15:
+        case 16:
+        case 22:
+        case 23:
+            return true;
+        default:
+            return false;
+    }
+}
+
+bool is_write_function(std::uint8_t function_code) noexcept {
+    return writes_points(function_code) || function_code == 21;
+}
+
 bool only_reads(std::span<const std::uint8_t> pdu) noexcept {
     using F = FunctionCode;
     if (pdu.empty()) return false;

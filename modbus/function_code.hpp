@@ -45,6 +45,10 @@ bool is_reserved_function(std::uint8_t function_code) noexcept;
 // §2.1: broadcast requests are writes). FC8's restart, listen-only and clearing sub-functions change a
 // device's state, and FC23 writes: not among them.
 bool only_reads(std::span<const std::uint8_t> pdu) noexcept;
+// The functions that write coils or registers (FC5, 6, 15, 16, 22, 23), and those that write anything: the
+// same and FC21, which writes file records.
+bool writes_points(std::uint8_t function_code) noexcept;
+bool is_write_function(std::uint8_t function_code) noexcept;
 // AP §6.8.1: FC8 sub-function 01 with the data the specification allows (0000 or FF00), the one request a
 // device in listen-only mode acts upon.
 bool is_restart_communications(std::span<const std::uint8_t> pdu) noexcept;

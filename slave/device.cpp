@@ -18,10 +18,6 @@ constexpr std::uint8_t exc_illegal_address = 0x02;
 constexpr std::uint8_t exc_illegal_value = 0x03;
 constexpr std::uint8_t exc_device_failure = 0x04;
 
-bool is_write(std::uint8_t fc) noexcept {
-    return fc == 5 || fc == 6 || fc == 15 || fc == 16 || fc == 21 || fc == 22 || fc == 23;
-}
-
 bool has_violation(const Pdu& pdu, modbus::FindingCode code) {
     return pdu.violations.contains(code);
 }
@@ -199,7 +195,7 @@ Reply Device::handle(const Request& request) {
     // A broadcast runs only a write the profile allows in broadcast, and is never answered (SL §2.1).
     if (request.broadcast && !answer_broadcast) {
         ++counters_.no_response;
-        if (!is_write(fc) || !profile_->functions.allows_broadcast(fc)) return reply;
+        if (!modbus::is_write_function(fc) || !profile_->functions.allows_broadcast(fc)) return reply;
     }
 
     std::vector<std::uint8_t> out;

@@ -22,10 +22,6 @@ constexpr std::array<std::uint8_t, 19> public_functions = {1,  2,  3,  4,  5,  6
 // Codes that have burned other stacks, drawn more often than their share.
 constexpr std::array<std::uint8_t, 5> attention_functions = {23, 20, 21, 43, 8};
 
-bool writes(std::uint8_t fc) {
-    return fc == 5 || fc == 6 || fc == 15 || fc == 16 || fc == 21 || fc == 22 || fc == 23;
-}
-
 }  // namespace
 
 Generator::Generator(const modbus::Profile& profile, GeneratorOptions options)
@@ -50,7 +46,7 @@ bool Generator::allowed(const std::vector<std::uint8_t>& pdu) const {
     if (fc == 21 && profile_.functions.supports(21)) return false;
     if (!options_.read_only) return true;
     // Read-only: the public read functions, and diagnostics that only echo or return counters.
-    if (writes(fc)) return false;
+    if (modbus::is_write_function(fc)) return false;
     if (fc == 8) {
         const unsigned sub = pdu.size() >= 3 ? (pdu[1] << 8) | pdu[2] : 0xFFFF;
         return sub == 0 || sub == 2 || (sub >= 0x0B && sub <= 0x12);
