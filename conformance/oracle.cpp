@@ -175,6 +175,14 @@ ExchangeOracle::Expected ExchangeOracle::expect_served(const Request& r, const U
         e.source = source;
         return e;
     };
+    // A PDU longer than the device takes (AP §4.1's 253 bytes, or its manual's limit) reaches it only over
+    // Modbus/TCP: not a request it can handle. No reply, or a refusal; never a normal reply, which would
+    // carry the over-long PDU back (an FC8 echo of 256 bytes is a 263-byte ADU).
+    if (r.pdu.size() > u.profile->line.pdu_max_bytes) {
+        Expected e = silence("silence.pdu_too_long", "AP §4.1");
+        e.exceptions = {0x01, 0x03};
+        return e;
+    }
     if (listen_only_unknown_.count(u.id)) {
         Expected e;
         e.judged = false;  // silence and a reply may both be right (see judge())

@@ -128,6 +128,28 @@ void check_tcp(Context& c) {
                 r.outcome = all_right ? Outcome::Pass : Outcome::Fail;
             });
     }
+    // A PDU one byte longer than the device takes (AP §4.1: 253 bytes; a manual may say more, Walchem 256,
+    // 002:219): FC8's echo is the one request whose normal reply would carry it back, an ADU longer than the
+    // framing holds, which a client with a serial line's buffer cannot take.
+    const auto& diag = c.profile.functions.diagnostics;
+    if (c.profile.functions.supports(8) && std::find(diag.begin(), diag.end(), 0) != diag.end()) {
+        const std::size_t limit = c.profile.line.pdu_max_bytes;
+        c.run({"tcp.pdu_too_long", "Modbus/TCP", "AP §4.1",
+               "A request whose PDU is longer than " + std::to_string(limit) +
+                   " bytes (an FC8 echo query) is not answered as if it fitted.",
+               Authority::Specification, false},
+              [&](RuleResult& r) {
+                  const std::vector<std::uint8_t> data(limit - 2, 0x5A);  // function code, sub-function, data
+                  const auto adu =
+                      modbus::encode_tcp(11, unit, modbus::encode_pdu(modbus::make_diagnostics(0, data)));
+                  const auto ex = c.session.raw(adu, "a " + std::to_string(limit + 1) + "-byte echo query");
+                  r.expected = "no reply (silence or a closed connection), or exception 01 or 03";
+                  r.observed = describe(ex);
+                  const bool refused = is_exception(ex, 8, 0x01) || is_exception(ex, 8, 0x03);
+                  r.outcome = !ex.response || refused ? Outcome::Pass : Outcome::Fail;
+                  if (!udp) (void)c.session.client().reconnect();
+              });
+    }
     c.run_with_probe(
         {"tcp.survives_exception", "Modbus/TCP", "TCP §4.2",
          "After an exception the connection still serves a valid request.", Authority::Specification, false},

@@ -200,6 +200,11 @@ struct LineRules {
     std::optional<int> min_poll_interval_ms;
     std::optional<int> response_timeout_ms;
     int ascii_inter_char_timeout_ms = 1000;
+    // The longest PDU the device takes: the specification's 253 (AP §4.1), or what its manual says
+    // (Walchem: 2 to 256 bytes, 002:219, against the specification). A longer request cannot reach it over
+    // a serial line (an RTU ADU of 256 bytes holds 253); over Modbus/TCP it can, and is not handled: a
+    // character overrun (AP §6.8.1, sub-function 0x12), not a request.
+    std::size_t pdu_max_bytes = 253;
     // The character the manual fixes: data bits per framing ("rtu", "ascii"), and the stop bits it allows
     // per framing and parity ("rtu", "rtu_parity", "rtu_no_parity", "ascii", ...): MK-CHR-01, MK-CHR-02.
     std::map<std::string, int, std::less<>> data_bits;

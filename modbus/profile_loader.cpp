@@ -10,7 +10,9 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 
-#include "modbus/frame_text.hpp"  // printable(), first_unprintable()
+#include "modbus/frame.hpp"          // max_frame_bytes
+#include "modbus/frame_text.hpp"     // printable(), first_unprintable()
+#include "modbus/function_code.hpp"  // max_pdu_length
 
 namespace mbscope::modbus {
 
@@ -570,6 +572,25 @@ void parse_tables(Reader& r, const json& j, Tables& tables, bool modular) {
     }
 }
 
+// The longer of the request and the normal reply of function `fc` at `quantity` (AP §6): the device must
+// take one and send the other.
+std::size_t longest_pdu(int fc, bool write_part, int quantity) noexcept {
+    const auto q = static_cast<std::size_t>(quantity);
+    switch (fc) {
+        case 1:
+        case 2:
+            return 2 + (q + 7) / 8;  // reply: function, byte count, bits
+        case 15:
+            return 6 + (q + 7) / 8;  // request: function, address, quantity, byte count, bits
+        case 16:
+            return 6 + 2 * q;
+        case 23:
+            return write_part ? 10 + 2 * q : 2 + 2 * q;
+        default:
+            return 2 + 2 * q;  // FC3, FC4: reply
+    }
+}
+
 LineRules parse_line(Reader& r, const json& j) {
     LineRules l;
     const json* line = r.child(j, "line");
@@ -630,6 +651,11 @@ LineRules parse_line(Reader& r, const json& j) {
         l.response_timeout_ms = static_cast<int>(*m);
     l.ascii_inter_char_timeout_ms = static_cast<int>(
         r.integer(*line, "ascii_inter_char_timeout_ms", "/line", false, 0, most_ms).value_or(1000));
+    // 256 at most: the longest Modbus/TCP ADU a stack here reads (MBAP length 257, frame.hpp), as Walchem
+    // states; a PDU must hold at least a function code and a byte of data.
+    l.pdu_max_bytes = static_cast<std::size_t>(
+        r.integer(*line, "pdu_max_bytes", "/line", false, 2, static_cast<std::int64_t>(max_frame_bytes - 7))
+            .value_or(static_cast<std::int64_t>(max_pdu_length)));
     if (auto d = r.child(*line, "data_bits"); d && !d->is_object()) {
         r.error("/line/data_bits", "must be an object: {\"rtu\": 8, \"ascii\": 7}");
     } else if (d) {
@@ -666,7 +692,7 @@ LineRules parse_line(Reader& r, const json& j) {
     return l;
 }
 
-FunctionRules parse_functions(Reader& r, const json& j) {
+FunctionRules parse_functions(Reader& r, const json& j, std::size_t pdu_max_bytes) {
     FunctionRules f;
     const json* fn = r.child(j, "functions");
     if (!fn) {
@@ -724,6 +750,11 @@ FunctionRules parse_functions(Reader& r, const json& j) {
                         "above " + std::to_string(capacity) +
                             ", the most a one-byte byte count can describe (the specification allows " +
                             std::to_string(specification) + ")");
+            else if (const std::size_t pdu = longest_pdu(fc, write_part, it->get<int>()); pdu > pdu_max_bytes)
+                r.error(where, "a request or reply of " + std::to_string(it->get<int>()) +
+                                   " needs a PDU of " + std::to_string(pdu) + " bytes, more than the " +
+                                   std::to_string(pdu_max_bytes) +
+                                   " the device takes (line.pdu_max_bytes; AP §4.1: 253)");
             else
                 f.max_quantity[key] = it->get<int>();
         }
@@ -1895,7 +1926,7 @@ LoadedProfiles parse_profiles(std::string_view text, const std::string& file, co
     common.title = r.string(doc, "title", "", false).value_or("");
     common.source = r.source_of(doc);
     common.line = parse_line(r, doc);
-    common.functions = parse_functions(r, doc);
+    common.functions = parse_functions(r, doc, common.line.pdu_max_bytes);
     common.open_address_space = r.string(doc, "address_space", "", false).value_or("") == "open";
     if (auto n = r.child(doc, "notes"); n && n->is_array())
         for (std::size_t i = 0; i < n->size(); ++i) {

@@ -175,6 +175,14 @@ std::vector<std::uint8_t> Device::refuse_taken_back_write(std::uint8_t fc) {
 Reply Device::handle(const Request& request) {
     Reply reply;
     if (request.pdu.empty()) return reply;
+    // Longer than the device takes (AP §4.1's 253 bytes, or what its manual allows): only Modbus/TCP can
+    // carry it, and a Modbus/TCP stack with a serial line's buffer does not handle it: a character overrun
+    // (AP §6.8.1, sub-function 0x12), not answered, not a message processed. Echoed, an FC8 query of 254-256
+    // bytes made a reply longer than the specification's 260-byte ADU.
+    if (request.pdu.size() > profile_->line.pdu_max_bytes) {
+        ++counters_.overruns;
+        return reply;
+    }
     ++counters_.server_messages;
     const std::uint8_t fc = request.pdu[0];
     const bool answer_broadcast = request.broadcast && faults_->fires(Fault::ReplyToBroadcast);
@@ -557,13 +565,17 @@ std::vector<std::uint8_t> Device::diagnostics(const Pdu& req) {
         case 0x0F:
             counter(counters_.no_response);
             break;
-        case 0x10:  // NAK, busy and character overrun counts: this server never naks, is never busy, never
-                    // overruns
+        case 0x10:  // NAK and busy counts: this server never naks and is never busy
         case 0x11:
-        case 0x12:
             counter(0);
             break;
-        default:  // 0x03 change ASCII delimiter, 0x14 clear overrun counter: echo
+        case 0x12:
+            counter(counters_.overruns);
+            break;
+        case 0x14:  // clear overrun counter and flag: the echo
+            counters_.overruns = 0;
+            break;
+        default:  // 0x03 change ASCII delimiter: echo
             break;
     }
     return encode(Pdu{8, modbus::Direction::Response, rsp, {}});

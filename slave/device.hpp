@@ -27,6 +27,7 @@ struct Counters {
     std::uint16_t exceptions = 0;       // exception responses sent
     std::uint16_t server_messages = 0;  // requests addressed to this unit (or broadcast)
     std::uint16_t no_response = 0;      // requests not answered (broadcasts, listen-only)
+    std::uint16_t overruns = 0;         // requests longer than the device takes (AP §6.8.1 0x12)
     std::uint16_t event_count = 0;      // FC11: successful completions, polls and diagnostics excluded
     std::uint16_t diagnostic_register = 0;
 };

@@ -410,6 +410,25 @@ TEST(Echo, AWriteAcknowledgedWithAnotherQuantityFailsTheRule) {
     }
 }
 
+// AP §4.1: a PDU holds 253 bytes. A slave that echoes an FC8 query of 254 bytes over Modbus/TCP (the
+// reference slave did, in a 261-byte ADU) fails the rule; the reference slave's silence passes it
+// (EveryProfileOverTcp, runner_test.cpp).
+TEST(PduTooLong, AnEchoOfAnOverLongQueryFailsTheRule) {
+    HostileServer server(1, 1000);  // answers as a correct slave would, echoing FC8 whatever its length
+    auto client = tp::Client::open(*tp::parse_endpoint("tcp://127.0.0.1:" + std::to_string(server.port())));
+    ASSERT_TRUE(client.has_value()) << client.error();
+    CheckOptions options;
+    options.session.timeout = std::chrono::milliseconds(100);
+    options.run.rule_globs = {"tcp.pdu_too_long"};
+    const Report report = run_check(*client, profile("mmk-2030"), options);
+    const auto it = std::find_if(report.results.begin(), report.results.end(),
+                                 [](const RuleResult& x) { return x.rule.id == "tcp.pdu_too_long"; });
+    ASSERT_NE(it, report.results.end());
+    EXPECT_EQ(it->rule.source, "AP §4.1");
+    EXPECT_EQ(it->outcome, Outcome::Fail) << it->observed;
+    EXPECT_EQ(it->observed, "normal response, function 8");
+}
+
 INSTANTIATE_TEST_SUITE_P(Seeds, AgainstAHostileSlave,
                          ::testing::Values(Case{"modbus", 1}, Case{"modbus", 2}, Case{"mmk-2030", 3},
                                            Case{"cth2265i", 4}),

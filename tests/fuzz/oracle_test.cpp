@@ -337,6 +337,35 @@ TEST(ExchangeOracle, SilenceIsDemandedForABadCrcAndARepliedOneIsAViolation) {
     EXPECT_EQ(v[0].source, "SL §2.5.1.2");
 }
 
+// AP §4.1: a PDU holds at most 253 bytes; over Modbus/TCP a longer one can be sent. The reference slave
+// echoed an FC8 query of 254 bytes in a 261-byte ADU, and the oracle expected the echo. No reply, or a
+// refusal, is right; a normal reply is a violation. Walchem's manual takes 256 (002:219).
+TEST(ExchangeOracle, APduLongerThanTheDeviceTakesIsNotAnsweredNormally) {
+    const auto& p = mbscope::slave::test::profile("modbus");
+    cf::ExchangeOracle oracle(Framing::Tcp, {{1, &p}}, true);
+    std::vector<std::uint8_t> echo = {0x08, 0x00, 0x00};
+    echo.resize(254, 0x5A);
+    mbscope::modbus::transport::Exchange ex;
+    ex.sent = mb::encode_tcp(1, 1, echo);
+    EXPECT_EQ(oracle.expectation(ex.sent),
+              "no reply or exception 01 (Illegal Function) or exception 03 (Illegal Data Value)");
+    EXPECT_TRUE(oracle.judge(ex).empty());
+    ex.received = mb::encode_tcp(1, 1, std::vector<std::uint8_t>{0x88, 0x03});
+    ex.response = *mb::decode_tcp(ex.received);
+    EXPECT_TRUE(oracle.judge(ex).empty());
+    ex.received = ex.sent;
+    ex.response = *mb::decode_tcp(ex.received);
+    const auto v = oracle.judge(ex);
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v[0].rule, "silence.pdu_too_long");
+    EXPECT_EQ(v[0].source, "AP §4.1");
+    echo.pop_back();  // 253 bytes: the echo is due
+    ex.sent = mb::encode_tcp(2, 1, echo);
+    ex.received = ex.sent;
+    ex.response = *mb::decode_tcp(ex.received);
+    EXPECT_TRUE(oracle.judge(ex).empty());
+}
+
 // The generic profile knows no device's map or functions: a device that refuses an address it lacks (02),
 // a value out of its range (03) or a function it does not implement (01) answers as AP §7 says. Against
 // libmodbus's server (10,000 registers, no FC8) every such refusal was "exception for valid". A mapped

@@ -276,12 +276,13 @@ TEST(ProfileLoader, ReportsEveryErrorWithItsPointer) {
 // Line and function limits that cannot be: a quantity past what the one-byte byte count describes (the
 // reference slave served 200 registers with a byte count of 144 in a 403-byte reply), a key that is no
 // function with a quantity, baud rates and parities that were dropped without a word, a unit range upside
-// down. A limit past the specification's that a frame can still carry (Walchem's FC16 125) is kept.
+// down. A limit past the specification's that a frame can still carry (Walchem's FC16 125, in the 256-byte
+// PDU its manual allows) is kept; 2040 coils fit the byte count but no PDU.
 TEST(ProfileLoader, LimitsNoFrameCanCarryAreErrors) {
     const char* wrong = R"({
       "format": "mbscope-profile/1", "family": "x", "vendor": "y",
       "line": {"transports": ["rtu"], "baud_rates": [9600, "19200", 0], "parity": ["even", "E"],
-               "unit_id": {"min": 50, "max": 10}},
+               "unit_id": {"min": 50, "max": 10}, "pdu_max_bytes": 256},
       "functions": {"supported": [1, 3, 16], "max_quantity": {"3": 500, "1": 2041, "16": 125, "5": 1, "16w": 2,
                                                              "x": 3, "15": 2040}},
       "tables": {"holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "000:1"}]},
@@ -296,6 +297,9 @@ TEST(ProfileLoader, LimitsNoFrameCanCarryAreErrors) {
         {"/line/unit_id", "min is above max"},
         {"/functions/max_quantity/1",
          "above 2040, the most a one-byte byte count can describe (the specification allows 2000)"},
+        {"/functions/max_quantity/15",
+         "a request or reply of 2040 needs a PDU of 261 bytes, more than the 256 the device takes "
+         "(line.pdu_max_bytes; AP §4.1: 253)"},
         {"/functions/max_quantity/16w",
          "not a function with a quantity (1, 2, 3, 4, 15, 16, 23, or 23w for FC23's write)"},
         {"/functions/max_quantity/3",
@@ -308,7 +312,45 @@ TEST(ProfileLoader, LimitsNoFrameCanCarryAreErrors) {
     EXPECT_EQ(errors, expected);
     ASSERT_EQ(l.profiles.size(), 1u);
     EXPECT_EQ(l.profiles[0].functions.max_for(16), 125);
-    EXPECT_EQ(l.profiles[0].functions.max_for(15), 2040);
+    EXPECT_EQ(l.profiles[0].functions.max_for(15), 1968);  // the specification's: 2040 fits no PDU
+}
+
+// A PDU holds 253 bytes (AP §4.1) unless the manual says more (Walchem: 256, 002:219): a quantity whose
+// request or reply would not fit is an error, since the device could never take or send it; the limit
+// itself is one a Modbus/TCP frame here can carry (MBAP length 257 at most).
+TEST(ProfileLoader, QuantitiesMustFitTheLongestPdu) {
+    const char* spec = R"({
+      "format": "mbscope-profile/1", "family": "x", "vendor": "y", "line": {"transports": ["tcp"]},
+      "functions": {"supported": [1, 3, 15, 16, 23], "max_quantity": {"1": 2000, "3": 126, "15": 1968, "16": 124,
+                                                                   "23": 125, "23w": 122}},
+      "tables": {"holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "000:1"}]},
+      "models": [{"id": "m"}]
+    })";
+    const std::string tail = " the device takes (line.pdu_max_bytes; AP §4.1: 253)";
+    const std::vector<std::pair<std::string, std::string>> expected{
+        {"/functions/max_quantity/16",
+         "a request or reply of 124 needs a PDU of 254 bytes, more than the 253" + tail},
+        {"/functions/max_quantity/23w",
+         "a request or reply of 122 needs a PDU of 254 bytes, more than the 253" + tail},
+        {"/functions/max_quantity/3",
+         "a request or reply of 126 needs a PDU of 254 bytes, more than the 253" + tail},
+    };
+    const auto l = load(spec);
+    EXPECT_EQ(pointers_and_messages(l), expected);
+    ASSERT_EQ(l.profiles.size(), 1u);
+    EXPECT_EQ(l.profiles[0].line.pdu_max_bytes, 253u);
+    EXPECT_EQ(l.profiles[0].functions.max_for(23), 125);
+
+    std::string longer = spec;
+    longer.replace(longer.find("\"tcp\"]"), 6, "\"tcp\"], \"pdu_max_bytes\": 256");
+    EXPECT_TRUE(pointers_and_messages(load(longer)).empty());
+    std::string too_long = spec;
+    too_long.replace(too_long.find("\"tcp\"]"), 6, "\"tcp\"], \"pdu_max_bytes\": 257");
+    const auto errors = pointers_and_messages(load(too_long));
+    EXPECT_NE(
+        std::find(errors.begin(), errors.end(),
+                  std::pair<std::string, std::string>{"/line/pdu_max_bytes", "must be between 2 and 256"}),
+        errors.end());
 }
 
 // The character a manual fixes (MK-CHR-01: 8 data bits in RTU, 7 in ASCII; MK-CHR-02: 2 stop bits in

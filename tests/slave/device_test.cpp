@@ -131,6 +131,36 @@ TEST(Device, Fc8ExceptionCountLeavesOutBroadcastsNotAnswered) {
     EXPECT_EQ(ask(device, "08 00 0D 00 00"), "08 00 0D 00 01");
 }
 
+// AP §4.1: a PDU holds at most 253 bytes. Over Modbus/TCP a longer one can arrive (the MBAP length field
+// says up to 65535); echoed, an FC8 query of 254-256 bytes made a reply longer than the specification's
+// 260-byte ADU. The device does not handle it: a character overrun, counted by sub-function 0x12 and
+// cleared by 0x14 (AP §6.8.1).
+TEST(Device, APduLongerThanTheDeviceTakesIsACharacterOverrun) {
+    Device device(profile("modbus"), 1);
+    std::string fits = "08 00 00";
+    for (int i = 0; i < 250; ++i)
+        fits += " 5A";
+    const std::string too_long = fits + " 5A";
+    EXPECT_EQ(ask(device, fits), fits);  // 253 bytes: echoed
+    EXPECT_EQ(ask(device, too_long), "");
+    EXPECT_EQ(ask(device, too_long, true), "");
+    EXPECT_EQ(ask(device, "08 00 12 00 00"), "08 00 12 00 02");  // character overruns
+    EXPECT_EQ(ask(device, "08 00 0E 00 00"), "08 00 0E 00 03");  // not messages processed
+    EXPECT_EQ(ask(device, "08 00 14 00 00"), "08 00 14 00 00");  // clear overrun counter and flag
+    EXPECT_EQ(ask(device, "08 00 12 00 00"), "08 00 12 00 00");
+}
+
+// Walchem's manual takes PDUs of 2 to 256 bytes (002:219, against AP §4.1), as its FC16 of 125 registers
+// needs (002:362-381): the profile says so (line.pdu_max_bytes) and the device handles them.
+TEST(Device, AManualsLongerPduLimitIsKept) {
+    Device walchem(profile("walchem-w600"), 1);
+    std::string fc16 = "10 00 00 00 7D FA";  // 125 registers: a 256-byte PDU
+    for (int i = 0; i < 250; ++i)
+        fc16 += " 00";
+    EXPECT_NE(ask(walchem, fc16), "");
+    EXPECT_EQ(ask(walchem, fc16 + " 00"), "");  // 257 bytes
+}
+
 // The initial image follows the map (register_image.hpp): fixed values, an enumeration's first value, a
 // range's minimum when zero lies outside it, floats in the profile's word order.
 TEST(Device, InitialImageFollowsTheMap) {
