@@ -4,6 +4,8 @@
 #include <cctype>
 #include <charconv>
 #include <chrono>
+#include <set>
+#include <utility>
 
 #include "modbus/describe.hpp"    // hex_bytes()
 #include "modbus/frame_text.hpp"  // quote_excerpt()
@@ -286,6 +288,7 @@ bool read_jpnevulator_log(std::istream& in, const std::string& name, const Seria
     bool ok = true;
     SerialChunk run;
     Timestamp start{0};
+    std::set<std::string, std::less<>> seen;  // the ttys the log names
     const auto flush = [&] {
         if (run.bytes.empty()) return;
         // The stamp is the run's first read: its bytes are taken back to back from there.
@@ -306,6 +309,7 @@ bool read_jpnevulator_log(std::istream& in, const std::string& name, const Seria
             start = *t;
             run.direction = alias.empty() ? Direction::Unknown
                                           : alias_direction(alias, options).value_or(Direction::Unknown);
+            if (!alias.empty()) seen.emplace(alias);
             continue;
         }
         if (line.starts_with("le=")) continue;  // --control: modem line state, no data
@@ -315,6 +319,7 @@ bool read_jpnevulator_log(std::istream& in, const std::string& name, const Seria
             line.starts_with("/")) {
             flush();
             run.direction = alias_direction(line, options).value_or(Direction::Unknown);
+            seen.emplace(line);
             continue;
         }
         error(where(name, number) +
@@ -322,6 +327,19 @@ bool read_jpnevulator_log(std::istream& in, const std::string& name, const Seria
         ok = false;
     }
     flush();
+    // An alias the log never names made every tty the other side's: each request was decoded as a
+    // malformed response and the devices blamed for it ("ttyUSB0" for "/dev/ttyUSB0").
+    for (const auto& [option, alias] : {std::pair{"--master-alias", &options.master_alias},
+                                        std::pair{"--slave-alias", &options.slave_alias}}) {
+        if (alias->empty() || seen.empty() || seen.count(*alias)) continue;
+        std::string named;
+        for (const auto& tty : seen)
+            named += (named.empty() ? "" : ", ") + modbus::quote_excerpt(tty);
+        error(name + ": " + option + " " + modbus::quote_excerpt(*alias) +
+              " names no tty of the log, so every tty would be taken for the other side; the log's ttys: " +
+              named);
+        ok = false;
+    }
     return ok;
 }
 

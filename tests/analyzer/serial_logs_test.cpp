@@ -148,6 +148,29 @@ TEST(JpnevulatorLog, UserAliasesNameTheMasterAndTheOtherTtyIsTheSlave) {
     EXPECT_EQ(p.chunks[1].direction, mb::Direction::Request);
 }
 
+// An alias the log never names ("ttyUSB0" for "/dev/ttyUSB0") made every tty the slave's: each request was
+// decoded as a malformed response, the devices blamed for byte counts and quantities, exit 1, and nothing
+// said the alias matched nothing. It is an input error naming the log's ttys.
+TEST(JpnevulatorLog, AnAliasTheLogNeverNamesIsAnError) {
+    std::string log = jpnevulator_log;
+    for (auto [from, to] : {std::pair{"master", "/dev/ttyS0"}, std::pair{"slave", "/dev/ttyUSB0"}})
+        for (auto pos = log.find(from); pos != std::string::npos; pos = log.find(from, pos))
+            log.replace(pos, std::string(from).size(), to);
+    for (const bool master : {true, false}) {
+        an::SerialLogOptions o;
+        (master ? o.master_alias : o.slave_alias) = "ttyUSB0";
+        const auto p = jpnevulator(log, o);
+        EXPECT_FALSE(p.ok);
+        ASSERT_EQ(p.errors.size(), 1u);
+        EXPECT_EQ(p.errors[0], std::string("jp.log: ") + (master ? "--master-alias" : "--slave-alias") +
+                                   " 'ttyUSB0' names no tty of the log, so every tty would be taken for the "
+                                   "other side; the log's ttys: '/dev/ttyS0', '/dev/ttyUSB0'");
+    }
+    an::SerialLogOptions named;
+    named.slave_alias = "/dev/ttyS0";
+    EXPECT_TRUE(jpnevulator(log, named).ok);
+}
+
 TEST(JpnevulatorLog, ByteCountBinaryControlAndAliasLinesAreRead) {
     // Formats of jpnevulator.c: --byte-count "%08lX\t", --base 2, --control "le=%d, dtr=%d, ...", and several
     // ttys without --timing-print (a line with the tty name before its bytes: no timing).
