@@ -305,6 +305,19 @@ std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const s
         const RuleBreak* why;
     };
     std::optional<Due> due;
+    // The request's own data as AP §6's state diagrams check them before any address: FC5's value (0000 or
+    // FF00, AP §6.5; MK-FC05-01), FC15/FC16's quantity and byte count (AP §6.11, §6.12). A device that
+    // answers 03 to an FC5 of value 1234 at a coil outside the map answers as the specification says; the
+    // reference slave does, and was held to 02 for it.
+    RuleBreak malformed{FindingCode::PduCoilValueInvalid, {}};
+    for (const auto& [violation, condition] : {std::pair{FindingCode::PduCoilValueInvalid, "bad_value"},
+                                              std::pair{FindingCode::PduQuantityOutOfRange, "bad_quantity"},
+                                              std::pair{FindingCode::PduByteCountMismatch, "bad_quantity"}}) {
+        if (!q.violations.contains(violation)) continue;
+        malformed = {violation, "the request: " + std::string(info(violation).summary)};
+        due = Due{1, condition, 3, &malformed};
+        break;
+    }
     for (const auto& b : breaks) {
         std::optional<Due> d;
         switch (b.code) {

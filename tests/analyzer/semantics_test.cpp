@@ -289,6 +289,30 @@ TEST(Semantics, AnExceptionCodeOtherThanTheManualsIsTheDevicesError) {
         << unexpected[1];
 }
 
+// AP §6.5's state diagram checks FC5's value (0000 or FF00) before its address, and MK-FC05-01 refuses
+// another value with 03. An MK device answering 03 to value 1234 at coil 200 (outside the map) was held to
+// 02, "exception 3 where the manual of mmk-2030 answers exception 2", while the reference slave answers 03.
+TEST(Semantics, AnFc5ValueIsJudgedBeforeItsAddress) {
+    Harness h("mmk-2030");
+    const auto fc5 = [](std::uint16_t coil, std::uint16_t value) {
+        const std::uint8_t bytes[] = {5, static_cast<std::uint8_t>(coil >> 8),
+                                      static_cast<std::uint8_t>(coil), static_cast<std::uint8_t>(value >> 8),
+                                      static_cast<std::uint8_t>(value)};
+        return mb::decode_request(bytes).value();
+    };
+    h.exchange(fc5(200, 0x1234), mb::make_exception(5, 3));
+    h.exchange(fc5(200, 0xFF00), mb::make_exception(5, 2));
+    h.exchange(fc5(200, 0x1234), mb::make_exception(5, 2));
+    h.analyzer->finish();
+    std::vector<std::string> unexpected;
+    for (const auto& f : h.sink.findings)
+        if (f.code == mb::FindingCode::ProfileExceptionUnexpected) unexpected.push_back(f.message);
+    ASSERT_EQ(unexpected.size(), 1u);
+    EXPECT_EQ(unexpected[0],
+              "exception 2 where the manual of mmk-2030 answers exception 3 (the request: single "
+              "coil value is neither 0xFF00 nor 0x0000)");
+}
+
 // What a device's frames show of its line against its manual: the CTH2265I talks RTU only (003:460), an MK
 // device answers at 1..99 (000:220). Traffic otherwise was decoded as if the manual allowed it. Said once per
 // device; a frame over Modbus/TCP (a gateway's unit ids) says nothing.
