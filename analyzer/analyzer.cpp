@@ -2209,9 +2209,12 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
 // queues stamp them, move nothing back). A step back longer than a timeout is the clock set back (by hand,
 // NTP, a tap's clock restored): left as it was, every request after it would expire at the next packet, its
 // response unsolicited, until the clock caught up, hours later. The pending requests' deadlines move back
-// with the clock, each keeping the wait it had left, and the step is said once per file.
-bool Analyzer::clock_stepped_back(Timestamp from, Timestamp to) const {
-    return from - to > std::max(options_.timeout, options_.serial_timeout);
+// with the clock, each keeping the wait it had left, and the step is said once per file. A serial line's
+// bytes are held to its own timeout: against the TCP one (3 s) a reply stamped 2.9 s before its request on a
+// line of 1 s was set back to back after it, with a latency made up from the baud rate and no word.
+bool Analyzer::clock_stepped_back(Timestamp from, Timestamp to, bool serial) const {
+    return from - to >
+           (serial ? options_.serial_timeout : std::max(options_.timeout, options_.serial_timeout));
 }
 
 void Analyzer::clock_went_back(Timestamp to, const std::string& where) {
@@ -2686,7 +2689,8 @@ void Analyzer::deframe(SerialLink& link, std::span<const std::uint8_t> bytes, Ti
     // the step was restamped at the end of the first session, with no word. What the line held ends at the
     // step; the deframer starts again from these bytes' times, and requests are timed out by the clock from
     // here, as in a capture.
-    if (received.count() && link.last_received.count() && clock_stepped_back(link.last_received, received)) {
+    if (received.count() && link.last_received.count() &&
+        clock_stepped_back(link.last_received, received, true)) {
         flush_deframers(link, link.last_received, packet);
         if (link.restart_at) return;  // those bytes come again, after the change (pump)
         // The new deframer counts its offsets from these bytes: the stream's offsets of what it reports

@@ -342,7 +342,7 @@ class Analyzer {
     // set back.
     // Time going from `from` back to `to` by more than the longer pairing timeout: not coarse or jittery
     // stamps, the clock itself stepped back.
-    bool clock_stepped_back(modbus::Timestamp from, modbus::Timestamp to) const;
+    bool clock_stepped_back(modbus::Timestamp from, modbus::Timestamp to, bool serial = false) const;
     void clock_went_back(modbus::Timestamp to, const std::string& where);
     void report(modbus::FindingCode code, const FrameRecord& about, std::string message,
                 std::vector<std::uint64_t> frames = {});

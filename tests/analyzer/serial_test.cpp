@@ -814,6 +814,22 @@ TEST(SerialInput, ALogsClockGoingBackIsNamedAndItsFramesKeepTheirTimes) {
     EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseBeforeRequest), 1);  // the reply stamped 5.000
 }
 
+// A serial line's step back is judged against its own timeout (1 s), not the TCP one (3 s): a reply
+// stamped 2.9 s before its request was set back to back after it, a latency of 11.458 ms made up from the
+// baud rate, no finding and no note, where `--timeout 1` said the step.
+TEST(SerialInput, AStepBackLongerThanTheLinesTimeoutIsNamed) {
+    const auto path = write_temp("back_2s.txt",
+                                 "10.000 11 03 00 60 00 03 07 45\n"
+                                 "7.100 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    auto r = decode(path, an::InputFormat::Text);
+    ASSERT_EQ(r->summary.input_notes.size(), 1u);
+    EXPECT_NE(r->summary.input_notes[0].find("the capture's clock goes back 2900 ms"), std::string::npos)
+        << r->summary.input_notes[0];
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseBeforeRequest), 1);
+    for (const auto& t : r->sink.transactions)
+        EXPECT_FALSE(t.latency.has_value());
+}
+
 // A master retrying after a timeout, as RS-485 masters do: each retry was classified before the timed-out
 // request expired, so every second one was taken for that request's response (a malformed FC3 reply, byte
 // count 0) and reported unsolicited. Each is a request, timed out in its turn.
