@@ -2299,6 +2299,19 @@ void Analyzer::expire(Timestamp now, bool at_end) {
     }
 }
 
+// A serial request whose reply the end of the capture (or of its input) cut: answered, its values unknown
+// (as a Modbus/TCP reply cut by the snapshot length is), not "no response".
+std::optional<Analyzer::Unanswered> Analyzer::reply_cut_by_the_end(const Pending& p, const Flow& flow) const {
+    if (p.request.frame.framing == Framing::Tcp || !flow.tail_begins_reply_to(p.request)) return std::nullopt;
+    const bool ascii = p.request.frame.framing == Framing::Ascii;
+    return Unanswered{FindingCode::PairResponseNotCaptured,
+                      describe_request(p.request) + " to " + p.request.device.str() +
+                          " was answered, but the capture ends " + std::to_string(flow.tail_length) +
+                          (ascii ? " characters" : " bytes") + " into the reply (unit " +
+                          std::to_string(flow.tail_head[0]) + ", function code " +
+                          std::to_string(flow.tail_head[1]) + "): its values are unknown"};
+}
+
 // The request of a due entry, still pending, is given up: a timeout, or what else the capture says of it.
 void Analyzer::time_out(const Expiry& e, bool at_end) {
     auto taken = take_pending(e.key, e.serial);
@@ -2318,17 +2331,11 @@ void Analyzer::time_out(const Expiry& e, bool at_end) {
         return;
     }
     std::string what = describe_request(p.request);
-    if (ended && flow && p.request.frame.framing != Framing::Tcp && flow->tail_begins_reply_to(p.request)) {
-        // The capture ends inside its reply: answered, its values unknown (as a Modbus/TCP reply cut by
-        // the snapshot length is), not "no response".
-        const bool ascii = p.request.frame.framing == Framing::Ascii;
-        give_up(p, false,
-                {FindingCode::PairResponseNotCaptured,
-                 what + " to " + p.request.device.str() + " was answered, but the capture ends " +
-                     std::to_string(flow->tail_length) + (ascii ? " characters" : " bytes") +
-                     " into the reply (unit " + std::to_string(flow->tail_head[0]) + ", function code " +
-                     std::to_string(flow->tail_head[1]) + "): its values are unknown"});
-        return;
+    if (ended && flow) {
+        if (auto cut = reply_cut_by_the_end(p, *flow)) {
+            give_up(p, false, std::move(*cut));
+            return;
+        }
     }
     if (auto why = not_the_servers(p)) {
         give_up(p, false, std::move(*why));
@@ -2633,9 +2640,13 @@ void Analyzer::end_serial(const std::string& source) {
     for (const auto& [key, serial] : ended)
         if (auto p = take_pending(key, serial)) {
             --flow.pending;
+            // Judged as at the end of the whole capture: a reply the input's end cut was "no response" when
+            // other inputs followed it, and "not captured whole" when it was the only one.
+            auto cut = reply_cut_by_the_end(*p, flow);
             give_up(*p, false,
-                    {FindingCode::PairNoResponseAtEnd,
-                     describe_request(p->request) + " unanswered when its input ended"});
+                    cut ? std::move(*cut)
+                        : Unanswered{FindingCode::PairNoResponseAtEnd,
+                                     describe_request(p->request) + " unanswered when its input ended"});
         }
 }
 

@@ -319,6 +319,7 @@ class Analyzer {
     // Why a request that got no reply got none, when the capture or the client is the reason rather than the
     // server: a reply may be in a gap of the response stream, or the client reset the connection.
     std::optional<Unanswered> not_the_servers(const Pending& pending) const;
+    std::optional<Unanswered> reply_cut_by_the_end(const Pending& pending, const Flow& flow) const;
     // Counts and finds what a request and its response (or its absence) show; with `made`, fills the
     // transaction record and gives it to the sink before the findings.
     void judge(const FrameRecord& request, const FrameRecord* response, DeviceStats& stats, bool timed_out,

@@ -830,6 +830,20 @@ TEST(SerialInput, AStepBackLongerThanTheLinesTimeoutIsNamed) {
         EXPECT_FALSE(t.latency.has_value());
 }
 
+// A reply cut by the end of its input is "answered, not captured whole" whether or not other inputs follow:
+// with a second file named, the same file's request was "no response before the capture ended".
+TEST(SerialInput, AReplyCutByItsInputsEndIsJudgedAloneOrWithOthers) {
+    const auto cut = write_temp("cut_reply.txt", "1.0 11 03 00 60 00 03 07 45\n1.02 11 03 06 02 2B\n");
+    const auto whole = write_temp("whole_reply.txt",
+                                  "1.000 11 03 00 60 00 03 07 45\n"
+                                  "1.020 11 03 06 02 2B 00 00 00 64 C8 BA\n");
+    for (const auto& paths : {std::vector<std::string>{cut}, std::vector<std::string>{cut, whole}}) {
+        auto r = decode_all(paths, false);
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairResponseNotCaptured), 1) << paths.size();
+        EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), 0) << paths.size();
+    }
+}
+
 // A master retrying after a timeout, as RS-485 masters do: each retry was classified before the timed-out
 // request expired, so every second one was taken for that request's response (a malformed FC3 reply, byte
 // count 0) and reported unsolicited. Each is a request, timed out in its turn.
