@@ -2511,6 +2511,33 @@ Direction Analyzer::classify(const Flow& flow, const Frame& frame) const {
     return Direction::Request;
 }
 
+namespace {
+
+// An ASCII frame begun with ':' and broken before its CR LF is a damaged frame, not noise: each way has its
+// finding (SL §2.5.2.1), an error as an RTU frame's gap is. A frame broken by a pause of 1.5 s was a warning
+// of unparsed bytes, exit 0, though every slave must discard it. Characters outside any frame, and a frame
+// the capture's end cut, stay unparsed bytes.
+FindingCode ascii_damage(UnparsedReason reason) noexcept {
+    switch (reason) {
+        case UnparsedReason::Timeout:
+            return FindingCode::AsciiInterCharTimeout;
+        case UnparsedReason::MissingEnd:
+            return FindingCode::AsciiMissingEnd;
+        case UnparsedReason::BadCharacter:
+            return FindingCode::AsciiBadCharacter;
+        case UnparsedReason::OddLength:
+            return FindingCode::AsciiOddLength;
+        case UnparsedReason::TooLong:
+            return FindingCode::AsciiFrameTooLong;
+        case UnparsedReason::TooShort:
+            return FindingCode::AsciiFrameTooShort;
+        default:
+            return FindingCode::StreamUnparsedBytes;
+    }
+}
+
+}  // namespace
+
 void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp t, std::uint64_t packet) {
     Flow& flow = *link.flow;
     for (auto& e : events) {
@@ -2555,9 +2582,11 @@ void Analyzer::serial_events(SerialLink& link, DeframeEvents& events, Timestamp 
             about.source = source;
             about.link = flow.link;
             about.packet = began_in;
-            report(FindingCode::StreamUnparsedBytes, about,
-                   std::to_string(u->length) + " bytes at offset " + std::to_string(u->offset) +
-                       " formed no frame (" + std::string(to_string(u->reason)) + ")");
+            report(
+                link.framing == Framing::Ascii ? ascii_damage(u->reason) : FindingCode::StreamUnparsedBytes,
+                about,
+                std::to_string(u->length) + " bytes at offset " + std::to_string(u->offset) +
+                    " formed no frame (" + std::string(to_string(u->reason)) + ")");
             continue;
         }
         Frame& frame = std::get<Frame>(e);

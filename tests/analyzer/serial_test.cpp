@@ -844,6 +844,25 @@ TEST(SerialInput, AReplyCutByItsInputsEndIsJudgedAloneOrWithOthers) {
     }
 }
 
+// An ASCII frame begun with ':' and broken before its CR LF is damaged, each way with its finding (SL
+// §2.5.2.1), an error as an RTU frame's gap is: a request paused for 1.5 s and answered all the same was two
+// warnings of unparsed bytes, exit 0. Characters outside any frame stay unparsed bytes.
+TEST(SerialInput, ABrokenAsciiFrameIsAnErrorNamedByHowItBroke) {
+    const auto path = write_temp("ascii_pause.txt",
+                                 "1.0 > 3A 31 31 30 33 30 30 36\n"                    // ":110306" ...
+                                 "2.5 > 30 30 30 30 33 38 39 0D 0A\n"                 // ... 1.5 s later
+                                 "3.0 > 3A 31 31 30 33 30 30 36 30 30 30 3A 0D 0A\n"  // a ':' inside it
+                                 "3.5 > 41 42\n");                                    // noise
+    auto r = decode(path, an::InputFormat::Text);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::AsciiInterCharTimeout), 1);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::AsciiMissingEnd), 1);
+    EXPECT_GE(r->sink.count(mb::FindingCode::StreamUnparsedBytes), 1);
+    for (const auto& f : r->sink.findings)
+        if (f.code == mb::FindingCode::AsciiInterCharTimeout) {
+            EXPECT_EQ(f.message, "8 bytes at offset 0 formed no frame (timeout)");
+        }
+}
+
 // A master retrying after a timeout, as RS-485 masters do: each retry was classified before the timed-out
 // request expired, so every second one was taken for that request's response (a malformed FC3 reply, byte
 // count 0) and reported unsolicited. Each is a request, timed out in its turn.
