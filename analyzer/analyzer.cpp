@@ -2184,8 +2184,9 @@ void Analyzer::judge(const FrameRecord& request, const FrameRecord* rsp_record, 
         }
     }
     // (Not from a damaged reply: its registers are not what the device holds.)
-    if (made && options_.word_order && !made->profile && rsp_record && !damaged && request.pdu &&
-        rsp_record->pdu) {
+    // The generic profile maps nothing: its registers are read as a device's without a profile.
+    if (made && options_.word_order && (!made->profile || made->profile->open_address_space) && rsp_record &&
+        !damaged && request.pdu && rsp_record->pdu) {
         const auto fc = request.pdu->function_code();
         const auto* read = std::get_if<ReadRequest>(&request.pdu->body);
         const auto* regs = std::get_if<ReadRegistersResponse>(&rsp_record->pdu->body);

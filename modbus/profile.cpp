@@ -332,7 +332,13 @@ std::optional<std::string> set_word_order(Profile& profile, WordOrder order) {
             if (p.encoding.words == 2) wide.push_back(&p);
             halves |= p.encoding.type == EncodingType::U32Low || p.encoding.type == EncodingType::U32High;
         }
-    if (wide.empty() && !halves) return std::nullopt;
+    // The generic profile maps nothing: its registers are read two at a time in the order given, as a
+    // device's without a profile (the analyzer does). A map of 16-bit values has nothing to read in it:
+    // said, not dropped without a word.
+    if (wide.empty() && !halves)
+        return profile.open_address_space
+                   ? std::nullopt
+                   : std::optional<std::string>(profile.id + "'s map holds no 32-bit value");
     const auto& orders = profile.word_orders;
     if (std::find(orders.begin(), orders.end(), order) == orders.end()) {
         std::string why = profile.id + "'s manual gives ";

@@ -342,7 +342,8 @@ LineState held_line_settings(const Profile& profile, const std::function<std::ui
 void take_meaning(LineState& state, LineSetting setting, const std::string& means);
 
 // Reads the profile's 32-bit values in `order` (every one in its default order) when its manual lets the
-// device be set to it: nothing when done or when the profile holds no 32-bit value, else why not.
+// device be set to it: nothing when done or when the profile maps nothing (the generic one), else why not
+// (a map without 32-bit values included).
 std::optional<std::string> set_word_order(Profile& profile, WordOrder order);
 
 // Shortest text that reads back as the same float ("1.5", "0.000123", "1e-10", "nan", "-inf").

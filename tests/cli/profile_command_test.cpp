@@ -180,6 +180,30 @@ TEST(ProfileCommand, AWordOrderTheManualMakesASettingIsApplied) {
         << r.out;
 }
 
+// A map of 16-bit values has nothing to read in another order: said, as for a manual that fixes the order
+// (it was dropped without a word). The generic profile maps nothing: its registers are read two at a time
+// as a device's without a profile (the floats of `--word-order abcd` disappeared with `--profile modbus`).
+TEST(ProfileCommand, AWordOrderIsNeverDroppedWithoutAWord) {
+    const std::string log = ::testing::TempDir() + "word-order-generic.txt";
+    // FC3 of 2 registers from 0: 0x40490FDB, pi as a float32 in abcd.
+    std::ofstream(log) << "1.000 01 03 00 00 00 02 C4 0B\n1.030 01 03 04 40 49 0F DB 7B 8E\n";
+    auto r = run_mbscope("decode --word-order abcd " + log);
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    const auto pi = r.out.find("3.1415927");
+    EXPECT_NE(pi, std::string::npos) << r.out;
+    r = run_mbscope("decode --profile modbus --word-order abcd " + log);
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("3.1415927"), std::string::npos) << r.out;
+    r = run_mbscope("decode --profile mmk-2030 --word-order abcd " + log);
+    EXPECT_NE(r.out.find("mbscope decode: note: --word-order abcd is not applied to mmk-2030: mmk-2030's map "
+                         "holds no 32-bit value"),
+              std::string::npos)
+        << r.out;
+    r = run_mbscope("profile decode mmk-2030 holding 0 0001 --word-order abcd");
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("note: --word-order abcd is not applied to mmk-2030"), std::string::npos) << r.out;
+}
+
 TEST(ProfileCommand, ValidateReportsEveryErrorWithPointer) {
     auto r = run_mbscope("profile validate " + fixtures + "/broken/broken.json");
     EXPECT_EQ(r.exit_code, 1);
