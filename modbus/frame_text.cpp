@@ -143,6 +143,12 @@ std::optional<std::vector<std::uint8_t>> parse_hex(std::span<const std::string> 
             const char c = token[i];
             if (c == '0' && i + 1 < token.size() && (token[i + 1] == 'x' || token[i + 1] == 'X')) {
                 if (!end_group(i)) return std::nullopt;
+                // A prefix of nothing ("01 0X") was dropped without a word, its line read a byte short.
+                if (i + 2 >= token.size() || hex_digit(token[i + 2]) < 0) {
+                    error = "no hex digits after " + quote_excerpt(token.substr(i, 2)) + " in " +
+                            quote_excerpt(token);
+                    return std::nullopt;
+                }
                 ++i;  // a 0x prefix
                 group = i + 1;
                 continue;

@@ -54,6 +54,11 @@ TEST(FrameText, ParseHexNamesTheDigitAndTheToken) {
     EXPECT_EQ(error, "odd number of hex digits in '3': a byte is two digits (03) in '0x3'");
     EXPECT_FALSE(parse_hex(std::vector<std::string>{"11", "0G"}, error).has_value());
     EXPECT_EQ(error, "not a hex digit: 'G' in '0G'");
+    // A prefix with nothing after it was dropped without a word ("01 0X" read as one byte).
+    EXPECT_FALSE(parse_hex(std::vector<std::string>{"01", "0X"}, error).has_value());
+    EXPECT_EQ(error, "no hex digits after '0X' in '0X'");
+    EXPECT_FALSE(parse_hex(std::vector<std::string>{"0x,0x11"}, error).has_value());
+    EXPECT_EQ(error, "no hex digits after '0x' in '0x,0x11'");
     // A control character is shown escaped, a long token cut short.
     EXPECT_FALSE(parse_hex(std::vector<std::string>{"11\x1b" + std::string(100, 'A')}, error).has_value());
     EXPECT_EQ(error, "not a hex digit: '\\x1B' in '11\\x1B" + std::string(37, 'A') + "...'");
