@@ -5,16 +5,21 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "analyzer/serial_logs.hpp"
 #include "analyzer/timestamps.hpp"
+#include "modbus/adu.hpp"         // rtu_crc_ok()
 #include "modbus/describe.hpp"    // hex_bytes()
 #include "modbus/frame_text.hpp"  // parse_hex(), quote_excerpt()
 #include "modbus/storage/text_file.hpp"
@@ -33,6 +38,7 @@ std::optional<InputFormat> parse_input_format(std::string_view n) {
     if (n == "text") return InputFormat::Text;
     if (n == "jpnevulator") return InputFormat::Jpnevulator;
     if (n == "socat") return InputFormat::Socat;
+    if (n == "hex") return InputFormat::Hex;
     return std::nullopt;
 }
 
@@ -144,7 +150,11 @@ std::optional<Input> open_input(const std::string& name, std::string& error, boo
 
 // The readers add to `bytes` every data byte they hand the analyzer, so that an input that held none is
 // told from a quiet line.
-bool read_text(Analyzer& a, const Input& input, std::uint64_t& bytes) {
+//
+// The text format, "TIME [DIR] HEX..." a line; with `timed` false a hex dump without times ("01 03 00 00 00
+// 01 84 0A" a line, as traffic is pasted from a terminal or a page): its bytes one untimed stream, as a raw
+// dump's, the lines' ends meaning nothing. '#' starts a comment, to the line's end.
+bool read_text(Analyzer& a, const Input& input, std::uint64_t& bytes, bool timed) {
     const std::string& path = input.name;
     std::ifstream in(input.path);
     if (!in) {
@@ -159,27 +169,33 @@ bool read_text(Analyzer& a, const Input& input, std::uint64_t& bytes) {
         const auto number = lines.number();
         position.record();
         std::istringstream words(line);
-        std::string time_token;
-        if (!(words >> time_token) || time_token[0] == '#') continue;
         modbus::Timestamp t{0};
-        if (!parse_time(time_token, t)) {
-            // A file of frames (`mbscope frame --file`: "rtu|ascii|tcp HEX...") starts its lines with a
-            // framing.
-            const bool frame_file = time_token == "rtu" || time_token == "ascii" || time_token == "tcp";
-            a.input_error(
-                path + ":" + std::to_string(number) +
-                ": not a time in seconds from 0 to 9.2e9 (year 2262): " + modbus::quote_excerpt(time_token) +
-                (frame_file ? " (a file of frames, one a line: mbscope frame --file reads it)" : ""));
-            ok = false;
-            continue;
-        }
-        std::string next;
-        words >> next;
-        auto dir = direction_word(next);
+        std::optional<Direction> dir;
         std::vector<std::string> tokens;
-        if (!dir && !next.empty()) tokens.push_back(std::move(next));
-        for (std::string token; words >> token;)
+        if (timed) {
+            std::string time_token;
+            if (!(words >> time_token) || time_token[0] == '#') continue;
+            if (!parse_time(time_token, t)) {
+                // A file of frames (`mbscope frame --file`: "rtu|ascii|tcp HEX...") starts its lines with a
+                // framing.
+                const bool frame_file = time_token == "rtu" || time_token == "ascii" || time_token == "tcp";
+                a.input_error(
+                    path + ":" + std::to_string(number) +
+                    ": not a time in seconds from 0 to 9.2e9 (year 2262): " +
+                    modbus::quote_excerpt(time_token) +
+                    (frame_file ? " (a file of frames, one a line: mbscope frame --file reads it)" : ""));
+                ok = false;
+                continue;
+            }
+            std::string next;
+            words >> next;
+            dir = direction_word(next);
+            if (!dir && !next.empty() && next[0] != '#') tokens.push_back(std::move(next));
+        }
+        for (std::string token; (tokens.empty() || tokens.back()[0] != '#') && words >> token;)
             tokens.push_back(std::move(token));
+        if (!tokens.empty() && tokens.back()[0] == '#') tokens.pop_back();
+        if (!timed && tokens.empty()) continue;
         std::string hex_error;
         auto parsed = modbus::parse_hex(tokens, hex_error);
         if (!parsed) {
@@ -195,7 +211,7 @@ bool read_text(Analyzer& a, const Input& input, std::uint64_t& bytes) {
             ok = false;
             continue;
         }
-        if (t.count() == 0) t = modbus::Timestamp(1);  // zero means "untimed" to the analyzer
+        if (timed && t.count() == 0) t = modbus::Timestamp(1);  // zero means "untimed" to the analyzer
         a.serial(path, *parsed, t, dir.value_or(Direction::Unknown));
         bytes += parsed->size();
     }
@@ -261,6 +277,48 @@ bool holds_no_bytes(const Input& input) {
     return in && in.peek() == std::ifstream::traits_type::eof();
 }
 
+// Whether the head holds lines of hex bytes alone ("01 03 00 00 00 01 84 0A"), which the text format would
+// read with its first byte for a time: "01" at 1 s, the line's other bytes a frame with a bad CRC, and the
+// byte taken for a time counted nowhere. Every line that holds something is two-digit hex tokens (a comment
+// after '#' aside), and something tells them from "TIME HEX...": a first token with a hex letter, which no
+// time has, or a line whose bytes are a whole RTU frame (a valid CRC), which they are not without their
+// first. The head's last line, cut by its end, is not judged.
+bool hex_dump(std::span<const std::uint8_t> h) {
+    const std::string_view text(reinterpret_cast<const char*>(h.data()), h.size());
+    const auto is_pair = [](std::string_view t) {
+        return t.size() == 2 && std::isxdigit(static_cast<unsigned char>(t[0])) &&
+               std::isxdigit(static_cast<unsigned char>(t[1]));
+    };
+    bool told = false, any = false;
+    for (std::size_t at = 0; at < text.size();) {
+        std::size_t end = text.find('\n', at);
+        if (end == std::string_view::npos) {
+            if (h.size() >= 4096) break;  // a head cut by its size: its last line may be cut
+            end = text.size();
+        }
+        std::string_view line = text.substr(at, end - at);
+        at = end + 1;
+        line = line.substr(0, line.find('#'));
+        std::vector<std::uint8_t> bytes;
+        for (std::size_t i = 0; i < line.size();) {
+            if (line[i] == ' ' || line[i] == '\t' || line[i] == '\r') {
+                ++i;
+                continue;
+            }
+            const std::string_view token = line.substr(i, line.find_first_of(" \t\r", i) - i);
+            if (!is_pair(token)) return false;
+            if (bytes.empty() && !(std::isdigit(static_cast<unsigned char>(token[0])) &&
+                                   std::isdigit(static_cast<unsigned char>(token[1]))))
+                told = true;
+            bytes.push_back(static_cast<std::uint8_t>(std::stoul(std::string(token), nullptr, 16)));
+            i += token.size();
+        }
+        any |= !bytes.empty();
+        if (bytes.size() >= 4 && modbus::rtu_crc_ok(bytes)) told = true;
+    }
+    return any && told;
+}
+
 }  // namespace
 
 InputFormat detect_input_format(std::span<const std::uint8_t> h) {
@@ -273,6 +331,7 @@ InputFormat detect_input_format(std::span<const std::uint8_t> h) {
     const std::string_view text(reinterpret_cast<const char*>(h.data()), h.size());
     if (looks_like_jpnevulator_log(text)) return InputFormat::Jpnevulator;
     if (looks_like_socat_log(text)) return InputFormat::Socat;
+    if (hex_dump(h)) return InputFormat::Hex;
     // text: printable first line that starts with a number
     const auto text_line = [&](std::size_t i) {
         while (i < h.size() && (h[i] == ' ' || h[i] == '\t'))
@@ -388,7 +447,8 @@ bool read_prepared(Analyzer& a, Prepared& p, const SerialLogOptions& options) {
             return a.read_capture(*capture);
         }
         case InputFormat::Text:
-            read = read_text(a, p.input, bytes);
+        case InputFormat::Hex:
+            read = read_text(a, p.input, bytes, p.format == InputFormat::Text);
             break;
         case InputFormat::RtuRaw:
         case InputFormat::AsciiRaw:

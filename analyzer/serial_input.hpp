@@ -21,12 +21,13 @@
 
 namespace mbscope::analyzer {
 
-enum class InputFormat { Auto, Pcap, RtuRaw, AsciiRaw, Text, Jpnevulator, Socat };
-// auto, pcap, rtu, ascii, text, jpnevulator, socat
+enum class InputFormat { Auto, Pcap, RtuRaw, AsciiRaw, Text, Jpnevulator, Socat, Hex };
+// auto, pcap, rtu, ascii, text, jpnevulator, socat, hex
 std::optional<InputFormat> parse_input_format(std::string_view name);
 // pcap/pcapng magic → Pcap; ':' → AsciiRaw; a jpnevulator timestamp line first → Jpnevulator; a socat -x
-// block header (after socat -d lines, if any) → Socat; a first line "NUMBER [DIR] HEX" → Text; otherwise
-// RtuRaw. `head`: the file's first few KiB.
+// block header (after socat -d lines, if any) → Socat; lines of hex bytes alone that the text format cannot
+// be (a first byte with a hex letter, or a line that is a whole RTU frame) → Hex; a first line
+// "NUMBER [DIR] HEX" → Text; otherwise RtuRaw. `head`: the file's first few KiB.
 InputFormat detect_input_format(std::span<const std::uint8_t> head);
 
 // Read a file in the given format into the analyzer; false when it could not be read completely (the

@@ -184,10 +184,11 @@ void register_decode(CLI::App& app, int& exit_code) {
             [](std::string& file) { return file == "-" ? std::string() : CLI::ExistingFile(file); },
             "FILE or -"));
     cmd->add_option("--format", o->format,
-                    "auto, pcap, rtu (raw dump), ascii (raw dump), text (TIME [DIR] HEX...), jpnevulator "
-                    "(--read --timing-print log), socat (socat -x -v standard error)")
-        ->check(
-            CLI::IsMember({"auto", "pcap", "pcapng", "rtu", "raw", "ascii", "text", "jpnevulator", "socat"}))
+                    "auto, pcap, rtu (raw dump), ascii (raw dump), text (TIME [DIR] HEX...), hex (HEX... "
+                    "without times), jpnevulator (--read --timing-print log), socat (socat -x -v standard "
+                    "error)")
+        ->check(CLI::IsMember(
+            {"auto", "pcap", "pcapng", "rtu", "raw", "ascii", "text", "hex", "jpnevulator", "socat"}))
         ->capture_default_str();
     cmd->add_option("--master-alias", o->master_alias,
                     "jpnevulator logs: the --tty alias (or device) that carries the master's requests; the "

@@ -95,6 +95,39 @@ TEST(SerialInput, FormatDetection) {
     EXPECT_EQ(d(bytes({'a', ' ', 'b', '\n', '1', ' ', '2', 0x11, '\n'})), an::InputFormat::RtuRaw);
 }
 
+// Traffic pasted as hex lines without times: the text format read each line's first byte as its time ("01"
+// at 1 s), the rest of the line a frame with a bad CRC, and the byte taken for a time counted nowhere
+// ("0 unparsed bytes"). Lines of two-digit hex tokens alone are a hex dump when something tells them from
+// "TIME HEX...": a line that is a whole RTU frame, or a first byte with a hex letter. Two-digit times
+// ("10 11 03 ...") with nothing of the kind stay the text format.
+TEST(SerialInput, AHexDumpWithoutTimesIsReadAsItsBytes) {
+    auto d = [](const std::string& s) {
+        return an::detect_input_format({reinterpret_cast<const std::uint8_t*>(s.data()), s.size()});
+    };
+    EXPECT_EQ(d("01 03 00 00 00 01 84 0A\n01 03 02 00 64 B9 AF\n"), an::InputFormat::Hex);
+    EXPECT_EQ(d("3A 30 31\n"), an::InputFormat::Hex);
+    EXPECT_EQ(d("10 11 03 00 60\n11 11 03 06\n"), an::InputFormat::Text);
+    EXPECT_EQ(d("1.000 11 03 00 60\n"), an::InputFormat::Text);
+    const auto path = write_temp("pasted.txt",
+                                 "# pasted\n01 03 00 00 00 01 84 0A\n01 03 02 00 64 B9 AF\n"
+                                 "11 03 00 6B\n00 03 76 87 # split across lines\n");
+    auto r = decode(path);
+    EXPECT_TRUE(r->ok);
+    EXPECT_TRUE(r->summary.input_errors.empty());
+    EXPECT_EQ(r->summary.unparsed_bytes, 0u);
+    ASSERT_EQ(r->sink.frames.size(), 3u);
+    EXPECT_EQ(r->sink.frames[2].frame.offset, 15u);
+    ASSERT_EQ(r->sink.transactions.size(), 2u);  // the last request's reply is not in the dump
+    EXPECT_EQ(r->sink.count(mb::FindingCode::PairNoResponseAtEnd), 1);
+    EXPECT_EQ(r->sink.count(mb::FindingCode::RtuCrcMismatch), 0);
+    const auto bad = write_temp("pasted_bad.txt", "01 03 00 00 00 01 84 0A\n01 0X\n");
+    r = decode(bad, an::InputFormat::Hex);
+    EXPECT_FALSE(r->ok);
+    ASSERT_EQ(r->summary.input_errors.size(), 1u);
+    EXPECT_EQ(r->summary.input_errors[0].rfind(bad + ":2: not hex bytes: ", 0), 0u)
+        << r->summary.input_errors[0];
+}
+
 // The same bad line first or later: named, and the good lines decode either way.
 TEST(SerialInput, ABadFirstLineOfATextLogIsNamedAndTheRestDecodes) {
     const auto path = write_temp("bad_first_line.txt",
