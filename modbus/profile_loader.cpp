@@ -1554,11 +1554,25 @@ Profile resolve_model(Reader& r, const json& doc, const json& model, const std::
                       bool last, const Profile& common, const ModularMaps* maps,
                       const ProfileConfig& config) {
     Profile p = common;
+    // An id is typed on command lines (`--profile`, `--map 3=ID`), named in reports and file names: words
+    // of letters and digits joined by '-', as the schema says. "a<b&c" was accepted and served.
+    const auto id_ok = [](const std::string& id) {
+        const bool chars = std::all_of(id.begin(), id.end(), [](char c) {
+            return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-';
+        });
+        return chars && !id.empty() && id.front() != '-' && id.back() != '-' &&
+               id.find("--") == std::string::npos;
+    };
+    const char* id_rule = "must be letters and digits in words joined by '-' (\"mmk-2030\")";
     p.id = lower(r.string(model, "id", mptr, true).value_or(""));
+    if (model.contains("id") && model["id"].is_string() && !id_ok(p.id)) r.error(mptr + "/id", id_rule);
     p.name = r.string(model, "name", mptr, false).value_or(p.id);
     if (auto a = r.child(model, "aliases"); a && a->is_array())
-        for (const auto& x : *a)
-            if (x.is_string()) p.aliases.push_back(lower(x.get<std::string>()));
+        for (std::size_t i = 0; i < a->size(); ++i)
+            if (const auto& x = (*a)[i]; x.is_string()) {
+                p.aliases.push_back(lower(x.get<std::string>()));
+                if (!id_ok(p.aliases.back())) r.error(mptr + "/aliases/" + std::to_string(i), id_rule);
+            }
     // A modular model adds its channels' points to the base tables: to a copy of them unless it is the last.
     Tables expanded;
     if (maps) {

@@ -273,6 +273,28 @@ TEST(ProfileLoader, ReportsEveryErrorWithItsPointer) {
     EXPECT_GE(l.errors.size(), 8u);
 }
 
+// A model's id and aliases are typed on command lines and named in reports and file names: words of
+// letters and digits joined by '-', as the schema says; "a<b&c" was accepted and served. Upper case is
+// taken as lower case, as before.
+TEST(ProfileLoader, ModelIdsAndAliasesAreWordsJoinedByDashes) {
+    const auto errors = [](const std::string& models) {
+        const std::string text = R"({"format": "mbscope-profile/1", "family": "x", "vendor": "y",
+          "line": {"transports": ["rtu"]}, "functions": {"supported": [3]},
+          "tables": {"holding_registers": [{"address": 1, "name": "a", "access": "r", "source": "000:1"}]},
+          "models": )" + models + "}";
+        return pointers_and_messages(load(text.c_str()));
+    };
+    const std::string rule = "must be letters and digits in words joined by '-' (\"mmk-2030\")";
+    EXPECT_EQ(errors(R"([{"id": "a<b&c"}])"),
+              (std::vector<std::pair<std::string, std::string>>{{"/models/0/id", rule}}));
+    EXPECT_EQ(errors(R"([{"id": "MMK-2030", "aliases": ["ok-1", "-x", "a--b", "a b", ""]}])"),
+              (std::vector<std::pair<std::string, std::string>>{{"/models/0/aliases/1", rule},
+                                                                {"/models/0/aliases/2", rule},
+                                                                {"/models/0/aliases/3", rule},
+                                                                {"/models/0/aliases/4", rule}}));
+    EXPECT_TRUE(errors(R"([{"id": "ty-2095-tc-rtd", "aliases": ["dmy-2030"]}])").empty());
+}
+
 // Line and function limits that cannot be: a quantity past what the one-byte byte count describes (the
 // reference slave served 200 registers with a byte count of 144 in a 403-byte reply), a key that is no
 // function with a quantity, baud rates and parities that were dropped without a word, a unit range upside
