@@ -310,9 +310,10 @@ std::vector<RuleBreak> Semantics::check_response(const Profile& profile, const s
     // answers 03 to an FC5 of value 1234 at a coil outside the map answers as the specification says; the
     // reference slave does, and was held to 02 for it.
     RuleBreak malformed{FindingCode::PduCoilValueInvalid, {}};
-    for (const auto& [violation, condition] : {std::pair{FindingCode::PduCoilValueInvalid, "bad_value"},
-                                              std::pair{FindingCode::PduQuantityOutOfRange, "bad_quantity"},
-                                              std::pair{FindingCode::PduByteCountMismatch, "bad_quantity"}}) {
+    for (const auto& [violation, condition] :
+         {std::pair{FindingCode::PduCoilValueInvalid, "bad_value"},
+          std::pair{FindingCode::PduQuantityOutOfRange, "bad_quantity"},
+          std::pair{FindingCode::PduByteCountMismatch, "bad_quantity"}}) {
         if (!q.violations.contains(violation)) continue;
         malformed = {violation, "the request: " + std::string(info(violation).summary)};
         due = Due{1, condition, 3, &malformed};

@@ -10,8 +10,8 @@
 #include <charconv>
 #include <cstring>
 #include <filesystem>
-#include <optional>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <string_view>
